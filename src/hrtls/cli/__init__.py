@@ -1,0 +1,1 @@
+"""Command-line interface (``hrtls ...``), built with typer and rich."""

@@ -1,0 +1,203 @@
+"""Vertical and horizontal acceleration in a levelled frame.
+
+Two ways to level the accelerometer (specific force ``f``, device frame, m/s^2):
+
+* :func:`from_orientation`: with an attitude quaternion series ``q_nd`` (device -> ENU, e.g. from
+  an attitude filter or the device's own AHRS, Basso Sec. II-A), ``f_n = q_nd * f_d * conj(q_nd)``;
+  the vertical linear acceleration is ``f_n,z - g`` and the horizontal part ``f_n,xy`` is in ENU.
+* :class:`GravityLevelling` (accelerometer-only degraded mode, e.g. a step counter without a
+  gyroscope): gravity is estimated by a first-order low-pass of ``f`` per axis; the vertical
+  acceleration is ``f . u - |g_hat|`` with ``u = g_hat / |g_hat|`` and the horizontal part is
+  expressed on two axes orthogonal to ``u`` that turn with the device (yaw is unobservable, so
+  headings computed from it are relative to the device).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+
+from hrtls.errors import InputError
+from hrtls.frames import GRAVITY_M_S2, quat_rotate
+from hrtls.gait._state import (
+    FloatArray,
+    as_matrix,
+    as_time,
+    check_positive,
+    state_from_dict,
+    state_to_dict,
+)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LevelledAcceleration:
+    """Acceleration split into a vertical and a horizontal part.
+
+    Attributes
+    ----------
+    t: sample times, s.
+    vertical_m_s2: vertical linear acceleration (up positive, gravity removed), m/s^2.
+    horizontal_m_s2: horizontal acceleration (N, 2), m/s^2: ENU east/north when ``frame`` is
+        ``"enu"``, device-fixed levelled axes when ``frame`` is ``"levelled"``.
+    frame: ``"enu"`` or ``"levelled"``.
+    """
+
+    t: FloatArray
+    vertical_m_s2: FloatArray
+    horizontal_m_s2: FloatArray
+    frame: str
+
+
+def from_orientation(t: FloatArray, acc_d_m_s2: FloatArray, q_nd: FloatArray, *,
+                     gravity_m_s2: float = GRAVITY_M_S2) -> LevelledAcceleration:
+    """Rotate device-frame specific force into ENU with an attitude quaternion series.
+
+    Parameters
+    ----------
+    t: sample times, s (N,).
+    acc_d_m_s2: specific force in the device frame, m/s^2 (N, 3).
+    q_nd: unit quaternions [w, x, y, z] rotating device vectors into ENU (N, 4).
+    gravity_m_s2: local gravity removed from the vertical axis, m/s^2.
+    """
+    tt = as_time(t, where="acceleration time")
+    acc = as_matrix(acc_d_m_s2, where="acceleration", columns=3, length=tt.shape[0])
+    q = as_matrix(q_nd, where="orientation q_nd", columns=4, length=tt.shape[0])
+    norm = np.linalg.norm(q, axis=1)
+    if np.any(np.abs(norm - 1.0) > 1e-3):
+        idx = int(np.flatnonzero(np.abs(norm - 1.0) > 1e-3)[0])
+        raise InputError(f"quaternion norm {norm[idx]:.4f}", where=f"orientation q_nd row {idx}",
+                         expected="unit quaternions")
+    f_n = quat_rotate(q / norm[:, None], acc)
+    return LevelledAcceleration(tt, f_n[:, 2] - gravity_m_s2, np.ascontiguousarray(f_n[:, :2]),
+                                "enu")
+
+
+@numba.njit(cache=True)
+def _levelling_kernel(t: FloatArray, acc: FloatArray, cutoff_hz: float, g: FloatArray,
+                      ref: FloatArray, vert: FloatArray, horiz: FloatArray) -> None:  # pragma: no cover
+    """Low-pass gravity per axis (state ``g``), project onto it; ``ref[3]`` is the last time.
+
+    ``ref[0:3]`` holds the device axis whose horizontal projection defines the first levelled
+    axis; it switches to the most horizontal device axis when the projection gets too short.
+    """
+    n = t.shape[0]
+    for i in range(n):
+        if not np.isfinite(ref[3]):
+            g[0] = acc[i, 0]
+            g[1] = acc[i, 1]
+            g[2] = acc[i, 2]
+            dt = 0.0
+        else:
+            dt = t[i] - ref[3]
+        ref[3] = t[i]
+        alpha = 1.0 - np.exp(-2.0 * np.pi * cutoff_hz * dt)
+        for k in range(3):
+            g[k] += alpha * (acc[i, k] - g[k])
+        gn = np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+        if gn < 1e-9:
+            vert[i] = 0.0
+            horiz[i, 0] = 0.0
+            horiz[i, 1] = 0.0
+            continue
+        u0 = g[0] / gn
+        u1 = g[1] / gn
+        u2 = g[2] / gn
+        # first horizontal axis: projection of the reference device axis
+        d = ref[0] * u0 + ref[1] * u1 + ref[2] * u2
+        e0 = ref[0] - d * u0
+        e1 = ref[1] - d * u1
+        e2 = ref[2] - d * u2
+        en = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        if en < 0.5:
+            # pick the device axis most orthogonal to gravity
+            best = 0
+            if abs(u1) < abs(u0) and abs(u1) <= abs(u2):
+                best = 1
+            elif abs(u2) < abs(u0) and abs(u2) < abs(u1):
+                best = 2
+            ref[0] = 1.0 if best == 0 else 0.0
+            ref[1] = 1.0 if best == 1 else 0.0
+            ref[2] = 1.0 if best == 2 else 0.0
+            d = ref[0] * u0 + ref[1] * u1 + ref[2] * u2
+            e0 = ref[0] - d * u0
+            e1 = ref[1] - d * u1
+            e2 = ref[2] - d * u2
+            en = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        e0 /= en
+        e1 /= en
+        e2 /= en
+        # second horizontal axis: u x e (right-handed with u up)
+        f0 = u1 * e2 - u2 * e1
+        f1 = u2 * e0 - u0 * e2
+        f2 = u0 * e1 - u1 * e0
+        a0 = acc[i, 0]
+        a1 = acc[i, 1]
+        a2 = acc[i, 2]
+        vert[i] = a0 * u0 + a1 * u1 + a2 * u2 - gn
+        horiz[i, 0] = a0 * e0 + a1 * e1 + a2 * e2
+        horiz[i, 1] = a0 * f0 + a1 * f1 + a2 * f2
+
+
+@dataclass
+class LevellingState:
+    """Gravity estimate (m/s^2, device frame), reference axis and last time (NaN: none yet)."""
+
+    gravity: FloatArray = field(default_factory=lambda: np.zeros(3))
+    ref: FloatArray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, np.nan]))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able values (NaN written as None)."""
+        d = state_to_dict(self)
+        d["ref"] = [None if not np.isfinite(v) else v for v in d["ref"]]
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> LevellingState:
+        """Inverse of :meth:`to_dict`."""
+        d = dict(data)
+        d["ref"] = [np.nan if v is None else v for v in d["ref"]]
+        return state_from_dict(cls, d)
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class LevellingParams:
+    """Parameters of :class:`GravityLevelling`.
+
+    Attributes
+    ----------
+    cutoff_hz: corner frequency of the first-order gravity low-pass, Hz.
+    """
+
+    cutoff_hz: float = 0.25
+
+
+class GravityLevelling:
+    """Accelerometer-only levelling by a low-passed gravity estimate (degraded mode)."""
+
+    def __init__(self, params: LevellingParams | None = None) -> None:
+        self.params = params or LevellingParams()
+        check_positive(self.params.cutoff_hz, "cutoff_hz")
+        self.state = LevellingState()
+
+    def reset(self) -> None:
+        """Forget the gravity estimate."""
+        self.state = LevellingState()
+
+    def update(self, t: FloatArray, acc_d_m_s2: FloatArray) -> LevelledAcceleration:
+        """Process a chunk of device-frame specific force (m/s^2, (N, 3))."""
+        last = self.state.ref[3]
+        tt = as_time(t, where="acceleration time", after=last if np.isfinite(last) else -np.inf)
+        acc = as_matrix(acc_d_m_s2, where="acceleration", columns=3, length=tt.shape[0])
+        vert = np.empty(tt.shape[0])
+        horiz = np.empty((tt.shape[0], 2))
+        _levelling_kernel(tt, acc, self.params.cutoff_hz, self.state.gravity, self.state.ref,
+                          vert, horiz)
+        return LevelledAcceleration(tt, vert, horiz, "levelled")
+
+    def process(self, t: FloatArray, acc_d_m_s2: FloatArray) -> LevelledAcceleration:
+        """Whole recording (resets first)."""
+        self.reset()
+        return self.update(t, acc_d_m_s2)

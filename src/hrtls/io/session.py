@@ -1,0 +1,496 @@
+"""Read and write the session folder (or a zip of it), the canonical interchange format.
+
+Files (all optional; SI units; a header line each) — see ``docs/architecture.md``:
+
+=================== ===================================== =========================================
+file                columns                               meaning
+=================== ===================================== =========================================
+``imu.csv``         ``t,ax,ay,az[,gx,gy,gz][,mx,my,mz]``  device-frame specific force (m/s^2),
+                                                          angular rate (rad/s), field (uT)
+``gyro.csv``        ``t,gx,gy,gz``                        gyroscope with its own timestamps
+``mag.csv``         ``t,mx,my,mz``                        magnetometer with its own timestamps
+``pressure.csv``    ``t,pressure_pa``                     barometer, Pa
+``orientation.csv`` ``t,qw,qx,qy,qz``                     orientation computed by the device, q_nd
+``fixes.csv``       ``t,x,y[,z],sigma``                   position fixes, m
+``rss.csv``         ``t,anchor,rss_dbm``                  beacon RSS, dBm
+``tags.csv``        ``t,tag``                             passive tag reads
+``ranges.csv``      ``t,node,range[,sigma]``              ranges to radio nodes, m
+``landmarks.json``  list of location messages             see :class:`hrtls.data.Landmark`
+``session.json``    object                                see :class:`hrtls.data.SessionMeta`
+``truth.csv``       ``t,x,y,z[,heading]``                 ground-truth trajectory
+``checkpoints.csv`` ``t,x,y,z[,label]``                   ground truth at known points
+=================== ===================================== =========================================
+
+A zip is read member by member in memory: nothing is extracted, members with absolute paths or
+``..`` are refused, and the total uncompressed size is capped (``max_bytes``).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+import zipfile
+from collections.abc import Callable
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from hrtls.data import (
+    Checkpoints,
+    GroundTruth,
+    ImuStream,
+    Landmark,
+    OrientationSeries,
+    PositionFixes,
+    RangeMeasurements,
+    RssReadings,
+    SensorSeries,
+    Session,
+    SessionMeta,
+    TagDetections,
+)
+from hrtls.data.validation import FloatArray, drop_non_finite, repair_time_order
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.io.csvtable import ColumnKind, Table, format_table, read_table
+
+SESSION_FILES = ("imu.csv", "gyro.csv", "mag.csv", "pressure.csv", "orientation.csv",
+                 "fixes.csv", "rss.csv", "tags.csv", "ranges.csv", "landmarks.json",
+                 "session.json", "truth.csv", "checkpoints.csv")
+"""Every file a session may hold."""
+
+RESULT_FILES = ("trajectory.csv", "steps.csv", "trajectory.geojson", "report.json")
+"""Outputs that may sit beside a session without being part of it."""
+
+DEFAULT_MAX_BYTES = 2 * 1024**3
+"""Largest total uncompressed size of a zipped session, bytes."""
+
+_AXES = ("x", "y", "z")
+
+
+class _Source:
+    """Files of a session folder or zip, read as bytes by name."""
+
+    def __init__(self, names: set[str], reader: Callable[[str], bytes], label: str):
+        self.names = names
+        self._reader = reader
+        self.label = label
+
+    def read(self, name: str) -> bytes:
+        return self._reader(name)
+
+
+def _folder_source(root: Path) -> _Source:
+    names = {p.name for p in root.iterdir() if p.is_file()}
+    return _Source(names, lambda n: (root / n).read_bytes(), str(root))
+
+
+def _zip_source(path: Path, max_bytes: int) -> _Source:
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise FormatError(f"not a readable zip ({exc})", where=str(path),
+                          expected="a zip of a session folder") from None
+    infos = [i for i in zf.infolist() if not i.is_dir()]
+    for info in infos:
+        pure = PurePosixPath(info.filename)
+        if pure.is_absolute() or ".." in pure.parts or "\\" in info.filename:
+            raise FormatError(f"member {info.filename!r} points outside the archive",
+                              where=str(path), expected="relative member names without '..'")
+    total = sum(i.file_size for i in infos)
+    if total > max_bytes:
+        raise FormatError(f"{total} bytes uncompressed", where=str(path),
+                          expected=f"at most {max_bytes} bytes (raise max_bytes if intended)")
+    by_dir: dict[str, dict[str, zipfile.ZipInfo]] = {}
+    for info in infos:
+        pure = PurePosixPath(info.filename)
+        by_dir.setdefault(str(pure.parent), {})[pure.name] = info
+    # the folder holding the session files: the root, or a single top-level folder
+    candidates = [d for d, files in by_dir.items() if set(files) & set(SESSION_FILES)]
+    if len(candidates) != 1:
+        raise FormatError(
+            "no session files found" if not candidates else
+            f"session files in several folders ({', '.join(sorted(candidates))})",
+            where=str(path), expected="one folder with imu.csv, fixes.csv, ... inside the zip")
+    members = by_dir[candidates[0]]
+
+    def read(name: str) -> bytes:
+        info = members[name]
+        with zf.open(info) as fh:
+            data = fh.read(info.file_size + 1)
+        if len(data) != info.file_size:
+            raise FormatError("member size differs from its header", where=f"{path}:{name}",
+                              expected="an intact zip")
+        return data
+
+    return _Source(set(members), read, str(path))
+
+
+def _table(src: _Source, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...]
+           ) -> Table | None:
+    if name not in src.names:
+        return None
+    return read_table(src.read(name), name=name, kinds=kinds, required=required)
+
+
+def _group(table: Table, cols: tuple[str, ...], *, name: str) -> FloatArray | None:
+    present = [c in table.present for c in cols]
+    if not any(present):
+        return None
+    if not all(present):
+        missing = [c for c, p in zip(cols, present, strict=True) if not p]
+        raise FormatError(f"incomplete column group, missing {', '.join(missing)}",
+                          where=f"{name} line 1", expected=f"all of {','.join(cols)} or none")
+    return np.column_stack([table.float(c) for c in cols])
+
+
+def _repaired(t: FloatArray, groups: list[FloatArray], *, name: str, repair: bool,
+              strict: bool = True) -> tuple[FloatArray, list[FloatArray]]:
+    if not repair:
+        return t, groups
+    t, groups = drop_non_finite(t, groups, where=name)
+    return repair_time_order(t, groups, where=name, strict=strict)
+
+
+def _read_vector_file(src: _Source, name: str, prefix: str, *, repair: bool
+                      ) -> SensorSeries | None:
+    cols = tuple(prefix + a for a in _AXES)
+    table = _table(src, name, dict.fromkeys(("t", *cols), "float"), ("t", *cols))
+    if table is None:
+        return None
+    group = _group(table, cols, name=name)
+    assert group is not None
+    t, (values,) = _repaired(table.float("t"), [group], name=name, repair=repair)
+    return SensorSeries(t, values, name)
+
+
+def _read_imu(src: _Source, *, repair: bool, check_units: bool) -> ImuStream | None:
+    gyro_cols = tuple("g" + a for a in _AXES)
+    mag_cols = tuple("m" + a for a in _AXES)
+    acc_cols = tuple("a" + a for a in _AXES)
+    kinds: dict[str, ColumnKind] = dict.fromkeys(("t", *acc_cols, *gyro_cols, *mag_cols), "float")
+    table = _table(src, "imu.csv", kinds, ("t", *acc_cols))
+    gyro_file = _read_vector_file(src, "gyro.csv", "g", repair=repair)
+    mag_file = _read_vector_file(src, "mag.csv", "m", repair=repair)
+    if table is None:
+        if gyro_file is not None or mag_file is not None:
+            raise FormatError("gyro.csv or mag.csv without imu.csv", where=src.label,
+                              expected="imu.csv with the accelerometer")
+        return None
+    acc = _group(table, acc_cols, name="imu.csv")
+    gyr = _group(table, gyro_cols, name="imu.csv")
+    mag = _group(table, mag_cols, name="imu.csv")
+    for inline, separate, label in ((gyr, gyro_file, "gyro.csv"), (mag, mag_file, "mag.csv")):
+        if inline is not None and separate is not None:
+            raise FormatError(f"both imu.csv columns and {label}", where=src.label,
+                              expected=f"the sensor in one place only: imu.csv or {label}")
+    assert acc is not None
+    groups = [g for g in (acc, gyr, mag) if g is not None]
+    t, groups = _repaired(table.float("t"), groups, name="imu.csv", repair=repair)
+    it = iter(groups)
+    acc_v = next(it)
+    gyr_v = next(it) if gyr is not None else None
+    mag_v = next(it) if mag is not None else None
+    return ImuStream(
+        SensorSeries(t, acc_v, "imu.csv accelerometer"),
+        gyro_file if gyr_v is None else SensorSeries(t, gyr_v, "imu.csv gyroscope"),
+        mag_file if mag_v is None else SensorSeries(t, mag_v, "imu.csv magnetometer"),
+        check_units=check_units,
+    )
+
+
+def _read_landmarks(src: _Source) -> dict[str, Landmark]:
+    if "landmarks.json" not in src.names:
+        return {}
+    items = _json(src, "landmarks.json")
+    if not isinstance(items, list):
+        raise FormatError(f"top level is {type(items).__name__}", where="landmarks.json",
+                          expected="a JSON list of location messages")
+    out: dict[str, Landmark] = {}
+    for i, item in enumerate(items):
+        try:
+            landmark = Landmark.model_validate(item)
+        except ValidationError as exc:
+            raise FormatError(_pydantic_problem(exc), where=f"landmarks.json item {i}",
+                              expected="a location message (id, kind, position or wgs84, ...)"
+                              ) from None
+        if landmark.id in out:
+            raise FormatError(f"duplicate id {landmark.id!r}", where=f"landmarks.json item {i}",
+                              expected="unique landmark ids")
+        out[landmark.id] = landmark
+    return out
+
+
+def _pydantic_problem(exc: ValidationError) -> str:
+    err = exc.errors()[0]
+    loc = ".".join(str(p) for p in err["loc"]) or "(object)"
+    return f"field {loc!r}: {err['msg']}"
+
+
+def _json(src: _Source, name: str) -> Any:
+    try:
+        return json.loads(src.read(name).decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise FormatError("not UTF-8 text", where=name, expected="a UTF-8 JSON file") from None
+    except json.JSONDecodeError as exc:
+        raise FormatError(exc.msg, where=f"{name} line {exc.lineno} column {exc.colno}",
+                          expected="valid JSON") from None
+
+
+def _read_meta(src: _Source) -> SessionMeta:
+    if "session.json" not in src.names:
+        return SessionMeta()
+    data = _json(src, "session.json")
+    if not isinstance(data, dict):
+        raise FormatError(f"top level is {type(data).__name__}", where="session.json",
+                          expected="a JSON object")
+    try:
+        return SessionMeta.model_validate(data)
+    except ValidationError as exc:
+        raise FormatError(_pydantic_problem(exc), where="session.json",
+                          expected="the session.json schema (docs/architecture.md)") from None
+
+
+def is_session(path: Path) -> bool:
+    """True when ``path`` is a folder or zip holding at least one session file."""
+    path = Path(path)
+    if path.is_dir():
+        return any((path / n).is_file() for n in SESSION_FILES)
+    if path.suffix.lower() == ".zip" and zipfile.is_zipfile(path):
+        try:
+            _zip_source(path, DEFAULT_MAX_BYTES)
+        except FormatError:
+            return False
+        return True
+    return False
+
+
+def read_session(path: Path | str, *, repair: bool = False, check_units: bool = True,
+                 max_bytes: int = DEFAULT_MAX_BYTES) -> Session:
+    """Read a session folder or zip.
+
+    Parameters
+    ----------
+    path:
+        The folder, or a ``.zip`` of it (files at the root or in one folder).
+    repair:
+        Drop non-finite rows, sort backward times and merge duplicated times, each with a
+        :class:`~hrtls.errors.RepairWarning`. Without it such files raise an error.
+    check_units:
+        Reject accelerometers in g, gyroscopes in deg/s, magnetometers in gauss/nT.
+    max_bytes:
+        Cap on the total uncompressed size of a zip.
+
+    Raises
+    ------
+    FormatError, InputError
+        Naming the file, line and field that are wrong.
+    """
+    path = Path(path)
+    if path.is_dir():
+        src = _folder_source(path)
+    elif path.is_file():
+        src = _zip_source(path, max_bytes)
+    else:
+        raise InputError("no such file or folder", where=str(path),
+                         expected="a session folder or zip")
+    if not src.names & set(SESSION_FILES):
+        raise FormatError("no session files", where=str(path),
+                          expected=f"at least one of {', '.join(SESSION_FILES)}")
+    try:
+        return _assemble(src, repair=repair, check_units=check_units)
+    except InputError as exc:
+        if str(path) not in exc.where and exc.where:
+            raise type(exc)(exc.problem, where=f"{path}/{exc.where}", expected=exc.expected,
+                            hint=exc.hint) from None
+        raise
+
+
+def _assemble(src: _Source, *, repair: bool, check_units: bool) -> Session:
+    meta = _read_meta(src)
+    imu = _read_imu(src, repair=repair, check_units=check_units)
+    pressure = None
+    table = _table(src, "pressure.csv", {"t": "float", "pressure_pa": "float"},
+                   ("t", "pressure_pa"))
+    if table is not None:
+        t, (p,) = _repaired(table.float("t"), [table.float("pressure_pa")], name="pressure.csv",
+                            repair=repair)
+        pressure = SensorSeries(t, p, "pressure.csv")
+    orientation = None
+    qcols = ("qw", "qx", "qy", "qz")
+    table = _table(src, "orientation.csv", dict.fromkeys(("t", *qcols), "float"), ("t", *qcols))
+    if table is not None:
+        q = _group(table, qcols, name="orientation.csv")
+        assert q is not None
+        t, (q,) = _repaired(table.float("t"), [q], name="orientation.csv", repair=repair)
+        orientation = OrientationSeries(t, q, "orientation.csv")
+    fixes = _read_fixes(src, repair=repair)
+    rss = _read_obs(src, "rss.csv", {"t": "float", "anchor": "str", "rss_dbm": "float"},
+                    ("t", "anchor", "rss_dbm"), repair=repair)
+    rss_obj = None if rss is None else RssReadings(rss["t"], rss["anchor"], rss["rss_dbm"],
+                                                   "rss.csv")
+    tags = _read_obs(src, "tags.csv", {"t": "float", "tag": "str"}, ("t", "tag"), repair=repair)
+    tags_obj = None if tags is None else TagDetections(tags["t"], tags["tag"], "tags.csv")
+    ranges = _read_obs(src, "ranges.csv", {"t": "float", "node": "str", "range": "float",
+                                           "sigma": "float_or_empty"},
+                       ("t", "node", "range"), repair=repair)
+    ranges_obj = None if ranges is None else RangeMeasurements(
+        ranges["t"], ranges["node"], ranges["range"],
+        ranges.get("sigma", np.full(len(ranges["t"]), np.nan)), "ranges.csv")
+    truth = None
+    table = _table(src, "truth.csv", dict.fromkeys(("t", "x", "y", "z", "heading"), "float"),
+                   ("t", "x", "y", "z"))
+    if table is not None:
+        xyz = _group(table, ("x", "y", "z"), name="truth.csv")
+        assert xyz is not None
+        groups = [xyz] + ([table.float("heading")] if "heading" in table.present else [])
+        t, groups = _repaired(table.float("t"), groups, name="truth.csv", repair=repair)
+        truth = GroundTruth(t, groups[0], groups[1] if len(groups) > 1 else None, "truth.csv")
+    checkpoints = None
+    cp = _read_obs(src, "checkpoints.csv", {"t": "float", "x": "float", "y": "float",
+                                             "z": "float", "label": "str"},
+                   ("t", "x", "y", "z"), repair=repair)
+    if cp is not None:
+        labels = cp.get("label", np.full(len(cp["t"]), "", dtype=np.str_))
+        checkpoints = Checkpoints(cp["t"], np.column_stack([cp["x"], cp["y"], cp["z"]]), labels,
+                                  "checkpoints.csv")
+    session = Session(meta=meta, imu=imu, pressure=pressure, orientation=orientation,
+                      fixes=fixes, rss=rss_obj, tags=tags_obj, ranges=ranges_obj,
+                      landmarks=_read_landmarks(src), truth=truth, checkpoints=checkpoints)
+    for label, ids in session.unknown_ids().items():
+        shown = ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else "")
+        warnings.warn(f"{label}.csv: {len(ids)} id(s) not in landmarks.json ({shown}); "
+                      "their readings cannot be placed", DegradedInputWarning, stacklevel=2)
+    return session
+
+
+def _read_fixes(src: _Source, *, repair: bool) -> PositionFixes | None:
+    table = _table(src, "fixes.csv", dict.fromkeys(("t", "x", "y", "z", "sigma"), "float"),
+                   ("t", "x", "y", "sigma"))
+    if table is None:
+        return None
+    has_z = "z" in table.present
+    z = table.float("z") if has_z else np.zeros(table.n_rows)
+    xyz = np.column_stack([table.float("x"), table.float("y"), z])
+    t, (xyz, sigma) = _repaired(table.float("t"), [xyz, table.float("sigma")], name="fixes.csv",
+                                repair=repair, strict=False)
+    return PositionFixes(t, xyz, sigma, has_z, "fixes.csv")
+
+
+def _read_obs(src: _Source, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...],
+              *, repair: bool) -> dict[str, Any] | None:
+    """Observation table as a dict of columns (time non-decreasing, sorted with ``repair``)."""
+    table = _table(src, name, kinds, required)
+    if table is None:
+        return None
+    cols = {c: table.columns[c] for c in table.present}
+    t = table.float("t")
+    if repair and len(t) > 1 and np.any(np.diff(t) < 0):
+        others = [c for c in table.present if c != "t"]
+        t, moved = repair_time_order(t, [np.asarray(cols[c]) for c in others], where=name,
+                                     strict=False)
+        cols = dict(zip(others, moved, strict=True))
+    cols["t"] = t
+    return cols
+
+
+# ------------------------------------------------------------------------------------------------
+# Writing
+# ------------------------------------------------------------------------------------------------
+def session_files(session: Session) -> dict[str, bytes]:
+    """Render a session as ``{file name: bytes}``, exactly what :func:`write_session` writes."""
+    files: dict[str, str] = {}
+    imu = session.imu
+    if imu is not None:
+        cols: dict[str, np.ndarray] = {"t": imu.accel.t}
+        cols.update({"a" + a: imu.accel.values[:, i] for i, a in enumerate(_AXES)})
+        for series, prefix, separate in ((imu.gyro, "g", "gyro.csv"), (imu.mag, "m", "mag.csv")):
+            if series is None:
+                continue
+            if imu.shares_time(series):
+                cols.update({prefix + a: series.values[:, i] for i, a in enumerate(_AXES)})
+            else:
+                own = {"t": series.t}
+                own.update({prefix + a: series.values[:, i] for i, a in enumerate(_AXES)})
+                files[separate] = format_table(own)
+        files["imu.csv"] = format_table(cols)
+    if session.pressure is not None:
+        files["pressure.csv"] = format_table({"t": session.pressure.t,
+                                              "pressure_pa": session.pressure.values[:, 0]})
+    if session.orientation is not None:
+        q = session.orientation.q
+        files["orientation.csv"] = format_table({"t": session.orientation.t, "qw": q[:, 0],
+                                                 "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]})
+    if session.fixes is not None:
+        f = session.fixes
+        cols = {"t": f.t, "x": f.xyz[:, 0], "y": f.xyz[:, 1]}
+        if f.has_z:
+            cols["z"] = f.xyz[:, 2]
+        cols["sigma"] = f.sigma_m
+        files["fixes.csv"] = format_table(cols)
+    if session.rss is not None:
+        files["rss.csv"] = format_table({"t": session.rss.t, "anchor": session.rss.anchor,
+                                         "rss_dbm": session.rss.rss_dbm})
+    if session.tags is not None:
+        files["tags.csv"] = format_table({"t": session.tags.t, "tag": session.tags.tag})
+    if session.ranges is not None:
+        r = session.ranges
+        cols = {"t": r.t, "node": r.node, "range": r.range_m}
+        if not np.all(np.isnan(r.sigma_m)):
+            cols["sigma"] = r.sigma_m
+        files["ranges.csv"] = format_table(cols)
+    if session.truth is not None:
+        tr = session.truth
+        cols = {"t": tr.t, "x": tr.xyz[:, 0], "y": tr.xyz[:, 1], "z": tr.xyz[:, 2]}
+        if tr.heading_rad is not None:
+            cols["heading"] = tr.heading_rad
+        files["truth.csv"] = format_table(cols)
+    if session.checkpoints is not None:
+        c = session.checkpoints
+        cols = {"t": c.t, "x": c.xyz[:, 0], "y": c.xyz[:, 1], "z": c.xyz[:, 2]}
+        if np.any(np.char.str_len(c.label) > 0):
+            cols["label"] = c.label
+        files["checkpoints.csv"] = format_table(cols)
+    if session.landmarks:
+        items = [lm.model_dump(mode="json", exclude_none=True)
+                 for lm in session.landmarks.values()]
+        files["landmarks.json"] = json.dumps(items, indent=2) + "\n"
+    files["session.json"] = session.meta.model_dump_json(indent=2, exclude_none=True) + "\n"
+    return {name: text.encode("utf-8") for name, text in files.items()}
+
+
+def write_session(session: Session, path: Path | str, *, overwrite: bool = False) -> Path:
+    """Write a session as a folder, or as a zip when ``path`` ends in ``.zip``.
+
+    With ``overwrite`` an existing folder's session files are replaced (stale ones removed;
+    other files are left alone); without it an existing target is an error.
+    """
+    path = Path(path)
+    files = session_files(session)
+    if path.suffix.lower() == ".zip":
+        if path.exists() and not overwrite:
+            raise InputError("already exists", where=str(path),
+                             expected="a new path (or overwrite=True)")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".partial")
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for name, data in files.items():
+                zf.writestr(name, data)
+        tmp.replace(path)
+        return path
+    if path.exists():
+        if not path.is_dir():
+            raise InputError("exists and is not a folder", where=str(path),
+                             expected="a folder path")
+        existing = [n for n in SESSION_FILES if (path / n).exists()]
+        if existing and not overwrite:
+            raise InputError(f"already holds a session ({', '.join(existing)})", where=str(path),
+                             expected="an empty or new folder (or overwrite=True)")
+        for name in existing:
+            (path / name).unlink()
+    path.mkdir(parents=True, exist_ok=True)
+    for name, data in files.items():
+        (path / name).write_bytes(data)
+    return path
+

@@ -1,0 +1,425 @@
+"""Queue-based localization propagation shared by TLA and SELA (compiled kernel + reference).
+
+The kernel works on the CSR adjacency of the link graph. A node enters the work queue only when
+one of its neighbours is localized (or, for SELA, when a node two hops away becomes a possible
+shadow-edge witness), so the work is proportional to the number of links times the degree, never
+to repeated sweeps over all nodes.
+
+Rules (Inderst thesis Sec. 3.5 and 5.2):
+
+* trilateration: >= 3 localized neighbours whose positions are not collinear (RMS distance from
+  their best-fit line >= ``min_spread_m``) -> linear least squares, two Gauss-Newton iterations,
+  accepted only if every range residual is <= ``range_tol_m`` (else flagged inconsistent);
+* shadow edge (SELA only): >= 2 localized neighbours (or >= 3 collinear ones) -> the two circle
+  intersections of the farthest-apart pair are the candidates (Definition 1). A candidate is
+  rejected when it disagrees with another localized neighbour's range, or when a localized node
+  ``j`` that is a neighbour of one of the localized neighbours (two-hop information, Remark 1)
+  and is *not* linked to the node lies closer than ``rho - shadow_margin_m`` to the candidate
+  (the shadow edge ``(i, j)``: under the disk model the node would have heard ``j``).
+  Exactly one surviving candidate -> placed; none -> flagged inconsistent; two -> ambiguous.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+# method codes (same as hrtls.wsn.network)
+M_UNLOCALIZED, M_ANCHOR, M_TRILATERATION, M_SHADOW, M_AGENT = 0, 1, 2, 3, 4
+# status codes of unlocalized nodes
+S_OK, S_TOO_FEW, S_COLLINEAR, S_AMBIGUOUS, S_INCONSISTENT = 0, 1, 2, 3, 4
+STATUS_NAMES = ("ok", "too-few-neighbours", "collinear", "ambiguous", "inconsistent")
+
+
+@numba.njit(cache=True)
+def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[float, float, float]:
+    """Least-squares position from ``c`` circles; returns x, y and the max |range residual|."""
+    mx = 0.0
+    my = 0.0
+    for k in range(c):
+        mx += px[k]
+        my += py[k]
+    mx /= c
+    my /= c
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    mq = 0.0
+    md = 0.0
+    for k in range(c):
+        qx = px[k] - mx
+        qy = py[k] - my
+        sxx += qx * qx
+        sxy += qx * qy
+        syy += qy * qy
+        mq += qx * qx + qy * qy
+        md += d[k] * d[k]
+    mq /= c
+    md /= c
+    # -2 q_k . y = d_k^2 - mean(d^2) - |q_k|^2 + mean(|q|^2), normal equations S y = rhs
+    rx = 0.0
+    ry = 0.0
+    for k in range(c):
+        qx = px[k] - mx
+        qy = py[k] - my
+        b = -0.5 * (d[k] * d[k] - md - (qx * qx + qy * qy) + mq)
+        rx += qx * b
+        ry += qy * b
+    det = sxx * syy - sxy * sxy
+    yx = (syy * rx - sxy * ry) / det
+    yy = (sxx * ry - sxy * rx) / det
+    x = mx + yx
+    y = my + yy
+    for _ in range(2):  # Gauss-Newton on the ranges
+        a11 = 0.0
+        a12 = 0.0
+        a22 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        for k in range(c):
+            ex = x - px[k]
+            ey = y - py[k]
+            r = math.sqrt(ex * ex + ey * ey)
+            if r <= 0.0:
+                continue
+            ux = ex / r
+            uy = ey / r
+            res = d[k] - r
+            a11 += ux * ux
+            a12 += ux * uy
+            a22 += uy * uy
+            g1 += ux * res
+            g2 += uy * res
+        dt = a11 * a22 - a12 * a12
+        if dt <= 0.0:
+            break
+        x += (a22 * g1 - a12 * g2) / dt
+        y += (a11 * g2 - a12 * g1) / dt
+    worst = 0.0
+    for k in range(c):
+        ex = x - px[k]
+        ey = y - py[k]
+        res = abs(math.sqrt(ex * ex + ey * ey) - d[k])
+        if res > worst:
+            worst = res
+    return x, y, worst
+
+
+@numba.njit(cache=True)
+def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
+    """RMS distance of the points from their best-fit line (sqrt of the small scatter eigenvalue / c)."""
+    mx = 0.0
+    my = 0.0
+    for k in range(c):
+        mx += px[k]
+        my += py[k]
+    mx /= c
+    my /= c
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    for k in range(c):
+        qx = px[k] - mx
+        qy = py[k] - my
+        sxx += qx * qx
+        sxy += qx * qy
+        syy += qy * qy
+    tr = 0.5 * (sxx + syy)
+    disc = math.sqrt(max(0.25 * (sxx - syy) ** 2 + sxy * sxy, 0.0))
+    lam = max(tr - disc, 0.0)
+    return math.sqrt(lam / c)
+
+
+@numba.njit(cache=True)
+def _circle_candidates(
+    ax: float, ay: float, ra: float, bx: float, by: float, rb: float, tol: float
+) -> tuple[bool, float, float, float, float]:
+    """Two intersections of circles (a, ra), (b, rb); ok False when they do not meet (beyond tol)."""
+    dx = bx - ax
+    dy = by - ay
+    dd = math.sqrt(dx * dx + dy * dy)
+    if dd <= 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0
+    ex = dx / dd
+    ey = dy / dd
+    along = (ra * ra - rb * rb + dd * dd) / (2.0 * dd)
+    h2 = ra * ra - along * along
+    if h2 < 0.0:
+        # tangent within tolerance: |ra - along| small
+        if math.sqrt(-h2) > math.sqrt(2.0 * tol * (ra + rb) + tol * tol):
+            return False, 0.0, 0.0, 0.0, 0.0
+        h2 = 0.0
+    h = math.sqrt(h2)
+    mx = ax + along * ex
+    my = ay + along * ey
+    return True, mx - h * ey, my + h * ex, mx + h * ey, my - h * ex
+
+
+@numba.njit(cache=True)
+def propagate_kernel(
+    indptr: IntArray,
+    indices: IntArray,
+    dist: FloatArray,
+    pos: FloatArray,
+    localized: BoolArray,
+    method: NDArray[np.int8],
+    status: NDArray[np.int8],
+    witness: IntArray,
+    order: IntArray,
+    n_order: int,
+    radius: float,
+    use_shadow: bool,
+    range_tol: float,
+    min_spread: float,
+    shadow_margin: float,
+) -> int:
+    """Propagate localization in place; returns the new length of ``order``."""
+    n = indptr.size - 1
+    need = 2 if use_shadow else 3
+    count = np.zeros(n, dtype=np.int64)
+    maxdeg = 1
+    for u in range(n):
+        deg = indptr[u + 1] - indptr[u]
+        if deg > maxdeg:
+            maxdeg = deg
+        for k in range(indptr[u], indptr[u + 1]):
+            if localized[indices[k]]:
+                count[u] += 1
+    queue = np.empty(n + 1, dtype=np.int64)
+    inq = np.zeros(n, dtype=np.bool_)
+    head = 0
+    tail = 0
+    qn = n + 1
+    for u in range(n):
+        if not localized[u]:
+            if count[u] >= need:
+                queue[tail] = u
+                tail = (tail + 1) % qn
+                inq[u] = True
+            elif count[u] < need:
+                status[u] = S_TOO_FEW
+    mark = np.full(n, -1, dtype=np.int64)
+    px = np.empty(maxdeg)
+    py = np.empty(maxdeg)
+    pd = np.empty(maxdeg)
+    pid = np.empty(maxdeg, dtype=np.int64)
+    while head != tail:
+        u = queue[head]
+        head = (head + 1) % qn
+        inq[u] = False
+        if localized[u]:
+            continue
+        c = 0
+        for k in range(indptr[u], indptr[u + 1]):
+            j = indices[k]
+            if localized[j]:
+                px[c] = pos[j, 0]
+                py[c] = pos[j, 1]
+                pd[c] = dist[k]
+                pid[c] = j
+                c += 1
+        placed = False
+        xx = 0.0
+        yy = 0.0
+        how = M_TRILATERATION
+        wit = -1
+        st = S_TOO_FEW
+        if c >= 3:
+            if _min_spread(px, py, c) >= min_spread:
+                xx, yy, worst = _lls_gn(px, py, pd, c)
+                if worst <= range_tol:
+                    placed = True
+                else:
+                    st = S_INCONSISTENT
+            else:
+                st = S_COLLINEAR
+        if (not placed) and use_shadow and c >= 2 and st != S_INCONSISTENT:
+            # farthest-apart pair of localized neighbours
+            ia = 0
+            ib = 1
+            best = -1.0
+            for a in range(c):
+                for b in range(a + 1, c):
+                    q = (px[a] - px[b]) ** 2 + (py[a] - py[b]) ** 2
+                    if q > best:
+                        best = q
+                        ia = a
+                        ib = b
+            ok, c1x, c1y, c2x, c2y = _circle_candidates(
+                px[ia], py[ia], pd[ia], px[ib], py[ib], pd[ib], range_tol
+            )
+            if not ok:
+                st = S_INCONSISTENT
+            else:
+                ok1 = True
+                ok2 = True
+                for a in range(c):  # consistency with the other localized neighbours
+                    if a == ia or a == ib:
+                        continue
+                    r1 = math.sqrt((c1x - px[a]) ** 2 + (c1y - py[a]) ** 2)
+                    r2 = math.sqrt((c2x - px[a]) ** 2 + (c2y - py[a]) ** 2)
+                    if abs(r1 - pd[a]) > range_tol:
+                        ok1 = False
+                    if abs(r2 - pd[a]) > range_tol:
+                        ok2 = False
+                # negative information from two-hop localized nodes (shadow edges)
+                for k in range(indptr[u], indptr[u + 1]):
+                    mark[indices[k]] = u
+                mark[u] = u
+                w1 = -1
+                w2 = -1
+                lim = radius - shadow_margin
+                for a in range(c):
+                    h = pid[a]
+                    for k in range(indptr[h], indptr[h + 1]):
+                        j = indices[k]
+                        if mark[j] == u or not localized[j]:
+                            continue
+                        if ok1 and w1 < 0:
+                            if math.sqrt((c1x - pos[j, 0]) ** 2 + (c1y - pos[j, 1]) ** 2) < lim:
+                                w1 = j
+                        if ok2 and w2 < 0:
+                            if math.sqrt((c2x - pos[j, 0]) ** 2 + (c2y - pos[j, 1]) ** 2) < lim:
+                                w2 = j
+                if w1 >= 0:
+                    ok1 = False
+                if w2 >= 0:
+                    ok2 = False
+                if ok1 and not ok2:
+                    placed = True
+                    xx = c1x
+                    yy = c1y
+                    how = M_SHADOW
+                    wit = w2
+                elif ok2 and not ok1:
+                    placed = True
+                    xx = c2x
+                    yy = c2y
+                    how = M_SHADOW
+                    wit = w1
+                elif ok1 and ok2:
+                    st = S_AMBIGUOUS
+                else:
+                    st = S_INCONSISTENT
+        if not placed:
+            status[u] = st
+            continue
+        localized[u] = True
+        pos[u, 0] = xx
+        pos[u, 1] = yy
+        method[u] = how
+        status[u] = S_OK
+        witness[u] = wit
+        order[n_order] = u
+        n_order += 1
+        for k in range(indptr[u], indptr[u + 1]):
+            w = indices[k]
+            count[w] += 1
+            if (not localized[w]) and count[w] >= need and not inq[w]:
+                queue[tail] = w
+                tail = (tail + 1) % qn
+                inq[w] = True
+        if use_shadow:
+            # u may now be a shadow witness for nodes two hops away
+            for k in range(indptr[u], indptr[u + 1]):
+                h = indices[k]
+                if not localized[h]:
+                    continue
+                for k2 in range(indptr[h], indptr[h + 1]):
+                    v = indices[k2]
+                    if (not localized[v]) and count[v] >= 2 and not inq[v]:
+                        queue[tail] = v
+                        tail = (tail + 1) % qn
+                        inq[v] = True
+    return n_order
+
+
+def propagate_reference(
+    indptr: IntArray,
+    indices: IntArray,
+    dist: FloatArray,
+    pos: FloatArray,
+    localized: BoolArray,
+    radius: float,
+    use_shadow: bool,
+    range_tol: float,
+    min_spread: float,
+    shadow_margin: float,
+) -> tuple[BoolArray, FloatArray, NDArray[np.int8]]:
+    """Slow pure-Python version by repeated sweeps (test reference; same rules, other order)."""
+    n = indptr.size - 1
+    loc = localized.copy()
+    p = pos.copy()
+    meth = np.zeros(n, dtype=np.int8)
+    changed = True
+    while changed:
+        changed = False
+        for u in range(n):
+            if loc[u]:
+                continue
+            nb = [(int(indices[k]), float(dist[k])) for k in range(indptr[u], indptr[u + 1])]
+            nbset = {j for j, _ in nb}
+            ln = [(j, d) for j, d in nb if loc[j]]
+            pts = np.array([p[j] for j, _ in ln]).reshape(-1, 2)
+            ds = np.array([d for _, d in ln])
+            if len(ln) >= 3:
+                q = pts - pts.mean(axis=0)
+                lam = np.linalg.eigvalsh(q.T @ q)[0]
+                if np.sqrt(max(lam, 0.0) / len(ln)) >= min_spread:
+                    x = _reference_lsq(pts, ds)
+                    if np.max(np.abs(np.linalg.norm(pts - x, axis=1) - ds)) <= range_tol:
+                        loc[u] = True
+                        p[u] = x
+                        meth[u] = M_TRILATERATION
+                        changed = True
+                    continue
+            if not use_shadow or len(ln) < 2:
+                continue
+            dmat = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
+            ia, ib = np.unravel_index(int(np.argmax(np.triu(dmat, 1))), dmat.shape)
+            ok, c1x, c1y, c2x, c2y = _circle_candidates.py_func(
+                pts[ia, 0], pts[ia, 1], ds[ia], pts[ib, 0], pts[ib, 1], ds[ib], range_tol
+            )
+            if not ok:
+                continue
+            cands = [np.array([c1x, c1y]), np.array([c2x, c2y])]
+            witnesses = {
+                int(indices[k])
+                for j, _ in ln
+                for k in range(indptr[j], indptr[j + 1])
+                if loc[indices[k]] and indices[k] not in nbset and indices[k] != u
+            }
+            alive = []
+            for cand in cands:
+                good = bool(np.all(np.abs(np.linalg.norm(pts - cand, axis=1) - ds) <= range_tol))
+                if good and any(
+                    np.linalg.norm(cand - p[w]) < radius - shadow_margin for w in witnesses
+                ):
+                    good = False
+                alive.append(good)
+            if alive[0] != alive[1]:
+                loc[u] = True
+                p[u] = cands[0] if alive[0] else cands[1]
+                meth[u] = M_SHADOW
+                changed = True
+    return loc, p, meth
+
+
+def _reference_lsq(pts: FloatArray, ds: FloatArray) -> FloatArray:
+    """Nonlinear least squares by scipy (reference for the compiled solver)."""
+    from scipy.optimize import least_squares
+
+    x0 = pts.mean(axis=0) + 1e-3 * (pts.max() - pts.min() + 1.0)
+    a = 2.0 * (pts[1:] - pts[0])
+    b = (ds[0] ** 2 - ds[1:] ** 2) + np.sum(pts[1:] ** 2, axis=1) - np.sum(pts[0] ** 2)
+    x0 = np.linalg.lstsq(a, b, rcond=None)[0]
+    sol = least_squares(lambda x: np.linalg.norm(pts - x, axis=1) - ds, x0, xtol=1e-15,
+                        ftol=1e-15, gtol=1e-15)
+    return np.asarray(sol.x, dtype=np.float64)

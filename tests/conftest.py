@@ -1,0 +1,26 @@
+"""Shared fixtures: the real recordings in ``../shared/data`` (skipped when absent)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def shared_data_root() -> Path | None:
+    """Folder of the real recordings, or None (env HRTLS_DATA overrides ../shared/data)."""
+    env = os.environ.get("HRTLS_DATA")
+    candidate = Path(env) if env else REPO_ROOT.parent / "shared" / "data"
+    return candidate if candidate.is_dir() else None
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """Path of ../shared/data; skips the test when the recordings are not on this machine."""
+    root = shared_data_root()
+    if root is None:
+        pytest.skip("real recordings (../shared/data) are not available on this machine")
+    return root
