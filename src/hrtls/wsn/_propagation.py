@@ -34,8 +34,8 @@ BoolArray = NDArray[np.bool_]
 # method codes (same as hrtls.wsn.network)
 M_UNLOCALIZED, M_ANCHOR, M_TRILATERATION, M_SHADOW, M_AGENT = 0, 1, 2, 3, 4
 # status codes of unlocalized nodes
-S_OK, S_TOO_FEW, S_COLLINEAR, S_AMBIGUOUS, S_INCONSISTENT = 0, 1, 2, 3, 4
-STATUS_NAMES = ("ok", "too-few-neighbours", "collinear", "ambiguous", "inconsistent")
+S_OK, S_TOO_FEW, S_COLLINEAR, S_AMBIGUOUS, S_INCONSISTENT, S_UNCERTAIN = 0, 1, 2, 3, 4, 5
+STATUS_NAMES = ("ok", "too-few-neighbours", "collinear", "ambiguous", "inconsistent", "uncertain")
 
 
 @numba.njit(cache=True)
@@ -114,7 +114,7 @@ def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[floa
 
 @numba.njit(cache=True)
 def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
-    """RMS distance of the points from their best-fit line (sqrt of the small scatter eigenvalue / c)."""
+    """RMS distance of the points from their best-fit line (sqrt(small eigenvalue / c))."""
     mx = 0.0
     my = 0.0
     for k in range(c):
@@ -138,10 +138,100 @@ def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
 
 
 @numba.njit(cache=True)
+def _farthest_pair(px: FloatArray, py: FloatArray, c: int) -> tuple[int, int]:
+    """Indices of the two points farthest apart."""
+    ia = 0
+    ib = 1
+    best = -1.0
+    for a in range(c):
+        for b in range(a + 1, c):
+            q = (px[a] - px[b]) ** 2 + (py[a] - py[b]) ** 2
+            if q > best:
+                best = q
+                ia = a
+                ib = b
+    return ia, ib
+
+
+@numba.njit(cache=True)
+def _gdop(px: FloatArray, py: FloatArray, c: int, x: float, y: float) -> float:
+    """sqrt(trace((J^T J)^-1)) of range observations from the points at (x, y)."""
+    a11 = 0.0
+    a12 = 0.0
+    a22 = 0.0
+    for k in range(c):
+        ex = x - px[k]
+        ey = y - py[k]
+        r = math.sqrt(ex * ex + ey * ey)
+        if r <= 0.0:
+            continue
+        a11 += ex * ex / (r * r)
+        a12 += ex * ey / (r * r)
+        a22 += ey * ey / (r * r)
+    det = a11 * a22 - a12 * a12
+    if det <= 0.0:
+        return math.inf
+    return math.sqrt((a11 + a22) / det)
+
+
+@numba.njit(cache=True)
+def _gdop2(ax: float, ay: float, bx: float, by: float, x: float, y: float) -> float:
+    """GDOP of a fix from the two ranges to a and b (2 / sin^2 of the angle between them)."""
+    ux = x - ax
+    uy = y - ay
+    vx = x - bx
+    vy = y - by
+    ru = math.sqrt(ux * ux + uy * uy)
+    rv = math.sqrt(vx * vx + vy * vy)
+    if ru <= 0.0 or rv <= 0.0:
+        return math.inf
+    s = (ux * vy - uy * vx) / (ru * rv)
+    if s == 0.0:
+        return math.inf
+    return math.sqrt(2.0) / abs(s)
+
+
+@numba.njit(cache=True)
+def _flip_pair(
+    px: FloatArray, py: FloatArray, pd: FloatArray, c: int, x: float, y: float, tol: float
+) -> tuple[int, int]:
+    """A pair (a, b) whose mirror image of (x, y) also fits all ranges within tol, else (-1, -1).
+
+    Flip ambiguity: reflecting the solution across the line of two neighbours keeps their ranges;
+    if the others cannot tell the reflection apart, trilateration could be wrong under noise.
+    Only the first 8 neighbours are paired (cost 8^2 * c).
+    """
+    lim = min(c, 8)
+    for a in range(lim):
+        for b in range(a + 1, lim):
+            dx = px[b] - px[a]
+            dy = py[b] - py[a]
+            ll = dx * dx + dy * dy
+            if ll <= 0.0:
+                continue
+            t = ((x - px[a]) * dx + (y - py[a]) * dy) / ll
+            fx = px[a] + t * dx
+            fy = py[a] + t * dy
+            mx = 2.0 * fx - x
+            my = 2.0 * fy - y
+            if (mx - x) ** 2 + (my - y) ** 2 <= (2.0 * tol) ** 2:
+                continue  # the mirror is the same point: no ambiguity
+            worst = 0.0
+            for k in range(c):
+                r = math.sqrt((mx - px[k]) ** 2 + (my - py[k]) ** 2)
+                e = abs(r - pd[k])
+                if e > worst:
+                    worst = e
+            if worst <= tol:
+                return a, b
+    return -1, -1
+
+
+@numba.njit(cache=True)
 def _circle_candidates(
     ax: float, ay: float, ra: float, bx: float, by: float, rb: float, tol: float
 ) -> tuple[bool, float, float, float, float]:
-    """Two intersections of circles (a, ra), (b, rb); ok False when they do not meet (beyond tol)."""
+    """Two intersections of circles (a, ra), (b, rb); ok False when they do not meet."""
     dx = bx - ax
     dy = by - ay
     dd = math.sqrt(dx * dx + dy * dy)
@@ -179,6 +269,11 @@ def propagate_kernel(
     range_tol: float,
     min_spread: float,
     shadow_margin: float,
+    max_gdop: float,
+    flip_tol: float,
+    sig: FloatArray,
+    range_sigma: float,
+    max_sig: float,
 ) -> int:
     """Propagate localization in place; returns the new length of ``order``."""
     n = indptr.size - 1
@@ -217,6 +312,8 @@ def propagate_kernel(
         if localized[u]:
             continue
         c = 0
+        smax = 0.0
+        ssum = 0.0
         for k in range(indptr[u], indptr[u + 1]):
             j = indices[k]
             if localized[j]:
@@ -224,50 +321,73 @@ def propagate_kernel(
                 py[c] = pos[j, 1]
                 pd[c] = dist[k]
                 pid[c] = j
+                if sig[j] > smax:
+                    smax = sig[j]
+                ssum += sig[j]
                 c += 1
+        smean = ssum / c if c > 0 else 0.0
+        # tolerances grow with the uncertainty carried by the neighbours
+        rt = range_tol + 4.0 * smax
+        ft = flip_tol + 4.0 * smax
+        # a common shift of the neighbours moves the node by the same amount; range noise is
+        # amplified by the GDOP of the fix
+        s_in = range_sigma
+        su = 0.0
         placed = False
         xx = 0.0
         yy = 0.0
         how = M_TRILATERATION
         wit = -1
         st = S_TOO_FEW
+        ia = -1
+        ib = -1
         if c >= 3:
             if _min_spread(px, py, c) >= min_spread:
                 xx, yy, worst = _lls_gn(px, py, pd, c)
-                if worst <= range_tol:
-                    placed = True
-                else:
+                gd = _gdop(px, py, c, xx, yy)
+                if worst > rt:
                     st = S_INCONSISTENT
+                elif gd > max_gdop:
+                    st = S_COLLINEAR
+                else:
+                    ia, ib = _flip_pair(px, py, pd, c, xx, yy, ft)
+                    if ia >= 0:
+                        st = S_AMBIGUOUS
+                    elif math.hypot(gd * s_in, smean) > max_sig:
+                        st = S_UNCERTAIN
+                        ia = -2
+                    else:
+                        placed = True
+                        su = math.hypot(gd * s_in, smean)
             else:
                 st = S_COLLINEAR
-        if (not placed) and use_shadow and c >= 2 and st != S_INCONSISTENT:
-            # farthest-apart pair of localized neighbours
-            ia = 0
-            ib = 1
-            best = -1.0
-            for a in range(c):
-                for b in range(a + 1, c):
-                    q = (px[a] - px[b]) ** 2 + (py[a] - py[b]) ** 2
-                    if q > best:
-                        best = q
-                        ia = a
-                        ib = b
+        if (not placed) and use_shadow and c >= 2 and st != S_INCONSISTENT and ia != -2:
+            if ia < 0:
+                ia, ib = _farthest_pair(px, py, c)
             ok, c1x, c1y, c2x, c2y = _circle_candidates(
-                px[ia], py[ia], pd[ia], px[ib], py[ib], pd[ib], range_tol
+                px[ia], py[ia], pd[ia], px[ib], py[ib], pd[ib], rt
             )
-            if not ok:
+            base = math.sqrt((px[ia] - px[ib]) ** 2 + (py[ia] - py[ib]) ** 2)
+            if base < 2.0 * min_spread:
+                st = S_COLLINEAR
+            elif not ok:
                 st = S_INCONSISTENT
+            elif _gdop2(px[ia], py[ia], px[ib], py[ib], c1x, c1y) > max_gdop:
+                st = S_COLLINEAR
+            elif math.hypot(_gdop2(px[ia], py[ia], px[ib], py[ib], c1x, c1y) * s_in,
+                            smean) > max_sig:
+                st = S_UNCERTAIN
             else:
                 ok1 = True
                 ok2 = True
                 for a in range(c):  # consistency with the other localized neighbours
-                    if a == ia or a == ib:
+                    if a in (ia, ib):
                         continue
                     r1 = math.sqrt((c1x - px[a]) ** 2 + (c1y - py[a]) ** 2)
                     r2 = math.sqrt((c2x - px[a]) ** 2 + (c2y - py[a]) ** 2)
-                    if abs(r1 - pd[a]) > range_tol:
+                    if abs(r1 - pd[a]) > rt:
                         ok1 = False
-                    if abs(r2 - pd[a]) > range_tol:
+                    if abs(r2 - pd[a]) > rt:
                         ok2 = False
                 # negative information from two-hop localized nodes (shadow edges)
                 for k in range(indptr[u], indptr[u + 1]):
@@ -275,23 +395,25 @@ def propagate_kernel(
                 mark[u] = u
                 w1 = -1
                 w2 = -1
-                lim = radius - shadow_margin
+                lim0 = radius - shadow_margin - 3.0 * smax
                 for a in range(c):
                     h = pid[a]
                     for k in range(indptr[h], indptr[h + 1]):
                         j = indices[k]
                         if mark[j] == u or not localized[j]:
                             continue
-                        if ok1 and w1 < 0:
-                            if math.sqrt((c1x - pos[j, 0]) ** 2 + (c1y - pos[j, 1]) ** 2) < lim:
-                                w1 = j
-                        if ok2 and w2 < 0:
-                            if math.sqrt((c2x - pos[j, 0]) ** 2 + (c2y - pos[j, 1]) ** 2) < lim:
-                                w2 = j
+                        lim = lim0 - 3.0 * sig[j]
+                        r1 = math.sqrt((c1x - pos[j, 0]) ** 2 + (c1y - pos[j, 1]) ** 2)
+                        r2 = math.sqrt((c2x - pos[j, 0]) ** 2 + (c2y - pos[j, 1]) ** 2)
+                        if ok1 and w1 < 0 and r1 < lim:
+                            w1 = j
+                        if ok2 and w2 < 0 and r2 < lim:
+                            w2 = j
                 if w1 >= 0:
                     ok1 = False
                 if w2 >= 0:
                     ok2 = False
+                su = math.hypot(_gdop2(px[ia], py[ia], px[ib], py[ib], c1x, c1y) * s_in, smean)
                 if ok1 and not ok2:
                     placed = True
                     xx = c1x
@@ -312,6 +434,7 @@ def propagate_kernel(
             status[u] = st
             continue
         localized[u] = True
+        sig[u] = su
         pos[u, 0] = xx
         pos[u, 1] = yy
         method[u] = how
@@ -352,8 +475,13 @@ def propagate_reference(
     range_tol: float,
     min_spread: float,
     shadow_margin: float,
+    max_gdop: float,
+    flip_tol: float,
 ) -> tuple[BoolArray, FloatArray, NDArray[np.int8]]:
-    """Slow pure-Python version by repeated sweeps (test reference; same rules, other order)."""
+    """Slow pure-Python version by repeated sweeps (test reference; same rules, other order).
+
+    The least-squares fix is computed by scipy instead of the compiled solver.
+    """
     n = indptr.size - 1
     loc = localized.copy()
     p = pos.copy()
@@ -369,25 +497,42 @@ def propagate_reference(
             ln = [(j, d) for j, d in nb if loc[j]]
             pts = np.array([p[j] for j, _ in ln]).reshape(-1, 2)
             ds = np.array([d for _, d in ln])
+            pair: tuple[int, int] | None = None
             if len(ln) >= 3:
                 q = pts - pts.mean(axis=0)
                 lam = np.linalg.eigvalsh(q.T @ q)[0]
                 if np.sqrt(max(lam, 0.0) / len(ln)) >= min_spread:
                     x = _reference_lsq(pts, ds)
-                    if np.max(np.abs(np.linalg.norm(pts - x, axis=1) - ds)) <= range_tol:
-                        loc[u] = True
-                        p[u] = x
-                        meth[u] = M_TRILATERATION
-                        changed = True
-                    continue
+                    if np.max(np.abs(np.linalg.norm(pts - x, axis=1) - ds)) > range_tol:
+                        continue
+                    u_vec = (x - pts) / np.linalg.norm(x - pts, axis=1)[:, None]
+                    if np.sqrt(np.trace(np.linalg.inv(u_vec.T @ u_vec))) > max_gdop:
+                        continue_shadow = True
+                    else:
+                        continue_shadow = False
+                        pair = _reference_flip(pts, ds, x, flip_tol)
+                        if pair is None:
+                            loc[u] = True
+                            p[u] = x
+                            meth[u] = M_TRILATERATION
+                            changed = True
+                            continue
+                    if continue_shadow:
+                        pair = None
             if not use_shadow or len(ln) < 2:
                 continue
-            dmat = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
-            ia, ib = np.unravel_index(int(np.argmax(np.triu(dmat, 1))), dmat.shape)
+            if pair is None:
+                dmat = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
+                flat = np.unravel_index(int(np.argmax(np.triu(dmat, 1))), dmat.shape)
+                ia, ib = int(flat[0]), int(flat[1])
+            else:
+                ia, ib = pair
             ok, c1x, c1y, c2x, c2y = _circle_candidates.py_func(
                 pts[ia, 0], pts[ia, 1], ds[ia], pts[ib, 0], pts[ib, 1], ds[ib], range_tol
             )
-            if not ok:
+            if np.linalg.norm(pts[ia] - pts[ib]) < 2.0 * min_spread or not ok:
+                continue
+            if _gdop2.py_func(pts[ia, 0], pts[ia, 1], pts[ib, 0], pts[ib, 1], c1x, c1y) > max_gdop:
                 continue
             cands = [np.array([c1x, c1y]), np.array([c2x, c2y])]
             witnesses = {
@@ -410,6 +555,23 @@ def propagate_reference(
                 meth[u] = M_SHADOW
                 changed = True
     return loc, p, meth
+
+
+def _reference_flip(
+    pts: FloatArray, ds: FloatArray, x: FloatArray, tol: float
+) -> tuple[int, int] | None:
+    """Pair whose reflection of ``x`` also fits all ranges (first 8 neighbours), else None."""
+    lim = min(len(ds), 8)
+    for a in range(lim):
+        for b in range(a + 1, lim):
+            t = pts[b] - pts[a]
+            foot = pts[a] + np.dot(x - pts[a], t) / np.dot(t, t) * t
+            mirror = 2.0 * foot - x
+            if np.linalg.norm(mirror - x) <= 2.0 * tol:
+                continue
+            if np.max(np.abs(np.linalg.norm(pts - mirror, axis=1) - ds)) <= tol:
+                return a, b
+    return None
 
 
 def _reference_lsq(pts: FloatArray, ds: FloatArray) -> FloatArray:

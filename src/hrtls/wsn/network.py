@@ -278,7 +278,8 @@ def corner_seed_positions(
     half = 0.5 * radius_m
     while True:
         s = rng.uniform(0.0, half, size=(3, 2))
-        area = 0.5 * abs(np.cross(s[1] - s[0], s[2] - s[0]))
+        u, v = s[1] - s[0], s[2] - s[0]
+        area = 0.5 * abs(float(u[0] * v[1] - u[1] * v[0]))
         if area >= min_seed_area_fraction * radius_m**2:
             break
     rest = rng.uniform((0.0, 0.0), (width_m, height_m), size=(n_nodes - 3, 2))
@@ -431,12 +432,12 @@ def network_from_dict(obj: Any, *, where: str = "network") -> Network:
         i, j = index[a_id], index[b_id]
         if i == j:
             raise FormatError("self link", where=w, expected="two different nodes")
-        key = (min(i, j), max(i, j))
-        if key in pairs:
+        pair_key = (min(i, j), max(i, j))
+        if pair_key in pairs:
             raise FormatError(f"duplicate link ({a_id}, {b_id})", where=w,
-                              expected=f"each pair once (first at links[{pairs[key]}])")
-        pairs[key] = k
-        edges[k] = key
+                              expected=f"each pair once (first at links[{pairs[pair_key]}])")
+        pairs[pair_key] = k
+        edges[k] = pair_key
         dist[k] = float(d)
         link_extra.append({kk: v for kk, v in ln.items() if kk not in _LINK_KEYS})
     extra = {k: v for k, v in obj.items() if k not in {"radius", "nodes", "links"}}
@@ -467,10 +468,10 @@ def network_to_dict(
         if net.has_position[i] and (include_truth or net.anchor[i]):
             nd["position"] = [float(net.position_m[i, 0]), float(net.position_m[i, 1])]
         extra = net.node_extra[i] if i < len(net.node_extra) else {}
-        for k, v in extra.items():
-            if method is not None and k in ("estimate", "method", "covariance"):
+        for name, v in extra.items():
+            if method is not None and name in ("estimate", "method", "covariance"):
                 continue
-            nd[k] = v
+            nd[name] = v
         if method is not None:
             nd["method"] = method[i]
             if method[i] != "unlocalized" and estimate_m is not None:

@@ -43,6 +43,22 @@ class PropagationParams:
     range_tolerance_fraction:
         Largest accepted |range residual| of a placed node (and of a shadow-edge candidate against
         the other localized neighbours). Exact ranges: tiny; noisy ranges: a few sigma.
+    flip_tolerance_fraction:
+        A trilateration fix is flip-ambiguous when its reflection across the line of two
+        neighbours fits every range within this tolerance (default: ``range_tolerance_fraction``);
+        such a node is left to the shadow-edge rule.
+    range_sigma_fraction:
+        Standard deviation of a range of length ``rho``, as a fraction of ``rho`` (0 = exact).
+        Each placed node gets a propagated standard deviation ``sigma_i = GDOP *
+        sqrt(sigma_range^2 + max sigma_neighbour^2)``; the residual, flip and shadow tolerances
+        of a node grow by 4 (3) times the largest ``sigma`` of the nodes it uses.
+    max_sigma_fraction:
+        A node whose propagated ``sigma`` would exceed this times ``rho`` is left unlocalized
+        (status ``uncertain``): error accumulation along long chains stops instead of turning
+        into wrong placements (graceful degradation with noisy ranges).
+    max_gdop:
+        Largest accepted geometric dilution of precision of a fix (position sigma / range
+        sigma); ``inf`` accepts any geometry that passes the spread check.
     min_spread_fraction:
         Non-collinearity check of trilateration: RMS distance of the localized neighbours from
         their best-fit line must be at least this times ``rho``.
@@ -52,27 +68,49 @@ class PropagationParams:
     """
 
     range_tolerance_fraction: float = 1e-7
-    min_spread_fraction: float = 1e-2
+    min_spread_fraction: float = 1e-3
     shadow_margin_fraction: float = 1e-7
+    max_gdop: float = 1e4
+    flip_tolerance_fraction: float | None = None
+    range_sigma_fraction: float = 0.0
+    max_sigma_fraction: float = float("inf")
 
     def __post_init__(self) -> None:
-        for name in ("range_tolerance_fraction", "min_spread_fraction", "shadow_margin_fraction"):
+        if not self.max_gdop > 0:
+            raise InputError(f"max_gdop = {self.max_gdop}", where="PropagationParams",
+                             expected="a positive number (inf = no limit)")
+        if not (self.max_sigma_fraction > 0):
+            raise InputError(f"max_sigma_fraction = {self.max_sigma_fraction}",
+                             where="PropagationParams", expected="> 0 (inf = no limit)")
+        for name in ("range_tolerance_fraction", "min_spread_fraction", "shadow_margin_fraction",
+                     "range_sigma_fraction"):
             v = getattr(self, name)
             if not (np.isfinite(v) and 0.0 <= v < 1.0):
                 raise InputError(f"{name} = {v}", where="PropagationParams",
                                  expected="a number in [0, 1)")
 
+    @property
+    def flip_tolerance(self) -> float:
+        """Flip tolerance as a fraction of rho."""
+        if self.flip_tolerance_fraction is None:
+            return self.range_tolerance_fraction
+        return self.flip_tolerance_fraction
+
     @classmethod
     def for_noise(cls, range_noise_fraction: float) -> PropagationParams:
         """Tolerances for ranges with relative noise ``range_noise_fraction`` (e.g. 0.02).
 
-        Residual tolerance 4 sigma of a range of length ``rho`` (plus the error carried by the
-        neighbours), shadow margin 3 sigma, spread 0.1 rho (noisy ranges need good geometry).
+        Residual (and flip) tolerance 6 sigma of a range of length ``rho``, shadow margin
+        3 sigma, spread 0.1 rho, GDOP <= 2.5 (noisy ranges need good geometry), propagated node
+        sigma at most 0.15 rho.
         """
         s = float(range_noise_fraction)
-        return cls(range_tolerance_fraction=min(0.5, 1e-7 + 6.0 * s),
-                   min_spread_fraction=max(1e-2, 0.1 if s > 0 else 0.0),
-                   shadow_margin_fraction=min(0.5, 1e-7 + 3.0 * s))
+        if s <= 0:
+            return cls()
+        return cls(range_tolerance_fraction=min(0.5, 6.0 * s),
+                   min_spread_fraction=0.1,
+                   shadow_margin_fraction=min(0.5, 3.0 * s),
+                   max_gdop=2.5, range_sigma_fraction=s, max_sigma_fraction=0.15)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,12 +127,18 @@ class Localization:
         ``(n,)`` method codes, names in :data:`hrtls.wsn.network.METHOD_NAMES`.
     status:
         ``(n,)`` why a node is unlocalized (``STATUS_NAMES``): too few localized neighbours,
-        collinear neighbours, ambiguous candidates, or inconsistent candidates/residuals.
+        collinear neighbours (or too large GDOP), ambiguous candidates (two candidates survive, or
+        a flip-ambiguous trilateration), inconsistent candidates/residuals, or uncertain (its
+        propagated sigma would exceed ``max_sigma_fraction``).
     witness:
         ``(n,)`` for shadow-edge nodes the localized node that ruled out the other candidate (the
         shadow edge is ``(i, witness[i])``), else -1.
     order:
         Indices of the nodes localized by the propagation, in the order they were placed.
+    sigma_m:
+        ``(n,)`` propagated position standard deviation (0 for seeds and with exact ranges;
+        see ``PropagationParams.range_sigma_fraction``); the refinement gives the full
+        covariance.
     """
 
     estimate_m: FloatArray
@@ -103,6 +147,7 @@ class Localization:
     status: NDArray[np.int8]
     witness: IntArray
     order: IntArray
+    sigma_m: FloatArray
 
     @property
     def method_names(self) -> list[str]:
@@ -140,11 +185,13 @@ def propagate(
     method: NDArray[np.int8] | None = None,
     use_shadow: bool,
     params: PropagationParams | None = None,
+    initial_sigma_m: FloatArray | None = None,
 ) -> Localization:
     """Array-level TLA (``use_shadow=False``) or SELA (``True``) from an initial localized set.
 
     ``positions_m`` must be valid where ``localized`` is True; ``method`` gives the codes of the
-    initially localized nodes (default: anchor).
+    initially localized nodes (default: anchor); ``initial_sigma_m`` their position standard
+    deviation (default 0).
     """
     prm = params or PropagationParams()
     pos = np.array(positions_m, dtype=np.float64, copy=True).reshape(n_nodes, 2)
@@ -162,13 +209,18 @@ def propagate(
     witness = np.full(n_nodes, -1, dtype=np.int64)
     order = np.zeros(n_nodes, dtype=np.int64)
     rho = float(radius_m)
+    sig = np.zeros(n_nodes)
+    if initial_sigma_m is not None:
+        sig[loc] = np.asarray(initial_sigma_m, dtype=np.float64).reshape(n_nodes)[loc]
     k = propagate_kernel(
         adjacency.indptr, adjacency.indices, adjacency.distance_m, pos, loc, meth, status,
         witness, order, 0, rho, bool(use_shadow), prm.range_tolerance_fraction * rho,
-        prm.min_spread_fraction * rho, prm.shadow_margin_fraction * rho,
+        prm.min_spread_fraction * rho, prm.shadow_margin_fraction * rho, float(prm.max_gdop),
+        prm.flip_tolerance * rho, sig, prm.range_sigma_fraction * rho,
+        prm.max_sigma_fraction * rho,
     )
     return Localization(estimate_m=pos, localized=loc, method=meth, status=status,
-                        witness=witness, order=order[:k].copy())
+                        witness=witness, order=order[:k].copy(), sigma_m=sig)
 
 
 def seeds_of(net: Network) -> tuple[FloatArray, BoolArray]:

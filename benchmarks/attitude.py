@@ -1,0 +1,232 @@
+"""Attitude benchmark: speed and accuracy of hrtls's filters next to VQF, imufusion and ahrs.
+
+Run from the repository root::
+
+    python benchmarks/attitude.py            # full table (a few minutes)
+    python benchmarks/attitude.py --quick    # shorter data, no ahrs on long runs
+
+Speed: samples per second on 1 M samples after a warm-up, CPU time of this process (other jobs
+on the machine share the cores; CPU time is less disturbed than wall time), best of 3.
+Accuracy: inclination (roll/pitch combined) and heading RMS in degrees against the reference,
+split as BROAD does (error ``q_est * conj(q_ref)``; heading = rotation about the vertical; a
+constant heading offset removed; only ``movement`` samples; NaN references skipped).
+
+Data: (1) ``hrtls.sim`` office walk (waist phone, magnetic anomalies), (2) the compact walking
+simulator ``benchmarks/_attitude_sim.py`` with magnetic anomaly patches and a large gyro bias,
+(3) the BROAD trials in ``../shared/data/broad`` (skipped when absent).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _attitude_sim import simulate_walk  # noqa: E402
+
+from hrtls.attitude import make_filter, orientation_errors  # noqa: E402
+from hrtls.frames import (  # noqa: E402
+    GRAVITY_M_S2,
+    quat_conjugate,
+    quat_from_rotation,
+    quat_rotate,
+    quat_to_rotation,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+BROAD = ROOT.parent / "shared" / "data" / "broad"
+
+Runner = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], np.ndarray]
+
+
+# ------------------------------------------------------------------------------ methods
+def ours(name: str) -> Runner:
+    def run(t, acc, gyr, mag, rate):
+        return make_filter(name).update(t, acc, gyr, mag).q
+    return run
+
+
+def vqf_runner(t, acc, gyr, mag, rate):
+    from vqf import VQF
+
+    v = VQF(1.0 / rate)
+    out = v.updateBatch(np.ascontiguousarray(gyr), np.ascontiguousarray(acc),
+                        np.ascontiguousarray(mag))
+    return out["quat9D"]
+
+
+def imufusion_runner(t, acc, gyr, mag, rate):
+    import imufusion
+
+    ahrs = imufusion.Ahrs()
+    s = imufusion.AhrsSettings()
+    s.convention = imufusion.CONVENTION_ENU
+    s.gain = 0.5
+    s.gyroscope_range = 2000.0
+    s.acceleration_rejection = 10.0
+    s.magnetic_rejection = 10.0
+    s.rejection_timeout = int(5 * rate)
+    s.sample_rate = float(rate)
+    ahrs.set_settings(s)
+    g_deg = np.rad2deg(gyr)
+    a_g = acc / GRAVITY_M_S2
+    out = np.empty((len(t), 4))
+    for i in range(len(t)):
+        ahrs.update(g_deg[i], a_g[i], mag[i])
+        out[i] = ahrs.get_quaternion()
+    return out
+
+
+def ahrs_runner(kind: str) -> Runner:
+    def run(t, acc, gyr, mag, rate):
+        from ahrs.filters import EKF, Madgwick
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if kind == "ekf":
+                return EKF(gyr=gyr, acc=acc, mag=mag, frequency=rate, frame="ENU").Q
+            return Madgwick(gyr=gyr, acc=acc, mag=mag, frequency=rate).Q
+    return run
+
+
+def available() -> dict[str, Runner]:
+    methods: dict[str, Runner] = {"euler-ekf": ours("euler-ekf"), "quat-ekf": ours("quat-ekf"),
+                                  "complementary": ours("complementary")}
+    for label, module, runner in (("vqf", "vqf", vqf_runner),
+                                  ("imufusion", "imufusion", imufusion_runner),
+                                  ("ahrs-ekf", "ahrs", ahrs_runner("ekf")),
+                                  ("ahrs-madgwick", "ahrs", ahrs_runner("madgwick"))):
+        try:
+            __import__(module)
+        except ImportError:
+            print(f"note: {module} is not installed; {label} skipped "
+                  "(pip install -e .[bench])")
+            continue
+        methods[label] = runner
+    return methods
+
+
+def as_q_nb(q: np.ndarray, acc: np.ndarray) -> np.ndarray:
+    """Scalar-first q that maps sensor vectors to the earth frame (conjugate if needed)."""
+    q = np.asarray(q, dtype=np.float64)
+    up = np.median(quat_rotate(q, acc)[:, 2])
+    up_c = np.median(quat_rotate(quat_conjugate(q), acc)[:, 2])
+    return q if up >= up_c else quat_conjugate(q)
+
+
+# ------------------------------------------------------------------------------ data
+def dataset_sim_office(duration_s: float) -> tuple:
+    from scipy.spatial.transform import Slerp
+
+    from hrtls.sim.scenarios import run_scenario
+
+    res = run_scenario("office_random_walk", 0, duration_s=duration_s)
+    t, acc, gyr, mag = res.session.imu.aligned()
+    ideal = res.imu.ideal
+    slerp = Slerp(ideal.t, quat_to_rotation(ideal.q_nd))
+    q_ref = quat_from_rotation(slerp(np.clip(t, ideal.t[0], ideal.t[-1])))
+    rate = 1.0 / float(np.median(np.diff(t)))
+    return t, acc, gyr, mag, q_ref, np.ones(len(t), dtype=bool), rate
+
+
+def dataset_sim_walk(duration_s: float) -> tuple:
+    s = simulate_walk(duration_s=duration_s, seed=1)
+    return s.t, s.acc, s.gyr, s.mag, s.q_true, s.movement, 100.0
+
+
+def dataset_broad(path: Path) -> tuple:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        acc = np.asarray(f["imu_acc"][()], dtype=np.float64)
+        gyr = np.asarray(f["imu_gyr"][()], dtype=np.float64)
+        mag = np.asarray(f["imu_mag"][()], dtype=np.float64)
+        q_ref = np.asarray(f["opt_quat"][()], dtype=np.float64)
+        movement = np.asarray(f["movement"][()], dtype=bool)
+        rate = float(f.attrs["sampling_rate"])
+    t = np.arange(len(acc)) / rate
+    return t, acc, gyr, mag, q_ref, movement, rate
+
+
+# ------------------------------------------------------------------------------ speed
+def speed(runner: Runner, n: int) -> float:
+    rng = np.random.default_rng(0)
+    rate = 100.0
+    t = np.arange(n) / rate
+    phase = 2 * np.pi * 0.3 * t[:, None] + np.array([0.0, 1.0, 2.0])
+    gyr = 0.5 * np.sin(phase) + rng.normal(size=(n, 3)) * 0.01
+    acc = np.array([0.0, 0.0, GRAVITY_M_S2]) + rng.normal(size=(n, 3)) * 0.5
+    mag = np.array([0.0, 20.0, -40.0]) + rng.normal(size=(n, 3)) * 1.0
+    runner(t[:1000], acc[:1000], gyr[:1000], mag[:1000], rate)  # warm-up / compile
+    best = np.inf
+    for _ in range(3):
+        t0 = time.process_time()
+        runner(t, acc, gyr, mag, rate)
+        best = min(best, time.process_time() - t0)
+    return n / best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="shorter data and speed runs")
+    ap.add_argument("--methods", default="", help="comma-separated subset")
+    args = ap.parse_args()
+    methods = available()
+    if args.methods:
+        methods = {k: v for k, v in methods.items() if k in args.methods.split(",")}
+    n_fast = 200_000 if args.quick else 1_000_000
+    n_slow = 20_000 if args.quick else 100_000
+    datasets: dict[str, Callable[[], tuple]] = {
+        "sim-office": lambda: dataset_sim_office(120.0 if args.quick else 600.0),
+        "sim-walk": lambda: dataset_sim_walk(120.0 if args.quick else 300.0),
+    }
+    if BROAD.is_dir():
+        for p in sorted(BROAD.glob("*.hdf5")):
+            datasets["broad-" + p.stem.split("_")[0]] = lambda p=p: dataset_broad(p)
+    else:
+        print(f"note: {BROAD} not found; BROAD trials skipped")
+
+    results: dict[str, dict[str, tuple[float, float]]] = {m: {} for m in methods}
+    rates: dict[str, float] = {}
+    for label, runner in methods.items():
+        slow = label.startswith("ahrs")
+        rates[label] = speed(runner, n_slow if slow else n_fast)
+        print(f"speed {label}: {rates[label] / 1e6:.3f} M samples/s", flush=True)
+    for dname, load in datasets.items():
+        t, acc, gyr, mag, q_ref, mask, rate = load()
+        for label, runner in methods.items():
+            if label.startswith("ahrs") and args.quick and len(t) > 50_000:
+                continue
+            q = as_q_nb(runner(t, acc, gyr, mag, rate), acc)
+            err = orientation_errors(q, q_ref, mask)
+            results[label][dname] = (np.rad2deg(err.inclination_rms_rad),
+                                     np.rad2deg(err.heading_rms_rad))
+        print(f"done {dname} ({len(t)} samples)", flush=True)
+
+    names = list(datasets)
+    header = f"{'method':14s} {'M samples/s':>11s} | " + " | ".join(
+        f"{n:>13s}" for n in names)
+    print()
+    print("inclination / heading RMS in degrees")
+    print(header)
+    print("-" * len(header))
+    for label in methods:
+        cells = []
+        for n in names:
+            if n in results[label]:
+                inc, hd = results[label][n]
+                cells.append(f"{inc:5.2f} / {hd:5.2f}")
+            else:
+                cells.append(f"{'-':>13s}")
+        print(f"{label:14s} {rates[label] / 1e6:11.3f} | " + " | ".join(cells))
+
+
+if __name__ == "__main__":
+    main()

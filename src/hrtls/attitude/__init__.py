@@ -1,0 +1,43 @@
+"""Attitude (orientation) estimation: Euler EKF, quaternion EKF, complementary filter, device.
+
+All sensor-fusion filters share one interface (:class:`AttitudeFilter`): typed parameters, a
+saveable state, ``update`` on chunks and ``run`` on a whole stream. Pick one by name with
+:func:`make_filter` (``euler-ekf``, ``quat-ekf``, ``complementary``); ``device`` passes through
+an orientation the phone computed (:class:`DeviceOrientation`).
+"""
+
+from hrtls.attitude.base import AttitudeFilter, AttitudeResult, AttitudeState, CommonParams
+from hrtls.attitude.bias import GyroBiasEstimate, estimate_gyro_bias, rest_mask
+from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
+from hrtls.attitude.device import DeviceOrientation, DeviceParams, frame_to_enu
+from hrtls.attitude.euler_ekf import EulerEkf, EulerEkfParams
+from hrtls.attitude.fqa import fqa, fqa_quaternion
+from hrtls.attitude.metrics import OrientationErrors, orientation_errors
+from hrtls.attitude.quat_ekf import QuatEkf, QuatEkfParams
+from hrtls.attitude.registry import FILTERS, METHODS, make_filter
+
+__all__ = [
+    "FILTERS",
+    "METHODS",
+    "AttitudeFilter",
+    "AttitudeResult",
+    "AttitudeState",
+    "CommonParams",
+    "ComplementaryFilter",
+    "ComplementaryParams",
+    "DeviceOrientation",
+    "DeviceParams",
+    "EulerEkf",
+    "EulerEkfParams",
+    "GyroBiasEstimate",
+    "OrientationErrors",
+    "QuatEkf",
+    "QuatEkfParams",
+    "estimate_gyro_bias",
+    "fqa",
+    "fqa_quaternion",
+    "frame_to_enu",
+    "make_filter",
+    "orientation_errors",
+    "rest_mask",
+]

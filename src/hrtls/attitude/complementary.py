@@ -1,0 +1,296 @@
+"""Complementary attitude filter with the FQA static quaternion (Inderst Sec. 4.2.2, eq. 4.20).
+
+Per sample:
+
+1. Dynamic quaternion ``q_delta = exp(Omega dt) q_{k-1}`` from the bias-corrected gyro rate
+   (eq. 4.10-4.12).
+2. Static quaternions from the FQA (:mod:`hrtls.attitude.fqa`). We blend in two steps, each an
+   instance of eq. 4.20 ``q = gamma q_sigma + (1 - gamma) q_delta``:
+
+   * tilt: ``q_sigma`` = FQA(measured ``a``, field predicted by ``q_delta``), gain ``gamma_a``;
+   * heading: ``q_sigma`` = FQA(vertical of the tilt-corrected ``q``, measured ``m``), gain
+     ``gamma_m``.
+
+   Substituting the prediction for the sensor that is not blended keeps a magnetic disturbance
+   from tilting the estimate and an acceleration from turning it (the thesis blends one static
+   quaternion; it does not say how an untrustworthy sensor is left out).
+3. Adaptive gains (the thesis: "set according to the reliability of the measurements"):
+   ``gamma = (1 - exp(-dt / tau)) * w`` with the trust weight
+   ``w = 1 / (1 + (|w| / w_ref)^2) * (1 - dev / gate)``, where ``dev`` is ``| |a| - g |`` for
+   the accelerometer and ``| |m| - |m_ref| |`` for the magnetometer; ``w = 0`` when the sample
+   fails the gates of :class:`~hrtls.attitude.base.CommonParams` (norm, dip, jump).
+4. Sign: ``q_sigma`` is negated when ``q_sigma . q_delta < 0`` before blending; the blend is
+   normalised.
+5. Gyro bias in motion (our extension): the blends' corrections (device frame; the tilt one
+   fully, the heading one only about the vertical) feed an integral term
+   ``b <- b - delta / tau_bias``, so a constant bias is removed with time constant
+   ``tau_bias`` (plus the rest estimator of :mod:`hrtls.attitude.bias`).
+
+There is no covariance: ``var_rpy`` is ``None``; ``extra`` holds ``gain_acc`` and ``gain_mag``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.attitude import _kernels as K
+from hrtls.attitude.base import AttitudeFilter, CommonParams
+from hrtls.attitude.fqa import fqa_quaternion
+from hrtls.errors import InputError
+from hrtls.frames import FloatArray
+
+__all__ = ["ComplementaryFilter", "ComplementaryParams"]
+
+_TAU_A = K.PRM_SPECIFIC
+_TAU_M = K.PRM_SPECIFIC + 1
+_W_REF = K.PRM_SPECIFIC + 2
+_TAU_B = K.PRM_SPECIFIC + 3
+_B_MAX = K.PRM_SPECIFIC + 4
+_SIZE = K.PRM_SPECIFIC + 5
+
+
+@dataclass(frozen=True, kw_only=True)
+class ComplementaryParams(CommonParams):
+    """Parameters of the complementary filter.
+
+    Attributes
+    ----------
+    tau_acc_s:
+        Time constant of the tilt correction at full trust, s.
+    tau_mag_s:
+        Time constant of the heading correction at full trust, s.
+    rate_ref_rad_s:
+        Rate of turn at which the static sensors' trust halves, rad/s.
+    tau_bias_s:
+        Time constant of the in-motion gyro-bias integral term, s (``inf`` disables it).
+    bias_max_rad_s:
+        Bound on each bias component, rad/s.
+    """
+
+    tau_acc_s: float = 3.0
+    tau_mag_s: float = 9.0
+    rate_ref_rad_s: float = 2.0
+    tau_bias_s: float = 30.0
+    bias_max_rad_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        CommonParams.__post_init__(self)
+        for name in ("tau_acc_s", "tau_mag_s", "rate_ref_rad_s", "tau_bias_s",
+                     "bias_max_rad_s"):
+            value = float(getattr(self, name))
+            if not value > 0.0 or np.isnan(value):
+                raise InputError(f"{name} = {value}", where="ComplementaryParams",
+                                 expected="a positive number")
+
+    def kernel_array(self) -> FloatArray:
+        """Kernel parameter array."""
+        p = np.zeros(_SIZE)
+        p[: K.PRM_SPECIFIC] = self.common_array()
+        p[_TAU_A] = self.tau_acc_s
+        p[_TAU_M] = self.tau_mag_s
+        p[_W_REF] = self.rate_ref_rad_s
+        p[_TAU_B] = self.tau_bias_s
+        p[_B_MAX] = self.bias_max_rad_s
+        return p
+
+
+@numba.njit(inline="always", **K.JIT)
+def _blend(
+    gam: float, sw: float, sx: float, sy: float, sz: float,
+    dw: float, dx: float, dy: float, dz: float,
+) -> tuple[float, float, float, float]:
+    """Eq. 4.20 with the sign of ``q_sigma`` aligned to ``q_delta``, normalised."""
+    if sw * dw + sx * dx + sy * dy + sz * dz < 0.0:
+        sw, sx, sy, sz = -sw, -sx, -sy, -sz
+    w = gam * sw + (1.0 - gam) * dw
+    x = gam * sx + (1.0 - gam) * dx
+    y = gam * sy + (1.0 - gam) * dy
+    z = gam * sz + (1.0 - gam) * dz
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return w / n, x / n, y / n, z / n
+
+
+@numba.njit(**K.JIT)
+def complementary_kernel(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
+    has_mag: bool, prm: FloatArray, x: FloatArray, aux: FloatArray, out_q: FloatArray,
+    out_flags: NDArray[np.uint8], out_extra: FloatArray,
+) -> None:
+    """Complementary filter over one chunk (Inderst eq. 4.20); mutates ``x`` and ``aux``."""
+    n = t.shape[0]
+    phi = np.empty((4, 4))
+    g = prm[K.PRM_GRAVITY]
+    for i in range(n):
+        ti = t[i]
+        tp = aux[K.AUX_T_PREV]
+        dt = ti - tp if math.isfinite(tp) else 0.0
+        aux[K.AUX_T_PREV] = ti
+        aux[K.AUX_N] += 1.0
+        a0 = acc[i, 0]
+        a1 = acc[i, 1]
+        a2 = acc[i, 2]
+        an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        acc_fin = math.isfinite(an) and 1e-6 < an < prm[K.PRM_ACC_RANGE]
+        g0 = gyr[i, 0]
+        g1 = gyr[i, 1]
+        g2 = gyr[i, 2]
+        gyr_fin = has_gyr and K.gyro_ok(prm, g0, g1, g2)
+        m0 = mag[i, 0]
+        m1 = mag[i, 1]
+        m2 = mag[i, 2]
+        mag_fin = has_mag and K.finite3(m0, m1, m2)
+        if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
+            aux[K.AUX_N_BAD] += 1.0
+        acc_dev = abs(an - g) if acc_fin else math.inf
+        flags = 0
+        gam_a = 0.0
+        gam_m = 0.0
+        if aux[K.AUX_INIT] < 0.5:
+            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
+                w, qx, qy, qz = K.init_attitude(prm, a0, a1, a2, m0, m1, m2, mag_fin)
+                x[0] = w
+                x[1] = qx
+                x[2] = qy
+                x[3] = qz
+                aux[K.AUX_INIT] = 1.0
+                K.init_rest(aux, g0, g1, g2, a0, a1, a2, gyr_fin)
+                flags = K.FLAG_VALID | K.FLAG_ACC
+                gam_a = 1.0
+                if mag_fin:
+                    ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
+                    if K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, 0.0):
+                        flags |= K.FLAG_MAG
+                        gam_m = 1.0
+                    else:
+                        aux[K.AUX_N_MAG_REJ] += 1.0
+                elif has_mag:
+                    aux[K.AUX_N_MAG_REJ] += 1.0
+            else:
+                aux[K.AUX_N_ACC_REJ] += 1.0
+                if has_mag:
+                    aux[K.AUX_N_MAG_REJ] += 1.0
+                out_q[i, 0] = 1.0
+                out_q[i, 1] = 0.0
+                out_q[i, 2] = 0.0
+                out_q[i, 3] = 0.0
+                out_flags[i] = 0
+                out_extra[i, 0] = 0.0
+                out_extra[i, 1] = 0.0
+                continue
+        else:
+            flags = K.FLAG_VALID
+            rate = 0.0
+            # ---- dynamic quaternion, eq. 4.10-4.12
+            if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
+                if acc_fin and K.rest_and_bias(aux, prm, g0, g1, g2, a0, a1, a2, dt):
+                    flags |= K.FLAG_REST
+                wx = g0 - aux[K.AUX_BIAS]
+                wy = g1 - aux[K.AUX_BIAS + 1]
+                wz = g2 - aux[K.AUX_BIAS + 2]
+                rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+                K.transition(wx, wy, wz, dt, phi)
+                dw = phi[0, 0] * x[0] + phi[0, 1] * x[1] + phi[0, 2] * x[2] + phi[0, 3] * x[3]
+                dxx = phi[1, 0] * x[0] + phi[1, 1] * x[1] + phi[1, 2] * x[2] + phi[1, 3] * x[3]
+                dy = phi[2, 0] * x[0] + phi[2, 1] * x[1] + phi[2, 2] * x[2] + phi[2, 3] * x[3]
+                dz = phi[3, 0] * x[0] + phi[3, 1] * x[1] + phi[3, 2] * x[2] + phi[3, 3] * x[3]
+                nn = math.sqrt(dw * dw + dxx * dxx + dy * dy + dz * dz)
+                dw /= nn
+                dxx /= nn
+                dy /= nn
+                dz /= nn
+                flags |= K.FLAG_GYR
+            else:
+                if has_gyr:
+                    aux[K.AUX_N_GYR_REJ] += 1.0
+                dw = x[0]
+                dxx = x[1]
+                dy = x[2]
+                dz = x[3]
+            trust = 1.0 / (1.0 + (rate / prm[_W_REF]) ** 2)
+            step = dt if dt > 0.0 else 0.0
+            # ---- tilt blend: FQA(a, predicted field) vs q_delta
+            w, qx, qy, qz = dw, dxx, dy, dz
+            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
+                gam_a = (1.0 - math.exp(-step / prm[_TAU_A])) * trust \
+                    * (1.0 - acc_dev / prm[K.PRM_ACC_GATE])
+                pn0, pn1, pn2 = K.rot_t(w, qx, qy, qz, 0.0, 1.0, 0.0)
+                sw, sx, sy, sz = fqa_quaternion(a0, a1, a2, pn0, pn1, pn2)
+                w, qx, qy, qz = _blend(gam_a, sw, sx, sy, sz, w, qx, qy, qz)
+                flags |= K.FLAG_ACC
+            else:
+                aux[K.AUX_N_ACC_REJ] += 1.0
+            # ---- heading blend: FQA(vertical of q, m) vs q
+            tw, tx, ty, tz = w, qx, qy, qz
+            ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
+            if mag_fin and K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, dt):
+                mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+                dev = abs(mn - aux[K.AUX_MREF_N])
+                gam_m = (1.0 - math.exp(-step / prm[_TAU_M])) * trust \
+                    * max(0.0, 1.0 - dev / prm[K.PRM_MAG_NORM_GATE])
+                sw, sx, sy, sz = fqa_quaternion(ux, uy, uz, m0, m1, m2)
+                w, qx, qy, qz = _blend(gam_m, sw, sx, sy, sz, w, qx, qy, qz)
+                flags |= K.FLAG_MAG
+            elif has_mag:
+                aux[K.AUX_N_MAG_REJ] += 1.0
+            # ---- in-motion bias: integral of the corrections (device frame); of the heading
+            # correction only the part about the vertical counts (a magnetic error must not
+            # leak into the tilt through the bias)
+            if (flags & K.FLAG_GYR) and (gam_a > 0.0 or gam_m > 0.0) \
+                    and prm[K.PRM_BIAS_EST] > 0.5:
+                ew, ex, ey, ez = K.qmul(dw, -dxx, -dy, -dz, tw, tx, ty, tz)
+                sgn = 2.0 if ew >= 0.0 else -2.0
+                c0 = sgn * ex
+                c1 = sgn * ey
+                c2 = sgn * ez
+                ew, ex, ey, ez = K.qmul(tw, -tx, -ty, -tz, w, qx, qy, qz)
+                sgn = 2.0 if ew >= 0.0 else -2.0
+                hv = sgn * (ex * ux + ey * uy + ez * uz)
+                c0 += hv * ux
+                c1 += hv * uy
+                c2 += hv * uz
+                bmax = prm[_B_MAX]
+                kb = 1.0 / prm[_TAU_B]
+                aux[K.AUX_BIAS] = min(bmax, max(-bmax, aux[K.AUX_BIAS] - c0 * kb))
+                aux[K.AUX_BIAS + 1] = min(bmax, max(-bmax, aux[K.AUX_BIAS + 1] - c1 * kb))
+                aux[K.AUX_BIAS + 2] = min(bmax, max(-bmax, aux[K.AUX_BIAS + 2] - c2 * kb))
+            if w < 0.0:
+                w, qx, qy, qz = -w, -qx, -qy, -qz
+            x[0] = w
+            x[1] = qx
+            x[2] = qy
+            x[3] = qz
+        out_q[i, 0] = x[0]
+        out_q[i, 1] = x[1]
+        out_q[i, 2] = x[2]
+        out_q[i, 3] = x[3]
+        out_flags[i] = flags
+        out_extra[i, 0] = gam_a
+        out_extra[i, 1] = gam_m
+
+
+class ComplementaryFilter(AttitudeFilter):
+    """Complementary filter with FQA static quaternion and adaptive gain (Inderst 4.2.2)."""
+
+    name: ClassVar[str] = "complementary"
+    params_type: ClassVar[type[CommonParams]] = ComplementaryParams
+    has_covariance: ClassVar[bool] = False
+    extra_outputs: ClassVar[tuple[str, ...]] = ("gain_acc", "gain_mag")
+
+    def _new_xp(self) -> tuple[FloatArray, FloatArray]:
+        return np.array([1.0, 0.0, 0.0, 0.0]), np.zeros((0, 0))
+
+    def _kernel(self, t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray,
+                has_gyr: bool, has_mag: bool, x: FloatArray, P: FloatArray, aux: FloatArray,
+                out_q: FloatArray, out_var: FloatArray, out_flags: NDArray[np.uint8],
+                out_extra: FloatArray, **inputs: FloatArray) -> None:
+        if inputs:
+            raise InputError(f"unexpected inputs {sorted(inputs)}", where=self.name,
+                             expected="t, acc, gyr, mag only")
+        complementary_kernel(t, acc, gyr, mag, has_gyr, has_mag, self._prm, x, aux, out_q,
+                             out_flags, out_extra)

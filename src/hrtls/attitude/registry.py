@@ -1,0 +1,38 @@
+"""Attitude methods by name: ``euler-ekf``, ``quat-ekf``, ``complementary``, ``device``."""
+
+from __future__ import annotations
+
+from hrtls.attitude.base import AttitudeFilter, CommonParams
+from hrtls.attitude.complementary import ComplementaryFilter
+from hrtls.attitude.device import DeviceOrientation
+from hrtls.attitude.euler_ekf import EulerEkf
+from hrtls.attitude.quat_ekf import QuatEkf
+from hrtls.errors import InputError
+
+__all__ = ["FILTERS", "METHODS", "make_filter"]
+
+FILTERS: dict[str, type[AttitudeFilter]] = {
+    EulerEkf.name: EulerEkf,
+    QuatEkf.name: QuatEkf,
+    ComplementaryFilter.name: ComplementaryFilter,
+}
+"""Sensor-fusion filters (they consume an IMU stream)."""
+
+METHODS: dict[str, type[AttitudeFilter] | type[DeviceOrientation]] = {
+    **FILTERS,
+    DeviceOrientation.name: DeviceOrientation,
+}
+"""All methods, including the pass-through of a device orientation (it consumes an
+:class:`~hrtls.data.OrientationSeries` instead of an IMU stream)."""
+
+
+def make_filter(method: str, params: CommonParams | None = None) -> AttitudeFilter:
+    """Create the sensor-fusion filter registered as ``method`` (default parameters if None)."""
+    try:
+        cls = FILTERS[method]
+    except KeyError:
+        raise InputError(f"unknown attitude filter {method!r}", where="method",
+                         expected=" | ".join(sorted(METHODS)),
+                         hint="'device' uses the device's orientation: see DeviceOrientation"
+                         ) from None
+    return cls(params)

@@ -1,0 +1,83 @@
+"""How the CLI reports problems: one clear line and a non-zero exit, details with --verbose."""
+
+from __future__ import annotations
+
+import functools
+import traceback
+import warnings
+from collections.abc import Callable
+from typing import ParamSpec, TypeVar
+
+import typer
+from rich.console import Console
+
+from hrtls.errors import DegradedInputWarning, HrtlsError, RepairWarning
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+err_console = Console(stderr=True, highlight=False)
+
+EXIT_INPUT = 2
+EXIT_INTERNAL = 3
+
+
+class Verbosity:
+    """Process-wide --verbose flag set by the root callback."""
+
+    verbose = False
+
+
+def _show_warning(message: warnings.WarningMessage) -> None:
+    kind = {RepairWarning: "repaired", DegradedInputWarning: "note"}.get(
+        message.category, "warning")  # type: ignore[call-overload]
+    err_console.print(f"[yellow]{kind}:[/yellow] {message.message}", markup=True)
+
+
+def reports_errors(func: Callable[P, R]) -> Callable[P, R]:
+    """Wrap a command: hrtls errors become one line + exit 2, warnings are printed once."""
+
+    @functools.wraps(func)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                result = func(*args, **kwargs)
+            except HrtlsError as exc:
+                _flush(caught)
+                if Verbosity.verbose:
+                    err_console.print(traceback.format_exc(), markup=False)
+                err_console.print(f"[red]error:[/red] {exc}", markup=True, soft_wrap=True)
+                raise typer.Exit(EXIT_INPUT) from None
+            except (OSError, MemoryError) as exc:
+                _flush(caught)
+                if Verbosity.verbose:
+                    err_console.print(traceback.format_exc(), markup=False)
+                err_console.print(f"[red]error:[/red] {exc}", markup=True, soft_wrap=True)
+                raise typer.Exit(EXIT_INPUT) from None
+            except (typer.Exit, typer.Abort, KeyboardInterrupt):
+                _flush(caught)
+                raise
+            except Exception as exc:
+                _flush(caught)
+                if Verbosity.verbose:
+                    err_console.print(traceback.format_exc(), markup=False)
+                err_console.print(
+                    f"[red]internal error:[/red] {type(exc).__name__}: {exc} "
+                    "(this is a bug in hrtls; run with --verbose and report it)",
+                    markup=True, soft_wrap=True)
+                raise typer.Exit(EXIT_INTERNAL) from None
+        _flush(caught)
+        return result
+
+    return wrapper
+
+
+def _flush(caught: list[warnings.WarningMessage]) -> None:
+    seen: set[str] = set()
+    for message in caught:
+        text = str(message.message)
+        if text in seen:
+            continue
+        seen.add(text)
+        _show_warning(message)

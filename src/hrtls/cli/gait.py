@@ -1,0 +1,156 @@
+"""Gait commands: ``hrtls activity train`` and ``hrtls calibrate steps``.
+
+Register in :mod:`hrtls.cli.app` with::
+
+    from hrtls.cli import gait as gait_cli
+    app.add_typer(gait_cli.activity_app, name="activity")
+    calibrate_app.command("steps")(gait_cli.calibrate_steps)   # under `hrtls calibrate`
+
+Labelled sessions for training carry an ``activity.csv`` file next to ``imu.csv`` with the
+header ``t_start,t_end,activity`` (times in s on the session clock, activity a label such as
+``walking`` or its code). Windows that are not entirely inside one labelled interval are ignored.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from hrtls.cli.errors import reports_errors
+from hrtls.data import Activity, activity_codes
+from hrtls.errors import FormatError, InputError
+
+activity_app = typer.Typer(no_args_is_help=True, help="Activity recognition models.")
+
+
+def read_activity_labels(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Intervals ``(t_start, t_end, codes)`` of an ``activity.csv`` file."""
+    try:
+        lines = Path(path).read_text().strip().splitlines()
+    except OSError as exc:
+        raise FormatError(str(exc), where=str(path), expected="a readable activity.csv") from None
+    header = [h.strip() for h in lines[0].split(",")] if lines else []
+    if header[:3] != ["t_start", "t_end", "activity"]:
+        raise FormatError(f"header {header}", where=f"{path} line 1",
+                          expected="t_start,t_end,activity")
+    t0, t1, labels = [], [], []
+    for i, line in enumerate(lines[1:], start=2):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) < 3:
+            raise FormatError(f"{len(parts)} fields", where=f"{path} line {i}",
+                              expected="t_start,t_end,activity")
+        try:
+            a, b = float(parts[0]), float(parts[1])
+        except ValueError:
+            raise FormatError(f"times {parts[:2]}", where=f"{path} line {i}",
+                              expected="numbers in s") from None
+        if not (np.isfinite(a) and np.isfinite(b) and b > a):
+            raise FormatError(f"interval [{a}, {b}]", where=f"{path} line {i}",
+                              expected="finite t_end > t_start")
+        t0.append(a)
+        t1.append(b)
+        labels.append(parts[2])
+    return np.array(t0), np.array(t1), activity_codes(np.array(labels, dtype=str),
+                                                      where=f"{path} activity")
+
+
+def _read_session(path: Path) -> object:
+    """Any recording hrtls reads (session folder, zip, other formats) as a Session."""
+    try:
+        from hrtls.io.readers.detect import read_any
+    except ImportError:  # pragma: no cover - older trees: session folders only
+        from hrtls.io.session import read_session
+
+        return read_session(path)
+    return read_any(path)
+
+
+@activity_app.command("train")
+@reports_errors
+def train(
+    sessions: Annotated[list[Path], typer.Argument(help="Labelled session folders (or zips).")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Model JSON to write.")],
+    window_s: Annotated[float, typer.Option(help="Window length, s.")] = 2.0,
+    cutoff_hz: Annotated[float, typer.Option(help="Low-pass corner before features, Hz.")] = 6.0,
+) -> None:
+    """Train the LDA activity model (Inderst Sec. 4.1.2) on labelled sessions."""
+    from hrtls.data import Session
+    from hrtls.gait.activity_lda import train_lda
+    from hrtls.gait.features import window_labels
+    from hrtls.gait.pipeline import activity_windows, session_inputs
+
+    feats, labels = [], []
+    for path in sessions:
+        session = _read_session(path)
+        assert isinstance(session, Session)
+        t, acc, q_nd, mount, rate = session_inputs(session)
+        lab_file = Path(path) / "activity.csv"
+        if not lab_file.exists():
+            raise InputError("no activity.csv", where=str(path),
+                             expected="t_start,t_end,activity intervals next to imu.csv")
+        a, b, codes = read_activity_labels(lab_file)
+        per_sample = np.full(t.shape[0], int(Activity.UNKNOWN), dtype=np.int64)
+        for lo, hi, c in zip(a, b, codes, strict=True):
+            per_sample[(t >= lo) & (t < hi)] = c
+        wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd, mounting_q_bd=mount,
+                              window_s=window_s, cutoff_hz=cutoff_hz)
+        y = window_labels(per_sample, max(4, round(window_s * rate)))
+        feats.append(wf.lda)
+        labels.append(y)
+    f = np.concatenate(feats)
+    y = np.concatenate(labels)
+    model = train_lda(f, y, window_s=window_s, cutoff_hz=cutoff_hz,
+                      info=f"trained by hrtls on {len(sessions)} session(s), "
+                           f"{int(np.sum(y >= 0))} windows")
+    model.save(output)
+    counts = {Activity(int(c)).label: int(np.sum(y == c)) for c in np.unique(y[y >= 0])}
+    typer.echo(f"wrote {output}: windows per class {counts}")
+
+
+@reports_errors
+def calibrate_steps(
+    sessions: Annotated[list[Path], typer.Argument(help="Session folders, one walk each.")],
+    distance: Annotated[list[float], typer.Option(
+        "--distance", help="True length of each walk, m (once per session, same order).")],
+    output: Annotated[Path, typer.Option("-o", "--output",
+                                         help="User profile JSON to write.")],
+    model: Annotated[str, typer.Option(help="'weinberg' or 'frequency'.")] = "weinberg",
+    detector: Annotated[str, typer.Option(help="'peak' or 'pll'.")] = "peak",
+) -> None:
+    """Fit the step-length model from walks of known length (Basso eq. 1-2) into a profile."""
+    from hrtls.data import Session, UserProfile
+    from hrtls.gait.peak_steps import PeakStepDetector
+    from hrtls.gait.pipeline import GaitAnalyzer, session_inputs
+    from hrtls.gait.pll import PllStepDetector, StepDetection
+    from hrtls.gait.step_length_fit import CalibrationWalk, fit_frequency_law, fit_weinberg
+
+    if len(distance) != len(sessions):
+        raise InputError(f"{len(distance)} distances for {len(sessions)} sessions",
+                         where="--distance", expected="one --distance per session")
+    if model not in ("weinberg", "frequency") or detector not in ("peak", "pll"):
+        raise InputError(f"model {model!r}, detector {detector!r}", where="options",
+                         expected="model weinberg|frequency, detector peak|pll")
+    walks = []
+    for path, dist in zip(sessions, distance, strict=True):
+        session = _read_session(path)
+        assert isinstance(session, Session)
+        t, acc, q_nd, mount, rate = session_inputs(session)
+        det = PllStepDetector() if detector == "pll" else PeakStepDetector()
+        res = GaitAnalyzer(rate_hz=rate, step_detector=det, mounting_q_bd=mount).process(
+            t, acc, q_nd)
+        s = res.steps
+        walks.append(CalibrationWalk(StepDetection(s.t_start, s.t_end, s.frequency_hz,
+                                                   s.acc_max, s.acc_min), float(dist)))
+    fitted = fit_weinberg(walks) if model == "weinberg" else fit_frequency_law(walks)
+    profile = UserProfile(step_model=fitted.to_dict())
+    Path(output).write_text(json.dumps(profile.model_dump(mode="json"), indent=1))
+    typer.echo(f"wrote {output}: {fitted.to_dict()}")
+
+
+app = typer.Typer(no_args_is_help=True, help="Gait analysis tools.")
+app.add_typer(activity_app, name="activity")
+app.command("calibrate-steps")(calibrate_steps)

@@ -1,0 +1,1 @@
+"""Accuracy metrics, JSON reports and plots of estimated trajectories against ground truth."""

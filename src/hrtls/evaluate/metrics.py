@@ -1,0 +1,311 @@
+"""Accuracy metrics of an estimated trajectory against ground truth, as the papers scored.
+
+* position error against continuous truth (estimate interpolated at truth times) and at
+  checkpoints (how Inderst Sec. 6.3 and Basso Sec. IV-A measured): mean, RMSE, median,
+  75th / 90th / 95th percentile, maximum, and the empirical CDF (Tarrio Fig. 1);
+* error as a percentage of the distance travelled;
+* Basso's integral mean error: the error integrated over the distance travelled and divided by
+  the path length, then normalized by the path length (Table I "mean position error");
+* step count and step length errors (matched steps), heading error, velocity RMSE
+  (Colombo Fig. 7), and the activity confusion matrix (Inderst Sec. 6.2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hrtls.data import Activity, Checkpoints, GroundTruth, StepEvents, Trajectory
+from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorStats:
+    """Summary of non-negative errors (m, or rad for headings)."""
+
+    n: int
+    mean: float
+    rmse: float
+    median: float
+    p75: float
+    p90: float
+    p95: float
+    max: float
+
+    def to_dict(self) -> dict[str, float | int]:
+        """JSON-able form (NaN when there were no errors)."""
+        return asdict(self)
+
+
+def error_stats(errors: ArrayLike) -> ErrorStats:
+    """Mean, RMSE, median, 75/90/95th percentiles (linear interpolation) and maximum."""
+    e = np.asarray(errors, dtype=np.float64).ravel()
+    if e.size and not np.all(np.isfinite(e)):
+        raise InputError("non-finite error", where="errors", expected="finite numbers")
+    if e.size == 0:
+        nan = float("nan")
+        return ErrorStats(0, nan, nan, nan, nan, nan, nan, nan)
+    p = np.percentile(e, [50, 75, 90, 95])
+    return ErrorStats(n=int(e.size), mean=float(np.mean(e)), rmse=float(np.sqrt(np.mean(e * e))),
+                      median=float(p[0]), p75=float(p[1]), p90=float(p[2]), p95=float(p[3]),
+                      max=float(np.max(e)))
+
+
+def error_cdf(errors: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Empirical CDF: sorted errors and the fraction ``(i + 1) / n`` at or below each."""
+    e = np.sort(np.asarray(errors, dtype=np.float64).ravel())
+    return e, np.arange(1, e.size + 1, dtype=np.float64) / max(e.size, 1)
+
+
+def _overlap(estimate: Trajectory, t: FloatArray) -> NDArray[np.bool_]:
+    if len(estimate) == 0:
+        raise InputError("empty trajectory", where="estimate", expected="at least one sample")
+    return (t >= estimate.t[0]) & (t <= estimate.t[-1])
+
+
+def position_errors(estimate: Trajectory, truth: GroundTruth, *, horizontal: bool = True
+                    ) -> tuple[FloatArray, FloatArray]:
+    """Times and Euclidean errors of the estimate (interpolated) at the truth samples it spans."""
+    keep = _overlap(estimate, truth.t)
+    t = truth.t[keep]
+    est = estimate.position_at(t)
+    d = est - truth.xyz[keep]
+    if horizontal:
+        d = d[:, :2]
+    return t, np.sqrt(np.sum(d * d, axis=1))
+
+
+def checkpoint_errors(estimate: Trajectory, checkpoints: Checkpoints, *,
+                      horizontal: bool = True) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
+    """Times, errors and labels at the checkpoints the estimate spans (Inderst eq. 6.1)."""
+    keep = _overlap(estimate, checkpoints.t)
+    t = checkpoints.t[keep]
+    d = estimate.position_at(t) - checkpoints.xyz[keep]
+    if horizontal:
+        d = d[:, :2]
+    return t, np.sqrt(np.sum(d * d, axis=1)), checkpoints.label[keep]
+
+
+def cumulative_distance(xyz: ArrayLike) -> FloatArray:
+    """Horizontal distance travelled up to each sample, m (starts at 0)."""
+    p = np.asarray(xyz, dtype=np.float64)
+    if len(p) == 0:
+        return np.zeros(0)
+    step = np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1]))
+    return np.concatenate([[0.0], np.cumsum(step)])
+
+
+def distance_at(truth: GroundTruth, t: ArrayLike) -> FloatArray:
+    """Horizontal distance travelled along the truth at times ``t``, m."""
+    return np.interp(np.asarray(t, dtype=np.float64), truth.t, cumulative_distance(truth.xyz))
+
+
+def integral_mean_error(distance_m: ArrayLike, errors_m: ArrayLike, total_length_m: float
+                        ) -> tuple[float, float]:
+    """Basso's integral mean error (Sec. IV-A, Table I).
+
+    The errors at way-points (distance travelled ``distance_m``) are integrated over the
+    distance by the trapezoidal rule and divided by ``total_length_m`` -- the mean error along
+    the path, m -- and that mean is then normalized by the path length (fraction, 0.01 = 1 %).
+    Pass the start (distance 0, error 0) when the initial position is known.
+    """
+    s = np.asarray(distance_m, dtype=np.float64)
+    e = np.asarray(errors_m, dtype=np.float64)
+    if s.shape != e.shape or s.ndim != 1 or len(s) < 2:
+        raise InputError(f"shapes {s.shape} and {e.shape}", where="integral_mean_error",
+                         expected="two 1-D arrays of equal length >= 2")
+    if np.any(np.diff(s) < 0) or not total_length_m > 0:
+        raise InputError("distances not increasing or non-positive length",
+                         where="integral_mean_error",
+                         expected="non-decreasing distances and a positive total length")
+    integral = float(np.sum(0.5 * (e[1:] + e[:-1]) * np.diff(s)))
+    mean = integral / total_length_m
+    return mean, mean / total_length_m
+
+
+@dataclass(frozen=True, slots=True)
+class StepComparison:
+    """Estimated steps against true steps.
+
+    Attributes
+    ----------
+    n_true, n_estimated: step counts. count_error: ``n_estimated - n_true``.
+    count_error_fraction: ``count_error / n_true``.
+    length_true_m, length_estimated_m: summed step lengths, m.
+    length_error_fraction: ``(estimated - true) / true`` of the summed lengths.
+    n_matched: steps paired 1:1 by end time within the tolerance.
+    step_length_mae_m, step_length_rmse_m, step_length_bias_m: of matched pairs, m.
+    """
+
+    n_true: int
+    n_estimated: int
+    count_error: int
+    count_error_fraction: float
+    length_true_m: float
+    length_estimated_m: float
+    length_error_fraction: float
+    n_matched: int
+    step_length_mae_m: float
+    step_length_rmse_m: float
+    step_length_bias_m: float
+
+    def to_dict(self) -> dict[str, float | int]:
+        """JSON-able form."""
+        return asdict(self)
+
+
+def match_events(t_est: ArrayLike, t_true: ArrayLike, *, tolerance_s: float
+                 ) -> tuple[IntArray, IntArray]:
+    """Pair events 1:1, closest first, when their times differ by at most ``tolerance_s``."""
+    a = np.asarray(t_est, dtype=np.float64)
+    b = np.asarray(t_true, dtype=np.float64)
+    if a.size == 0 or b.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    j = np.clip(np.searchsorted(b, a), 1, b.size - 1) if b.size > 1 else np.zeros(a.size, int)
+    cand_i, cand_j = [], []
+    for jj in (j - 1, j) if b.size > 1 else (j,):
+        cand_i.append(np.arange(a.size))
+        cand_j.append(jj)
+    ii = np.concatenate(cand_i)
+    jj_all = np.concatenate(cand_j)
+    dt = np.abs(a[ii] - b[jj_all])
+    ok = dt <= tolerance_s
+    ii, jj_all, dt = ii[ok], jj_all[ok], dt[ok]
+    order = np.argsort(dt, kind="stable")
+    used_a = np.zeros(a.size, bool)
+    used_b = np.zeros(b.size, bool)
+    out_a, out_b = [], []
+    for k in order:  # at most 2 candidates per estimated step
+        if not used_a[ii[k]] and not used_b[jj_all[k]]:
+            used_a[ii[k]] = True
+            used_b[jj_all[k]] = True
+            out_a.append(ii[k])
+            out_b.append(jj_all[k])
+    ia = np.asarray(out_a, dtype=np.int64)
+    ib = np.asarray(out_b, dtype=np.int64)
+    srt = np.argsort(ia)
+    return ia[srt], ib[srt]
+
+
+def compare_steps(estimated: StepEvents, true: StepEvents, *, tolerance_s: float = 0.35
+                  ) -> StepComparison:
+    """Count and length errors of estimated steps, matching step ends within ``tolerance_s``."""
+    n_t, n_e = len(true), len(estimated)
+    lt, le = true.distance_m, estimated.distance_m
+    ia, ib = match_events(estimated.t_end, true.t_end, tolerance_s=tolerance_s)
+    diff = estimated.length_m[ia] - true.length_m[ib]
+    nan = float("nan")
+    return StepComparison(
+        n_true=n_t, n_estimated=n_e, count_error=n_e - n_t,
+        count_error_fraction=(n_e - n_t) / n_t if n_t else nan,
+        length_true_m=lt, length_estimated_m=le,
+        length_error_fraction=(le - lt) / lt if lt > 0 else nan, n_matched=int(ia.size),
+        step_length_mae_m=float(np.mean(np.abs(diff))) if diff.size else nan,
+        step_length_rmse_m=float(np.sqrt(np.mean(diff * diff))) if diff.size else nan,
+        step_length_bias_m=float(np.mean(diff)) if diff.size else nan,
+    )
+
+
+def heading_errors(estimate: Trajectory, truth: GroundTruth) -> tuple[FloatArray, FloatArray]:
+    """Times and absolute wrapped heading errors (rad) where both headings are known."""
+    if truth.heading_rad is None:
+        raise InputError("truth has no heading", where="truth", expected="a heading column")
+    keep = _overlap(estimate, truth.t)
+    t = truth.t[keep]
+    h = estimate.heading_rad
+    ok = np.isfinite(h)
+    if ok.sum() < 2:
+        return np.zeros(0), np.zeros(0)
+    unwrapped = np.unwrap(h[ok])
+    est = np.interp(t, estimate.t[ok], unwrapped)
+    return t, np.abs(wrap_angle(est - truth.heading_rad[keep]))
+
+
+def velocity_rmse(estimate: Trajectory, truth: GroundTruth, *, rate_hz: float = 10.0,
+                  window_s: float = 1.0) -> tuple[float, float]:
+    """RMSE of the horizontal velocity vector and of the speed, m/s.
+
+    Both tracks are resampled on a common ``rate_hz`` grid over their overlap, smoothed by a
+    ``window_s`` moving average and differentiated by central differences (Colombo computed
+    the true velocity from camera positions by backward differences).
+    """
+    t0 = max(estimate.t[0], truth.t[0])
+    t1 = min(estimate.t[-1], truth.t[-1])
+    if t1 - t0 < 3.0 / rate_hz:
+        return float("nan"), float("nan")
+    t = np.arange(t0, t1, 1.0 / rate_hz)
+    n = max(1, round(window_s * rate_hz))
+    if len(t) < n + 2:
+        return float("nan"), float("nan")
+    kernel = np.ones(n) / n
+    tm = np.convolve(t, kernel, mode="valid")  # no padding: ends are dropped, not distorted
+
+    def vel(xy: FloatArray) -> FloatArray:
+        sm = np.column_stack([np.convolve(c, kernel, mode="valid") for c in xy.T])
+        return np.gradient(sm, tm, axis=0)
+
+    ve = vel(estimate.position_at(t)[:, :2])
+    vt = vel(truth.position_at(t)[:, :2])
+    dv = ve - vt
+    ds = np.linalg.norm(ve, axis=1) - np.linalg.norm(vt, axis=1)
+    return float(np.sqrt(np.mean(np.sum(dv * dv, axis=1)))), float(np.sqrt(np.mean(ds * ds)))
+
+
+ACTIVITY_CLASSES = (Activity.STANDING, Activity.WALKING, Activity.RUNNING, Activity.UPSTAIRS,
+                    Activity.DOWNSTAIRS, Activity.UNKNOWN)
+
+
+@dataclass(frozen=True, slots=True)
+class ActivityConfusion:
+    """Confusion matrix: rows true class, columns estimated class (``ACTIVITY_CLASSES``).
+
+    ``accuracy`` counts samples whose estimated class equals the true one over all samples.
+    """
+
+    labels: tuple[str, ...]
+    matrix: IntArray
+    accuracy: float
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-able form."""
+        return {"labels": list(self.labels), "matrix": self.matrix.tolist(),
+                "accuracy": self.accuracy}
+
+
+def hold_previous(t_change: ArrayLike, values: ArrayLike, t_query: ArrayLike) -> IntArray:
+    """Value of a step function (held from each change time) at ``t_query``."""
+    tc = np.asarray(t_change, dtype=np.float64)
+    v = np.asarray(values)
+    idx = np.clip(np.searchsorted(tc, np.asarray(t_query, dtype=np.float64), side="right") - 1,
+                  0, len(tc) - 1)
+    return np.asarray(v[idx], dtype=np.int64)
+
+
+def activity_confusion(true_t: ArrayLike, true_codes: ArrayLike, est_t: ArrayLike,
+                       est_codes: ArrayLike) -> ActivityConfusion:
+    """Confusion of estimated activity samples against the true activity held at their times."""
+    et = np.asarray(est_t, dtype=np.float64)
+    ec = np.asarray(est_codes, dtype=np.int64)
+    if len(np.asarray(true_t)) == 0 or et.size == 0:
+        raise InputError("no activity samples", where="activity", expected="non-empty series")
+    tc = hold_previous(true_t, true_codes, et)
+    k = len(ACTIVITY_CLASSES)
+    lut = np.full(max(int(c) for c in Activity) + 2, k - 1, dtype=np.int64)  # code + 1 -> row
+    for i, c in enumerate(ACTIVITY_CLASSES):
+        lut[int(c) + 1] = i
+
+    def index(codes: IntArray) -> IntArray:
+        ok = (codes >= -1) & (codes < len(lut) - 1)
+        return np.where(ok, lut[np.clip(codes + 1, 0, len(lut) - 1)], k - 1)
+
+    rows, cols = index(tc), index(ec)
+    m = np.zeros((k, k), dtype=np.int64)
+    np.add.at(m, (rows, cols), 1)
+    return ActivityConfusion(labels=tuple(c.label for c in ACTIVITY_CLASSES), matrix=m,
+                             accuracy=float(np.trace(m) / m.sum()))

@@ -1,0 +1,112 @@
+"""Rescuer position/heading filter: predictions and corrections (the papers' fusion parts).
+
+* :mod:`~hrtls.fusion.state` -- ``[x, y, z, heading]`` state with covariance, save/restore.
+* :mod:`~hrtls.fusion.gating` -- Joseph-form Kalman update with chi-square NIS gate, diagnostics.
+* :mod:`~hrtls.fusion.step_prediction` -- Inderst eq. 4.23-4.25 (3-D steps, stairs).
+* :mod:`~hrtls.fusion.velocity_prediction` -- Colombo eq. 15-17 (numba kernel).
+* :mod:`~hrtls.fusion.fixes` -- Colombo eq. 18-23 (fixes while moving, period Tp) and the loop.
+* :mod:`~hrtls.fusion.yaw_stretch` -- Colombo eq. 24-28 (yaw pseudo-measurement).
+* :mod:`~hrtls.fusion.rss` -- Tarrio eq. 1, 2, 5-13, tight RSS EKF, channel re-estimation.
+* :mod:`~hrtls.fusion.tags` -- Inderst eq. 4.26-4.33 (four tag strategies), 4.21-4.22 (bearings).
+* :mod:`~hrtls.fusion.ranges` -- Inderst eq. 4.34-4.35 (range EKF).
+* :mod:`~hrtls.fusion.floors` -- floor index and level constraint.
+* :mod:`~hrtls.fusion.random_walk` -- prediction without motion sensors (infrastructure only).
+"""
+
+from hrtls.fusion.fixes import (
+    ColomboRunResult,
+    FixCorrector,
+    FixParams,
+    FixSchedule,
+    StretchMemory,
+    YawPseudoMeasurement,
+    run_velocity_with_fixes,
+)
+from hrtls.fusion.floors import floor_index, floor_level, floor_level_update
+from hrtls.fusion.gating import (
+    UpdateDiagnostics,
+    UpdateResult,
+    chi2_threshold,
+    kalman_update,
+    summarize,
+)
+from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
+from hrtls.fusion.ranges import RangeParams, range_update, update_ranges
+from hrtls.fusion.rss import (
+    ChannelEstimator,
+    ChannelEstimatorParams,
+    ChannelState,
+    PathLossModel,
+    RssScan,
+    TarrioFusion,
+    TarrioParams,
+    TarrioState,
+    group_scans,
+    hold_last_fix,
+    hyperbolic_wls,
+    rss_update,
+    scan_position,
+    update_rss_readings,
+)
+from hrtls.fusion.state import FilterState
+from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
+from hrtls.fusion.tags import (
+    TagCorrector,
+    TagMemory,
+    TagParams,
+    bearing_heading_correction,
+    group_detections,
+    lobe_centre,
+)
+from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityPredictor
+from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
+
+__all__ = [
+    "ChannelEstimator",
+    "ChannelEstimatorParams",
+    "ChannelState",
+    "ColomboRunResult",
+    "FilterState",
+    "FixCorrector",
+    "FixParams",
+    "FixSchedule",
+    "PathLossModel",
+    "RandomWalkParams",
+    "RangeParams",
+    "RssScan",
+    "StepPredictionParams",
+    "StepPredictor",
+    "StretchMemory",
+    "TagCorrector",
+    "TagMemory",
+    "TagParams",
+    "TarrioFusion",
+    "TarrioParams",
+    "TarrioState",
+    "UpdateDiagnostics",
+    "UpdateResult",
+    "VelocityPredictionParams",
+    "VelocityPredictor",
+    "YawPseudoMeasurement",
+    "YawStretchParams",
+    "bearing_heading_correction",
+    "chi2_threshold",
+    "floor_index",
+    "floor_level",
+    "floor_level_update",
+    "group_detections",
+    "group_scans",
+    "hold_last_fix",
+    "hyperbolic_wls",
+    "kalman_update",
+    "lobe_centre",
+    "predict_random_walk",
+    "range_update",
+    "rss_update",
+    "run_velocity_with_fixes",
+    "scan_position",
+    "stretch_yaw",
+    "summarize",
+    "update_ranges",
+    "update_rss_readings",
+]

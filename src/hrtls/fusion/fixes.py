@@ -1,0 +1,401 @@
+"""External position fixes while moving, at the update period Tp (Colombo eq. 18-23).
+
+The measurement is the planar position, ``c = V p`` with ``V = I_2`` when a fix is *due* and
+``V = 0`` otherwise (eq. 18-19). A fix is due when the user moves (the standard deviation of the
+forward acceleration exceeds ``sigma_a_min``, decided by the caller) and the time is a multiple
+of the period ``Tp``. With ``V = I_2`` the gain, state and covariance follow eq. 20-22 (here in
+Joseph form, :func:`hrtls.fusion.gating.kalman_update`); otherwise the filter keeps its
+prediction (eq. 23).
+
+Reading of eq. 19 for a stream of fixes: the platform queries the infrastructure at ``i Tp``; we
+use the first fix in ``[i Tp, i Tp + slot_tolerance_s]`` taken while moving, once per slot ``i``.
+``period_s=None`` uses every fix taken while moving (``require_motion=False``: every fix).
+
+:func:`run_velocity_with_fixes` is the whole second EKF of Colombo: velocity prediction
+(:mod:`hrtls.fusion.velocity_prediction`), fixes, and the yaw stretching of eq. 24-28
+(:mod:`hrtls.fusion.yaw_stretch`) whose pseudo-measurements are returned for the attitude filter
+and, with ``yaw_feedback_gain > 0``, applied as a yaw offset to the following samples (a stand-in
+for feeding them to the attitude filter when it runs before the position filter).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hrtls.data.observations import PositionFixes
+from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
+from hrtls.fusion._checks import (
+    FloatArray,
+    finite_matrix,
+    finite_scalar,
+    finite_vector,
+    probability,
+)
+from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped
+from hrtls.fusion.state import IH, N_STATE, FilterState
+from hrtls.fusion.velocity_prediction import VelocityPredictor
+from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
+
+
+@dataclass(frozen=True, kw_only=True)
+class FixParams:
+    """Parameters of the position-fix correction.
+
+    Attributes
+    ----------
+    period_s:
+        Update period ``Tp``, s (Colombo used 1-16 s); None: every fix.
+    slot_tolerance_s:
+        A fix counts for slot ``i`` when it is at most this late after ``i Tp``.
+    require_motion:
+        Use fixes only while moving (eq. 19).
+    sigma_m:
+        Overrides the fixes' own 1-sigma (``Q_c = sigma^2 I``; Colombo: 0.05 m).
+    use_z:
+        Also correct z when the fix measured it.
+    gate_probability:
+        Chi-square gate on the NIS; None disables it.
+    max_consecutive_rejections:
+        After this many fixes in a row failed the gate, the next due fix is applied without
+        the gate (the prediction, not the infrastructure, is then the likely outlier: the
+        velocity model of eq. 17 treats yaw errors as white and underestimates the drift).
+    """
+
+    period_s: float | None = 10.0
+    slot_tolerance_s: float = 0.5
+    require_motion: bool = True
+    sigma_m: float | None = None
+    use_z: bool = False
+    gate_probability: float | None = 0.999
+    max_consecutive_rejections: int = 3
+
+    def __post_init__(self) -> None:
+        if self.period_s is not None:
+            finite_scalar(self.period_s, where="FixParams.period_s", positive=True)
+        finite_scalar(self.slot_tolerance_s, where="FixParams.slot_tolerance_s",
+                      non_negative=True)
+        if self.sigma_m is not None:
+            finite_scalar(self.sigma_m, where="FixParams.sigma_m", positive=True)
+        if self.gate_probability is not None:
+            probability(self.gate_probability, where="FixParams.gate_probability")
+        if self.max_consecutive_rejections < 0:
+            raise InputError(f"{self.max_consecutive_rejections}",
+                             where="FixParams.max_consecutive_rejections", expected=">= 0")
+
+
+@dataclass(frozen=True, slots=True)
+class FixSchedule:
+    """Causal state of the fix policy: last served period slot, rejections in a row."""
+
+    last_slot: int | None = None
+    rejections: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return {"last_slot": self.last_slot, "rejections": self.rejections}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FixSchedule:
+        """Inverse of :meth:`to_dict`."""
+        slot = data.get("last_slot")
+        return cls(None if slot is None else int(slot), int(data.get("rejections", 0)))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class FixUpdate:
+    """Result of one fix: new state, new schedule, diagnostics."""
+
+    state: FilterState
+    schedule: FixSchedule
+    diagnostics: UpdateDiagnostics
+
+
+class FixCorrector:
+    """Colombo eq. 18-23: planar position update with the Tp / motion policy and a gate."""
+
+    def __init__(self, params: FixParams | None = None) -> None:
+        self.params = params or FixParams()
+
+    def due(self, schedule: FixSchedule, t: float, moving: bool) -> tuple[bool, str]:
+        """Eq. 19: whether a fix at ``t`` is used, and why not."""
+        prm = self.params
+        if prm.require_motion and not moving:
+            return False, "user not moving"
+        if prm.period_s is None:
+            return True, ""
+        slot = math.floor(t / prm.period_s)
+        if schedule.last_slot is not None and slot <= schedule.last_slot:
+            return False, "period slot already served"
+        if t - slot * prm.period_s > prm.slot_tolerance_s:
+            return False, "not at a multiple of the period"
+        return True, ""
+
+    def update(self, state: FilterState, schedule: FixSchedule, *, t: float, xyz: ArrayLike,
+               sigma_m: float, moving: bool = True, has_z: bool = False,
+               cov_xy: ArrayLike | None = None) -> FixUpdate:
+        """Correct ``state`` (predicted to ``t`` by the caller) with one fix, if due.
+
+        Parameters
+        ----------
+        state, schedule:
+            Filter state at ``t`` and the policy state.
+        t:
+            Fix time, s.
+        xyz:
+            Fixed position, m (3,) (z ignored unless ``has_z`` and ``use_z``).
+        sigma_m:
+            1-sigma of the fix, m (overridden by ``params.sigma_m``).
+        moving:
+            Whether the user moves at ``t`` (``sigma_a > sigma_a_min`` in the paper).
+        has_z:
+            Whether z was measured.
+        cov_xy:
+            Full 2x2 covariance of a planar fix (e.g. from :func:`hrtls.fusion.rss.hyperbolic_wls`);
+            replaces ``sigma_m^2 I`` when given and z is not used.
+        """
+        prm = self.params
+        t = finite_scalar(t, where="fix t")
+        c = finite_vector(xyz, where="fix xyz", length=3)
+        sigma = prm.sigma_m if prm.sigma_m is not None else finite_scalar(
+            sigma_m, where="fix sigma_m", positive=True)
+        ok, why = self.due(schedule, t, moving)
+        if not ok:
+            return FixUpdate(state, schedule, skipped("fix", t, why))   # eq. 23
+        dims = [0, 1, 2] if (has_z and prm.use_z) else [0, 1]
+        h = np.zeros((len(dims), N_STATE))
+        for row, col in enumerate(dims):
+            h[row, col] = 1.0                                            # V = I (eq. 18-19)
+        r = np.eye(len(dims)) * sigma**2                                  # Q_c
+        if cov_xy is not None and len(dims) == 2:
+            r = finite_matrix(cov_xy, where="fix cov_xy", shape=(2, 2))
+        nu = c[dims] - state.x[dims]
+        recover = (prm.gate_probability is not None
+                   and schedule.rejections >= prm.max_consecutive_rejections)
+        gate = None if recover else prm.gate_probability
+        res = kalman_update(state.x, state.P, h, r, nu, gate_probability=gate,
+                            kind="fix", t=t, angle_index=IH)              # eq. 20-22
+        if not res.diagnostics.accepted:
+            new_schedule = FixSchedule(schedule.last_slot, schedule.rejections + 1)
+            return FixUpdate(state, new_schedule, res.diagnostics)
+        slot = math.floor(t / prm.period_s) if prm.period_s is not None else schedule.last_slot
+        new_schedule = FixSchedule(slot, 0)
+        diag = res.diagnostics
+        if recover:
+            diag = replace(diag, reason=f"applied without gate after {schedule.rejections} "
+                           "rejections in a row")
+        new_state = state.evolve(x=res.x, P=res.P)
+        return FixUpdate(new_state, new_schedule, diag)
+
+
+@dataclass(frozen=True, slots=True)
+class YawPseudoMeasurement:
+    """A yaw value for the attitude filter (Colombo eq. 28 at ``j = 0``)."""
+
+    t: float
+    yaw_rad: float
+    var_yaw_rad2: float
+    correction_rad: float
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class StretchMemory:
+    """What the yaw stretching keeps between chunks: the last accepted fix and the inputs since.
+
+    Attributes
+    ----------
+    t_fix: time of the last accepted fix, s.
+    post_xy: estimated position right after that update, m (2,).
+    fix_xy: that fix, m (2,).
+    sigma_m: its 1-sigma, m.
+    t, speed_m_s, yaw_rad: prediction inputs since then (yaw as used, offset included).
+    """
+
+    t_fix: float
+    post_xy: FloatArray
+    fix_xy: FloatArray
+    sigma_m: float
+    t: FloatArray
+    speed_m_s: FloatArray
+    yaw_rad: FloatArray
+
+    def extended(self, t: FloatArray, speed: FloatArray, yaw: FloatArray) -> StretchMemory:
+        """With more samples appended."""
+        return StretchMemory(self.t_fix, self.post_xy, self.fix_xy, self.sigma_m,
+                             np.concatenate([self.t, t]), np.concatenate([self.speed_m_s, speed]),
+                             np.concatenate([self.yaw_rad, yaw]))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return {"t_fix": self.t_fix, "post_xy": self.post_xy.tolist(),
+                "fix_xy": self.fix_xy.tolist(), "sigma_m": self.sigma_m, "t": self.t.tolist(),
+                "speed_m_s": self.speed_m_s.tolist(), "yaw_rad": self.yaw_rad.tolist()}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> StretchMemory:
+        """Inverse of :meth:`to_dict`."""
+        return cls(float(data["t_fix"]), np.asarray(data["post_xy"], dtype=np.float64),
+                   np.asarray(data["fix_xy"], dtype=np.float64), float(data["sigma_m"]),
+                   np.asarray(data["t"], dtype=np.float64),
+                   np.asarray(data["speed_m_s"], dtype=np.float64),
+                   np.asarray(data["yaw_rad"], dtype=np.float64))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ColomboRunResult:
+    """Output of :func:`run_velocity_with_fixes`.
+
+    Attributes
+    ----------
+    t, xyz, heading_rad, cov_xy, var_heading: per-sample track (predicted values; a fix
+        acts from the next sample on).
+    diagnostics: one record per fix.
+    yaw_pseudo: yaw pseudo-measurements produced by stretching.
+    state, schedule: final filter and policy states.
+    yaw_offset_rad: accumulated yaw feedback (0 without feedback).
+    memory: stretching memory for the next chunk (None before the first accepted fix).
+    """
+
+    t: FloatArray
+    xyz: FloatArray
+    heading_rad: FloatArray
+    cov_xy: FloatArray
+    var_heading: FloatArray
+    diagnostics: list[UpdateDiagnostics]
+    yaw_pseudo: list[YawPseudoMeasurement]
+    state: FilterState
+    schedule: FixSchedule
+    yaw_offset_rad: float = 0.0
+    memory: StretchMemory | None = None
+
+
+def run_velocity_with_fixes(state: FilterState, *, t: ArrayLike, speed_m_s: ArrayLike,
+                            yaw_rad: ArrayLike, moving: ArrayLike, fixes: PositionFixes | None,
+                            predictor: VelocityPredictor | None = None,
+                            corrector: FixCorrector | None = None,
+                            schedule: FixSchedule | None = None,
+                            var_yaw_rad2: ArrayLike | None = None,
+                            var_speed_m2_s2: ArrayLike | None = None,
+                            stretch: YawStretchParams | None = None,
+                            yaw_feedback_gain: float = 0.0,
+                            yaw_offset_rad: float = 0.0,
+                            memory: StretchMemory | None = None) -> ColomboRunResult:
+    """Colombo's second EKF over a chunk: prediction eq. 16-17, fixes eq. 18-23, stretch 24-28.
+
+    Parameters
+    ----------
+    state:
+        State at or before ``t[0]``.
+    t, speed_m_s, yaw_rad:
+        Per-sample inputs of the prediction.
+    moving:
+        Per-sample motion flag (eq. 19), bool (N,).
+    fixes:
+        Position fixes; those outside ``(state.t, t[-1]]`` are ignored.
+    predictor, corrector, schedule:
+        Parts and policy state (defaults when None).
+    var_yaw_rad2, var_speed_m2_s2:
+        Per-sample or scalar variances (defaults from the predictor parameters).
+    stretch:
+        Enables the yaw stretching with these parameters (None: off).
+    yaw_feedback_gain:
+        Fraction of each yaw correction added to a yaw offset applied to later samples.
+    yaw_offset_rad:
+        Initial yaw offset (from a previous chunk).
+    memory:
+        Stretching memory from the previous chunk (:attr:`ColomboRunResult.memory`).
+    """
+    pred = predictor or VelocityPredictor()
+    corr = corrector or FixCorrector()
+    sched = schedule or FixSchedule()
+    tt = finite_vector(t, where="colombo t")
+    n = tt.shape[0]
+    v = np.broadcast_to(np.asarray(speed_m_s, dtype=np.float64), (n,))
+    yaw = finite_vector(yaw_rad, where="colombo yaw_rad", length=n)
+    mov = np.asarray(moving, dtype=bool)
+    if mov.shape != (n,):
+        raise InputError(f"shape {mov.shape}", where="colombo moving", expected=f"({n},)")
+    vy = None if var_yaw_rad2 is None else np.broadcast_to(
+        np.asarray(var_yaw_rad2, dtype=np.float64), (n,))
+    vv = None if var_speed_m2_s2 is None else np.broadcast_to(
+        np.asarray(var_speed_m2_s2, dtype=np.float64), (n,))
+    gain = finite_scalar(yaw_feedback_gain, where="yaw_feedback_gain", non_negative=True)
+    offset = finite_scalar(yaw_offset_rad, where="yaw_offset_rad")
+
+    if fixes is not None and len(fixes) and n:
+        sel = (fixes.t > state.t) & (fixes.t <= tt[-1])
+        f_idx = np.flatnonzero(sel)
+    else:
+        f_idx = np.zeros(0, dtype=np.int64)
+    xyz_parts: list[FloatArray] = []
+    head_parts: list[FloatArray] = []
+    cov_parts: list[FloatArray] = []
+    varh_parts: list[FloatArray] = []
+    diags: list[UpdateDiagnostics] = []
+    pseudo: list[YawPseudoMeasurement] = []
+    start = 0
+    mem = memory
+    yaw_used = yaw + offset
+
+    def advance(stop: int) -> None:
+        nonlocal state, start, mem
+        if stop <= start:
+            return
+        res = pred.run(state, tt[start:stop], v[start:stop], yaw_used[start:stop],
+                       None if vy is None else vy[start:stop],
+                       None if vv is None else vv[start:stop])
+        xyz_parts.append(res.xyz)
+        head_parts.append(res.heading_rad)
+        cov_parts.append(res.cov_xy)
+        varh_parts.append(res.var_heading)
+        if mem is not None:
+            mem = mem.extended(tt[start:stop], v[start:stop], yaw_used[start:stop])
+        state = res.state
+        start = stop
+
+    for i in f_idx:
+        assert fixes is not None
+        tf = float(fixes.t[i])
+        stop = int(np.searchsorted(tt, tf, side="right"))
+        advance(stop)
+        mv = bool(mov[stop - 1]) if stop > 0 else False
+        prior_xy = state.x[:2].copy()
+        upd = corr.update(state, sched, t=tf, xyz=fixes.xyz[i], sigma_m=float(fixes.sigma_m[i]),
+                          moving=mv, has_z=fixes.has_z)
+        diags.append(upd.diagnostics)
+        state, sched = upd.state, upd.schedule
+        if not upd.diagnostics.accepted:
+            continue
+        sigma = corr.params.sigma_m or float(fixes.sigma_m[i])
+        fix_xy = np.asarray(fixes.xyz[i, :2], dtype=np.float64)
+        if stretch is not None and mem is not None:
+            res_s = stretch_yaw(t_start=mem.t_fix, t=mem.t, speed_m_s=mem.speed_m_s,
+                                yaw_rad=mem.yaw_rad, start_xy=mem.post_xy,
+                                offset_start=mem.fix_xy - mem.post_xy,
+                                offset_end=fix_xy - prior_xy, sigma_start_m=mem.sigma_m,
+                                sigma_end_m=sigma, params=stretch)       # eq. 24-28
+            if res_s.valid:
+                pseudo.append(YawPseudoMeasurement(tf, res_s.yaw_rad, res_s.var_yaw_rad2,
+                                                   res_s.correction_rad))
+                if gain > 0.0:
+                    delta = gain * res_s.correction_rad
+                    offset = float(wrap_angle(offset + delta))
+                    yaw_used[stop:] = yaw[stop:] + offset
+                    x = state.x.copy()
+                    x[IH] = float(wrap_angle(x[IH] + delta))
+                    state = state.evolve(x=x)
+        empty = np.zeros(0)
+        mem = StretchMemory(tf, state.x[:2].copy(), fix_xy, sigma, empty, empty, empty)
+    advance(n)
+
+    def cat(parts: list[FloatArray], shape: tuple[int, ...]) -> FloatArray:
+        return np.concatenate(parts) if parts else np.zeros(shape)
+
+    return ColomboRunResult(tt, cat(xyz_parts, (0, 3)), cat(head_parts, (0,)),
+                            cat(cov_parts, (0, 2, 2)), cat(varh_parts, (0,)), diags, pseudo,
+                            state, sched, offset, mem)

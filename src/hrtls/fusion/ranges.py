@@ -1,0 +1,128 @@
+"""Range to a known radio node by EKF (Inderst thesis Sec. 4.3.3, eq. 4.34-4.35).
+
+Expected measurement (eq. 4.34), the horizontal distance to node ``i`` at ``(x_i, y_i)``::
+
+    h(p) = sqrt((x - x_i)^2 + (y - y_i)^2)
+
+with Jacobian ``H = [(x - x_i)/h, (y - y_i)/h, 0, 0]``; the update of eq. 4.35 is done by
+:func:`hrtls.fusion.gating.kalman_update` (Joseph form, NIS gate). With ``use_3d=True`` the
+slant range including ``z - z_i`` is used instead (the thesis works in the plane).
+
+Near the node the range carries no direction: when the predicted distance is below
+``min_distance_m`` the reading is rejected (the Jacobian is undefined at 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hrtls.data.landmarks import Landmark
+from hrtls.data.observations import RangeMeasurements
+from hrtls.fusion._checks import finite_scalar, finite_vector, probability
+from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, rejected, skipped
+from hrtls.fusion.state import IH, N_STATE, FilterState
+
+
+@dataclass(frozen=True, kw_only=True)
+class RangeParams:
+    """Parameters of the range correction.
+
+    Attributes
+    ----------
+    default_sigma_m:
+        1-sigma of a reading whose own sigma is unknown (NaN), m (``V_j`` of eq. 4.35).
+    min_distance_m:
+        Predicted distances below this are not used (undefined direction).
+    use_3d:
+        Slant range with z instead of the planar range of eq. 4.34.
+    gate_probability:
+        Chi-square gate; None disables it.
+    """
+
+    default_sigma_m: float = 0.5
+    min_distance_m: float = 0.1
+    use_3d: bool = False
+    gate_probability: float | None = 0.999
+
+    def __post_init__(self) -> None:
+        finite_scalar(self.default_sigma_m, where="RangeParams.default_sigma_m", positive=True)
+        finite_scalar(self.min_distance_m, where="RangeParams.min_distance_m", positive=True)
+        if self.gate_probability is not None:
+            probability(self.gate_probability, where="RangeParams.gate_probability")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RangeUpdate:
+    """New state and diagnostics of one range."""
+
+    state: FilterState
+    diagnostics: UpdateDiagnostics
+
+
+def range_update(state: FilterState, node_xyz: ArrayLike, range_m: float, sigma_m: float, *,
+                 params: RangeParams | None = None, t: float | None = None, source: str = "",
+                 kind: str = "range") -> RangeUpdate:
+    """EKF update with one range (eq. 4.34-4.35).
+
+    Parameters
+    ----------
+    state:
+        Prior state at the reading's time.
+    node_xyz:
+        Node position, m (3,).
+    range_m:
+        Measured distance, m (>= 0).
+    sigma_m:
+        1-sigma of the distance, m (> 0; NaN uses ``default_sigma_m``).
+    params:
+        See :class:`RangeParams`.
+    t, source, kind:
+        Copied into the diagnostics (``t`` defaults to ``state.t``).
+    """
+    prm = params or RangeParams()
+    node = finite_vector(node_xyz, where="range node_xyz", length=3)
+    z = finite_scalar(range_m, where="range range_m", non_negative=True)
+    sig = prm.default_sigma_m if not math.isfinite(float(sigma_m)) else finite_scalar(
+        sigma_m, where="range sigma_m", positive=True)
+    tt = state.t if t is None else float(t)
+    dims = 3 if prm.use_3d else 2
+    delta = state.x[:dims] - node[:dims]
+    pred = float(np.linalg.norm(delta))                      # eq. 4.34
+    if pred < prm.min_distance_m:
+        return RangeUpdate(state, rejected(kind, tt, "estimate on top of the node", source))
+    h = np.zeros((1, N_STATE))
+    h[0, :dims] = delta / pred
+    res = kalman_update(state.x, state.P, h, np.array([[sig * sig]]), np.array([z - pred]),
+                        gate_probability=prm.gate_probability, kind=kind, t=tt, source=source,
+                        angle_index=IH)                      # eq. 4.35
+    return RangeUpdate(state.evolve(x=res.x, P=res.P), res.diagnostics)
+
+
+def ranges_at(measurements: RangeMeasurements, t_from: float, t_to: float) -> np.ndarray:
+    """Indices of the readings with ``t_from < t <= t_to`` (for interleaving with prediction)."""
+    lo = int(np.searchsorted(measurements.t, t_from, side="right"))
+    hi = int(np.searchsorted(measurements.t, t_to, side="right"))
+    return np.arange(lo, hi)
+
+
+def update_ranges(state: FilterState, measurements: RangeMeasurements, indices: ArrayLike,
+                  landmarks: dict[str, Landmark], *, params: RangeParams | None = None
+                  ) -> tuple[FilterState, list[UpdateDiagnostics]]:
+    """Apply the readings ``indices`` one after the other (unknown nodes are skipped)."""
+    diags: list[UpdateDiagnostics] = []
+    for i in np.asarray(indices, dtype=np.int64):
+        node_id = str(measurements.node[i])
+        t = float(measurements.t[i])
+        lm = landmarks.get(node_id)
+        if lm is None or lm.position is None:
+            diags.append(skipped("range", t, "node without a known position", node_id))
+            continue
+        upd = range_update(state, lm.xyz(), float(measurements.range_m[i]),
+                           float(measurements.sigma_m[i]), params=params, t=t, source=node_id)
+        state = upd.state
+        diags.append(upd.diagnostics)
+    return state, diags

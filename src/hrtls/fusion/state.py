@@ -1,0 +1,152 @@
+"""State of the rescuer position filter: ``x = [x, y, z, heading]`` and its covariance ``P``.
+
+Position in the ENU navigation frame (m), heading in rad CCW from east wrapped to ``(-pi, pi]``
+(see :mod:`hrtls.frames`). The state is immutable: predictions and corrections return a new
+:class:`FilterState`. It is saved and restored with :meth:`FilterState.to_dict` /
+:meth:`FilterState.from_dict` (JSON-able), which is how the live tracker resumes.
+
+``input_heading_rad`` remembers the last heading *input* (from the attitude filter or the step
+detector) so that, in ``heading_mode="state"``, predictions integrate heading *changes* of the
+input into the state heading and heading corrections persist (see
+:mod:`hrtls.fusion.step_prediction`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from hrtls.data.session import StartPose
+from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
+from hrtls.fusion._checks import FloatArray, finite_matrix, finite_scalar, finite_vector
+from hrtls.fusion.gating import symmetrize
+
+STATE_LABELS = ("x", "y", "z", "heading")
+"""Names of the state components, in order."""
+IX, IY, IZ, IH = 0, 1, 2, 3
+"""Indices of x, y, z and heading in the state vector."""
+N_STATE = 4
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class FilterState:
+    """Position/heading estimate with covariance.
+
+    Attributes
+    ----------
+    t: time of the estimate, s.
+    x: ``[x, y, z, heading]`` (m, m, m, rad).
+    P: 4x4 covariance (m^2, m rad, rad^2), symmetric positive semi-definite.
+    input_heading_rad: last heading input seen by a predictor (rad).
+    has_input_heading: whether ``input_heading_rad`` is valid.
+    """
+
+    t: float
+    x: FloatArray
+    P: FloatArray
+    input_heading_rad: float = 0.0
+    has_input_heading: bool = False
+
+    def __post_init__(self) -> None:
+        t = finite_scalar(self.t, where="filter state t")
+        x = finite_vector(self.x, where="filter state x", length=N_STATE).copy()
+        p = finite_matrix(self.P, where="filter state P", shape=(N_STATE, N_STATE))
+        if not np.allclose(p, p.T, rtol=1e-6, atol=1e-9):
+            raise InputError("covariance is not symmetric", where="filter state P",
+                             expected="a symmetric positive semi-definite 4x4 matrix")
+        p = symmetrize(p)
+        scale = max(1.0, float(np.max(np.abs(np.diag(p)))))
+        if float(np.min(np.linalg.eigvalsh(p))) < -1e-9 * scale:
+            raise InputError("covariance has a negative eigenvalue", where="filter state P",
+                             expected="a symmetric positive semi-definite 4x4 matrix")
+        x[IH] = float(wrap_angle(x[IH]))
+        h_in = finite_scalar(self.input_heading_rad, where="filter state input_heading_rad")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "P", p)
+        object.__setattr__(self, "input_heading_rad", float(wrap_angle(h_in)))
+        object.__setattr__(self, "has_input_heading", bool(self.has_input_heading))
+
+    # ---------------------------------------------------------------- construction
+    @classmethod
+    def initial(cls, *, t: float = 0.0, xyz: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                heading_rad: float = 0.0, sigma_xy_m: float = 0.5, sigma_z_m: float = 0.1,
+                sigma_heading_rad: float = 0.2) -> FilterState:
+        """A start state with a diagonal covariance built from 1-sigma values."""
+        for name, v in (("sigma_xy_m", sigma_xy_m), ("sigma_z_m", sigma_z_m),
+                        ("sigma_heading_rad", sigma_heading_rad)):
+            finite_scalar(v, where=name, non_negative=True)
+        x = np.array([*xyz, heading_rad], dtype=np.float64)
+        p = np.diag([sigma_xy_m**2, sigma_xy_m**2, sigma_z_m**2, sigma_heading_rad**2])
+        return cls(t, x, p)
+
+    @classmethod
+    def from_start_pose(cls, pose: StartPose, *, t: float = 0.0, sigma_z_m: float = 0.1,
+                        default_heading_rad: float = 0.0) -> FilterState:
+        """Start state from a session's ``start_pose`` (unknown heading -> ``default``)."""
+        heading = pose.heading if pose.heading is not None else default_heading_rad
+        sigma_h = pose.sigma_heading_rad if pose.heading is not None else np.pi
+        return cls.initial(t=t, xyz=(pose.x, pose.y, pose.z), heading_rad=heading,
+                           sigma_xy_m=pose.sigma_xy_m, sigma_z_m=sigma_z_m,
+                           sigma_heading_rad=float(sigma_h))
+
+    def evolve(self, **changes: Any) -> FilterState:
+        """A copy with some fields replaced (validated again)."""
+        return replace(self, **changes)
+
+    # ---------------------------------------------------------------- views
+    @property
+    def position(self) -> FloatArray:
+        """``[x, y, z]``, m (a copy)."""
+        return self.x[:3].copy()
+
+    @property
+    def heading(self) -> float:
+        """Heading, rad."""
+        return float(self.x[IH])
+
+    @property
+    def cov_xy(self) -> FloatArray:
+        """Horizontal position covariance (2, 2), m^2."""
+        return self.P[:2, :2].copy()
+
+    @property
+    def var_heading(self) -> float:
+        """Heading variance, rad^2."""
+        return float(self.P[IH, IH])
+
+    # ---------------------------------------------------------------- save / restore
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return {"t": self.t, "x": self.x.tolist(), "P": self.P.tolist(),
+                "input_heading_rad": self.input_heading_rad,
+                "has_input_heading": self.has_input_heading}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FilterState:
+        """Inverse of :meth:`to_dict`."""
+        missing = [k for k in ("t", "x", "P") if k not in data]
+        if missing:
+            raise InputError(f"missing keys {missing}", where="filter state",
+                             expected="a dict written by FilterState.to_dict()")
+        return cls(float(data["t"]), np.asarray(data["x"], dtype=np.float64),
+                   np.asarray(data["P"], dtype=np.float64),
+                   float(data.get("input_heading_rad", 0.0)),
+                   bool(data.get("has_input_heading", False)))
+
+
+def independent_block(p: FloatArray, idx: list[int], block: FloatArray) -> FloatArray:
+    """Covariance with ``P[idx, idx] = block`` and the cross terms of ``idx`` set to zero.
+
+    Used when a correction *resets* some components (e.g. a tag read re-initializes the
+    position): the new values are independent of the rest of the state, so the result stays
+    positive semi-definite.
+    """
+    out = p.copy()
+    out[idx, :] = 0.0
+    out[:, idx] = 0.0
+    out[np.ix_(idx, idx)] = block
+    return symmetrize(out)

@@ -1,0 +1,240 @@
+"""Step-and-heading prediction in 3-D with stairs (Inderst thesis Sec. 4.3.1, eq. 4.23-4.25).
+
+Per detected step ``j`` the position moves by a displacement ``l_j`` that depends on the
+recognized activity (eq. 4.23):
+
+* standing still: ``l_j = 0`` and the covariance does not grow;
+* walking / running / unknown: ``l_j = [L cos(phi), L sin(phi), dz]`` with the step length ``L``
+  (e.g. Weinberg eq. 4.24, computed by :mod:`hrtls.gait`) and the step heading ``phi`` (the
+  average heading over the step);
+* upstairs / downstairs (eq. 4.25): ``l_j = [rho cos(phi), rho sin(phi), +-zeta]`` with the stair
+  depth ``rho`` and riser height ``zeta``; with ``stairs_from_model=False`` the measured step
+  length and height change of the step are used instead.
+
+Covariance (eq. 4.23, ``P+ = P + Q_j`` with ``Q_j = l_j Q^p l_j^T``): we read ``Q^p`` as a
+dimensionless 3x3 matrix expressed in the frame of the step (along, across, vertical) and scale it
+by the squared step size, ``Q_j = |l_j|^2 R(phi) Q^p R(phi)^T``, so that the uncertainty grows with
+the distance walked and not with time. The heading uncertainty enters through the Jacobian of the
+displacement with respect to the heading (``F = I + d l_j / d heading``), as in Colombo eq. 17.
+
+Heading handling (``heading_mode``):
+
+* ``"input"`` (the papers): the step heading is a parameter taken from the attitude filter; the
+  state heading is set to it with the given variance, and its cross-covariances are cleared.
+* ``"state"``: the *change* of the input heading since the previous step is added to the state
+  heading (variance grows by ``sigma_heading_increment_rad^2`` per step). Heading corrections
+  (tag bearings, position fixes through the cross-covariance) then persist for later steps.
+  The first input heading only sets the reference, unless the state heading is less certain
+  than the input (e.g. an unknown start heading): then the state adopts it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from hrtls.data.results import Activity, StepEvents
+from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
+from hrtls.fusion._checks import FloatArray, finite_scalar
+from hrtls.fusion.gating import symmetrize
+from hrtls.fusion.state import IH, N_STATE, FilterState
+
+HeadingMode = Literal["input", "state"]
+_STAIRS = (int(Activity.UPSTAIRS), int(Activity.DOWNSTAIRS))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepPredictionParams:
+    """Parameters of the step-and-heading prediction.
+
+    Attributes
+    ----------
+    q_along:
+        Variance of the along-track error per squared step size (``Q^p`` (1,1)); 0.01 means a
+        10 % 1-sigma step-length error.
+    q_across:
+        Same across the track (lateral sway of the step).
+    q_vertical:
+        Same on the vertical axis.
+    stair_depth_m:
+        ``rho`` of eq. 4.25, horizontal advance per stair step, m.
+    stair_height_m:
+        ``zeta`` of eq. 4.25, height change per stair step, m.
+    stairs_from_model:
+        Use ``rho``/``zeta`` on stairs (eq. 4.25); False uses the step's own length and dz.
+    heading_mode:
+        ``"input"`` or ``"state"`` (see the module docstring).
+    sigma_heading_rad:
+        1-sigma of the input heading when the caller gives no variance.
+    sigma_heading_increment_rad:
+        Heading random walk per step in ``"state"`` mode.
+    """
+
+    q_along: float = 0.01
+    q_across: float = 0.0025
+    q_vertical: float = 0.0025
+    stair_depth_m: float = 0.30
+    stair_height_m: float = 0.17
+    stairs_from_model: bool = True
+    heading_mode: HeadingMode = "input"
+    sigma_heading_rad: float = 0.05
+    sigma_heading_increment_rad: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("q_along", "q_across", "q_vertical", "sigma_heading_rad",
+                     "sigma_heading_increment_rad"):
+            finite_scalar(getattr(self, name), where=f"StepPredictionParams.{name}",
+                          non_negative=True)
+        for name in ("stair_depth_m", "stair_height_m"):
+            finite_scalar(getattr(self, name), where=f"StepPredictionParams.{name}",
+                          positive=True)
+        if self.heading_mode not in ("input", "state"):
+            raise InputError(f"heading_mode {self.heading_mode!r}",
+                             where="StepPredictionParams.heading_mode",
+                             expected="'input' or 'state'")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class StepPredictionResult:
+    """States after each step.
+
+    Attributes
+    ----------
+    t: step end times, s (N,).
+    xyz: positions, m (N, 3).
+    heading_rad: state heading, rad (N,).
+    P: covariances (N, 4, 4).
+    state: state after the last step.
+    """
+
+    t: FloatArray
+    xyz: FloatArray
+    heading_rad: FloatArray
+    P: FloatArray
+    state: FilterState
+
+
+def propagate(x: FloatArray, p: FloatArray, displacement: FloatArray, heading: float,
+              q_frame: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Add a displacement made along ``heading`` and propagate the covariance.
+
+    ``F = I`` except ``F[0:2, 3] = d(l_xy)/d(heading)``; ``P+ = F P F^T + R Qf R^T`` where ``Qf``
+    (3x3, step frame) is already scaled (eq. 4.23 with the Jacobian of Colombo eq. 17).
+    """
+    c, s = np.cos(heading), np.sin(heading)
+    horiz = float(np.hypot(displacement[0], displacement[1]))
+    f = np.eye(N_STATE)
+    f[0, IH] = -horiz * s
+    f[1, IH] = horiz * c
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    q = np.zeros((N_STATE, N_STATE))
+    q[:3, :3] = rot @ q_frame @ rot.T
+    x_new = x.copy()
+    x_new[:3] += displacement
+    return x_new, symmetrize(f @ p @ f.T + q)
+
+
+class StepPredictor:
+    """Inderst eq. 4.23-4.25 step-and-heading prediction of a :class:`FilterState`."""
+
+    def __init__(self, params: StepPredictionParams | None = None) -> None:
+        self.params = params or StepPredictionParams()
+
+    def predict(self, state: FilterState, *, t: float, length_m: float, heading_rad: float,
+                dz_m: float = 0.0, activity: int = int(Activity.WALKING),
+                var_heading_rad2: float | None = None) -> FilterState:
+        """Apply one step ending at ``t``.
+
+        Parameters
+        ----------
+        state:
+            State before the step.
+        t:
+            Step end time, s (>= ``state.t``).
+        length_m:
+            Horizontal step length, m (>= 0).
+        heading_rad:
+            Walking direction of the step (rad, ENU CCW from east); NaN means unknown: the
+            state heading is used.
+        dz_m:
+            Height change of the step, m (used off stairs, and on stairs when
+            ``stairs_from_model`` is False).
+        activity:
+            :class:`~hrtls.data.results.Activity` code.
+        var_heading_rad2:
+            Variance of ``heading_rad``; default ``sigma_heading_rad^2``.
+        """
+        prm = self.params
+        t = finite_scalar(t, where="step t")
+        if t < state.t:
+            raise InputError(f"step at {t} s is before the filter time {state.t} s",
+                             where="step t", expected="steps in time order")
+        length = finite_scalar(length_m, where="step length_m", non_negative=True)
+        dz = finite_scalar(dz_m, where="step dz_m")
+        act = int(activity)
+        var_h = (prm.sigma_heading_rad**2 if var_heading_rad2 is None
+                 else finite_scalar(var_heading_rad2, where="step var_heading",
+                                    non_negative=True))
+        x = state.x.copy()
+        p = state.P.copy()
+        heading_known = bool(np.isfinite(heading_rad))
+        # heading of the step
+        input_heading = state.input_heading_rad
+        has_input = state.has_input_heading
+        if heading_known:
+            h_in = float(wrap_angle(heading_rad))
+            if prm.heading_mode == "input":
+                x[IH] = h_in
+                p[IH, :] = 0.0
+                p[:, IH] = 0.0
+                p[IH, IH] = var_h
+            elif has_input:
+                x[IH] = float(wrap_angle(x[IH] + wrap_angle(h_in - input_heading)))
+                p[IH, IH] += prm.sigma_heading_increment_rad**2
+            elif p[IH, IH] > var_h:
+                # first input, and it knows the heading better than the state: adopt it
+                x[IH] = h_in
+                p[IH, :] = 0.0
+                p[:, IH] = 0.0
+                p[IH, IH] = var_h
+            input_heading, has_input = h_in, True
+        if act == int(Activity.STANDING):
+            # eq. 4.23 with l_j = 0: nothing moves, nothing grows
+            return FilterState(t, x, p, input_heading, has_input)
+        if act in _STAIRS and prm.stairs_from_model:
+            horiz = prm.stair_depth_m
+            vert = prm.stair_height_m if act == int(Activity.UPSTAIRS) else -prm.stair_height_m
+        else:
+            horiz, vert = length, dz
+        heading = float(x[IH])
+        disp = np.array([horiz * np.cos(heading), horiz * np.sin(heading), vert])
+        size2 = horiz * horiz + vert * vert
+        q_frame = size2 * np.diag([prm.q_along, prm.q_across, prm.q_vertical])
+        x_new, p_new = propagate(x, p, disp, heading, q_frame)
+        return FilterState(t, x_new, p_new, input_heading, has_input)
+
+    def run(self, state: FilterState, steps: StepEvents,
+            var_heading_rad2: FloatArray | float | None = None) -> StepPredictionResult:
+        """Apply all steps in order (each at its ``t_end``)."""
+        n = len(steps)
+        var_h: FloatArray | None = None
+        if var_heading_rad2 is not None:
+            var_h = np.broadcast_to(np.asarray(var_heading_rad2, dtype=np.float64), (n,))
+        t_out = np.empty(n)
+        xyz = np.empty((n, 3))
+        head = np.empty(n)
+        covs = np.empty((n, N_STATE, N_STATE))
+        for i in range(n):
+            state = self.predict(
+                state, t=float(steps.t_end[i]), length_m=float(steps.length_m[i]),
+                heading_rad=float(steps.heading_rad[i]), dz_m=float(steps.dz_m[i]),
+                activity=int(steps.activity[i]),
+                var_heading_rad2=None if var_h is None else float(var_h[i]))
+            t_out[i] = state.t
+            xyz[i] = state.x[:3]
+            head[i] = state.x[IH]
+            covs[i] = state.P
+        return StepPredictionResult(t_out, xyz, head, covs, state)

@@ -1,0 +1,62 @@
+"""Gait analysis: motion and activity, steps, step length, walking heading and velocity.
+
+One module per algorithm (see ``docs``/ARCHITECTURE): :mod:`~hrtls.gait.motion` (Basso II-B),
+:mod:`~hrtls.gait.activity_tree` and :mod:`~hrtls.gait.activity_lda` (Inderst 4.1),
+:mod:`~hrtls.gait.pll` (Basso II-C), :mod:`~hrtls.gait.peak_steps` (Inderst 4.3.1, Tarrio III-B),
+:mod:`~hrtls.gait.step_length` and :mod:`~hrtls.gait.step_length_fit` (Weinberg, Basso II-D,
+Inderst eq. 4.25), :mod:`~hrtls.gait.fourier_heading` (Basso III),
+:mod:`~hrtls.gait.velocity_automaton` (Colombo III-C), :mod:`~hrtls.gait.vertical` (levelling)
+and :mod:`~hrtls.gait.pipeline` (:class:`GaitAnalyzer`, composing them).
+"""
+
+from hrtls.gait.activity_lda import LdaModel, train_lda
+from hrtls.gait.activity_tree import TreeThresholds, calibrate_tree, classify_tree
+from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingParams
+from hrtls.gait.motion import MotionDetector, MotionParams
+from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
+from hrtls.gait.pipeline import GaitAnalyzer, GaitResult, activity_windows, analyze_session
+from hrtls.gait.pll import PllParams, PllStepDetector, StepDetection
+from hrtls.gait.step_length import (
+    FrequencyLawModel,
+    StairsModel,
+    WeinbergModel,
+    displacements,
+    step_model_from_dict,
+)
+from hrtls.gait.step_length_fit import CalibrationWalk, fit_frequency_law, fit_weinberg
+from hrtls.gait.velocity_automaton import AutomatonParams, VelocityAutomaton
+from hrtls.gait.vertical import GravityLevelling, LevelledAcceleration, from_orientation
+
+__all__ = [
+    "AutomatonParams",
+    "CalibrationWalk",
+    "FourierHeading",
+    "FourierHeadingParams",
+    "FrequencyLawModel",
+    "GaitAnalyzer",
+    "GaitResult",
+    "GravityLevelling",
+    "LdaModel",
+    "LevelledAcceleration",
+    "MotionDetector",
+    "MotionParams",
+    "PeakStepDetector",
+    "PeakStepParams",
+    "PllParams",
+    "PllStepDetector",
+    "StairsModel",
+    "StepDetection",
+    "TreeThresholds",
+    "VelocityAutomaton",
+    "WeinbergModel",
+    "activity_windows",
+    "analyze_session",
+    "calibrate_tree",
+    "classify_tree",
+    "displacements",
+    "fit_frequency_law",
+    "fit_weinberg",
+    "from_orientation",
+    "step_model_from_dict",
+    "train_lda",
+]

@@ -1,0 +1,168 @@
+"""Pre-processing and window features for activity recognition (Inderst Sec. 4.1).
+
+* :class:`StreamingButterworth`: the 5th-order Butterworth low-pass at 6 Hz applied to the raw
+  body-frame accelerations (second-order sections carried across chunks, so chunked and whole-run
+  outputs agree).
+* :func:`window_features`: the features of non-overlapping windows of ``j`` samples (eq. 4.2):
+  the three decision-tree features (vertical variance, vertical dynamics index of eq. 4.3-4.5,
+  medio-lateral amplitude) and the seven LDA features of Table 4.1 (std, DFT peak and, for the
+  medio-lateral axis, max - min).
+
+Body-frame columns are ``[AP, ML, V]`` = hrtls body ``[x forward, y left, z up]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, sosfilt, sosfilt_zi, sosfreqz
+
+from hrtls.errors import InputError
+from hrtls.gait._state import FloatArray, as_matrix, check_positive
+
+TREE_FEATURES = ("vertical_variance", "vertical_dynamics_index", "ml_amplitude")
+LDA_FEATURES = ("std_ml", "std_v", "std_ap", "dft_ml", "dft_v", "dft_ap", "range_ml")
+
+
+class StreamingButterworth:
+    """Causal Butterworth low-pass over the columns of a signal, chunk by chunk.
+
+    Parameters
+    ----------
+    order: filter order (5 in Inderst Sec. 4.1).
+    cutoff_hz: corner frequency, Hz (6 Hz in Inderst Sec. 4.1).
+    rate_hz: sampling rate, Hz.
+    """
+
+    def __init__(self, *, order: int = 5, cutoff_hz: float = 6.0, rate_hz: float) -> None:
+        check_positive(cutoff_hz, "cutoff_hz")
+        check_positive(rate_hz, "rate_hz")
+        if order < 1 or cutoff_hz >= rate_hz / 2:
+            raise InputError(f"order {order}, cutoff {cutoff_hz} Hz at {rate_hz} Hz",
+                             where="StreamingButterworth",
+                             expected="order >= 1 and cutoff below the Nyquist frequency")
+        self.rate_hz = float(rate_hz)
+        self.sos = butter(order, cutoff_hz, fs=rate_hz, output="sos")
+        self._zi_unit = sosfilt_zi(self.sos)
+        self.zi: FloatArray | None = None
+
+    def group_delay_s(self, frequency_hz: float) -> float:
+        """Group delay of the filter at ``frequency_hz``, s (from the unwrapped phase)."""
+        df = 0.01
+        f = np.array([max(frequency_hz - df, 1e-3), frequency_hz + df])
+        _, h = sosfreqz(self.sos, worN=f, fs=self.rate_hz)
+        ph = np.unwrap(np.angle(h))
+        return float(-(ph[1] - ph[0]) / (2.0 * np.pi * (f[1] - f[0])))
+
+    def reset(self) -> None:
+        """Forget the filter memory (the next sample starts the filter in steady state)."""
+        self.zi = None
+
+    def update(self, x: FloatArray) -> FloatArray:
+        """Filter a chunk of shape (N,) or (N, K) along axis 0."""
+        arr = np.asarray(x, dtype=np.float64)
+        if arr.shape[0] == 0:
+            return arr.copy()
+        if self.zi is None:
+            # steady state for the first sample avoids the start-up transient
+            first = arr[0]
+            self.zi = np.multiply.outer(self._zi_unit, np.ones(arr.shape[1:])) * first
+        y, self.zi = sosfilt(self.sos, arr, axis=0, zi=self.zi)
+        return np.asarray(y, dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class WindowFeatures:
+    """Features per window.
+
+    Attributes
+    ----------
+    t_start, t_end: window boundaries (first and last sample time), s.
+    tree: (W, 3) decision-tree features, see ``TREE_FEATURES`` (m^2/s^4, m/s^2, m/s^2).
+    lda: (W, 7) LDA features of Inderst Table 4.1, see ``LDA_FEATURES`` (m/s^2).
+    """
+
+    t_start: FloatArray
+    t_end: FloatArray
+    tree: FloatArray
+    lda: FloatArray
+
+    def __len__(self) -> int:
+        return int(self.t_start.shape[0])
+
+
+def window_features(t: FloatArray, acc_body_lp: FloatArray, *, window_samples: int,
+                    anthropometric_nr: float = 1.0) -> WindowFeatures:
+    """Features of consecutive non-overlapping windows of ``window_samples`` samples.
+
+    Parameters
+    ----------
+    t: sample times, s (N,).
+    acc_body_lp: low-passed body-frame acceleration [AP, ML, V] in m/s^2 (N, 3), vertical
+        including gravity (as measured).
+    window_samples: samples per window ``j`` (eq. 4.2); a trailing partial window is dropped.
+    anthropometric_nr: ``n_r`` of eq. 4.3 (the vertical threshold is ``mean / n_r``).
+
+    Notes
+    -----
+    Vertical dynamics index (eq. 4.3-4.5): the window's vertical samples are split at
+    ``gamma = mean / n_r``; ``i_M`` and ``i_m`` are the means of the parts above and below minus
+    the window mean; the index is ``sqrt(i_M^2 + i_m^2)``. An empty part contributes 0.
+    DFT peak (Table 4.1): the largest DFT magnitude of the mean-removed window, excluding the
+    zero frequency, scaled by ``2 / j`` (the amplitude of a sinusoid at that bin).
+    """
+    if window_samples < 4:
+        raise InputError(f"window of {window_samples} samples", where="window_samples",
+                         expected=">= 4")
+    check_positive(anthropometric_nr, "anthropometric_nr")
+    acc = as_matrix(acc_body_lp, where="body acceleration", columns=3)
+    tt = np.asarray(t, dtype=np.float64)
+    if tt.shape[0] != acc.shape[0]:
+        raise InputError(f"{tt.shape[0]} times for {acc.shape[0]} rows", where="features",
+                         expected="one time per row")
+    nw = acc.shape[0] // window_samples
+    j = window_samples
+    # (3, W, j) contiguous: reductions and the FFT run along the last axis
+    a = np.ascontiguousarray(acc[: nw * j].T).reshape(3, nw, j)
+    tw = tt[: nw * j].reshape(nw, j)
+    mean = a.mean(axis=2)  # (3, W)
+    centred = a - mean[:, :, None]
+    std = np.sqrt(np.einsum("cwj,cwj->cw", centred, centred) / j)
+    v = a[2]
+    gamma = mean[2] / anthropometric_nr
+    hi = v >= gamma[:, None]
+    n_hi = hi.sum(axis=1)
+    n_lo = j - n_hi
+    sum_all = v.sum(axis=1)
+    sum_hi = np.einsum("wj,wj->w", v, hi.astype(np.float64))
+    sum_lo = sum_all - sum_hi
+    i_m_plus = np.where(n_hi > 0, sum_hi / np.maximum(n_hi, 1) - mean[2], 0.0)
+    i_m_minus = np.where(n_lo > 0, sum_lo / np.maximum(n_lo, 1) - mean[2], 0.0)
+    vdi = np.hypot(i_m_plus, i_m_minus)
+    ml_range = a[1].max(axis=1) - a[1].min(axis=1)
+    spec = np.abs(np.fft.rfft(centred, axis=2))[:, :, 1:]
+    dft_peak = spec.max(axis=2) * (2.0 / j) if spec.shape[2] else np.zeros((3, nw))
+    tree = np.column_stack([std[2] ** 2, vdi, ml_range])
+    # Table 4.1 order: columns ML, V, AP
+    lda = np.column_stack([std[1], std[2], std[0], dft_peak[1], dft_peak[2], dft_peak[0],
+                           ml_range])
+    return WindowFeatures(tw[:, 0].copy(), tw[:, -1].copy(), tree, lda)
+
+
+def window_labels(labels: NDArray[np.int64], window_samples: int, *,
+                  min_purity: float = 1.0) -> NDArray[np.int64]:
+    """Label of each complete window: the majority label when its share is >= ``min_purity``.
+
+    Windows that are not pure enough get ``-1`` (unknown) and are ignored in training.
+    """
+    y = np.asarray(labels, dtype=np.int64)
+    j = int(window_samples)
+    nw = y.shape[0] // j
+    w = y[: nw * j].reshape(nw, j)
+    out = np.full(nw, -1, dtype=np.int64)
+    for cls in np.unique(w):
+        share = (w == cls).mean(axis=1)
+        out[share >= min_purity] = cls
+    return out

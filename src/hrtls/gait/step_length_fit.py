@@ -1,0 +1,102 @@
+"""Calibration of the step length models from walks of known length (Basso Sec. II-D).
+
+Each calibration walk gives the detected steps and the true distance ``D``:
+
+* Weinberg: ``D_i = K * S_i`` with ``S_i = sum_k (a_max - a_min)^(1/4)``, so the least-squares
+  ``K = sum_i D_i S_i / sum_i S_i^2``.
+* Frequency law: every walk is one point ``(f_bar_i, SL_bar_i)`` with the mean frequency of
+  eq. 1, ``f_bar = (1/N sum_k 1/f_k)^(-1)``, and the mean step length of eq. 2,
+  ``SL_bar = D / N``; the walking line is the least-squares fit of the points below
+  ``split_hz``, the running line of those above. With too narrow a frequency spread a segment
+  keeps the default slope and fits its intercept; with no walk it keeps the default line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hrtls.errors import InputError
+from hrtls.gait._state import FloatArray
+from hrtls.gait.pll import StepDetection
+from hrtls.gait.step_length import FrequencyLawModel, WeinbergModel
+
+
+@dataclass(frozen=True, slots=True)
+class CalibrationWalk:
+    """Steps detected on one walk and its true length (m)."""
+
+    steps: StepDetection
+    distance_m: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.distance_m) and self.distance_m > 0):
+            raise InputError(f"distance {self.distance_m}", where="calibration walk",
+                             expected="a positive distance in m")
+        if len(self.steps) == 0:
+            raise InputError("no steps detected", where="calibration walk",
+                             expected="a walk with detected steps")
+
+
+def mean_frequency(steps: StepDetection) -> float:
+    """Mean step frequency of eq. 1 (harmonic mean of ``f_k``), Hz."""
+    f = steps.frequency_hz
+    return float(len(f) / np.sum(1.0 / f))
+
+
+def fit_weinberg(walks: Sequence[CalibrationWalk]) -> WeinbergModel:
+    """Least-squares ``K`` of the Weinberg model."""
+    if not walks:
+        raise InputError("no walks", where="calibration", expected="at least one walk")
+    s = np.array([float(np.sum(np.sqrt(np.sqrt(np.clip(w.steps.acc_max - w.steps.acc_min,
+                                                            0.0, None))))) for w in walks])
+    d = np.array([w.distance_m for w in walks])
+    if np.sum(s * s) <= 0:
+        raise InputError("all steps have zero acceleration range", where="calibration",
+                         expected="steps with vertical acceleration extremes")
+    return WeinbergModel(k=float(np.sum(d * s) / np.sum(s * s)))
+
+
+def _line(f: FloatArray, sl: FloatArray, base_slope: float,
+          min_spread_hz: float) -> tuple[float, float] | None:
+    if f.size == 0:
+        return None
+    if f.size == 1 or np.ptp(f) < min_spread_hz:
+        # the frequencies do not determine a slope: keep the base slope, fit the intercept
+        return base_slope, float(np.mean(sl - base_slope * f))
+    a = np.column_stack([f, np.ones_like(f)])
+    (slope, intercept), *_ = np.linalg.lstsq(a, sl, rcond=None)
+    return float(slope), float(intercept)
+
+
+def calibration_points(walks: Sequence[CalibrationWalk]) -> tuple[FloatArray, FloatArray]:
+    """Points ``(f_bar_i, SL_bar_i)`` of eq. 1-2, one per walk."""
+    f = np.array([mean_frequency(w.steps) for w in walks])
+    sl = np.array([w.distance_m / len(w.steps) for w in walks])
+    return f, sl
+
+
+def fit_frequency_law(walks: Sequence[CalibrationWalk], *,
+                      base: FrequencyLawModel | None = None,
+                      min_spread_hz: float = 0.2) -> FrequencyLawModel:
+    """Least-squares walking and running lines of the frequency law (Basso eq. 1-2).
+
+    A segment whose walks span less than ``min_spread_hz`` of mean frequency cannot fix a
+    slope (Basso asks for walks at several speeds): it keeps the slope of ``base`` and only
+    its intercept is fitted.
+    """
+    if not walks:
+        raise InputError("no walks", where="calibration", expected="at least one walk")
+    b = base or FrequencyLawModel()
+    f, sl = calibration_points(walks)
+    lo = f < b.split_hz
+    walk = _line(f[lo], sl[lo], b.walk_slope_m_s, min_spread_hz)
+    run = _line(f[~lo], sl[~lo], b.run_slope_m_s, min_spread_hz)
+    return FrequencyLawModel(
+        walk_slope_m_s=b.walk_slope_m_s if walk is None else walk[0],
+        walk_intercept_m=b.walk_intercept_m if walk is None else walk[1],
+        run_slope_m_s=b.run_slope_m_s if run is None else run[0],
+        run_intercept_m=b.run_intercept_m if run is None else run[1],
+        split_hz=b.split_hz, max_length_m=b.max_length_m)

@@ -1,0 +1,221 @@
+"""Synthetic waist-IMU gait signals for tests, benchmarks and the default activity model.
+
+Not an estimator and never used by the pipeline: a small generator of the acceleration of the
+lower back of a simulated person (one harmonic model per activity), turned into the specific
+force of a device mounted in any orientation. The full scenario simulator lives in ``hrtls.sim``.
+
+Model (body/user frame: AP forward, ML left, V up; step phase ``phi`` is 0 at each step event,
+the vertical-acceleration peak just after heel strike, as measured on lower-back recordings):
+
+* vertical ``A_v (cos phi + h2 cos(2 phi + p2) + h3 cos(3 phi + p3))``;
+* antero-posterior ``A_ap cos(phi - 1.4 pi)`` (deceleration early in the step, forward
+  acceleration before the next heel strike);
+* medio-lateral ``A_ml sin(phi / 2 + p_ml)`` (stride frequency, alternating sides);
+* standing: sway and sensor noise only.
+
+The step length follows a per-person linear law in step frequency and the vertical amplitude is
+set so that Weinberg's law holds with the person's own ``K``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hrtls.data import Activity
+from hrtls.frames import GRAVITY_M_S2, quat_from_euler, quat_multiply, quat_rotate
+from hrtls.gait._state import FloatArray
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SimPerson:
+    """Gait characteristics of one simulated person."""
+
+    walk_amp_m_s2: float = 2.2
+    walk_slope_m_s: float = 0.30
+    walk_intercept_m: float = 0.15
+    run_slope_m_s: float = 0.25
+    run_intercept_m: float = 0.35
+    walk_hz: float = 1.85
+    run_hz: float = 2.8
+    up_hz: float = 1.5
+    down_hz: float = 1.8
+    ap_ratio: float = 0.7
+    ml_walk_m_s2: float = 1.0
+    ml_up_ratio: float = 1.3
+    ml_down_ratio: float = 1.8
+    h2: float = 0.3
+    h3: float = 0.1
+    p2: float = 0.5
+    p3: float = 1.0
+    noise_m_s2: float = 0.08
+    step_jitter: float = 0.04
+
+    @classmethod
+    def random(cls, rng: np.random.Generator) -> SimPerson:
+        """A person with randomly drawn characteristics."""
+        return cls(walk_amp_m_s2=rng.uniform(1.8, 2.6), walk_slope_m_s=rng.uniform(0.2, 0.4),
+                   walk_intercept_m=rng.uniform(0.05, 0.25), run_slope_m_s=rng.uniform(0.15, 0.3),
+                   run_intercept_m=rng.uniform(0.3, 0.5), walk_hz=rng.uniform(1.6, 2.1),
+                   run_hz=rng.uniform(2.6, 3.2), up_hz=rng.uniform(1.3, 1.7),
+                   down_hz=rng.uniform(1.6, 2.0), ap_ratio=rng.uniform(0.5, 0.9),
+                   ml_walk_m_s2=rng.uniform(0.8, 1.1), ml_up_ratio=rng.uniform(1.2, 1.5),
+                   ml_down_ratio=rng.uniform(1.6, 2.2), h2=rng.uniform(0.1, 0.4),
+                   h3=rng.uniform(0.0, 0.2), p2=rng.uniform(0, 2 * np.pi),
+                   p3=rng.uniform(0, 2 * np.pi), noise_m_s2=rng.uniform(0.03, 0.12),
+                   step_jitter=rng.uniform(0.02, 0.06))
+
+    @property
+    def weinberg_k(self) -> float:
+        """Weinberg ``K`` that makes the nominal walking step match ``walk_amp_m_s2``."""
+        length = self.step_length(int(Activity.WALKING), self.walk_hz)
+        return float(length / (2.0 * self.walk_amp_m_s2) ** 0.25)
+
+    def step_length(self, activity: int, f_hz: float) -> float:
+        """True step length (m) of one step."""
+        if activity == Activity.RUNNING:
+            return self.run_slope_m_s * f_hz + self.run_intercept_m
+        if activity in (Activity.UPSTAIRS, Activity.DOWNSTAIRS):
+            return 0.30
+        return self.walk_slope_m_s * f_hz + self.walk_intercept_m
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SimWalk:
+    """A simulated recording.
+
+    Attributes
+    ----------
+    t: times, s. acc_d: device specific force, m/s^2 (N, 3). q_nd: device -> ENU attitude.
+    q_bd: device -> body mounting. activity: per-sample Activity codes.
+    step_t: step event times, s. step_length_m: true step lengths. step_heading_rad: true
+    walking direction of each step. step_activity: activity of each step.
+    """
+
+    t: FloatArray
+    acc_d: FloatArray
+    q_nd: FloatArray
+    q_bd: FloatArray
+    activity: np.ndarray
+    step_t: FloatArray
+    step_length_m: FloatArray
+    step_heading_rad: FloatArray
+    step_activity: np.ndarray
+    speed_m_s: FloatArray
+    person: SimPerson = field(default_factory=SimPerson)
+
+
+def random_mounting(rng: np.random.Generator) -> FloatArray:
+    """A uniformly random device -> body rotation [w, x, y, z]."""
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    return q * (1.0 if q[0] >= 0 else -1.0)
+
+
+def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = None,
+             rate_hz: float = 100.0, q_bd: FloatArray | None = None,
+             turn_rate_rad_s: float = 0.0, heading0_rad: float = 0.0,
+             ramp_s: float = 1.0, seed: int = 0) -> SimWalk:
+    """Simulate a sequence of ``(activity, duration_s)`` segments.
+
+    Parameters
+    ----------
+    segments: activities and their durations, s.
+    person: gait characteristics (default :class:`SimPerson`).
+    rate_hz: sampling rate, Hz.
+    q_bd: device -> body mounting (identity if None).
+    turn_rate_rad_s: constant turn rate of the walking direction while moving, rad/s.
+    heading0_rad: initial walking direction (ENU), rad.
+    ramp_s: duration of the speed ramps at the start and end of each bout, s.
+    seed: random seed of noise and jitter.
+    """
+    rng = np.random.default_rng(seed)
+    p = person or SimPerson()
+    mount = np.array([1.0, 0.0, 0.0, 0.0]) if q_bd is None else np.asarray(q_bd, float)
+    total = sum(d for _, d in segments)
+    n = round(total * rate_hz)
+    t = np.arange(n) / rate_hz
+    act = np.empty(n, dtype=np.int64)
+    phase = np.zeros(n)  # step phase, cycles
+    amp_v = np.zeros(n)
+    amp_ml = np.zeros(n)
+    shape = np.zeros((n, 3))  # h2, h3 scale and a stairs/run shape flag
+    len_s = np.zeros(n)  # true length of the step each sample belongs to
+    ap_s = np.zeros(n)  # antero-posterior amplitude relative to walking
+    speed = np.zeros(n)  # forward speed, m/s
+    i0 = 0
+    cyc = 0.0
+    k_w = p.weinberg_k
+    for a, dur in segments:
+        i1 = min(n, i0 + round(dur * rate_hz))
+        act[i0:i1] = a
+        if a == Activity.STANDING:
+            phase[i0:i1] = cyc
+        else:
+            f0 = {Activity.WALKING: p.walk_hz, Activity.RUNNING: p.run_hz,
+                  Activity.UPSTAIRS: p.up_hz, Activity.DOWNSTAIRS: p.down_hz}[Activity(a)]
+            # piecewise-constant frequency with jitter per step
+            k = i0
+            while k < i1:
+                f = f0 * (1.0 + p.step_jitter * rng.normal())
+                m = max(1, round(rate_hz / f))
+                kk = min(i1, k + m)
+                phase[k:kk] = cyc + np.arange(kk - k) / m
+                length = p.step_length(a, f)
+                len_s[k:kk] = length
+                speed[k:kk] = length * f
+                # Weinberg on level ground: range = (L/K)^4; on stairs a fixed share of the
+                # person's nominal walking amplitude
+                if a in (Activity.WALKING, Activity.RUNNING):
+                    amp = 0.5 * (length / k_w) ** 4
+                else:
+                    amp = p.walk_amp_m_s2 * (0.8 if a == Activity.UPSTAIRS else 1.3)
+                amp_v[k:kk] = amp * (1.0 + 0.05 * rng.normal())
+                amp_ml[k:kk] = p.ml_walk_m_s2 * {
+                    Activity.WALKING: 1.0, Activity.RUNNING: 1.5, Activity.UPSTAIRS: p.ml_up_ratio,
+                    Activity.DOWNSTAIRS: p.ml_down_ratio}[Activity(a)]
+                ap_s[k:kk] = {Activity.WALKING: 1.0, Activity.RUNNING: 1.0,
+                              Activity.UPSTAIRS: 0.5, Activity.DOWNSTAIRS: 0.6}[Activity(a)]
+                shape[k:kk, 0] = p.h2 * (1.8 if a == Activity.UPSTAIRS else 1.0)
+                shape[k:kk, 1] = p.h3 * (3.0 if a == Activity.DOWNSTAIRS else 1.0) + (
+                    0.15 if a == Activity.DOWNSTAIRS else 0.0)
+                cyc += (kk - k) / m
+                k = kk
+            cyc = np.ceil(cyc - 1e-9)
+            # speed ramps up over the first and down over the last second of a bout
+            ramp = np.clip(np.minimum(t[i0:i1] - t[i0], t[i1 - 1] - t[i0:i1]) / ramp_s, 0, 1)
+            speed[i0:i1] *= ramp
+        i0 = i1
+    phi = 2.0 * np.pi * phase
+    moving = act != Activity.STANDING
+    # forward acceleration of the mean speed (smoothed over 0.5 s)
+    kern = np.ones(max(1, round(0.5 * rate_hz)))
+    speed = np.convolve(speed, kern / kern.size, mode="same")
+    a_mean = np.gradient(speed, 1.0 / rate_hz)
+    a_v = amp_v * (np.cos(phi) + shape[:, 0] * np.cos(2 * phi + p.p2)
+                   + shape[:, 1] * np.cos(3 * phi + p.p3))
+    a_ap = p.ap_ratio * ap_s * amp_v * np.cos(phi - 1.4 * np.pi)
+    a_ml = amp_ml * np.sin(0.5 * phi + 0.3)
+    sway = 0.05 * np.sin(2 * np.pi * 0.3 * t + rng.uniform(0, 6))
+    a_v = np.where(moving, a_v, sway)
+    a_ap = np.where(moving, a_ap, 0.5 * sway) + a_mean
+    a_ml = np.where(moving, a_ml, 0.5 * sway)
+    # walking direction and trunk yaw oscillation at stride frequency
+    dt = 1.0 / rate_hz
+    psi = heading0_rad + np.cumsum(np.where(moving, turn_rate_rad_s, 0.0)) * dt
+    trunk = np.where(moving, np.deg2rad(3.0) * np.sin(0.5 * phi), 0.0)
+    lin_n = np.column_stack([np.cos(psi) * a_ap - np.sin(psi) * a_ml,
+                             np.sin(psi) * a_ap + np.cos(psi) * a_ml, a_v])
+    f_n = lin_n + np.array([0.0, 0.0, GRAVITY_M_S2])
+    pitch = np.where(moving, np.deg2rad(2.0) * np.sin(phi), 0.0)
+    q_nb = quat_from_euler(np.zeros(n), pitch, psi + trunk)
+    q_nd = quat_multiply(q_nb, mount[None, :])  # v_n = q_nb q_bd v_d
+    q_dn = q_nd * np.array([1.0, -1.0, -1.0, -1.0])
+    acc_d = quat_rotate(q_dn, f_n) + p.noise_m_s2 * rng.normal(size=(n, 3))
+    # step events: integer crossings of the phase while moving
+    cross = np.flatnonzero((np.floor(phase[1:]) > np.floor(phase[:-1])) & moving[1:]) + 1
+    step_t = t[cross]
+    # length and heading of the step that *ends* at each event
+    return SimWalk(t, acc_d, q_nd, mount, act, step_t, len_s[cross - 1], psi[cross],
+                   act[cross - 1], speed, p)

@@ -1,0 +1,135 @@
+"""Tracker configuration: which attitude filter, gait methods, prediction and corrections.
+
+A configuration is a TOML file (see ``presets/*.toml`` for complete, commented examples) or one of
+the named presets. Every section and key is optional; unknown keys are an error, so a typo never
+silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from hrtls.errors import FormatError, InputError
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class AttitudeConfig(_Section):
+    """Orientation source."""
+
+    method: Literal["euler-ekf", "quat-ekf", "complementary", "device", "none"] = "quat-ekf"
+    use_magnetometer: bool = True
+
+
+class GaitConfig(_Section):
+    """Steps, step length, walking direction, activity and walking velocity."""
+
+    step_detector: Literal["peak", "pll"] = "peak"
+    step_length: Literal["weinberg", "frequency"] = "weinberg"
+    weinberg_k: float | None = Field(default=None, gt=0.0,
+                                     description="overrides the user's profile")
+    heading: Literal["yaw", "fourier"] = "yaw"
+    activity: Literal["lda", "tree", "motion"] = "lda"
+    velocity_automaton: bool = False
+    gate_steps_with_motion: bool = False
+
+
+class PredictionConfig(_Section):
+    """How the position is predicted between corrections."""
+
+    model: Literal["step", "velocity"] = "step"
+    heading_mode: Literal["input", "state"] = "state"
+    q_along: float = Field(default=0.01, ge=0.0)
+    q_across: float = Field(default=0.0025, ge=0.0)
+    sigma_heading_increment_rad: float = Field(default=0.01, ge=0.0)
+    stairs_from_model: bool = True
+
+
+class FixesConfig(_Section):
+    """External position fixes (Colombo eq. 18-23) and the yaw stretching (eq. 24-28)."""
+
+    enabled: bool = True
+    period_s: float = Field(default=1.0, gt=0.0, description="update period Tp")
+    require_motion: bool = True
+    yaw_stretch: bool = True
+
+
+class RssConfig(_Section):
+    """Beacon RSS: off, WLS positions alone, Tarrio's Kalman fusion, or tight range updates."""
+
+    mode: Literal["off", "wls", "kalman", "tight"] = "tight"
+    window_s: float = Field(default=2.0, gt=0.0, description="scan grouping window")
+    estimate_channel: bool = True
+    sensitivity_dbm: float = -100.0
+
+
+class TagsConfig(_Section):
+    """Passive tags (Inderst Sec. 4.3.2) and heading from their bearings (Sec. 4.2.3)."""
+
+    enabled: bool = True
+    strategy: Literal["paper", "kalman"] = "paper"
+    bearing_correction: bool = True
+
+
+class RangesConfig(_Section):
+    """Ranges to known radio nodes by EKF (Inderst Sec. 4.3.3)."""
+
+    enabled: bool = True
+
+
+class TrackerConfig(_Section):
+    """The whole tracker."""
+
+    name: str = "custom"
+    description: str = ""
+    attitude: AttitudeConfig = AttitudeConfig()
+    gait: GaitConfig = GaitConfig()
+    prediction: PredictionConfig = PredictionConfig()
+    fixes: FixesConfig = FixesConfig()
+    rss: RssConfig = RssConfig()
+    tags: TagsConfig = TagsConfig()
+    ranges: RangesConfig = RangesConfig()
+    gate_probability: float = Field(default=0.997, gt=0.5, lt=1.0)
+    floor_snap: bool = True
+
+
+PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range")
+"""Named configurations shipped in ``hrtls/pipeline/presets``."""
+
+
+def _validate(data: dict[str, object], *, where: str) -> TrackerConfig:
+    try:
+        return TrackerConfig.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        raise FormatError(f"{loc}: {err['msg']}", where=where,
+                          expected="a tracker configuration (see the presets)") from None
+
+
+def load_config(path: Path) -> TrackerConfig:
+    """Read a TOML configuration file."""
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("no such file", where=str(path), expected="a TOML file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise FormatError(str(exc), where=str(path), expected="valid TOML") from None
+    return _validate(data, where=str(path))
+
+
+def preset(name: str) -> TrackerConfig:
+    """A named preset (``default``, ``colombo2014``, ``basso2017``, ``tarrio2011``, ...)."""
+    if name not in PRESETS:
+        raise InputError(f"unknown preset {name!r}", where="--preset",
+                         expected=" | ".join(PRESETS))
+    text = resources.files("hrtls.pipeline").joinpath("presets", f"{name}.toml").read_text(
+        encoding="utf-8")
+    return _validate(tomllib.loads(text), where=f"preset {name}")

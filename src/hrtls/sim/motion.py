@@ -1,0 +1,596 @@
+"""Ground-truth motion of a walking person: paths from waypoints, speed profiles, stops and turns.
+
+A path is a list of :class:`Waypoint` s. Consecutive waypoints are joined by straight legs; at an
+interior waypoint the corner is rounded by a circular arc (``corner_radius_m``) or, with radius 0,
+the person stops and turns on the spot. A leg whose end point has a different height is a
+staircase (activity upstairs / downstairs). The person stops for ``stop_s`` at a waypoint.
+
+Speed along each stop-free *run* follows the leg speeds, limited by an acceleration and a
+braking bound, and by the lateral acceleration in arcs (``v <= sqrt(a_lat r)``). The profile is
+integrated by a compiled kernel on the simulation grid; positions and headings of lines and
+arcs are evaluated in closed form, vectorized.
+
+Conventions: ENU navigation frame, heading CCW from +x (east), SI units (:mod:`hrtls.frames`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import networkx as nx
+import numba
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d
+from shapely.geometry import LineString
+from shapely.geometry.base import BaseGeometry
+
+from hrtls.data import Activity
+from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+GAIT_WALK = 0
+GAIT_RUN = 1
+GAIT_STAIRS = 2
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Waypoint:
+    """A point of the path and the properties of the leg that *arrives* at it.
+
+    Attributes
+    ----------
+    x, y, z:
+        Position, m (ENU). ``z`` differs from the previous waypoint's on a staircase leg.
+    speed_m_s:
+        Horizontal cruise speed on the arriving leg, m/s.
+    run:
+        True when the arriving leg is run (activity running), else walked.
+    stop_s:
+        Time standing still at this waypoint, s (0: pass through).
+    corner_radius_m:
+        Radius of the arc that rounds the corner at this waypoint, m; clamped so that the arc
+        fits in half of each adjacent leg. 0 means stop and turn on the spot.
+    turn_rate_rad_s:
+        Peak yaw rate of a turn on the spot at this waypoint, rad/s.
+    """
+
+    x: float
+    y: float
+    z: float = 0.0
+    speed_m_s: float = 1.2
+    run: bool = False
+    stop_s: float = 0.0
+    corner_radius_m: float = 0.5
+    turn_rate_rad_s: float = 2.0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MotionParams:
+    """Limits of the speed profile.
+
+    Attributes
+    ----------
+    accel_m_s2: largest forward acceleration when speeding up, m/s^2.
+    decel_m_s2: largest braking deceleration, m/s^2.
+    lateral_accel_m_s2: largest centripetal acceleration in arcs, m/s^2.
+    stair_tread_m: horizontal depth of one stair, m (one step per stair).
+    stair_riser_m: height of one stair, m.
+    min_turn_s: shortest duration of a turn on the spot, s.
+    heading_smoothing_s: standard deviation of the Gaussian that smooths the body heading, s.
+    """
+
+    accel_m_s2: float = 1.0
+    decel_m_s2: float = 1.2
+    lateral_accel_m_s2: float = 2.5
+    stair_tread_m: float = 0.30
+    stair_riser_m: float = 0.17
+    min_turn_s: float = 0.4
+    heading_smoothing_s: float = 0.15
+
+
+@dataclass(frozen=True, slots=True)
+class PathGeometry:
+    """Lines and arcs parameterized by horizontal arc length ``s`` (m).
+
+    Primitive ``i`` starts at ``s0[i]`` at point ``p0[i]`` with heading ``h0[i]`` and has
+    curvature ``k[i]`` (1/m, 0 for a line, positive turning left) and length ``length[i]``;
+    ``leg[i]`` is the index of the leg it belongs to (arcs belong to the arriving leg). Height is
+    linear in ``s`` between ``z_knots_s`` / ``z_knots``. ``corner_s`` are the path positions of
+    the interior waypoints, ``corner_turn`` the on-the-spot turn there (rad, 0 for arcs).
+    """
+
+    s0: FloatArray
+    length: FloatArray
+    p0: FloatArray
+    h0: FloatArray
+    k: FloatArray
+    leg: IntArray
+    z_knots_s: FloatArray
+    z_knots: FloatArray
+    corner_s: FloatArray
+    corner_turn: FloatArray
+
+    @property
+    def total_length_m(self) -> float:
+        """Horizontal length of the whole path, m."""
+        return float(self.s0[-1] + self.length[-1]) if len(self.s0) else 0.0
+
+    def evaluate(self, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Positions (N, 3) in m, tangent headings (N,) in rad and curvature (N,) at ``s``."""
+        s = np.clip(np.asarray(s, dtype=np.float64), 0.0, self.total_length_m)
+        idx = np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.s0) - 1)
+        ds = s - self.s0[idx]
+        k = self.k[idx]
+        h0 = self.h0[idx]
+        h = h0 + k * ds
+        straight = np.abs(k) < 1e-12
+        safe_k = np.where(straight, 1.0, k)
+        dx = np.where(straight, ds * np.cos(h0), (np.sin(h) - np.sin(h0)) / safe_k)
+        dy = np.where(straight, ds * np.sin(h0), -(np.cos(h) - np.cos(h0)) / safe_k)
+        z = np.interp(s, self.z_knots_s, self.z_knots)
+        xyz = np.column_stack([self.p0[idx, 0] + dx, self.p0[idx, 1] + dy, z])
+        return xyz, wrap_angle(h), k
+
+    def leg_at(self, s: FloatArray) -> IntArray:
+        """Index of the leg at path positions ``s``."""
+        idx = np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.s0) - 1)
+        return self.leg[idx]
+
+
+def build_geometry(waypoints: Sequence[Waypoint]) -> PathGeometry:
+    """Join waypoints by lines, rounding corners by arcs (or sharp corners for radius 0)."""
+    if len(waypoints) < 2:
+        raise InputError(f"{len(waypoints)} waypoint(s)", where="waypoints",
+                         expected="at least 2 waypoints")
+    pts = np.array([[w.x, w.y] for w in waypoints], dtype=np.float64)
+    if not np.all(np.isfinite(pts)):
+        raise InputError("non-finite waypoint", where="waypoints", expected="finite x, y in m")
+    seg = np.diff(pts, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    if np.any(seg_len < 1e-6):
+        i = int(np.flatnonzero(seg_len < 1e-6)[0])
+        raise InputError("zero-length leg", where=f"waypoints index {i + 1}",
+                         expected="distinct consecutive waypoints")
+    hd = np.arctan2(seg[:, 1], seg[:, 0])
+    n_legs = len(seg)
+    # tangent lengths of the fillet at each interior waypoint: r tan(|turn| / 2), scaled down
+    # where the two fillets of one leg would not fit on it
+    want = np.zeros(n_legs + 1)
+    turn = np.zeros(n_legs + 1)
+    for i in range(1, n_legs):
+        delta = float(wrap_angle(hd[i] - hd[i - 1]))
+        turn[i] = delta
+        r = waypoints[i].corner_radius_m
+        half = 0.5 * abs(delta)
+        if abs(delta) < 1e-9 or r <= 0.0 or half > np.deg2rad(67.5):
+            continue  # straight on, or a sharp corner / turn above 135 deg: turn on the spot
+        want[i] = r * np.tan(half)
+    fit = np.minimum(1.0, seg_len / np.maximum(want[:-1] + want[1:], 1e-12))
+    trim = want * np.minimum(np.concatenate([[1.0], fit]), np.concatenate([fit, [1.0]]))
+    radius = np.zeros(n_legs + 1)
+    for i in range(1, n_legs):
+        if trim[i] > 1e-6:
+            radius[i] = trim[i] / np.tan(0.5 * abs(turn[i]))
+        else:
+            trim[i] = 0.0
+    s0: list[float] = []
+    length: list[float] = []
+    p0: list[FloatArray] = []
+    h0: list[float] = []
+    k: list[float] = []
+    leg: list[int] = []
+    corner_s = np.zeros(n_legs - 1)
+    corner_turn = np.zeros(n_legs - 1)
+    knot_s = [0.0]
+    s = 0.0
+    for j in range(n_legs):
+        d = seg[j] / seg_len[j]
+        start = pts[j] + trim[j] * d
+        line_len = seg_len[j] - trim[j] - trim[j + 1]
+        s0.append(s)
+        length.append(line_len)
+        p0.append(start)
+        h0.append(float(hd[j]))
+        k.append(0.0)
+        leg.append(j)
+        s += line_len
+        if j + 1 < n_legs:
+            i = j + 1
+            if radius[i] > 0.0:
+                arc_len = radius[i] * abs(turn[i])
+                s0.append(s)
+                length.append(arc_len)
+                p0.append(pts[i] - trim[i] * d)
+                h0.append(float(hd[j]))
+                k.append(float(np.sign(turn[i]) / radius[i]))
+                leg.append(j)
+                corner_s[j] = s + 0.5 * arc_len
+                s += arc_len
+            else:
+                corner_s[j] = s
+                corner_turn[j] = turn[i]
+            knot_s.append(corner_s[j])
+    knot_s.append(s)
+    z = np.array([w.z for w in waypoints], dtype=np.float64)
+    return PathGeometry(
+        s0=np.asarray(s0), length=np.asarray(length), p0=np.asarray(p0), h0=np.asarray(h0),
+        k=np.asarray(k), leg=np.asarray(leg, dtype=np.int64), z_knots_s=np.asarray(knot_s),
+        z_knots=z, corner_s=corner_s, corner_turn=corner_turn,
+    )
+
+
+@numba.njit(cache=True)
+def _run_profile_kernel(seg_s0: FloatArray, seg_v: FloatArray, length: float, dt: float,
+                        accel: float, decel: float, max_n: int) -> tuple[FloatArray, FloatArray]:
+    """Arc length and speed of one stop-free run sampled every ``dt`` (starts and ends at rest).
+
+    ``seg_s0`` are the starts of the speed-limit segments (first is 0), ``seg_v`` their limits.
+    The speed tends to ``min(limit, braking curves of later limits and of the end)`` with the
+    acceleration bounds ``accel`` / ``decel``.
+    """
+    s_out = np.empty(max_n)
+    v_out = np.empty(max_n)
+    s = 0.0
+    v = 0.0
+    n = 0
+    s_out[0] = 0.0
+    v_out[0] = 0.0
+    n = 1
+    nseg = seg_s0.shape[0]
+    v_floor = 0.5 * accel * dt
+    while n < max_n:
+        j = nseg - 1
+        while j > 0 and seg_s0[j] > s:
+            j -= 1
+        target = seg_v[j]
+        for m in range(j + 1, nseg):
+            brake = np.sqrt(seg_v[m] * seg_v[m] + 2.0 * decel * max(seg_s0[m] - s, 0.0))
+            target = min(target, brake)
+        target = min(target, np.sqrt(2.0 * decel * max(length - s, 0.0)))
+        dv = target - v
+        dv = min(max(dv, -2.0 * decel * dt), accel * dt)  # room to track the braking curve
+        v = max(v + dv, v_floor)
+        if s + v * dt >= length:
+            s_out[n] = length
+            v_out[n] = 0.0
+            n += 1
+            break
+        s += v * dt
+        s_out[n] = s
+        v_out[n] = v
+        n += 1
+    return s_out[:n], v_out[:n]
+
+
+def _smootherstep(x: FloatArray) -> FloatArray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.asarray(x * x * x * (x * (6.0 * x - 15.0) + 10.0), dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class MotionTruth:
+    """Sampled ground truth of the nominal (non-oscillating) motion.
+
+    Attributes
+    ----------
+    t: sample times, s (uniform, ``dt`` apart).
+    s: horizontal arc length travelled along the path, m.
+    xyz: position of the body's centre (waist) without gait oscillation, m (N, 3).
+    heading: walking direction / body heading without pelvis oscillation, rad.
+    speed: horizontal speed along the path, m/s.
+    gait: GAIT_WALK / GAIT_RUN / GAIT_STAIRS per sample.
+    moving: True while walking (False while standing or turning on the spot).
+    run_id: index of the stop-free run a sample belongs to (-1 while standing).
+    activity: :class:`~hrtls.data.Activity` code per sample.
+    step_length_override: fixed step length (stairs tread), m; NaN where the gait model decides.
+    """
+
+    t: FloatArray
+    s: FloatArray
+    xyz: FloatArray
+    heading: FloatArray
+    speed: FloatArray
+    gait: IntArray
+    moving: NDArray[np.bool_]
+    run_id: IntArray
+    activity: IntArray
+    step_length_override: FloatArray
+
+    @property
+    def dt(self) -> float:
+        """Sample period, s."""
+        return float(self.t[1] - self.t[0]) if len(self.t) > 1 else 0.0
+
+    @property
+    def distance_m(self) -> float:
+        """Horizontal distance walked, m."""
+        return float(self.s[-1] - self.s[0])
+
+    def velocity(self) -> FloatArray:
+        """Velocity of the nominal motion, m/s (N, 3), by central differences."""
+        if len(self.t) < 2:
+            return np.zeros((len(self.t), 3))
+        return np.asarray(np.gradient(self.xyz, self.t, axis=0), dtype=np.float64)
+
+    def floor(self, floor_height_m: float) -> IntArray:
+        """Floor index per sample (0 at z = 0) for storeys ``floor_height_m`` apart."""
+        if not floor_height_m > 0:
+            raise InputError(f"floor height {floor_height_m}", where="floor_height_m",
+                             expected="a positive height in m")
+        return np.asarray(np.floor(self.xyz[:, 2] / floor_height_m + 0.5), dtype=np.int64)
+
+
+def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
+                    params: MotionParams | None = None, start_pause_s: float = 2.0,
+                    end_pause_s: float = 2.0, t0_s: float = 0.0) -> MotionTruth:
+    """Sample the motion along ``waypoints`` at ``rate_hz``.
+
+    The person stands still for ``start_pause_s`` before walking and ``end_pause_s`` after.
+    """
+    p = params or MotionParams()
+    if not rate_hz > 0:
+        raise InputError(f"rate {rate_hz}", where="rate_hz", expected="a positive rate in Hz")
+    for i, w in enumerate(waypoints[1:], start=1):
+        if not w.speed_m_s > 0:
+            raise InputError(f"speed {w.speed_m_s}", where=f"waypoints index {i} speed_m_s",
+                             expected="a positive speed in m/s")
+        if w.stop_s < 0:
+            raise InputError(f"stop {w.stop_s}", where=f"waypoints index {i} stop_s",
+                             expected="a non-negative duration in s")
+    geo = build_geometry(waypoints)
+    dt = 1.0 / rate_hz
+    n_legs = len(waypoints) - 1
+    dz = np.diff([w.z for w in waypoints])
+    leg_gait = np.array([GAIT_STAIRS if abs(dz[j]) > 1e-6 else
+                         (GAIT_RUN if waypoints[j + 1].run else GAIT_WALK)
+                         for j in range(n_legs)], dtype=np.int64)
+    leg_activity = np.array([
+        int(Activity.UPSTAIRS) if dz[j] > 1e-6 else int(Activity.DOWNSTAIRS) if dz[j] < -1e-6
+        else int(Activity.RUNNING) if waypoints[j + 1].run else int(Activity.WALKING)
+        for j in range(n_legs)], dtype=np.int64)
+    leg_speed = np.array([waypoints[j + 1].speed_m_s for j in range(n_legs)])
+    # boundaries of stop-free runs: interior waypoints with a stop or a sharp turn
+    boundaries = [0.0]
+    pauses: list[tuple[float, float, float]] = []  # (turn rad, turn rate, stop s) after run
+    for i in range(1, n_legs):
+        w = waypoints[i]
+        turn = float(geo.corner_turn[i - 1])
+        if w.stop_s > 0 or abs(turn) > 1e-9:
+            boundaries.append(float(geo.corner_s[i - 1]))
+            pauses.append((turn, w.turn_rate_rad_s, w.stop_s))
+    boundaries.append(geo.total_length_m)
+    pauses.append((0.0, 1.0, waypoints[-1].stop_s))
+
+    s_parts: list[FloatArray] = []
+    v_parts: list[FloatArray] = []
+    h_parts: list[FloatArray | None] = []
+    run_parts: list[FloatArray] = []
+    heading_now = float(geo.h0[0])
+
+    def add_still(duration: float, heading_from: float, turn: float, rate: float,
+                  s_here: float) -> float:
+        n = round(duration / dt)
+        if n <= 0:
+            return heading_from + turn
+        if abs(turn) > 0:
+            t_turn = max(abs(turn) * 1.875 / max(rate, 1e-3), p.min_turn_s)  # peak rate of
+            n_turn = min(round(t_turn / dt), n)  # smootherstep is 1.875x its mean
+            frac = _smootherstep(np.arange(1, n + 1) / max(n_turn, 1))
+            h = heading_from + turn * frac
+        else:
+            h = np.full(n, heading_from)
+        s_parts.append(np.full(n, s_here))
+        v_parts.append(np.zeros(n))
+        h_parts.append(h)
+        run_parts.append(np.full(n, -1.0))
+        return heading_from + turn
+
+    add_still(start_pause_s, heading_now, 0.0, 1.0, 0.0)
+    for r in range(len(boundaries) - 1):
+        a, b = boundaries[r], boundaries[r + 1]
+        # speed-limit segments of this run: primitives clipped to [a, b]
+        starts = np.clip(geo.s0, a, b)
+        ends = np.clip(geo.s0 + geo.length, a, b)
+        keep = ends - starts > 1e-9
+        idx = np.flatnonzero(keep)
+        limits = leg_speed[geo.leg[idx]].copy()
+        curv = np.abs(geo.k[idx])
+        arc = curv > 0
+        limits[arc] = np.minimum(limits[arc], np.sqrt(p.lateral_accel_m_s2 / curv[arc]))
+        # arcs join two legs: use the slower of both
+        nxt = np.minimum(geo.leg[idx] + 1, n_legs - 1)
+        limits[arc] = np.minimum(limits[arc], leg_speed[nxt[arc]])
+        seg_s0 = starts[idx] - a
+        seg_s0[0] = 0.0
+        est_time = (b - a) / max(float(np.min(limits)), 0.05) + 20.0
+        s_run, v_run = _run_profile_kernel(seg_s0, limits, b - a, dt, p.accel_m_s2,
+                                           p.decel_m_s2, int(est_time / dt) + 10)
+        s_parts.append(a + s_run)
+        v_parts.append(v_run)
+        h_parts.append(None)
+        run_parts.append(np.full(len(s_run), float(r)))
+        _, h_end, _ = geo.evaluate(np.array([b - 1e-9]))
+        turn, rate, stop = pauses[r]
+        still = stop + (max(abs(turn) * 1.875 / rate, p.min_turn_s) if abs(turn) > 0 else 0.0)
+        if r == len(boundaries) - 2:
+            still += end_pause_s
+        add_still(still, float(h_end[0]), turn, rate, b)
+
+    s_all = np.concatenate(s_parts)
+    v_all = np.concatenate(v_parts)
+    run_id = np.concatenate(run_parts).astype(np.int64)
+    n_total = len(s_all)
+    t = np.asarray(t0_s + np.arange(n_total) * dt, dtype=np.float64)
+    # evaluate each run strictly inside its span so corner headings belong to the right leg
+    s_eval = s_all.copy()
+    for r in range(len(boundaries) - 1):
+        sel = run_id == r
+        s_eval[sel] = np.clip(s_all[sel], boundaries[r] + 1e-9, boundaries[r + 1] - 1e-9)
+    xyz, h_path, _ = geo.evaluate(s_eval)
+    heading = h_path.copy()
+    pos = 0
+    for part_s, part_h in zip(s_parts, h_parts, strict=True):
+        if part_h is not None:
+            heading[pos:pos + len(part_s)] = part_h
+        pos += len(part_s)
+    # the body does not turn with infinite angular acceleration at line/arc joints
+    heading = wrap_angle(gaussian_filter1d(np.unwrap(heading), p.heading_smoothing_s / dt,
+                                           mode="nearest"))
+    moving = run_id >= 0
+    leg_idx = geo.leg_at(s_all)
+    gait = np.where(moving, leg_gait[leg_idx], GAIT_WALK)
+    activity = np.where(moving & (v_all > 0.05), leg_activity[leg_idx], int(Activity.STANDING))
+    override = np.where(gait == GAIT_STAIRS, p.stair_tread_m, np.nan)
+    return MotionTruth(t=t, s=s_all, xyz=xyz, heading=heading, speed=v_all, gait=gait,
+                       moving=moving, run_id=run_id, activity=activity.astype(np.int64),
+                       step_length_override=override)
+
+
+# --------------------------------------------------------------------------------------------
+# Path builders
+# --------------------------------------------------------------------------------------------
+def circle_waypoints(*, center: tuple[float, float], radius_m: float, laps: float,
+                     start_angle_rad: float = -np.pi / 2, ccw: bool = True, sides: int = 36,
+                     speed_m_s: float = 1.2, z: float = 0.0) -> list[Waypoint]:
+    """Waypoints whose maximally rounded polygon is exactly a circle of ``radius_m``.
+
+    A regular polygon with inradius ``radius_m`` is walked from the middle of a side; rounding
+    each corner with the inradius makes the arcs join into the circle.
+    """
+    if radius_m <= 0 or laps <= 0 or sides < 4:
+        raise InputError(f"radius {radius_m}, laps {laps}, sides {sides}", where="circle",
+                         expected="radius > 0, laps > 0, sides >= 4")
+    big = radius_m / np.cos(np.pi / sides)
+    sign = 1.0 if ccw else -1.0
+    step = sign * 2 * np.pi / sides
+    n_corners = int(np.floor(laps * sides + 1e-9))
+    out = [Waypoint(x=center[0] + radius_m * np.cos(start_angle_rad),
+                    y=center[1] + radius_m * np.sin(start_angle_rad), z=z, speed_m_s=speed_m_s)]
+    for i in range(n_corners):
+        ang = start_angle_rad + step * (i + 0.5)
+        out.append(Waypoint(x=center[0] + big * np.cos(ang), y=center[1] + big * np.sin(ang),
+                            z=z, speed_m_s=speed_m_s, corner_radius_m=radius_m * 1.0001))
+    end_ang = start_angle_rad + step * n_corners
+    out.append(Waypoint(x=center[0] + radius_m * np.cos(end_ang),
+                        y=center[1] + radius_m * np.sin(end_ang), z=z, speed_m_s=speed_m_s))
+    return out
+
+
+def staircase_waypoints(*, start: tuple[float, float, float], heading_rad: float, n_stairs: int,
+                        up: bool, params: MotionParams | None = None,
+                        speed_m_s: float = 0.55) -> Waypoint:
+    """End waypoint of a straight flight of ``n_stairs`` from ``start`` (tread x riser)."""
+    p = params or MotionParams()
+    run_len = n_stairs * p.stair_tread_m
+    dz = n_stairs * p.stair_riser_m * (1.0 if up else -1.0)
+    return Waypoint(x=start[0] + run_len * np.cos(heading_rad),
+                    y=start[1] + run_len * np.sin(heading_rad), z=start[2] + dz,
+                    speed_m_s=speed_m_s, corner_radius_m=0.3)
+
+
+def _free_space_graph(inner: BaseGeometry, spacing_m: float) -> tuple[FloatArray, nx.Graph]:
+    """Grid points inside ``inner`` joined to their 8 neighbours when the segment stays inside."""
+    minx, miny, maxx, maxy = inner.bounds
+    gx = np.arange(minx, maxx + 1e-9, spacing_m)
+    gy = np.arange(miny, maxy + 1e-9, spacing_m)
+    xx, yy = np.meshgrid(gx, gy, indexing="ij")
+    inside = shapely.contains_xy(inner, xx, yy)
+    index = -np.ones(xx.shape, dtype=np.int64)
+    index[inside] = np.arange(int(inside.sum()))
+    nodes = np.column_stack([xx[inside], yy[inside]])
+    graph = nx.Graph()
+    graph.add_nodes_from(range(len(nodes)))
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        i0, i1 = max(0, -di), xx.shape[0] - max(0, di)
+        j0, j1 = max(0, -dj), xx.shape[1] - max(0, dj)
+        a = index[i0:i1, j0:j1]
+        b = index[i0 + di:i1 + di, j0 + dj:j1 + dj]
+        ok = (a >= 0) & (b >= 0)
+        ia, ib = a[ok], b[ok]
+        if len(ia) == 0:
+            continue
+        segs = shapely.linestrings(np.stack([nodes[ia], nodes[ib]], axis=1))
+        good = shapely.contains(inner, segs)
+        w = float(np.hypot(di, dj) * spacing_m)
+        graph.add_weighted_edges_from((int(u), int(v), w)
+                                      for u, v in zip(ia[good], ib[good], strict=True))
+    return nodes, graph
+
+
+def _pull_string(points: FloatArray, inner: BaseGeometry) -> list[FloatArray]:
+    """Drop intermediate points while the straight segment stays inside (greedy)."""
+    out = [points[0]]
+    i = 0
+    while i < len(points) - 1:
+        j = len(points) - 1
+        while j > i + 1 and not inner.contains(LineString([points[i], points[j]])):
+            j -= 1
+        out.append(points[j])
+        i = j
+    return out
+
+
+def random_floorplan_walk(free_space: BaseGeometry, rng: np.random.Generator, *,
+                          distance_m: float, start: tuple[float, float] | None = None,
+                          speed_range_m_s: tuple[float, float] = (0.9, 1.5),
+                          stop_probability: float = 0.3,
+                          stop_range_s: tuple[float, float] = (1.0, 20.0),
+                          corner_radius_range_m: tuple[float, float] = (0.0, 1.0),
+                          min_leg_m: float = 1.0, margin_m: float = 0.4,
+                          grid_m: float | None = None) -> list[Waypoint]:
+    """A natural random walk inside ``free_space`` (shapely polygon, m) of about ``distance_m``.
+
+    The person picks random destinations in the floor plan shrunk by ``margin_m`` and goes
+    there along the shortest route on a grid of free space (doors and corridors are found),
+    straightened where the line of sight allows; at a destination they stop with probability
+    ``stop_probability`` for a time drawn from ``stop_range_s``. Each leg has its own speed and
+    corner radius drawn from the given ranges.
+    """
+    inner = free_space.buffer(-margin_m)
+    if inner.is_empty or inner.area <= 0:
+        raise InputError("free space vanishes after the margin", where="free_space",
+                         expected=f"a polygon wider than 2 x {margin_m} m")
+    minx, miny, maxx, maxy = inner.bounds
+    shapely.prepare(inner)
+    spacing = grid_m or max(0.25, min(1.0, min(maxx - minx, maxy - miny) / 8.0))
+    nodes, graph = _free_space_graph(inner, spacing)
+    if len(nodes) < 2:
+        raise InputError("floor plan too small for its grid", where="free_space",
+                         expected="a larger area")
+    # keep the largest connected part
+    part = max(nx.connected_components(graph), key=len)
+    usable = np.array(sorted(part))
+    cur = np.asarray(start, dtype=np.float64) if start is not None else \
+        nodes[usable[rng.integers(len(usable))]]
+    pts = [Waypoint(x=float(cur[0]), y=float(cur[1]))]
+    walked = 0.0
+    tries = 0
+    while walked < distance_m:
+        tries += 1
+        if tries > 100000:
+            raise InputError("cannot build the walk", where="free_space",
+                             expected="a connected floor plan")
+        goal = usable[rng.integers(len(usable))]
+        here = usable[np.argmin(np.hypot(*(nodes[usable] - cur).T))]
+        if np.hypot(*(nodes[goal] - cur)) < max(min_leg_m, 1e-6):
+            continue
+        route = nx.shortest_path(graph, int(here), int(goal), weight="weight")
+        route_pts = np.vstack([cur[None, :], nodes[route]])
+        keep = np.concatenate([[True], np.hypot(*np.diff(route_pts, axis=0).T) > 1e-9])
+        straight = _pull_string(route_pts[keep], inner)
+        speed = float(rng.uniform(*speed_range_m_s))
+        for k, p in enumerate(straight[1:], start=1):
+            last = k == len(straight) - 1
+            stop = (float(rng.uniform(*stop_range_s))
+                    if last and rng.random() < stop_probability else 0.0)
+            pts.append(Waypoint(x=float(p[0]), y=float(p[1]), speed_m_s=speed, stop_s=stop,
+                                corner_radius_m=float(rng.uniform(*corner_radius_range_m))))
+            walked += float(np.hypot(*(p - cur)))
+            cur = np.asarray(p, dtype=np.float64)
+    return pts

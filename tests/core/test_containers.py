@@ -1,0 +1,144 @@
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hrtls.data import (
+    Activity,
+    ImuStream,
+    Landmark,
+    PositionFixes,
+    RangeMeasurements,
+    RssReadings,
+    SensorSeries,
+    Session,
+    StepEvents,
+    Trajectory,
+    activity_codes,
+)
+from hrtls.errors import InputError, RepairWarning, UnitError
+from hrtls.units import DEG, G_TO_M_S2, guess_time_scale
+
+T = np.arange(200) * 0.01
+REST = np.tile([0.0, 0.0, 9.81], (200, 1))
+
+
+def test_series_names_stream_and_index_for_backward_time():
+    t = T.copy()
+    t[57] = t[55]
+    with pytest.raises(InputError, match=r"gyro.*index 57.*strictly increasing"):
+        SensorSeries(t, REST, "gyro")
+
+
+def test_series_duplicate_time_is_named():
+    t = T.copy()
+    t[10] = t[9]
+    with pytest.raises(InputError, match="duplicated at index 10"):
+        SensorSeries(t, REST, "acc")
+
+
+def test_series_nan_is_error_and_repair_drops_with_warning():
+    v = REST.copy()
+    v[3, 1] = np.nan
+    with pytest.raises(InputError, match="non-finite.*index 3"):
+        SensorSeries(T, v, "acc")
+    with pytest.warns(RepairWarning, match="dropped 1 row"):
+        s = SensorSeries.from_raw(T, v, name="acc", repair=True)
+    assert len(s) == 199
+
+
+def test_repair_sorts_and_merges_duplicates_by_averaging():
+    t = np.array([0.0, 0.02, 0.01, 0.02, 0.03])
+    v = np.array([[0.0], [2.0], [1.0], [4.0], [3.0]])
+    with pytest.warns(RepairWarning) as record:
+        s = SensorSeries.from_raw(t, v, name="x", repair=True)
+    message = str(record[0].message)
+    assert "sorted" in message and "merged 1" in message
+    assert np.array_equal(s.t, [0.0, 0.01, 0.02, 0.03])
+    assert np.array_equal(s.values[:, 0], [0.0, 1.0, 3.0, 3.0])
+
+
+@settings(max_examples=100)
+@given(st.lists(st.floats(0, 100, allow_nan=False), min_size=2, max_size=60))
+def test_repair_always_yields_strictly_increasing(times):
+    t = np.array(times)
+    v = np.arange(len(t), dtype=float)[:, None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RepairWarning)
+        s = SensorSeries.from_raw(t, v, name="x", repair=True)
+    assert np.all(np.diff(s.t) > 0)
+    assert len(s) == len(np.unique(t))
+    assert np.isclose(s.values.sum() * 0 + v.sum(), v.sum())  # values finite and kept
+
+
+def test_unit_checks_catch_g_and_deg_s_with_fix():
+    with pytest.raises(UnitError, match=r"g, not m/s\^2; multiply by 9.80665"):
+        ImuStream(SensorSeries(T, REST / G_TO_M_S2, "acc"))
+    spin = np.column_stack([np.zeros(200), np.zeros(200), np.full(200, 90.0)])
+    with pytest.raises(UnitError, match="deg/s"):
+        ImuStream(SensorSeries(T, REST, "acc"), SensorSeries(T, spin, "gyro"))
+    ImuStream(SensorSeries(T, REST, "acc"), SensorSeries(T, spin * DEG, "gyro"))
+    gauss = np.tile([0.2, 0.0, -0.4], (200, 1))
+    with pytest.raises(UnitError, match="gauss"):
+        ImuStream(SensorSeries(T, REST, "acc"), mag=SensorSeries(T, gauss, "mag"))
+
+
+def test_imu_aligned_interpolates_other_rates():
+    tg = np.arange(400) * 0.005
+    gyro = SensorSeries(tg, np.column_stack([tg, tg, tg]), "gyro")
+    imu = ImuStream(SensorSeries(T, REST, "acc"), gyro)
+    t, acc, gyr, mag = imu.aligned()
+    assert mag is None and np.allclose(gyr[:, 0], T)
+
+
+def test_observations_allow_equal_times_but_not_backwards():
+    RssReadings([0.0, 0.0, 1.0], ["a", "b", "a"], [-60, -70, -65])
+    with pytest.raises(InputError, match="backwards"):
+        RssReadings([0.0, 1.0, 0.5], ["a", "b", "a"], [-60, -70, -65])
+    with pytest.raises(InputError, match="dBm"):
+        RssReadings([0.0], ["a"], [60.0])
+    with pytest.raises(InputError, match="empty identifier"):
+        RssReadings([0.0], [""], [-60.0])
+    with pytest.raises(InputError, match="positive"):
+        PositionFixes([0.0], [[0, 0, 0]], [0.0])
+    r = RangeMeasurements([0.0], ["n"], [3.0], [np.nan])
+    assert np.isnan(r.sigma_m[0])
+
+
+def test_landmark_needs_location_and_wraps_bearings():
+    with pytest.raises(ValueError, match="position"):
+        Landmark(id="t1")
+    lm = Landmark(id="t1", kind="rfid", position=(1, 2, 0), bearings_rad=(4.0,))
+    assert -np.pi < lm.bearings_rad[0] <= np.pi
+
+
+def test_session_needs_a_source_of_motion():
+    with pytest.raises(InputError, match="no source of motion"):
+        Session()
+
+
+def test_trajectory_and_steps_validate():
+    tr = Trajectory.build(t=[0, 1], xyz=[[0, 0, 0], [1, 0, 0]])
+    assert tr.path_length_m == 1.0
+    bad = np.array([[[1.0, 0.5], [0.0, 1.0]]] * 2)
+    with pytest.raises(InputError, match="symmetric"):
+        Trajectory.build(t=[0, 1], xyz=[[0, 0, 0], [1, 0, 0]], cov_xy=bad)
+    with pytest.raises(InputError, match="ends before"):
+        StepEvents.build(t_start=[1.0], t_end=[0.5], length_m=[0.7])
+    s = StepEvents.build(t_start=[0, 0.5], t_end=[0.5, 1.0], length_m=[0.7, 0.7],
+                         activity=["walking", "upstairs"])
+    assert s.distance_m == pytest.approx(1.4)
+    assert list(s.activity) == [Activity.WALKING, Activity.UPSTAIRS]
+
+
+def test_activity_parse_errors_name_index():
+    with pytest.raises(InputError, match="index 1"):
+        activity_codes(["walking", "flying"])
+
+
+def test_guess_time_scale():
+    assert guess_time_scale(np.arange(10) * 10.0) == 1e-3  # ms at 100 Hz
+    assert guess_time_scale(np.arange(10) * 1e7) == 1e-9  # ns at 100 Hz
+    assert guess_time_scale(np.arange(10) * 0.01) == 1.0

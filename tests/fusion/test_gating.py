@@ -1,0 +1,101 @@
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.stats import chi2
+
+from hrtls.errors import InputError
+from hrtls.fusion.gating import (
+    chi2_threshold,
+    is_spd,
+    kalman_update,
+    nis,
+    summarize,
+    symmetrize,
+)
+
+
+def test_scalar_kalman_matches_closed_form() -> None:
+    # prior N(1, 4), measurement z = 3 with variance 1 -> posterior mean 2.6, variance 0.8
+    res = kalman_update(np.array([1.0]), np.array([[4.0]]), np.array([[1.0]]),
+                        np.array([[1.0]]), np.array([2.0]))
+    assert res.diagnostics.accepted
+    assert res.x[0] == pytest.approx(1.0 + 4.0 / 5.0 * 2.0)
+    assert res.P[0, 0] == pytest.approx(4.0 * 1.0 / 5.0)
+    assert res.diagnostics.nis == pytest.approx(4.0 / 5.0)
+
+
+def test_joseph_equals_standard_form_for_optimal_gain() -> None:
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        a = rng.normal(size=(4, 4))
+        p = a @ a.T + 0.1 * np.eye(4)
+        h = rng.normal(size=(2, 4))
+        b = rng.normal(size=(2, 2))
+        r = b @ b.T + 0.1 * np.eye(2)
+        x = rng.normal(size=4)
+        nu = rng.normal(size=2) * 0.1
+        res = kalman_update(x, p, h, r, nu)
+        s = h @ p @ h.T + r
+        k = p @ h.T @ np.linalg.inv(s)
+        np.testing.assert_allclose(res.P, (np.eye(4) - k @ h) @ p, atol=1e-9)
+        np.testing.assert_allclose(res.x, x + k @ nu, atol=1e-12)
+
+
+def test_gate_rejects_20_sigma_outlier() -> None:
+    p = np.eye(2)
+    r = np.eye(2) * 0.25
+    s_sigma = np.sqrt(1.25)
+    res = kalman_update(np.zeros(2), p, np.eye(2), r, np.array([20.0 * s_sigma, 0.0]),
+                        gate_probability=0.999, kind="fix")
+    assert res.diagnostics.status == "rejected"
+    assert res.diagnostics.nis == pytest.approx(400.0)
+    np.testing.assert_array_equal(res.x, np.zeros(2))
+    np.testing.assert_array_equal(res.P, p)
+    ok = kalman_update(np.zeros(2), p, np.eye(2), r, np.array([2.0 * s_sigma, 0.0]),
+                       gate_probability=0.999)
+    assert ok.diagnostics.accepted
+
+
+def test_chi2_threshold_and_nis() -> None:
+    assert chi2_threshold(2, 0.99) == pytest.approx(chi2.ppf(0.99, 2))
+    s = np.array([[2.0, 0.5], [0.5, 1.0]])
+    nu = np.array([1.0, -1.0])
+    assert nis(nu, s) == pytest.approx(nu @ np.linalg.solve(s, nu))
+    with pytest.raises(InputError):
+        chi2_threshold(0, 0.9)
+    with pytest.raises(InputError):
+        chi2_threshold(1, 1.0)
+
+
+def test_bad_shapes_and_nan_raise() -> None:
+    with pytest.raises(InputError):
+        kalman_update(np.zeros(2), np.eye(2), np.eye(3), np.eye(3), np.zeros(3))
+    with pytest.raises(InputError):
+        kalman_update(np.zeros(2), np.eye(2), np.eye(2), np.eye(2), np.array([np.nan, 0.0]))
+
+
+def test_angle_wraps_and_diagnostics_json() -> None:
+    res = kalman_update(np.array([3.1]), np.array([[1.0]]), np.array([[1.0]]),
+                        np.array([[1e-6]]), np.array([0.2]), angle_index=0, kind="bearing")
+    assert -np.pi < res.x[0] <= np.pi
+    assert res.x[0] == pytest.approx(3.3 - 2 * np.pi, abs=1e-5)
+    json.dumps(res.diagnostics.to_dict())
+    assert summarize([res.diagnostics, res.diagnostics]) == {"bearing": {"accepted": 2}}
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(min_value=0, max_value=10_000), st.integers(min_value=1, max_value=3))
+def test_update_keeps_covariance_spd(seed: int, m: int) -> None:
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(4, 4)) * rng.uniform(0.01, 100)
+    p = symmetrize(a @ a.T + 1e-6 * np.eye(4))
+    h = rng.normal(size=(m, 4))
+    r = np.eye(m) * rng.uniform(1e-4, 10)
+    res = kalman_update(rng.normal(size=4), p, h, r, rng.normal(size=m))
+    assert is_spd(res.P)
+    assert np.trace(res.P) <= np.trace(p) * (1 + 1e-9)
