@@ -219,7 +219,7 @@ def quat_to_euler(q):
 
 
 def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=True):
-    from hrtls.attitude.euler_ekf import _P0, _QETA, _QG, _QN, _QW
+    from hrtls.attitude.euler_ekf import _EXACT, _P0, _QETA, _QG, _QN, _QW
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
     th = np.zeros(3)
@@ -251,7 +251,14 @@ def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=T
                 w = g - aux[K.AUX_BIAS:K.AUX_BIAS + 3]
                 F = np.eye(3) + dt * complex_step_jacobian(lambda x: e_matrix(x) @ w, th)
                 G = dt * e_matrix(th)
-                th = th + dt * e_matrix(th) @ w  # eq. 5
+                if prm[_EXACT] > 0.5:  # R+ = R(theta) exp([w]x dt)
+                    from scipy.spatial.transform import Rotation
+
+                    rot = Rotation.from_matrix(r_zyx(th)) * Rotation.from_rotvec(w * dt)
+                    yaw_, pitch_, roll_ = rot.as_euler("ZYX")
+                    th = np.array([roll_, pitch_, yaw_])
+                else:
+                    th = th + dt * e_matrix(th) @ w  # eq. 5
                 th[0] = wrap(th[0])
                 th[2] = wrap(th[2])
                 P = F @ P @ F.T + G @ (prm[_QW] * np.eye(3)) @ G.T  # eq. 6

@@ -97,8 +97,8 @@ class CommonParams:
 
     gravity_m_s2: float = GRAVITY_M_S2
     acc_gate_m_s2: float = 1.0
-    mag_norm_gate_uT: float = 5.0
-    mag_dip_gate_rad: float = float(np.deg2rad(10.0))
+    mag_norm_gate_uT: float = 3.0
+    mag_dip_gate_rad: float = float(np.deg2rad(5.0))
     mag_jump_gate_uT: float = 5.0
     mag_new_field_s: float = 20.0
     mag_ref_norm_uT: float | None = None

@@ -76,7 +76,7 @@ class ComplementaryParams(CommonParams):
     tau_acc_s: float = 3.0
     tau_mag_s: float = 9.0
     rate_ref_rad_s: float = 2.0
-    tau_bias_s: float = 30.0
+    tau_bias_s: float = 100.0
     bias_max_rad_s: float = 0.1
 
     def __post_init__(self) -> None:

@@ -10,7 +10,9 @@ ENU, the same kinematics read ``d(theta)/dt = D(theta)^-1 w`` with the usual z-y
 and ``n_n = [0, 1, 0]``.
 
 * Prediction (eq. 5-6): ``theta+ = theta + T E(theta) w``; ``P+ = F P F^T + G Q_w G^T`` with
-  ``F = I + T d(E w)/d(theta)`` and ``G = T E(theta)``.
+  ``F = I + T d(E w)/d(theta)`` and ``G = T E(theta)``. By default the angles are propagated
+  exactly (``R+ = R(theta) exp([w]x T)``, of which eq. 5 is the first-order form;
+  ``exact_propagation=False`` gives eq. 5 itself): eq. 5 diverges in fast rotations.
 * Measurements (eq. 3-4, 7): specific force ``R^T g_n`` (m/s^2) and the north direction
   ``R^T n_n``. The paper's magnetometer "works as a compass"; we read its north measurement as
   the horizontal part of the measured field (the field minus its component along the predicted
@@ -52,7 +54,8 @@ _QG = K.PRM_SPECIFIC + 1
 _QN = K.PRM_SPECIFIC + 2
 _QETA = K.PRM_SPECIFIC + 3
 _P0 = K.PRM_SPECIFIC + 4
-_SIZE = K.PRM_SPECIFIC + 5
+_EXACT = K.PRM_SPECIFIC + 5
+_SIZE = K.PRM_SPECIFIC + 6
 
 _COS_MIN = 1e-3
 
@@ -73,6 +76,11 @@ class EulerEkfParams(CommonParams):
         ``Q_eta``, variance of the yaw pseudo-measurement, rad^2.
     p0_var_rad2:
         ``P(0)``, initial variance of each angle, rad^2.
+    exact_propagation:
+        Propagate the angles by composing rotations, ``R+ = R(theta) exp([w]x T)``, instead of
+        the first-order step of eq. 5 (of which it is the exact form); the covariance still
+        follows eq. 6. This keeps the state right through fast rotations and near pitch
+        +-90 deg, where eq. 5 diverges.
     """
 
     gyro_var_rad2_s2: float = 0.01
@@ -80,6 +88,7 @@ class EulerEkfParams(CommonParams):
     north_var: float = 7.3e-10 / (50e-6) ** 2
     yaw_var_rad2: float = 0.32
     p0_var_rad2: float = 0.001
+    exact_propagation: bool = True
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
@@ -99,6 +108,7 @@ class EulerEkfParams(CommonParams):
         p[_QN] = self.north_var
         p[_QETA] = self.yaw_var_rad2
         p[_P0] = self.p0_var_rad2
+        p[_EXACT] = 1.0 if self.exact_propagation else 0.0
         return p
 
 
@@ -153,6 +163,7 @@ def euler_ekf_kernel(
     ps = np.empty((3, 3))
     g = prm[K.PRM_GRAVITY]
     qw = prm[_QW]
+    exact = prm[_EXACT] > 0.5
     for i in range(n):
         ti = t[i]
         tp = aux[K.AUX_T_PREV]
@@ -245,11 +256,22 @@ def euler_ekf_kernel(
                 F[2, 0] = dt * v * sec
                 F[2, 1] = dt * u * tp_ * sec
                 F[2, 2] = 1.0
-                x[0] += dt * (wx + tp_ * u)
-                x[1] += dt * v
-                x[2] += dt * u * sec
-                x[0] = _wrap(x[0])
-                x[2] = _wrap(x[2])
+                if exact:
+                    # R+ = R(theta) exp([w]x dt): quaternion step, back to angles
+                    n_w = math.sqrt(wx * wx + wy * wy + wz * wz)
+                    half = 0.5 * n_w * dt
+                    sk = math.sin(half) / n_w if n_w > 1e-12 else 0.5 * dt
+                    qw_, qx_, qy_, qz_ = _euler_to_quat(x[0], x[1], x[2])
+                    qw_, qx_, qy_, qz_ = K.qmul(qw_, qx_, qy_, qz_, math.cos(half), sk * wx,
+                                                sk * wy, sk * wz)
+                    x[0], x[1], x[2] = _quat_to_euler(qw_, qx_, qy_, qz_)
+                else:
+                    # eq. 5
+                    x[0] += dt * (wx + tp_ * u)
+                    x[1] += dt * v
+                    x[2] += dt * u * sec
+                    x[0] = _wrap(x[0])
+                    x[2] = _wrap(x[2])
                 for r in range(3):
                     for c in range(3):
                         tmp[r, c] = F[r, 0] * P[0, c] + F[r, 1] * P[1, c] + F[r, 2] * P[2, c]

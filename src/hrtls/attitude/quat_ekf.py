@@ -81,14 +81,14 @@ class QuatEkfParams(CommonParams):
         Random-walk density of the gyro bias, rad/s per sqrt(s).
     """
 
-    gyro_noise_rad_s: float = 0.01
-    acc_noise: float = 0.05
-    mag_noise: float = 0.1
+    gyro_noise_rad_s: float = 0.005
+    acc_noise: float = 0.1
+    mag_noise: float = 0.5
     mag_mode: Literal["vector", "horizontal"] = "horizontal"
     p0_var: float = 1e-3
     bias_in_state: bool = True
     bias_sigma_rad_s: float = 0.01
-    bias_walk_rad_s2: float = 1e-4
+    bias_walk_rad_s2: float = 1e-5
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)

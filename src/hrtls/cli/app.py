@@ -134,6 +134,28 @@ def convert(
     console.print(f"wrote {output}")
 
 
+def _register() -> None:
+    """Attach the commands that live in their own modules."""
+    from hrtls.cli import attitude as attitude_cli
+    from hrtls.cli import gait as gait_cli
+    from hrtls.cli import sim as sim_cli
+    from hrtls.cli import track as track_cli
+    from hrtls.cli import wsn as wsn_cli
+
+    app.command("track")(track_cli.track)
+    app.command("demo")(track_cli.demo)
+    app.command("simulate")(sim_cli.simulate)
+    app.command("evaluate")(sim_cli.evaluate)
+    app.command("attitude")(attitude_cli.attitude)
+    attitude_cli.calibrate_app.command("steps")(gait_cli.calibrate_steps)
+    app.add_typer(attitude_cli.calibrate_app, name="calibrate")
+    app.add_typer(gait_cli.activity_app, name="activity")
+    app.add_typer(wsn_cli.app, name="wsn")
+
+
+_register()
+
+
 def main() -> None:
     """Entry point of the ``hrtls`` console script."""
     app()

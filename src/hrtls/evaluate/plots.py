@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
@@ -30,8 +31,13 @@ def _save(fig: Figure, path: Path) -> Path:
 def plot_trajectory(path: Path, estimate: Trajectory, truth: GroundTruth | None = None, *,
                     checkpoints: Checkpoints | None = None,
                     landmarks: Mapping[str, Landmark] | None = None,
-                    fixes_xy: FloatArray | None = None, title: str = "") -> Path:
-    """Top view (x east, y north, equal axes) of the estimate over the truth."""
+                    fixes_xy: FloatArray | None = None, title: str = "",
+                    ellipses: int = 0) -> Path:
+    """Top view (x east, y north, equal axes) of the estimate over the truth.
+
+    ``ellipses`` > 0 draws that many 2-sigma ellipses of the horizontal covariance, evenly
+    spaced in time along the estimate.
+    """
     fig = Figure(figsize=(7.5, 6.5))
     ax = fig.add_subplot()
     if truth is not None:
@@ -41,6 +47,8 @@ def plot_trajectory(path: Path, estimate: Trajectory, truth: GroundTruth | None 
     ax.plot(estimate.xyz[:, 0], estimate.xyz[:, 1], "-", color="tab:blue", lw=1.0,
             label="estimate")
     ax.plot(estimate.xyz[:1, 0], estimate.xyz[:1, 1], "o", color="tab:blue", ms=6)
+    if ellipses > 0 and len(estimate) > 1:
+        _draw_ellipses(ax, estimate, ellipses)
     if checkpoints is not None and len(checkpoints):
         ax.plot(checkpoints.xyz[:, 0], checkpoints.xyz[:, 1], "D", mfc="none",
                 color="tab:red", ms=7, label="checkpoints")
@@ -62,6 +70,19 @@ def plot_trajectory(path: Path, estimate: Trajectory, truth: GroundTruth | None 
     ax.set_title(title or "trajectory")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _draw_ellipses(ax: Axes, estimate: Trajectory, count: int) -> None:
+    """2-sigma ellipses of ``cov_xy`` at ``count`` evenly spaced times."""
+    idx = np.unique(np.searchsorted(estimate.t, np.linspace(estimate.t[0], estimate.t[-1],
+                                                            count)).clip(0, len(estimate) - 1))
+    circle = np.stack([np.cos(np.linspace(0, 2 * np.pi, 48)),
+                       np.sin(np.linspace(0, 2 * np.pi, 48))])
+    for k, i in enumerate(idx):
+        vals, vecs = np.linalg.eigh(estimate.cov_xy[i])
+        axes = vecs @ np.diag(2.0 * np.sqrt(np.clip(vals, 0.0, None))) @ circle
+        ax.plot(estimate.xyz[i, 0] + axes[0], estimate.xyz[i, 1] + axes[1], "-",
+                color="tab:blue", alpha=0.35, lw=0.8, label="2-sigma" if k == 0 else None)
 
 
 def plot_error_over_time(path: Path, t: FloatArray, error_m: FloatArray, *,

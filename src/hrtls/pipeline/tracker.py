@@ -414,6 +414,10 @@ class Tracker:
         if getattr(self, "_var_yaw", None) is not None and len(self._var_yaw):
             var_h = float(np.interp(t, self._var_yaw_t, self._var_yaw))
         heading = float(steps.heading_rad[i])
+        if (self.heading_known and not self.state.has_input_heading
+                and math.isfinite(heading)):
+            # the start pose fixes the heading: the first step input only sets the reference
+            self.state = self.state.evolve(input_heading_rad=heading, has_input_heading=True)
         self.state = self.step_predictor.predict(
             self.state, t=max(t, self.state.t), length_m=float(steps.length_m[i]),
             heading_rad=heading, dz_m=float(steps.dz_m[i]), activity=activity,

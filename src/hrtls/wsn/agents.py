@@ -588,6 +588,7 @@ class RescuerAgent:
         self.est_m = self.true_m.copy()
         self.cov = np.zeros((2, 2))
         self.heading_error_rad = 0.0
+        self.steps_total = 0
         self.distance_m = 0.0
 
     def estimate(self) -> tuple[FloatArray, FloatArray]:
@@ -640,7 +641,10 @@ class RescuerAgent:
             length += abs(true_len)
             along = np.array([math.cos(believed), math.sin(believed)])
             across = np.array([-along[1], along[0]])
-            var_h = (step * prm.heading_noise_rad * (k + 1)) ** 2
+            # heading error is a random walk over the whole mission (never corrected by
+            # ranges): lateral variance grows by (step * sigma_h * steps so far)^2 per step
+            self.steps_total += 1
+            var_h = (step * prm.heading_noise_rad * self.steps_total) ** 2
             self.cov = self.cov + q_len**2 * np.outer(along, along) + var_h * np.outer(
                 across, across)
             if prm.correct_every_steps and (k + 1) % prm.correct_every_steps == 0:

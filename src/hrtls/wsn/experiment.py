@@ -92,6 +92,7 @@ def loose_study(
     seed: int = 0,
     planner: PlannerParams | None = None,
     rescuer: RescuerParams | None = None,
+    prop_params: PropagationParams | None = None,
 ) -> LooseStudy:
     """Fig. 6.11 study: TLA vs SELA vs SELA + planner over random corner-seed networks.
 
@@ -109,7 +110,7 @@ def loose_study(
         world = RangeWorld(true_positions_m=net.position_m, link_radius_m=radius_m,
                            radio_range_m=radius_m)
         agent = RescuerAgent(world, net.position_m[0], params=rescuer or RescuerParams(), rng=rng)
-        nav = safe_navigation(net, agent, params=planner)
+        nav = safe_navigation(net, agent, params=planner, prop_params=prop_params)
         for w in nav.waypoints:
             kinds[w.kind] = kinds.get(w.kind, 0) + 1
         connected = bool(connected_components(net).max() == 0)

@@ -1,0 +1,97 @@
+"""Commands ``hrtls track`` and ``hrtls demo``."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from hrtls.cli.errors import reports_errors
+
+console = Console(highlight=False)
+
+
+def _fmt(value: float | None, unit: str = " m") -> str:
+    return "-" if value is None else f"{value:.2f}{unit}"
+
+
+@reports_errors
+def track(
+    session: Annotated[Path, typer.Argument(help="Session folder/zip or any supported recording.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Result folder to write.")],
+    config: Annotated[Path | None, typer.Option("--config", "-c",
+                                                help="Tracker configuration (TOML).")] = None,
+    preset_name: Annotated[str | None, typer.Option(
+        "--preset", "-p", help="default | colombo2014 | basso2017 | tarrio2011 | "
+        "inderst-rfid | inderst-range")] = None,
+    plot: Annotated[bool, typer.Option("--plot", help="Also write track.png.")] = False,
+    repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows (warns).")] = False,
+    beacons: Annotated[Path | None, typer.Option(
+        "--beacons", help="Beacon positions CSV for IPIN logfiles.")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
+) -> None:
+    """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json."""
+    from hrtls.cli.sim import report_table
+    from hrtls.errors import InputError
+    from hrtls.io.readers.detect import read_any
+    from hrtls.jobs.track import evaluate_track, write_track_outputs
+    from hrtls.pipeline import Tracker, load_config, preset
+
+    if config is not None and preset_name is not None:
+        raise InputError("both --config and --preset", where="hrtls track",
+                         expected="one of them")
+    cfg = load_config(config) if config is not None else preset(preset_name or "default")
+    with console.status(f"reading {session}"):
+        data = read_any(session, repair=repair, beacons=beacons)
+    n = 0 if data.imu is None else len(data.imu.accel)
+    with console.status(f"tracking with {cfg.name}"):
+        start = time.perf_counter()
+        result = Tracker(cfg).run(data)
+        seconds = time.perf_counter() - start
+    evaluation = evaluate_track(result, data)
+    write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
+                        evaluation=evaluation)
+    summary = result.report["summary"]
+    console.print(f"[bold]{cfg.name}[/bold]: {summary['steps']} steps, "
+                  f"{summary['distance_walked_m']:.1f} m walked, "
+                  f"{n:,} IMU samples in {seconds:.2f} s"
+                  f"{f' ({n / seconds:,.0f} samples/s)' if n and seconds > 0 else ''}")
+    counts = result.report["corrections"]
+    if counts:
+        console.print("corrections: " + "; ".join(
+            f"{kind} " + ", ".join(f"{v} {k}" for k, v in c.items())
+            for kind, c in counts.items()))
+    for note in result.report["notes"]:
+        console.print(f"note: {note}")
+    if evaluation is not None:
+        console.print(report_table(evaluation))
+    console.print(f"wrote {output}")
+
+
+@reports_errors
+def demo(
+    output: Annotated[Path, typer.Option("--output", "-o", help="Folder for sessions, results "
+                                                                "and plots.")] = Path("hrtls-demo"),
+    seed: Annotated[int, typer.Option(help="Simulation seed.")] = 0,
+) -> None:
+    """Simulate the thesis' rescue missions and track them with and without infrastructure."""
+    from hrtls.jobs.demo import MISSIONS, run_demo
+
+    for mission, _, text in MISSIONS:
+        console.print(f"[bold]{mission}[/bold]: {text}")
+    with console.status("working") as status:
+        rows = run_demo(output, seed=seed, overwrite=True,
+                        progress=lambda msg: status.update(msg))
+    table = Table("mission", "tracking", "steps", "walked m", "checkpoint mean m",
+                  "checkpoint max m", "p90 error m", "time s", title="hrtls demo (simulated)")
+    for row in rows:
+        table.add_row(row.mission, row.method, str(row.steps), _fmt(row.distance_m, ""),
+                      _fmt(row.checkpoint_mean_m, ""), _fmt(row.checkpoint_max_m, ""),
+                      _fmt(row.error_p90_m, ""), f"{row.seconds:.2f}")
+    Console(highlight=False, width=max(console.width, 120)).print(table)
+    console.print(f"sessions, results (trajectory.csv, steps.csv, trajectory.geojson, "
+                  f"report.json) and plots (track.png) are in {output}/")
