@@ -29,10 +29,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _attitude_sim import simulate_walk  # noqa: E402
-
-from hrtls.attitude import make_filter, orientation_errors  # noqa: E402
-from hrtls.frames import (  # noqa: E402
+from _attitude_sim import simulate_walk
+from hrtls.attitude import make_filter, orientation_errors
+from hrtls.frames import (
     GRAVITY_M_S2,
     quat_conjugate,
     quat_from_rotation,

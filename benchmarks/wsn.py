@@ -102,7 +102,7 @@ def main() -> None:
           f" 1 % step length, 2 cm steps, range corrections every 10 steps), {k} networks "
           f"({time.perf_counter() - t:.1f} s)")
     print(ex.format_table(s.rows))
-    for n_nodes, side in ((50, 1.0), (10, 0.5)):
+    for n_nodes, side in ((50, 1.0), (10, 0.5), (15, 1.0)):
         t = time.perf_counter()
         r = ex.tight_study(n_networks=args.networks, n_nodes=n_nodes, side_m=side,
                            seed=args.seed + 1)

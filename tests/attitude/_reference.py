@@ -88,8 +88,15 @@ def _read(prm, acc, gyr, mag, has_gyr, has_mag, i):
 # quaternion EKF (Inderst 4.2.1), 7 states [q, b]
 # ---------------------------------------------------------------------------------------------
 def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
-    from hrtls.attitude.quat_ekf import _ACC_NOISE, _BIAS_P0, _BIAS_WALK, _GYR_NOISE, _MAG_MODE
-    from hrtls.attitude.quat_ekf import _MAG_NOISE, _P0
+    from hrtls.attitude.quat_ekf import (
+        _ACC_NOISE,
+        _BIAS_P0,
+        _BIAS_WALK,
+        _GYR_NOISE,
+        _MAG_MODE,
+        _MAG_NOISE,
+        _P0,
+    )
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
     q = np.array([1.0, 0, 0, 0])
@@ -249,7 +256,7 @@ def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=T
                 if acc_fin:
                     rest_and_bias(aux, prm, *g, *a, dt)
                 w = g - aux[K.AUX_BIAS:K.AUX_BIAS + 3]
-                F = np.eye(3) + dt * complex_step_jacobian(lambda x: e_matrix(x) @ w, th)
+                F = np.eye(3) + dt * complex_step_jacobian(lambda x, w=w: e_matrix(x) @ w, th)
                 G = dt * e_matrix(th)
                 if prm[_EXACT] > 0.5:  # R+ = R(theta) exp([w]x dt)
                     from scipy.spatial.transform import Rotation

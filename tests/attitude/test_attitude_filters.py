@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import warnings
 
@@ -112,7 +113,7 @@ def test_euler_ekf_first_order_step_is_close():
     m = make_motion(300, seed=2, noise=False, rest_s=0.05)
     acc = m.acc.copy()
     acc[1:] *= 1.5
-    p = dict(acc_gate_m_s2=1e-12, estimate_bias=False)
+    p = {"acc_gate_m_s2": 1e-12, "estimate_bias": False}
     a = EulerEkf(EulerEkfParams(**p)).update(m.t, acc, m.gyr, None)
     b = EulerEkf(EulerEkfParams(exact_propagation=False, **p)).update(m.t, acc, m.gyr, None)
     ang = quat_angle_between(a.q, b.q)
@@ -181,7 +182,7 @@ def test_no_nan_leaves_with_bad_samples(seed, method, data):
     for v in bad:
         arr = [acc, gyr, mag][rng.integers(3)]
         arr[rng.integers(len(arr)), rng.integers(3)] = v
-    f, r = run(method, type(m)(m.t, acc, gyr, mag, m.q))
+    _f, r = run(method, type(m)(m.t, acc, gyr, mag, m.q))
     assert np.all(np.isfinite(r.q))
     if r.var_rpy is not None:
         assert np.all(np.isfinite(r.var_rpy))
@@ -216,7 +217,7 @@ def test_chunked_update_equals_batch(method, cuts):
     f = make_filter(method)
     edges = [0, *sorted(cuts), 300]
     parts = [f.update(m.t[a:b], m.acc[a:b], m.gyr[a:b], m.mag[a:b])
-             for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+             for a, b in itertools.pairwise(edges) if b > a]
     joined = AttitudeResult.concatenate(parts)
     np.testing.assert_array_equal(joined.q, batch.q)
     np.testing.assert_array_equal(joined.flags, batch.flags)
@@ -315,7 +316,7 @@ def test_kernel_helpers():
         jac = np.empty((3, 4))
         K.rot_t_jacobian(*q, *v, jac)
         np.testing.assert_allclose(
-            jac, ref.complex_step_jacobian(lambda qq: ref.rot_h(qq).T @ v, q), atol=1e-12)
+            jac, ref.complex_step_jacobian(lambda qq, v=v: ref.rot_h(qq).T @ v, q), atol=1e-12)
         w = rng.normal(size=3)
         phi = np.empty((4, 4))
         K.transition(*w, 0.01, phi)

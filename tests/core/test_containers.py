@@ -42,7 +42,7 @@ def test_series_duplicate_time_is_named():
 def test_series_nan_is_error_and_repair_drops_with_warning():
     v = REST.copy()
     v[3, 1] = np.nan
-    with pytest.raises(InputError, match="non-finite.*index 3"):
+    with pytest.raises(InputError, match=r"non-finite.*index 3"):
         SensorSeries(T, v, "acc")
     with pytest.warns(RepairWarning, match="dropped 1 row"):
         s = SensorSeries.from_raw(T, v, name="acc", repair=True)
@@ -74,7 +74,7 @@ def test_repair_always_yields_strictly_increasing(times):
 
 
 def test_unit_checks_catch_g_and_deg_s_with_fix():
-    with pytest.raises(UnitError, match=r"g, not m/s\^2; multiply by 9.80665"):
+    with pytest.raises(UnitError, match=r"g, not m/s\^2; multiply by 9\.80665"):
         ImuStream(SensorSeries(T, REST / G_TO_M_S2, "acc"))
     spin = np.column_stack([np.zeros(200), np.zeros(200), np.full(200, 90.0)])
     with pytest.raises(UnitError, match="deg/s"):
@@ -89,7 +89,7 @@ def test_imu_aligned_interpolates_other_rates():
     tg = np.arange(400) * 0.005
     gyro = SensorSeries(tg, np.column_stack([tg, tg, tg]), "gyro")
     imu = ImuStream(SensorSeries(T, REST, "acc"), gyro)
-    t, acc, gyr, mag = imu.aligned()
+    _, _, gyr, mag = imu.aligned()
     assert mag is None and np.allclose(gyr[:, 0], T)
 
 

@@ -140,7 +140,7 @@ def write_imu(tmp_path, text):
 def test_malformed_value_names_line_and_column(tmp_path):
     rows = "\n".join(f"{i * 0.01},0,0,9.8" for i in range(30))
     d = write_imu(tmp_path, "t,ax,ay,az\n" + rows + "\n0.3,0,abc,9.8\n")
-    with pytest.raises(FormatError, match=r"imu.csv line 32: 'ay' is 'abc'; expected a number"):
+    with pytest.raises(FormatError, match=r"imu\.csv line 32: 'ay' is 'abc'; expected a number"):
         read_session(d)
 
 
@@ -175,14 +175,14 @@ def test_unknown_landmark_ids_warn(tmp_path):
 def test_bad_json_named(tmp_path):
     d = write_imu(tmp_path, "t,ax,ay,az\n0,0,0,9.8\n")
     (d / "session.json").write_text('{"placement": "waist",}')
-    with pytest.raises(FormatError, match="session.json line 1"):
+    with pytest.raises(FormatError, match=r"session\.json line 1"):
         read_session(d)
     (d / "session.json").write_text('{"floor_height_m": -1}')
     with pytest.raises(FormatError, match="floor_height_m"):
         read_session(d)
     (d / "session.json").unlink()
     (d / "landmarks.json").write_text(json.dumps([{"id": "a", "kind": "rfid"}]))
-    with pytest.raises(FormatError, match="landmarks.json item 0"):
+    with pytest.raises(FormatError, match=r"landmarks\.json item 0"):
         read_session(d)
 
 

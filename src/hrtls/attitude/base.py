@@ -82,9 +82,10 @@ class CommonParams:
         Estimate the gyro bias whenever the device rests (see :mod:`hrtls.attitude.bias`).
     rest_gyro_rad_s, rest_acc_m_s2, rest_s:
         Rest detection thresholds: deviation of the gyro rate from its low-pass and of the
-        low-pass from the bias (twice this, rad/s), deviation of the specific force from its low-pass and of
-        its norm from g (m/s^2), and the minimum rest duration (s). A gyro whose bias exceeds
-        ``2 rest_gyro_rad_s`` is never seen at rest: pass ``gyro_bias_rad_s`` or calibrate.
+        low-pass from the bias (twice this) in rad/s, deviation of the specific force from its
+        low-pass and of its norm from g in m/s^2, and the minimum rest duration in s. A gyro
+        whose bias exceeds ``2 rest_gyro_rad_s`` is never seen at rest: pass
+        ``gyro_bias_rad_s`` or calibrate.
     bias_tau_s:
         Time constant of the bias update at rest, s.
     gyro_bias_rad_s:
@@ -179,7 +180,8 @@ class AttitudeState:
     method:
         Registry name of the filter that produced it.
     x:
-        The filter's own state vector (a quaternion, or roll/pitch/yaw in rad).
+        The filter's own state vector (a quaternion; for the Euler EKF roll, pitch, yaw in rad
+        followed by their quaternion).
     P:
         Its covariance (empty for filters without one).
     aux:

@@ -145,12 +145,32 @@ def _quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float
 
 
 @numba.njit(**K.JIT)
+def _sincos(w: float, x: float, y: float, z: float
+            ) -> tuple[float, float, float, float, float, float]:
+    """``sin/cos`` of roll, pitch, yaw of a unit quaternion, from its rotation matrix."""
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r10 = 2.0 * (x * y + w * z)
+    r20 = 2.0 * (x * z - w * y)
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    sp = max(-1.0, min(1.0, -r20))
+    cp = math.sqrt(r21 * r21 + r22 * r22)
+    if cp < _COS_MIN:  # gimbal lock: roll 0, the rotation is all yaw
+        return 0.0, 1.0, sp, cp, 2.0 * (w * z - x * y), 1.0 - 2.0 * (x * x + z * z)
+    return r21 / cp, r22 / cp, sp, cp, r10 / cp, r00 / cp
+
+
+@numba.njit(**K.JIT)
 def euler_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,
     yaw_in: FloatArray, out_q: FloatArray, out_var: FloatArray, out_flags: NDArray[np.uint8],
 ) -> None:
-    """Euler EKF over one chunk (Colombo eq. 5-11); mutates ``x``, ``P``, ``aux``."""
+    """Euler EKF over one chunk (Colombo eq. 5-11); mutates ``x``, ``P``, ``aux``.
+
+    ``x = [roll, pitch, yaw, qw, qx, qy, qz]``: the angles and their quaternion (kept so that
+    the exact propagation and the outputs need few trigonometric functions).
+    """
     n = t.shape[0]
     has_yaw = yaw_in.shape[0] == n
     F = np.empty((3, 3))
@@ -159,8 +179,6 @@ def euler_ekf_kernel(
     jac = np.empty((3, 3))
     dx = np.empty(3)
     ph = np.empty((3, 3))
-    xs = np.empty(3)
-    ps = np.empty((3, 3))
     g = prm[K.PRM_GRAVITY]
     qw = prm[_QW]
     exact = prm[_EXACT] > 0.5
@@ -191,6 +209,7 @@ def euler_ekf_kernel(
             if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
                 w, qx, qy, qz = K.init_attitude(prm, a0, a1, a2, m0, m1, m2, mag_fin)
                 x[0], x[1], x[2] = _quat_to_euler(w, qx, qy, qz)
+                x[3], x[4], x[5], x[6] = _euler_to_quat(x[0], x[1], x[2])
                 for r in range(3):
                     for c in range(3):
                         P[r, c] = prm[_P0] if r == c else 0.0
@@ -220,6 +239,12 @@ def euler_ekf_kernel(
                 continue
         else:
             flags = K.FLAG_VALID
+            # quaternion of the current angles (kept in x[3:7])
+            cw = x[3]
+            cx = x[4]
+            cy_ = x[5]
+            cz = x[6]
+            moved = False
             # ---- prediction, eq. 5-6
             if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
                 if acc_fin and K.rest_and_bias(aux, prm, g0, g1, g2, a0, a1, a2, dt):
@@ -227,12 +252,10 @@ def euler_ekf_kernel(
                 wx = g0 - aux[K.AUX_BIAS]
                 wy = g1 - aux[K.AUX_BIAS + 1]
                 wz = g2 - aux[K.AUX_BIAS + 2]
-                sr = math.sin(x[0])
-                cr = math.cos(x[0])
-                cp = math.cos(x[1])
+                sr, cr, sp, cp, _, _ = _sincos(cw, cx, cy_, cz)
                 if abs(cp) < _COS_MIN:
-                    cp = _COS_MIN if cp >= 0.0 else -_COS_MIN
-                tp_ = math.sin(x[1]) / cp
+                    cp = _COS_MIN
+                tp_ = sp / cp
                 sec = 1.0 / cp
                 u = sr * wy + cr * wz  # appears in the roll and yaw rates
                 v = cr * wy - sr * wz
@@ -259,19 +282,24 @@ def euler_ekf_kernel(
                 if exact:
                     # R+ = R(theta) exp([w]x dt): quaternion step, back to angles
                     n_w = math.sqrt(wx * wx + wy * wy + wz * wz)
-                    half = 0.5 * n_w * dt
-                    sk = math.sin(half) / n_w if n_w > 1e-12 else 0.5 * dt
-                    qw_, qx_, qy_, qz_ = _euler_to_quat(x[0], x[1], x[2])
-                    qw_, qx_, qy_, qz_ = K.qmul(qw_, qx_, qy_, qz_, math.cos(half), sk * wx,
-                                                sk * wy, sk * wz)
-                    x[0], x[1], x[2] = _quat_to_euler(qw_, qx_, qy_, qz_)
+                    ch, sc = K.cos_sinc(0.5 * n_w * dt)
+                    sk = 0.5 * dt * sc
+                    cw, cx, cy_, cz = K.qmul(cw, cx, cy_, cz, ch, sk * wx, sk * wy, sk * wz)
+                    nq = math.sqrt(cw * cw + cx * cx + cy_ * cy_ + cz * cz)
+                    if cw < 0.0:
+                        nq = -nq
+                    cw /= nq
+                    cx /= nq
+                    cy_ /= nq
+                    cz /= nq
+                    x[0], x[1], x[2] = _quat_to_euler(cw, cx, cy_, cz)
                 else:
                     # eq. 5
-                    x[0] += dt * (wx + tp_ * u)
+                    x[0] = _wrap(x[0] + dt * (wx + tp_ * u))
                     x[1] += dt * v
-                    x[2] += dt * u * sec
-                    x[0] = _wrap(x[0])
-                    x[2] = _wrap(x[2])
+                    x[2] = _wrap(x[2] + dt * u * sec)
+                    cw, cx, cy_, cz = _euler_to_quat(x[0], x[1], x[2])
+                moved = True
                 for r in range(3):
                     for c in range(3):
                         tmp[r, c] = F[r, 0] * P[0, c] + F[r, 1] * P[1, c] + F[r, 2] * P[2, c]
@@ -286,12 +314,7 @@ def euler_ekf_kernel(
             elif has_gyr:
                 aux[K.AUX_N_GYR_REJ] += 1.0
             # ---- measurements, eq. 3-4 and 7, at the prediction
-            sr = math.sin(x[0])
-            cr = math.cos(x[0])
-            sp = math.sin(x[1])
-            cp = math.cos(x[1])
-            sy = math.sin(x[2])
-            cy = math.cos(x[2])
+            sr, cr, sp, cp, sy, cy = _sincos(cw, cx, cy_, cz)
             ux = -sp
             uy = cp * sr
             uz = cp * cr
@@ -310,10 +333,7 @@ def euler_ekf_kernel(
                 use_y = math.isfinite(yv)
             if use_a or use_m or use_y:
                 for r in range(3):
-                    xs[r] = x[r]
                     dx[r] = 0.0
-                    for c in range(3):
-                        ps[r, c] = P[r, c]
                 if use_a:
                     # h = R^T [0, 0, g]
                     jac[0, 0] = 0.0
@@ -346,41 +366,41 @@ def euler_ekf_kernel(
                 if use_y:
                     # eta_z = C theta, C = [0, 0, 1] (eq. 1, 10)
                     s = P[2, 2] + prm[_QETA]
-                    innov = _wrap(yv - xs[2]) - dx[2]
+                    innov = _wrap(yv - x[2]) - dx[2]
                     k0 = P[0, 2] / s
                     k1 = P[1, 2] / s
                     k2 = P[2, 2] / s
                     dx[0] += k0 * innov
                     dx[1] += k1 * innov
                     dx[2] += k2 * innov
-                    p0 = P[0, 2]
-                    p1 = P[1, 2]
-                    p2 = P[2, 2]
                     kk = (k0, k1, k2)
-                    pp = (p0, p1, p2)
+                    pp = (P[0, 2], P[1, 2], P[2, 2])
                     for r in range(3):
                         for c in range(r, 3):
                             val = P[r, c] - kk[r] * pp[c]
                             P[r, c] = val
                             P[c, r] = val
-                x[0] = _wrap(x[0] + dx[0])
-                x[1] += dx[1]
-                x[2] = _wrap(x[2] + dx[2])
-                if x[1] > 0.5 * math.pi or x[1] < -0.5 * math.pi:
-                    # pitch left its range: the same attitude with pitch folded back
-                    x[1] = math.copysign(math.pi, x[1]) - x[1]
-                    x[0] = _wrap(x[0] + math.pi)
-                    x[2] = _wrap(x[2] + math.pi)
-                if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2])
-                        and math.isfinite(P[0, 0]) and math.isfinite(P[1, 1])
-                        and math.isfinite(P[2, 2])):
+                ok = True
+                for r in range(3):
+                    ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
+                if ok:
+                    x[0] = _wrap(x[0] + dx[0])
+                    x[1] += dx[1]
+                    x[2] = _wrap(x[2] + dx[2])
+                    if x[1] > 0.5 * math.pi or x[1] < -0.5 * math.pi:
+                        # pitch left its range: the same attitude with pitch folded back
+                        x[1] = math.copysign(math.pi, x[1]) - x[1]
+                        x[0] = _wrap(x[0] + math.pi)
+                        x[2] = _wrap(x[2] + math.pi)
+                    moved = True
+                    cw, cx, cy_, cz = _euler_to_quat(x[0], x[1], x[2])
+                else:
+                    # numerical failure: keep the prediction, restart the covariance
                     use_a = False
                     use_m = False
-                    use_y = False
                     for r in range(3):
-                        x[r] = xs[r]
                         for c in range(3):
-                            P[r, c] = ps[r, c]
+                            P[r, c] = prm[_P0] if r == c else 0.0
             if use_a:
                 flags |= K.FLAG_ACC
             else:
@@ -389,11 +409,15 @@ def euler_ekf_kernel(
                 flags |= K.FLAG_MAG
             elif has_mag:
                 aux[K.AUX_N_MAG_REJ] += 1.0
-        w, qx, qy, qz = _euler_to_quat(x[0], x[1], x[2])
-        out_q[i, 0] = w
-        out_q[i, 1] = qx
-        out_q[i, 2] = qy
-        out_q[i, 3] = qz
+            if moved:
+                x[3] = cw
+                x[4] = cx
+                x[5] = cy_
+                x[6] = cz
+        out_q[i, 0] = x[3]
+        out_q[i, 1] = x[4]
+        out_q[i, 2] = x[5]
+        out_q[i, 3] = x[6]
         out_var[i, 0] = P[0, 0]
         out_var[i, 1] = P[1, 1]
         out_var[i, 2] = P[2, 2]
@@ -411,7 +435,8 @@ class EulerEkf(AttitudeFilter):
     params_type: ClassVar[type[CommonParams]] = EulerEkfParams
 
     def _new_xp(self) -> tuple[FloatArray, FloatArray]:
-        return np.zeros(3), np.zeros((3, 3))
+        # roll, pitch, yaw and their quaternion
+        return np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), np.zeros((3, 3))
 
     def _kernel(self, t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray,
                 has_gyr: bool, has_mag: bool, x: FloatArray, P: FloatArray, aux: FloatArray,

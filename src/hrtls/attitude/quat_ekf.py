@@ -173,8 +173,6 @@ def quat_ekf_kernel(
     dx = np.empty(ns)
     ph = np.empty((ns, 3))
     xs = np.empty(4)
-    bs = np.empty(3)
-    ps = np.empty((ns, ns))
     bias_state = prm[_BIAS_STATE] > 0.5
     g = prm[K.PRM_GRAVITY]
     sg = prm[_GYR_NOISE]
@@ -335,43 +333,37 @@ def quat_ekf_kernel(
                 use_m = zn > 1e-9
             if use_a or use_m:
                 # ---- update, eq. 4.19: blocks share the linearisation at the prediction
-                for r in range(4):
-                    xs[r] = x[r]
-                for r in range(3):
-                    bs[r] = aux[K.AUX_BIAS + r]
                 for r in range(ns):
                     dx[r] = 0.0
-                    for c in range(ns):
-                        ps[r, c] = P[r, c]
                 if use_a:
                     K.rot_t_jacobian(w, qx, qy, qz, 0.0, 0.0, 1.0, jac)
                     use_a = K.block3_update7(P, dx, jac, a0 / an - ux, a1 / an - uy,
-                                            a2 / an - uz, va, ph)
+                                             a2 / an - uz, va, ph)
                 if use_m:
                     h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
                     K.rot_t_jacobian(w, qx, qy, qz, v0, v1, v2, jac)
                     use_m = K.block3_update7(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
-                                            z2 / zn - h2, vm, ph)
-                for r in range(4):
-                    x[r] += dx[r]
-                if bias_state:
-                    for r in range(3):
-                        aux[K.AUX_BIAS + r] += dx[4 + r]
-                _normalize(x, P)
-                _project(x, P)
-                if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2])
-                        and math.isfinite(x[3]) and math.isfinite(P[0, 0])
-                        and math.isfinite(P[3, 3]) and math.isfinite(P[ns - 1, ns - 1])):
-                    # numerical failure: keep the prediction
+                                             z2 / zn - h2, vm, ph)
+                ok = True
+                for r in range(ns):
+                    ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
+                if ok:
+                    for r in range(4):
+                        x[r] += dx[r]
+                    if bias_state:
+                        for r in range(3):
+                            aux[K.AUX_BIAS + r] += dx[4 + r]
+                    _normalize(x, P)
+                    _project(x, P)
+                else:
+                    # numerical failure: keep the prediction, restart the covariance
                     use_a = False
                     use_m = False
-                    for r in range(4):
-                        x[r] = xs[r]
-                    for r in range(3):
-                        aux[K.AUX_BIAS + r] = bs[r]
                     for r in range(ns):
                         for c in range(ns):
-                            P[r, c] = ps[r, c]
+                            P[r, c] = 0.0
+                        P[r, r] = prm[_P0] if r < 4 else prm[_BIAS_P0]
+                    _project(x, P)
             if use_a:
                 flags |= K.FLAG_ACC
             else:

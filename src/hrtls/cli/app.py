@@ -18,6 +18,7 @@ from hrtls.errors import InputError, UnitError
 app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Hybrid Rescue Team Localization System.")
 console = Console(highlight=False)
+wide = Console(highlight=False, width=max(console.width, 120))
 
 
 @app.callback()
@@ -88,7 +89,7 @@ def info(
     for s in summary.streams:
         table.add_row(s.name, str(s.samples), f"{s.rate_hz:.2f}", f"{s.start_s:.3f}",
                       f"{s.end_s:.3f}", str(s.gaps), f"{s.longest_gap_s:.3f}", s.detail)
-    console.print(table)
+    wide.print(table)
     if summary.landmarks:
         console.print("landmarks: " + ", ".join(f"{n} {k}" for k, n in summary.landmarks.items()))
     for label, ids in summary.unknown_ids.items():

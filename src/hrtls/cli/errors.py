@@ -29,8 +29,8 @@ class Verbosity:
 
 
 def _show_warning(message: warnings.WarningMessage) -> None:
-    kind = {RepairWarning: "repaired", DegradedInputWarning: "note"}.get(
-        message.category, "warning")  # type: ignore[call-overload]
+    labels: dict[type[Warning], str] = {RepairWarning: "repaired", DegradedInputWarning: "note"}
+    kind = labels.get(message.category, "warning")
     err_console.print(f"[yellow]{kind}:[/yellow] {message.message}", markup=True)
 
 

@@ -308,7 +308,7 @@ def experiment(
         typer.echo(ex.format_table(s.rows))
         typer.echo(f"way point kinds: {s.waypoint_kinds}")
     if study in ("tight", "all"):
-        for n_nodes, side in ((50, 1.0), (10, 0.5)):
+        for n_nodes, side in ((50, 1.0), (10, 0.5), (15, 1.0)):
             t = ex.tight_study(n_networks=networks, n_nodes=n_nodes, side_m=side, seed=seed + 1)
             typer.echo(f"\nTight cooperation with a robot (Fig. 6.13-6.17): {n_nodes} nodes in "
                        f"a {side:g} m square, rho = {t.radius_m:g}, d_r = 2 rho, "

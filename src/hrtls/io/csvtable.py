@@ -158,16 +158,16 @@ def read_table(data: bytes, *, name: str, kinds: Mapping[str, ColumnKind],
         raise _scan_for_error(text, header, kinds, name=name)
     by_col = list(zip(*rows, strict=True)) if rows else [() for _ in header]
     cols = {}
-    for col, raw in zip(header, by_col, strict=True):
+    for col, cells in zip(header, by_col, strict=True):
         kind = kinds[col]
         if kind == "str":
-            arr = np.array([v.strip() for v in raw], dtype=np.str_)
+            arr = np.array([v.strip() for v in cells], dtype=np.str_)
             if np.any(np.char.str_len(arr) == 0):
                 raise _scan_for_error(text, header, kinds, name=name)
             cols[col] = arr
             continue
         try:
-            stripped = [v.strip() for v in raw]
+            stripped = [v.strip() for v in cells]
             if kind == "float_or_empty":
                 stripped = [v if v else "nan" for v in stripped]
             num = np.array(stripped, dtype=np.float64)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from hrtls.data import Session, SensorSeries
+from hrtls.data import SensorSeries, Session
 from hrtls.units import (
     suspect_accelerometer_unit,
     suspect_gyroscope_unit,
@@ -57,6 +58,11 @@ def _series_summary(name: str, t: np.ndarray, detail: str = "", *, gap_factor: f
     dt = np.diff(t)
     pos = dt[dt > 0]
     median = float(np.median(pos)) if len(pos) else 0.0
+    if not np.isfinite(gap_factor):
+        # observation files repeat times (one scan, many readings): report the mean rate
+        span = float(t[-1] - t[0])
+        rate = (len(t) - 1) / span if span > 0 else 0.0
+        return StreamSummary(name, len(t), float(t[0]), float(t[-1]), rate, 0, 0.0, detail)
     gap_mask = dt > gap_factor * median if median > 0 else np.zeros(len(dt), dtype=bool)
     return StreamSummary(
         name=name, samples=len(t), start_s=float(t[0]), end_s=float(t[-1]),
@@ -85,11 +91,12 @@ def summarize(session: Session) -> SessionSummary:
     for label, part in (("pressure", session.pressure), ("orientation", session.orientation)):
         if part is not None:
             streams.append(_series_summary(label, part.t))
-    obs = (("fixes", session.fixes), ("rss", session.rss), ("tags", session.tags),
-           ("ranges", session.ranges), ("truth", session.truth),
-           ("checkpoints", session.checkpoints))
-    for label, part in obs:
-        if part is None:
+    observations: tuple[tuple[str, Any], ...] = (
+        ("fixes", session.fixes), ("rss", session.rss), ("tags", session.tags),
+        ("ranges", session.ranges), ("truth", session.truth),
+        ("checkpoints", session.checkpoints))
+    for label, obs in observations:
+        if obs is None:
             continue
         detail = ""
         if label == "rss" and session.rss is not None:
@@ -98,7 +105,7 @@ def summarize(session: Session) -> SessionSummary:
             detail = f"{len(np.unique(session.tags.tag))} tags"
         elif label == "ranges" and session.ranges is not None:
             detail = f"{len(np.unique(session.ranges.node))} nodes"
-        streams.append(_series_summary(label, part.t, detail, gap_factor=np.inf))
+        streams.append(_series_summary(label, obs.t, detail, gap_factor=np.inf))
     kinds: dict[str, int] = {}
     for landmark in session.landmarks.values():
         kinds[landmark.kind] = kinds.get(landmark.kind, 0) + 1

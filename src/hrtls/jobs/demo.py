@@ -13,7 +13,7 @@ from hrtls.pipeline import Tracker, TrackerConfig, preset
 from hrtls.pipeline.config import FixesConfig, RangesConfig, RssConfig, TagsConfig
 from hrtls.sim.scenarios import run_scenario, write_result
 
-MISSIONS = (
+MISSIONS: tuple[tuple[str, dict[str, Any], str], ...] = (
     ("inderst_ring", {}, "500 m in a ring-shaped office corridor with 9 RFID tags"),
     ("inderst_multifloor", {}, "280 m over two floors with stairs"),
 )

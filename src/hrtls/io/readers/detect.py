@@ -11,7 +11,9 @@ Signatures looked for, in this order:
   ``time,seconds_elapsed``;
 * ``phyphox``: a CSV whose header starts with ``"Time (s)"``;
 * ``ipin``: lines ``ACCE;``, ``POSI;`` ... or the GetSensorData header;
-* ``android``: files named after a sensor whose first data line is ``TIMESTAMP X Y Z``.
+* ``android``: files named after a sensor whose first data line is ``TIMESTAMP X Y Z``;
+* the public datasets of :mod:`hrtls.datasets.formats` (``mobgap``, ``oxford-step``,
+  ``broad``, ``ble-rssi``), recognized by their file names and first bytes.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from hrtls.data import Session
+from hrtls.datasets import formats as dataset_formats
 from hrtls.errors import FormatError, InputError
 from hrtls.io.readers._text import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.io.readers.android import read_android, sensor_from_name
@@ -50,6 +53,10 @@ FORMATS: dict[str, Callable[..., Session]] = {
     "phyphox": read_phyphox,
     "ipin": read_ipin,
     "android": read_android,
+    "mobgap": dataset_formats.read_mobgap,
+    "oxford-step": dataset_formats.read_oxford,
+    "broad": dataset_formats.read_broad,
+    "ble-rssi": dataset_formats.read_ble_rssi,
 }
 """Format name -> reader ``(path, *, repair=False, **options) -> Session``."""
 
@@ -113,6 +120,12 @@ def detect_format(path: Path | str, *, max_bytes: int = DEFAULT_MAX_BYTES) -> st
                          expected="a recording file, folder or zip")
     if (path.is_dir() or path.suffix.lower() == ".zip") and _is_session(path):
         return "hrtls-session"
+    for name, looks_like in (("mobgap", dataset_formats.looks_like_mobgap),
+                             ("oxford-step", dataset_formats.looks_like_oxford),
+                             ("broad", dataset_formats.looks_like_broad),
+                             ("ble-rssi", dataset_formats.looks_like_ble_rssi)):
+        if looks_like(path):
+            return name
     src = open_source(path, max_bytes=max_bytes)
     found = _sniff(src)
     if len(found) == 1:
