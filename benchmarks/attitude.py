@@ -90,7 +90,13 @@ def ahrs_runner(kind: str) -> Runner:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if kind == "ekf":
-                return EKF(gyr=gyr, acc=acc, mag=mag, frequency=rate, frame="ENU").Q
+                # frame="ENU" diverged on these data; NED with the measured dip works
+                k = min(len(acc), 100)
+                dip = np.rad2deg(np.arcsin(np.clip(-np.sum(acc[:k] * mag[:k], axis=1) / (
+                    np.linalg.norm(acc[:k], axis=1) * np.linalg.norm(mag[:k], axis=1)),
+                    -1.0, 1.0))).mean()
+                return EKF(gyr=gyr, acc=acc, mag=mag, frequency=rate, frame="NED",
+                           magnetic_ref=-float(dip)).Q
             return Madgwick(gyr=gyr, acc=acc, mag=mag, frequency=rate).Q
     return run
 

@@ -26,7 +26,9 @@ Per sample:
    ``b <- b - delta / tau_bias``, so a constant bias is removed with time constant
    ``tau_bias`` (plus the rest estimator of :mod:`hrtls.attitude.bias`).
 
-There is no covariance: ``var_rpy`` is ``None``; ``extra`` holds ``gain_acc`` and ``gain_mag``.
+There is no covariance: ``var_rpy`` is ``None``; ``extra`` holds ``gain_acc`` and ``gain_mag``
+(the per-sample blending gains, a measure of how much the static sensors were trusted). The
+thesis gives no gain values; the defaults were chosen on ``benchmarks/attitude.py``.
 """
 
 from __future__ import annotations

@@ -24,6 +24,12 @@ State ``q = q_nd`` (device -> ENU, ``[w, x, y, z]``) with a 4 x 4 covariance.
 
 Scale-factor matrices ``K_a``, ``K_m`` of eq. 4.16/4.18 are the identity here: calibrate the
 sensors first (:mod:`hrtls.calibration`).
+
+Gyro bias (our extension, on by default): the state is augmented to ``[q, b]`` (7 states,
+``dq/db = -dt/2 Xi(q)``, bias random walk); ``bias_in_state=False`` gives the thesis' 4-state
+filter. The thesis gives no numerical values for ``Q``, ``V`` or the gates; the defaults were
+chosen on ``benchmarks/attitude.py`` (simulated walks with magnetic anomalies and the BROAD
+trials).
 """
 
 from __future__ import annotations

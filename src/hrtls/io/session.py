@@ -30,7 +30,6 @@ from __future__ import annotations
 import json
 import warnings
 import zipfile
-from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -54,6 +53,7 @@ from hrtls.data import (
 from hrtls.data.validation import FloatArray, drop_non_finite, repair_time_order
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.io.csvtable import ColumnKind, Table, format_table, read_table
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 
 SESSION_FILES = ("imu.csv", "gyro.csv", "mag.csv", "pressure.csv", "orientation.csv",
                  "fixes.csv", "rss.csv", "tags.csv", "ranges.csv", "landmarks.json",
@@ -63,71 +63,38 @@ SESSION_FILES = ("imu.csv", "gyro.csv", "mag.csv", "pressure.csv", "orientation.
 RESULT_FILES = ("trajectory.csv", "steps.csv", "trajectory.geojson", "report.json")
 """Outputs that may sit beside a session without being part of it."""
 
-DEFAULT_MAX_BYTES = 2 * 1024**3
-"""Largest total uncompressed size of a zipped session, bytes."""
-
 _AXES = ("x", "y", "z")
 
 
-class _Source:
-    """Files of a session folder or zip, read as bytes by name."""
+class _SessionFiles:
+    """The session files of a folder or zip, read as bytes by their base name."""
 
-    def __init__(self, names: set[str], reader: Callable[[str], bytes], label: str):
-        self.names = names
-        self._reader = reader
-        self.label = label
+    def __init__(self, source: Source):
+        by_dir: dict[str, list[str]] = {}
+        for name in source.names:
+            pure = PurePosixPath(name)
+            by_dir.setdefault(str(pure.parent), []).append(name)
+        # the folder holding the session files: the root, or a single sub-folder (a zip of it)
+        holders = [d for d, names in by_dir.items()
+                   if {PurePosixPath(n).name for n in names} & set(SESSION_FILES)]
+        if len(holders) > 1 and "." in holders:
+            holders = ["."]
+        if len(holders) != 1:
+            raise FormatError(
+                "no session files found" if not holders else
+                f"session files in several folders ({', '.join(sorted(holders))})",
+                where=str(source.path),
+                expected="one folder with imu.csv, fixes.csv, ... (or a zip of it)")
+        self._members = {PurePosixPath(n).name: n for n in by_dir[holders[0]]}
+        self._source = source
+        self.names = set(self._members)
+        self.label = str(source.path)
 
     def read(self, name: str) -> bytes:
-        return self._reader(name)
+        return self._source.read(self._members[name])
 
 
-def _folder_source(root: Path) -> _Source:
-    names = {p.name for p in root.iterdir() if p.is_file()}
-    return _Source(names, lambda n: (root / n).read_bytes(), str(root))
-
-
-def _zip_source(path: Path, max_bytes: int) -> _Source:
-    try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError) as exc:
-        raise FormatError(f"not a readable zip ({exc})", where=str(path),
-                          expected="a zip of a session folder") from None
-    infos = [i for i in zf.infolist() if not i.is_dir()]
-    for info in infos:
-        pure = PurePosixPath(info.filename)
-        if pure.is_absolute() or ".." in pure.parts or "\\" in info.filename:
-            raise FormatError(f"member {info.filename!r} points outside the archive",
-                              where=str(path), expected="relative member names without '..'")
-    total = sum(i.file_size for i in infos)
-    if total > max_bytes:
-        raise FormatError(f"{total} bytes uncompressed", where=str(path),
-                          expected=f"at most {max_bytes} bytes (raise max_bytes if intended)")
-    by_dir: dict[str, dict[str, zipfile.ZipInfo]] = {}
-    for info in infos:
-        pure = PurePosixPath(info.filename)
-        by_dir.setdefault(str(pure.parent), {})[pure.name] = info
-    # the folder holding the session files: the root, or a single top-level folder
-    candidates = [d for d, files in by_dir.items() if set(files) & set(SESSION_FILES)]
-    if len(candidates) != 1:
-        raise FormatError(
-            "no session files found" if not candidates else
-            f"session files in several folders ({', '.join(sorted(candidates))})",
-            where=str(path), expected="one folder with imu.csv, fixes.csv, ... inside the zip")
-    members = by_dir[candidates[0]]
-
-    def read(name: str) -> bytes:
-        info = members[name]
-        with zf.open(info) as fh:
-            data = fh.read(info.file_size + 1)
-        if len(data) != info.file_size:
-            raise FormatError("member size differs from its header", where=f"{path}:{name}",
-                              expected="an intact zip")
-        return data
-
-    return _Source(set(members), read, str(path))
-
-
-def _table(src: _Source, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...]
+def _table(src: _SessionFiles, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...]
            ) -> Table | None:
     if name not in src.names:
         return None
@@ -153,7 +120,7 @@ def _repaired(t: FloatArray, groups: list[FloatArray], *, name: str, repair: boo
     return repair_time_order(t, groups, where=name, strict=strict)
 
 
-def _read_vector_file(src: _Source, name: str, prefix: str, *, repair: bool
+def _read_vector_file(src: _SessionFiles, name: str, prefix: str, *, repair: bool
                       ) -> SensorSeries | None:
     cols = tuple(prefix + a for a in _AXES)
     table = _table(src, name, dict.fromkeys(("t", *cols), "float"), ("t", *cols))
@@ -165,7 +132,7 @@ def _read_vector_file(src: _Source, name: str, prefix: str, *, repair: bool
     return SensorSeries(t, values, name)
 
 
-def _read_imu(src: _Source, *, repair: bool, check_units: bool) -> ImuStream | None:
+def _read_imu(src: _SessionFiles, *, repair: bool, check_units: bool) -> ImuStream | None:
     gyro_cols = tuple("g" + a for a in _AXES)
     mag_cols = tuple("m" + a for a in _AXES)
     acc_cols = tuple("a" + a for a in _AXES)
@@ -200,7 +167,7 @@ def _read_imu(src: _Source, *, repair: bool, check_units: bool) -> ImuStream | N
     )
 
 
-def _read_landmarks(src: _Source) -> dict[str, Landmark]:
+def _read_landmarks(src: _SessionFiles) -> dict[str, Landmark]:
     if "landmarks.json" not in src.names:
         return {}
     items = _json(src, "landmarks.json")
@@ -228,7 +195,7 @@ def _pydantic_problem(exc: ValidationError) -> str:
     return f"field {loc!r}: {err['msg']}"
 
 
-def _json(src: _Source, name: str) -> Any:
+def _json(src: _SessionFiles, name: str) -> Any:
     try:
         return json.loads(src.read(name).decode("utf-8-sig"))
     except UnicodeDecodeError:
@@ -238,7 +205,7 @@ def _json(src: _Source, name: str) -> Any:
                           expected="valid JSON") from None
 
 
-def _read_meta(src: _Source) -> SessionMeta:
+def _read_meta(src: _SessionFiles) -> SessionMeta:
     if "session.json" not in src.names:
         return SessionMeta()
     data = _json(src, "session.json")
@@ -259,8 +226,8 @@ def is_session(path: Path) -> bool:
         return any((path / n).is_file() for n in SESSION_FILES)
     if path.suffix.lower() == ".zip" and zipfile.is_zipfile(path):
         try:
-            _zip_source(path, DEFAULT_MAX_BYTES)
-        except FormatError:
+            _SessionFiles(open_source(path))
+        except (FormatError, InputError):
             return False
         return True
     return False
@@ -288,16 +255,7 @@ def read_session(path: Path | str, *, repair: bool = False, check_units: bool = 
         Naming the file, line and field that are wrong.
     """
     path = Path(path)
-    if path.is_dir():
-        src = _folder_source(path)
-    elif path.is_file():
-        src = _zip_source(path, max_bytes)
-    else:
-        raise InputError("no such file or folder", where=str(path),
-                         expected="a session folder or zip")
-    if not src.names & set(SESSION_FILES):
-        raise FormatError("no session files", where=str(path),
-                          expected=f"at least one of {', '.join(SESSION_FILES)}")
+    src = _SessionFiles(open_source(path, max_bytes=max_bytes))
     try:
         return _assemble(src, repair=repair, check_units=check_units)
     except InputError as exc:
@@ -307,7 +265,7 @@ def read_session(path: Path | str, *, repair: bool = False, check_units: bool = 
         raise
 
 
-def _assemble(src: _Source, *, repair: bool, check_units: bool) -> Session:
+def _assemble(src: _SessionFiles, *, repair: bool, check_units: bool) -> Session:
     meta = _read_meta(src)
     imu = _read_imu(src, repair=repair, check_units=check_units)
     pressure = None
@@ -365,7 +323,7 @@ def _assemble(src: _Source, *, repair: bool, check_units: bool) -> Session:
     return session
 
 
-def _read_fixes(src: _Source, *, repair: bool) -> PositionFixes | None:
+def _read_fixes(src: _SessionFiles, *, repair: bool) -> PositionFixes | None:
     table = _table(src, "fixes.csv", dict.fromkeys(("t", "x", "y", "z", "sigma"), "float"),
                    ("t", "x", "y", "sigma"))
     if table is None:
@@ -378,8 +336,8 @@ def _read_fixes(src: _Source, *, repair: bool) -> PositionFixes | None:
     return PositionFixes(t, xyz, sigma, has_z, "fixes.csv")
 
 
-def _read_obs(src: _Source, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...],
-              *, repair: bool) -> dict[str, Any] | None:
+def _read_obs(src: _SessionFiles, name: str, kinds: dict[str, ColumnKind],
+              required: tuple[str, ...], *, repair: bool) -> dict[str, Any] | None:
     """Observation table as a dict of columns (time non-decreasing, sorted with ``repair``)."""
     table = _table(src, name, kinds, required)
     if table is None:

@@ -59,6 +59,9 @@ class FixesConfig(_Section):
     period_s: float = Field(default=1.0, gt=0.0, description="update period Tp")
     require_motion: bool = True
     yaw_stretch: bool = True
+    yaw_feedback_gain: float = Field(
+        default=1.0, ge=0.0, le=1.0,
+        description="fraction of each stretching yaw correction fed back to later yaw inputs")
 
 
 class RssConfig(_Section):
@@ -68,6 +71,9 @@ class RssConfig(_Section):
     window_s: float = Field(default=2.0, gt=0.0, description="scan grouping window")
     estimate_channel: bool = True
     sensitivity_dbm: float = -100.0
+    use_wls_covariance: bool = True
+    sigma_position_m: float = Field(default=2.0, gt=0.0,
+                                    description="Tarrio's sigma_p when not using the WLS cov.")
 
 
 class TagsConfig(_Section):
@@ -76,6 +82,8 @@ class TagsConfig(_Section):
     enabled: bool = True
     strategy: Literal["paper", "kalman"] = "paper"
     bearing_correction: bool = True
+    bearing_gate_deg: float = Field(default=45.0, gt=0.0, le=180.0)
+    bearing_deadband_deg: float = Field(default=5.0, ge=0.0)
 
 
 class RangesConfig(_Section):

@@ -17,7 +17,7 @@ from __future__ import annotations
 import heapq
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,13 +36,25 @@ from hrtls.data import (
 )
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, quat_rotate, wrap_angle
-from hrtls.fusion.fixes import FixCorrector, FixParams, FixSchedule
-from hrtls.fusion.floors import floor_level_update
-from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped, summarize
+from hrtls.fusion.fixes import (
+    FixCorrector,
+    FixParams,
+    FixSchedule,
+    StretchMemory,
+    YawPseudoMeasurement,
+)
+from hrtls.fusion.gating import (
+    UpdateDiagnostics,
+    chi2_threshold,
+    kalman_update,
+    skipped,
+    summarize,
+)
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update
 from hrtls.fusion.rss import (
     ChannelEstimator,
+    ChannelEstimatorParams,
     ChannelState,
     PathLossModel,
     group_scans,
@@ -51,8 +63,15 @@ from hrtls.fusion.rss import (
 )
 from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
-from hrtls.fusion.tags import TagCorrector, TagMemory, TagParams, bearing_heading_correction
+from hrtls.fusion.tags import (
+    TagCorrector,
+    TagMemory,
+    TagParams,
+    bearing_heading_correction,
+    group_detections,
+)
 from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityPredictor
+from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
 from hrtls.gait.peak_steps import PeakStepDetector
@@ -60,6 +79,7 @@ from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.velocity_automaton import VelocityAutomaton
+from hrtls.pipeline import _events as ev
 from hrtls.pipeline.config import TrackerConfig, preset
 
 FloatArray = np.ndarray
@@ -69,6 +89,14 @@ _STEP, _FIX, _RSS, _TAGS, _RANGE = 0, 1, 2, 3, 4
 _KIND_NAMES = {_STEP: "step", _FIX: "fix", _RSS: "rss", _TAGS: "tags", _RANGE: "range"}
 MOVING_SIGMA_M_S2 = 0.2
 """Colombo's sigma_min: the user moves when the 2 s std of vertical acceleration exceeds it."""
+FLOOR_SIGMA_M = 0.1
+"""1-sigma of the floor-level pseudo-measurement after a flat step (m)."""
+RSS_MIN_DISTANCE_M = 0.5
+"""Tight RSS readings are not used when the estimate is nearer than this to the anchor (m)."""
+VELOCITY_ROW_PERIOD_S = 0.04
+"""Output period of the trajectory rows of the velocity-driven prediction (s)."""
+DEFAULT_VAR_YAW_RAD2 = 0.01
+"""Yaw variance when the attitude filter gives none (rad^2)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -91,33 +119,41 @@ class TrackResult:
     report: dict[str, Any]
 
 
-@dataclass
 class _Track:
-    """Accumulated output rows."""
+    """Accumulated output rows, in blocks (one row per event; several at one time keep the last)."""
 
-    t: list[float] = field(default_factory=list)
-    x: list[np.ndarray] = field(default_factory=list)
-    p: list[np.ndarray] = field(default_factory=list)
-    activity: list[int] = field(default_factory=list)
+    def __init__(self) -> None:
+        self.t: list[np.ndarray] = []
+        self.x: list[np.ndarray] = []
+        self.cov: list[np.ndarray] = []
+        self.var_h: list[np.ndarray] = []
+        self.activity: list[np.ndarray] = []
 
     def add(self, state: FilterState, activity: int) -> None:
-        if self.t and state.t <= self.t[-1]:
-            # several events at one time: keep the latest state for that time
-            self.x[-1], self.p[-1], self.activity[-1] = state.x, state.P, activity
-            return
-        self.t.append(state.t)
-        self.x.append(state.x)
-        self.p.append(state.P)
-        self.activity.append(activity)
+        self.add_block(np.array([state.t]), state.x[None, :], state.P[None, :2, :2],
+                       np.array([state.P[IH, IH]]), np.array([activity]))
+
+    def add_block(self, t: np.ndarray, x: np.ndarray, cov_xy: np.ndarray, var_h: np.ndarray,
+                  activity: np.ndarray) -> None:
+        if len(t):
+            self.t.append(t)
+            self.x.append(x)
+            self.cov.append(cov_xy)
+            self.var_h.append(var_h)
+            self.activity.append(np.asarray(activity, dtype=np.int64))
 
     def trajectory(self) -> Trajectory:
         if not self.t:
             return Trajectory.build(t=np.zeros(0), xyz=np.zeros((0, 3)))
-        x = np.asarray(self.x)
-        p = np.asarray(self.p)
-        return Trajectory.build(t=np.asarray(self.t), xyz=x[:, :3], heading_rad=x[:, IH],
-                                cov_xy=p[:, :2, :2], var_heading=p[:, IH, IH],
-                                activity=np.asarray(self.activity))
+        t = np.concatenate(self.t)
+        x = np.concatenate(self.x)
+        # several events at one time: keep the latest state for that time
+        keep = np.ones(len(t), dtype=bool)
+        keep[:-1] = t[1:] > t[:-1]
+        return Trajectory.build(t=t[keep], xyz=x[keep, :3], heading_rad=x[keep, IH],
+                                cov_xy=np.concatenate(self.cov)[keep],
+                                var_heading=np.concatenate(self.var_h)[keep],
+                                activity=np.concatenate(self.activity)[keep])
 
 
 class Tracker:
@@ -156,6 +192,21 @@ class Tracker:
         self._last_activity = int(Activity.UNKNOWN)
         self._last_step_end = -math.inf
         self.has_imu = has_imu
+        self._var_t = np.zeros(0)
+        self._var_v = np.zeros(0)
+        self._vel_t = np.zeros(0)
+        self._vel_v = np.zeros(0)
+        self._vel_yaw = np.zeros(0)
+        self._vel_var = np.zeros(0)
+        self._yaw_offset = 0.0
+        self._vel_bin = -math.inf
+        self._stretch: StretchMemory | None = None
+        self._corrected_since_fix = False
+        self.yaw_pseudo: list[YawPseudoMeasurement] = []
+        self._rss_note = False
+        if not has_imu:
+            self.notes.append("no IMU: positions from the infrastructure alone, predicted by a "
+                              "random walk between observations")
         pose = meta.start_pose or StartPose()
         self.heading_known = pose.heading is not None
         self.state = FilterState.from_start_pose(pose, t=t0)
@@ -205,7 +256,6 @@ class Tracker:
             q_along=cfg.prediction.q_along, q_across=cfg.prediction.q_across,
             heading_mode=heading_mode, stairs_from_model=cfg.prediction.stairs_from_model,
             sigma_heading_increment_rad=cfg.prediction.sigma_heading_increment_rad))
-        self.velocity_predictor = VelocityPredictor(VelocityPredictionParams())
         self.fix_corrector = FixCorrector(FixParams(
             period_s=cfg.fixes.period_s, require_motion=cfg.fixes.require_motion,
             gate_probability=cfg.gate_probability))
@@ -221,10 +271,10 @@ class Tracker:
         self.channel_state: ChannelState | None = (
             None if self.channel_estimator is None
             else self.channel_estimator.start(self.path_loss))
-        if channel is None and cfg.rss.mode != "off":
-            self.notes.append("no channel model in session.json: RSS starts from A = -59 dBm, "
-                              "eta = 2" + (" and re-estimates them online"
-                                           if cfg.rss.estimate_channel else ""))
+        self._velocity_mode = cfg.prediction.model == "velocity" and has_imu
+        self.velocity_predictor = VelocityPredictor(VelocityPredictionParams(
+            heading_mode=cfg.prediction.heading_mode))
+        self._params = self._kernel_params()
         self._t_last_sample = t0
         self._started = True
 
@@ -290,6 +340,8 @@ class Tracker:
         if self.gait is not None:
             self._consume_gait(self.gait.flush(), None, None)
         self._drain(math.inf)
+        if self._velocity_mode:
+            self._track.add(self.state, self._last_activity)
         trajectory = self._track.trajectory()
         steps = (StepEvents.empty() if not self._steps else _concat_steps(self._steps))
         attitude = AttitudeResult.concatenate(self._attitude) if self._attitude else None
@@ -297,6 +349,46 @@ class Tracker:
                            self._report(trajectory, steps))
 
     # ------------------------------------------------------------------ stages
+    def _kernel_params(self) -> np.ndarray:
+        """Parameter vector of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
+        cfg = self.config
+        sp = self.step_predictor.params
+        rw = RandomWalkParams()
+        cp = ChannelEstimatorParams() if self.channel_estimator is None \
+            else self.channel_estimator.params
+        prm = np.zeros(ev.N_PARAMS)
+        prm[ev.P_Q_ALONG] = sp.q_along
+        prm[ev.P_Q_ACROSS] = sp.q_across
+        prm[ev.P_Q_VERT] = sp.q_vertical
+        prm[ev.P_STAIR_D] = sp.stair_depth_m
+        prm[ev.P_STAIR_H] = sp.stair_height_m
+        prm[ev.P_STAIRS_MODEL] = float(sp.stairs_from_model)
+        prm[ev.P_MODE_STATE] = float(sp.heading_mode == "state")
+        prm[ev.P_SIG_HEAD] = sp.sigma_heading_rad
+        prm[ev.P_SIG_HEAD_INC] = sp.sigma_heading_increment_rad
+        prm[ev.P_FLOOR_SNAP] = float(cfg.floor_snap)
+        prm[ev.P_FLOOR_H] = self.meta.floor_height_m
+        prm[ev.P_FLOOR_SIG] = FLOOR_SIGMA_M
+        prm[ev.P_CHI2_1] = chi2_threshold(1, cfg.gate_probability)
+        prm[ev.P_USE_CHI2] = 1.0
+        prm[ev.P_HEAD_KNOWN] = float(self.heading_known)
+        prm[ev.P_HAS_IMU] = float(self.has_imu)
+        prm[ev.P_RW_SPEED] = rw.sigma_speed_m_s
+        prm[ev.P_RW_VERT] = rw.sigma_vertical_m_s
+        prm[ev.P_RW_HEAD] = rw.sigma_heading_rate_rad_s
+        prm[ev.P_RSS_MIN_D] = RSS_MIN_DISTANCE_M
+        prm[ev.P_D0] = self.path_loss.d0_m
+        prm[ev.P_RANGE_SIG] = self.range_params.default_sigma_m
+        prm[ev.P_RANGE_MIN_D] = self.range_params.min_distance_m
+        prm[ev.P_CHAN_EST] = float(self.channel_estimator is not None)
+        prm[ev.P_FORGET] = cp.forgetting
+        prm[ev.P_CHAN_MIN_D] = cp.min_distance_m
+        prm[ev.P_CHAN_MAX_VAR] = cp.max_position_var_m2
+        prm[ev.P_ETA_LO], prm[ev.P_ETA_HI] = cp.eta_bounds
+        prm[ev.P_CAP_A] = cp.sigma_a_prior_db**2
+        prm[ev.P_CAP_ETA] = cp.sigma_eta_prior**2
+        return prm
+
     def _attitude_update(self, chunk: Session, t: np.ndarray, acc: np.ndarray,
                          gyr: np.ndarray | None, mag: np.ndarray | None) -> np.ndarray | None:
         filt = self.attitude_filter
@@ -313,10 +405,18 @@ class Tracker:
         q = res.q
         if res.frame == "nb" and self.meta.mounting_q_bd is not None:
             q = quat_multiply(q, np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
-        self._var_yaw_t = res.t
-        self._var_yaw = (res.var_rpy[:, 2] if res.var_rpy is not None
-                         else np.full(len(res.t), 0.01))
+        var = (res.var_rpy[:, 2] if res.var_rpy is not None
+               else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
+        # keep the yaw variance of the samples later events may still need
+        keep = self._var_t >= self.state.t - 5.0
+        self._var_t = np.concatenate([self._var_t[keep], res.t])
+        self._var_v = np.concatenate([self._var_v[keep], var])
         return np.asarray(q)
+
+    def _var_yaw_at(self, t: np.ndarray) -> np.ndarray:
+        if len(self._var_t) == 0:
+            return np.full(np.shape(t), np.nan)
+        return np.interp(t, self._var_t, self._var_v)
 
     def _consume_gait(self, result: GaitResult, t: np.ndarray | None,
                       q_nd: np.ndarray | None) -> None:
@@ -326,14 +426,15 @@ class Tracker:
         steps = result.steps
         if len(steps):
             self._steps.append(steps)
-            for i in range(len(steps)):
-                self._push(float(steps.t_end[i]), _STEP, i_payload=(steps, i))
-        if self.config.prediction.model == "velocity" and len(result.velocity_t) and \
-                q_nd is not None and t is not None:
-            self._push_velocity(result, t, q_nd)
+            if not self._velocity_mode:
+                for i in range(len(steps)):
+                    self._push(float(steps.t_end[i]), _STEP, i_payload=(steps, i))
+        if self._velocity_mode and len(result.velocity_t) and q_nd is not None \
+                and t is not None:
+            self._buffer_velocity(result, t, q_nd)
 
-    def _push_velocity(self, result: GaitResult, t: np.ndarray, q_nd: np.ndarray) -> None:
-        """Queue a velocity segment (Colombo eq. 16-17) as one event at its last sample."""
+    def _buffer_velocity(self, result: GaitResult, t: np.ndarray, q_nd: np.ndarray) -> None:
+        """Keep the velocity samples (Colombo eq. 16-17 inputs) until events reach them."""
         vt = result.velocity_t
         q_bd = (np.array([1.0, 0, 0, 0]) if self.meta.mounting_q_bd is None
                 else np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
@@ -341,9 +442,41 @@ class Tracker:
         fwd = quat_rotate(q_nb, np.array([1.0, 0.0, 0.0]))
         yaw_all = np.arctan2(fwd[:, 1], fwd[:, 0])
         idx = np.clip(np.searchsorted(t, vt), 0, len(t) - 1)
-        var = np.interp(vt, self._var_yaw_t, self._var_yaw)
-        self._push(float(vt[-1]), _STEP, i_payload=("velocity", vt, result.velocity_m_s,
-                                                     yaw_all[idx], var))
+        var = self._var_yaw_at(vt)
+        var = np.where(np.isfinite(var), var, DEFAULT_VAR_YAW_RAD2)
+        self._vel_t = np.concatenate([self._vel_t, vt])
+        self._vel_v = np.concatenate([self._vel_v, np.maximum(result.velocity_m_s, 0.0)])
+        self._vel_yaw = np.concatenate([self._vel_yaw, yaw_all[idx]])
+        self._vel_var = np.concatenate([self._vel_var, var])
+
+    def _velocity_to(self, t_end: float) -> None:
+        """Colombo eq. 16-17 through the buffered samples up to ``t_end`` (rows at <= 25 Hz)."""
+        n = int(np.searchsorted(self._vel_t, t_end, side="right"))
+        if n == 0:
+            return
+        vt, vv = self._vel_t[:n], self._vel_v[:n]
+        yaw = np.asarray(wrap_angle(self._vel_yaw[:n] + self._yaw_offset))
+        var = self._vel_var[:n]
+        self._vel_t, self._vel_v = self._vel_t[n:], self._vel_v[n:]
+        self._vel_yaw, self._vel_var = self._vel_yaw[n:], self._vel_var[n:]
+        keep = vt > self.state.t
+        if not np.any(keep):
+            return
+        vt, vv, yaw, var = vt[keep], vv[keep], yaw[keep], var[keep]
+        res = self.velocity_predictor.run(self.state, vt, vv, yaw, var)
+        self.state = res.state
+        if self._stretch is not None:
+            self._stretch = self._stretch.extended(vt, vv, yaw)
+        # output rows: the first sample of every 40 ms bin (the same in chunked runs)
+        bins = np.floor(vt / VELOCITY_ROW_PERIOD_S)
+        sel = np.flatnonzero(np.diff(np.concatenate([[self._vel_bin], bins])) != 0)
+        self._vel_bin = float(bins[-1])
+        if len(sel) == 0:
+            return
+        x = np.column_stack([res.xyz[sel], res.heading_rad[sel]])
+        act = np.where(vv[sel] > 0.05, int(Activity.WALKING), int(Activity.STANDING))
+        self._last_activity = int(act[-1])
+        self._track.add_block(vt[sel], x, res.cov_xy[sel], res.var_heading[sel], act)
 
     def _push(self, t: float, kind: int, *, i_payload: Any) -> None:
         self._seq += 1
@@ -357,6 +490,11 @@ class Tracker:
                 self._push(float(f.t[i]), _FIX, i_payload=(f.xyz[i], float(f.sigma_m[i]),
                                                            f.has_z))
         if chunk.rss is not None and cfg.rss.mode != "off":
+            if self.meta.channel is None and not self._rss_note:
+                self._rss_note = True
+                self.notes.append("no channel model in session.json: RSS starts from A = -59 "
+                                  "dBm, eta = 2" + (" and re-estimates them online"
+                                                    if cfg.rss.estimate_channel else ""))
             if cfg.rss.mode == "tight":
                 keep = chunk.rss.rss_dbm >= cfg.rss.sensitivity_dbm
                 for i in np.flatnonzero(keep):
@@ -368,8 +506,6 @@ class Tracker:
                                         sensitivity_dbm=cfg.rss.sensitivity_dbm):
                     self._push(scan.t, _RSS, i_payload=("scan", scan))
         if chunk.tags is not None and cfg.tags.enabled:
-            from hrtls.fusion.tags import group_detections
-
             for t, ids in group_detections(chunk.tags, self.tag_corrector.params.group_window_s):
                 self._push(t, _TAGS, i_payload=ids)
         if chunk.ranges is not None and cfg.ranges.enabled:
@@ -379,54 +515,157 @@ class Tracker:
                                                              float(r.sigma_m[i])))
 
     # ------------------------------------------------------------------ event loop
+    def _fast(self, kind: int, payload: Any) -> bool:
+        """Whether an event runs in the compiled loop (steps, tight RSS readings, ranges)."""
+        if self._velocity_mode:
+            return False
+        return kind in (_STEP, _RANGE) or (kind == _RSS and payload[0] == "reading")
+
     def _drain(self, horizon: float) -> None:
+        events: list[tuple[float, int, int, Any]] = []
         while self._pending and self._pending[0][0] <= horizon:
-            t, kind, _, payload = heapq.heappop(self._pending)
-            if kind == _STEP:
-                self._apply_motion(t, payload)
-            else:
-                self._advance_without_steps(t)
-                self._apply_observation(t, kind, payload)
+            events.append(heapq.heappop(self._pending))
+        i = 0
+        while i < len(events):
+            t, kind, _, payload = events[i]
+            if self._fast(kind, payload):
+                j = i + 1
+                while j < len(events) and self._fast(events[j][1], events[j][3]):
+                    j += 1
+                self._run_kernel(events[i:j])
+                i = j
+                continue
+            self._advance_without_steps(t)
+            self._apply_observation(t, kind, payload)
             self._track.add(self.state, self._last_activity)
+            i += 1
+        if self._velocity_mode and math.isfinite(horizon):
+            self._velocity_to(horizon)
+        elif self._velocity_mode:
+            self._velocity_to(math.inf)
+
+    def _run_kernel(self, events: list[tuple[float, int, int, Any]]) -> None:
+        """A run of steps / RSS readings / ranges in the compiled loop (same maths as Python)."""
+        n = len(events)
+        kind = np.empty(n, dtype=np.int64)
+        tt = np.empty(n)
+        data = np.full((n, 5), np.nan)
+        skip_reason: dict[int, tuple[str, str, str]] = {}
+        step_rows: list[int] = []
+        for k, (t, ek, _, payload) in enumerate(events):
+            tt[k] = t
+            if ek == _STEP:
+                steps, i = payload
+                kind[k] = ev.EV_STEP
+                h = float(steps.heading_rad[i])
+                data[k, :4] = (steps.length_m[i], h + self._yaw_offset if math.isfinite(h)
+                               else h, steps.dz_m[i], steps.activity[i])
+                step_rows.append(k)
+            elif ek == _RSS:
+                _, anchor, value = payload
+                lm = self.landmarks.get(anchor)
+                if lm is None or lm.position is None:
+                    kind[k] = ev.EV_SKIP
+                    skip_reason[k] = ("rss", "anchor without a known position", anchor)
+                    continue
+                kind[k] = ev.EV_RSS
+                data[k, :3] = lm.xyz()
+                data[k, 3] = value
+            else:
+                node, rng, sigma = payload
+                lm = self.landmarks.get(node)
+                if lm is None or lm.position is None:
+                    kind[k] = ev.EV_SKIP
+                    skip_reason[k] = ("range", "node without a known position", node)
+                    continue
+                kind[k] = ev.EV_RANGE
+                data[k, :3] = lm.xyz()
+                data[k, 3] = rng
+                data[k, 4] = sigma
+        if step_rows:
+            rows = np.asarray(step_rows)
+            data[rows, 4] = self._var_yaw_at(tt[rows])
+        st = self.state
+        x = st.x.copy()
+        p = st.P.copy()
+        sc = np.zeros(ev.N_SCALARS)
+        sc[ev.S_T] = st.t
+        sc[ev.S_IN_HEAD] = st.input_heading_rad
+        sc[ev.S_HAS_IN] = float(st.has_input_heading)
+        sc[ev.S_LAST_ACT] = self._last_activity
+        sc[ev.S_LAST_STEP_END] = self._last_step_end
+        cstate = self.channel_state
+        if self.channel_estimator is not None and cstate is not None:
+            sc[ev.S_A], sc[ev.S_ETA] = cstate.theta
+            sc[ev.S_RESVAR] = cstate.residual_var_db2
+            sc[ev.S_COUNT] = cstate.count
+            sc[ev.S_SIGMA_DB] = math.sqrt(cstate.residual_var_db2)
+            chan_cov = cstate.cov.copy()
+        else:
+            sc[ev.S_A], sc[ev.S_ETA] = self.path_loss.a_dbm, self.path_loss.eta
+            sc[ev.S_SIGMA_DB] = self.path_loss.sigma_db
+            sc[ev.S_RESVAR] = self.path_loss.sigma_db**2
+            chan_cov = np.eye(2)
+        x_out = np.empty((n, 4))
+        p_out = np.empty((n, 4, 4))
+        act = np.empty(n, dtype=np.int64)
+        status = np.empty(n, dtype=np.int64)
+        nis = np.empty(n)
+        s_out = np.empty(n)
+        nu = np.empty(n)
+        ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, x_out, p_out, act,
+                        status, nis, s_out, nu)
+        self.state = FilterState(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
+                                 bool(sc[ev.S_HAS_IN] > 0.5))
+        self._last_activity = int(sc[ev.S_LAST_ACT])
+        self._last_step_end = float(sc[ev.S_LAST_STEP_END])
+        if self.channel_estimator is not None and cstate is not None:
+            self.channel_state = ChannelState(np.array([sc[ev.S_A], sc[ev.S_ETA]]), chan_cov,
+                                              float(sc[ev.S_RESVAR]), int(sc[ev.S_COUNT]))
+        if np.any(kind != ev.EV_STEP):
+            self._corrected_since_fix = self._corrected_since_fix or bool(
+                np.any(status == ev.ST_ACCEPTED))
+        self._track.add_block(tt, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
+        self._kernel_diagnostics(events, kind, status, nis, s_out, nu, skip_reason)
+
+    def _kernel_diagnostics(self, events: list[tuple[float, int, int, Any]], kind: np.ndarray,
+                            status: np.ndarray, nis: np.ndarray, s: np.ndarray, nu: np.ndarray,
+                            skip_reason: dict[int, tuple[str, str, str]]) -> None:
+        thr = float(self._params[ev.P_CHI2_1])
+        for k in np.flatnonzero(kind != ev.EV_STEP):
+            t, ek, _, payload = events[k]
+            code = int(status[k])
+            if code == ev.ST_SKIPPED:
+                name, why, src = skip_reason[int(k)]
+                self.diagnostics.append(skipped(name, t, why, src))
+                continue
+            name = "rss" if ek == _RSS else "range"
+            src = payload[1] if ek == _RSS else payload[0]
+            if code == ev.ST_NEAR:
+                why = "estimate on top of the anchor" if ek == _RSS \
+                    else "estimate on top of the node"
+                self.diagnostics.append(UpdateDiagnostics(name, t, "rejected", source=src,
+                                                          reason=why))
+                continue
+            status_name = "accepted" if code == ev.ST_ACCEPTED else "rejected"
+            reason = "" if code == ev.ST_ACCEPTED else (
+                "failed the chi-square gate" if code == ev.ST_GATE
+                else "innovation covariance not positive definite")
+            self.diagnostics.append(UpdateDiagnostics(
+                name, t, status_name, nis=float(nis[k]), dof=1, threshold=thr,
+                innovation=np.array([nu[k]]), innovation_cov=np.array([[s[k]]]), source=src,
+                reason=reason))
 
     def _advance_without_steps(self, t: float) -> None:
         """Bring the state to ``t`` before a correction when no step or velocity drives it."""
+        if self._velocity_mode:
+            self._velocity_to(t)
         if t <= self.state.t:
             return
         if not self.has_imu:
             self.state = predict_random_walk(self.state, t, RandomWalkParams())
         else:
             self.state = self.state.evolve(t=t)
-
-    def _apply_motion(self, t: float, payload: Any) -> None:
-        if payload[0] == "velocity":
-            _, vt, speed, yaw, var = payload
-            keep = vt > self.state.t
-            if np.any(keep):
-                res = self.velocity_predictor.run(self.state, vt[keep], speed[keep], yaw[keep],
-                                                  var[keep])
-                self.state = res.state
-            return
-        steps, i = payload
-        activity = int(steps.activity[i])
-        self._last_activity = activity
-        var_h = None
-        if getattr(self, "_var_yaw", None) is not None and len(self._var_yaw):
-            var_h = float(np.interp(t, self._var_yaw_t, self._var_yaw))
-        heading = float(steps.heading_rad[i])
-        if (self.heading_known and not self.state.has_input_heading
-                and math.isfinite(heading)):
-            # the start pose fixes the heading: the first step input only sets the reference
-            self.state = self.state.evolve(input_heading_rad=heading, has_input_heading=True)
-        self.state = self.step_predictor.predict(
-            self.state, t=max(t, self.state.t), length_m=float(steps.length_m[i]),
-            heading_rad=heading, dz_m=float(steps.dz_m[i]), activity=activity,
-            var_heading_rad2=var_h)
-        self._last_step_end = t
-        if self.config.floor_snap and activity in (int(Activity.WALKING),
-                                                   int(Activity.STANDING)):
-            self.state, diag = floor_level_update(self.state, self.meta.floor_height_m,
-                                                  gate_probability=None)
 
     def _moving(self, t: float) -> bool:
         if self._motion_t:
@@ -443,11 +682,7 @@ class Tracker:
     def _apply_observation(self, t: float, kind: int, payload: Any) -> None:
         cfg = self.config
         if kind == _FIX:
-            xyz, sigma, has_z = payload
-            upd = self.fix_corrector.update(self.state, self.fix_schedule, t=t, xyz=xyz,
-                                            sigma_m=sigma, moving=self._moving(t), has_z=has_z)
-            self.state, self.fix_schedule = upd.state, upd.schedule
-            self.diagnostics.append(upd.diagnostics)
+            self._apply_fix(t, payload)
         elif kind == _RSS:
             self._apply_rss(t, payload)
         elif kind == _TAGS:
@@ -456,13 +691,17 @@ class Tracker:
                                                 landmarks=self.landmarks, memory=self.tag_memory)
             self.state, self.tag_memory = upd.state, upd.memory
             self.diagnostics.extend(upd.diagnostics)
+            if upd.strategy != -1:
+                self._corrected_since_fix = True
             if cfg.tags.bearing_correction and upd.strategy != -1:
                 for tag_id in ids:
                     lm = self.landmarks.get(tag_id)
                     if lm is None or not lm.bearings_rad:
                         continue
-                    hc = bearing_heading_correction(self.state, lm.bearings_rad, t=t,
-                                                    source=tag_id)
+                    hc = bearing_heading_correction(
+                        self.state, lm.bearings_rad, t=t, source=tag_id,
+                        gate_rad=math.radians(cfg.tags.bearing_gate_deg),
+                        deadband_rad=math.radians(cfg.tags.bearing_deadband_deg))
                     self.state = hc.state
                     self.diagnostics.append(hc.diagnostics)
         elif kind == _RANGE:
@@ -476,6 +715,49 @@ class Tracker:
                                  t=t, source=node)
             self.state = upd_r.state
             self.diagnostics.append(upd_r.diagnostics)
+            self._corrected_since_fix = self._corrected_since_fix or upd_r.diagnostics.accepted
+
+    def _apply_fix(self, t: float, payload: Any) -> None:
+        """Colombo eq. 18-23, then the yaw from trajectory stretching (eq. 24-28) fed back."""
+        cfg = self.config
+        xyz, sigma, has_z = payload
+        prior_xy = self.state.x[:2].copy()
+        upd = self.fix_corrector.update(self.state, self.fix_schedule, t=t, xyz=xyz,
+                                        sigma_m=sigma, moving=self._moving(t), has_z=has_z)
+        self.state, self.fix_schedule = upd.state, upd.schedule
+        self.diagnostics.append(upd.diagnostics)
+        if not upd.diagnostics.accepted:
+            return
+        fix_xy = np.asarray(xyz[:2], dtype=np.float64)
+        mem = self._stretch
+        if cfg.fixes.yaw_stretch and mem is not None and not self._corrected_since_fix:
+            if self._velocity_mode:
+                t_in, v_in, yaw_in = mem.t, mem.speed_m_s, mem.yaw_rad
+            else:
+                # steps since the last fix: one straight sample from the start to the prior
+                chord = prior_xy - mem.post_xy
+                dur = max(t - mem.t_fix, 1e-3)
+                t_in = np.array([t])
+                v_in = np.array([float(np.hypot(*chord)) / dur])
+                yaw_in = np.array([math.atan2(chord[1], chord[0])])
+            res = stretch_yaw(t_start=mem.t_fix, t=t_in, speed_m_s=v_in, yaw_rad=yaw_in,
+                              start_xy=mem.post_xy, offset_start=mem.fix_xy - mem.post_xy,
+                              offset_end=fix_xy - prior_xy, sigma_start_m=mem.sigma_m,
+                              sigma_end_m=sigma, params=YawStretchParams())    # eq. 24-28
+            if res.valid:
+                self.yaw_pseudo.append(YawPseudoMeasurement(t, res.yaw_rad, res.var_yaw_rad2,
+                                                            res.correction_rad))
+                delta = cfg.fixes.yaw_feedback_gain * res.correction_rad
+                self._yaw_offset = float(wrap_angle(self._yaw_offset + delta))
+                x = self.state.x.copy()
+                x[IH] = float(wrap_angle(x[IH] + delta))
+                self.state = self.state.evolve(
+                    x=x, input_heading_rad=float(wrap_angle(self.state.input_heading_rad
+                                                            + delta)))
+        empty = np.zeros(0)
+        self._stretch = StretchMemory(t, self.state.x[:2].copy(), fix_xy, sigma, empty, empty,
+                                      empty)
+        self._corrected_since_fix = False
 
     def _apply_rss(self, t: float, payload: Any) -> None:
         cfg = self.config
@@ -494,9 +776,11 @@ class Tracker:
                     distance_var_m2=float(np.trace(self.state.P[:2, :2])))
                 model = self.channel_state.model()
             upd = rss_update(self.state, lm.xyz(), value, model,
+                             min_distance_m=RSS_MIN_DISTANCE_M,
                              gate_probability=cfg.gate_probability, t=t, source=anchor)
             self.state = upd.state
             self.diagnostics.append(upd.diagnostics)
+            self._corrected_since_fix = self._corrected_since_fix or upd.diagnostics.accepted
             return
         scan = payload[1]
         if len(scan.anchor) < 3:
@@ -513,14 +797,19 @@ class Tracker:
             p[:, :2] = 0.0
             p[:2, :2] = fix.cov
             self.state = self.state.evolve(t=t, x=x, P=p)
+            self.diagnostics.append(UpdateDiagnostics("rss", t, "accepted", dof=2,
+                                                      source=",".join(scan.anchor),
+                                                      reason="WLS position (RSS alone)"))
             return
         h = np.zeros((2, 4))
         h[0, 0] = h[1, 1] = 1.0
-        res = kalman_update(self.state.x, self.state.P, h, fix.cov, fix.xy - self.state.x[:2],
+        r = fix.cov if cfg.rss.use_wls_covariance else np.eye(2) * cfg.rss.sigma_position_m**2
+        res = kalman_update(self.state.x, self.state.P, h, r, fix.xy - self.state.x[:2],
                             gate_probability=cfg.gate_probability, kind="rss", t=t,
                             source=",".join(scan.anchor), angle_index=IH)
         self.state = self.state.evolve(x=res.x, P=res.P)
         self.diagnostics.append(res.diagnostics)
+        self._corrected_since_fix = self._corrected_since_fix or res.diagnostics.accepted
 
     # ------------------------------------------------------------------ report
     def _report(self, trajectory: Trajectory, steps: StepEvents) -> dict[str, Any]:

@@ -1,41 +1,113 @@
 """Body oscillation of a waist-worn unit during gait, and the true step events.
 
 The gait phase ``phi`` counts steps: it grows at the step frequency ``f = v / l(v)`` and every
-integer of ``phi`` is a heel strike. Step length grows with speed,
-``l = a + b v`` (Tarrio Sec. IV fits ``l = 0.32 + 0.26 v`` for walking); on stairs one step is one
-tread. Each stop-free run holds a whole number of steps, so the true step lengths add up exactly
-to the distance walked.
+integer of ``phi`` is a heel strike (initial contact). Even integers are heel strikes of the
+left foot, odd ones of the right foot (``GaitResult.foot`` 0 = left, 1 = right). Step length grows
+with speed, ``l = a + b v`` (Tarrio Sec. IV fits ``l = 0.32 + 0.26 v`` for walking); on stairs
+one step is one tread. Each stop-free run holds a whole number of steps, so the true step lengths
+add up exactly to the distance walked.
 
-Around the nominal path the waist moves (body frame: x forward, y left, z up):
+Around the nominal path the waist moves (heading frame: x forward, y left, z up). Every channel
+is a sum of harmonics of the stride angle ``theta = pi phi`` (0 at a left heel strike, pi at the
+next right heel strike):
 
-* vertical bounce at the step frequency with 2nd/3rd harmonics and a left/right asymmetry at the
-  stride frequency; its acceleration peak-to-peak follows Weinberg's relation
-  ``l = K (A_max - A_min)^(1/4)`` (Tarrio eq. 3, Inderst eq. 4.24) for the person's ``K``, so a
-  Weinberg estimator with the right ``K`` is unbiased on this model;
-* forward surge at the step frequency (braking at heel strike);
-* lateral sway at the stride frequency;
-* pelvis yaw, roll (stride frequency) and pitch (step frequency) oscillation plus a forward lean.
+* vertical, antero-posterior (AP) and medio-lateral (ML) acceleration
+  ``a(t) = sum_n Re(c_n exp(i n theta))``; the displacement that is simulated is
+  ``-Re(c_n exp(i n theta)) / (n w_s)^2`` with ``w_s`` the stride angular frequency, so the second
+  difference of the position gives back ``a`` (the sensor values are derived from the pose);
+* pelvis roll, pitch and yaw angles ``sum_n Re(r_n exp(i n theta))`` plus a forward lean.
 
-All amplitudes fade in with speed (zero while standing) and vary from step to step.
+The complex coefficients ``c_n`` / ``r_n`` are measured on real lower-back recordings (see
+"How the waveform constants were measured" below) at two walking speeds and interpolated in
+amplitude and phase between them (held constant outside; running uses the fast shape, which was
+not measured on runners). What that gives, relative to the heel strikes:
+
+* vertical: peak ~0.05 s after heel strike, low in mid-stance; step frequency with 2nd / 3rd step
+  harmonics that are larger at slow speed (double-bump at slow speed);
+* AP: minimum (braking) ~0.1-0.15 s after heel strike, maximum (push-off) ~0.15 s before the next
+  heel strike;
+* ML: stride frequency, towards the stance foot (acceleration to the right in mid left stance);
+* pelvis yaw ~3.5 deg amplitude at stride frequency (left hip forward at left heel strike), pitch
+  ~1 deg at step frequency, roll ~1-2 deg at stride frequency (with a 3rd harmonic).
+
+The vertical acceleration peak-to-peak follows Weinberg's relation
+``l = K (A_max - A_min)^(1/4)`` (Tarrio eq. 3, Inderst eq. 4.24) for the person's ``K``: the
+whole vertical waveform is scaled so that its peak-to-peak is ``(l / K)^4``; a Weinberg estimator
+with the right ``K`` is therefore unbiased on this model. AP amplitude is a ratio of the vertical
+one; ML sway and pelvis angles have their own amplitudes. All amplitudes fade in with speed
+(zero while standing) and vary from step to step.
+
+How the waveform constants were measured
+-----------------------------------------
+Mobilise-D lab recordings (mobgap example data: HA/001, HA/002, MS/001; Test5 straight walks and
+the walking bouts of Test11), lower-back IMU at 100 Hz, reference initial contacts from INDIP
+(Stereophoto where INDIP is empty). The accelerometer and gyroscope were rotated into the body
+frame with ``meta.mounting_q_bd`` and levelled by :func:`levelled_gait_signals` (gyro-propagated
+gravity direction blended with the accelerometer, time constant 2 s; gravity removed; AP = body x
+projected on the horizontal). Strides between consecutive same-foot initial contacts of one bout
+(0.8-1.8 s) were resampled on a stride phase that is linear between the contacts (left contact
+0, right contact 0.5); strides that start on the right foot were mirrored (ML, roll, yaw sign
+flipped) and the 139 strides were averaged in two speed groups by the reference bout speed
+(:func:`stride_waveforms`): 86 strides below 0.75 m/s (mean 0.54 m/s, 97.5 steps/min) and 53
+strides above (mean 0.98 m/s, 102.8 steps/min). The tables below are the Fourier coefficients of
+those mean waveforms (:func:`waveform_harmonics`): accelerations relative to the amplitude of
+the vertical step-frequency harmonic (ML in m/s^2), angles from the rate harmonics divided by
+``i n w_s``. Odd harmonics of vertical / AP and even ones of ML / roll / yaw are left-right
+asymmetries that cancel in the mirrored mean (their residual is < 0.06); the vertical stride
+harmonic is put back as ``asymmetry_ratio``. ``benchmarks/sim_vs_real.py`` repeats the
+measurement and compares it with this model.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from hrtls.data import StepEvents
+from hrtls.errors import InputError
+from hrtls.frames import GRAVITY_M_S2
 from hrtls.sim.motion import GAIT_RUN, GAIT_STAIRS, MotionTruth
 
 FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+Harmonics = tuple[tuple[int, float, float, float, float], ...]
+
+WAVEFORM_ANCHOR_SPEEDS_M_S: tuple[float, float] = (0.54, 0.98)
+"""Walking speeds (m/s) of the two measured waveform sets (slow, fast); see the module notes."""
+
+# Measured stride harmonics (module notes), one row per harmonic n of the stride angle:
+# (n, amplitude at the slow anchor, phase deg, amplitude at the fast anchor, phase deg),
+# meaning a(theta) = sum amplitude * cos(n theta + phase), theta = 0 at a left heel strike.
+# vertical acceleration, relative to the step-frequency (n = 2) amplitude
+_VERTICAL: Harmonics = ((2, 1.0, -41.0, 1.0, -25.0), (4, 0.47, -64.0, 0.22, -52.0),
+                        (6, 0.27, -79.0, 0.16, -50.0))
+_VERTICAL_ASYMMETRY_PHASE_DEG = 140.0  # phase of the n = 1 residual (left-right asymmetry)
+# AP acceleration, relative to the vertical n = 2 amplitude
+_FORWARD: Harmonics = ((2, 0.81, 87.0, 0.66, 80.0), (4, 0.21, 59.0, 0.17, 58.0),
+                       (6, 0.04, 64.0, 0.11, -25.0))
+# ML acceleration, m/s^2 (positive to the left)
+_LATERAL: Harmonics = ((1, 1.13, 83.0, 0.75, 92.0), (3, 0.29, 76.0, 0.37, 175.0),
+                       (5, 0.21, 116.0, 0.24, 89.0))
+# pelvis angles, rad (roll about forward, pitch about left (positive = nose down), yaw about up)
+_ROLL: Harmonics = ((1, 0.031, 73.0, 0.010, 103.0), (3, 0.007, -165.0, 0.010, -162.0))
+_PITCH: Harmonics = ((2, 0.014, 130.0, 0.017, 149.0),)
+_YAW: Harmonics = ((1, 0.070, 114.0, 0.061, 121.0), (3, 0.003, 155.0, 0.006, -149.0))
+# values of the GaitParams amplitudes that reproduce the tables at the fast anchor
+_REF_H2, _REF_H3, _REF_FORWARD = 0.22, 0.16, 0.66
+_REF_SWAY_M = 0.026  # ML n = 1 displacement at the fast anchor: 0.75 / (2 pi / 1.167 s)^2
+_REF_ROLL_RAD, _REF_PITCH_RAD, _REF_YAW_RAD = 0.010, 0.017, 0.061
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class GaitParams:
     """One person's gait.
+
+    Amplitudes are those of the fast measured waveform set (~1 m/s, see the module notes); the
+    measured speed trends of shape and amplitude are applied around them.
 
     Attributes
     ----------
@@ -46,13 +118,16 @@ class GaitParams:
     stairs_acc_pp_m_s2: vertical acceleration peak-to-peak on stairs, m/s^2.
     step_cv: coefficient of variation of step length from step to step.
     amplitude_cv: coefficient of variation of the oscillation amplitudes.
-    harmonic2_ratio, harmonic3_ratio: 2nd / 3rd harmonic of vertical acceleration relative to
-        the fundamental.
+    harmonic2_ratio, harmonic3_ratio: 2nd / 3rd step harmonic of vertical acceleration relative
+        to the step-frequency one (measured 0.22 / 0.16 at 0.98 m/s, 0.47 / 0.27 at 0.54 m/s).
     asymmetry_ratio: stride-frequency (left/right) vertical acceleration relative to the
-        fundamental.
-    forward_ratio: forward surge acceleration relative to the vertical fundamental.
-    lateral_sway_m: lateral sway amplitude, m.
-    pelvis_yaw_rad, pelvis_roll_rad, pelvis_pitch_rad: pelvis rotation amplitudes, rad.
+        step-frequency one.
+    forward_ratio: AP acceleration relative to the vertical, step-frequency harmonics (measured
+        0.66 at 0.98 m/s, 0.81 at 0.54 m/s).
+    lateral_sway_m: stride-frequency lateral displacement amplitude at ~1 m/s, m (measured
+        0.026 m; 0.043 m at 0.54 m/s).
+    pelvis_yaw_rad, pelvis_roll_rad, pelvis_pitch_rad: amplitudes of the pelvis yaw and roll
+        (stride frequency) and pitch (step frequency), rad.
     lean_rad: forward lean while walking, rad.
     envelope_speed_m_s: speed at which the oscillation reaches full amplitude, m/s.
     """
@@ -66,14 +141,14 @@ class GaitParams:
     stairs_acc_pp_m_s2: float = 5.0
     step_cv: float = 0.03
     amplitude_cv: float = 0.08
-    harmonic2_ratio: float = 0.30
-    harmonic3_ratio: float = 0.12
-    asymmetry_ratio: float = 0.05
-    forward_ratio: float = 0.5
-    lateral_sway_m: float = 0.02
-    pelvis_yaw_rad: float = 0.07
-    pelvis_roll_rad: float = 0.05
-    pelvis_pitch_rad: float = 0.025
+    harmonic2_ratio: float = _REF_H2
+    harmonic3_ratio: float = _REF_H3
+    asymmetry_ratio: float = 0.04
+    forward_ratio: float = _REF_FORWARD
+    lateral_sway_m: float = _REF_SWAY_M
+    pelvis_yaw_rad: float = _REF_YAW_RAD
+    pelvis_roll_rad: float = _REF_ROLL_RAD
+    pelvis_pitch_rad: float = _REF_PITCH_RAD
     lean_rad: float = 0.03
     envelope_speed_m_s: float = 0.5
 
@@ -91,12 +166,13 @@ class GaitResult:
 
     Attributes
     ----------
-    phase: gait phase (steps counted from the start; heel strikes at integers).
+    phase: gait phase (steps counted from the start; heel strikes at integers, left foot at
+        even integers).
     offset_body: waist displacement from the nominal path, m, (N, 3) in the heading frame
         (forward, left, up).
     euler_osc: pelvis (roll, pitch, yaw) added to the nominal attitude, rad, (N, 3).
     steps: true step events (heel strike to heel strike).
-    foot: alternating foot label of each step (0 for even, 1 for odd step numbers).
+    foot: foot of each step's starting heel strike (0 left, 1 right; alternating).
     """
 
     phase: FloatArray
@@ -104,6 +180,26 @@ class GaitResult:
     euler_osc: FloatArray
     steps: StepEvents
     foot: NDArray[np.int64]
+
+    def initial_contacts(self) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.int64]]:
+        """True heel strikes: times (s), True for the left foot, and the stop-free run of each.
+
+        A step ends where the next one starts within a run; the last heel strike of a run is
+        the end of its last step.
+        """
+        st = self.steps
+        n = len(st)
+        if n == 0:
+            return np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int64)
+        new_run = np.concatenate([[True], np.abs(st.t_start[1:] - st.t_end[:-1]) > 1e-9])
+        run = np.cumsum(new_run) - 1
+        last = np.concatenate([new_run[1:], [True]])  # last step of each run
+        t = np.concatenate([st.t_start, st.t_end[last]])
+        left = np.concatenate([self.foot == 0, self.foot[last] == 1])
+        bout = np.concatenate([run, run[last]])
+        order = np.argsort(t, kind="stable")
+        return (np.asarray(t[order], dtype=np.float64), np.asarray(left[order], dtype=bool),
+                np.asarray(bout[order], dtype=np.int64))
 
 
 def _smooth_noise(rng: np.random.Generator, n: int, dt: float, tau_s: float) -> FloatArray:
@@ -119,20 +215,59 @@ def _smooth_noise(rng: np.random.Generator, n: int, dt: float, tau_s: float) -> 
     return np.asarray(x * np.sqrt(2.0 * np.sqrt(np.pi) * sigma), dtype=np.float64)
 
 
-def _waveform_pp(p: GaitParams) -> float:
-    """Peak-to-peak of the unit-fundamental vertical acceleration waveform over a stride."""
-    th = np.linspace(0.0, 4.0 * np.pi, 4001)
-    a = (np.cos(th) + p.harmonic2_ratio * np.cos(2 * th + 0.6)
-         + p.harmonic3_ratio * np.cos(3 * th + 1.2) + p.asymmetry_ratio * np.cos(0.5 * th))
-    return float(a.max() - a.min())
-
-
 def _moving_average(x: FloatArray, n: int) -> FloatArray:
+    """Centred moving average over ``n`` samples along axis 0 (ends held)."""
     if n <= 1 or len(x) == 0:
         return x
-    pad = np.concatenate([np.full(n // 2, x[0]), x, np.full(n - n // 2 - 1, x[-1])])
-    c = np.cumsum(np.concatenate([[0.0], pad]))
-    return np.asarray((c[n:] - c[:-n]) / n, dtype=np.float64)
+    pad = np.concatenate([np.repeat(x[:1], n // 2, axis=0), x,
+                          np.repeat(x[-1:], n - n // 2 - 1, axis=0)])
+    c = np.cumsum(np.concatenate([np.zeros_like(x[:1]), pad]), axis=0)
+    return np.asarray((c[n:] - c[:-n]) / n, dtype=x.dtype)
+
+
+def _coefficients(table: Harmonics, weight: FloatArray, scale: tuple[float, ...]
+                  ) -> tuple[NDArray[np.int64], ComplexArray]:
+    """Harmonic numbers and complex coefficients (N, H) interpolated between the anchors.
+
+    Amplitude and phase are interpolated separately (the phase along the shorter arc), so a
+    harmonic whose phase moves with speed does not shrink in between.
+    """
+    ns = np.array([row[0] for row in table], dtype=np.int64)
+    a0 = np.array([row[1] for row in table])
+    p0 = np.deg2rad([row[2] for row in table])
+    a1 = np.array([row[3] for row in table])
+    dp = np.angle(np.exp(1j * (np.deg2rad([row[4] for row in table]) - p0)))
+    w = weight[:, None]
+    amp = ((1.0 - w) * a0 + w * a1) * np.asarray(scale)
+    return ns, np.asarray(amp * np.exp(1j * (p0 + w * dp)), dtype=np.complex128)
+
+
+def _synthesize(ns: NDArray[np.int64], coef: ComplexArray, theta: FloatArray) -> FloatArray:
+    """``sum_n Re(coef_n exp(i n theta))`` per sample."""
+    out = np.zeros(len(theta))
+    for j, n in enumerate(ns):
+        out += np.real(coef[:, j] * np.exp(1j * n * theta))
+    return out
+
+
+def _vertical_table(p: GaitParams) -> tuple[Harmonics, tuple[float, ...]]:
+    """Vertical harmonics including the asymmetry term, and the per-harmonic scales."""
+    asym = (1, p.asymmetry_ratio, _VERTICAL_ASYMMETRY_PHASE_DEG, p.asymmetry_ratio,
+            _VERTICAL_ASYMMETRY_PHASE_DEG)
+    return (asym, *_VERTICAL), (1.0, 1.0, p.harmonic2_ratio / _REF_H2,
+                                p.harmonic3_ratio / _REF_H3)
+
+
+def _vertical_pp(p: GaitParams, weight: FloatArray) -> FloatArray:
+    """Peak-to-peak of the vertical waveform (unit step-frequency amplitude) at ``weight``."""
+    grid = np.linspace(0.0, 1.0, 21)
+    table, scale = _vertical_table(p)
+    ns, coef = _coefficients(table, grid, scale)
+    th = np.linspace(0.0, 2.0 * np.pi, 1441)
+    wave = np.real(coef[:, None, :] * np.exp(1j * ns[None, None, :] * th[None, :, None]))
+    wave = wave.sum(axis=2)
+    pp = wave.max(axis=1) - wave.min(axis=1)
+    return np.asarray(np.interp(weight, grid, pp), dtype=np.float64)
 
 
 def simulate_gait(motion: MotionTruth, params: GaitParams, rng: np.random.Generator
@@ -194,25 +329,40 @@ def simulate_gait(motion: MotionTruth, params: GaitParams, rng: np.random.Genera
                      p.step_length(v_eff, gait))
     k = np.where(gait == GAIT_RUN, p.weinberg_k_run, p.weinberg_k_walk)
     acc_pp = np.where(gait == GAIT_STAIRS, p.stairs_acc_pp_m_s2, (l_eff / k) ** 4)
-    omega = 2.0 * np.pi * v_eff / l_eff
+    w_stride = np.pi * v_eff / l_eff  # stride angular frequency, rad/s
+    # where between the slow and the fast measured waveforms (running: the fast one)
+    v_slow, v_fast = WAVEFORM_ANCHOR_SPEEDS_M_S
+    weight = np.where(gait == GAIT_RUN, 1.0, np.clip((v_eff - v_slow) / (v_fast - v_slow),
+                                                     0.0, 1.0))
+    # vertical step-frequency acceleration amplitude such that the whole waveform's
+    # peak-to-peak acceleration is acc_pp (Weinberg)
+    a_step = acc_pp / _vertical_pp(p, weight)
     win = max(1, round(1.0 / dt)) if dt > 0 else 1
-    # fundamental's displacement amplitude, m, such that the whole waveform's peak-to-peak
-    # acceleration is acc_pp
-    disp = _moving_average(acc_pp / (_waveform_pp(p) * omega**2), win)
     x = np.clip(v / v_env, 0.0, 1.0)
     envelope = x * x * x * (x * (6.0 * x - 15.0) + 10.0)
     envelope = envelope * (1.0 + p.amplitude_cv * _smooth_noise(rng, n, dt, 1.0))
-    a_z = envelope * disp
-    th = 2.0 * np.pi * phase
-    up = -a_z * (np.cos(th) + p.harmonic2_ratio / 4.0 * np.cos(2 * th + 0.6)
-                 + p.harmonic3_ratio / 9.0 * np.cos(3 * th + 1.2)
-                 + p.asymmetry_ratio * 4.0 * np.cos(0.5 * th))
-    fwd = a_z * p.forward_ratio * np.cos(th + 0.3)
-    side = envelope * p.lateral_sway_m * np.sin(0.5 * th)
-    roll = envelope * p.pelvis_roll_rad * np.sin(0.5 * th + 0.4)
-    pitch = envelope * (p.pelvis_pitch_rad * np.cos(th) + p.lean_rad)
-    yaw = envelope * p.pelvis_yaw_rad * np.sin(0.5 * th - 0.5)
-    # feet alternate (the stride-frequency terms flip sign every step); even steps are labelled 0
+    th = np.pi * phase  # stride angle: 0 at left heel strikes, pi at right ones
+
+    def displacement(table: Harmonics, scale: tuple[float, ...], gain: FloatArray
+                     ) -> FloatArray:
+        # acceleration harmonics -> displacement harmonics: divide by -(n w_s)^2
+        ns, c = _coefficients(table, weight, scale)
+        c = c * (gain[:, None] / -((ns[None, :] * w_stride[:, None]) ** 2))
+        return envelope * _synthesize(ns, _moving_average(c, win), th)
+
+    def angle(table: Harmonics, scale: float) -> FloatArray:
+        ns, c = _coefficients(table, weight, (scale,) * len(table))
+        return envelope * _synthesize(ns, _moving_average(c, win), th)
+
+    v_table, v_scale = _vertical_table(p)
+    up = displacement(v_table, v_scale, a_step)
+    fwd = displacement(_FORWARD, (p.forward_ratio / _REF_FORWARD,) * len(_FORWARD), a_step)
+    side = displacement(_LATERAL, (p.lateral_sway_m / _REF_SWAY_M,) * len(_LATERAL),
+                        np.ones(n))
+    roll = angle(_ROLL, p.pelvis_roll_rad / _REF_ROLL_RAD)
+    pitch = angle(_PITCH, p.pelvis_pitch_rad / _REF_PITCH_RAD) + envelope * p.lean_rad
+    yaw = angle(_YAW, p.pelvis_yaw_rad / _REF_YAW_RAD)
+    # feet alternate (the stride-frequency terms flip sign every step); even steps: left foot
     foot = np.mod(np.arange(len(ts)), 2).astype(np.int64)
     return GaitResult(phase=phase, offset_body=np.column_stack([fwd, side, up]),
                       euler_osc=np.column_stack([roll, pitch, yaw]), steps=steps, foot=foot)
@@ -233,3 +383,200 @@ def fill_step_extremes(steps: StepEvents, t: FloatArray, acc_up: FloatArray) -> 
                             heading_rad=steps.heading_rad, dz_m=steps.dz_m,
                             activity=steps.activity, frequency_hz=steps.frequency_hz,
                             acc_max=hi, acc_min=lo)
+
+
+# --------------------------------------------------------------------------------------------
+# waveform measurement (how the tables above were obtained; used by benchmarks and tests)
+# --------------------------------------------------------------------------------------------
+GAIT_SIGNAL_COLUMNS = ("ap_m_s2", "ml_m_s2", "vertical_m_s2", "roll_rate_rad_s",
+                       "pitch_rate_rad_s", "yaw_rate_rad_s")
+"""Columns of :func:`levelled_gait_signals`."""
+
+_MIRRORED = (1, 3, 5)  # ML acceleration, roll rate and yaw rate change sign left <-> right
+
+
+@numba.njit(cache=True)
+def _levelled_kernel(f: FloatArray, w: FloatArray, dt: float, alpha: float, u0: FloatArray,
+                     gravity: float, out: FloatArray) -> None:  # pragma: no cover
+    """Gyro-propagated, accelerometer-blended up direction ``u``; signals in (x_h, y_h, u)."""
+    ux, uy, uz = u0[0], u0[1], u0[2]
+    for k in range(f.shape[0]):
+        if k > 0:
+            # u is fixed in the navigation frame: du/dt = -w x u in the body frame
+            cx = w[k, 1] * uz - w[k, 2] * uy
+            cy = w[k, 2] * ux - w[k, 0] * uz
+            cz = w[k, 0] * uy - w[k, 1] * ux
+            ux -= cx * dt
+            uy -= cy * dt
+            uz -= cz * dt
+            fn = np.sqrt(f[k, 0] ** 2 + f[k, 1] ** 2 + f[k, 2] ** 2)
+            if fn > 0.0:
+                ux = (1.0 - alpha) * ux + alpha * f[k, 0] / fn
+                uy = (1.0 - alpha) * uy + alpha * f[k, 1] / fn
+                uz = (1.0 - alpha) * uz + alpha * f[k, 2] / fn
+            un = np.sqrt(ux * ux + uy * uy + uz * uz)
+            ux /= un
+            uy /= un
+            uz /= un
+        # forward: body x projected on the horizontal; left: u x forward
+        xx, xy, xz = 1.0 - ux * ux, -ux * uy, -ux * uz
+        xn = np.sqrt(xx * xx + xy * xy + xz * xz)
+        xx /= xn
+        xy /= xn
+        xz /= xn
+        yx = uy * xz - uz * xy
+        yy = uz * xx - ux * xz
+        yz = ux * xy - uy * xx
+        out[k, 0] = f[k, 0] * xx + f[k, 1] * xy + f[k, 2] * xz
+        out[k, 1] = f[k, 0] * yx + f[k, 1] * yy + f[k, 2] * yz
+        out[k, 2] = f[k, 0] * ux + f[k, 1] * uy + f[k, 2] * uz - gravity
+        out[k, 3] = w[k, 0] * xx + w[k, 1] * xy + w[k, 2] * xz
+        out[k, 4] = w[k, 0] * yx + w[k, 1] * yy + w[k, 2] * yz
+        out[k, 5] = w[k, 0] * ux + w[k, 1] * uy + w[k, 2] * uz
+
+
+def levelled_gait_signals(t: ArrayLike, specific_force_b: ArrayLike, angular_rate_b: ArrayLike,
+                          *, tau_s: float = 2.0, gravity_m_s2: float = GRAVITY_M_S2
+                          ) -> FloatArray:
+    """AP / ML / vertical acceleration and roll / pitch / yaw rate of a waist unit, (N, 6).
+
+    The up direction in the body frame is propagated with the gyroscope and pulled towards the
+    accelerometer with time constant ``tau_s`` (a tilt-only complementary filter); forward is
+    the body x axis projected on the horizontal, left completes the right-handed frame.
+    Gravity is removed from the vertical acceleration. Columns: :data:`GAIT_SIGNAL_COLUMNS`.
+
+    Parameters
+    ----------
+    t: uniformly sampled times, s (N,).
+    specific_force_b: body-frame specific force (x forward, y left, z up), m/s^2 (N, 3).
+    angular_rate_b: body-frame angular rate, rad/s (N, 3).
+    tau_s: time constant of the accelerometer correction, s.
+    gravity_m_s2: gravity removed from the vertical channel, m/s^2.
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    f = np.ascontiguousarray(specific_force_b, dtype=np.float64)
+    w = np.ascontiguousarray(angular_rate_b, dtype=np.float64)
+    if tt.ndim != 1 or len(tt) < 2 or not np.all(np.diff(tt) > 0):
+        raise InputError("times", where="t", expected="at least 2 strictly increasing times")
+    for name, arr in (("specific_force_b", f), ("angular_rate_b", w)):
+        if arr.shape != (len(tt), 3) or not np.all(np.isfinite(arr)):
+            raise InputError(f"shape {arr.shape}", where=name,
+                             expected=f"({len(tt)}, 3) finite values")
+    if not tau_s > 0:
+        raise InputError(f"tau_s={tau_s}", where="tau_s", expected="> 0 s")
+    dt = float(np.median(np.diff(tt)))
+    head = f[: max(1, min(len(f), round(1.0 / dt)))]
+    u0 = (head / np.maximum(np.linalg.norm(head, axis=1), 1e-12)[:, None]).mean(axis=0)
+    if np.linalg.norm(u0) < 1e-6:
+        raise InputError("no gravity in the first second", where="specific_force_b",
+                         expected="specific force including gravity")
+    out = np.empty((len(tt), 6))
+    _levelled_kernel(f, w, dt, min(1.0, dt / tau_s), u0 / np.linalg.norm(u0),
+                     float(gravity_m_s2), out)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class StrideWaveforms:
+    """Stride-normalized signals.
+
+    Attributes
+    ----------
+    waveforms: (S, P, C) signals on the stride phase ``k / P`` (0 at the first heel strike of
+        the stride, 0.5 at the opposite foot's heel strike, linear in time in between); strides
+        that start on the right foot are mirrored (columns of ML acceleration, roll and yaw
+        rate negated), so every stride reads as starting on the left foot.
+    start_s, duration_s: first heel strike and duration of each stride, s.
+    started_left: True where the stride started on the left foot.
+    """
+
+    waveforms: FloatArray
+    start_s: FloatArray
+    duration_s: FloatArray
+    started_left: NDArray[np.bool_]
+
+    def mean(self) -> FloatArray:
+        """Mean waveform (P, C)."""
+        if len(self.start_s) == 0:
+            raise InputError("no stride", where="stride waveforms",
+                             expected="at least one valid stride")
+        return np.asarray(self.waveforms.mean(axis=0), dtype=np.float64)
+
+
+def stride_waveforms(t: ArrayLike, signals: ArrayLike, contacts_s: ArrayLike,
+                     contact_left: ArrayLike, *, bout: ArrayLike | None = None,
+                     points: int = 100, min_stride_s: float = 0.8, max_stride_s: float = 1.8,
+                     mirror_columns: tuple[int, ...] = _MIRRORED) -> StrideWaveforms:
+    """Cut ``signals`` into strides between same-foot heel strikes and resample them.
+
+    A stride is three consecutive contacts ``c0 < c1 < c2`` of one bout with alternating feet,
+    a duration within ``[min_stride_s, max_stride_s]`` and the middle contact within 35-65 % of
+    it. Contacts may contain NaN (a missed contact); strides touching one are skipped.
+
+    Parameters
+    ----------
+    t: sample times, s (N,).
+    signals: (N, C) signals, e.g. :func:`levelled_gait_signals`.
+    contacts_s: heel-strike (initial contact) times, s, sorted.
+    contact_left: True for left-foot contacts.
+    bout: walking bout of each contact (strides never span two bouts); one bout if None.
+    points: samples per stride.
+    min_stride_s, max_stride_s: accepted stride durations, s.
+    mirror_columns: columns whose sign flips between the left and the right side.
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    x = np.asarray(signals, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    ic = np.asarray(contacts_s, dtype=np.float64)
+    left = np.asarray(contact_left, dtype=bool)
+    b = np.zeros(len(ic), dtype=np.int64) if bout is None else np.asarray(bout, dtype=np.int64)
+    if x.shape[0] != len(tt):
+        raise InputError(f"{x.shape[0]} rows for {len(tt)} times", where="signals",
+                         expected="one row per time")
+    if left.shape != ic.shape or b.shape != ic.shape:
+        raise InputError("lengths differ", where="contact_left/bout",
+                         expected=f"{len(ic)} values like contacts_s")
+    if points < 4:
+        raise InputError(f"points={points}", where="points", expected=">= 4")
+    ph = np.arange(points) / points
+    flip = np.ones(x.shape[1])
+    flip[[c for c in mirror_columns if c < x.shape[1]]] = -1.0
+    waves: list[FloatArray] = []
+    starts: list[float] = []
+    durations: list[float] = []
+    lefts: list[bool] = []
+    for i in range(len(ic) - 2):
+        c0, c1, c2 = ic[i], ic[i + 1], ic[i + 2]
+        if not (np.isfinite(c0) and np.isfinite(c1) and np.isfinite(c2)):
+            continue
+        if b[i] != b[i + 2] or left[i] == left[i + 1] or left[i] != left[i + 2]:
+            continue
+        dur = c2 - c0
+        if not (min_stride_s <= dur <= max_stride_s) or not 0.35 < (c1 - c0) / dur < 0.65:
+            continue
+        if c0 < tt[0] or c2 > tt[-1]:
+            continue
+        ts = np.where(ph < 0.5, c0 + (c1 - c0) * ph / 0.5, c1 + (c2 - c1) * (ph - 0.5) / 0.5)
+        wave = np.column_stack([np.interp(ts, tt, col) for col in x.T])
+        waves.append(wave if left[i] else wave * flip)
+        starts.append(float(c0))
+        durations.append(float(dur))
+        lefts.append(bool(left[i]))
+    return StrideWaveforms(
+        waveforms=np.array(waves).reshape(len(waves), points, x.shape[1]),
+        start_s=np.array(starts), duration_s=np.array(durations),
+        started_left=np.array(lefts, dtype=bool))
+
+
+def waveform_harmonics(waveform: ArrayLike, n_max: int = 6) -> ComplexArray:
+    """Stride harmonics 1..``n_max`` of a stride-normalized waveform (P,) or (P, C).
+
+    Row ``n - 1`` holds ``c_n`` with ``x(k / P) ~ mean + sum_n Re(c_n exp(2 pi i n k / P))``.
+    """
+    x = np.asarray(waveform, dtype=np.float64)
+    if x.shape[0] < 2 * n_max + 1:
+        raise InputError(f"{x.shape[0]} points", where="waveform",
+                         expected=f"at least {2 * n_max + 1} points per stride")
+    c = np.fft.rfft(x, axis=0) * (2.0 / x.shape[0])
+    return np.asarray(c[1: n_max + 1], dtype=np.complex128)

@@ -40,17 +40,15 @@ from hrtls.errors import FormatError, InputError
 from hrtls.frames import quat_multiply, quat_normalize
 from hrtls.io.readers._orientation import choose_orientation, quat_axis
 from hrtls.io.readers._text import (
-    DEFAULT_MAX_BYTES,
     Quantity,
-    Source,
     check_stream,
     content_rows,
     decode_text,
-    open_source,
     parse_float_rows,
     time_scale,
     to_si,
 )
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.units import DEG
 
 __all__ = ["SensorKind", "read_android", "sensor_from_name"]

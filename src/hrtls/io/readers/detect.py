@@ -27,11 +27,11 @@ from typing import Any
 from hrtls.data import Session
 from hrtls.datasets import formats as dataset_formats
 from hrtls.errors import FormatError, InputError
-from hrtls.io.readers._text import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.io.readers.android import read_android, sensor_from_name
 from hrtls.io.readers.ipin import looks_like_ipin, read_ipin
 from hrtls.io.readers.phyphox import looks_like_phyphox, read_phyphox
 from hrtls.io.readers.sensorlogger import SENSOR_LOGGER_FILES, read_sensorlogger
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 
 __all__ = ["FORMATS", "detect_format", "read_any"]
 

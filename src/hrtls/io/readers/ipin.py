@@ -77,15 +77,13 @@ from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference, quat_conjugate
 from hrtls.io.readers._orientation import choose_orientation
 from hrtls.io.readers._text import (
-    DEFAULT_MAX_BYTES,
     IntArray,
-    Source,
     check_stream,
     csv_rows,
     decode_text,
-    open_source,
     parse_float_rows,
 )
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.units import HPA_TO_PA
 
 __all__ = ["BeaconIdRule", "ipin_beacon_id", "looks_like_ipin", "read_beacons_csv", "read_ipin"]

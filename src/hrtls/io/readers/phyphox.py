@@ -32,17 +32,15 @@ from hrtls.data import ImuStream, SensorSeries, Session, SessionMeta
 from hrtls.data.validation import FloatArray
 from hrtls.errors import FormatError
 from hrtls.io.readers._text import (
-    DEFAULT_MAX_BYTES,
     HeaderCsv,
     Quantity,
-    Source,
     check_stream,
     csv_rows,
     decode_text,
-    open_source,
     read_header_csv,
     to_si,
 )
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.units import G_TO_M_S2, TIME_SCALES_S
 
 __all__ = ["classify_column", "looks_like_phyphox", "read_phyphox"]

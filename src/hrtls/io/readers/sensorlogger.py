@@ -48,17 +48,15 @@ from hrtls.data.validation import FloatArray
 from hrtls.errors import FormatError, InputError
 from hrtls.io.readers._orientation import FRAME_TO_ENU, choose_orientation, reference_to_enu
 from hrtls.io.readers._text import (
-    DEFAULT_MAX_BYTES,
     HeaderCsv,
     IntArray,
-    Source,
     check_stream,
     csv_rows,
     decode_text,
-    open_source,
     read_header_csv,
     to_si,
 )
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.units import G_TO_M_S2, HPA_TO_PA
 
 __all__ = ["SENSOR_LOGGER_FILES", "read_sensorlogger"]

@@ -1,0 +1,341 @@
+"""``hrtls bench papers``: each paper's scenario tracked with its own preset and with ``default``.
+
+For every target of the issue "rescuer filter end to end" the simulated scenario of the paper is
+run for several seeds, tracked with the paper's preset and with our ``default`` preset, and
+scored the way the paper scored. Each :class:`BenchRow` holds the paper's published figure, the
+mean and worst value over the seeds for both presets, the target and whether ``default`` meets
+it. The CLI prints the rows as one table; this module never prints.
+
+Error definitions (our readings of the papers, see :data:`DEFINITIONS`):
+
+* Colombo Sec. V: "position errors along both X_w and Y_w smaller than +-50 cm with 97 %
+  probability" -- per truth sample the larger of the two per-axis absolute errors,
+  ``max(|e_x|, |e_y|)``, and its 97th percentile over the walk. Velocity RMSE (Fig. 7): the RMS
+  difference of the estimated and true walking *speed* on a 10 Hz grid, both smoothed over 1 s
+  (the paper differentiated camera positions, we use the exact truth).
+* Basso Table I "mean position error": the error at the path's way-points (turns and end),
+  integrated over the distance walked (trapezoids, start error 0), divided by the path length
+  (mean error along the path, m) and normalized by the path length (fraction of distance).
+* Tarrio Sec. IV: the 90th percentile of the horizontal error against the continuous truth;
+  "Kalman better than RSS alone": mean error of RSS alone (each 2 s WLS position held, no
+  IMU) minus mean error of the preset.
+* Inderst Table 6.13: maximum Euclidean error at the checkpoints (eq. 6.1) over the mission;
+  Tables 6.14-6.15: mean and maximum checkpoint error of users A and B with position-only and
+  with position + heading (bearing) correction.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hrtls.data import Session
+from hrtls.evaluate.metrics import (
+    checkpoint_errors,
+    distance_at,
+    integral_mean_error,
+    position_errors,
+    velocity_rmse,
+)
+from hrtls.pipeline import Tracker, TrackerConfig, preset
+from hrtls.pipeline.config import TagsConfig
+from hrtls.pipeline.tracker import TrackResult
+from hrtls.sim.scenarios import SimulationResult, run_scenario
+
+DEFINITIONS = {
+    "p97_axis": "97th percentile of max(|e_x|, |e_y|) over the walk (Colombo Sec. V)",
+    "speed_rmse": "RMSE of the walking speed, 10 Hz grid, 1 s smoothing (Colombo Fig. 7)",
+    "ime": "Basso integral mean error at the way-points / path length (Table I)",
+    "p90": "90th percentile of the horizontal error vs continuous truth (Tarrio Fig. 1)",
+    "rss_gain": "mean error of RSS alone minus mean error of the preset (Tarrio Sec. IV)",
+    "cp_max": "maximum checkpoint error, eq. 6.1 (Inderst Table 6.13)",
+    "cp_mean": "mean checkpoint error, eq. 6.1 (Inderst Tables 6.14-6.15)",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class BenchRow:
+    """One line of the benchmark table.
+
+    Attributes
+    ----------
+    scenario: scenario name and options, e.g. ``colombo_circle Tp=16 s``.
+    metric: what is measured (unit included).
+    paper: the paper's published figure (text, may be ``-``).
+    paper_preset: name of the paper's preset.
+    paper_mean, paper_worst: the paper preset over the seeds (mean, worst).
+    default_mean, default_worst: the ``default`` preset over the seeds (mean, worst).
+    target: our goal, e.g. ``<= 0.50``; ``-`` when there is none.
+    met: whether the ``default`` mean meets the target (None without a target).
+    note: why we fall short, or how the number was read.
+    """
+
+    scenario: str
+    metric: str
+    paper: str
+    paper_preset: str
+    paper_mean: float
+    paper_worst: float
+    default_mean: float
+    default_worst: float
+    target: str
+    met: bool | None
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form (NaN as None)."""
+        def num(v: float) -> float | None:
+            return None if not math.isfinite(v) else float(v)
+
+        return {"scenario": self.scenario, "metric": self.metric, "paper": self.paper,
+                "paper_preset": self.paper_preset, "paper_mean": num(self.paper_mean),
+                "paper_worst": num(self.paper_worst), "default_mean": num(self.default_mean),
+                "default_worst": num(self.default_worst), "target": self.target,
+                "met": self.met, "note": self.note}
+
+
+Metric = Callable[[TrackResult, SimulationResult], float]
+
+
+@dataclass(frozen=True, slots=True)
+class MetricSpec:
+    """A metric of a case: label, paper figure, target (``("<=", 0.5)``), worst = max or min."""
+
+    label: str
+    fn: Metric
+    paper: str
+    target: tuple[str, float] | None = None
+    higher_is_better: bool = False
+    note: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Case:
+    """A scenario with options, the paper preset and the metrics to score."""
+
+    label: str
+    scenario: str
+    options: dict[str, Any]
+    paper_preset: str
+    metrics: list[MetricSpec]
+    paper_config: Callable[[TrackerConfig], TrackerConfig] | None = None
+    default_config: Callable[[TrackerConfig], TrackerConfig] | None = None
+    quick: bool = True
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------- metrics
+def p97_axis(result: TrackResult, sim: SimulationResult) -> float:
+    """Colombo: 97th percentile of max(|e_x|, |e_y|) (m)."""
+    truth = sim.session.truth
+    assert truth is not None
+    tr = result.trajectory
+    keep = (truth.t >= tr.t[0]) & (truth.t <= tr.t[-1])
+    d = tr.position_at(truth.t[keep])[:, :2] - truth.xyz[keep, :2]
+    return float(np.percentile(np.max(np.abs(d), axis=1), 97.0))
+
+
+def speed_rmse(result: TrackResult, sim: SimulationResult) -> float:
+    """Colombo Fig. 7: walking-speed RMSE (m/s)."""
+    truth = sim.session.truth
+    assert truth is not None
+    return velocity_rmse(result.trajectory, truth, rate_hz=10.0, window_s=1.0)[1]
+
+
+def basso_ime(result: TrackResult, sim: SimulationResult) -> float:
+    """Basso Table I mean position error: integral mean error / length (%)."""
+    cps, truth = sim.session.checkpoints, sim.session.truth
+    assert cps is not None and truth is not None
+    t, e, _ = checkpoint_errors(result.trajectory, cps)
+    s = distance_at(truth, t)
+    length = float(sim.reference.get("length_m", s[-1] if len(s) else 1.0))
+    _, frac = integral_mean_error(np.concatenate([[0.0], s]), np.concatenate([[0.0], e]),
+                                  length)
+    return 100.0 * frac
+
+
+def p90_error(result: TrackResult, sim: SimulationResult) -> float:
+    """90th percentile of the horizontal error (m)."""
+    truth = sim.session.truth
+    assert truth is not None
+    return float(np.percentile(position_errors(result.trajectory, truth)[1], 90.0))
+
+
+def mean_error(result: TrackResult, sim: SimulationResult) -> float:
+    """Mean horizontal error (m)."""
+    truth = sim.session.truth
+    assert truth is not None
+    return float(np.mean(position_errors(result.trajectory, truth)[1]))
+
+
+def checkpoint_max(result: TrackResult, sim: SimulationResult) -> float:
+    """Inderst eq. 6.1: maximum checkpoint error (m)."""
+    cps = sim.session.checkpoints
+    assert cps is not None
+    return float(np.max(checkpoint_errors(result.trajectory, cps)[1]))
+
+
+def checkpoint_mean(result: TrackResult, sim: SimulationResult) -> float:
+    """Inderst eq. 6.1: mean checkpoint error (m)."""
+    cps = sim.session.checkpoints
+    assert cps is not None
+    return float(np.mean(checkpoint_errors(result.trajectory, cps)[1]))
+
+
+def rss_alone_session(session: Session) -> Session:
+    """The session without its IMU: Tarrio's "RSS alone" input."""
+    return session.with_parts(imu=None, orientation=None, pressure=None)
+
+
+def rss_alone_config(config: TrackerConfig) -> TrackerConfig:
+    """RSS alone: WLS positions held between scans (no inertial prediction)."""
+    return config.model_copy(update={"name": "rss-alone",
+                                      "rss": config.rss.model_copy(update={"mode": "wls"})})
+
+
+def rss_gain(result: TrackResult, sim: SimulationResult) -> float:
+    """Mean error of RSS alone minus the preset's mean error (m)."""
+    base = Tracker(rss_alone_config(preset("tarrio2011"))).run(rss_alone_session(sim.session))
+    return mean_error(base, sim) - mean_error(result, sim)
+
+
+def without_bearing(config: TrackerConfig) -> TrackerConfig:
+    """The same configuration with the tag-bearing heading correction off."""
+    return config.model_copy(update={
+        "name": f"{config.name} (no bearing)",
+        "tags": TagsConfig(**{**config.tags.model_dump(), "bearing_correction": False})})
+
+
+def with_bearing(config: TrackerConfig) -> TrackerConfig:
+    """The same configuration with the tag-bearing heading correction on."""
+    return config.model_copy(update={
+        "name": f"{config.name} (bearing)",
+        "tags": TagsConfig(**{**config.tags.model_dump(), "bearing_correction": True})})
+
+
+# ---------------------------------------------------------------------------------- cases
+_BASSO = {1: 1.0, 2: 2.1, 3: 0.9, 4: 1.6, 5: 1.6, 6: 1.4}
+_RING = {"all": ("2.62", 2.0), "corners": ("4.28", 3.0), "corridor": ("13.34", 5.0),
+         "no_tag5": ("2.62", 2.0)}
+
+
+def cases() -> list[Case]:
+    """All benchmark cases, in table order."""
+    out: list[Case] = []
+    for shape in ("circle", "square"):
+        for tp in (10.0, 16.0):
+            metrics = [MetricSpec(
+                "P97 max(|ex|,|ey|) [m]", p97_axis, "0.50 (97 % within +-50 cm, Tp 1-16 s)",
+                ("<=", 0.5), note="per-axis error, 97th percentile")]
+            if tp == 10.0:
+                metrics.append(MetricSpec("speed RMSE [m/s]", speed_rmse, "~0.25 (Fig. 7)",
+                                          ("<=", 0.15)))
+            out.append(Case(f"colombo_{shape} Tp={tp:.0f} s", f"colombo_{shape}",
+                            {"tp_s": tp}, "colombo2014", metrics,
+                            paper_config=lambda c, tp=tp: _fix_period(c, tp),
+                            default_config=lambda c, tp=tp: _fix_period(c, tp),
+                            quick=tp == 16.0))
+    for test, fig in _BASSO.items():
+        out.append(Case(f"basso_test{test}", f"basso_test{test}", {}, "basso2017", [
+            MetricSpec("mean pos. error (IME/L) [%]", basso_ime, f"{fig:.1f} % (Table I)",
+                       ("<=", 1.0))], quick=test in (1, 3)))
+    out.append(Case("tarrio_circle (9 anchors)", "tarrio_circle", {}, "tarrio2011", [
+        MetricSpec("p90 error [m]", p90_error, "2.4 (Sec. IV)", ("<=", 1.8)),
+        MetricSpec("RSS alone - ours, mean [m]", rss_gain, "~1.5 (Kalman vs RSS alone)",
+                   (">=", 1.5), higher_is_better=True)]))
+    for tags, (fig, goal) in _RING.items():
+        out.append(Case(f"inderst_ring tags={tags}", "inderst_ring", {"tags": tags},
+                        "inderst-rfid", [MetricSpec(
+                            "max checkpoint error [m]", checkpoint_max,
+                            f"{fig} (Table 6.13, no heading corr.)", ("<=", goal))],
+                        paper_config=without_bearing, default_config=without_bearing,
+                        quick=tags in ("all", "corners")))
+        out.append(Case(f"inderst_ring tags={tags} +bearing", "inderst_ring", {"tags": tags},
+                        "inderst-rfid", [MetricSpec(
+                            "max checkpoint error [m]", checkpoint_max,
+                            "lower than without (Tables 6.14-6.15)", ("<=", goal))],
+                        paper_config=with_bearing, default_config=with_bearing,
+                        quick=tags in ("all", "corners")))
+    users = {"A": ("6.14", "1.6", "3.97", "1.07", "3.14"),
+             "B": ("6.15", "1.1", "2.62", "0.84", "2.64")}
+    for user, (table, pos_mean, pos_max, head_mean, head_max) in users.items():
+        for label, mean_fig, max_fig, cfg in (
+                ("position corr.", pos_mean, pos_max, without_bearing),
+                ("position+heading corr.", head_mean, head_max, with_bearing)):
+            out.append(Case(f"inderst_two_users {user} {label}", "inderst_two_users",
+                            {"user": user}, "inderst-rfid", [
+                                MetricSpec("mean checkpoint error [m]", checkpoint_mean,
+                                           f"{mean_fig} (Table {table})"),
+                                MetricSpec("max checkpoint error [m]", checkpoint_max,
+                                           f"{max_fig} (Table {table})")],
+                            paper_config=cfg, default_config=cfg, quick=False))
+    return out
+
+
+def _fix_period(config: TrackerConfig, tp: float) -> TrackerConfig:
+    return config.model_copy(update={"fixes": config.fixes.model_copy(
+        update={"period_s": tp, "enabled": True})})
+
+
+# ---------------------------------------------------------------------------------- running
+def _track(config: TrackerConfig, session: Session) -> TrackResult:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return Tracker(config).run(session)
+
+
+def _summary(values: list[float], higher_is_better: bool) -> tuple[float, float]:
+    v = np.asarray(values, dtype=np.float64)
+    if v.size == 0:
+        return math.nan, math.nan
+    return float(np.mean(v)), float(np.min(v) if higher_is_better else np.max(v))
+
+
+def _met(value: float, target: tuple[str, float] | None) -> bool | None:
+    if target is None or not math.isfinite(value):
+        return None
+    op, bound = target
+    return value <= bound if op == "<=" else value >= bound
+
+
+def run_bench(*, seeds: int = 3, quick: bool = False,
+              progress: Callable[[str], None] | None = None,
+              only: Sequence[str] | None = None) -> list[BenchRow]:
+    """Run every case (``quick``: a subset, one seed) and return the table rows.
+
+    ``only`` keeps the cases whose label contains one of the strings.
+    """
+    n_seeds = 1 if quick else max(1, int(seeds))
+    rows: list[BenchRow] = []
+    for case in cases():
+        if quick and not case.quick:
+            continue
+        if only and not any(s in case.label for s in only):
+            continue
+        paper_cfg = preset(case.paper_preset)
+        default_cfg = preset("default")
+        if case.paper_config is not None:
+            paper_cfg = case.paper_config(paper_cfg)
+        if case.default_config is not None:
+            default_cfg = case.default_config(default_cfg)
+        values: dict[tuple[str, int], list[float]] = {}
+        for seed in range(n_seeds):
+            if progress:
+                progress(f"{case.label}: seed {seed}")
+            sim = run_scenario(case.scenario, seed, **case.options)
+            for which, cfg in (("paper", paper_cfg), ("default", default_cfg)):
+                res = _track(cfg, sim.session)
+                for k, m in enumerate(case.metrics):
+                    values.setdefault((which, k), []).append(m.fn(res, sim))
+        for k, m in enumerate(case.metrics):
+            pm, pw = _summary(values[("paper", k)], m.higher_is_better)
+            dm, dw = _summary(values[("default", k)], m.higher_is_better)
+            rows.append(BenchRow(case.label, m.label, m.paper, case.paper_preset, pm, pw, dm, dw,
+                                 "-" if m.target is None else f"{m.target[0]} {m.target[1]:g}",
+                                 _met(dm, m.target), m.note))
+    return rows
