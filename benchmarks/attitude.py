@@ -5,6 +5,9 @@ Run from the repository root::
     python benchmarks/attitude.py            # full table (a few minutes)
     python benchmarks/attitude.py --quick    # shorter data, no ahrs on long runs
 
+Variants: ``euler-ekf eq5`` integrates the angles with Colombo eq. 5 itself, ``quat-ekf 4st``
+is the thesis' 4-state EKF (gyro bias only learnt at rest).
+
 Speed: samples per second on 1 M samples after a warm-up, CPU time of this process (other jobs
 on the machine share the cores; CPU time is less disturbed than wall time), best of 3.
 Accuracy: inclination (roll/pitch combined) and heading RMS in degrees against the reference,
@@ -12,7 +15,8 @@ split as BROAD does (error ``q_est * conj(q_ref)``; heading = rotation about the
 constant heading offset removed; only ``movement`` samples; NaN references skipped).
 
 Data: (1) ``hrtls.sim`` office walk (waist phone, magnetic anomalies), (2) the compact walking
-simulator ``benchmarks/_attitude_sim.py`` with magnetic anomaly patches and a large gyro bias,
+simulator ``benchmarks/_attitude_sim.py`` with magnetic anomaly patches and a large gyro bias
+(seeds 1-3),
 (3) the BROAD trials in ``../shared/data/broad`` (skipped when absent).
 """
 
@@ -46,9 +50,12 @@ Runner = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], np.nd
 
 
 # ------------------------------------------------------------------------------ methods
-def ours(name: str) -> Runner:
+def ours(name: str, **params: object) -> Runner:
     def run(t, acc, gyr, mag, rate):
-        return make_filter(name).update(t, acc, gyr, mag).q
+        flt = make_filter(name)
+        if params:
+            flt = make_filter(name, type(flt.params)(**params))
+        return flt.update(t, acc, gyr, mag).q
     return run
 
 
@@ -102,8 +109,13 @@ def ahrs_runner(kind: str) -> Runner:
 
 
 def available() -> dict[str, Runner]:
-    methods: dict[str, Runner] = {"euler-ekf": ours("euler-ekf"), "quat-ekf": ours("quat-ekf"),
-                                  "complementary": ours("complementary")}
+    methods: dict[str, Runner] = {
+        "euler-ekf": ours("euler-ekf"),
+        "euler-ekf eq5": ours("euler-ekf", exact_propagation=False),
+        "quat-ekf": ours("quat-ekf"),
+        "quat-ekf 4st": ours("quat-ekf", bias_in_state=False),
+        "complementary": ours("complementary"),
+    }
     for label, module, runner in (("vqf", "vqf", vqf_runner),
                                   ("imufusion", "imufusion", imufusion_runner),
                                   ("ahrs-ekf", "ahrs", ahrs_runner("ekf")),
@@ -141,8 +153,8 @@ def dataset_sim_office(duration_s: float) -> tuple:
     return t, acc, gyr, mag, q_ref, np.ones(len(t), dtype=bool), rate
 
 
-def dataset_sim_walk(duration_s: float) -> tuple:
-    s = simulate_walk(duration_s=duration_s, seed=1)
+def dataset_sim_walk(duration_s: float, seed: int) -> tuple:
+    s = simulate_walk(duration_s=duration_s, seed=seed)
     return s.t, s.acc, s.gyr, s.mag, s.q_true, s.movement, 100.0
 
 
@@ -190,8 +202,10 @@ def main() -> None:
     n_slow = 20_000 if args.quick else 100_000
     datasets: dict[str, Callable[[], tuple]] = {
         "sim-office": lambda: dataset_sim_office(120.0 if args.quick else 600.0),
-        "sim-walk": lambda: dataset_sim_walk(120.0 if args.quick else 300.0),
     }
+    for seed in (1, 2, 3):
+        datasets[f"sim-walk{seed}"] = lambda seed=seed: dataset_sim_walk(
+            120.0 if args.quick else 300.0, seed)
     if BROAD.is_dir():
         for p in sorted(BROAD.glob("*.hdf5")):
             datasets["broad-" + p.stem.split("_")[0]] = lambda p=p: dataset_broad(p)

@@ -92,6 +92,15 @@ def main() -> None:
     print(ex.format_table(s.rows))
     print(f"way point kinds: {s.waypoint_kinds}")
     from hrtls.wsn.agents import RescuerParams
+    from hrtls.wsn.planner import PlannerParams
+
+    for name, prm in (("without the thesis' seed/vertex heuristic (candidates + arc search)",
+                       PlannerParams(heuristic=False)),
+                      ("heuristic without shared way points", PlannerParams(share_seeds=False))):
+        t = time.perf_counter()
+        s = ex.loose_study(n_networks=args.networks, seed=args.seed, planner=prm)
+        print(f"\nPlanner ablation: {name} ({time.perf_counter() - t:.1f} s)")
+        print(ex.format_table(s.rows))
 
     t = time.perf_counter()
     k = max(1, args.networks // 5)

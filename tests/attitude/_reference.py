@@ -96,6 +96,7 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
         _MAG_MODE,
         _MAG_NOISE,
         _P0,
+        _RATE_REF,
     )
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
@@ -110,6 +111,7 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
         a, an, acc_fin, g, gyr_fin, m, mag_fin = _read(prm, acc, gyr, mag, has_gyr, has_mag, i)
         acc_dev = abs(an - g_) if acc_fin else math.inf
         flags = 0
+        rate2 = 0.0
         if aux[K.AUX_INIT] < 0.5:
             if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
                 q = init_q(a, m, mag_fin and prm[K.PRM_INIT_MAG] > 0.5)
@@ -133,6 +135,7 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
                 if acc_fin and rest_and_bias(aux, prm, *g, *a, dt):
                     flags |= K.FLAG_REST
                 b = aux[K.AUX_BIAS:K.AUX_BIAS + 3].copy()
+                rate2 = float((g - b) @ (g - b))
                 Phi = expm(omega(g - b) * dt)  # eq. 4.12
                 F = np.eye(7)
                 F[:4, :4] = Phi
@@ -156,7 +159,7 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
                 rows_z.append(a / an)
                 rows_h.append(rot_h(q).T @ v)
                 rows_H.append(complex_step_jacobian(lambda qq, v=v: rot_h(qq).T @ v, q))
-                rows_v += [prm[_ACC_NOISE] ** 2] * 3
+                rows_v += [prm[_ACC_NOISE] ** 2 * (1 + rate2 / prm[_RATE_REF] ** 2)] * 3
                 flags |= K.FLAG_ACC
             if mag_fin and mag_gate(aux, prm, *m, *u, dt):  # eq. 4.18
                 if prm[_MAG_MODE] > 0.5:

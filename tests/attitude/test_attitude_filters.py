@@ -154,7 +154,7 @@ def test_yaw_pseudo_measurement_pulls_yaw(motion):
 finite = st.floats(-50, 50, allow_nan=False, allow_infinity=False)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), method=st.sampled_from(METHODS),
        amp=st.floats(0.0, 3.0), acc_amp=st.floats(0.0, 8.0))
 def test_unit_quaternion_and_psd_covariance(seed, method, amp, acc_amp):
@@ -170,7 +170,7 @@ def test_unit_quaternion_and_psd_covariance(seed, method, amp, acc_amp):
         assert np.all(r.var_rpy >= -1e-12)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), method=st.sampled_from(METHODS),
        data=st.data())
 def test_no_nan_leaves_with_bad_samples(seed, method, data):
@@ -208,7 +208,7 @@ def test_all_nan_input_gives_identity_and_counts(method):
 
 
 # ------------------------------------------------------------------------------ streaming
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(method=st.sampled_from(METHODS),
        cuts=st.lists(st.integers(1, 299), max_size=6, unique=True))
 def test_chunked_update_equals_batch(method, cuts):

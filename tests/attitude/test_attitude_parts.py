@@ -34,7 +34,7 @@ from .conftest import FIELD_N, make_motion
 angles = st.tuples(st.floats(-3.1, 3.1), st.floats(-1.5, 1.5), st.floats(-3.1, 3.1))
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(angles)
 def test_fqa_recovers_attitude(rpy):
     q = quat_from_euler(*rpy)

@@ -74,6 +74,10 @@ def test_cli_train_and_calibrate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     r = runner.invoke(gait_cli.app, [*args, "--model", "frequency"])
     assert r.exit_code == 0, r.output
     assert json.loads(prof.read_text())["step_model"]["kind"] == "frequency"
+    r = runner.invoke(gait_cli.app, [*args, "--model", "pendulum", "--leg-length", "0.9"])
+    assert r.exit_code == 0, r.output
+    pend = json.loads(prof.read_text())["step_model"]
+    assert pend["kind"] == "pendulum" and pend["leg_length_m"] == 0.9 and 0.3 < pend["k"] < 3
     r = runner.invoke(gait_cli.app, ["calibrate-steps", "w0", "--distance", "1", "--distance",
                                      "2", "-o", str(prof)])
     assert r.exit_code != 0

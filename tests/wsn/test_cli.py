@@ -80,7 +80,7 @@ def test_errors_are_one_line(tmp_path):
 
 
 def test_experiment_small(tmp_path):
-    r = _invoke("experiment", "--networks", "3", "--noise-networks", "2", "--plot",
+    r = _invoke("experiment", "--networks", "2", "--noise-networks", "1", "--plot",
                 tmp_path / "e.png", "--tight-plot", tmp_path / "t.png")
     assert r.exit_code == 0, r.output
     assert "Loose cooperation" in r.output and "Tight cooperation" in r.output

@@ -9,8 +9,8 @@ from hrtls.wsn.shadow_edge import shadow_edge_localize
 from hrtls.wsn.trilateration import PropagationParams
 
 
-def _noisy(seed: int, noise: float = 0.02):
-    net = corner_seed_network(np.random.default_rng(seed), n_nodes=60, radius_m=0.3,
+def _noisy(seed: int, noise: float = 0.02, n_nodes: int = 60):
+    net = corner_seed_network(np.random.default_rng(seed), n_nodes=n_nodes, radius_m=0.3,
                               range_noise_fraction=noise)
     return net, shadow_edge_localize(net, params=PropagationParams.for_noise(noise))
 
@@ -25,9 +25,12 @@ def test_exact_ranges_stay_exact():
 
 
 def test_matches_scipy_least_squares():
-    net, loc = _noisy(5)
-    m = loc.localized & ~net.anchor
-    assert m.sum() > 10
+    for seed in range(50):
+        net, loc = _noisy(seed, n_nodes=30)
+        m = loc.localized & ~net.anchor
+        if m.sum() >= 8:
+            break
+    assert m.sum() >= 8
     r = refine_network(net, loc, params=RefineParams(range_sigma_fraction=0.02,
                                                      step_tolerance_m=1e-13))
     free = np.flatnonzero(m)

@@ -10,14 +10,17 @@ State ``q = q_nd`` (device -> ENU, ``[w, x, y, z]``) with a 4 x 4 covariance.
   to the vertical, then turned about the vertical so the magnetometer points north. (The printed
   eq. 4.13 is garbled; this is the rotation it describes in our ENU, z-up frame.)
 * Accelerometer update (eq. 4.16): measurement ``a / |a|`` against ``R(q)^T e_z`` (the unit
-  "up" seen by a device at rest), only when ``| |a| - g | < eps_a``.
+  "up" seen by a device at rest), only when ``| |a| - g | < eps_a``; its variance grows with
+  the rate of turn (``rate_ref_rad_s``, our extension).
 * Magnetometer update (eq. 4.18): ``m / |m|`` against ``R(q)^T d_m`` with the reference field
   direction ``d_m = [0, cos(dip), -sin(dip)]`` (north, dipping down), only when the norm matches,
-  the dip matches (our addition) and the field did not jump. Option ``mag_mode="horizontal"``
-  instead compares the horizontal part of the field with north, so that magnetic errors cannot
+  the dip matches (our addition) and the field did not jump (``mag_mode="vector"``). The
+  default ``mag_mode="horizontal"`` compares only the horizontal part of the field (the field
+  minus its component along the predicted vertical) with north, so that magnetic errors cannot
   tilt the estimate (the reading we use for the Euler EKF as well).
-* Update (eq. 4.19): the stacked measurement is processed one scalar row at a time, all rows
-  linearised at the predicted state; with a diagonal ``V`` this equals the batch update exactly.
+* Update (eq. 4.19): the stacked measurement is processed as two 3-row blocks (accelerometer,
+  magnetometer), both linearised at the predicted state; with a block-diagonal ``V`` this equals
+  the stacked update exactly.
   ``q`` is normalised after predict and update; the covariance is projected with
   ``J = I - q q^T`` after the normalisation (our addition, it keeps ``P`` consistent with a unit
   quaternion).
@@ -57,7 +60,8 @@ _P0 = K.PRM_SPECIFIC + 4
 _BIAS_STATE = K.PRM_SPECIFIC + 5
 _BIAS_P0 = K.PRM_SPECIFIC + 6
 _BIAS_WALK = K.PRM_SPECIFIC + 7
-_SIZE = K.PRM_SPECIFIC + 8
+_RATE_REF = K.PRM_SPECIFIC + 8
+_SIZE = K.PRM_SPECIFIC + 9
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +89,11 @@ class QuatEkfParams(CommonParams):
         Initial standard deviation of the gyro bias, rad/s.
     bias_walk_rad_s2:
         Random-walk density of the gyro bias, rad/s per sqrt(s).
+    rate_ref_rad_s:
+        The accelerometer variance grows as ``acc_noise^2 (1 + (|w| / rate_ref)^2)`` with the
+        rate of turn ``|w|`` (our extension: centripetal acceleration makes the specific force
+        a worse gravity reference while turning; ``inf`` gives the constant variance of the
+        thesis).
     """
 
     gyro_noise_rad_s: float = 0.005
@@ -95,13 +104,14 @@ class QuatEkfParams(CommonParams):
     bias_in_state: bool = True
     bias_sigma_rad_s: float = 0.01
     bias_walk_rad_s2: float = 1e-5
+    rate_ref_rad_s: float = 2.0
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
         for name in ("gyro_noise_rad_s", "acc_noise", "mag_noise", "p0_var", "bias_sigma_rad_s",
-                     "bias_walk_rad_s2"):
+                     "bias_walk_rad_s2", "rate_ref_rad_s"):
             value = float(getattr(self, name))
-            if not (np.isfinite(value) and value > 0.0):
+            if not (value > 0.0 and (np.isfinite(value) or name == "rate_ref_rad_s")):
                 raise InputError(f"{name} = {value}", where="QuatEkfParams",
                                  expected="a finite positive number")
         if self.mag_mode not in ("vector", "horizontal"):
@@ -120,6 +130,7 @@ class QuatEkfParams(CommonParams):
         p[_BIAS_STATE] = 1.0 if self.bias_in_state else 0.0
         p[_BIAS_P0] = self.bias_sigma_rad_s**2 if self.bias_in_state else 0.0
         p[_BIAS_WALK] = self.bias_walk_rad_s2**2 if self.bias_in_state else 0.0
+        p[_RATE_REF] = self.rate_ref_rad_s
         return p
 
 
@@ -183,6 +194,7 @@ def quat_ekf_kernel(
     g = prm[K.PRM_GRAVITY]
     sg = prm[_GYR_NOISE]
     va = prm[_ACC_NOISE] ** 2
+    acc_rate_k = 1.0 / prm[_RATE_REF] ** 2
     vm = prm[_MAG_NOISE] ** 2
     horizontal = prm[_MAG_MODE] > 0.5
     for i in range(n):
@@ -208,6 +220,7 @@ def quat_ekf_kernel(
             aux[K.AUX_N_BAD] += 1.0
         acc_dev = abs(an - g) if acc_fin else math.inf
         flags = 0
+        rate2 = 0.0
         if aux[K.AUX_INIT] < 0.5:
             # eq. 4.13: initialise at the first sample that looks static
             if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
@@ -254,6 +267,7 @@ def quat_ekf_kernel(
                 wx = g0 - aux[K.AUX_BIAS]
                 wy = g1 - aux[K.AUX_BIAS + 1]
                 wz = g2 - aux[K.AUX_BIAS + 2]
+                rate2 = wx * wx + wy * wy + wz * wz
                 K.transition(wx, wy, wz, dt, phi)
                 # d(q_k)/d(b) = -dt/2 Xi(q_{k-1}) (first order), Xi(q) w = q * [0, w]
                 hd = -0.5 * dt
@@ -344,7 +358,8 @@ def quat_ekf_kernel(
                 if use_a:
                     K.rot_t_jacobian(w, qx, qy, qz, 0.0, 0.0, 1.0, jac)
                     use_a = K.block3_update7(P, dx, jac, a0 / an - ux, a1 / an - uy,
-                                             a2 / an - uz, va, ph)
+                                             a2 / an - uz,
+                                             va * (1.0 + rate2 * acc_rate_k), ph)
                 if use_m:
                     h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
                     K.rot_t_jacobian(w, qx, qy, qz, v0, v1, v2, jac)

@@ -139,12 +139,14 @@ def _register() -> None:
     """Attach the commands that live in their own modules."""
     from hrtls.cli import attitude as attitude_cli
     from hrtls.cli import gait as gait_cli
+    from hrtls.cli import ipin as ipin_cli
     from hrtls.cli import sim as sim_cli
     from hrtls.cli import track as track_cli
     from hrtls.cli import wsn as wsn_cli
 
     app.command("track")(track_cli.track)
     app.command("demo")(track_cli.demo)
+    app.command("ipin")(ipin_cli.ipin)
     app.command("simulate")(sim_cli.simulate)
     app.command("evaluate")(sim_cli.evaluate)
     app.command("attitude")(attitude_cli.attitude)

@@ -118,23 +118,36 @@ def calibrate_steps(
         "--distance", help="True length of each walk, m (once per session, same order).")],
     output: Annotated[Path, typer.Option("-o", "--output",
                                          help="User profile JSON to write.")],
-    model: Annotated[str, typer.Option(help="'weinberg' or 'frequency'.")] = "weinberg",
+    model: Annotated[str, typer.Option(
+        help="'weinberg', 'frequency' or 'pendulum' (inverted pendulum on the pelvis "
+             "excursion, best for short daily-life steps).")] = "weinberg",
     detector: Annotated[str, typer.Option(help="'peak' or 'pll'.")] = "peak",
+    leg_length: Annotated[float | None, typer.Option(
+        "--leg-length", help="Pendulum length (sensor height above the ground), m; default "
+                             "the profile's sensor_height_m or 0.53 x height_m, else 0.95.")]
+    = None,
 ) -> None:
     """Fit the step-length model from walks of known length (Basso eq. 1-2) into a profile."""
     from hrtls.data import Session, UserProfile
     from hrtls.gait.peak_steps import PeakStepDetector
     from hrtls.gait.pipeline import GaitAnalyzer, session_inputs
     from hrtls.gait.pll import PllStepDetector, StepDetection
-    from hrtls.gait.step_length_fit import CalibrationWalk, fit_frequency_law, fit_weinberg
+    from hrtls.gait.step_length_fit import (
+        CalibrationWalk,
+        fit_frequency_law,
+        fit_pendulum,
+        fit_weinberg,
+    )
+    from hrtls.gait.step_length_pendulum import PendulumModel
 
     if len(distance) != len(sessions):
         raise InputError(f"{len(distance)} distances for {len(sessions)} sessions",
                          where="--distance", expected="one --distance per session")
-    if model not in ("weinberg", "frequency") or detector not in ("peak", "pll"):
+    if model not in ("weinberg", "frequency", "pendulum") or detector not in ("peak", "pll"):
         raise InputError(f"model {model!r}, detector {detector!r}", where="options",
-                         expected="model weinberg|frequency, detector peak|pll")
+                         expected="model weinberg|frequency|pendulum, detector peak|pll")
     walks = []
+    legs: list[float] = []
     for path, dist in zip(sessions, distance, strict=True):
         session = _read_session(path)
         assert isinstance(session, Session)
@@ -144,8 +157,24 @@ def calibrate_steps(
             t, acc, q_nd)
         s = res.steps
         walks.append(CalibrationWalk(StepDetection(s.t_start, s.t_end, s.frequency_hz,
-                                                   s.acc_max, s.acc_min), float(dist)))
-    fitted = fit_weinberg(walks) if model == "weinberg" else fit_frequency_law(walks)
+                                                   s.acc_max, s.acc_min), float(dist),
+                                     res.step_excursion_m))
+        user = session.meta.user
+        extra = user.model_extra or {}
+        if extra.get("sensor_height_m"):
+            legs.append(float(extra["sensor_height_m"]))
+        elif user.height_m:
+            legs.append(0.53 * float(user.height_m))
+    fitted: object
+    if model == "weinberg":
+        fitted = fit_weinberg(walks)
+    elif model == "frequency":
+        fitted = fit_frequency_law(walks)
+    else:
+        leg = leg_length if leg_length is not None else (float(np.mean(legs)) if legs
+                                                         else 0.95)
+        fitted = fit_pendulum(walks, base=PendulumModel(leg_length_m=leg))
+    assert hasattr(fitted, "to_dict")
     profile = UserProfile(step_model=fitted.to_dict())
     Path(output).write_text(json.dumps(profile.model_dump(mode="json"), indent=1))
     typer.echo(f"wrote {output}: {fitted.to_dict()}")

@@ -61,6 +61,9 @@ class FixParams:
         Also correct z when the fix measured it.
     gate_probability:
         Chi-square gate on the NIS; None disables it.
+    phase_s:
+        Time of slot 0: slots are ``floor((t - phase_s) / Tp)``. A tracker that does not know
+        when the infrastructure was queried first anchors the slots at the first fix.
     max_consecutive_rejections:
         After this many fixes in a row failed the gate, the next due fix is applied without
         the gate (the prediction, not the infrastructure, is then the likely outlier: the
@@ -74,6 +77,7 @@ class FixParams:
     use_z: bool = False
     gate_probability: float | None = 0.999
     max_consecutive_rejections: int = 3
+    phase_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.period_s is not None:
@@ -129,10 +133,10 @@ class FixCorrector:
             return False, "user not moving"
         if prm.period_s is None:
             return True, ""
-        slot = math.floor(t / prm.period_s)
+        slot = math.floor((t - prm.phase_s) / prm.period_s)
         if schedule.last_slot is not None and slot <= schedule.last_slot:
             return False, "period slot already served"
-        if t - slot * prm.period_s > prm.slot_tolerance_s:
+        if t - prm.phase_s - slot * prm.period_s > prm.slot_tolerance_s:
             return False, "not at a multiple of the period"
         return True, ""
 
@@ -183,7 +187,8 @@ class FixCorrector:
         if not res.diagnostics.accepted:
             new_schedule = FixSchedule(schedule.last_slot, schedule.rejections + 1)
             return FixUpdate(state, new_schedule, res.diagnostics)
-        slot = math.floor(t / prm.period_s) if prm.period_s is not None else schedule.last_slot
+        slot = (math.floor((t - prm.phase_s) / prm.period_s) if prm.period_s is not None
+                else schedule.last_slot)
         new_schedule = FixSchedule(slot, 0)
         diag = res.diagnostics
         if recover:

@@ -54,12 +54,19 @@ class FilterState:
         t = finite_scalar(self.t, where="filter state t")
         x = finite_vector(self.x, where="filter state x", length=N_STATE).copy()
         p = finite_matrix(self.P, where="filter state P", shape=(N_STATE, N_STATE))
-        if not np.allclose(p, p.T, rtol=1e-6, atol=1e-9):
+        asym = np.abs(p - p.T)
+        if np.any(asym > 1e-9 + 1e-6 * np.abs(p.T)):   # as np.allclose(p, p.T, 1e-6, 1e-9)
             raise InputError("covariance is not symmetric", where="filter state P",
                              expected="a symmetric positive semi-definite 4x4 matrix")
         p = symmetrize(p)
         scale = max(1.0, float(np.max(np.abs(np.diag(p)))))
-        if float(np.min(np.linalg.eigvalsh(p))) < -1e-9 * scale:
+        # PSD check: Cholesky of P + tol I (fast); the eigenvalues only when it fails
+        try:
+            np.linalg.cholesky(p + (1e-9 * scale) * np.eye(N_STATE))
+            negative = False
+        except np.linalg.LinAlgError:
+            negative = float(np.min(np.linalg.eigvalsh(p))) < -1e-9 * scale
+        if negative:
             raise InputError("covariance has a negative eigenvalue", where="filter state P",
                              expected="a symmetric positive semi-definite 4x4 matrix")
         x[IH] = float(wrap_angle(x[IH]))

@@ -1,6 +1,9 @@
 """Gait analysis: motion and activity, steps, step length, walking heading and velocity.
 
 One module per algorithm (see ``docs``/ARCHITECTURE): :mod:`~hrtls.gait.motion` (Basso II-B),
+:mod:`~hrtls.gait.cadence` (periodicity walking detection, step frequency),
+:mod:`~hrtls.gait.step_length_pendulum` (inverted-pendulum step length),
+:mod:`~hrtls.gait.turns` (turn segmentation on the vertical-axis rate),
 :mod:`~hrtls.gait.activity_tree` and :mod:`~hrtls.gait.activity_lda` (Inderst 4.1),
 :mod:`~hrtls.gait.pll` (Basso II-C), :mod:`~hrtls.gait.peak_steps` (Inderst 4.3.1, Tarrio III-B),
 :mod:`~hrtls.gait.step_length` and :mod:`~hrtls.gait.step_length_fit` (Weinberg, Basso II-D,
@@ -11,6 +14,7 @@ and :mod:`~hrtls.gait.pipeline` (:class:`GaitAnalyzer`, composing them).
 
 from hrtls.gait.activity_lda import LdaModel, train_lda
 from hrtls.gait.activity_tree import TreeThresholds, calibrate_tree, classify_tree
+from hrtls.gait.cadence import CadenceDetector, CadenceParams
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingParams
 from hrtls.gait.motion import MotionDetector, MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
@@ -23,12 +27,21 @@ from hrtls.gait.step_length import (
     displacements,
     step_model_from_dict,
 )
-from hrtls.gait.step_length_fit import CalibrationWalk, fit_frequency_law, fit_weinberg
+from hrtls.gait.step_length_fit import (
+    CalibrationWalk,
+    fit_frequency_law,
+    fit_pendulum,
+    fit_weinberg,
+)
+from hrtls.gait.step_length_pendulum import PendulumModel, vertical_excursion
+from hrtls.gait.turns import TurnDetector, TurnEvents, TurnParams
 from hrtls.gait.velocity_automaton import AutomatonParams, VelocityAutomaton
 from hrtls.gait.vertical import GravityLevelling, LevelledAcceleration, from_orientation
 
 __all__ = [
     "AutomatonParams",
+    "CadenceDetector",
+    "CadenceParams",
     "CalibrationWalk",
     "FourierHeading",
     "FourierHeadingParams",
@@ -42,11 +55,15 @@ __all__ = [
     "MotionParams",
     "PeakStepDetector",
     "PeakStepParams",
+    "PendulumModel",
     "PllParams",
     "PllStepDetector",
     "StairsModel",
     "StepDetection",
     "TreeThresholds",
+    "TurnDetector",
+    "TurnEvents",
+    "TurnParams",
     "VelocityAutomaton",
     "WeinbergModel",
     "activity_windows",
@@ -55,8 +72,10 @@ __all__ = [
     "classify_tree",
     "displacements",
     "fit_frequency_law",
+    "fit_pendulum",
     "fit_weinberg",
     "from_orientation",
     "step_model_from_dict",
     "train_lda",
+    "vertical_excursion",
 ]

@@ -16,7 +16,8 @@ autocorrelation
 
 at every lag ``L`` between ``min_step_s`` and ``max_step_s``. The best lag (largest ``r``)
 refined by a parabola through its neighbours is the step period; if ``r`` at half of it is almost
-as large (``r(L/2) >= half_lag_ratio * r(L)``) the best lag was a stride and its half is taken.
+as large (``r(L/k) >= half_lag_ratio * r(L)``, k = 4, 3, 2, first match) the best lag was a
+stride (or several steps) and ``L/k`` is taken.
 The window is *walking* when ``r >= r_threshold`` and the standard deviation of the window is at
 least ``min_std_m_s2`` (below it the "periodicity" is sensor noise or a vibration). The decision
 holds until the next hop. :meth:`CadenceDetector.update` combines it with the Basso spread test
@@ -35,7 +36,6 @@ from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_vector, check_positive
-from hrtls.gait.motion import RUN, STILL, WALK
 
 IntArray = NDArray[np.int64]
 
@@ -46,36 +46,41 @@ class CadenceParams:
 
     Attributes
     ----------
-    window_s: length of the autocorrelation window, s (two slow steps fit in it).
+    window_s: length of the autocorrelation window, s (two slow steps fit in it; the onset
+        of walking is reported about half a window late).
     hop_s: time between two evaluations, s.
     decimated_rate_hz: rate of the block-averaged signal the autocorrelation runs on, Hz.
-    min_step_s, max_step_s: range of step periods searched, s (4 Hz down to about 0.7 Hz).
+    min_step_s, max_step_s: range of step periods searched, s (4 Hz down to about 0.8 Hz).
     r_threshold: smallest normalized autocorrelation of a walking window.
-    half_lag_ratio: take half the best lag when ``r`` there reaches this share of the best.
+    half_lag_ratio: take a sub-multiple ``L/k`` of the best lag when ``r`` there reaches this
+        share of the best.
     min_std_m_s2: smallest standard deviation of a walking window, m/s^2.
     run_frequency_hz: running needs at least this step frequency, Hz (Basso: walking up to
         2.2 Hz, running from 2.7 Hz).
     """
 
-    window_s: float = 3.2
-    hop_s: float = 0.25
+    window_s: float = 2.4
+    hop_s: float = 0.5
     decimated_rate_hz: float = 25.0
     min_step_s: float = 0.25
-    max_step_s: float = 1.4
-    r_threshold: float = 0.45
+    max_step_s: float = 1.2
+    r_threshold: float = 0.4
     half_lag_ratio: float = 0.85
-    min_std_m_s2: float = 0.12
+    min_std_m_s2: float = 0.2
     run_frequency_hz: float = 2.4
 
 
 @numba.njit(cache=True)
-def cadence_kernel(x: FloatArray, ipars: IntArray, fpars: FloatArray, buf: FloatArray,
-                   ist: IntArray, fst: FloatArray, walk_out: IntArray, freq_out: FloatArray,
-                   r_out: FloatArray) -> None:  # pragma: no cover
+def cadence_kernel(x: FloatArray, sigma: FloatArray, ipars: IntArray, fpars: FloatArray,
+                   buf: FloatArray, ist: IntArray, fst: FloatArray, walk_out: IntArray,
+                   freq_out: FloatArray, r_out: FloatArray,
+                   state_out: IntArray) -> None:  # pragma: no cover
     """Block-average ``x``, evaluate the autocorrelation every hop, hold the decision.
 
     ``ipars = [decimation, window_n, lag_min, lag_max, hop_n]`` (decimated samples);
-    ``fpars = [r_threshold, half_lag_ratio, min_std, decimated_rate_hz]``.
+    ``fpars = [r_threshold, half_lag_ratio, min_std, decimated_rate_hz, still_threshold,
+    run_threshold, run_frequency_hz]``; ``sigma`` is the Basso spread of the same samples
+    (the combined state is written to ``state_out``; pass an empty ``sigma`` to skip it).
     State: ``buf`` ring buffer of ``window_n`` decimated samples; ``ist = [head, count,
     block_n, hop_count, walking]``; ``fst = [block_sum, frequency_hz, r]``.
     Outputs per input sample: walking flag (0/1), step frequency (Hz, NaN when not
@@ -83,10 +88,13 @@ def cadence_kernel(x: FloatArray, ipars: IntArray, fpars: FloatArray, buf: Float
     """
     dec, wn, lmin, lmax, hop = ipars[0], ipars[1], ipars[2], ipars[3], ipars[4]
     r_thr, half_ratio, min_std, rate = fpars[0], fpars[1], fpars[2], fpars[3]
+    still_thr, run_thr, run_f = fpars[4], fpars[5], fpars[6]
+    combine = sigma.shape[0] == x.shape[0]
     head, count, bn, hc, walking = ist[0], ist[1], ist[2], ist[3], ist[4]
     bsum, freq, rbest = fst[0], fst[1], fst[2]
     y = np.empty(wn)
     rr = np.empty(lmax + 2)
+    cum = np.empty(wn + 1)
     for i in range(x.shape[0]):
         bsum += x[i]
         bn += 1
@@ -111,6 +119,10 @@ def cadence_kernel(x: FloatArray, ipars: IntArray, fpars: FloatArray, buf: Float
                     y[k] -= m
                     var += y[k] * y[k]
                 std = np.sqrt(var / wn)
+                # prefix sums of y^2: the energies of the two overlapping parts
+                cum[0] = 0.0
+                for k in range(wn):
+                    cum[k + 1] = cum[k] + y[k] * y[k]
                 best = -1
                 rbest = -1.0
                 for lag in range(lmin - 1, lmax + 2):
@@ -118,26 +130,29 @@ def cadence_kernel(x: FloatArray, ipars: IntArray, fpars: FloatArray, buf: Float
                         rr[lag] = 0.0
                         continue
                     s = 0.0
-                    s0 = 0.0
-                    s1 = 0.0
                     for k in range(lag, wn):
                         s += y[k] * y[k - lag]
-                        s0 += y[k] * y[k]
-                        s1 += y[k - lag] * y[k - lag]
+                    s0 = cum[wn] - cum[lag]
+                    s1 = cum[wn - lag]
                     rr[lag] = s / np.sqrt(s0 * s1) if s0 > 0.0 and s1 > 0.0 else 0.0
                 for lag in range(lmin, lmax + 1):
                     if lag < wn - 2 and rr[lag] > rbest:
                         rbest = rr[lag]
                         best = lag
                 if best > 0:
-                    half = (best + 1) // 2
-                    if half >= lmin:
-                        # the best lag may be a stride: its half is the step
-                        hb = half
-                        if best % 2 == 1 and rr[half - 1] > rr[hb]:
-                            hb = half - 1
+                    # the best lag may be a stride or a few steps (a fast sinusoid sampled at
+                    # 25 Hz correlates best at the multiple closest to a whole lag): take the
+                    # shortest sub-multiple best/k whose r is almost as large
+                    for k in range(4, 1, -1):
+                        lo = best // k
+                        if lo < lmin:
+                            continue
+                        hb = lo
+                        if best % k != 0 and lo + 1 <= lmax and rr[lo + 1] > rr[lo]:
+                            hb = lo + 1
                         if rr[hb] >= half_ratio * rbest:
                             best = hb
+                            break
                     # parabolic refinement of the peak position
                     a = rr[best - 1]
                     b = rr[best]
@@ -157,6 +172,14 @@ def cadence_kernel(x: FloatArray, ipars: IntArray, fpars: FloatArray, buf: Float
         walk_out[i] = walking
         freq_out[i] = freq
         r_out[i] = rbest
+        if combine:
+            sg = sigma[i]
+            if sg > run_thr and (walking == 0 or freq >= run_f):
+                state_out[i] = 2
+            elif sg > still_thr or walking == 1:
+                state_out[i] = 1
+            else:
+                state_out[i] = 0
     ist[0], ist[1], ist[2], ist[3], ist[4] = head, count, bn, hc, walking
     fst[0], fst[1], fst[2] = bsum, freq, rbest
 
@@ -196,7 +219,8 @@ class CadenceResult:
     periodic: 1 where the last evaluated window was periodic walking or running, else 0.
     frequency_hz: step frequency of that window, Hz (NaN when not periodic).
     r: best normalized autocorrelation of that window (-1 before the first evaluation).
-    state: combined motion state (0 still, 1 walking, 2 running, as :mod:`hrtls.gait.motion`).
+    state: combined motion state (0 still, 1 walking, 2 running, as :mod:`hrtls.gait.motion`);
+        empty from :meth:`CadenceDetector.periodicity`.
     """
 
     periodic: IntArray
@@ -227,14 +251,15 @@ class CadenceDetector:
         wn = max(8, round(p.window_s * rate_dec))
         lmin = max(2, int(np.floor(p.min_step_s * rate_dec)))
         lmax = min(wn - 3, int(np.ceil(p.max_step_s * rate_dec)))
-        if lmax <= lmin:
+        if lmax <= lmin or p.max_step_s >= p.window_s or p.min_step_s >= p.max_step_s:
             raise InputError(f"step periods {p.min_step_s}-{p.max_step_s} s in a "
                              f"{p.window_s} s window at {rate_dec:.1f} Hz",
                              where="CadenceParams",
                              expected="max_step_s well below window_s and above min_step_s")
         self._ipars = np.array([dec, wn, lmin, lmax, max(1, round(p.hop_s * rate_dec))],
                                dtype=np.int64)
-        self._fpars = np.array([p.r_threshold, p.half_lag_ratio, p.min_std_m_s2, rate_dec])
+        self._fpars = np.array([p.r_threshold, p.half_lag_ratio, p.min_std_m_s2, rate_dec,
+                                0.0, 0.0, p.run_frequency_hz])
         self.reset()
 
     def reset(self) -> None:
@@ -255,14 +280,23 @@ class CadenceDetector:
 
     def periodicity(self, a_vertical_m_s2: FloatArray) -> tuple[IntArray, FloatArray, FloatArray]:
         """Run the kernel over a chunk: (periodic flag, step frequency Hz, r) per sample."""
-        x = as_vector(a_vertical_m_s2, where="cadence vertical acceleration")
+        res = self._run(as_vector(a_vertical_m_s2, where="cadence vertical acceleration"),
+                        np.zeros(0), 0.0, 0.0)
+        return res.periodic, res.frequency_hz, res.r
+
+    def _run(self, x: FloatArray, sigma: FloatArray, still: float, run: float) -> CadenceResult:
         n = x.shape[0]
         walk = np.empty(n, dtype=np.int64)
         freq = np.empty(n)
         r = np.empty(n)
+        state = np.zeros(n if sigma.shape[0] == n else 0, dtype=np.int64)
+        pars = self._fpars.copy()
+        pars[4] = still
+        pars[5] = run
         s = self.state
-        cadence_kernel(x, self._ipars, self._fpars, s.buf, s.ints, s.floats, walk, freq, r)
-        return walk, freq, r
+        cadence_kernel(x, sigma, self._ipars, pars, s.buf, s.ints, s.floats, walk, freq, r,
+                       state)
+        return CadenceResult(walk, freq, r, state)
 
     def update(self, a_vertical_m_s2: FloatArray, sigma_m_s2: FloatArray, *,
                still_threshold_m_s2: float, run_threshold_m_s2: float) -> CadenceResult:
@@ -272,12 +306,9 @@ class CadenceDetector:
         periodic; running when the spread exceeds ``run_threshold_m_s2`` and the step frequency
         (when periodic) is at least ``run_frequency_hz``.
         """
-        walk, freq, r = self.periodicity(a_vertical_m_s2)
-        sig = as_vector(sigma_m_s2, where="motion sigma", length=walk.shape[0])
-        fast = ~(walk == 1) | (np.nan_to_num(freq, nan=0.0) >= self.params.run_frequency_hz)
-        state = np.where((sig > run_threshold_m_s2) & fast, RUN,
-                         np.where((sig > still_threshold_m_s2) | (walk == 1), WALK, STILL))
-        return CadenceResult(walk, freq, r, state.astype(np.int64))
+        x = as_vector(a_vertical_m_s2, where="cadence vertical acceleration")
+        sig = as_vector(sigma_m_s2, where="motion sigma", length=x.shape[0])
+        return self._run(x, sig, float(still_threshold_m_s2), float(run_threshold_m_s2))
 
 
 __all__ = ["CadenceDetector", "CadenceParams", "CadenceResult", "CadenceState",

@@ -4,6 +4,8 @@
   acceleration within the step (Tarrio eq. 3, Inderst eq. 4.24, where ``K`` is called ``beta``).
 * :class:`FrequencyLawModel`: step length linear in step frequency, with one line for walking
   and one for running (Basso Sec. II-D, Fig. 4: a piecewise-linear law).
+* :class:`~hrtls.gait.step_length_pendulum.PendulumModel`: inverted pendulum on the vertical
+  excursion of the pelvis (its own module).
 * :class:`StairsModel`: on stairs a step is one stair: horizontal ``rho`` (depth) and vertical
   ``+zeta`` up / ``-zeta`` down (Inderst eq. 4.25).
 
@@ -22,6 +24,7 @@ from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, check_positive
 from hrtls.gait.pll import StepDetection
+from hrtls.gait.step_length_pendulum import PendulumModel
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -105,11 +108,11 @@ class StairsModel:
         return asdict(self)
 
 
-StepModel = WeinbergModel | FrequencyLawModel
+StepModel = WeinbergModel | FrequencyLawModel | PendulumModel
 
 
 def step_model_from_dict(data: dict[str, Any]) -> StepModel:
-    """Model from a user profile's ``step_model`` dict (``kind`` weinberg or frequency)."""
+    """Model from a user profile's ``step_model`` dict (kind weinberg, frequency, pendulum)."""
     d = dict(data)
     kind = d.pop("kind", None)
     try:
@@ -117,16 +120,21 @@ def step_model_from_dict(data: dict[str, Any]) -> StepModel:
             return WeinbergModel(**d)
         if kind == "frequency":
             return FrequencyLawModel(**d)
+        if kind == "pendulum":
+            return PendulumModel(**d)
     except TypeError as exc:
         raise InputError(str(exc), where="step_model", expected="the model's keys") from None
-    raise InputError(f"kind {kind!r}", where="step_model", expected="'weinberg' or 'frequency'")
+    raise InputError(f"kind {kind!r}", where="step_model",
+                     expected="'weinberg', 'frequency' or 'pendulum'")
 
 
 def displacements(steps: StepDetection, activity: ArrayLike, model: StepModel,
-                  stairs: StairsModel | None = None) -> tuple[FloatArray, FloatArray]:
+                  stairs: StairsModel | None = None,
+                  excursion_m: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """Horizontal length and height change of each step, m.
 
-    Walking/running steps use ``model``; upstairs/downstairs steps use ``stairs``
+    Walking/running steps use ``model`` (a :class:`PendulumModel` needs ``excursion_m``, the
+    vertical excursion of each step in m); upstairs/downstairs steps use ``stairs``
     (eq. 4.25); steps classified as standing get zero displacement.
     """
     act = np.asarray(activity, dtype=np.int64)
@@ -134,7 +142,10 @@ def displacements(steps: StepDetection, activity: ArrayLike, model: StepModel,
         raise InputError(f"{act.shape} activity codes for {len(steps)} steps",
                          where="activity", expected="one code per step")
     st = stairs or StairsModel()
-    length = model.lengths(steps)
+    if isinstance(model, PendulumModel):
+        length = model.lengths(steps, excursion_m)
+    else:
+        length = model.lengths(steps)
     dz = np.zeros(len(steps))
     up = act == Activity.UPSTAIRS
     down = act == Activity.DOWNSTAIRS

@@ -9,6 +9,9 @@ Each calibration walk gives the detected steps and the true distance ``D``:
   ``SL_bar = D / N``; the walking line is the least-squares fit of the points below
   ``split_hz``, the running line of those above. With too narrow a frequency spread a segment
   keeps the default slope and fits its intercept; with no walk it keeps the default line.
+* Pendulum (:mod:`hrtls.gait.step_length_pendulum`): ``D_i = K * U_i`` with
+  ``U_i = sum_k 2 sqrt(2 L h_k - h_k^2)``, so ``K = sum_i D_i U_i / sum_i U_i^2`` (``L`` is
+  kept from the base model).
 """
 
 from __future__ import annotations
@@ -22,14 +25,19 @@ from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.step_length import FrequencyLawModel, WeinbergModel
+from hrtls.gait.step_length_pendulum import PendulumModel
 
 
 @dataclass(frozen=True, slots=True)
 class CalibrationWalk:
-    """Steps detected on one walk and its true length (m)."""
+    """Steps detected on one walk, its true length (m) and the steps' vertical excursions.
+
+    ``excursion_m`` (m, one per step) is only needed by the pendulum model.
+    """
 
     steps: StepDetection
     distance_m: float
+    excursion_m: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.distance_m) and self.distance_m > 0):
@@ -38,6 +46,10 @@ class CalibrationWalk:
         if len(self.steps) == 0:
             raise InputError("no steps detected", where="calibration walk",
                              expected="a walk with detected steps")
+        if self.excursion_m is not None and np.shape(self.excursion_m) != (len(self.steps),):
+            raise InputError(f"{np.shape(self.excursion_m)} excursions for {len(self.steps)} "
+                             "steps", where="calibration walk",
+                             expected="one vertical excursion per step")
 
 
 def mean_frequency(steps: StepDetection) -> float:
@@ -100,3 +112,24 @@ def fit_frequency_law(walks: Sequence[CalibrationWalk], *,
         run_slope_m_s=b.run_slope_m_s if run is None else run[0],
         run_intercept_m=b.run_intercept_m if run is None else run[1],
         split_hz=b.split_hz, max_length_m=b.max_length_m)
+
+
+def fit_pendulum(walks: Sequence[CalibrationWalk], *,
+                 base: PendulumModel | None = None) -> PendulumModel:
+    """Least-squares ``K`` of the pendulum model (walks must carry ``excursion_m``)."""
+    if not walks:
+        raise InputError("no walks", where="calibration", expected="at least one walk")
+    b = base or PendulumModel()
+    u = []
+    for i, w in enumerate(walks):
+        if w.excursion_m is None:
+            raise InputError("no vertical excursions", where=f"calibration walk {i}",
+                             expected="excursion_m for the pendulum model")
+        u.append(float(np.sum(b.unit_lengths(w.excursion_m))))
+    uu = np.asarray(u)
+    d = np.array([w.distance_m for w in walks])
+    if np.sum(uu * uu) <= 0:
+        raise InputError("all steps have zero vertical excursion", where="calibration",
+                         expected="steps with a vertical pelvis motion")
+    return PendulumModel(k=float(np.sum(d * uu) / np.sum(uu * uu)),
+                         leg_length_m=b.leg_length_m, max_length_m=b.max_length_m)

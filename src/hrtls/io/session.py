@@ -432,7 +432,7 @@ def write_session(session: Session, path: Path | str, *, overwrite: bool = False
                              expected="a new path (or overwrite=True)")
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".partial")
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
             for name, data in files.items():
                 zf.writestr(name, data)
         tmp.replace(path)

@@ -237,12 +237,11 @@ def cases() -> list[Case]:
                                           ("<=", 0.15)))
             out.append(Case(f"colombo_{shape} Tp={tp:.0f} s", f"colombo_{shape}",
                             {"tp_s": tp}, "colombo2014", metrics,
-                            paper_config=lambda c, tp=tp: _fix_period(c, tp),
-                            default_config=lambda c, tp=tp: _fix_period(c, tp),
+                            paper_config=_fix_period_of(tp), default_config=_fix_period_of(tp),
                             quick=tp == 16.0))
-    for test, fig in _BASSO.items():
+    for test, basso_fig in _BASSO.items():
         out.append(Case(f"basso_test{test}", f"basso_test{test}", {}, "basso2017", [
-            MetricSpec("mean pos. error (IME/L) [%]", basso_ime, f"{fig:.1f} % (Table I)",
+            MetricSpec("mean pos. error (IME/L) [%]", basso_ime, f"{basso_fig:.1f} % (Table I)",
                        ("<=", 1.0))], quick=test in (1, 3)))
     out.append(Case("tarrio_circle (9 anchors)", "tarrio_circle", {}, "tarrio2011", [
         MetricSpec("p90 error [m]", p90_error, "2.4 (Sec. IV)", ("<=", 1.8)),
@@ -277,9 +276,12 @@ def cases() -> list[Case]:
     return out
 
 
-def _fix_period(config: TrackerConfig, tp: float) -> TrackerConfig:
-    return config.model_copy(update={"fixes": config.fixes.model_copy(
-        update={"period_s": tp, "enabled": True})})
+def _fix_period_of(tp: float) -> Callable[[TrackerConfig], TrackerConfig]:
+    def apply(config: TrackerConfig) -> TrackerConfig:
+        return config.model_copy(update={"fixes": config.fixes.model_copy(
+            update={"period_s": tp, "enabled": True})})
+
+    return apply
 
 
 # ---------------------------------------------------------------------------------- running

@@ -231,7 +231,7 @@ def _channel(prm: FloatArray, sc: FloatArray, cov: FloatArray, rss: float, d: fl
 @numba.njit(cache=True)
 def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArray,
                  sc: FloatArray, chan_cov: FloatArray, x: FloatArray, p: FloatArray,
-                 x_out: FloatArray, p_out: FloatArray, act_out: IntArray,
+                 t_out: FloatArray, x_out: FloatArray, p_out: FloatArray, act_out: IntArray,
                  status: IntArray, nis_out: FloatArray, s_out: FloatArray,
                  nu_out: FloatArray) -> None:  # pragma: no cover - compiled
     """Process a run of events in order; ``x``, ``p``, ``sc``, ``chan_cov`` are updated in place.
@@ -297,6 +297,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                     nis_out[k] = nis
                     s_out[k] = s
                     nu_out[k] = nu
+        t_out[k] = sc[S_T]
         for i in range(4):
             x_out[k, i] = x[i]
             for j in range(4):

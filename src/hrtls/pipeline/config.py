@@ -24,7 +24,9 @@ class _Section(BaseModel):
 class AttitudeConfig(_Section):
     """Orientation source."""
 
-    method: Literal["euler-ekf", "quat-ekf", "complementary", "device", "none"] = "quat-ekf"
+    method: Literal["auto", "euler-ekf", "quat-ekf", "complementary", "device", "none"] = \
+        "quat-ekf"
+    """``auto``: the device's own orientation when the session has one, else ``quat-ekf``."""
     use_magnetometer: bool = True
 
 
@@ -50,6 +52,8 @@ class PredictionConfig(_Section):
     q_across: float = Field(default=0.0025, ge=0.0)
     sigma_heading_increment_rad: float = Field(default=0.01, ge=0.0)
     stairs_from_model: bool = True
+    learn_step_scale: bool = Field(
+        default=False, description="learn a step-length scale from absolute corrections")
 
 
 class FixesConfig(_Section):
@@ -59,6 +63,8 @@ class FixesConfig(_Section):
     period_s: float = Field(default=1.0, gt=0.0, description="update period Tp")
     require_motion: bool = True
     yaw_stretch: bool = True
+    max_consecutive_rejections: int = Field(
+        default=1, ge=0, description="after this many gated fixes in a row, apply the next one")
     yaw_feedback_gain: float = Field(
         default=1.0, ge=0.0, le=1.0,
         description="fraction of each stretching yaw correction fed back to later yaw inputs")
@@ -82,8 +88,15 @@ class TagsConfig(_Section):
     enabled: bool = True
     strategy: Literal["paper", "kalman"] = "paper"
     bearing_correction: bool = True
+    sigma_per_accuracy: float = Field(default=0.5, gt=0.0,
+                                      description="kappa: lobe 1-sigma per accuracy radius")
+    repeat_interval_s: float = Field(default=2.0, ge=0.0)
     bearing_gate_deg: float = Field(default=45.0, gt=0.0, le=180.0)
     bearing_deadband_deg: float = Field(default=5.0, ge=0.0)
+    bearing_mode: Literal["replace", "kalman"] = "replace"
+    bearing_max_turn_deg: float = Field(
+        default=15.0, gt=0.0, description="no bearing correction while turning more than this")
+    bearing_sigma_deg: float = Field(default=5.0, gt=0.0)
 
 
 class RangesConfig(_Section):

@@ -3,21 +3,41 @@
 :class:`Tracker` wires the parts named by a :class:`~hrtls.pipeline.config.TrackerConfig`.
 ``run(session)`` is ``start`` + one ``update`` with the whole session + ``finish``; the live
 service calls ``update`` with successive chunks (a :class:`~hrtls.data.Session` holding the new
-samples and observations) and gets the same result.
+samples and observations, see :mod:`hrtls.pipeline.chunks`) and gets the same result.
 
 Per-sample work (attitude, gait, velocity prediction) runs in the compiled kernels of those
-stages. The position filter then handles *events* in time order — steps, position fixes, RSS
-scans, tag reads, ranges — at a few Hz, in Python. Observations are held back until the gait stage
-has released every step that ends before them, so a chunked run processes events in exactly
-the order of an offline run.
+stages. The position filter then handles *events* in time order -- steps, position fixes, RSS
+readings or scans, tag reads, ranges. Runs of consecutive steps, tight RSS readings and ranges
+go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the Python
+fusion parts, tested equal); fixes, tags, bearings, RSS scans and velocity segments are
+handled one at a time in Python (a few per second at most). Observations are held back until
+the gait stage can no longer release a step before them (``LIVE_LATENCY_S``), tag reads and RSS
+scans until their grouping window has closed, so a chunked run processes events in exactly the
+order of an offline run.
+
+Prediction ``model = "velocity"`` (Colombo eq. 15-17): the hybrid-automaton speed and the
+attitude yaw are buffered and integrated up to each event; an accepted fix triggers the yaw
+stretching of eq. 24-28 over the samples since the previous fix (:class:`StretchMemory`,
+chord-rotation reading of :mod:`hrtls.fusion.yaw_stretch`). Reading of "fed back as the yaw
+pseudo-measurement of the attitude filter": the attitude filter has already run over the chunk
+when the fix is processed, so the correction is applied as a yaw offset to all later yaw inputs
+(and to the state heading), which is what the Euler EKF's ``yaw_rad`` input would converge to
+for a constant bias; the pseudo-measurements are kept in ``Tracker.yaw_pseudo`` (count in the
+report). With ``model = "step"`` the same stretching uses the dead-reckoned chord between the
+two fixes. Our additions (documented at the code): the step-length scale learned from absolute
+corrections (``prediction.learn_step_scale``), the fall-back to the thesis' tag strategies when
+every lobe of a read fails the Kalman gate, slots of eq. 19 anchored at the first fix, and the
+random-walk prediction without an IMU.
 """
 
 from __future__ import annotations
 
 import heapq
 import math
+from collections import deque
 import warnings
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -34,6 +54,7 @@ from hrtls.data import (
     StepEvents,
     Trajectory,
 )
+from hrtls.data.observations import RssReadings, TagDetections
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, quat_rotate, wrap_angle
 from hrtls.fusion.fixes import (
@@ -48,7 +69,6 @@ from hrtls.fusion.gating import (
     chi2_threshold,
     kalman_update,
     skipped,
-    summarize,
 )
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update
@@ -81,6 +101,7 @@ from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, 
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline.config import TrackerConfig, preset
+from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 
 FloatArray = np.ndarray
 
@@ -89,10 +110,20 @@ _STEP, _FIX, _RSS, _TAGS, _RANGE = 0, 1, 2, 3, 4
 _KIND_NAMES = {_STEP: "step", _FIX: "fix", _RSS: "rss", _TAGS: "tags", _RANGE: "range"}
 MOVING_SIGMA_M_S2 = 0.2
 """Colombo's sigma_min: the user moves when the 2 s std of vertical acceleration exceeds it."""
+LIVE_LATENCY_S = 4.0
+"""Events are held until the IMU stream is this far past them (late step detections), s."""
 FLOOR_SIGMA_M = 0.1
 """1-sigma of the floor-level pseudo-measurement after a flat step (m)."""
 RSS_MIN_DISTANCE_M = 0.5
 """Tight RSS readings are not used when the estimate is nearer than this to the anchor (m)."""
+BEARING_TURN_WINDOW_S = 3.0
+"""Steps of this last span must agree within ``tags.bearing_max_turn_deg`` for a bearing."""
+SCALE_MIN_BASELINE_M = 8.0
+"""Shortest straight stretch between two absolute corrections that teaches the step scale, m."""
+SCALE_GAIN = 0.25
+"""Fraction (as a power) of each measured step-length ratio applied to the scale."""
+SCALE_BOUNDS = (0.8, 1.25)
+"""Admissible step-length scale."""
 VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 DEFAULT_VAR_YAW_RAD2 = 0.01
@@ -115,7 +146,7 @@ class TrackResult:
     trajectory: Trajectory
     steps: StepEvents
     attitude: AttitudeResult | None
-    diagnostics: list[UpdateDiagnostics]
+    diagnostics: Sequence[UpdateDiagnostics]
     report: dict[str, Any]
 
 
@@ -180,7 +211,7 @@ class Tracker:
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
                           else lm for k, lm in landmarks.items()}
         self.notes: list[str] = []
-        self.diagnostics: list[UpdateDiagnostics] = []
+        self.diagnostics = DiagnosticsLog()
         self._track = _Track()
         self._steps: list[StepEvents] = []
         self._attitude: list[AttitudeResult] = []
@@ -202,8 +233,20 @@ class Tracker:
         self._vel_bin = -math.inf
         self._stretch: StretchMemory | None = None
         self._corrected_since_fix = False
+        self.step_scale = 1.0
+        self._anchor_xy: np.ndarray | None = None
+        self._path_since_anchor = 0.0
+        self._soft_since_anchor = False
+        self._recent_heading: deque[tuple[float, float]] = deque(maxlen=8)
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
         self._rss_note = False
+        self._seen_obs = False
+        self._t0 = t0
+        self._tag_buf_t = np.zeros(0)
+        self._tag_buf_id = np.zeros(0, dtype=str)
+        self._scan_buf_t = np.zeros(0)
+        self._scan_buf_a = np.zeros(0, dtype=str)
+        self._scan_buf_v = np.zeros(0)
         if not has_imu:
             self.notes.append("no IMU: positions from the infrastructure alone, predicted by a "
                               "random walk between observations")
@@ -214,6 +257,8 @@ class Tracker:
         # --- attitude
         self.attitude_filter: AttitudeFilter | DeviceOrientation | None = None
         method = cfg.attitude.method
+        if method == "auto":
+            method = "device" if has_orientation else "quat-ekf"
         if has_imu and method == "device" and not has_orientation:
             self._degrade("attitude 'device' asked but the session has no device orientation; "
                           "using 'quat-ekf'")
@@ -258,10 +303,16 @@ class Tracker:
             sigma_heading_increment_rad=cfg.prediction.sigma_heading_increment_rad))
         self.fix_corrector = FixCorrector(FixParams(
             period_s=cfg.fixes.period_s, require_motion=cfg.fixes.require_motion,
-            gate_probability=cfg.gate_probability))
+            gate_probability=cfg.gate_probability,
+            max_consecutive_rejections=cfg.fixes.max_consecutive_rejections))
         self.fix_schedule = FixSchedule()
-        self.tag_corrector = TagCorrector(TagParams(strategy=cfg.tags.strategy,
-                                                    gate_probability=cfg.gate_probability))
+        self._fix_phase_set = False
+        self.tag_corrector = TagCorrector(TagParams(
+            strategy=cfg.tags.strategy, gate_probability=cfg.gate_probability,
+            sigma_per_accuracy=cfg.tags.sigma_per_accuracy,
+            repeat_interval_s=cfg.tags.repeat_interval_s))
+        self.tag_fallback = (TagCorrector(replace(self.tag_corrector.params, strategy="paper"))
+                             if cfg.tags.strategy == "kalman" else None)
         self.tag_memory = TagMemory()
         self.range_params = RangeParams(gate_probability=cfg.gate_probability)
         channel = meta.channel
@@ -328,24 +379,33 @@ class Tracker:
             result = self.gait.update(t, acc, q_nd)
             self._consume_gait(result, t, q_nd)
             self._t_last_sample = float(t[-1])
-            # everything before the last classified sample is final
+            # events before the last classified sample are final, except steps the detector
+            # may still report (it needs up to LIVE_LATENCY_S of later samples)
             if len(result.activity_t):
-                self._horizon = max(self._horizon, float(result.activity_t[-1]))
+                self._horizon = max(self._horizon, min(float(result.activity_t[-1]),
+                                                       float(t[-1]) - LIVE_LATENCY_S))
         elif self.gait is None:
-            self._horizon = max(self._horizon, chunk.time_span()[1])
-        self._drain(self._horizon)
+            self._horizon = max(self._horizon, _chunk_end(chunk))
+        # tag reads / RSS readings still being grouped hold back everything after them
+        limit = self._horizon
+        for buf in (self._tag_buf_t, self._scan_buf_t):
+            if len(buf):
+                limit = min(limit, float(np.nextafter(buf[0], -np.inf)))
+        self._drain(limit)
 
     def finish(self) -> TrackResult:
         """End of the recording: release held steps and observations, build the result."""
         if self.gait is not None:
             self._consume_gait(self.gait.flush(), None, None)
+        self._flush_tag_groups(math.inf)
+        self._flush_scans(math.inf)
         self._drain(math.inf)
         if self._velocity_mode:
             self._track.add(self.state, self._last_activity)
         trajectory = self._track.trajectory()
         steps = (StepEvents.empty() if not self._steps else _concat_steps(self._steps))
         attitude = AttitudeResult.concatenate(self._attitude) if self._attitude else None
-        return TrackResult(trajectory, steps, attitude, list(self.diagnostics),
+        return TrackResult(trajectory, steps, attitude, self.diagnostics,
                            self._report(trajectory, steps))
 
     # ------------------------------------------------------------------ stages
@@ -484,6 +544,8 @@ class Tracker:
 
     def _queue_observations(self, chunk: Session) -> None:
         cfg = self.config
+        self._seen_obs = self._seen_obs or any(
+            part is not None for part in (chunk.fixes, chunk.rss, chunk.tags, chunk.ranges))
         if chunk.fixes is not None and cfg.fixes.enabled:
             f = chunk.fixes
             for i in range(len(f)):
@@ -497,22 +559,65 @@ class Tracker:
                                                     if cfg.rss.estimate_channel else ""))
             if cfg.rss.mode == "tight":
                 keep = chunk.rss.rss_dbm >= cfg.rss.sensitivity_dbm
-                for i in np.flatnonzero(keep):
-                    self._push(float(chunk.rss.t[i]), _RSS,
-                               i_payload=("reading", str(chunk.rss.anchor[i]),
-                                          float(chunk.rss.rss_dbm[i])))
+                for k in np.flatnonzero(keep).tolist():
+                    self._push(float(chunk.rss.t[k]), _RSS,
+                               i_payload=("reading", str(chunk.rss.anchor[k]),
+                                          float(chunk.rss.rss_dbm[k])))
             else:
-                for scan in group_scans(chunk.rss, self.landmarks, window_s=cfg.rss.window_s,
-                                        sensitivity_dbm=cfg.rss.sensitivity_dbm):
-                    self._push(scan.t, _RSS, i_payload=("scan", scan))
+                r = chunk.rss
+                self._scan_buf_t = np.concatenate([self._scan_buf_t, r.t])
+                self._scan_buf_a = np.concatenate([self._scan_buf_a, r.anchor.astype(str)])
+                self._scan_buf_v = np.concatenate([self._scan_buf_v, r.rss_dbm])
+        if cfg.rss.mode in ("wls", "kalman"):
+            self._flush_scans(_chunk_end(chunk))
         if chunk.tags is not None and cfg.tags.enabled:
-            for t, ids in group_detections(chunk.tags, self.tag_corrector.params.group_window_s):
-                self._push(t, _TAGS, i_payload=ids)
+            g = chunk.tags
+            self._tag_buf_t = np.concatenate([self._tag_buf_t, g.t])
+            self._tag_buf_id = np.concatenate([self._tag_buf_id, g.tag.astype(str)])
+        self._flush_tag_groups(_chunk_end(chunk))
         if chunk.ranges is not None and cfg.ranges.enabled:
-            r = chunk.ranges
-            for i in range(len(r)):
-                self._push(float(r.t[i]), _RANGE, i_payload=(str(r.node[i]), float(r.range_m[i]),
-                                                             float(r.sigma_m[i])))
+            rm = chunk.ranges
+            for i in range(len(rm)):
+                self._push(float(rm.t[i]), _RANGE, i_payload=(
+                    str(rm.node[i]), float(rm.range_m[i]), float(rm.sigma_m[i])))
+
+    def _flush_tag_groups(self, t_seen: float) -> None:
+        """Group tag reads whose grouping window has closed (the same in chunked runs)."""
+        if len(self._tag_buf_t) == 0:
+            return
+        w = self.tag_corrector.params.group_window_s
+        groups = group_detections(TagDetections(self._tag_buf_t, self._tag_buf_id), w)
+        used = 0
+        for t, ids in groups:
+            first = float(self._tag_buf_t[used])
+            if first + w >= t_seen:
+                break
+            self._push(t, _TAGS, i_payload=ids)
+            used = int(np.searchsorted(self._tag_buf_t, first + w, side="right"))
+        self._tag_buf_t = self._tag_buf_t[used:]
+        self._tag_buf_id = self._tag_buf_id[used:]
+
+    def _flush_scans(self, t_seen: float) -> None:
+        """Average RSS over windows of ``window_s`` from the session start once they closed."""
+        if len(self._scan_buf_t) == 0:
+            return
+        w = self.config.rss.window_s
+        if math.isfinite(t_seen):
+            end_bin = math.floor((t_seen - self._t0) / w)
+            done = np.floor((self._scan_buf_t - self._t0) / w) < end_bin
+        else:
+            done = np.ones(len(self._scan_buf_t), dtype=bool)
+        n = int(np.count_nonzero(done))
+        if n == 0:
+            return
+        readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
+        for scan in group_scans(readings, self.landmarks, window_s=w,
+                                sensitivity_dbm=self.config.rss.sensitivity_dbm,
+                                t_origin=self._t0):
+            self._push(scan.t, _RSS, i_payload=("scan", scan))
+        self._scan_buf_t = self._scan_buf_t[n:]
+        self._scan_buf_a = self._scan_buf_a[n:]
+        self._scan_buf_v = self._scan_buf_v[n:]
 
     # ------------------------------------------------------------------ event loop
     def _fast(self, kind: int, payload: Any) -> bool:
@@ -558,8 +663,12 @@ class Tracker:
                 steps, i = payload
                 kind[k] = ev.EV_STEP
                 h = float(steps.heading_rad[i])
-                data[k, :4] = (steps.length_m[i], h + self._yaw_offset if math.isfinite(h)
+                length = float(steps.length_m[i]) * self.step_scale
+                data[k, :4] = (length, h + self._yaw_offset if math.isfinite(h)
                                else h, steps.dz_m[i], steps.activity[i])
+                self._path_since_anchor += length
+                if math.isfinite(h):
+                    self._recent_heading.append((t, h))
                 step_rows.append(k)
             elif ek == _RSS:
                 _, anchor, value = payload
@@ -606,6 +715,7 @@ class Tracker:
             sc[ev.S_SIGMA_DB] = self.path_loss.sigma_db
             sc[ev.S_RESVAR] = self.path_loss.sigma_db**2
             chan_cov = np.eye(2)
+        t_out = np.empty(n)
         x_out = np.empty((n, 4))
         p_out = np.empty((n, 4, 4))
         act = np.empty(n, dtype=np.int64)
@@ -613,7 +723,7 @@ class Tracker:
         nis = np.empty(n)
         s_out = np.empty(n)
         nu = np.empty(n)
-        ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, x_out, p_out, act,
+        ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, t_out, x_out, p_out, act,
                         status, nis, s_out, nu)
         self.state = FilterState(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
                                  bool(sc[ev.S_HAS_IN] > 0.5))
@@ -623,38 +733,35 @@ class Tracker:
             self.channel_state = ChannelState(np.array([sc[ev.S_A], sc[ev.S_ETA]]), chan_cov,
                                               float(sc[ev.S_RESVAR]), int(sc[ev.S_COUNT]))
         if np.any(kind != ev.EV_STEP):
-            self._corrected_since_fix = self._corrected_since_fix or bool(
-                np.any(status == ev.ST_ACCEPTED))
-        self._track.add_block(tt, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
+            soft = bool(np.any(status == ev.ST_ACCEPTED))
+            self._corrected_since_fix = self._corrected_since_fix or soft
+            self._soft_since_anchor = self._soft_since_anchor or soft
+        self._track.add_block(t_out, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
         self._kernel_diagnostics(events, kind, status, nis, s_out, nu, skip_reason)
 
     def _kernel_diagnostics(self, events: list[tuple[float, int, int, Any]], kind: np.ndarray,
                             status: np.ndarray, nis: np.ndarray, s: np.ndarray, nu: np.ndarray,
                             skip_reason: dict[int, tuple[str, str, str]]) -> None:
-        thr = float(self._params[ev.P_CHI2_1])
-        for k in np.flatnonzero(kind != ev.EV_STEP):
-            t, ek, _, payload = events[k]
-            code = int(status[k])
-            if code == ev.ST_SKIPPED:
-                name, why, src = skip_reason[int(k)]
-                self.diagnostics.append(skipped(name, t, why, src))
+        rows = np.flatnonzero(kind != ev.EV_STEP)
+        if len(rows) == 0:
+            return
+        kinds: list[str] = []
+        sources: list[str] = []
+        reasons: list[str] = []
+        for k in rows.tolist():
+            _, ek, _, payload = events[k]
+            if k in skip_reason:
+                name, why, src = skip_reason[k]
+                kinds.append(name)
+                sources.append(src)
+                reasons.append(why)
                 continue
-            name = "rss" if ek == _RSS else "range"
-            src = payload[1] if ek == _RSS else payload[0]
-            if code == ev.ST_NEAR:
-                why = "estimate on top of the anchor" if ek == _RSS \
-                    else "estimate on top of the node"
-                self.diagnostics.append(UpdateDiagnostics(name, t, "rejected", source=src,
-                                                          reason=why))
-                continue
-            status_name = "accepted" if code == ev.ST_ACCEPTED else "rejected"
-            reason = "" if code == ev.ST_ACCEPTED else (
-                "failed the chi-square gate" if code == ev.ST_GATE
-                else "innovation covariance not positive definite")
-            self.diagnostics.append(UpdateDiagnostics(
-                name, t, status_name, nis=float(nis[k]), dof=1, threshold=thr,
-                innovation=np.array([nu[k]]), innovation_cov=np.array([[s[k]]]), source=src,
-                reason=reason))
+            kinds.append("rss" if ek == _RSS else "range")
+            sources.append(payload[1] if ek == _RSS else payload[0])
+            reasons.append("")
+        self.diagnostics.add_block(DiagnosticsBlock(
+            kinds, np.array([events[k][0] for k in rows.tolist()]), status[rows], nis[rows],
+            s[rows], nu[rows], sources, reasons, float(self._params[ev.P_CHI2_1])))
 
     def _advance_without_steps(self, t: float) -> None:
         """Bring the state to ``t`` before a correction when no step or velocity drives it."""
@@ -687,21 +794,39 @@ class Tracker:
             self._apply_rss(t, payload)
         elif kind == _TAGS:
             ids: list[str] = payload
+            prior_xy = self.state.x[:2].copy()
             upd = self.tag_corrector.update_ids(self.state, t=t, ids=ids,
                                                 landmarks=self.landmarks, memory=self.tag_memory)
+            if (self.tag_fallback is not None and upd.strategy == 0
+                    and not any(d.accepted for d in upd.diagnostics)):
+                # every lobe failed the gate: the dead reckoning, not the tag, is off --
+                # re-initialize by the thesis' strategies (eq. 4.26-4.33)
+                upd = self.tag_fallback.update_ids(self.state, t=t, ids=ids,
+                                                   landmarks=self.landmarks,
+                                                   memory=self.tag_memory)
             self.state, self.tag_memory = upd.state, upd.memory
             self.diagnostics.extend(upd.diagnostics)
-            if upd.strategy != -1:
+            if upd.strategy != -1 and any(d.accepted for d in upd.diagnostics):
                 self._corrected_since_fix = True
+                self._learn_scale(prior_xy, self.state.x[:2].copy())
             if cfg.tags.bearing_correction and upd.strategy != -1:
+                turn = self._recent_turn(t)
                 for tag_id in ids:
                     lm = self.landmarks.get(tag_id)
                     if lm is None or not lm.bearings_rad:
                         continue
+                    if turn > math.radians(cfg.tags.bearing_max_turn_deg):
+                        self.diagnostics.append(skipped(
+                            "bearing", t, f"turning ({math.degrees(turn):.0f} deg over the "
+                            f"last {BEARING_TURN_WINDOW_S:.0f} s)", tag_id))
+                        continue
                     hc = bearing_heading_correction(
                         self.state, lm.bearings_rad, t=t, source=tag_id,
                         gate_rad=math.radians(cfg.tags.bearing_gate_deg),
-                        deadband_rad=math.radians(cfg.tags.bearing_deadband_deg))
+                        deadband_rad=math.radians(cfg.tags.bearing_deadband_deg),
+                        mode=cfg.tags.bearing_mode,
+                        sigma_rad=math.radians(cfg.tags.bearing_sigma_deg),
+                        gate_probability=cfg.gate_probability)
                     self.state = hc.state
                     self.diagnostics.append(hc.diagnostics)
         elif kind == _RANGE:
@@ -717,10 +842,47 @@ class Tracker:
             self.diagnostics.append(upd_r.diagnostics)
             self._corrected_since_fix = self._corrected_since_fix or upd_r.diagnostics.accepted
 
+    def _recent_turn(self, t: float) -> float:
+        """Largest heading change of the steps in the last ``BEARING_TURN_WINDOW_S`` (rad)."""
+        hs = [h for (ts, h) in self._recent_heading if t - BEARING_TURN_WINDOW_S <= ts <= t]
+        if len(hs) < 2:
+            return 0.0 if hs else math.inf
+        d = np.asarray(wrap_angle(np.asarray(hs) - hs[-1]))
+        return float(np.max(np.abs(d)))
+
+    def _learn_scale(self, prior_xy: np.ndarray, post_xy: np.ndarray) -> None:
+        """Step-length scale from two absolute corrections on a straight stretch (our addition).
+
+        Between the last absolute correction (tag or fix) and this one, the dead-reckoned
+        displacement is ``prior - anchor``; the corrected one projected on it gives the ratio
+        of the true to the modelled step length. It is used only when no other correction
+        happened in between, the stretch is at least ``SCALE_MIN_BASELINE_M`` long and nearly
+        straight; the scale moves by the power ``SCALE_GAIN`` of the ratio, within
+        ``SCALE_BOUNDS``.
+        """
+        anchor = self._anchor_xy
+        if (self.config.prediction.learn_step_scale and anchor is not None
+                and not self._soft_since_anchor and not self._velocity_mode):
+            d = prior_xy - anchor
+            base = float(np.hypot(d[0], d[1]))
+            if base >= SCALE_MIN_BASELINE_M and base >= 0.95 * self._path_since_anchor:
+                ratio = float((post_xy - anchor) @ d) / (base * base)
+                if 0.7 < ratio < 1.4:
+                    self.step_scale = float(np.clip(self.step_scale * ratio**SCALE_GAIN,
+                                                    *SCALE_BOUNDS))
+        self._anchor_xy = post_xy
+        self._path_since_anchor = 0.0
+        self._soft_since_anchor = False
+
     def _apply_fix(self, t: float, payload: Any) -> None:
         """Colombo eq. 18-23, then the yaw from trajectory stretching (eq. 24-28) fed back."""
         cfg = self.config
         xyz, sigma, has_z = payload
+        if not self._fix_phase_set:
+            # eq. 19 slots i Tp: anchored at the first fix (the query clock is unknown)
+            self._fix_phase_set = True
+            prm = self.fix_corrector.params
+            self.fix_corrector = FixCorrector(replace(prm, phase_s=t - prm.slot_tolerance_s / 2))
         prior_xy = self.state.x[:2].copy()
         upd = self.fix_corrector.update(self.state, self.fix_schedule, t=t, xyz=xyz,
                                         sigma_m=sigma, moving=self._moving(t), has_z=has_z)
@@ -728,6 +890,7 @@ class Tracker:
         self.diagnostics.append(upd.diagnostics)
         if not upd.diagnostics.accepted:
             return
+        self._learn_scale(prior_xy, self.state.x[:2].copy())
         fix_xy = np.asarray(xyz[:2], dtype=np.float64)
         mem = self._stretch
         if cfg.fixes.yaw_stretch and mem is not None and not self._corrected_since_fix:
@@ -787,7 +950,13 @@ class Tracker:
             self.diagnostics.append(skipped("rss", t, f"{len(scan.anchor)} anchors heard "
                                             "(WLS needs 3)", ",".join(scan.anchor)))
             return
-        fix = scan_position(scan, self.path_loss)
+        try:
+            fix = scan_position(scan, self.path_loss)
+        except InputError as exc:   # e.g. the heard anchors are collinear
+            self.diagnostics.append(UpdateDiagnostics("rss", t, "rejected",
+                                                      source=",".join(scan.anchor),
+                                                      reason=exc.problem))
+            return
         if cfg.rss.mode == "wls":
             # RSS alone: the estimate jumps to each WLS position (Tarrio's baseline)
             x = self.state.x.copy()
@@ -813,8 +982,11 @@ class Tracker:
 
     # ------------------------------------------------------------------ report
     def _report(self, trajectory: Trajectory, steps: StepEvents) -> dict[str, Any]:
-        counts = summarize(self.diagnostics)
-        rejected = [d.to_dict() for d in self.diagnostics if d.status == "rejected"][:200]
+        counts = self.diagnostics.counts()
+        if self.has_imu and not self._seen_obs:
+            self.notes.append("no infrastructure observations: pure dead reckoning (the error "
+                              "grows with the distance walked)")
+        rejected = [d.to_dict() for d in self.diagnostics.first_rejected(200)]
         final = self.state
         report: dict[str, Any] = {
             "config": self.config.model_dump(),
@@ -822,6 +994,8 @@ class Tracker:
             "notes": self.notes,
             "corrections": counts,
             "rejected": rejected,
+            "step_length_scale": self.step_scale,
+            "yaw_pseudo_measurements": len(self.yaw_pseudo),
             "summary": {
                 "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
                 "steps": len(steps),
@@ -836,6 +1010,15 @@ class Tracker:
                                  "eta": float(self.channel_state.theta[1]),
                                  "sigma_db": math.sqrt(self.channel_state.residual_var_db2)}
         return report
+
+
+def _chunk_end(chunk: Session) -> float:
+    """Latest time of the chunk's sensor streams and observations (not its ground truth)."""
+    ends = [float(part.t[-1]) for part in (chunk.fixes, chunk.rss, chunk.tags, chunk.ranges)
+            if part is not None and len(part.t)]
+    if chunk.imu is not None and len(chunk.imu.accel.t):
+        ends.append(float(chunk.imu.accel.t[-1]))
+    return max(ends) if ends else -math.inf
 
 
 def _concat_steps(parts: list[StepEvents]) -> StepEvents:

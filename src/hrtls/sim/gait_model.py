@@ -24,11 +24,11 @@ not measured on runners). What that gives, relative to the heel strikes:
 
 * vertical: peak ~0.05 s after heel strike, low in mid-stance; step frequency with 2nd / 3rd step
   harmonics that are larger at slow speed (double-bump at slow speed);
-* AP: minimum (braking) ~0.1-0.15 s after heel strike, maximum (push-off) ~0.15 s before the next
-  heel strike;
+* AP: minimum (braking) ~0.1-0.15 s after heel strike, maximum (push-off) ~0.1-0.15 s before the
+  next heel strike;
 * ML: stride frequency, towards the stance foot (acceleration to the right in mid left stance);
 * pelvis yaw ~3.5 deg amplitude at stride frequency (left hip forward at left heel strike), pitch
-  ~1 deg at step frequency, roll ~1-2 deg at stride frequency (with a 3rd harmonic).
+  ~1 deg at step frequency, roll ~0.5-2 deg at stride frequency (with a 3rd harmonic).
 
 The vertical acceleration peak-to-peak follows Weinberg's relation
 ``l = K (A_max - A_min)^(1/4)`` (Tarrio eq. 3, Inderst eq. 4.24) for the person's ``K``: the
@@ -54,13 +54,14 @@ those mean waveforms (:func:`waveform_harmonics`): accelerations relative to the
 the vertical step-frequency harmonic (ML in m/s^2), angles from the rate harmonics divided by
 ``i n w_s``. Odd harmonics of vertical / AP and even ones of ML / roll / yaw are left-right
 asymmetries that cancel in the mirrored mean (their residual is < 0.06); the vertical stride
-harmonic is put back as ``asymmetry_ratio``. ``benchmarks/sim_vs_real.py`` repeats the
-measurement and compares it with this model.
+harmonic is put back as ``asymmetry_ratio``. ``python benchmarks/sim_vs_real.py --table``
+repeats the measurement (prints these tables) and compares the model with the real waveforms.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numba
 import numpy as np
@@ -75,6 +76,7 @@ from hrtls.sim.motion import GAIT_RUN, GAIT_STAIRS, MotionTruth
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 Harmonics = tuple[tuple[int, float, float, float, float], ...]
+ArrayT = TypeVar("ArrayT", FloatArray, ComplexArray)
 
 WAVEFORM_ANCHOR_SPEEDS_M_S: tuple[float, float] = (0.54, 0.98)
 """Walking speeds (m/s) of the two measured waveform sets (slow, fast); see the module notes."""
@@ -84,7 +86,7 @@ WAVEFORM_ANCHOR_SPEEDS_M_S: tuple[float, float] = (0.54, 0.98)
 # meaning a(theta) = sum amplitude * cos(n theta + phase), theta = 0 at a left heel strike.
 # vertical acceleration, relative to the step-frequency (n = 2) amplitude
 _VERTICAL: Harmonics = ((2, 1.0, -41.0, 1.0, -25.0), (4, 0.47, -64.0, 0.22, -52.0),
-                        (6, 0.27, -79.0, 0.16, -50.0))
+                        (6, 0.27, -79.0, 0.16, -50.0), (8, 0.15, -116.0, 0.11, -128.0))
 _VERTICAL_ASYMMETRY_PHASE_DEG = 140.0  # phase of the n = 1 residual (left-right asymmetry)
 # AP acceleration, relative to the vertical n = 2 amplitude
 _FORWARD: Harmonics = ((2, 0.81, 87.0, 0.66, 80.0), (4, 0.21, 59.0, 0.17, 58.0),
@@ -215,14 +217,15 @@ def _smooth_noise(rng: np.random.Generator, n: int, dt: float, tau_s: float) -> 
     return np.asarray(x * np.sqrt(2.0 * np.sqrt(np.pi) * sigma), dtype=np.float64)
 
 
-def _moving_average(x: FloatArray, n: int) -> FloatArray:
+def _moving_average(x: ArrayT, n: int) -> ArrayT:
     """Centred moving average over ``n`` samples along axis 0 (ends held)."""
     if n <= 1 or len(x) == 0:
         return x
     pad = np.concatenate([np.repeat(x[:1], n // 2, axis=0), x,
                           np.repeat(x[-1:], n - n // 2 - 1, axis=0)])
     c = np.cumsum(np.concatenate([np.zeros_like(x[:1]), pad]), axis=0)
-    return np.asarray((c[n:] - c[:-n]) / n, dtype=x.dtype)
+    out: ArrayT = np.asarray((c[n:] - c[:-n]) / n, dtype=x.dtype)
+    return out
 
 
 def _coefficients(table: Harmonics, weight: FloatArray, scale: tuple[float, ...]
@@ -237,16 +240,24 @@ def _coefficients(table: Harmonics, weight: FloatArray, scale: tuple[float, ...]
     p0 = np.deg2rad([row[2] for row in table])
     a1 = np.array([row[3] for row in table])
     dp = np.angle(np.exp(1j * (np.deg2rad([row[4] for row in table]) - p0)))
-    w = weight[:, None]
+    # the weight takes few distinct values (mostly 0 or 1): evaluate each once
+    levels, inverse = np.unique(weight, return_inverse=True)
+    w = levels[:, None]
     amp = ((1.0 - w) * a0 + w * a1) * np.asarray(scale)
-    return ns, np.asarray(amp * np.exp(1j * (p0 + w * dp)), dtype=np.complex128)
+    coef = amp * np.exp(1j * (p0 + w * dp))
+    return ns, np.asarray(coef[inverse.ravel()], dtype=np.complex128)
 
 
-def _synthesize(ns: NDArray[np.int64], coef: ComplexArray, theta: FloatArray) -> FloatArray:
-    """``sum_n Re(coef_n exp(i n theta))`` per sample."""
-    out = np.zeros(len(theta))
-    for j, n in enumerate(ns):
-        out += np.real(coef[:, j] * np.exp(1j * n * theta))
+def _synthesize(ns: NDArray[np.int64], coef: ComplexArray, z: ComplexArray) -> FloatArray:
+    """``sum_n Re(coef_n z^n)`` per sample, ``z = exp(i theta)``."""
+    out = np.zeros(len(z))
+    zn = np.ones_like(z)
+    power = 0
+    for j, n in enumerate(ns):  # harmonics in increasing order
+        while power < n:
+            zn = zn * z
+            power += 1
+        out += np.real(coef[:, j] * zn)
     return out
 
 
@@ -255,7 +266,7 @@ def _vertical_table(p: GaitParams) -> tuple[Harmonics, tuple[float, ...]]:
     asym = (1, p.asymmetry_ratio, _VERTICAL_ASYMMETRY_PHASE_DEG, p.asymmetry_ratio,
             _VERTICAL_ASYMMETRY_PHASE_DEG)
     return (asym, *_VERTICAL), (1.0, 1.0, p.harmonic2_ratio / _REF_H2,
-                                p.harmonic3_ratio / _REF_H3)
+                                p.harmonic3_ratio / _REF_H3, 1.0)
 
 
 def _vertical_pp(p: GaitParams, weight: FloatArray) -> FloatArray:
@@ -341,18 +352,19 @@ def simulate_gait(motion: MotionTruth, params: GaitParams, rng: np.random.Genera
     x = np.clip(v / v_env, 0.0, 1.0)
     envelope = x * x * x * (x * (6.0 * x - 15.0) + 10.0)
     envelope = envelope * (1.0 + p.amplitude_cv * _smooth_noise(rng, n, dt, 1.0))
-    th = np.pi * phase  # stride angle: 0 at left heel strikes, pi at right ones
+    # stride angle theta = pi phase: 0 at left heel strikes, pi at right ones
+    z = np.exp(1j * np.pi * phase)
 
     def displacement(table: Harmonics, scale: tuple[float, ...], gain: FloatArray
                      ) -> FloatArray:
         # acceleration harmonics -> displacement harmonics: divide by -(n w_s)^2
         ns, c = _coefficients(table, weight, scale)
         c = c * (gain[:, None] / -((ns[None, :] * w_stride[:, None]) ** 2))
-        return envelope * _synthesize(ns, _moving_average(c, win), th)
+        return envelope * _synthesize(ns, _moving_average(c, win), z)
 
     def angle(table: Harmonics, scale: float) -> FloatArray:
         ns, c = _coefficients(table, weight, (scale,) * len(table))
-        return envelope * _synthesize(ns, _moving_average(c, win), th)
+        return envelope * _synthesize(ns, _moving_average(c, win), z)
 
     v_table, v_scale = _vertical_table(p)
     up = displacement(v_table, v_scale, a_step)
@@ -402,13 +414,21 @@ def _levelled_kernel(f: FloatArray, w: FloatArray, dt: float, alpha: float, u0: 
     ux, uy, uz = u0[0], u0[1], u0[2]
     for k in range(f.shape[0]):
         if k > 0:
-            # u is fixed in the navigation frame: du/dt = -w x u in the body frame
-            cx = w[k, 1] * uz - w[k, 2] * uy
-            cy = w[k, 2] * ux - w[k, 0] * uz
-            cz = w[k, 0] * uy - w[k, 1] * ux
-            ux -= cx * dt
-            uy -= cy * dt
-            uz -= cz * dt
+            # u is fixed in the navigation frame, so in the body frame it turns by -w dt:
+            # exact rotation (Rodrigues) with the mean rate of the interval
+            wx = 0.5 * (w[k - 1, 0] + w[k, 0])
+            wy = 0.5 * (w[k - 1, 1] + w[k, 1])
+            wz = 0.5 * (w[k - 1, 2] + w[k, 2])
+            wn = np.sqrt(wx * wx + wy * wy + wz * wz)
+            if wn > 0.0:
+                kx, ky, kz = -wx / wn, -wy / wn, -wz / wn
+                c, s = np.cos(wn * dt), np.sin(wn * dt)
+                kd = (kx * ux + ky * uy + kz * uz) * (1.0 - c)
+                cx = ky * uz - kz * uy
+                cy = kz * ux - kx * uz
+                cz = kx * uy - ky * ux
+                ux, uy, uz = (ux * c + cx * s + kx * kd, uy * c + cy * s + ky * kd,
+                              uz * c + cz * s + kz * kd)
             fn = np.sqrt(f[k, 0] ** 2 + f[k, 1] ** 2 + f[k, 2] ** 2)
             if fn > 0.0:
                 ux = (1.0 - alpha) * ux + alpha * f[k, 0] / fn

@@ -60,11 +60,20 @@ class RangeScan:
 
 @dataclass(frozen=True, eq=False)
 class Landmarks:
-    """Localized nodes an agent may use for range corrections (index and estimated position)."""
+    """Localized nodes an agent may use for range corrections.
+
+    ``node`` are their indices, ``position_m`` their estimated positions and ``sigma_m`` the
+    standard deviation of those positions (one value for all, or one per landmark), m.
+    """
 
     node: IntArray
     position_m: FloatArray
-    sigma_m: float = 0.0
+    sigma_m: float | FloatArray = 0.0
+
+    def sigmas(self) -> FloatArray:
+        """Per-landmark position sigma, ``(k,)``."""
+        return np.broadcast_to(np.asarray(self.sigma_m, dtype=np.float64),
+                               (np.asarray(self.node).size,)).copy()
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,35 +172,58 @@ def range_update(
     sigma_m: FloatArray,
     *,
     gate_sigma: float = 4.0,
+    iterations: int = 1,
 ) -> tuple[FloatArray, FloatArray, int]:
-    """Sequential EKF updates with range observations ``d = ||p_j - p_r||`` (thesis eq. 6.4).
+    """EKF update with range observations ``d = ||p_j - p_r||`` (thesis eq. 6.4).
 
     ``x`` may be ``[x, y]`` or ``[x, y, heading]`` (only the position is observed). Observations
-    whose innovation exceeds ``gate_sigma`` standard deviations are skipped. Returns the new
-    state, covariance and the number of accepted ranges.
+    whose innovation exceeds ``gate_sigma`` standard deviations (at the prior) are skipped. With
+    ``iterations > 1`` all ranges are fused in one batch by the iterated EKF (relinearized at the
+    current iterate), which avoids the overconfidence of a single linearization when the prior is
+    much wider than the ranges. Returns the new state, covariance and the number of used ranges.
     """
     xs = np.array(x, dtype=np.float64, copy=True)
     ps = np.array(p, dtype=np.float64, copy=True)
-    used = 0
-    for k in range(landmarks_m.shape[0]):
-        dx = xs[0] - landmarks_m[k, 0]
-        dy = xs[1] - landmarks_m[k, 1]
-        h = math.hypot(dx, dy)
-        if h < 1e-9:
-            continue
-        hrow = np.zeros(xs.size)
-        hrow[0] = dx / h
-        hrow[1] = dy / h
-        s = float(hrow @ ps @ hrow) + float(sigma_m[k]) ** 2
-        innov = float(ranges_m[k]) - h
-        if innov * innov > gate_sigma**2 * s:
-            continue
-        kg = ps @ hrow / s
-        xs = xs + kg * innov
-        ikh = np.eye(xs.size) - np.outer(kg, hrow)
-        ps = ikh @ ps @ ikh.T + np.outer(kg, kg) * float(sigma_m[k]) ** 2  # Joseph form
-        used += 1
-    return xs, 0.5 * (ps + ps.T), used
+    lm = np.asarray(landmarks_m, dtype=np.float64).reshape(-1, 2)
+    z = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    sg = np.asarray(sigma_m, dtype=np.float64).reshape(-1)
+    dim = xs.size
+
+    def jac(xx: FloatArray, idx: IntArray) -> tuple[FloatArray, FloatArray]:
+        d = xx[:2][None, :] - lm[idx]
+        h = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+        hm = np.zeros((idx.size, dim))
+        hm[:, :2] = d / h[:, None]
+        return h, hm
+
+    h0, hm0 = jac(xs, np.arange(z.size))
+    s0 = np.einsum("ij,jk,ik->i", hm0, ps, hm0) + sg**2
+    use = np.flatnonzero((h0 > 1e-9) & ((z - h0) ** 2 <= gate_sigma**2 * s0))
+    if use.size == 0:
+        return xs, ps, 0
+    if iterations <= 1:
+        for k in use.tolist():  # sequential scalar updates, Joseph form
+            hk, hmk = jac(xs, np.array([k]))
+            row = hmk[0]
+            s = float(row @ ps @ row) + float(sg[k]) ** 2
+            kg = ps @ row / s
+            xs = xs + kg * float(z[k] - hk[0])
+            ikh = np.eye(dim) - np.outer(kg, row)
+            ps = ikh @ ps @ ikh.T + np.outer(kg, kg) * float(sg[k]) ** 2
+        return xs, 0.5 * (ps + ps.T), int(use.size)
+    r = np.diag(sg[use] ** 2)
+    x0 = xs.copy()
+    xi = xs.copy()
+    kg = np.zeros((dim, use.size))
+    hm = np.zeros((use.size, dim))
+    for _ in range(iterations):
+        h, hm = jac(xi, use)
+        smat = hm @ ps @ hm.T + r
+        kg = np.linalg.solve(smat, hm @ ps).T
+        xi = x0 + kg @ (z[use] - h - hm @ (x0 - xi))
+    ikh = np.eye(dim) - kg @ hm
+    ps = ikh @ ps @ ikh.T + kg @ r @ kg.T
+    return xi, 0.5 * (ps + ps.T), int(use.size)
 
 
 # ------------------------------------------------------------------------------------------
@@ -522,7 +554,8 @@ class RobotAgent:
         self._legs += 1
         n, length, reached = robot_leg_kernel(
             self.true_pose, self.est_pose, self.cov, tgt, lm_est, lm_true,
-            float(landmarks.sigma_m), float(self.world.radio_range_m), prm.dt_s, prm.k_p_per_s,
+            float(np.max(landmarks.sigmas(), initial=0.0)), float(self.world.radio_range_m),
+            prm.dt_s, prm.k_p_per_s,
             prm.k_v, prm.k_w_per_s, prm.max_speed_m_s, prm.max_turn_rate_rad_s,
             prm.arrival_radius_m, prm.speed_noise_fraction, prm.turn_rate_noise_rad_s,
             prm.range_noise_fraction, prm.range_every_steps, prm.max_steps, seed, pt, pe,
@@ -607,10 +640,12 @@ class RescuerAgent:
         sel = [i for i, k in enumerate(sc.node) if int(k) in pos_of]
         if not sel:
             return
-        lm = np.array([landmarks.position_m[pos_of[int(sc.node[i])]] for i in sel])
+        rows = [pos_of[int(sc.node[i])] for i in sel]
+        lm = np.array([landmarks.position_m[k] for k in rows])
         rr = sc.range_m[sel]
-        sig = np.sqrt((self.params.range_noise_fraction * rr) ** 2 + landmarks.sigma_m**2 + 1e-12)
-        self.est_m, self.cov, _ = range_update(self.est_m, self.cov, lm, rr, sig)
+        sl = landmarks.sigmas()[rows]
+        sig = np.sqrt((self.params.range_noise_fraction * rr) ** 2 + sl**2 + 1e-12)
+        self.est_m, self.cov, _ = range_update(self.est_m, self.cov, lm, rr, sig, iterations=8)
 
     def go_to(self, target_m: FloatArray, landmarks: Landmarks) -> AgentLeg:
         """Walk to ``target_m`` (steers on the estimate), correcting with ranges."""

@@ -416,7 +416,8 @@ def safe_navigation(
 
     def visit(wp: WayPoint) -> Localization:
         lm = np.flatnonzero(loc.localized[:n])
-        leg = agent.go_to(wp.position_m, Landmarks(node=lm, position_m=loc.estimate_m[lm]))
+        leg = agent.go_to(wp.position_m, Landmarks(node=lm, position_m=loc.estimate_m[lm],
+                                                   sigma_m=loc.sigma_m[lm]))
         legs.append(leg)
         visited.append(wp)
         sc = leg.scan

@@ -27,7 +27,7 @@ from hrtls.wsn._propagation import (
     _min_spread,
     propagate_kernel,
 )
-from hrtls.wsn.network import METHOD_NAMES, Adjacency, Network, build_adjacency
+from hrtls.wsn.network import METHOD_NAMES, Adjacency, Network
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -258,32 +258,10 @@ def trilaterate(points_m: FloatArray, ranges_m: FloatArray) -> tuple[FloatArray,
     return np.array([x, y]), float(worst)
 
 
-def adjacency_with_extra(
-    net: Network, extra_positions_m: FloatArray, extra_links: list[tuple[int, int, float]]
-) -> tuple[int, Adjacency, FloatArray]:
-    """Adjacency of the network augmented by temporary agent nodes (indices ``n, n+1, ...``).
-
-    ``extra_links`` holds ``(agent_index, node_index, distance)`` with agent indices counted from
-    0. Returns the total node count, the adjacency and the agent positions (for convenience).
-    """
-    n = net.n_nodes
-    k = int(np.asarray(extra_positions_m).reshape(-1, 2).shape[0])
-    if extra_links:
-        arr = np.array(extra_links, dtype=np.float64)
-        a = arr[:, 0].astype(np.int64) + n
-        b = arr[:, 1].astype(np.int64)
-        e = np.vstack([net.edges, np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)])
-        d = np.concatenate([net.distance_m, arr[:, 2]])
-    else:
-        e, d = net.edges, net.distance_m
-    return n + k, build_adjacency(n + k, e, d), np.asarray(extra_positions_m).reshape(-1, 2)
-
-
 __all__ = [
     "M_AGENT",
     "Localization",
     "PropagationParams",
-    "adjacency_with_extra",
     "propagate",
     "seeds_of",
     "trilaterate",

@@ -1,0 +1,58 @@
+"""Tracker configuration: presets, TOML files and errors that name the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hrtls.errors import FormatError, InputError
+from hrtls.pipeline import PRESETS, TrackerConfig, load_config, preset
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_presets_load(name: str) -> None:
+    cfg = preset(name)
+    assert isinstance(cfg, TrackerConfig)
+    assert cfg.name == name
+
+
+def test_unknown_preset() -> None:
+    with pytest.raises(InputError, match="unknown preset"):
+        preset("nope")
+
+
+def test_toml_roundtrip(tmp_path: Path) -> None:
+    p = tmp_path / "c.toml"
+    p.write_text('name = "mine"\n[fixes]\nperiod_s = 16.0\n[rss]\nmode = "kalman"\n')
+    cfg = load_config(p)
+    assert cfg.name == "mine" and cfg.fixes.period_s == 16.0 and cfg.rss.mode == "kalman"
+    assert cfg.tags == TrackerConfig().tags
+
+
+@pytest.mark.parametrize(("text", "key"), [
+    ("[fixes]\nperiod_z = 1.0\n", "fixes.period_z"),
+    ("[rss]\nmode = \"loud\"\n", "rss.mode"),
+    ("[fixes]\nperiod_s = -1.0\n", "fixes.period_s"),
+    ("gate_probability = 2.0\n", "gate_probability"),
+    ("[bogus]\nx = 1\n", "bogus"),
+])
+def test_bad_key_is_named(tmp_path: Path, text: str, key: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(FormatError) as err:
+        load_config(p)
+    assert key in str(err.value)
+    assert str(p) in str(err.value)
+
+
+def test_bad_toml_syntax(tmp_path: Path) -> None:
+    p = tmp_path / "broken.toml"
+    p.write_text("[fixes\nperiod_s = 1\n")
+    with pytest.raises(FormatError, match=r"broken\.toml"):
+        load_config(p)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="no such file"):
+        load_config(tmp_path / "absent.toml")
