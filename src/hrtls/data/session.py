@@ -26,10 +26,16 @@ from hrtls.frames import Georeference
 
 
 class StartPose(BaseModel):
-    """Known start position (m) and heading (rad, ENU, CCW from east) of the agent."""
+    """Known start position (m) and heading (rad, ENU, CCW from east) of the agent.
+
+    ``t`` is the time (s, session clock) at which the pose holds; None means the start of the
+    recording. Trackers run their attitude filter from the first sample but place the agent at
+    ``t``.
+    """
 
     model_config = ConfigDict(extra="forbid")
 
+    t: float | None = None
     x: float = 0.0
     y: float = 0.0
     z: float = 0.0

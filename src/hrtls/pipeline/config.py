@@ -94,6 +94,9 @@ class TagsConfig(_Section):
     bearing_gate_deg: float = Field(default=45.0, gt=0.0, le=180.0)
     bearing_deadband_deg: float = Field(default=5.0, ge=0.0)
     bearing_mode: Literal["replace", "kalman"] = "replace"
+    bearing_confirm_s: float = Field(
+        default=0.0, ge=0.0,
+        description="wait this long after a read and skip its bearing if the user turned")
     bearing_max_turn_deg: float = Field(
         default=15.0, gt=0.0, description="no bearing correction while turning more than this")
     bearing_sigma_deg: float = Field(default=5.0, gt=0.0)

@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections import deque
 import warnings
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -106,8 +106,7 @@ from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 FloatArray = np.ndarray
 
 # event kinds in the order they are applied when they share a time
-_STEP, _FIX, _RSS, _TAGS, _RANGE = 0, 1, 2, 3, 4
-_KIND_NAMES = {_STEP: "step", _FIX: "fix", _RSS: "rss", _TAGS: "tags", _RANGE: "range"}
+_STEP, _FIX, _RSS, _TAGS, _RANGE, _BEARING = 0, 1, 2, 3, 4, 5
 MOVING_SIGMA_M_S2 = 0.2
 """Colombo's sigma_min: the user moves when the 2 s std of vertical acceleration exceeds it."""
 LIVE_LATENCY_S = 4.0
@@ -117,7 +116,8 @@ FLOOR_SIGMA_M = 0.1
 RSS_MIN_DISTANCE_M = 0.5
 """Tight RSS readings are not used when the estimate is nearer than this to the anchor (m)."""
 BEARING_TURN_WINDOW_S = 3.0
-"""Steps of this last span must agree within ``tags.bearing_max_turn_deg`` for a bearing."""
+"""Steps from this long before a tag read to its confirmation must agree within
+``tags.bearing_max_turn_deg`` for the read's bearing to be used, s."""
 SCALE_MIN_BASELINE_M = 8.0
 """Shortest straight stretch between two absolute corrections that teaches the step scale, m."""
 SCALE_GAIN = 0.25
@@ -237,10 +237,18 @@ class Tracker:
         self._anchor_xy: np.ndarray | None = None
         self._path_since_anchor = 0.0
         self._soft_since_anchor = False
-        self._recent_heading: deque[tuple[float, float]] = deque(maxlen=8)
+        self._recent_heading: deque[tuple[float, float]] = deque(maxlen=16)
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
         self._rss_note = False
         self._seen_obs = False
+        self._bulk_t = np.zeros(0)
+        self._bulk_k = np.zeros(0, dtype=np.int64)
+        self._bulk_seq = np.zeros(0, dtype=np.int64)
+        self._bulk_ev = np.zeros(0, dtype=np.int64)
+        self._bulk_data = np.zeros((0, 5))
+        self._bulk_src = np.zeros(0, dtype=str)
+        self._bulk_i = 0
+        self._bulk_count = 0
         self._t0 = t0
         self._tag_buf_t = np.zeros(0)
         self._tag_buf_id = np.zeros(0, dtype=str)
@@ -558,11 +566,15 @@ class Tracker:
                                   "dBm, eta = 2" + (" and re-estimates them online"
                                                     if cfg.rss.estimate_channel else ""))
             if cfg.rss.mode == "tight":
-                keep = chunk.rss.rss_dbm >= cfg.rss.sensitivity_dbm
-                for k in np.flatnonzero(keep).tolist():
-                    self._push(float(chunk.rss.t[k]), _RSS,
-                               i_payload=("reading", str(chunk.rss.anchor[k]),
-                                          float(chunk.rss.rss_dbm[k])))
+                r = chunk.rss
+                keep = r.rss_dbm >= cfg.rss.sensitivity_dbm
+                if self._velocity_mode:
+                    for k in np.flatnonzero(keep).tolist():
+                        self._push(float(r.t[k]), _RSS, i_payload=(
+                            "reading", str(r.anchor[k]), float(r.rss_dbm[k])))
+                else:
+                    self._add_bulk(_RSS, r.t[keep], r.anchor[keep].astype(str),
+                                   r.rss_dbm[keep], np.full(int(keep.sum()), np.nan))
             else:
                 r = chunk.rss
                 self._scan_buf_t = np.concatenate([self._scan_buf_t, r.t])
@@ -577,9 +589,45 @@ class Tracker:
         self._flush_tag_groups(_chunk_end(chunk))
         if chunk.ranges is not None and cfg.ranges.enabled:
             rm = chunk.ranges
-            for i in range(len(rm)):
-                self._push(float(rm.t[i]), _RANGE, i_payload=(
-                    str(rm.node[i]), float(rm.range_m[i]), float(rm.sigma_m[i])))
+            if self._velocity_mode:
+                for i in range(len(rm)):
+                    self._push(float(rm.t[i]), _RANGE, i_payload=(
+                        str(rm.node[i]), float(rm.range_m[i]), float(rm.sigma_m[i])))
+            else:
+                self._add_bulk(_RANGE, rm.t, rm.node.astype(str), rm.range_m, rm.sigma_m)
+
+    def _add_bulk(self, heap_kind: int, t: np.ndarray, src: np.ndarray, value: np.ndarray,
+                  sigma: np.ndarray) -> None:
+        """Queue tight RSS readings or ranges as sorted columns (no per-reading Python)."""
+        n = len(t)
+        if n == 0:
+            return
+        ev_kind = np.full(n, ev.EV_RSS if heap_kind == _RSS else ev.EV_RANGE, dtype=np.int64)
+        data = np.full((n, 5), np.nan)
+        data[:, 3] = value
+        data[:, 4] = sigma
+        names, inv = np.unique(src, return_inverse=True)
+        for j, name in enumerate(names.tolist()):
+            lm = self.landmarks.get(name)
+            rows = inv == j
+            if lm is None or lm.position is None:
+                ev_kind[rows] = ev.EV_SKIP
+            else:
+                data[rows, :3] = lm.xyz()
+        i0 = self._bulk_i
+        seq = self._bulk_count + np.arange(n)
+        self._bulk_count += n
+        bt = np.concatenate([self._bulk_t[i0:], t])
+        bk = np.concatenate([self._bulk_k[i0:], np.full(n, heap_kind, dtype=np.int64)])
+        bs = np.concatenate([self._bulk_seq[i0:], seq])
+        order = np.lexsort((bs, bk, bt))
+        self._bulk_t = bt[order]
+        self._bulk_k = bk[order]
+        self._bulk_seq = bs[order]
+        self._bulk_ev = np.concatenate([self._bulk_ev[i0:], ev_kind])[order]
+        self._bulk_data = np.concatenate([self._bulk_data[i0:], data])[order]
+        self._bulk_src = np.concatenate([self._bulk_src[i0:], src])[order]
+        self._bulk_i = 0
 
     def _flush_tag_groups(self, t_seen: float) -> None:
         """Group tag reads whose grouping window has closed (the same in chunked runs)."""
@@ -627,23 +675,37 @@ class Tracker:
         return kind in (_STEP, _RANGE) or (kind == _RSS and payload[0] == "reading")
 
     def _drain(self, horizon: float) -> None:
-        events: list[tuple[float, int, int, Any]] = []
-        while self._pending and self._pending[0][0] <= horizon:
-            events.append(heapq.heappop(self._pending))
-        i = 0
-        while i < len(events):
-            t, kind, _, payload = events[i]
-            if self._fast(kind, payload):
-                j = i + 1
-                while j < len(events) and self._fast(events[j][1], events[j][3]):
-                    j += 1
-                self._run_kernel(events[i:j])
-                i = j
+        pending = self._pending
+        while True:
+            head = pending[0] if pending and pending[0][0] <= horizon else None
+            bi = self._bulk_i
+            bulk_next = bi < len(self._bulk_t) and self._bulk_t[bi] <= horizon
+            if head is None and not bulk_next:
+                break
+            if head is not None and not self._fast(head[1], head[3]) and (
+                    not bulk_next or (head[0], head[1]) < (float(self._bulk_t[bi]),
+                                                           int(self._bulk_k[bi]))):
+                heapq.heappop(pending)
+                t, kind, _, payload = head
+                self._advance_without_steps(t)
+                self._apply_observation(t, kind, payload)
+                self._track.add(self.state, self._last_activity)
                 continue
-            self._advance_without_steps(t)
-            self._apply_observation(t, kind, payload)
-            self._track.add(self.state, self._last_activity)
-            i += 1
+            # a fast run: steps from the heap and bulk rows up to the next slow event
+            run: list[tuple[float, int, int, Any]] = []
+            while pending and pending[0][0] <= horizon and self._fast(pending[0][1],
+                                                                      pending[0][3]):
+                run.append(heapq.heappop(pending))
+            if pending and pending[0][0] <= horizon:
+                lim_t, lim_k = pending[0][0], pending[0][1]
+                j = int(np.searchsorted(self._bulk_t, lim_t, side="left"))
+                j2 = int(np.searchsorted(self._bulk_t, lim_t, side="right"))
+                j += int(np.count_nonzero(self._bulk_k[j:j2] < lim_k))
+            else:
+                j = int(np.searchsorted(self._bulk_t, horizon, side="right"))
+            j = max(j, bi)
+            self._run_kernel(run, bi, j)
+            self._bulk_i = j
         if self._velocity_mode and math.isfinite(horizon):
             self._velocity_to(horizon)
         elif self._velocity_mode:
@@ -810,25 +872,27 @@ class Tracker:
                 self._corrected_since_fix = True
                 self._learn_scale(prior_xy, self.state.x[:2].copy())
             if cfg.tags.bearing_correction and upd.strategy != -1:
-                turn = self._recent_turn(t)
                 for tag_id in ids:
                     lm = self.landmarks.get(tag_id)
                     if lm is None or not lm.bearings_rad:
                         continue
-                    if turn > math.radians(cfg.tags.bearing_max_turn_deg):
-                        self.diagnostics.append(skipped(
-                            "bearing", t, f"turning ({math.degrees(turn):.0f} deg over the "
-                            f"last {BEARING_TURN_WINDOW_S:.0f} s)", tag_id))
-                        continue
-                    hc = bearing_heading_correction(
-                        self.state, lm.bearings_rad, t=t, source=tag_id,
-                        gate_rad=math.radians(cfg.tags.bearing_gate_deg),
-                        deadband_rad=math.radians(cfg.tags.bearing_deadband_deg),
-                        mode=cfg.tags.bearing_mode,
-                        sigma_rad=math.radians(cfg.tags.bearing_sigma_deg),
-                        gate_probability=cfg.gate_probability)
-                    self.state = hc.state
-                    self.diagnostics.append(hc.diagnostics)
+                    if cfg.tags.bearing_confirm_s > 0.0:
+                        # decide once the next steps show whether the user was turning
+                        self._push(t + cfg.tags.bearing_confirm_s, _BEARING, i_payload=(
+                            tag_id, tuple(lm.bearings_rad), self.state.heading, t))
+                    else:
+                        self._apply_bearing(t, tag_id, np.asarray(lm.bearings_rad))
+        elif kind == _BEARING:
+            tag_id, bearings, heading_at_read, t_read = payload
+            turn = self._recent_turn(t_read - BEARING_TURN_WINDOW_S, t)
+            if turn > math.radians(cfg.tags.bearing_max_turn_deg):
+                self.diagnostics.append(skipped(
+                    "bearing", t, f"turning ({math.degrees(turn):.0f} deg around the read)",
+                    tag_id))
+                return
+            # the bearing judged against the heading at the read, applied to the heading now
+            shift = float(wrap_angle(self.state.heading - heading_at_read))
+            self._apply_bearing(t, tag_id, np.asarray(bearings) + shift)
         elif kind == _RANGE:
             node, rng, sigma = payload
             lm = self.landmarks.get(node)
@@ -842,9 +906,20 @@ class Tracker:
             self.diagnostics.append(upd_r.diagnostics)
             self._corrected_since_fix = self._corrected_since_fix or upd_r.diagnostics.accepted
 
-    def _recent_turn(self, t: float) -> float:
-        """Largest heading change of the steps in the last ``BEARING_TURN_WINDOW_S`` (rad)."""
-        hs = [h for (ts, h) in self._recent_heading if t - BEARING_TURN_WINDOW_S <= ts <= t]
+    def _apply_bearing(self, t: float, tag_id: str, bearings: np.ndarray) -> None:
+        """Inderst eq. 4.21-4.22 with the configured deadband, gate and mode."""
+        cfg = self.config.tags
+        hc = bearing_heading_correction(
+            self.state, bearings, t=t, source=tag_id, gate_rad=math.radians(cfg.bearing_gate_deg),
+            deadband_rad=math.radians(cfg.bearing_deadband_deg), mode=cfg.bearing_mode,
+            sigma_rad=math.radians(cfg.bearing_sigma_deg),
+            gate_probability=self.config.gate_probability)
+        self.state = hc.state
+        self.diagnostics.append(hc.diagnostics)
+
+    def _recent_turn(self, t_from: float, t_to: float) -> float:
+        """Largest heading change between the steps ending in ``[t_from, t_to]`` (rad)."""
+        hs = [h for (ts, h) in self._recent_heading if t_from <= ts <= t_to]
         if len(hs) < 2:
             return 0.0 if hs else math.inf
         d = np.asarray(wrap_angle(np.asarray(hs) - hs[-1]))

@@ -32,8 +32,9 @@ Ground truth, as in the competition: the first POSI is the known start. Its lati
 (height 0) become the georeference, so the local ENU origin is there, and the start pose is
 ``(0, 0, floor * floor_height_m)`` (heading unknown). Every later POSI becomes a checkpoint at
 its local ENU position with ``z = floor * floor_height_m`` and the record's counter as label.
-The time of the first POSI is ``meta.source["start_pose_t_s"]`` (``trim_to_start`` drops the
-data recorded before it).
+The time of the first POSI is ``meta.start_pose.t`` (also kept as
+``meta.source["start_pose_t_s"]``); trackers place the agent there at that time, and
+``trim_to_start`` drops the data recorded before it.
 
 Orientation. The AHRS quaternion components are those of the Android rotation-vector sensor
 (x, y, z; the scalar is ``sqrt(1 - x^2 - y^2 - z^2)``), which rotates device vectors into
@@ -636,7 +637,8 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
         georef = Georeference(float(posi.lat[0]), float(posi.lon[0]), 0.0)
         meta.georeference = GeoreferenceModel(lat_deg=georef.lat_deg, lon_deg=georef.lon_deg,
                                               height_m=0.0)
-        meta.start_pose = StartPose(x=0.0, y=0.0, z=float(posi.floor[0]) * fh)
+        meta.start_pose = StartPose(t=float(posi.t[0]), x=0.0, y=0.0,
+                                    z=float(posi.floor[0]) * fh)
         source["start_pose_t_s"] = float(posi.t[0])
         notes.append(f"POSI {posi.counter[0]} (t = {posi.t[0]:.3f} s, floor "
                      f"{posi.floor[0]:g}) is the start pose and the georeference (local ENU "
