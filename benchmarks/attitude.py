@@ -4,6 +4,7 @@ Run from the repository root::
 
     python benchmarks/attitude.py            # full table (a few minutes)
     python benchmarks/attitude.py --quick    # shorter data, no ahrs on long runs
+    python benchmarks/attitude.py --speed-only --methods quat-ekf,vqf   # speed column only
 
 Variants: ``euler-ekf eq5`` integrates the angles with Colombo eq. 5 itself, ``quat-ekf 4st``
 is the thesis' 4-state EKF (gyro bias only learnt at rest).
@@ -194,19 +195,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter data and speed runs")
     ap.add_argument("--methods", default="", help="comma-separated subset")
+    ap.add_argument("--speed-only", action="store_true", help="only the speed column")
+    ap.add_argument("--speed-samples", type=int, default=0,
+                    help="samples of the speed runs (default 1 M, --quick 200 k)")
     args = ap.parse_args()
     methods = available()
     if args.methods:
         methods = {k: v for k, v in methods.items() if k in args.methods.split(",")}
     n_fast = 200_000 if args.quick else 1_000_000
     n_slow = 20_000 if args.quick else 100_000
+    if args.speed_samples > 0:
+        n_fast = args.speed_samples
+        n_slow = max(1, args.speed_samples // 10)
     datasets: dict[str, Callable[[], tuple]] = {
         "sim-office": lambda: dataset_sim_office(120.0 if args.quick else 600.0),
     }
     for seed in (1, 2, 3):
         datasets[f"sim-walk{seed}"] = lambda seed=seed: dataset_sim_walk(
             120.0 if args.quick else 300.0, seed)
-    if BROAD.is_dir():
+    if args.speed_only:
+        datasets = {}
+    elif BROAD.is_dir():
         for p in sorted(BROAD.glob("*.hdf5")):
             datasets["broad-" + p.stem.split("_")[0]] = lambda p=p: dataset_broad(p)
     else:

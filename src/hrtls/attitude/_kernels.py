@@ -128,23 +128,34 @@ def rot(
     return rot_t(w, -x, -y, -z, v0, v1, v2)
 
 
+Row3 = tuple[float, float, float]
+Row4 = tuple[float, float, float, float]
+
+
+@numba.njit(inline="always", **JIT)
+def rot_t_jac(
+    w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
+) -> tuple[Row4, Row4, Row4]:
+    """``d(R(q)^T v)/dq`` (3 x 4, columns w, x, y, z) as three row tuples."""
+    return (
+        (2.0 * (w * v0 + z * v1 - y * v2), 2.0 * (x * v0 + y * v1 + z * v2),
+         2.0 * (-y * v0 + x * v1 - w * v2), 2.0 * (-z * v0 + w * v1 + x * v2)),
+        (2.0 * (-z * v0 + w * v1 + x * v2), 2.0 * (y * v0 - x * v1 + w * v2),
+         2.0 * (x * v0 + y * v1 + z * v2), 2.0 * (-w * v0 - z * v1 + y * v2)),
+        (2.0 * (y * v0 - x * v1 + w * v2), 2.0 * (z * v0 - w * v1 - x * v2),
+         2.0 * (w * v0 + z * v1 - y * v2), 2.0 * (x * v0 + y * v1 + z * v2)),
+    )
+
+
 @numba.njit(**JIT)
 def rot_t_jacobian(
     w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float, out: FloatArray
 ) -> None:
     """Write ``d(R(q)^T v)/dq`` (3 x 4, columns w, x, y, z) into ``out``."""
-    out[0, 0] = 2.0 * (w * v0 + z * v1 - y * v2)
-    out[0, 1] = 2.0 * (x * v0 + y * v1 + z * v2)
-    out[0, 2] = 2.0 * (-y * v0 + x * v1 - w * v2)
-    out[0, 3] = 2.0 * (-z * v0 + w * v1 + x * v2)
-    out[1, 0] = 2.0 * (-z * v0 + w * v1 + x * v2)
-    out[1, 1] = 2.0 * (y * v0 - x * v1 + w * v2)
-    out[1, 2] = 2.0 * (x * v0 + y * v1 + z * v2)
-    out[1, 3] = 2.0 * (-w * v0 - z * v1 + y * v2)
-    out[2, 0] = 2.0 * (y * v0 - x * v1 + w * v2)
-    out[2, 1] = 2.0 * (z * v0 - w * v1 - x * v2)
-    out[2, 2] = 2.0 * (w * v0 + z * v1 - y * v2)
-    out[2, 3] = 2.0 * (x * v0 + y * v1 + z * v2)
+    jac = rot_t_jac(w, x, y, z, v0, v1, v2)
+    for j in range(3):
+        for b in range(4):
+            out[j, b] = jac[j][b]
 
 
 @numba.njit(inline="always", **JIT)
@@ -158,7 +169,7 @@ def cos_sinc(a: float) -> tuple[float, float]:
     return math.cos(a), math.sin(a) / a
 
 
-@numba.njit(**JIT)
+@numba.njit(inline="always", **JIT)
 def transition(wx: float, wy: float, wz: float, dt: float, phi: FloatArray) -> None:
     """``Phi = exp(Omega dt)`` for ``dq/dt = Omega q = q * [0, w] / 2`` (Inderst eq. 4.10-4.12).
 
@@ -221,14 +232,14 @@ def finite3(v0: float, v1: float, v2: float) -> bool:
     return math.isfinite(v0) and math.isfinite(v1) and math.isfinite(v2)
 
 
-@numba.njit(**JIT)
+@numba.njit(inline="always", **JIT)
 def gyro_ok(prm: FloatArray, g0: float, g1: float, g2: float) -> bool:
     """Gyro sample finite and inside the measurement range."""
     r = prm[PRM_GYR_RANGE]
     return finite3(g0, g1, g2) and abs(g0) < r and abs(g1) < r and abs(g2) < r
 
 
-@numba.njit(**JIT)
+@numba.njit(inline="always", **JIT)
 def rest_and_bias(
     aux: FloatArray, prm: FloatArray, g0: float, g1: float, g2: float,
     a0: float, a1: float, a2: float, dt: float,
@@ -293,7 +304,7 @@ def init_rest(aux: FloatArray, g0: float, g1: float, g2: float, a0: float, a1: f
     aux[AUX_ALP + 2] = a2
 
 
-@numba.njit(**JIT)
+@numba.njit(inline="always", **JIT)
 def mag_gate(
     aux: FloatArray, prm: FloatArray, mx: float, my: float, mz: float,
     ux: float, uy: float, uz: float, dt: float,
@@ -367,7 +378,7 @@ def init_attitude(
     return w, x, y, z
 
 
-@numba.njit(**JIT)
+@numba.njit(inline="always", **JIT)
 def nav_rotation_var(
     w: float, x: float, y: float, z: float, P: FloatArray, out: FloatArray, i: int
 ) -> None:
@@ -395,9 +406,9 @@ def make_block3(n: int, m: int) -> Callable[..., bool]:
     """
 
     # closures of one qualname must not share a cache entry: no cache
-    @numba.njit(fastmath=FASTMATH, error_model="numpy")
+    @numba.njit(inline="always", fastmath=FASTMATH, error_model="numpy")
     def update(
-        P: FloatArray, dx: FloatArray, H: FloatArray, r0: float, r1: float, r2: float, var: float,
+        P: FloatArray, dx: FloatArray, H: Any, r0: float, r1: float, r2: float, var: float,
         ph: FloatArray,
     ) -> bool:
         """EKF update with a 3-row measurement block, linearised at the prediction.
@@ -405,15 +416,23 @@ def make_block3(n: int, m: int) -> Callable[..., bool]:
         ``dx`` is the correction accumulated so far from earlier blocks (all blocks share one
         linearisation point), so consecutive blocks equal one stacked update (eq. 4.19 / Colombo
         eq. 8-11): ``S = H P H^T + var I``, ``K = P H^T S^-1``, ``dx += K (r - H dx)``,
-        ``P -= K H P``. ``ph`` is an (n, 3) work array. Returns False (nothing changed) when ``S``
+        ``P -= K H P``. ``H`` is a tuple of three rows, each a tuple of ``m`` values (held in
+        registers); ``ph`` is an (n, 3) work array. Returns False (nothing changed) when ``S``
         is not positive definite.
         """
+        H0, H1, H2 = H
         for a in range(n):
-            for j in range(3):
-                acc = 0.0
-                for b in range(m):
-                    acc += P[a, b] * H[j, b]
-                ph[a, j] = acc
+            acc0 = 0.0
+            acc1 = 0.0
+            acc2 = 0.0
+            for b in range(m):
+                pab = P[a, b]
+                acc0 += pab * H0[b]
+                acc1 += pab * H1[b]
+                acc2 += pab * H2[b]
+            ph[a, 0] = acc0
+            ph[a, 1] = acc1
+            ph[a, 2] = acc2
         s00 = var
         s01 = 0.0
         s02 = 0.0
@@ -424,9 +443,9 @@ def make_block3(n: int, m: int) -> Callable[..., bool]:
         e1 = r1
         e2 = r2
         for a in range(m):
-            h0 = H[0, a]
-            h1 = H[1, a]
-            h2 = H[2, a]
+            h0 = H0[a]
+            h1 = H1[a]
+            h2 = H2[a]
             s00 += h0 * ph[a, 0]
             s01 += h0 * ph[a, 1]
             s02 += h0 * ph[a, 2]

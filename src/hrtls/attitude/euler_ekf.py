@@ -176,7 +176,6 @@ def euler_ekf_kernel(
     F = np.empty((3, 3))
     G = np.empty((3, 3))
     tmp = np.empty((3, 3))
-    jac = np.empty((3, 3))
     dx = np.empty(3)
     ph = np.empty((3, 3))
     g = prm[K.PRM_GRAVITY]
@@ -336,15 +335,9 @@ def euler_ekf_kernel(
                     dx[r] = 0.0
                 if use_a:
                     # h = R^T [0, 0, g]
-                    jac[0, 0] = 0.0
-                    jac[1, 0] = g * cp * cr
-                    jac[2, 0] = -g * cp * sr
-                    jac[0, 1] = -g * cp
-                    jac[1, 1] = -g * sp * sr
-                    jac[2, 1] = -g * sp * cr
-                    jac[0, 2] = 0.0
-                    jac[1, 2] = 0.0
-                    jac[2, 2] = 0.0
+                    jac = ((0.0, -g * cp, 0.0),
+                           (g * cp * cr, -g * sp * sr, 0.0),
+                           (-g * cp * sr, -g * sp * cr, 0.0))
                     use_a = K.block3_update(P, dx, jac, a0 - g * ux, a1 - g * uy, a2 - g * uz,
                                             prm[_QG], ph)
                 if use_m:
@@ -352,15 +345,9 @@ def euler_ekf_kernel(
                     h0 = sy * cp
                     h1 = sy * sp * sr + cy * cr
                     h2 = sy * sp * cr - cy * sr
-                    jac[0, 0] = 0.0
-                    jac[1, 0] = sy * sp * cr - cy * sr
-                    jac[2, 0] = -sy * sp * sr - cy * cr
-                    jac[0, 1] = -sy * sp
-                    jac[1, 1] = sy * cp * sr
-                    jac[2, 1] = sy * cp * cr
-                    jac[0, 2] = cy * cp
-                    jac[1, 2] = cy * sp * sr - sy * cr
-                    jac[2, 2] = cy * sp * cr + sy * sr
+                    jac = ((0.0, -sy * sp, cy * cp),
+                           (sy * sp * cr - cy * sr, sy * cp * sr, cy * sp * sr - sy * cr),
+                           (-sy * sp * sr - cy * cr, sy * cp * cr, cy * sp * cr + sy * sr))
                     use_m = K.block3_update(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
                                             z2 / zn - h2, prm[_QN], ph)
                 if use_y:

@@ -62,6 +62,7 @@ _BIAS_P0 = K.PRM_SPECIFIC + 6
 _BIAS_WALK = K.PRM_SPECIFIC + 7
 _RATE_REF = K.PRM_SPECIFIC + 8
 _SIZE = K.PRM_SPECIFIC + 9
+_NS = 7  # states: quaternion and gyro bias (zero bias blocks for the 4-state filter)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -134,7 +135,7 @@ class QuatEkfParams(CommonParams):
         return p
 
 
-@numba.njit(**K.JIT)
+@numba.njit(inline="always", **K.JIT)
 def _project(x: FloatArray, P: FloatArray) -> None:
     """``P <- J P J^T`` with ``J = diag(I - q q^T, I)`` (covariance of the unit quaternion)."""
     v0 = P[0, 0] * x[0] + P[0, 1] * x[1] + P[0, 2] * x[2] + P[0, 3] * x[3]
@@ -149,7 +150,7 @@ def _project(x: FloatArray, P: FloatArray) -> None:
             P[a, b] = val
             P[b, a] = val
     # cross covariance with the bias: (I - q q^T) P_qb
-    for c in range(4, P.shape[0]):
+    for c in range(4, _NS):
         d = x[0] * P[0, c] + x[1] * P[1, c] + x[2] * P[2, c] + x[3] * P[3, c]
         for a in range(4):
             val = P[a, c] - x[a] * d
@@ -157,20 +158,96 @@ def _project(x: FloatArray, P: FloatArray) -> None:
             P[c, a] = val
 
 
-@numba.njit(**K.JIT)
+@numba.njit(inline="always", **K.JIT)
 def _normalize(x: FloatArray, P: FloatArray) -> None:
     """Unit norm with ``w >= 0``; a sign flip of ``q`` also flips its covariance with the bias."""
     n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
     if x[0] < 0.0:
         n = -n
         for a in range(4):
-            for c in range(4, P.shape[0]):
+            for c in range(4, _NS):
                 P[a, c] = -P[a, c]
                 P[c, a] = -P[c, a]
     x[0] /= n
     x[1] /= n
     x[2] /= n
     x[3] /= n
+
+
+@numba.njit(inline="always", **K.JIT)
+def _apply_f(
+    f: tuple[float, float, float, float, float, float, float, float],
+    v0: float, v1: float, v2: float, v3: float, v4: float, v5: float, v6: float,
+) -> tuple[float, float, float, float]:
+    """Quaternion rows of ``F v`` with ``F = [[Phi, B], [0, I]]``.
+
+    ``f = (c, s wx, s wy, s wz, p0, p1, p2, p3)``: ``Phi = c I + s Omega'`` (eq. 4.12) and
+    ``B = -dt/2 Xi(q_{k-1})`` with ``p = -dt/2 q_{k-1}``.
+    """
+    c, sx, sy, sz, p0, p1, p2, p3 = f
+    return (
+        c * v0 - sx * v1 - sy * v2 - sz * v3 - p1 * v4 - p2 * v5 - p3 * v6,
+        sx * v0 + c * v1 + sz * v2 - sy * v3 + p0 * v4 - p3 * v5 + p2 * v6,
+        sy * v0 - sz * v1 + c * v2 + sx * v3 + p3 * v4 + p0 * v5 - p1 * v6,
+        sz * v0 + sy * v1 - sx * v2 + c * v3 - p2 * v4 + p1 * v5 + p0 * v6,
+    )
+
+
+@numba.njit(inline="always", **K.JIT)
+def _predict(
+    x: FloatArray, P: FloatArray, work: FloatArray, wx: float, wy: float, wz: float, dt: float,
+    qv: float, bw: float,
+) -> None:
+    """Eq. 4.12 and 4.14 with the bias block: ``q <- Phi q / |Phi q|``, ``P <- F P F^T + Q``.
+
+    ``F = [[Phi, B], [0, I]]`` with ``B = d(q_k)/d(b) = -dt/2 Xi(q_{k-1})`` (first order,
+    ``Xi(q) w = q * [0, w]``); ``Q = qv (I - q q^T)`` on the quaternion block and ``bw I`` on
+    the bias block. ``Phi`` is ``c I`` plus a skew matrix, so ``F`` is applied row by row
+    without forming it. ``work`` is a (4, 7) array (it receives the quaternion rows of
+    ``F P``). With a 4-state filter the bias blocks of ``P`` are zero and stay zero.
+    """
+    n = math.sqrt(wx * wx + wy * wy + wz * wz)
+    c, sc = K.cos_sinc(0.5 * n * dt)
+    s = sc * 0.5 * dt  # sin(|w| dt / 2) / |w|
+    hd = -0.5 * dt
+    q0 = x[0]
+    q1 = x[1]
+    q2 = x[2]
+    q3 = x[3]
+    f = (c, s * wx, s * wy, s * wz, hd * q0, hd * q1, hd * q2, hd * q3)
+    # work = quaternion rows of F P (column by column)
+    for k in range(_NS):
+        u0, u1, u2, u3 = _apply_f(f, P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k],
+                                  P[6, k])
+        work[0, k] = u0
+        work[1, k] = u1
+        work[2, k] = u2
+        work[3, k] = u3
+    xs0, xs1, xs2, xs3 = _apply_f(f, q0, q1, q2, q3, 0.0, 0.0, 0.0)
+    nq = math.sqrt(xs0 * xs0 + xs1 * xs1 + xs2 * xs2 + xs3 * xs3)
+    xs0 /= nq
+    xs1 /= nq
+    xs2 /= nq
+    xs3 /= nq
+    x[0] = xs0
+    x[1] = xs1
+    x[2] = xs2
+    x[3] = xs3
+    xn = (xs0, xs1, xs2, xs3)
+    # P_qq = (F P F^T)_qq + Q: row r is F applied to row r of work; P_qb = work[:, 4:]
+    for r in range(4):
+        u = _apply_f(f, work[r, 0], work[r, 1], work[r, 2], work[r, 3], work[r, 4],
+                     work[r, 5], work[r, 6])
+        for c2 in range(r, 4):
+            val = u[c2] + qv * ((1.0 if r == c2 else 0.0) - xn[r] * xn[c2])
+            P[r, c2] = val
+            P[c2, r] = val
+        for c2 in range(4, _NS):
+            P[r, c2] = work[r, c2]
+            P[c2, r] = work[r, c2]
+    P[4, 4] += bw
+    P[5, 5] += bw
+    P[6, 6] += bw
 
 
 @numba.njit(**K.JIT)
@@ -181,15 +258,10 @@ def quat_ekf_kernel(
 ) -> None:
     """Quaternion EKF over one chunk (Inderst eq. 4.10-4.19); mutates ``x``, ``P``, ``aux``."""
     n = t.shape[0]
-    ns = P.shape[0]  # 7: [q, b]
-    phi = np.empty((4, 4))
-    bm = np.empty((4, 3))
-    tmp = np.empty((4, 4))
-    cross = np.empty((4, 3))
-    jac = np.zeros((3, ns))
+    ns = _NS
+    work = np.empty((4, _NS))
     dx = np.empty(ns)
     ph = np.empty((ns, 3))
-    xs = np.empty(4)
     bias_state = prm[_BIAS_STATE] > 0.5
     g = prm[K.PRM_GRAVITY]
     sg = prm[_GYR_NOISE]
@@ -268,62 +340,8 @@ def quat_ekf_kernel(
                 wy = g1 - aux[K.AUX_BIAS + 1]
                 wz = g2 - aux[K.AUX_BIAS + 2]
                 rate2 = wx * wx + wy * wy + wz * wz
-                K.transition(wx, wy, wz, dt, phi)
-                # d(q_k)/d(b) = -dt/2 Xi(q_{k-1}) (first order), Xi(q) w = q * [0, w]
-                hd = -0.5 * dt
-                bm[0, 0] = -x[1] * hd
-                bm[0, 1] = -x[2] * hd
-                bm[0, 2] = -x[3] * hd
-                bm[1, 0] = x[0] * hd
-                bm[1, 1] = -x[3] * hd
-                bm[1, 2] = x[2] * hd
-                bm[2, 0] = x[3] * hd
-                bm[2, 1] = x[0] * hd
-                bm[2, 2] = -x[1] * hd
-                bm[3, 0] = -x[2] * hd
-                bm[3, 1] = x[1] * hd
-                bm[3, 2] = x[0] * hd
-                for r in range(4):
-                    xs[r] = phi[r, 0] * x[0] + phi[r, 1] * x[1] + phi[r, 2] * x[2] \
-                        + phi[r, 3] * x[3]
-                # tmp = Phi P_qq + B P_bq ; cross = Phi P_qb + B P_bb (the new P_qb)
-                for r in range(4):
-                    for c in range(4):
-                        val = phi[r, 0] * P[0, c] + phi[r, 1] * P[1, c] \
-                            + phi[r, 2] * P[2, c] + phi[r, 3] * P[3, c]
-                        if bias_state:
-                            val += bm[r, 0] * P[4, c] + bm[r, 1] * P[5, c] + bm[r, 2] * P[6, c]
-                        tmp[r, c] = val
-                    if bias_state:
-                        for c in range(3):
-                            cross[r, c] = phi[r, 0] * P[0, 4 + c] + phi[r, 1] * P[1, 4 + c] \
-                                + phi[r, 2] * P[2, 4 + c] + phi[r, 3] * P[3, 4 + c] \
-                                + bm[r, 0] * P[4, 4 + c] + bm[r, 1] * P[5, 4 + c] \
-                                + bm[r, 2] * P[6, 4 + c]
-                nq = math.sqrt(xs[0] * xs[0] + xs[1] * xs[1] + xs[2] * xs[2] + xs[3] * xs[3])
-                for r in range(4):
-                    x[r] = xs[r] / nq
-                qv = (0.5 * dt * sg) ** 2
-                # P_qq = tmp Phi^T + cross B^T + Q  (eq. 4.14 with the bias block)
-                for r in range(4):
-                    for c in range(r, 4):
-                        val = tmp[r, 0] * phi[c, 0] + tmp[r, 1] * phi[c, 1] \
-                            + tmp[r, 2] * phi[c, 2] + tmp[r, 3] * phi[c, 3]
-                        if bias_state:
-                            val += cross[r, 0] * bm[c, 0] + cross[r, 1] * bm[c, 1] \
-                                + cross[r, 2] * bm[c, 2]
-                        val += qv * ((1.0 if r == c else 0.0) - x[r] * x[c])
-                        P[r, c] = val
-                        P[c, r] = val
-                if bias_state:
-                    for r in range(4):
-                        for c in range(3):
-                            P[r, 4 + c] = cross[r, c]
-                            P[4 + c, r] = cross[r, c]
-                    bw = prm[_BIAS_WALK] * dt
-                    P[4, 4] += bw
-                    P[5, 5] += bw
-                    P[6, 6] += bw
+                _predict(x, P, work, wx, wy, wz, dt, (0.5 * dt * sg) ** 2,
+                         prm[_BIAS_WALK] * dt)
                 _normalize(x, P)
                 flags |= K.FLAG_GYR
             elif has_gyr:
@@ -356,13 +374,13 @@ def quat_ekf_kernel(
                 for r in range(ns):
                     dx[r] = 0.0
                 if use_a:
-                    K.rot_t_jacobian(w, qx, qy, qz, 0.0, 0.0, 1.0, jac)
+                    jac = K.rot_t_jac(w, qx, qy, qz, 0.0, 0.0, 1.0)
                     use_a = K.block3_update7(P, dx, jac, a0 / an - ux, a1 / an - uy,
                                              a2 / an - uz,
                                              va * (1.0 + rate2 * acc_rate_k), ph)
                 if use_m:
                     h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
-                    K.rot_t_jacobian(w, qx, qy, qz, v0, v1, v2, jac)
+                    jac = K.rot_t_jac(w, qx, qy, qz, v0, v1, v2)
                     use_m = K.block3_update7(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
                                              z2 / zn - h2, vm, ph)
                 ok = True

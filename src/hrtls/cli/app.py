@@ -138,6 +138,7 @@ def convert(
 def _register() -> None:
     """Attach the commands that live in their own modules."""
     from hrtls.cli import attitude as attitude_cli
+    from hrtls.cli import bench as bench_cli
     from hrtls.cli import gait as gait_cli
     from hrtls.cli import ipin as ipin_cli
     from hrtls.cli import sim as sim_cli
@@ -154,6 +155,7 @@ def _register() -> None:
     app.add_typer(attitude_cli.calibrate_app, name="calibrate")
     app.add_typer(gait_cli.activity_app, name="activity")
     app.add_typer(wsn_cli.app, name="wsn")
+    app.add_typer(bench_cli.app, name="bench")
 
 
 _register()

@@ -183,20 +183,21 @@ def kalman_update(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray,
     threshold = float("inf") if gate_probability is None else chi2_threshold(m, gate_probability)
     s = symmetrize(h @ p @ h.T + r)
     try:
-        c = linalg.cho_factor(s, lower=True)
-    except linalg.LinAlgError:
+        np.linalg.cholesky(s)           # positive definite? (small m: numpy is faster)
+    except np.linalg.LinAlgError:
         diag = UpdateDiagnostics(kind, t, "rejected", dof=m, threshold=threshold,
                                  innovation=innovation.copy(), innovation_cov=s, source=source,
                                  reason="innovation covariance not positive definite")
         return UpdateResult(x, p, diag)
-    value = float(innovation @ linalg.cho_solve(c, innovation))
+    sol = np.linalg.solve(s, np.column_stack([innovation, h @ p]))
+    value = float(innovation @ sol[:, 0])
     if value > threshold:
         diag = UpdateDiagnostics(kind, t, "rejected", nis=value, dof=m, threshold=threshold,
                                  innovation=innovation.copy(), innovation_cov=s, source=source,
                                  reason="failed the chi-square gate")
         return UpdateResult(x, p, diag)
-    # K = P H^T S^-1, computed as (S^-1 H P)^T with the Cholesky factor of S
-    k = linalg.cho_solve(c, h @ p).T
+    # K = P H^T S^-1, computed as (S^-1 H P)^T
+    k = sol[:, 1:].T
     x_new = x + k @ innovation
     if angle_index is not None:
         x_new[angle_index] = float(wrap_angle(x_new[angle_index]))

@@ -44,7 +44,6 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import linalg
 
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RssReadings
@@ -169,15 +168,26 @@ def hyperbolic_wls(anchors_xy: ArrayLike, distances_m: ArrayLike, *,
     rel = a[others] - a[ref]
     h = 2.0 * rel                                                    # H of eq. 2
     b = np.sum(rel * rel, axis=1) - d[others] ** 2 + d[ref] ** 2     # b~ of eq. 2
-    s = np.diag(d[others] ** 4) + d[ref] ** 4                        # S of eq. 2
-    c = linalg.cho_factor(s, lower=True)
-    info = h.T @ linalg.cho_solve(c, h)
-    if np.linalg.cond(info) > 1e12:
+    # S of eq. 2 is diag(d_i^4) + d_r^4 1 1^T: its inverse by Sherman-Morrison
+    dinv = 1.0 / d[others] ** 4
+    c_ref = d[ref] ** 4
+    k = c_ref / (1.0 + c_ref * float(np.sum(dinv)))
+
+    def s_inv(m: FloatArray) -> FloatArray:
+        dm = dinv[:, None] * m if m.ndim == 2 else dinv * m
+        return np.asarray(dm - k * np.outer(dinv, dinv @ m).reshape(dm.shape))
+
+    info = h.T @ s_inv(h)
+    det = float(info[0, 0] * info[1, 1] - info[0, 1] * info[1, 0])
+    tr = float(info[0, 0] + info[1, 1])
+    disc = math.sqrt(max(0.25 * tr * tr - det, 0.0))
+    lam_min, lam_max = 0.5 * tr - disc, 0.5 * tr + disc
+    if not lam_min > 0.0 or lam_max / lam_min > 1e12:
         raise InputError("anchors are collinear", where="hyperbolic_wls",
                          expected="anchors spanning the plane")
-    rhs = h.T @ linalg.cho_solve(c, b)
-    xy_rel = linalg.solve(info, rhs, assume_a="pos")                 # (H^T S^-1 H)^-1 H^T S^-1 b
-    cov = symmetrize(4.0 * sigma_ln**2 * np.linalg.inv(info))
+    inv = np.array([[info[1, 1], -info[0, 1]], [-info[1, 0], info[0, 0]]]) / det
+    xy_rel = inv @ (h.T @ s_inv(b))                                  # (H^T S^-1 H)^-1 H^T S^-1 b
+    cov = symmetrize(4.0 * sigma_ln**2 * inv)
     return WlsFix(xy_rel + a[ref], cov, ref)
 
 

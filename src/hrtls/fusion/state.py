@@ -13,6 +13,7 @@ input into the state heading and heading corrections persist (see
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -99,6 +100,27 @@ class FilterState:
         return cls.initial(t=t, xyz=(pose.x, pose.y, pose.z), heading_rad=heading,
                            sigma_xy_m=pose.sigma_xy_m, sigma_z_m=sigma_z_m,
                            sigma_heading_rad=float(sigma_h))
+
+    @classmethod
+    def from_kernel(cls, t: float, x: FloatArray, p: FloatArray, input_heading_rad: float,
+                    has_input_heading: bool) -> FilterState:
+        """Wrap the output of a compiled filter loop without the full validation.
+
+        The loops of :mod:`hrtls.pipeline._events` keep ``P`` exactly symmetric (Joseph form,
+        symmetrized) and the heading wrapped; only finiteness is checked here (NaN never
+        leaves a filter).
+        """
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p)) and math.isfinite(t)
+                and math.isfinite(input_heading_rad)):
+            raise InputError("non-finite state from the compiled loop", where="filter state",
+                             expected="finite x, P and t")
+        state = object.__new__(cls)
+        object.__setattr__(state, "t", float(t))
+        object.__setattr__(state, "x", np.array(x, dtype=np.float64))
+        object.__setattr__(state, "P", np.array(p, dtype=np.float64))
+        object.__setattr__(state, "input_heading_rad", float(input_heading_rad))
+        object.__setattr__(state, "has_input_heading", bool(has_input_heading))
+        return state
 
     def evolve(self, **changes: Any) -> FilterState:
         """A copy with some fields replaced (validated again)."""

@@ -121,18 +121,24 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
     def counts(self) -> dict[str, dict[str, int]]:
         """Counts per kind and status (as :func:`hrtls.fusion.gating.summarize`)."""
         out: dict[str, dict[str, int]] = {}
+        blocks = [p for p in self._parts if isinstance(p, DiagnosticsBlock)]
         for p in self._parts:
-            if isinstance(p, DiagnosticsBlock):
-                kinds = np.asarray(p.kind)
-                names = np.asarray(p.status_names())
-                for k in np.unique(kinds).tolist():
-                    sel = names[kinds == k]
-                    for st in np.unique(sel).tolist():
-                        d = out.setdefault(k, {})
-                        d[st] = d.get(st, 0) + int(np.count_nonzero(sel == st))
-            else:
+            if not isinstance(p, DiagnosticsBlock):
                 d = out.setdefault(p.kind, {})
                 d[p.status] = d.get(p.status, 0) + 1
+        if blocks:
+            kinds = np.concatenate([np.asarray(b.kind) for b in blocks])
+            code = np.concatenate([b.code for b in blocks])
+            status = np.where(code == ACCEPTED, 0, np.where(code == SKIPPED, 2, 1))
+            names = ("accepted", "rejected", "skipped")
+            uk, ik = np.unique(kinds, return_inverse=True)
+            table = np.zeros((len(uk), 3), dtype=np.int64)
+            np.add.at(table, (ik, status), 1)
+            for i, k in enumerate(uk.tolist()):
+                d = out.setdefault(k, {})
+                for j in range(3):
+                    if table[i, j]:
+                        d[names[j]] = d.get(names[j], 0) + int(table[i, j])
         return out
 
     def first_rejected(self, limit: int) -> list[UpdateDiagnostics]:

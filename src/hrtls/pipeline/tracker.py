@@ -495,8 +495,14 @@ class Tracker:
         if len(steps):
             self._steps.append(steps)
             if not self._velocity_mode:
-                for i in range(len(steps)):
-                    self._push(float(steps.t_end[i]), _STEP, i_payload=(steps, i))
+                rows = np.full((len(steps), 5), np.nan)
+                rows[:, 0] = steps.length_m
+                rows[:, 1] = steps.heading_rad
+                rows[:, 2] = steps.dz_m
+                rows[:, 3] = steps.activity
+                self._add_rows(_STEP, np.asarray(steps.t_end, dtype=np.float64),
+                               np.full(len(steps), ev.EV_STEP, dtype=np.int64), rows,
+                               np.full(len(steps), "", dtype=str))
         if self._velocity_mode and len(result.velocity_t) and q_nd is not None \
                 and t is not None:
             self._buffer_velocity(result, t, q_nd)
@@ -614,6 +620,12 @@ class Tracker:
                 ev_kind[rows] = ev.EV_SKIP
             else:
                 data[rows, :3] = lm.xyz()
+        self._add_rows(heap_kind, np.asarray(t, dtype=np.float64), ev_kind, data, src)
+
+    def _add_rows(self, heap_kind: int, t: np.ndarray, ev_kind: np.ndarray, data: np.ndarray,
+                  src: np.ndarray) -> None:
+        """Merge rows of the compiled loop into the sorted buffer (order: t, kind, arrival)."""
+        n = len(t)
         i0 = self._bulk_i
         seq = self._bulk_count + np.arange(n)
         self._bulk_count += n
@@ -668,12 +680,6 @@ class Tracker:
         self._scan_buf_v = self._scan_buf_v[n:]
 
     # ------------------------------------------------------------------ event loop
-    def _fast(self, kind: int, payload: Any) -> bool:
-        """Whether an event runs in the compiled loop (steps, tight RSS readings, ranges)."""
-        if self._velocity_mode:
-            return False
-        return kind in (_STEP, _RANGE) or (kind == _RSS and payload[0] == "reading")
-
     def _drain(self, horizon: float) -> None:
         pending = self._pending
         while True:
@@ -682,80 +688,47 @@ class Tracker:
             bulk_next = bi < len(self._bulk_t) and self._bulk_t[bi] <= horizon
             if head is None and not bulk_next:
                 break
-            if head is not None and not self._fast(head[1], head[3]) and (
-                    not bulk_next or (head[0], head[1]) < (float(self._bulk_t[bi]),
-                                                           int(self._bulk_k[bi]))):
+            if head is not None and (not bulk_next or (head[0], head[1]) < (
+                    float(self._bulk_t[bi]), int(self._bulk_k[bi]))):
                 heapq.heappop(pending)
                 t, kind, _, payload = head
                 self._advance_without_steps(t)
                 self._apply_observation(t, kind, payload)
                 self._track.add(self.state, self._last_activity)
                 continue
-            # a fast run: steps from the heap and bulk rows up to the next slow event
-            run: list[tuple[float, int, int, Any]] = []
-            while pending and pending[0][0] <= horizon and self._fast(pending[0][1],
-                                                                      pending[0][3]):
-                run.append(heapq.heappop(pending))
-            if pending and pending[0][0] <= horizon:
-                lim_t, lim_k = pending[0][0], pending[0][1]
+            # a fast run: buffer rows up to the next slow event (or the horizon)
+            if head is not None:
+                lim_t, lim_k = head[0], head[1]
                 j = int(np.searchsorted(self._bulk_t, lim_t, side="left"))
                 j2 = int(np.searchsorted(self._bulk_t, lim_t, side="right"))
                 j += int(np.count_nonzero(self._bulk_k[j:j2] < lim_k))
             else:
                 j = int(np.searchsorted(self._bulk_t, horizon, side="right"))
-            j = max(j, bi)
-            self._run_kernel(run, bi, j)
+            j = max(j, bi + 1)
+            self._run_kernel(bi, j)
             self._bulk_i = j
         if self._velocity_mode and math.isfinite(horizon):
             self._velocity_to(horizon)
         elif self._velocity_mode:
             self._velocity_to(math.inf)
 
-    def _run_kernel(self, events: list[tuple[float, int, int, Any]]) -> None:
-        """A run of steps / RSS readings / ranges in the compiled loop (same maths as Python)."""
-        n = len(events)
-        kind = np.empty(n, dtype=np.int64)
-        tt = np.empty(n)
-        data = np.full((n, 5), np.nan)
-        skip_reason: dict[int, tuple[str, str, str]] = {}
-        step_rows: list[int] = []
-        for k, (t, ek, _, payload) in enumerate(events):
-            tt[k] = t
-            if ek == _STEP:
-                steps, i = payload
-                kind[k] = ev.EV_STEP
-                h = float(steps.heading_rad[i])
-                length = float(steps.length_m[i]) * self.step_scale
-                data[k, :4] = (length, h + self._yaw_offset if math.isfinite(h)
-                               else h, steps.dz_m[i], steps.activity[i])
-                self._path_since_anchor += length
-                if math.isfinite(h):
-                    self._recent_heading.append((t, h))
-                step_rows.append(k)
-            elif ek == _RSS:
-                _, anchor, value = payload
-                lm = self.landmarks.get(anchor)
-                if lm is None or lm.position is None:
-                    kind[k] = ev.EV_SKIP
-                    skip_reason[k] = ("rss", "anchor without a known position", anchor)
-                    continue
-                kind[k] = ev.EV_RSS
-                data[k, :3] = lm.xyz()
-                data[k, 3] = value
-            else:
-                node, rng, sigma = payload
-                lm = self.landmarks.get(node)
-                if lm is None or lm.position is None:
-                    kind[k] = ev.EV_SKIP
-                    skip_reason[k] = ("range", "node without a known position", node)
-                    continue
-                kind[k] = ev.EV_RANGE
-                data[k, :3] = lm.xyz()
-                data[k, 3] = rng
-                data[k, 4] = sigma
-        if step_rows:
-            rows = np.asarray(step_rows)
-            data[rows, 4] = self._var_yaw_at(tt[rows])
+    def _run_kernel(self, b0: int, b1: int) -> None:
+        """Buffer rows ``b0:b1`` (steps, tight RSS readings, ranges) in the compiled loop."""
+        n = b1 - b0
+        tt = self._bulk_t[b0:b1]
+        kind = self._bulk_ev[b0:b1]
+        data = self._bulk_data[b0:b1].copy()
+        step_rows = np.flatnonzero(kind == ev.EV_STEP)
+        if len(step_rows):
+            data[step_rows, 0] *= self.step_scale
+            h = data[step_rows, 1]
+            data[step_rows, 1] = h + self._yaw_offset       # NaN (unknown) stays NaN
+            self._path_since_anchor += float(np.sum(data[step_rows, 0]))
+            ok = np.isfinite(h)
+            self._recent_heading.extend(zip(tt[step_rows][ok][-16:].tolist(),
+                                            h[ok][-16:].tolist(), strict=True))
+        if len(step_rows):
+            data[step_rows, 4] = self._var_yaw_at(tt[step_rows])
         st = self.state
         x = st.x.copy()
         p = st.P.copy()
@@ -787,8 +760,8 @@ class Tracker:
         nu = np.empty(n)
         ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, t_out, x_out, p_out, act,
                         status, nis, s_out, nu)
-        self.state = FilterState(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
-                                 bool(sc[ev.S_HAS_IN] > 0.5))
+        self.state = FilterState.from_kernel(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
+                                             bool(sc[ev.S_HAS_IN] > 0.5))
         self._last_activity = int(sc[ev.S_LAST_ACT])
         self._last_step_end = float(sc[ev.S_LAST_STEP_END])
         if self.channel_estimator is not None and cstate is not None:
@@ -799,31 +772,22 @@ class Tracker:
             self._corrected_since_fix = self._corrected_since_fix or soft
             self._soft_since_anchor = self._soft_since_anchor or soft
         self._track.add_block(t_out, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
-        self._kernel_diagnostics(events, kind, status, nis, s_out, nu, skip_reason)
+        self._kernel_diagnostics(b0, b1, kind, status, nis, s_out, nu)
 
-    def _kernel_diagnostics(self, events: list[tuple[float, int, int, Any]], kind: np.ndarray,
-                            status: np.ndarray, nis: np.ndarray, s: np.ndarray, nu: np.ndarray,
-                            skip_reason: dict[int, tuple[str, str, str]]) -> None:
+    def _kernel_diagnostics(self, b0: int, b1: int, kind: np.ndarray, status: np.ndarray,
+                            nis: np.ndarray, s: np.ndarray, nu: np.ndarray) -> None:
         rows = np.flatnonzero(kind != ev.EV_STEP)
         if len(rows) == 0:
             return
-        kinds: list[str] = []
-        sources: list[str] = []
-        reasons: list[str] = []
-        for k in rows.tolist():
-            _, ek, _, payload = events[k]
-            if k in skip_reason:
-                name, why, src = skip_reason[k]
-                kinds.append(name)
-                sources.append(src)
-                reasons.append(why)
-                continue
-            kinds.append("rss" if ek == _RSS else "range")
-            sources.append(payload[1] if ek == _RSS else payload[0])
-            reasons.append("")
+        heap_kind = self._bulk_k[b0:b1][rows]
+        names = np.where(heap_kind == _RSS, "rss", "range")
+        skip = kind[rows] == ev.EV_SKIP
+        reasons = np.where(skip, np.where(names == "rss", "anchor without a known position",
+                                          "node without a known position"), "")
         self.diagnostics.add_block(DiagnosticsBlock(
-            kinds, np.array([events[k][0] for k in rows.tolist()]), status[rows], nis[rows],
-            s[rows], nu[rows], sources, reasons, float(self._params[ev.P_CHI2_1])))
+            names.tolist(), self._bulk_t[b0:b1][rows], status[rows], nis[rows], s[rows],
+            nu[rows], self._bulk_src[b0:b1][rows].tolist(), reasons.tolist(),
+            float(self._params[ev.P_CHI2_1])))
 
     def _advance_without_steps(self, t: float) -> None:
         """Bring the state to ``t`` before a correction when no step or velocity drives it."""
@@ -831,10 +795,12 @@ class Tracker:
             self._velocity_to(t)
         if t <= self.state.t:
             return
+        st = self.state
         if not self.has_imu:
-            self.state = predict_random_walk(self.state, t, RandomWalkParams())
-        else:
-            self.state = self.state.evolve(t=t)
+            self.state = predict_random_walk(st, t, RandomWalkParams())
+        else:   # only the time changes: no need to validate the state again
+            self.state = FilterState.from_kernel(t, st.x, st.P, st.input_heading_rad,
+                                                 st.has_input_heading)
 
     def _moving(self, t: float) -> bool:
         if self._motion_t:
