@@ -12,6 +12,7 @@ rotates device vectors into ENU; specific force at rest is ``+g`` on the navigat
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from collections.abc import Callable
 from typing import Any
 
@@ -492,3 +493,170 @@ block3_update = make_block3(3, 3)
 """Block update for 3 states (the Euler EKF); see ``make_block3``."""
 block3_update7 = make_block3(7, 4)
 """Block update for 7 states (the quaternion EKF with bias)."""
+
+
+# ------------------------------------------------------------------------------------------
+# per-sample steps shared by the filter kernels
+# ------------------------------------------------------------------------------------------
+Sample = namedtuple(
+    "Sample",
+    ["dt", "a0", "a1", "a2", "an", "acc_fin", "acc_dev", "g0", "g1", "g2", "gyr_fin",
+     "m0", "m1", "m2", "mag_fin"],
+)
+"""One sample as a kernel sees it (see :func:`read_sample`)."""
+
+
+@numba.njit(inline="always", **JIT)
+def read_sample(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, i: int, has_gyr: bool,
+    has_mag: bool, prm: FloatArray, aux: FloatArray,
+) -> Any:
+    """Advance the clock to sample ``i`` and check its sensor values.
+
+    Returns a :data:`Sample`: ``dt`` since the previous sample (0 at the first one), the
+    specific force, its norm ``an`` and ``acc_dev = | |a| - g |`` (inf when unusable), the gyro
+    and magnetometer values, and per sensor whether the value is usable (finite, inside the
+    measurement range). Counts the sample and, when a sensor value is not usable, a bad sample.
+    """
+    ti = t[i]
+    tp = aux[AUX_T_PREV]
+    dt = ti - tp if math.isfinite(tp) else 0.0
+    aux[AUX_T_PREV] = ti
+    aux[AUX_N] += 1.0
+    a0 = acc[i, 0]
+    a1 = acc[i, 1]
+    a2 = acc[i, 2]
+    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    acc_fin = math.isfinite(an) and 1e-6 < an < prm[PRM_ACC_RANGE]
+    g0 = gyr[i, 0]
+    g1 = gyr[i, 1]
+    g2 = gyr[i, 2]
+    gyr_fin = has_gyr and gyro_ok(prm, g0, g1, g2)
+    m0 = mag[i, 0]
+    m1 = mag[i, 1]
+    m2 = mag[i, 2]
+    mag_fin = has_mag and finite3(m0, m1, m2)
+    if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
+        aux[AUX_N_BAD] += 1.0
+    acc_dev = abs(an - prm[PRM_GRAVITY]) if acc_fin else math.inf
+    return Sample(dt, a0, a1, a2, an, acc_fin, acc_dev, g0, g1, g2, gyr_fin, m0, m1, m2,
+                  mag_fin)
+
+
+@numba.njit(inline="always", **JIT)
+def try_init(aux: FloatArray, prm: FloatArray, s: Any, has_mag: bool
+             ) -> tuple[int, float, float, float, float]:
+    """Initialise the shared bookkeeping at the first static-looking sample (eq. 4.13).
+
+    Returns the flags of the sample (0 when it does not pass the accelerometer gate: the
+    filter stays uninitialised, the rejections are counted) and the initial attitude ``q``.
+    """
+    if not (s.acc_fin and s.acc_dev < prm[PRM_ACC_GATE]):
+        aux[AUX_N_ACC_REJ] += 1.0
+        if has_mag:
+            aux[AUX_N_MAG_REJ] += 1.0
+        return 0, 1.0, 0.0, 0.0, 0.0
+    w, x, y, z = init_attitude(prm, s.a0, s.a1, s.a2, s.m0, s.m1, s.m2, s.mag_fin)
+    aux[AUX_INIT] = 1.0
+    init_rest(aux, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.gyr_fin)
+    flags = FLAG_VALID | FLAG_ACC
+    if s.mag_fin:
+        ux, uy, uz = rot_t(w, x, y, z, 0.0, 0.0, 1.0)
+        if mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, 0.0):
+            flags |= FLAG_MAG
+        else:
+            aux[AUX_N_MAG_REJ] += 1.0
+    elif has_mag:
+        aux[AUX_N_MAG_REJ] += 1.0
+    return flags, w, x, y, z
+
+
+@numba.njit(inline="always", **JIT)
+def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool
+              ) -> tuple[int, float, float, float]:
+    """Decide whether the gyro sample is integrated; rest detection and bias at rest.
+
+    Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) and the bias-corrected rate when the
+    sample is usable and the gap is at most ``PRM_MAX_DT``; else 0 (counted as not
+    integrated when a gyro exists) and a zero rate.
+    """
+    dt = s.dt
+    if s.gyr_fin and 0.0 < dt <= prm[PRM_MAX_DT]:
+        flags = FLAG_GYR
+        if s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, dt):
+            flags |= FLAG_REST
+        return (flags, s.g0 - aux[AUX_BIAS], s.g1 - aux[AUX_BIAS + 1],
+                s.g2 - aux[AUX_BIAS + 2])
+    if has_gyr:
+        aux[AUX_N_GYR_REJ] += 1.0
+    return 0, 0.0, 0.0, 0.0
+
+
+@numba.njit(inline="always", **JIT)
+def count_used(aux: FloatArray, flags: int, use_a: bool, use_m: bool, has_mag: bool) -> int:
+    """Flags of the static sensors that corrected the attitude; count the others."""
+    if use_a:
+        flags |= FLAG_ACC
+    else:
+        aux[AUX_N_ACC_REJ] += 1.0
+    if use_m:
+        flags |= FLAG_MAG
+    elif has_mag:
+        aux[AUX_N_MAG_REJ] += 1.0
+    return flags
+
+
+@numba.njit(inline="always", **JIT)
+def horizontal_unit(
+    m0: float, m1: float, m2: float, ux: float, uy: float, uz: float
+) -> tuple[float, float, float, float]:
+    """The field minus its component along the unit vertical ``u``, and its norm."""
+    md = m0 * ux + m1 * uy + m2 * uz
+    z0 = m0 - md * ux
+    z1 = m1 - md * uy
+    z2 = m2 - md * uz
+    return z0, z1, z2, math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+
+
+@numba.njit(inline="always", **JIT)
+def write_q(out_q: FloatArray, i: int, w: float, x: float, y: float, z: float) -> None:
+    """``out_q[i] = q``."""
+    out_q[i, 0] = w
+    out_q[i, 1] = x
+    out_q[i, 2] = y
+    out_q[i, 3] = z
+
+
+@numba.njit(inline="always", **JIT)
+def write_uninit(out_q: FloatArray, out_var: FloatArray, out_flags: Any, i: int) -> None:
+    """Output of a sample before initialisation: identity, variance pi^2 (when kept), no flags."""
+    write_q(out_q, i, 1.0, 0.0, 0.0, 0.0)
+    if out_var.shape[0] > i:
+        out_var[i, 0] = math.pi ** 2
+        out_var[i, 1] = math.pi ** 2
+        out_var[i, 2] = math.pi ** 2
+    out_flags[i] = 0
+
+
+@numba.njit(inline="always", **JIT)
+def update_finite(dx: FloatArray, P: FloatArray) -> bool:
+    """The correction and the variances of an EKF update are all finite."""
+    ok = True
+    for r in range(dx.shape[0]):
+        ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
+    return ok
+
+
+@numba.njit(inline="always", **JIT)
+def gyro_quat_step(
+    w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, dt: float
+) -> tuple[float, float, float, float]:
+    """``exp(Omega dt) q = q * [cos(a), sin(a) w / |w|]`` with ``a = |w| dt / 2`` (eq. 4.10-4.12),
+    normalised with ``w >= 0``."""
+    c, sc = cos_sinc(0.5 * math.sqrt(wx * wx + wy * wy + wz * wz) * dt)
+    sk = 0.5 * dt * sc
+    w, x, y, z = qmul(w, x, y, z, c, sk * wx, sk * wy, sk * wz)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if w < 0.0:
+        n = -n
+    return w / n, x / n, y / n, z / n

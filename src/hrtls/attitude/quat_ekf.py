@@ -250,6 +250,16 @@ def _predict(
     P[6, 6] += bw
 
 
+@numba.njit(inline="always", **K.JIT)
+def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
+    """Initial covariance: ``p0`` per quaternion component, the bias variance, projected."""
+    for r in range(_NS):
+        for c in range(_NS):
+            P[r, c] = 0.0
+        P[r, r] = prm[_P0] if r < 4 else prm[_BIAS_P0]
+    _project(x, P)
+
+
 @numba.njit(**K.JIT)
 def quat_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
@@ -258,163 +268,81 @@ def quat_ekf_kernel(
 ) -> None:
     """Quaternion EKF over one chunk (Inderst eq. 4.10-4.19); mutates ``x``, ``P``, ``aux``."""
     n = t.shape[0]
-    ns = _NS
     work = np.empty((4, _NS))
-    dx = np.empty(ns)
-    ph = np.empty((ns, 3))
-    bias_state = prm[_BIAS_STATE] > 0.5
-    g = prm[K.PRM_GRAVITY]
-    sg = prm[_GYR_NOISE]
+    dx = np.empty(_NS)
+    ph = np.empty((_NS, 3))
+    qv_k = (0.5 * prm[_GYR_NOISE]) ** 2  # Q = qv_k dt^2 (I - q q^T), eq. 4.14 reading
     va = prm[_ACC_NOISE] ** 2
     acc_rate_k = 1.0 / prm[_RATE_REF] ** 2
     vm = prm[_MAG_NOISE] ** 2
     horizontal = prm[_MAG_MODE] > 0.5
     for i in range(n):
-        ti = t[i]
-        tp = aux[K.AUX_T_PREV]
-        dt = ti - tp if math.isfinite(tp) else 0.0
-        aux[K.AUX_T_PREV] = ti
-        aux[K.AUX_N] += 1.0
-        a0 = acc[i, 0]
-        a1 = acc[i, 1]
-        a2 = acc[i, 2]
-        an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        acc_fin = math.isfinite(an) and 1e-6 < an < prm[K.PRM_ACC_RANGE]
-        g0 = gyr[i, 0]
-        g1 = gyr[i, 1]
-        g2 = gyr[i, 2]
-        gyr_fin = has_gyr and K.gyro_ok(prm, g0, g1, g2)
-        m0 = mag[i, 0]
-        m1 = mag[i, 1]
-        m2 = mag[i, 2]
-        mag_fin = has_mag and K.finite3(m0, m1, m2)
-        if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
-            aux[K.AUX_N_BAD] += 1.0
-        acc_dev = abs(an - g) if acc_fin else math.inf
-        flags = 0
-        rate2 = 0.0
+        s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
         if aux[K.AUX_INIT] < 0.5:
             # eq. 4.13: initialise at the first sample that looks static
-            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
-                w, qx, qy, qz = K.init_attitude(prm, a0, a1, a2, m0, m1, m2, mag_fin)
-                x[0] = w
-                x[1] = qx
-                x[2] = qy
-                x[3] = qz
-                for r in range(ns):
-                    for c in range(ns):
-                        P[r, c] = 0.0
-                    P[r, r] = prm[_P0] if r < 4 else prm[_BIAS_P0]
-                _project(x, P)
-                aux[K.AUX_INIT] = 1.0
-                K.init_rest(aux, g0, g1, g2, a0, a1, a2, gyr_fin)
-                flags = K.FLAG_VALID | K.FLAG_ACC
-                if mag_fin:
-                    ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
-                    if K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, 0.0):
-                        flags |= K.FLAG_MAG
-                    else:
-                        aux[K.AUX_N_MAG_REJ] += 1.0
-                elif has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
-                if has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-                out_q[i, 0] = 1.0
-                out_q[i, 1] = 0.0
-                out_q[i, 2] = 0.0
-                out_q[i, 3] = 0.0
-                out_var[i, 0] = math.pi ** 2
-                out_var[i, 1] = math.pi ** 2
-                out_var[i, 2] = math.pi ** 2
-                out_flags[i] = 0
+            flags, x[0], x[1], x[2], x[3] = K.try_init(aux, prm, s, has_mag)
+            if flags == 0:
+                K.write_uninit(out_q, out_var, out_flags, i)
                 continue
+            _reset_cov(x, P, prm)
         else:
             flags = K.FLAG_VALID
             # ---- prediction, eq. 4.12 and 4.14
-            if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
-                if acc_fin and K.rest_and_bias(aux, prm, g0, g1, g2, a0, a1, a2, dt):
-                    flags |= K.FLAG_REST
-                wx = g0 - aux[K.AUX_BIAS]
-                wy = g1 - aux[K.AUX_BIAS + 1]
-                wz = g2 - aux[K.AUX_BIAS + 2]
-                rate2 = wx * wx + wy * wy + wz * wz
-                _predict(x, P, work, wx, wy, wz, dt, (0.5 * dt * sg) ** 2,
-                         prm[_BIAS_WALK] * dt)
+            gflags, wx, wy, wz = K.gyro_step(aux, prm, s, has_gyr)
+            rate2 = wx * wx + wy * wy + wz * wz
+            if gflags:
+                flags |= gflags
+                _predict(x, P, work, wx, wy, wz, s.dt, qv_k * s.dt * s.dt,
+                         prm[_BIAS_WALK] * s.dt)
                 _normalize(x, P)
-                flags |= K.FLAG_GYR
-            elif has_gyr:
-                aux[K.AUX_N_GYR_REJ] += 1.0
             # ---- gates and stacked measurement, eq. 4.15-4.18
             w = x[0]
             qx = x[1]
             qy = x[2]
             qz = x[3]
             ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
-            use_a = acc_fin and acc_dev < prm[K.PRM_ACC_GATE]
+            use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
             use_m = False
-            if mag_fin and K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, dt):
+            if s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, s.dt):
                 if horizontal:
-                    md = m0 * ux + m1 * uy + m2 * uz
-                    z0 = m0 - md * ux
-                    z1 = m1 - md * uy
-                    z2 = m2 - md * uz
+                    z0, z1, z2, zn = K.horizontal_unit(s.m0, s.m1, s.m2, ux, uy, uz)
                     v0, v1, v2 = 0.0, 1.0, 0.0
                 else:
-                    z0 = m0
-                    z1 = m1
-                    z2 = m2
+                    z0 = s.m0
+                    z1 = s.m1
+                    z2 = s.m2
+                    zn = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
                     dip = aux[K.AUX_MREF_DIP]
                     v0, v1, v2 = 0.0, math.cos(dip), -math.sin(dip)
-                zn = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
                 use_m = zn > 1e-9
             if use_a or use_m:
                 # ---- update, eq. 4.19: blocks share the linearisation at the prediction
-                for r in range(ns):
-                    dx[r] = 0.0
+                dx[:] = 0.0
                 if use_a:
                     jac = K.rot_t_jac(w, qx, qy, qz, 0.0, 0.0, 1.0)
-                    use_a = K.block3_update7(P, dx, jac, a0 / an - ux, a1 / an - uy,
-                                             a2 / an - uz,
+                    an = s.an
+                    use_a = K.block3_update7(P, dx, jac, s.a0 / an - ux, s.a1 / an - uy,
+                                             s.a2 / an - uz,
                                              va * (1.0 + rate2 * acc_rate_k), ph)
                 if use_m:
                     h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
                     jac = K.rot_t_jac(w, qx, qy, qz, v0, v1, v2)
                     use_m = K.block3_update7(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
                                              z2 / zn - h2, vm, ph)
-                ok = True
-                for r in range(ns):
-                    ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
-                if ok:
+                if K.update_finite(dx, P):
                     for r in range(4):
                         x[r] += dx[r]
-                    if bias_state:
-                        for r in range(3):
-                            aux[K.AUX_BIAS + r] += dx[4 + r]
+                    for r in range(3):  # zero for the 4-state filter
+                        aux[K.AUX_BIAS + r] += dx[4 + r]
                     _normalize(x, P)
                     _project(x, P)
                 else:
                     # numerical failure: keep the prediction, restart the covariance
                     use_a = False
                     use_m = False
-                    for r in range(ns):
-                        for c in range(ns):
-                            P[r, c] = 0.0
-                        P[r, r] = prm[_P0] if r < 4 else prm[_BIAS_P0]
-                    _project(x, P)
-            if use_a:
-                flags |= K.FLAG_ACC
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
-            if use_m:
-                flags |= K.FLAG_MAG
-            elif has_mag:
-                aux[K.AUX_N_MAG_REJ] += 1.0
-        out_q[i, 0] = x[0]
-        out_q[i, 1] = x[1]
-        out_q[i, 2] = x[2]
-        out_q[i, 3] = x[3]
+                    _reset_cov(x, P, prm)
+            flags = K.count_used(aux, flags, use_a, use_m, has_mag)
+        K.write_q(out_q, i, x[0], x[1], x[2], x[3])
         K.nav_rotation_var(x[0], x[1], x[2], x[3], P, out_var, i)
         out_flags[i] = flags
 

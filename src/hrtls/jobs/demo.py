@@ -15,7 +15,7 @@ from hrtls.sim.scenarios import run_scenario, write_result
 
 MISSIONS: tuple[tuple[str, dict[str, Any], str], ...] = (
     ("inderst_ring", {}, "500 m in a ring-shaped office corridor with 9 RFID tags"),
-    ("inderst_multifloor", {}, "280 m over two floors with stairs"),
+    ("inderst_multifloor", {}, "280 m over two floors with stairs (no infrastructure)"),
 )
 
 
@@ -53,8 +53,12 @@ def run_demo(out_dir: Path, *, seed: int = 0, overwrite: bool = False,
             progress(f"simulating {mission}")
         sim = run_scenario(mission, seed, **options)
         write_result(sim, out_dir / mission / "session", overwrite=overwrite)
-        for label, cfg in (("dead reckoning", dead_reckoning(full)),
-                           ("with infrastructure", full)):
+        runs = [("dead reckoning", dead_reckoning(full))]
+        session = sim.session
+        if any(part is not None for part in (session.fixes, session.rss, session.tags,
+                                             session.ranges)):
+            runs.append(("with infrastructure", full))
+        for label, cfg in runs:
             if progress:
                 progress(f"tracking {mission}: {label}")
             start = time.perf_counter()

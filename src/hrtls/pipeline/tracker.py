@@ -260,7 +260,12 @@ class Tracker:
                               "random walk between observations")
         pose = meta.start_pose or StartPose()
         self.heading_known = pose.heading is not None
-        self.state = FilterState.from_start_pose(pose, t=t0)
+        # the agent is placed at the start pose's time; attitude and gait run from t0 so the
+        # filters have converged by then, and earlier steps/observations are ignored for
+        # position (counted in the notes at the end)
+        self._t_pose = t0 if pose.t is None else max(float(pose.t), t0)
+        self._ignored_before_pose: dict[str, int] = {}
+        self.state = FilterState.from_start_pose(pose, t=self._t_pose)
         self._track.add(self.state, int(Activity.UNKNOWN))
         # --- attitude
         self.attitude_filter: AttitudeFilter | DeviceOrientation | None = None
