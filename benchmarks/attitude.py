@@ -242,7 +242,7 @@ def main() -> None:
     header = f"{'method':14s} {'M samples/s':>11s} | " + " | ".join(
         f"{n:>13s}" for n in names)
     print()
-    print("inclination / heading RMS in degrees")
+    print("inclination / heading RMS in degrees" if names else "speed (CPU time, best of 3)")
     print(header)
     print("-" * len(header))
     for label in methods:

@@ -330,3 +330,43 @@ def test_kernel_helpers():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         np.testing.assert_allclose(K.heading_from_mag(1, 0, 0, 0, 0.0, 0.0, 5.0), [1, 0, 0, 0])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_unknown_inputs_and_param_layout(method, motion):
+    f = make_filter(method)
+    with pytest.raises(InputError, match="unexpected inputs"):
+        f.update(motion.t[:5], motion.acc[:5], motion.gyr[:5], motion.mag[:5],
+                 speed=np.zeros(5))
+    assert not f.state.initialized  # nothing was processed
+    p = f.params
+    prm = p.kernel_array()
+    assert prm.shape == (K.PRM_SPECIFIC + len(p.specific_values()),)
+    np.testing.assert_array_equal(prm[: K.PRM_SPECIFIC], p.common_array())
+
+
+def test_param_positivity_rules():
+    QuatEkfParams(rate_ref_rad_s=float("inf"))  # inf: constant accelerometer variance
+    ComplementaryParams(tau_bias_s=float("inf"))  # inf: no in-motion bias term
+    with pytest.raises(InputError, match="gyro_noise_rad_s"):
+        QuatEkfParams(gyro_noise_rad_s=float("inf"))
+    with pytest.raises(InputError, match="north_var"):
+        EulerEkfParams(north_var=0.0)
+    with pytest.raises(InputError, match="mag_jump_gate_uT"):
+        ComplementaryParams(mag_jump_gate_uT=-1.0)
+
+
+def test_gyro_quat_step_matches_transition():
+    rng = np.random.default_rng(5)
+    phi = np.empty((4, 4))
+    for _ in range(20):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        q *= np.sign(q[0])
+        w = rng.normal(size=3) * rng.choice([1e-4, 1.0, 20.0])
+        K.transition(*w, 0.01, phi)
+        expected = phi @ q
+        expected /= np.linalg.norm(expected) * np.sign(expected[0])
+        np.testing.assert_allclose(K.gyro_quat_step(*q, *w, 0.01), expected, atol=1e-14)
+        np.testing.assert_allclose(K.gyro_quat_step.py_func(*q, *w, 0.01), expected,
+                                   atol=1e-14)

@@ -198,6 +198,35 @@ def test_channel_estimator_converges() -> None:
     assert cs2.theta[1] == pytest.approx(2.5, abs=0.25)
 
 
+def test_channel_estimator_robust_to_outliers_and_far_readings() -> None:
+    """Far readings with outliers and poor distances must not drive A/eta away (IPIN Trial23)."""
+    rng = np.random.default_rng(11)
+    n = 300
+    d = rng.uniform(13.0, 24.0, n)
+    z = -75.0 - 12.5 * np.log10(d) + rng.normal(0.0, 5.0, n)
+    z[::25] = -40.0
+    d_est = d * rng.uniform(0.7, 1.3, n)
+    est = ChannelEstimator()
+    cs = est.start(PathLossModel(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
+    cs, used = est.update(cs, rss_dbm=z, distance_m=d_est, distance_var_m2=4.0)
+    assert used == n
+    assert -85.0 < cs.theta[0] < -65.0
+    assert 1.0 <= cs.theta[1] < 2.0
+    assert np.sqrt(cs.residual_var_db2) < 20.0
+
+
+def test_channel_eta_clip_moves_a_consistently() -> None:
+    """Clipping eta at its bound shifts A along the estimate's correlation."""
+    est = ChannelEstimator()
+    cs = est.start(PathLossModel(a_dbm=-59.0, eta=1.05, sigma_db=4.0))
+    # readings much stronger than the prior predicts (-69.5 dBm at 10 m) pull eta below 1
+    cs2, _ = est.update(cs, rss_dbm=[-50.0] * 5, distance_m=[10.0] * 5)
+    assert cs2.theta[1] == 1.0
+    # A absorbs what eta could not: the model predicts stronger readings at 10 m than before
+    assert cs2.model().expected_rss(np.array([10.0]))[0] > -69.5 + 2.0
+    assert cs2.cov[0, 1] > 0.0
+
+
 def test_update_rss_readings_with_channel_estimation() -> None:
     rng = np.random.default_rng(4)
     p_true = np.array([12.0, 7.0])

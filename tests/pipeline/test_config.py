@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import numpy as np
 import pytest
 
 from hrtls.errors import FormatError, InputError
 from hrtls.pipeline import PRESETS, TrackerConfig, load_config, preset
+
+if TYPE_CHECKING:
+    from hrtls.sim.scenarios import SimulationResult
 
 
 @pytest.mark.parametrize("name", PRESETS)
@@ -56,3 +61,30 @@ def test_bad_toml_syntax(tmp_path: Path) -> None:
 def test_missing_file(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no such file"):
         load_config(tmp_path / "absent.toml")
+
+
+@pytest.mark.parametrize("kind", ["weinberg", "frequency", "pendulum"])
+def test_step_length_kinds(tmp_path: Path, kind: str) -> None:
+    p = tmp_path / "c.toml"
+    p.write_text(f'[gait]\nstep_length = "{kind}"\n')
+    assert load_config(p).gait.step_length == kind
+
+
+def test_pendulum_step_model_from_profile(office: SimulationResult) -> None:
+    from hrtls.gait.step_length_pendulum import PendulumModel
+    from hrtls.pipeline import Tracker
+
+    s = office.session
+    cfg = preset("default").model_copy(update={
+        "gait": preset("default").gait.model_copy(update={"step_length": "pendulum"})})
+    meta = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
+        "step_model": {"kind": "pendulum", "k": 1.1, "leg_length_m": 0.9}})})
+    model = Tracker(cfg)._step_model(meta)
+    assert isinstance(model, PendulumModel) and model.k == 1.1 and model.leg_length_m == 0.9
+    plain = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
+        "step_model": {"kind": "weinberg", "k": 0.5}})})
+    assert Tracker(cfg)._step_model(plain) == PendulumModel()
+    res = Tracker(cfg).run(s.with_parts(meta=meta, fixes=None, rss=None, tags=None,
+                                        ranges=None))
+    assert len(res.steps) > 50 and np.all(np.isfinite(res.steps.length_m))
+    assert 0.3 < float(np.median(res.steps.length_m[res.steps.length_m > 0])) < 1.2

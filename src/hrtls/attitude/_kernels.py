@@ -543,7 +543,7 @@ def read_sample(
                   mag_fin)
 
 
-@numba.njit(inline="always", **JIT)
+@numba.njit(**JIT)
 def try_init(aux: FloatArray, prm: FloatArray, s: Any, has_mag: bool
              ) -> tuple[int, float, float, float, float]:
     """Initialise the shared bookkeeping at the first static-looking sample (eq. 4.13).
@@ -572,24 +572,26 @@ def try_init(aux: FloatArray, prm: FloatArray, s: Any, has_mag: bool
 
 
 @numba.njit(inline="always", **JIT)
-def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool
-              ) -> tuple[int, float, float, float]:
+def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     """Decide whether the gyro sample is integrated; rest detection and bias at rest.
 
-    Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) and the bias-corrected rate when the
-    sample is usable and the gap is at most ``PRM_MAX_DT``; else 0 (counted as not
-    integrated when a gyro exists) and a zero rate.
+    Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) when the sample is usable and the gap is
+    at most ``PRM_MAX_DT``; else 0 (counted as not integrated when a gyro exists).
     """
-    dt = s.dt
-    if s.gyr_fin and 0.0 < dt <= prm[PRM_MAX_DT]:
+    flags = 0
+    if s.gyr_fin and 0.0 < s.dt <= prm[PRM_MAX_DT]:
         flags = FLAG_GYR
-        if s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, dt):
+        if s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
             flags |= FLAG_REST
-        return (flags, s.g0 - aux[AUX_BIAS], s.g1 - aux[AUX_BIAS + 1],
-                s.g2 - aux[AUX_BIAS + 2])
-    if has_gyr:
+    elif has_gyr:
         aux[AUX_N_GYR_REJ] += 1.0
-    return 0, 0.0, 0.0, 0.0
+    return flags
+
+
+@numba.njit(inline="always", **JIT)
+def unbiased_rate(aux: FloatArray, s: Any) -> tuple[float, float, float]:
+    """The gyro rate minus the current bias estimate, rad/s."""
+    return s.g0 - aux[AUX_BIAS], s.g1 - aux[AUX_BIAS + 1], s.g2 - aux[AUX_BIAS + 2]
 
 
 @numba.njit(inline="always", **JIT)
@@ -627,7 +629,7 @@ def write_q(out_q: FloatArray, i: int, w: float, x: float, y: float, z: float) -
     out_q[i, 3] = z
 
 
-@numba.njit(inline="always", **JIT)
+@numba.njit(**JIT)
 def write_uninit(out_q: FloatArray, out_var: FloatArray, out_flags: Any, i: int) -> None:
     """Output of a sample before initialisation: identity, variance pi^2 (when kept), no flags."""
     write_q(out_q, i, 1.0, 0.0, 0.0, 0.0)
@@ -651,8 +653,10 @@ def update_finite(dx: FloatArray, P: FloatArray) -> bool:
 def gyro_quat_step(
     w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, dt: float
 ) -> tuple[float, float, float, float]:
-    """``exp(Omega dt) q = q * [cos(a), sin(a) w / |w|]`` with ``a = |w| dt / 2`` (eq. 4.10-4.12),
-    normalised with ``w >= 0``."""
+    """Gyro step of the attitude, normalised with ``w >= 0`` (Inderst eq. 4.10-4.12).
+
+    ``exp(Omega dt) q = q * [cos(a), sin(a) w / |w|]`` with ``a = |w| dt / 2``.
+    """
     c, sc = cos_sinc(0.5 * math.sqrt(wx * wx + wy * wy + wz * wz) * dt)
     sk = 0.5 * dt * sc
     w, x, y, z = qmul(w, x, y, z, c, sk * wx, sk * wy, sk * wz)
@@ -660,3 +664,12 @@ def gyro_quat_step(
     if w < 0.0:
         n = -n
     return w / n, x / n, y / n, z / n
+
+
+@numba.njit(inline="always", **JIT)
+def set_q(v: FloatArray, k: int, w: float, x: float, y: float, z: float) -> None:
+    """``v[k:k + 4] = q`` (a quaternion inside a state vector)."""
+    v[k] = w
+    v[k + 1] = x
+    v[k + 2] = y
+    v[k + 3] = z

@@ -120,11 +120,8 @@ class CommonParams:
         positive = ("gravity_m_s2", "acc_gate_m_s2", "mag_norm_gate_uT", "mag_dip_gate_rad",
                     "mag_jump_gate_uT", "mag_new_field_s", "gyro_range_rad_s", "acc_range_m_s2",
                     "max_dt_s", "rest_gyro_rad_s", "rest_acc_m_s2", "bias_tau_s")
-        for name in positive:
-            value = float(getattr(self, name))
-            if not value > 0.0 or np.isnan(value):
-                raise InputError(f"{name} = {value}", where=type(self).__name__,
-                                 expected="a positive number (inf allowed for gates)")
+        self._require_positive(positive, inf_ok=positive,
+                               expected="a positive number (inf allowed for gates)")
         if not (np.isfinite(self.rest_s) and self.rest_s >= 0.0):
             raise InputError(f"rest_s = {self.rest_s}", where=type(self).__name__,
                              expected="a finite number >= 0")
@@ -142,6 +139,15 @@ class CommonParams:
             if value is not None and not np.isfinite(value):
                 raise InputError(f"{name} = {value}", where=type(self).__name__,
                                  expected="a finite number or None")
+
+    def _require_positive(self, names: tuple[str, ...], *, inf_ok: tuple[str, ...] = (),
+                          expected: str = "a finite positive number") -> None:
+        """Raise :class:`InputError` unless each named field is > 0 (inf only if in ``inf_ok``)."""
+        for name in names:
+            value = float(getattr(self, name))
+            if not (value > 0.0 and (np.isfinite(value) or name in inf_ok)):
+                raise InputError(f"{name} = {value}", where=type(self).__name__,
+                                 expected=expected)
 
     def common_array(self) -> FloatArray:
         """The shared part of the kernel parameter array (layout: ``_kernels.PRM_*``)."""
@@ -166,9 +172,14 @@ class CommonParams:
         p[K.PRM_INIT_MAG] = 1.0 if self.init_heading_from_mag else 0.0
         return p
 
+    def specific_values(self) -> tuple[float, ...]:
+        """The filter's own kernel parameters, in the order of its indices from ``PRM_SPECIFIC``."""
+        return ()
+
     def kernel_array(self) -> FloatArray:
-        """The whole kernel parameter array; filters extend it with their own values."""
-        return self.common_array()
+        """The whole kernel parameter array: :meth:`common_array`, then :meth:`specific_values`."""
+        return np.concatenate([self.common_array(),
+                               np.asarray(self.specific_values(), dtype=np.float64)])
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,14 +381,16 @@ def _as_samples(values: ArrayLike | None, n: int, name: str) -> FloatArray | Non
 class AttitudeFilter(ABC):
     """Base class: a causal attitude filter with a saveable state and a chunk update.
 
-    Subclasses set ``name`` and ``params_type`` and implement :meth:`_new_xp` and
-    :meth:`_kernel`.
+    Subclasses set ``name`` and ``params_type`` (and ``extra_inputs`` / ``extra_outputs`` when
+    they take or give more per-sample arrays) and implement :meth:`_new_xp` and :meth:`_kernel`;
+    their parameters extend :meth:`CommonParams.specific_values`.
     """
 
     name: ClassVar[str] = ""
     params_type: ClassVar[type[CommonParams]] = CommonParams
     has_covariance: ClassVar[bool] = True
     extra_outputs: ClassVar[tuple[str, ...]] = ()
+    extra_inputs: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, params: CommonParams | None = None) -> None:
         if params is None:
@@ -458,7 +471,7 @@ class AttitudeFilter(ABC):
         mag:
             Magnetic field, uT, shape (N, 3), or ``None``.
         **inputs:
-            Method-specific inputs (the Euler EKF takes ``yaw_rad``).
+            Method-specific inputs named in ``extra_inputs`` (the Euler EKF takes ``yaw_rad``).
 
         Returns
         -------
@@ -477,6 +490,11 @@ class AttitudeFilter(ABC):
         if g is None:
             warnings.warn(f"{self.name}: no gyroscope; the attitude follows the accelerometer "
                           "and magnetometer only", DegradedInputWarning, stacklevel=2)
+        unknown = sorted(set(inputs) - set(self.extra_inputs))
+        if unknown:
+            raise InputError(f"unexpected inputs {unknown}", where=self.name,
+                             expected=f"optional {', '.join(self.extra_inputs)} only"
+                             if self.extra_inputs else "t, acc, gyr, mag only")
         extra_in = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in inputs.items()}
         for k, v in extra_in.items():
             if v.shape != (n,):

@@ -44,7 +44,6 @@ from numpy.typing import NDArray
 from hrtls.attitude import _kernels as K
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.attitude.fqa import fqa_quaternion
-from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
 __all__ = ["ComplementaryFilter", "ComplementaryParams"]
@@ -54,7 +53,6 @@ _TAU_M = K.PRM_SPECIFIC + 1
 _W_REF = K.PRM_SPECIFIC + 2
 _TAU_B = K.PRM_SPECIFIC + 3
 _B_MAX = K.PRM_SPECIFIC + 4
-_SIZE = K.PRM_SPECIFIC + 5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,23 +81,13 @@ class ComplementaryParams(CommonParams):
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
-        for name in ("tau_acc_s", "tau_mag_s", "rate_ref_rad_s", "tau_bias_s",
-                     "bias_max_rad_s"):
-            value = float(getattr(self, name))
-            if not value > 0.0 or np.isnan(value):
-                raise InputError(f"{name} = {value}", where="ComplementaryParams",
-                                 expected="a positive number")
+        names = ("tau_acc_s", "tau_mag_s", "rate_ref_rad_s", "tau_bias_s", "bias_max_rad_s")
+        self._require_positive(names, inf_ok=names, expected="a positive number")
 
-    def kernel_array(self) -> FloatArray:
-        """Kernel parameter array."""
-        p = np.zeros(_SIZE)
-        p[: K.PRM_SPECIFIC] = self.common_array()
-        p[_TAU_A] = self.tau_acc_s
-        p[_TAU_M] = self.tau_mag_s
-        p[_W_REF] = self.rate_ref_rad_s
-        p[_TAU_B] = self.tau_bias_s
-        p[_B_MAX] = self.bias_max_rad_s
-        return p
+    def specific_values(self) -> tuple[float, ...]:
+        """Kernel parameters ``_TAU_A`` .. ``_B_MAX``."""
+        return (self.tau_acc_s, self.tau_mag_s, self.rate_ref_rad_s, self.tau_bias_s,
+                self.bias_max_rad_s)
 
 
 @numba.njit(inline="always", **K.JIT)
@@ -126,90 +114,33 @@ def complementary_kernel(
 ) -> None:
     """Complementary filter over one chunk (Inderst eq. 4.20); mutates ``x`` and ``aux``."""
     n = t.shape[0]
-    phi = np.empty((4, 4))
-    g = prm[K.PRM_GRAVITY]
+    no_var = np.empty((0, 3))
     for i in range(n):
-        ti = t[i]
-        tp = aux[K.AUX_T_PREV]
-        dt = ti - tp if math.isfinite(tp) else 0.0
-        aux[K.AUX_T_PREV] = ti
-        aux[K.AUX_N] += 1.0
-        a0 = acc[i, 0]
-        a1 = acc[i, 1]
-        a2 = acc[i, 2]
-        an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        acc_fin = math.isfinite(an) and 1e-6 < an < prm[K.PRM_ACC_RANGE]
-        g0 = gyr[i, 0]
-        g1 = gyr[i, 1]
-        g2 = gyr[i, 2]
-        gyr_fin = has_gyr and K.gyro_ok(prm, g0, g1, g2)
-        m0 = mag[i, 0]
-        m1 = mag[i, 1]
-        m2 = mag[i, 2]
-        mag_fin = has_mag and K.finite3(m0, m1, m2)
-        if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
-            aux[K.AUX_N_BAD] += 1.0
-        acc_dev = abs(an - g) if acc_fin else math.inf
-        flags = 0
+        s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
+        dt = s.dt
         gam_a = 0.0
         gam_m = 0.0
         if aux[K.AUX_INIT] < 0.5:
-            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
-                w, qx, qy, qz = K.init_attitude(prm, a0, a1, a2, m0, m1, m2, mag_fin)
-                x[0] = w
-                x[1] = qx
-                x[2] = qy
-                x[3] = qz
-                aux[K.AUX_INIT] = 1.0
-                K.init_rest(aux, g0, g1, g2, a0, a1, a2, gyr_fin)
-                flags = K.FLAG_VALID | K.FLAG_ACC
-                gam_a = 1.0
-                if mag_fin:
-                    ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
-                    if K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, 0.0):
-                        flags |= K.FLAG_MAG
-                        gam_m = 1.0
-                    else:
-                        aux[K.AUX_N_MAG_REJ] += 1.0
-                elif has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
-                if has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-                out_q[i, 0] = 1.0
-                out_q[i, 1] = 0.0
-                out_q[i, 2] = 0.0
-                out_q[i, 3] = 0.0
-                out_flags[i] = 0
+            flags, w, qx, qy, qz = K.try_init(aux, prm, s, has_mag)
+            if flags == 0:
+                K.write_uninit(out_q, no_var, out_flags, i)
                 out_extra[i, 0] = 0.0
                 out_extra[i, 1] = 0.0
                 continue
+            K.set_q(x, 0, w, qx, qy, qz)
+            gam_a = 1.0
+            gam_m = 1.0 if flags & K.FLAG_MAG else 0.0
         else:
             flags = K.FLAG_VALID
             rate = 0.0
             # ---- dynamic quaternion, eq. 4.10-4.12
-            if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
-                if acc_fin and K.rest_and_bias(aux, prm, g0, g1, g2, a0, a1, a2, dt):
-                    flags |= K.FLAG_REST
-                wx = g0 - aux[K.AUX_BIAS]
-                wy = g1 - aux[K.AUX_BIAS + 1]
-                wz = g2 - aux[K.AUX_BIAS + 2]
+            gflags = K.gyro_step(aux, prm, s, has_gyr)
+            if gflags:
+                flags |= gflags
+                wx, wy, wz = K.unbiased_rate(aux, s)
                 rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-                K.transition(wx, wy, wz, dt, phi)
-                dw = phi[0, 0] * x[0] + phi[0, 1] * x[1] + phi[0, 2] * x[2] + phi[0, 3] * x[3]
-                dxx = phi[1, 0] * x[0] + phi[1, 1] * x[1] + phi[1, 2] * x[2] + phi[1, 3] * x[3]
-                dy = phi[2, 0] * x[0] + phi[2, 1] * x[1] + phi[2, 2] * x[2] + phi[2, 3] * x[3]
-                dz = phi[3, 0] * x[0] + phi[3, 1] * x[1] + phi[3, 2] * x[2] + phi[3, 3] * x[3]
-                nn = math.sqrt(dw * dw + dxx * dxx + dy * dy + dz * dz)
-                dw /= nn
-                dxx /= nn
-                dy /= nn
-                dz /= nn
-                flags |= K.FLAG_GYR
+                dw, dxx, dy, dz = K.gyro_quat_step(x[0], x[1], x[2], x[3], wx, wy, wz, dt)
             else:
-                if has_gyr:
-                    aux[K.AUX_N_GYR_REJ] += 1.0
                 dw = x[0]
                 dxx = x[1]
                 dy = x[2]
@@ -218,28 +149,28 @@ def complementary_kernel(
             step = dt if dt > 0.0 else 0.0
             # ---- tilt blend: FQA(a, predicted field) vs q_delta
             w, qx, qy, qz = dw, dxx, dy, dz
-            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
+            use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
+            if use_a:
                 gam_a = (1.0 - math.exp(-step / prm[_TAU_A])) * trust \
-                    * (1.0 - acc_dev / prm[K.PRM_ACC_GATE])
+                    * (1.0 - s.acc_dev / prm[K.PRM_ACC_GATE])
                 pn0, pn1, pn2 = K.rot_t(w, qx, qy, qz, 0.0, 1.0, 0.0)
-                sw, sx, sy, sz = fqa_quaternion(a0, a1, a2, pn0, pn1, pn2)
+                sw, sx, sy, sz = fqa_quaternion(s.a0, s.a1, s.a2, pn0, pn1, pn2)
                 w, qx, qy, qz = _blend(gam_a, sw, sx, sy, sz, w, qx, qy, qz)
-                flags |= K.FLAG_ACC
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
             # ---- heading blend: FQA(vertical of q, m) vs q
             tw, tx, ty, tz = w, qx, qy, qz
             ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
-            if mag_fin and K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, dt):
+            use_m = s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, dt)
+            if use_m:
+                m0 = s.m0
+                m1 = s.m1
+                m2 = s.m2
                 mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
                 dev = abs(mn - aux[K.AUX_MREF_N])
                 gam_m = (1.0 - math.exp(-step / prm[_TAU_M])) * trust \
                     * max(0.0, 1.0 - dev / prm[K.PRM_MAG_NORM_GATE])
                 sw, sx, sy, sz = fqa_quaternion(ux, uy, uz, m0, m1, m2)
                 w, qx, qy, qz = _blend(gam_m, sw, sx, sy, sz, w, qx, qy, qz)
-                flags |= K.FLAG_MAG
-            elif has_mag:
-                aux[K.AUX_N_MAG_REJ] += 1.0
+            flags = K.count_used(aux, flags, use_a, use_m, has_mag)
             # ---- in-motion bias: integral of the corrections (device frame); of the heading
             # correction only the part about the vertical counts (a magnetic error must not
             # leak into the tilt through the bias)
@@ -263,14 +194,8 @@ def complementary_kernel(
                 aux[K.AUX_BIAS + 2] = min(bmax, max(-bmax, aux[K.AUX_BIAS + 2] - c2 * kb))
             if w < 0.0:
                 w, qx, qy, qz = -w, -qx, -qy, -qz
-            x[0] = w
-            x[1] = qx
-            x[2] = qy
-            x[3] = qz
-        out_q[i, 0] = x[0]
-        out_q[i, 1] = x[1]
-        out_q[i, 2] = x[2]
-        out_q[i, 3] = x[3]
+            K.set_q(x, 0, w, qx, qy, qz)
+        K.write_q(out_q, i, x[0], x[1], x[2], x[3])
         out_flags[i] = flags
         out_extra[i, 0] = gam_a
         out_extra[i, 1] = gam_m
@@ -291,8 +216,5 @@ class ComplementaryFilter(AttitudeFilter):
                 has_gyr: bool, has_mag: bool, x: FloatArray, P: FloatArray, aux: FloatArray,
                 out_q: FloatArray, out_var: FloatArray, out_flags: NDArray[np.uint8],
                 out_extra: FloatArray, **inputs: FloatArray) -> None:
-        if inputs:
-            raise InputError(f"unexpected inputs {sorted(inputs)}", where=self.name,
-                             expected="t, acc, gyr, mag only")
         complementary_kernel(t, acc, gyr, mag, has_gyr, has_mag, self._prm, x, aux, out_q,
                              out_flags, out_extra)

@@ -44,7 +44,6 @@ from numpy.typing import NDArray
 
 from hrtls.attitude import _kernels as K
 from hrtls.attitude.base import AttitudeFilter, CommonParams
-from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
 __all__ = ["EulerEkf", "EulerEkfParams"]
@@ -55,7 +54,6 @@ _QN = K.PRM_SPECIFIC + 2
 _QETA = K.PRM_SPECIFIC + 3
 _P0 = K.PRM_SPECIFIC + 4
 _EXACT = K.PRM_SPECIFIC + 5
-_SIZE = K.PRM_SPECIFIC + 6
 
 _COS_MIN = 1e-3
 
@@ -92,24 +90,13 @@ class EulerEkfParams(CommonParams):
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
-        for name in ("gyro_var_rad2_s2", "acc_var_m2_s4", "north_var", "yaw_var_rad2",
-                     "p0_var_rad2"):
-            value = float(getattr(self, name))
-            if not (np.isfinite(value) and value > 0.0):
-                raise InputError(f"{name} = {value}", where="EulerEkfParams",
-                                 expected="a finite positive number")
+        self._require_positive(("gyro_var_rad2_s2", "acc_var_m2_s4", "north_var",
+                                "yaw_var_rad2", "p0_var_rad2"))
 
-    def kernel_array(self) -> FloatArray:
-        """Kernel parameter array."""
-        p = np.zeros(_SIZE)
-        p[: K.PRM_SPECIFIC] = self.common_array()
-        p[_QW] = self.gyro_var_rad2_s2
-        p[_QG] = self.acc_var_m2_s4
-        p[_QN] = self.north_var
-        p[_QETA] = self.yaw_var_rad2
-        p[_P0] = self.p0_var_rad2
-        p[_EXACT] = 1.0 if self.exact_propagation else 0.0
-        return p
+    def specific_values(self) -> tuple[float, ...]:
+        """Kernel parameters ``_QW`` .. ``_EXACT``."""
+        return (self.gyro_var_rad2_s2, self.acc_var_m2_s4, self.north_var, self.yaw_var_rad2,
+                self.p0_var_rad2, 1.0 if self.exact_propagation else 0.0)
 
 
 @numba.njit(**K.JIT)
@@ -161,6 +148,14 @@ def _sincos(w: float, x: float, y: float, z: float
 
 
 @numba.njit(**K.JIT)
+def _reset_cov(P: FloatArray, prm: FloatArray) -> None:
+    """``P(0) = p0 I``."""
+    for r in range(3):
+        for c in range(3):
+            P[r, c] = prm[_P0] if r == c else 0.0
+
+
+@numba.njit(**K.JIT)
 def euler_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,
@@ -182,60 +177,16 @@ def euler_ekf_kernel(
     qw = prm[_QW]
     exact = prm[_EXACT] > 0.5
     for i in range(n):
-        ti = t[i]
-        tp = aux[K.AUX_T_PREV]
-        dt = ti - tp if math.isfinite(tp) else 0.0
-        aux[K.AUX_T_PREV] = ti
-        aux[K.AUX_N] += 1.0
-        a0 = acc[i, 0]
-        a1 = acc[i, 1]
-        a2 = acc[i, 2]
-        an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        acc_fin = math.isfinite(an) and 1e-6 < an < prm[K.PRM_ACC_RANGE]
-        g0 = gyr[i, 0]
-        g1 = gyr[i, 1]
-        g2 = gyr[i, 2]
-        gyr_fin = has_gyr and K.gyro_ok(prm, g0, g1, g2)
-        m0 = mag[i, 0]
-        m1 = mag[i, 1]
-        m2 = mag[i, 2]
-        mag_fin = has_mag and K.finite3(m0, m1, m2)
-        if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
-            aux[K.AUX_N_BAD] += 1.0
-        acc_dev = abs(an - g) if acc_fin else math.inf
-        flags = 0
+        s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
+        dt = s.dt
         if aux[K.AUX_INIT] < 0.5:
-            if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
-                w, qx, qy, qz = K.init_attitude(prm, a0, a1, a2, m0, m1, m2, mag_fin)
-                x[0], x[1], x[2] = _quat_to_euler(w, qx, qy, qz)
-                x[3], x[4], x[5], x[6] = _euler_to_quat(x[0], x[1], x[2])
-                for r in range(3):
-                    for c in range(3):
-                        P[r, c] = prm[_P0] if r == c else 0.0
-                aux[K.AUX_INIT] = 1.0
-                K.init_rest(aux, g0, g1, g2, a0, a1, a2, gyr_fin)
-                flags = K.FLAG_VALID | K.FLAG_ACC
-                if mag_fin:
-                    ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
-                    if K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, 0.0):
-                        flags |= K.FLAG_MAG
-                    else:
-                        aux[K.AUX_N_MAG_REJ] += 1.0
-                elif has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
-                if has_mag:
-                    aux[K.AUX_N_MAG_REJ] += 1.0
-                out_q[i, 0] = 1.0
-                out_q[i, 1] = 0.0
-                out_q[i, 2] = 0.0
-                out_q[i, 3] = 0.0
-                out_var[i, 0] = math.pi ** 2
-                out_var[i, 1] = math.pi ** 2
-                out_var[i, 2] = math.pi ** 2
-                out_flags[i] = 0
+            flags, w, qx, qy, qz = K.try_init(aux, prm, s, has_mag)
+            if flags == 0:
+                K.write_uninit(out_q, out_var, out_flags, i)
                 continue
+            x[0], x[1], x[2] = _quat_to_euler(w, qx, qy, qz)
+            x[3], x[4], x[5], x[6] = _euler_to_quat(x[0], x[1], x[2])
+            _reset_cov(P, prm)
         else:
             flags = K.FLAG_VALID
             # quaternion of the current angles (kept in x[3:7])
@@ -245,12 +196,10 @@ def euler_ekf_kernel(
             cz = x[6]
             moved = False
             # ---- prediction, eq. 5-6
-            if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
-                if acc_fin and K.rest_and_bias(aux, prm, g0, g1, g2, a0, a1, a2, dt):
-                    flags |= K.FLAG_REST
-                wx = g0 - aux[K.AUX_BIAS]
-                wy = g1 - aux[K.AUX_BIAS + 1]
-                wz = g2 - aux[K.AUX_BIAS + 2]
+            gflags = K.gyro_step(aux, prm, s, has_gyr)
+            if gflags:
+                flags |= gflags
+                wx, wy, wz = K.unbiased_rate(aux, s)
                 sr, cr, sp, cp, _, _ = _sincos(cw, cx, cy_, cz)
                 if abs(cp) < _COS_MIN:
                     cp = _COS_MIN
@@ -280,17 +229,7 @@ def euler_ekf_kernel(
                 F[2, 2] = 1.0
                 if exact:
                     # R+ = R(theta) exp([w]x dt): quaternion step, back to angles
-                    n_w = math.sqrt(wx * wx + wy * wy + wz * wz)
-                    ch, sc = K.cos_sinc(0.5 * n_w * dt)
-                    sk = 0.5 * dt * sc
-                    cw, cx, cy_, cz = K.qmul(cw, cx, cy_, cz, ch, sk * wx, sk * wy, sk * wz)
-                    nq = math.sqrt(cw * cw + cx * cx + cy_ * cy_ + cz * cz)
-                    if cw < 0.0:
-                        nq = -nq
-                    cw /= nq
-                    cx /= nq
-                    cy_ /= nq
-                    cz /= nq
+                    cw, cx, cy_, cz = K.gyro_quat_step(cw, cx, cy_, cz, wx, wy, wz, dt)
                     x[0], x[1], x[2] = _quat_to_euler(cw, cx, cy_, cz)
                 else:
                     # eq. 5
@@ -309,22 +248,15 @@ def euler_ekf_kernel(
                                      + G[r, 2] * G[c, 2])
                         P[r, c] = val
                         P[c, r] = val
-                flags |= K.FLAG_GYR
-            elif has_gyr:
-                aux[K.AUX_N_GYR_REJ] += 1.0
             # ---- measurements, eq. 3-4 and 7, at the prediction
             sr, cr, sp, cp, sy, cy = _sincos(cw, cx, cy_, cz)
             ux = -sp
             uy = cp * sr
             uz = cp * cr
-            use_a = acc_fin and acc_dev < prm[K.PRM_ACC_GATE]
+            use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
             use_m = False
-            if mag_fin and K.mag_gate(aux, prm, m0, m1, m2, ux, uy, uz, dt):
-                md = m0 * ux + m1 * uy + m2 * uz
-                z0 = m0 - md * ux
-                z1 = m1 - md * uy
-                z2 = m2 - md * uz
-                zn = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+            if s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, dt):
+                z0, z1, z2, zn = K.horizontal_unit(s.m0, s.m1, s.m2, ux, uy, uz)
                 use_m = zn > 1e-9
             use_y = False
             if has_yaw:
@@ -338,7 +270,8 @@ def euler_ekf_kernel(
                     jac = ((0.0, -g * cp, 0.0),
                            (g * cp * cr, -g * sp * sr, 0.0),
                            (-g * cp * sr, -g * sp * cr, 0.0))
-                    use_a = K.block3_update(P, dx, jac, a0 - g * ux, a1 - g * uy, a2 - g * uz,
+                    use_a = K.block3_update(P, dx, jac, s.a0 - g * ux, s.a1 - g * uy,
+                                            s.a2 - g * uz,
                                             prm[_QG], ph)
                 if use_m:
                     # h = R^T [0, 1, 0] (north)
@@ -352,11 +285,11 @@ def euler_ekf_kernel(
                                             z2 / zn - h2, prm[_QN], ph)
                 if use_y:
                     # eta_z = C theta, C = [0, 0, 1] (eq. 1, 10)
-                    s = P[2, 2] + prm[_QETA]
+                    s_eta = P[2, 2] + prm[_QETA]
                     innov = _wrap(yv - x[2]) - dx[2]
-                    k0 = P[0, 2] / s
-                    k1 = P[1, 2] / s
-                    k2 = P[2, 2] / s
+                    k0 = P[0, 2] / s_eta
+                    k1 = P[1, 2] / s_eta
+                    k2 = P[2, 2] / s_eta
                     dx[0] += k0 * innov
                     dx[1] += k1 * innov
                     dx[2] += k2 * innov
@@ -367,10 +300,7 @@ def euler_ekf_kernel(
                             val = P[r, c] - kk[r] * pp[c]
                             P[r, c] = val
                             P[c, r] = val
-                ok = True
-                for r in range(3):
-                    ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
-                if ok:
+                if K.update_finite(dx, P):
                     x[0] = _wrap(x[0] + dx[0])
                     x[1] += dx[1]
                     x[2] = _wrap(x[2] + dx[2])
@@ -385,26 +315,11 @@ def euler_ekf_kernel(
                     # numerical failure: keep the prediction, restart the covariance
                     use_a = False
                     use_m = False
-                    for r in range(3):
-                        for c in range(3):
-                            P[r, c] = prm[_P0] if r == c else 0.0
-            if use_a:
-                flags |= K.FLAG_ACC
-            else:
-                aux[K.AUX_N_ACC_REJ] += 1.0
-            if use_m:
-                flags |= K.FLAG_MAG
-            elif has_mag:
-                aux[K.AUX_N_MAG_REJ] += 1.0
+                    _reset_cov(P, prm)
+            flags = K.count_used(aux, flags, use_a, use_m, has_mag)
             if moved:
-                x[3] = cw
-                x[4] = cx
-                x[5] = cy_
-                x[6] = cz
-        out_q[i, 0] = x[3]
-        out_q[i, 1] = x[4]
-        out_q[i, 2] = x[5]
-        out_q[i, 3] = x[6]
+                K.set_q(x, 3, cw, cx, cy_, cz)
+        K.write_q(out_q, i, x[3], x[4], x[5], x[6])
         out_var[i, 0] = P[0, 0]
         out_var[i, 1] = P[1, 1]
         out_var[i, 2] = P[2, 2]
@@ -420,6 +335,7 @@ class EulerEkf(AttitudeFilter):
 
     name: ClassVar[str] = "euler-ekf"
     params_type: ClassVar[type[CommonParams]] = EulerEkfParams
+    extra_inputs: ClassVar[tuple[str, ...]] = ("yaw_rad",)
 
     def _new_xp(self) -> tuple[FloatArray, FloatArray]:
         # roll, pitch, yaw and their quaternion
@@ -429,10 +345,6 @@ class EulerEkf(AttitudeFilter):
                 has_gyr: bool, has_mag: bool, x: FloatArray, P: FloatArray, aux: FloatArray,
                 out_q: FloatArray, out_var: FloatArray, out_flags: NDArray[np.uint8],
                 out_extra: FloatArray, **inputs: FloatArray) -> None:
-        unknown = set(inputs) - {"yaw_rad"}
-        if unknown:
-            raise InputError(f"unexpected inputs {sorted(unknown)}", where=self.name,
-                             expected="optional yaw_rad only")
         yaw = inputs.get("yaw_rad", np.empty(0))
         euler_ekf_kernel(t, acc, gyr, mag, has_gyr, has_mag, self._prm, x, P, aux, yaw, out_q,
                          out_var, out_flags)

@@ -608,8 +608,14 @@ class ChannelEstimator:
             phi = np.array([1.0, -10.0 * math.log10(d[i] / d0_m)])
             e = float(r[i] - phi @ theta)
             slope = 10.0 * theta[1] / LN10
-            w = res_var / (res_var + slope * slope * dv[i] / (d[i] * d[i]))
+            # residual variance of this reading: shadowing + position error through the slope
+            s2 = res_var + slope * slope * dv[i] / (d[i] * d[i])
             pphi = cov @ phi
+            # bounded pull of one reading (2.5 sigma of its predicted residual): an outlier or
+            # a wrong position estimate cannot drag A and eta away
+            lim = 2.5 * math.sqrt(s2 + float(phi @ pphi))
+            e = min(max(e, -lim), lim)
+            w = res_var / s2
             k = pphi / (lam / w + float(phi @ pphi))
             theta = theta + k * e
             cov = (cov - np.outer(k, pphi)) / lam
@@ -617,7 +623,11 @@ class ChannelEstimator:
             # cap at the prior (no wind-up without excitation)
             if np.trace(cov) > np.trace(cap):
                 cov = cov * (np.trace(cap) / np.trace(cov))
-            theta[1] = float(np.clip(theta[1], *prm.eta_bounds))
+            # eta clipped to its bounds: move A along their correlation (conditional mean)
+            eta_c = float(np.clip(theta[1], *prm.eta_bounds))
+            if eta_c != theta[1]:
+                theta[0] += cov[0, 1] / cov[1, 1] * (eta_c - theta[1])
+                theta[1] = eta_c
             res_var = lam * res_var + (1.0 - lam) * e * e
             count += 1
             used += 1

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from hrtls.data import Session
+from hrtls.data import Activity, Session
 from hrtls.evaluate.metrics import (
     checkpoint_errors,
     distance_at,
@@ -311,6 +311,7 @@ def calibrate_step_model(config: TrackerConfig, cal: SimulationResult) -> dict[s
     steps = _track(config, cal.session).steps
     t_cut = np.concatenate([[truth.t[0]], cps.t])
     walks = []
+    runs = []
     for a, b in pairwise(t_cut.tolist()):
         sel = (steps.t_end > a) & (steps.t_end <= b)
         if np.count_nonzero(sel) < 10:
@@ -319,9 +320,39 @@ def calibrate_step_model(config: TrackerConfig, cal: SimulationResult) -> dict[s
                             steps.acc_max[sel], steps.acc_min[sel])
         dist = float(distance_at(truth, np.array([b]))[0] - distance_at(truth, np.array([a]))[0])
         walks.append(CalibrationWalk(det, dist))
-    model = (fit_frequency_law(walks) if config.gait.step_length == "frequency"
-             else fit_weinberg(walks))
-    return model.to_dict()
+        runs.append(steps.activity[sel] == int(Activity.RUNNING))
+    if config.gait.step_length == "frequency":
+        return fit_frequency_law(walks).to_dict()
+    model = fit_weinberg(walks).to_dict()
+    if config.gait.step_length == "weinberg":
+        k_run = fit_weinberg_running(walks, runs)
+        if k_run is not None:
+            model = {"kind": "weinberg", "k": k_run[0], "k_running": k_run[1]}
+    return model
+
+
+def fit_weinberg_running(walks: Sequence[CalibrationWalk], running: Sequence[np.ndarray]
+                         ) -> tuple[float, float] | None:
+    """Weinberg K of walking and of running steps, jointly by least squares over the walks.
+
+    Each calibration walk's length is ``K_walk S_walk + K_run S_run`` with ``S`` the sums of
+    ``(a_max - a_min)^(1/4)`` of its steps classified walking / running. None when fewer than
+    two walks have a substantial share (30 %) of running steps or the fit is implausible.
+    """
+    rows, dist = [], []
+    n_run = 0
+    for w, r in zip(walks, running, strict=True):
+        q = np.sqrt(np.sqrt(np.clip(w.steps.acc_max - w.steps.acc_min, 0.0, None)))
+        rows.append([float(np.sum(q[~r])), float(np.sum(q[r]))])
+        dist.append(w.distance_m)
+        n_run += int(np.mean(r) > 0.3)
+    if n_run < 2 or n_run == len(walks):
+        return None
+    sol = np.linalg.lstsq(np.asarray(rows), np.asarray(dist), rcond=None)[0]
+    k_walk, k_run = float(sol[0]), float(sol[1])
+    if not (k_walk > 0 and 0.5 <= k_run / k_walk <= 2.0):
+        return None
+    return k_walk, k_run
 
 
 def with_step_model(session: Session, step_model: dict[str, Any]) -> Session:

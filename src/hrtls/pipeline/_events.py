@@ -199,9 +199,13 @@ def _channel(prm: FloatArray, sc: FloatArray, cov: FloatArray, rss: float, d: fl
     e = rss - (phi0 * sc[S_A] + phi1 * sc[S_ETA])
     slope = 10.0 * sc[S_ETA] / LN10
     res_var = sc[S_RESVAR]
-    w = res_var / (res_var + slope * slope * dvar / (d * d))
+    s2 = res_var + slope * slope * dvar / (d * d)
     pp0 = cov[0, 0] * phi0 + cov[0, 1] * phi1
     pp1 = cov[1, 0] * phi0 + cov[1, 1] * phi1
+    # bounded pull of one reading (as ChannelEstimator.update)
+    lim = 2.5 * math.sqrt(s2 + (phi0 * pp0 + phi1 * pp1))
+    e = min(max(e, -lim), lim)
+    w = res_var / s2
     den = lam / w + (phi0 * pp0 + phi1 * pp1)
     k0 = pp0 / den
     k1 = pp1 / den
@@ -223,7 +227,10 @@ def _channel(prm: FloatArray, sc: FloatArray, cov: FloatArray, rss: float, d: fl
         for i in range(2):
             for j in range(2):
                 cov[i, j] *= f
-    sc[S_ETA] = min(max(sc[S_ETA], prm[P_ETA_LO]), prm[P_ETA_HI])
+    eta_c = min(max(sc[S_ETA], prm[P_ETA_LO]), prm[P_ETA_HI])
+    if eta_c != sc[S_ETA]:
+        sc[S_A] += cov[0, 1] / cov[1, 1] * (eta_c - sc[S_ETA])
+        sc[S_ETA] = eta_c
     sc[S_RESVAR] = max(lam * res_var + (1.0 - lam) * e * e, 1e-6)
     sc[S_COUNT] += 1.0
 

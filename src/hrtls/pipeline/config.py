@@ -28,13 +28,19 @@ class AttitudeConfig(_Section):
         "quat-ekf"
     """``auto``: the device's own orientation when the session has one, else ``quat-ekf``."""
     use_magnetometer: bool = True
+    compass_yaw: bool = Field(
+        default=False, description="remove the device orientation's slow yaw wander with the "
+        "magnetometer (self-calibrated hard iron; our addition, see pipeline.compass); only "
+        "with method device (our filters fuse the magnetometer themselves)")
 
 
 class GaitConfig(_Section):
     """Steps, step length, walking direction, activity and walking velocity."""
 
     step_detector: Literal["peak", "pll"] = "peak"
-    step_length: Literal["weinberg", "frequency"] = "weinberg"
+    step_length: Literal["weinberg", "frequency", "pendulum"] = "weinberg"
+    """weinberg (Tarrio eq. 3), frequency (Basso II-D) or pendulum (inverted pendulum, from the
+    step's vertical excursion); the user's profile is used when it has the same kind."""
     weinberg_k: float | None = Field(default=None, gt=0.0,
                                      description="overrides the user's profile")
     heading: Literal["yaw", "fourier"] = "yaw"

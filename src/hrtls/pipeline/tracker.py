@@ -54,7 +54,12 @@ from hrtls.data import (
     StepEvents,
     Trajectory,
 )
-from hrtls.data.observations import RssReadings, TagDetections
+from hrtls.data.observations import (
+    PositionFixes,
+    RangeMeasurements,
+    RssReadings,
+    TagDetections,
+)
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, quat_rotate, wrap_angle
 from hrtls.fusion.fixes import (
@@ -98,8 +103,10 @@ from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
+from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline.compass import CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 
@@ -234,8 +241,10 @@ class Tracker:
         self._stretch: StretchMemory | None = None
         self._corrected_since_fix = False
         self.step_scale = 1.0
+        self.run_scale = 1.0
         self._anchor_xy: np.ndarray | None = None
         self._path_since_anchor = 0.0
+        self._run_since_anchor = 0.0
         self._soft_since_anchor = False
         self._recent_heading: deque[tuple[float, float]] = deque(maxlen=16)
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
@@ -288,8 +297,14 @@ class Tracker:
         elif has_imu and method != "none":
             self.attitude_filter = make_filter(method)
         self._use_mag = cfg.attitude.use_magnetometer and has_mag
+        # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
+        # filters already fuse the magnetometer with their own disturbance gates
+        self._compass = (CompassYaw(self._t_pose)
+                         if cfg.attitude.compass_yaw and has_mag
+                         and isinstance(self.attitude_filter, DeviceOrientation) else None)
         # --- gait
         self.gait: GaitAnalyzer | None = None
+        self.running_factor = 1.0
         if has_imu:
             self.gait = GaitAnalyzer(
                 rate_hz=rate_hz,
@@ -331,7 +346,13 @@ class Tracker:
         channel = meta.channel
         self.path_loss = (PathLossModel.from_channel(channel) if channel is not None
                           else PathLossModel(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
-        self.channel_estimator = ChannelEstimator() if cfg.rss.estimate_channel else None
+        # without an IMU the position comes from the RSS itself: estimating A and eta from the
+        # same readings is circular (they drift together with the position), so keep the prior
+        self.channel_estimator = (ChannelEstimator()
+                                  if cfg.rss.estimate_channel and has_imu else None)
+        if cfg.rss.estimate_channel and not has_imu:
+            self.notes.append("no IMU: the RSS channel (A, eta) is not re-estimated online "
+                              "(positions and channel would come from the same readings)")
         self.channel_state: ChannelState | None = (
             None if self.channel_estimator is None
             else self.channel_estimator.start(self.path_loss))
@@ -348,13 +369,30 @@ class Tracker:
 
     def _step_model(self, meta: SessionMeta) -> StepModel:
         cfg = self.config.gait
-        profile = meta.user.step_model
+        profile = dict(meta.user.step_model)
+        # our addition: a profile may carry the running steps' own factor (calibration walks
+        # at walking and running pace); "k_running" with a Weinberg K, "running_factor" else
+        k_run = profile.pop("k_running", None)
+        run_factor = profile.pop("running_factor", None)
+        self.running_factor = 1.0
+        if profile.get("kind") == cfg.step_length:
+            if k_run is not None and profile.get("k"):
+                self.running_factor = float(k_run) / float(profile["k"])
+            elif run_factor is not None:
+                self.running_factor = float(run_factor)
+            if not (0.5 <= self.running_factor <= 2.0):
+                raise InputError(f"running step factor {self.running_factor:.3g}",
+                                 where="user.step_model", expected="between 0.5 and 2")
         if cfg.step_length == "weinberg":
             if cfg.weinberg_k is not None:
                 return WeinbergModel(k=cfg.weinberg_k)
             if profile and profile.get("kind") == "weinberg":
                 return step_model_from_dict(profile)
             return WeinbergModel()
+        if cfg.step_length == "pendulum":
+            if profile and profile.get("kind") == "pendulum":
+                return step_model_from_dict(profile)
+            return PendulumModel()
         if profile and profile.get("kind") == "frequency":
             return step_model_from_dict(profile)
         return FrequencyLawModel()
@@ -478,6 +516,8 @@ class Tracker:
         q = res.q
         if res.frame == "nb" and self.meta.mounting_q_bd is not None:
             q = quat_multiply(q, np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
+        if self._compass is not None and mag is not None and len(mag) == len(res.t):
+            q = self._compass.correct(res.t, np.asarray(q), mag)
         var = (res.var_rpy[:, 2] if res.var_rpy is not None
                else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
         # keep the yaw variance of the samples later events may still need
@@ -499,15 +539,18 @@ class Tracker:
         steps = result.steps
         if len(steps):
             self._steps.append(steps)
-            if not self._velocity_mode:
-                rows = np.full((len(steps), 5), np.nan)
-                rows[:, 0] = steps.length_m
-                rows[:, 1] = steps.heading_rad
-                rows[:, 2] = steps.dz_m
-                rows[:, 3] = steps.activity
-                self._add_rows(_STEP, np.asarray(steps.t_end, dtype=np.float64),
-                               np.full(len(steps), ev.EV_STEP, dtype=np.int64), rows,
-                               np.full(len(steps), "", dtype=str))
+            before = ~self._ignore_before_pose("steps", steps.t_end)
+            if before.any():
+                steps = _select_steps(steps, ~before)
+        if len(steps) and not self._velocity_mode:
+            rows = np.full((len(steps), 5), np.nan)
+            rows[:, 0] = steps.length_m
+            rows[:, 1] = steps.heading_rad
+            rows[:, 2] = steps.dz_m
+            rows[:, 3] = steps.activity
+            self._add_rows(_STEP, np.asarray(steps.t_end, dtype=np.float64),
+                           np.full(len(steps), ev.EV_STEP, dtype=np.int64), rows,
+                           np.full(len(steps), "", dtype=str))
         if self._velocity_mode and len(result.velocity_t) and q_nd is not None \
                 and t is not None:
             self._buffer_velocity(result, t, q_nd)
@@ -539,6 +582,8 @@ class Tracker:
         self._vel_t, self._vel_v = self._vel_t[n:], self._vel_v[n:]
         self._vel_yaw, self._vel_var = self._vel_yaw[n:], self._vel_var[n:]
         keep = vt > self.state.t
+        if self._t_pose > self._t0:
+            self._ignore_before_pose("velocity samples", vt)
         if not np.any(keep):
             return
         vt, vv, yaw, var = vt[keep], vv[keep], yaw[keep], var[keep]
@@ -561,8 +606,36 @@ class Tracker:
         self._seq += 1
         heapq.heappush(self._pending, (t, kind, self._seq, i_payload))
 
+    def _ignore_before_pose(self, what: str, t: np.ndarray) -> np.ndarray:
+        """Mask of the times at or after the start pose's time; counts the others."""
+        keep = np.asarray(t, dtype=np.float64) >= self._t_pose
+        n = int(len(keep) - np.count_nonzero(keep))
+        if n:
+            self._ignored_before_pose[what] = self._ignored_before_pose.get(what, 0) + n
+        return keep
+
+    def _from_pose(self, chunk: Session) -> Session:
+        """The chunk's observations at or after the start pose's time (position starts there)."""
+        parts: dict[str, Any] = {}
+        f = chunk.fixes
+        if f is not None and not (m := self._ignore_before_pose("fixes", f.t)).all():
+            parts["fixes"] = PositionFixes(f.t[m], f.xyz[m], f.sigma_m[m], f.has_z) \
+                if m.any() else None
+        r = chunk.rss
+        if r is not None and not (m := self._ignore_before_pose("rss", r.t)).all():
+            parts["rss"] = RssReadings(r.t[m], r.anchor[m], r.rss_dbm[m]) if m.any() else None
+        g = chunk.tags
+        if g is not None and not (m := self._ignore_before_pose("tags", g.t)).all():
+            parts["tags"] = TagDetections(g.t[m], g.tag[m]) if m.any() else None
+        n = chunk.ranges
+        if n is not None and not (m := self._ignore_before_pose("ranges", n.t)).all():
+            parts["ranges"] = RangeMeasurements(n.t[m], n.node[m], n.range_m[m],
+                                                n.sigma_m[m]) if m.any() else None
+        return chunk.with_parts(**parts) if parts else chunk
+
     def _queue_observations(self, chunk: Session) -> None:
         cfg = self.config
+        chunk = self._from_pose(chunk)
         self._seen_obs = self._seen_obs or any(
             part is not None for part in (chunk.fixes, chunk.rss, chunk.tags, chunk.ranges))
         if chunk.fixes is not None and cfg.fixes.enabled:
@@ -575,7 +648,8 @@ class Tracker:
                 self._rss_note = True
                 self.notes.append("no channel model in session.json: RSS starts from A = -59 "
                                   "dBm, eta = 2" + (" and re-estimates them online"
-                                                    if cfg.rss.estimate_channel else ""))
+                                                    if self.channel_estimator is not None
+                                                    else ""))
             if cfg.rss.mode == "tight":
                 r = chunk.rss
                 keep = r.rss_dbm >= cfg.rss.sensitivity_dbm
@@ -725,7 +799,11 @@ class Tracker:
         data = self._bulk_data[b0:b1].copy()
         step_rows = np.flatnonzero(kind == ev.EV_STEP)
         if len(step_rows):
+            run = step_rows[data[step_rows, 3] == int(Activity.RUNNING)]
             data[step_rows, 0] *= self.step_scale
+            # running steps: their own calibrated factor and learned scale
+            data[run, 0] *= self.running_factor * self.run_scale / self.step_scale
+            self._run_since_anchor += float(np.sum(data[run, 0]))
             h = data[step_rows, 1]
             data[step_rows, 1] = h + self._yaw_offset       # NaN (unknown) stays NaN
             self._path_since_anchor += float(np.sum(data[step_rows, 0]))
@@ -914,10 +992,18 @@ class Tracker:
             if base >= SCALE_MIN_BASELINE_M and base >= 0.95 * self._path_since_anchor:
                 ratio = float((post_xy - anchor) @ d) / (base * base)
                 if 0.7 < ratio < 1.4:
-                    self.step_scale = float(np.clip(self.step_scale * ratio**SCALE_GAIN,
-                                                    *SCALE_BOUNDS))
+                    # per activity: the ratio teaches the scale of the steps that made the
+                    # stretch (walking, running, or both when mixed)
+                    share_run = self._run_since_anchor / max(self._path_since_anchor, 1e-9)
+                    if share_run < 0.8:
+                        self.step_scale = float(np.clip(self.step_scale * ratio**SCALE_GAIN,
+                                                        *SCALE_BOUNDS))
+                    if share_run > 0.2:
+                        self.run_scale = float(np.clip(self.run_scale * ratio**SCALE_GAIN,
+                                                       *SCALE_BOUNDS))
         self._anchor_xy = post_xy
         self._path_since_anchor = 0.0
+        self._run_since_anchor = 0.0
         self._soft_since_anchor = False
 
     def _apply_fix(self, t: float, payload: Any) -> None:
@@ -1029,6 +1115,11 @@ class Tracker:
     # ------------------------------------------------------------------ report
     def _report(self, trajectory: Trajectory, steps: StepEvents) -> dict[str, Any]:
         counts = self.diagnostics.counts()
+        if self._t_pose > self._t0:
+            ignored = ", ".join(f"{n} {k}" for k, n in self._ignored_before_pose.items())
+            self.notes.append(f"start pose holds at t = {self._t_pose:.3f} s: attitude and gait "
+                              f"ran from t = {self._t0:.3f} s, position starts at the pose"
+                              + (f"; ignored before it: {ignored}" if ignored else ""))
         if self.has_imu and not self._seen_obs:
             self.notes.append("no infrastructure observations: pure dead reckoning (the error "
                               "grows with the distance walked)")
@@ -1041,6 +1132,8 @@ class Tracker:
             "corrections": counts,
             "rejected": rejected,
             "step_length_scale": self.step_scale,
+            "running_step_length_scale": self.run_scale,
+            "running_step_factor": self.running_factor,
             "yaw_pseudo_measurements": len(self.yaw_pseudo),
             "summary": {
                 "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
@@ -1051,6 +1144,12 @@ class Tracker:
                 "final_sigma_xy_m": float(math.sqrt(max(np.trace(final.P[:2, :2]), 0.0) / 2)),
             },
         }
+        if self._compass is not None:
+            report["compass"] = {"hard_iron_ut": self._compass.c.tolist(),
+                                 "field_ut": self._compass.radius
+                                 if math.isfinite(self._compass.radius) else None,
+                                 "last_yaw_correction_deg": math.degrees(
+                                     -self._compass.last_error)}
         if self.channel_state is not None and self.config.rss.mode != "off":
             report["channel"] = {"a_dbm": float(self.channel_state.theta[0]),
                                  "eta": float(self.channel_state.theta[1]),
@@ -1065,6 +1164,13 @@ def _chunk_end(chunk: Session) -> float:
     if chunk.imu is not None and len(chunk.imu.accel.t):
         ends.append(float(chunk.imu.accel.t[-1]))
     return max(ends) if ends else -math.inf
+
+
+def _select_steps(steps: StepEvents, keep: np.ndarray) -> StepEvents:
+    """The steps where ``keep`` is true."""
+    return StepEvents(steps.t_start[keep], steps.t_end[keep], steps.length_m[keep],
+                      steps.heading_rad[keep], steps.dz_m[keep], steps.activity[keep],
+                      steps.frequency_hz[keep], steps.acc_max[keep], steps.acc_min[keep])
 
 
 def _concat_steps(parts: list[StepEvents]) -> StepEvents:
