@@ -86,7 +86,7 @@ class CompassYaw:
         self.n_cur = np.zeros((4, 4))
         self.y_cur = np.zeros(4)
         self.cur_block = -math.inf
-        self.c = np.zeros(3)
+        self.c: FloatArray = np.zeros(3)
         self.radius = math.nan
         self.history: deque[np.ndarray] = deque(
             maxlen=max(1, round(self.params.stable_s / self.params.block_s)))
@@ -108,7 +108,7 @@ class CompassYaw:
         prm = self.params
         self.history.append(sol[:3].copy())
         if r2 > 0:
-            self.c = sol[:3]
+            self.c = np.asarray(sol[:3], dtype=np.float64)
             # the sphere is used only once the hard iron has settled (turns seen) and the
             # fitted field is an Earth field
             r = math.sqrt(r2)

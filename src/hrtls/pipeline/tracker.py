@@ -25,9 +25,15 @@ when the fix is processed, so the correction is applied as a yaw offset to all l
 for a constant bias; the pseudo-measurements are kept in ``Tracker.yaw_pseudo`` (count in the
 report). With ``model = "step"`` the same stretching uses the dead-reckoned chord between the
 two fixes. Our additions (documented at the code): the step-length scale learned from absolute
-corrections (``prediction.learn_step_scale``), the fall-back to the thesis' tag strategies when
-every lobe of a read fails the Kalman gate, slots of eq. 19 anchored at the first fix, and the
-random-walk prediction without an IMU.
+corrections (``prediction.learn_step_scale``; walking and running steps separately), a running
+factor from the user's profile (``k_running``), the compass correction of the device
+orientation's yaw wander (``attitude.compass_yaw``, :mod:`hrtls.pipeline.compass`), the
+fall-back to the thesis' tag strategies when every lobe of a read fails the Kalman gate, slots
+of eq. 19 anchored at the first fix, and the random-walk prediction without an IMU.
+
+Start pose time (``StartPose.t``): attitude and gait run from the first sample so the filters
+have converged, the position starts at the pose's time; steps, velocity samples and
+observations before it are ignored for position (counted in ``report["notes"]``).
 """
 
 from __future__ import annotations
