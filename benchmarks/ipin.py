@@ -7,8 +7,9 @@ p75 = 4.43 m). Rows "both" pool the landmarks of the two files (the competition'
 
 Protocol (what a competitor knows): the start position (first POSI, heading unknown), the
 beacon positions, that the phone is held in front of the body (hand-held mounting from the mean
-gravity direction, see :mod:`hrtls.jobs.ipin_eval`), and a Weinberg step-length constant
-calibrated on the *other* logfile with the same configuration (two-fold cross-validation).
+gravity direction, :mod:`hrtls.pipeline.mounting`; the row of ``configs/ipin.toml`` lets the
+tracker estimate it and average the RSS itself), and a Weinberg step-length constant calibrated
+on the *other* logfile with the same configuration (two-fold cross-validation).
 ``--default-k`` uses the library's default constant (0.45) instead.
 """
 

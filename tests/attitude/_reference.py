@@ -229,7 +229,7 @@ def quat_to_euler(q):
 
 
 def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=True):
-    from hrtls.attitude.euler_ekf import _EXACT, _P0, _QETA, _QG, _QN, _QW
+    from hrtls.attitude.euler_ekf import _EXACT, _P0, _QETA, _QG, _QN, _QW, _RATE_REF
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
     th = np.zeros(3)
@@ -255,10 +255,12 @@ def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=T
                 out[i] = np.nan
                 continue
         else:
+            rate2 = 0.0
             if gyr_fin and 0.0 < dt <= prm[K.PRM_MAX_DT]:
                 if acc_fin:
                     rest_and_bias(aux, prm, *g, *a, dt)
                 w = g - aux[K.AUX_BIAS:K.AUX_BIAS + 3]
+                rate2 = float(w @ w)
                 F = np.eye(3) + dt * complex_step_jacobian(lambda x, w=w: e_matrix(x) @ w, th)
                 G = dt * e_matrix(th)
                 if prm[_EXACT] > 0.5:  # R+ = R(theta) exp([w]x dt)
@@ -279,7 +281,8 @@ def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=T
                 z.append(a)
                 h.append(R.T @ [0, 0, g_])
                 Hs.append(complex_step_jacobian(lambda x: r_zyx(x).T @ [0, 0, g_], th))
-                v += [prm[_QG]] * 3
+                # Q_g grows with the rate of turn (rate_ref_rad_s)
+                v += [prm[_QG] * (1.0 + rate2 / prm[_RATE_REF] ** 2)] * 3
             if mag_fin and mag_gate(aux, prm, *m, *u, dt):
                 nb = m - (m @ u) * u
                 z.append(nb / np.linalg.norm(nb))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import warnings
 
 import numpy as np
@@ -370,3 +371,30 @@ def test_gyro_quat_step_matches_transition():
         np.testing.assert_allclose(K.gyro_quat_step(*q, *w, 0.01), expected, atol=1e-14)
         np.testing.assert_allclose(K.gyro_quat_step.py_func(*q, *w, 0.01), expected,
                                    atol=1e-14)
+
+
+def _steady_turn(n: int = 2500, rate: float = 1.9, a_c: float = 3.0):
+    """Level device turning at ``rate`` with a constant sideways (centripetal) specific force."""
+    t = np.arange(n) / 250.0
+    acc = np.tile([0.0, a_c, 9.81], (n, 1))
+    gyr = np.tile([0.0, 0.0, rate], (n, 1))
+    return t, acc, gyr
+
+
+def test_euler_ekf_rate_adaptive_acc_variance_limits_turn_tilt():
+    # the true roll is 0; the specific force says atan(3 / 9.81) ~ 17 deg
+    t, acc, gyr = _steady_turn()
+    paper = EulerEkf(EulerEkfParams(rate_ref_rad_s=math.inf, acc_gate_m_s2=math.inf))
+    ours = EulerEkf(EulerEkfParams(acc_gate_m_s2=math.inf))
+    roll_paper = np.abs(paper.update(t, acc, gyr, None).roll[-1])
+    roll_ours = np.abs(ours.update(t, acc, gyr, None).roll[-1])
+    assert roll_ours < 0.5 * roll_paper
+
+
+def test_euler_ekf_rate_ref_inf_is_constant_variance():
+    t, acc, gyr = _steady_turn(n=300)
+    a = EulerEkf(EulerEkfParams(rate_ref_rad_s=math.inf)).update(t, acc, gyr, None)
+    b = EulerEkf(EulerEkfParams(rate_ref_rad_s=1e12)).update(t, acc, gyr, None)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-12)
+    with pytest.raises(InputError):
+        EulerEkfParams(rate_ref_rad_s=0.0)

@@ -28,8 +28,13 @@ Defaults are the values of Sec. V-1: ``P(0) = 0.001 I rad^2``, ``Q_w = 0.01 I (r
 we read it as T^2 of the field and divide by the square of a 50 uT field to get the variance of
 the unit north vector (0.29). The paper has no gates; the shared gates of
 :class:`~hrtls.attitude.base.CommonParams` are on by default (set them to ``inf`` to reproduce
-the paper). Near pitch +-90 deg the Euler rates are singular: ``cos(pitch)`` is clamped to
-``1e-3``.
+the paper). Our extensions against the centripetal acceleration of tight turns (Colombo's
+Case A circle: r ~ 1 m at ~1.5-1.9 m/s, 2-4 m/s^2 sideways, which the paper's constant ``Q_g``
+turns into several degrees of tilt and a biased forward acceleration for the velocity
+automaton): ``Q_g`` grows with the rate of turn, ``Q_g (1 + (|w| / rate_ref_rad_s)^2)``, and
+the ``| |a| - g |`` gate is 0.5 m/s^2 instead of the common 1.0. ``rate_ref_rad_s=inf`` and
+``acc_gate_m_s2=inf`` give the paper's filter. Near pitch +-90 deg the Euler rates are
+singular: ``cos(pitch)`` is clamped to ``1e-3``.
 """
 
 from __future__ import annotations
@@ -54,6 +59,7 @@ _QN = K.PRM_SPECIFIC + 2
 _QETA = K.PRM_SPECIFIC + 3
 _P0 = K.PRM_SPECIFIC + 4
 _EXACT = K.PRM_SPECIFIC + 5
+_RATE_REF = K.PRM_SPECIFIC + 6
 
 _COS_MIN = 1e-3
 
@@ -64,6 +70,10 @@ class EulerEkfParams(CommonParams):
 
     Attributes
     ----------
+    acc_gate_m_s2:
+        The shared ``| |a| - g |`` gate, tighter here than the common 1.0 m/s^2: the Euler EKF
+        has no other defence against the centripetal acceleration of tight turns (``inf`` for
+        the paper, which has no gate).
     gyro_var_rad2_s2:
         ``Q_w``, variance of each gyro axis, (rad/s)^2.
     acc_var_m2_s4:
@@ -74,6 +84,13 @@ class EulerEkfParams(CommonParams):
         ``Q_eta``, variance of the yaw pseudo-measurement, rad^2.
     p0_var_rad2:
         ``P(0)``, initial variance of each angle, rad^2.
+    rate_ref_rad_s:
+        Rate-of-turn scale of the accelerometer variance: ``Q_g (1 + (|w| / rate_ref)^2)``
+        with ``|w|`` the bias-corrected gyro rate (our extension, as in
+        :mod:`~hrtls.attitude.quat_ekf`: while turning, the centripetal acceleration makes the
+        specific force a biased gravity reference and tilts the estimate; on a 1 m circle at
+        walking speed it is ~3 m/s^2, ~15 deg). ``inf`` gives the constant ``Q_g`` of the
+        paper.
     exact_propagation:
         Propagate the angles by composing rotations, ``R+ = R(theta) exp([w]x T)``, instead of
         the first-order step of eq. 5 (of which it is the exact form); the covariance still
@@ -81,22 +98,26 @@ class EulerEkfParams(CommonParams):
         +-90 deg, where eq. 5 diverges.
     """
 
+    acc_gate_m_s2: float = 0.5
     gyro_var_rad2_s2: float = 0.01
     acc_var_m2_s4: float = 0.24
     north_var: float = 7.3e-10 / (50e-6) ** 2
     yaw_var_rad2: float = 0.32
     p0_var_rad2: float = 0.001
     exact_propagation: bool = True
+    rate_ref_rad_s: float = 0.5
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
         self._require_positive(("gyro_var_rad2_s2", "acc_var_m2_s4", "north_var",
-                                "yaw_var_rad2", "p0_var_rad2"))
+                                "yaw_var_rad2", "p0_var_rad2", "rate_ref_rad_s"),
+                               inf_ok=("rate_ref_rad_s",))
 
     def specific_values(self) -> tuple[float, ...]:
-        """Kernel parameters ``_QW`` .. ``_EXACT``."""
+        """Kernel parameters ``_QW`` .. ``_RATE_REF``."""
         return (self.gyro_var_rad2_s2, self.acc_var_m2_s4, self.north_var, self.yaw_var_rad2,
-                self.p0_var_rad2, 1.0 if self.exact_propagation else 0.0)
+                self.p0_var_rad2, 1.0 if self.exact_propagation else 0.0,
+                self.rate_ref_rad_s)
 
 
 @numba.njit(**K.JIT)
@@ -176,6 +197,7 @@ def euler_ekf_kernel(
     g = prm[K.PRM_GRAVITY]
     qw = prm[_QW]
     exact = prm[_EXACT] > 0.5
+    acc_rate_k = 1.0 / prm[_RATE_REF] ** 2
     for i in range(n):
         s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
         dt = s.dt
@@ -195,11 +217,13 @@ def euler_ekf_kernel(
             cy_ = x[5]
             cz = x[6]
             moved = False
+            rate2 = 0.0
             # ---- prediction, eq. 5-6
             gflags = K.gyro_step(aux, prm, s, has_gyr)
             if gflags:
                 flags |= gflags
                 wx, wy, wz = K.unbiased_rate(aux, s)
+                rate2 = wx * wx + wy * wy + wz * wz
                 sr, cr, sp, cp, _, _ = _sincos(cw, cx, cy_, cz)
                 if abs(cp) < _COS_MIN:
                     cp = _COS_MIN
@@ -272,7 +296,7 @@ def euler_ekf_kernel(
                            (-g * cp * sr, -g * sp * cr, 0.0))
                     use_a = K.block3_update(P, dx, jac, s.a0 - g * ux, s.a1 - g * uy,
                                             s.a2 - g * uz,
-                                            prm[_QG], ph)
+                                            prm[_QG] * (1.0 + rate2 * acc_rate_k), ph)
                 if use_m:
                     # h = R^T [0, 1, 0] (north)
                     h0 = sy * cp

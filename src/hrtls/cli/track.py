@@ -26,7 +26,7 @@ def track(
     config: Annotated[Path | None, typer.Option("--config", "-c",
                                                 help="Tracker configuration (TOML).")] = None,
     preset_name: Annotated[str | None, typer.Option(
-        "--preset", "-p", help="default | colombo2014 | basso2017 | tarrio2011 | "
+        "--preset", "-p", help="default | colombo2014 | basso2017 | tarrio2011 | handheld-phone | "
         "inderst-rfid | inderst-range")] = None,
     plot: Annotated[bool, typer.Option("--plot", help="Also write track.png.")] = False,
     repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows (warns).")] = False,

@@ -30,13 +30,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
+from numpy.typing import NDArray
 
 from hrtls.data import (
     ChannelModel,
@@ -48,10 +46,11 @@ from hrtls.data import (
 )
 from hrtls.errors import InputError
 from hrtls.evaluate.metrics import ErrorStats, error_stats
-from hrtls.frames import quat_from_rotation, quat_multiply
+from hrtls.frames import quat_multiply
 from hrtls.gait.step_length import WeinbergModel
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.tracker import Tracker, TrackResult
+from hrtls.pipeline.mounting import handheld_mounting_q_bd
+from hrtls.pipeline.tracker import Tracker, TrackResult, average_rss_per_anchor
 
 FloatArray = NDArray[np.float64]
 
@@ -66,53 +65,6 @@ DECLINATION_DEG = 4.0
 
 Mounting = Literal["handheld", "unknown"]
 RssFloors = Literal["same", "all"]
-
-
-def handheld_mounting_q_bd(acc_d_m_s2: ArrayLike, *,
-                           forward_d: Sequence[float] = (0.0, 1.0, 0.0)) -> FloatArray:
-    """Device->body rotation of a phone held in front of the body.
-
-    Body z (up) is the mean specific-force direction in the device frame (gravity reaction,
-    the mean tilt of the hand-held phone); body x (forward) is ``forward_d`` (device +y, the top
-    edge in portrait) with its component along body z removed; body y = z x x (left).
-
-    Parameters
-    ----------
-    acc_d_m_s2:
-        Device-frame accelerometer samples (N, 3), m/s^2, over the walk.
-    forward_d:
-        Device axis that points in the walking direction.
-
-    Returns
-    -------
-    ``q_bd`` [w, x, y, z]: rotates device-frame vectors into the body frame
-    (``q_nd = q_nb * q_bd``, the convention of ``SessionMeta.mounting_q_bd``).
-    """
-    acc = np.asarray(acc_d_m_s2, dtype=np.float64)
-    if acc.ndim != 2 or acc.shape[1] != 3 or acc.shape[0] == 0:
-        raise InputError(f"shape {acc.shape}", where="acc_d_m_s2", expected="(N, 3), N >= 1")
-    if not np.all(np.isfinite(acc)):
-        i = int(np.flatnonzero(~np.all(np.isfinite(acc), axis=1))[0])
-        raise InputError("non-finite sample", where=f"acc_d_m_s2 row {i}",
-                         expected="finite m/s^2")
-    up = acc.mean(axis=0)
-    norm = float(np.linalg.norm(up))
-    if norm < 1.0:
-        raise InputError(f"mean specific force {norm:.3g} m/s^2", where="acc_d_m_s2",
-                         expected="about 9.8 m/s^2 (a device carried by a walker)")
-    z_b = up / norm
-    fwd = np.asarray(forward_d, dtype=np.float64)
-    if fwd.shape != (3,) or not np.all(np.isfinite(fwd)) or np.linalg.norm(fwd) == 0:
-        raise InputError(f"{forward_d}", where="forward_d", expected="a non-zero 3-vector")
-    fwd = fwd / np.linalg.norm(fwd)
-    x_raw = fwd - float(fwd @ z_b) * z_b
-    if np.linalg.norm(x_raw) < 0.2:  # forward axis within ~11 deg of vertical
-        raise InputError("forward axis is almost vertical", where="forward_d",
-                         expected="a device axis that is roughly horizontal while walking")
-    x_b = x_raw / np.linalg.norm(x_raw)
-    y_b = np.cross(z_b, x_b)
-    r_bd = np.vstack([x_b, y_b, z_b])  # rows: body axes in device coordinates
-    return np.asarray(quat_from_rotation(Rotation.from_matrix(r_bd)), dtype=np.float64)
 
 
 def start_floor(session: Session) -> int:
@@ -132,21 +84,7 @@ def average_rss(rss: RssReadings, window_s: float) -> RssReadings:
     tames the shadowing errors of consecutive readings, which are strongly correlated and
     would otherwise enter the filter as independent measurements.
     """
-    if not (math.isfinite(window_s) and window_s > 0):
-        raise InputError(f"{window_s}", where="window_s", expected="a positive window (s)")
-    if len(rss) == 0:
-        return rss
-    anchors, a_idx = np.unique(rss.anchor, return_inverse=True)
-    bins = np.floor((rss.t - rss.t[0]) / window_s).astype(np.int64)
-    keys = a_idx.astype(np.int64) * (int(bins.max()) + 1) + bins
-    uniq, inv = np.unique(keys, return_inverse=True)
-    count = np.bincount(inv)
-    mean = np.bincount(inv, weights=rss.rss_dbm) / count
-    t_last = np.full(uniq.shape[0], -np.inf)
-    np.maximum.at(t_last, inv, rss.t)
-    anchor = anchors[uniq // (int(bins.max()) + 1)]
-    order = np.argsort(t_last, kind="stable")
-    return RssReadings(t_last[order], anchor[order], mean[order], rss.name)
+    return average_rss_per_anchor(rss, window_s)
 
 
 def calibrate_channel(session: Session, *, rss_window_s: float = 0.0,
@@ -430,9 +368,11 @@ def run_case(session: Session, case: IpinCase, *, file: str = "",
     if session.checkpoints is None:
         raise InputError("no landmarks", where=file or "session",
                          expected="an IPIN session with POSI checkpoints")
+    # a configuration that averages RSS itself ([rss] average_s) gets the raw readings
+    window = 0.0 if case.config.rss.average_s > 0 else case.rss_window_s
     prepared = prepare_session(session, mounting=case.mounting, rss_floors=case.rss_floors,
                                declination_rad=case.declination_rad,
-                               rss_window_s=case.rss_window_s, channel=channel)
+                               rss_window_s=window, channel=channel)
     try:
         result = Tracker(case.config).run(prepared)
     except (InputError, ArithmeticError, ValueError) as exc:

@@ -32,6 +32,13 @@ class AttitudeConfig(_Section):
         default=False, description="remove the device orientation's slow yaw wander with the "
         "magnetometer (self-calibrated hard iron; our addition, see pipeline.compass); only "
         "with method device (our filters fuse the magnetometer themselves)")
+    mounting: Literal["session", "handheld"] = "session"
+    """Device->body mounting: ``session`` uses ``meta.mounting_q_bd`` (unknown when unset);
+    ``handheld`` estimates it for a phone held in front in portrait (top edge forward) from
+    the mean specific force (:func:`hrtls.pipeline.mounting.handheld_mounting_q_bd`)."""
+    mounting_window_s: float = Field(
+        default=0.0, ge=0.0, description="handheld mounting: accelerometer seconds from the "
+        "start used offline (0 = the whole recording); live, the samples given to start()")
 
 
 class GaitConfig(_Section):
@@ -81,6 +88,10 @@ class RssConfig(_Section):
 
     mode: Literal["off", "wls", "kalman", "tight"] = "tight"
     window_s: float = Field(default=2.0, gt=0.0, description="scan grouping window")
+    average_s: float = Field(
+        default=0.0, ge=0.0, description="tight mode: mean RSS per beacon over windows of "
+        "this length before the update (readings of one beacon share their shadowing); "
+        "0 = every reading")
     estimate_channel: bool = True
     sensitivity_dbm: float = -100.0
     use_wls_covariance: bool = True
@@ -130,7 +141,8 @@ class TrackerConfig(_Section):
     floor_snap: bool = True
 
 
-PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range")
+PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range",
+           "handheld-phone")
 """Named configurations shipped in ``hrtls/pipeline/presets``."""
 
 

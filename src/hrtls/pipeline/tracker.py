@@ -115,6 +115,7 @@ from hrtls.pipeline import _events as ev
 from hrtls.pipeline.compass import CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
+from hrtls.pipeline.mounting import handheld_mounting_q_bd
 
 FloatArray = np.ndarray
 
@@ -216,14 +217,23 @@ class Tracker:
     # ------------------------------------------------------------------ set-up
     def start(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
-              rate_hz: float, t0: float) -> None:
-        """Prepare for a recording with these sensors; the next ``update`` continues from t0."""
+              rate_hz: float, t0: float,
+              mounting_acc_d_m_s2: np.ndarray | None = None) -> None:
+        """Prepare for a recording with these sensors; the next ``update`` continues from t0.
+
+        ``mounting_acc_d_m_s2`` (N, 3): device-frame accelerometer samples for the ``handheld``
+        mounting (``[attitude] mounting``). Offline, :meth:`run` passes the recording's first
+        ``mounting_window_s`` (0: all of it); live, pass the samples available at start (e.g.
+        a few seconds of walking buffered before the first ``update``). Without them the
+        session's mounting is kept (noted in the report).
+        """
         cfg = self.config
+        self.notes: list[str] = []
+        meta = self._resolve_mounting(meta, mounting_acc_d_m_s2, has_imu=has_imu)
         self.meta = meta
         geo = None if meta.georeference is None else meta.georeference.to_georeference()
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
                           else lm for k, lm in landmarks.items()}
-        self.notes: list[str] = []
         self.diagnostics = DiagnosticsLog()
         self._track = _Track()
         self._steps: list[StepEvents] = []
@@ -270,6 +280,9 @@ class Tracker:
         self._scan_buf_t = np.zeros(0)
         self._scan_buf_a = np.zeros(0, dtype=str)
         self._scan_buf_v = np.zeros(0)
+        self._avg_buf_t = np.zeros(0)
+        self._avg_buf_a = np.zeros(0, dtype=str)
+        self._avg_buf_v = np.zeros(0)
         if not has_imu:
             self.notes.append("no IMU: positions from the infrastructure alone, predicted by a "
                               "random walk between observations")
@@ -369,6 +382,31 @@ class Tracker:
         self._t_last_sample = t0
         self._started = True
 
+    def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray | None, *,
+                          has_imu: bool) -> SessionMeta:
+        """The session metadata with the configured device mounting (noted in the report)."""
+        kind = self.config.attitude.mounting
+        if kind == "handheld" and has_imu:
+            if acc_d is not None and len(acc_d):
+                try:
+                    q_bd = handheld_mounting_q_bd(acc_d)
+                except InputError as exc:  # e.g. a phone held upright: top edge vertical
+                    self._degrade(f"hand-held mounting not estimable ({exc}); using the "
+                                  "session's mounting")
+                    return meta
+                self.notes.append(
+                    "mounting: hand-held in front (device +y forward), tilt from the mean "
+                    f"specific force of {len(acc_d)} samples: q_bd = "
+                    f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
+                return meta.model_copy(update={"mounting_q_bd": tuple(float(v)
+                                                                       for v in q_bd)})
+            self.notes.append("mounting 'handheld' asked but no accelerometer samples at start; "
+                              "using the session's mounting")
+        if meta.mounting_q_bd is not None:
+            self.notes.append("mounting: from the session (meta.mounting_q_bd = "
+                              f"[{', '.join(f'{v:.4f}' for v in meta.mounting_q_bd)}])")
+        return meta
+
     def _degrade(self, message: str) -> None:
         self.notes.append(message)
         warnings.warn(message, DegradedInputWarning, stacklevel=3)
@@ -417,10 +455,22 @@ class Tracker:
         imu = session.imu
         rate = imu.accel.rate_hz if imu is not None else 0.0
         t0 = session.time_span()[0]
+        acc_mount = None
+        if imu is not None and self.config.attitude.mounting == "handheld":
+            # the walk starts at the start pose: samples before it (phone lying or being
+            # picked up) would bias the mean tilt
+            pose_t = session.meta.start_pose.t if session.meta.start_pose is not None else None
+            ta = imu.accel.t
+            t_from = float(ta[0]) if pose_t is None else max(float(ta[0]), float(pose_t))
+            sel = ta >= t_from
+            if (w := self.config.attitude.mounting_window_s) > 0:
+                sel &= ta < t_from + w
+            acc_mount = imu.accel.values[sel] if sel.any() else imu.accel.values
         self.start(session.meta, session.landmarks, has_imu=imu is not None,
                    has_gyro=imu is not None and imu.gyro is not None,
                    has_mag=imu is not None and imu.mag is not None,
-                   has_orientation=session.orientation is not None, rate_hz=rate, t0=t0)
+                   has_orientation=session.orientation is not None, rate_hz=rate, t0=t0,
+                   mounting_acc_d_m_s2=acc_mount)
         self.update(session)
         return self.finish()
 
@@ -445,7 +495,7 @@ class Tracker:
             self._horizon = max(self._horizon, _chunk_end(chunk))
         # tag reads / RSS readings still being grouped hold back everything after them
         limit = self._horizon
-        for buf in (self._tag_buf_t, self._scan_buf_t):
+        for buf in (self._tag_buf_t, self._scan_buf_t, self._avg_buf_t):
             if len(buf):
                 limit = min(limit, float(np.nextafter(buf[0], -np.inf)))
         self._drain(limit)
@@ -456,6 +506,7 @@ class Tracker:
             self._consume_gait(self.gait.flush(), None, None)
         self._flush_tag_groups(math.inf)
         self._flush_scans(math.inf)
+        self._flush_averages(math.inf)
         self._drain(math.inf)
         if self._velocity_mode:
             self._track.add(self.state, self._last_activity)
@@ -659,13 +710,13 @@ class Tracker:
             if cfg.rss.mode == "tight":
                 r = chunk.rss
                 keep = r.rss_dbm >= cfg.rss.sensitivity_dbm
-                if self._velocity_mode:
-                    for k in np.flatnonzero(keep).tolist():
-                        self._push(float(r.t[k]), _RSS, i_payload=(
-                            "reading", str(r.anchor[k]), float(r.rss_dbm[k])))
+                if cfg.rss.average_s > 0:
+                    self._avg_buf_t = np.concatenate([self._avg_buf_t, r.t[keep]])
+                    self._avg_buf_a = np.concatenate([self._avg_buf_a,
+                                                      r.anchor[keep].astype(str)])
+                    self._avg_buf_v = np.concatenate([self._avg_buf_v, r.rss_dbm[keep]])
                 else:
-                    self._add_bulk(_RSS, r.t[keep], r.anchor[keep].astype(str),
-                                   r.rss_dbm[keep], np.full(int(keep.sum()), np.nan))
+                    self._queue_tight(r.t[keep], r.anchor[keep].astype(str), r.rss_dbm[keep])
             else:
                 r = chunk.rss
                 self._scan_buf_t = np.concatenate([self._scan_buf_t, r.t])
@@ -673,6 +724,7 @@ class Tracker:
                 self._scan_buf_v = np.concatenate([self._scan_buf_v, r.rss_dbm])
         if cfg.rss.mode in ("wls", "kalman"):
             self._flush_scans(_chunk_end(chunk))
+        self._flush_averages(_chunk_end(chunk))
         if chunk.tags is not None and cfg.tags.enabled:
             g = chunk.tags
             self._tag_buf_t = np.concatenate([self._tag_buf_t, g.t])
@@ -686,6 +738,39 @@ class Tracker:
                         str(rm.node[i]), float(rm.range_m[i]), float(rm.sigma_m[i])))
             else:
                 self._add_bulk(_RANGE, rm.t, rm.node.astype(str), rm.range_m, rm.sigma_m)
+
+    def _queue_tight(self, t: np.ndarray, anchor: np.ndarray, rss_dbm: np.ndarray) -> None:
+        """Queue RSS readings for tight (per-reading) range updates."""
+        if self._velocity_mode:
+            for k in range(len(t)):
+                self._push(float(t[k]), _RSS, i_payload=("reading", str(anchor[k]),
+                                                         float(rss_dbm[k])))
+        else:
+            self._add_bulk(_RSS, t, anchor, rss_dbm, np.full(len(t), np.nan))
+
+    def _flush_averages(self, t_seen: float) -> None:
+        """Queue the per-beacon RSS means of the ``average_s`` windows that have closed.
+
+        Windows run from the session start (``t0`` of :meth:`start`), so a chunked run closes
+        the same windows as the offline run.
+        """
+        if len(self._avg_buf_t) == 0:
+            return
+        w = self.config.rss.average_s
+        if math.isfinite(t_seen):
+            end_bin = math.floor((t_seen - self._t0) / w)
+            done = np.floor((self._avg_buf_t - self._t0) / w) < end_bin
+        else:
+            done = np.ones(len(self._avg_buf_t), dtype=bool)
+        if not done.any():
+            return
+        avg = average_rss_per_anchor(
+            RssReadings(self._avg_buf_t[done], self._avg_buf_a[done], self._avg_buf_v[done]),
+            w, t_origin=self._t0)
+        self._queue_tight(avg.t, avg.anchor.astype(str), avg.rss_dbm)
+        self._avg_buf_t = self._avg_buf_t[~done]
+        self._avg_buf_a = self._avg_buf_a[~done]
+        self._avg_buf_v = self._avg_buf_v[~done]
 
     def _add_bulk(self, heap_kind: int, t: np.ndarray, src: np.ndarray, value: np.ndarray,
                   sigma: np.ndarray) -> None:
@@ -1161,6 +1246,37 @@ class Tracker:
                                  "eta": float(self.channel_state.theta[1]),
                                  "sigma_db": math.sqrt(self.channel_state.residual_var_db2)}
         return report
+
+
+def average_rss_per_anchor(rss: RssReadings, window_s: float, *,
+                           t_origin: float | None = None) -> RssReadings:
+    """One reading per anchor and window: the mean (dBm) of its readings in that window.
+
+    Windows are ``[t_origin + i w, t_origin + (i + 1) w)`` (``t_origin``: the first reading
+    when None); each mean is stamped with the time of the last reading it contains (it is
+    known by then). Consecutive readings of one beacon share their shadowing error; averaging
+    keeps them from entering the filter as independent measurements. Output in time order
+    (ties: anchor name).
+    """
+    if not (math.isfinite(window_s) and window_s > 0):
+        raise InputError(f"{window_s}", where="window_s", expected="a positive window (s)")
+    if len(rss) == 0:
+        return rss
+    origin = float(rss.t[0]) if t_origin is None else float(t_origin)
+    if not math.isfinite(origin) or origin > float(rss.t.min()):
+        raise InputError(f"{t_origin}", where="t_origin",
+                         expected="a finite time at or before the first reading")
+    anchors, a_idx = np.unique(rss.anchor, return_inverse=True)
+    bins = np.floor((rss.t - origin) / window_s).astype(np.int64)
+    n_bins = int(bins.max()) + 1
+    keys = a_idx.astype(np.int64) * n_bins + bins
+    uniq, inv = np.unique(keys, return_inverse=True)
+    mean = np.bincount(inv, weights=rss.rss_dbm) / np.bincount(inv)
+    t_last = np.full(uniq.shape[0], -np.inf)
+    np.maximum.at(t_last, inv, rss.t)
+    anchor = anchors[uniq // n_bins]
+    order = np.lexsort((anchor, t_last))
+    return RssReadings(t_last[order], anchor[order], mean[order], rss.name)
 
 
 def _chunk_end(chunk: Session) -> float:

@@ -1,6 +1,6 @@
 """Session I/O speed: write and read a 1 M-row imu.csv (target: loads in a few seconds).
 
-Run: python benchmarks/io.py [--rows N]
+Run: python benchmarks/session_io.py [--rows N]
 """
 
 from __future__ import annotations
