@@ -39,6 +39,7 @@ from hrtls.calibration.imu import (
 )
 from hrtls.data import Session
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.io.intervals import read_intervals
 
 __all__ = [
     "attitude",
@@ -154,31 +155,7 @@ def attitude(
 # ---------------------------------------------------------------------------------------------
 # calibration
 # ---------------------------------------------------------------------------------------------
-def _read_intervals(path: Path, columns: tuple[str, ...]) -> list[list[str]]:
-    try:
-        lines = [ln for ln in Path(path).read_text().splitlines() if ln.strip()]
-    except OSError as exc:
-        raise FormatError(str(exc), where=str(path), expected="a readable CSV") from None
-    header = [h.strip() for h in lines[0].split(",")] if lines else []
-    if tuple(header[: len(columns)]) != columns:
-        raise FormatError(f"header {header}", where=f"{path} line 1",
-                          expected=",".join(columns))
-    rows = []
-    for i, line in enumerate(lines[1:], start=2):
-        parts = [p.strip() for p in line.split(",")]
-        if len(parts) < len(columns):
-            raise FormatError(f"{len(parts)} fields", where=f"{path} line {i}",
-                              expected=",".join(columns))
-        try:
-            a, b = float(parts[0]), float(parts[1])
-        except ValueError:
-            raise FormatError(f"times {parts[:2]}", where=f"{path} line {i}",
-                              expected="numbers in s") from None
-        if not (np.isfinite(a) and np.isfinite(b) and b > a):
-            raise FormatError(f"interval {a}..{b}", where=f"{path} line {i}",
-                              expected="t_start < t_end")
-        rows.append(parts)
-    return rows
+
 
 
 def imu_calibration_from_session(session: Session, positions: Path,
@@ -190,13 +167,13 @@ def imu_calibration_from_session(session: Session, positions: Path,
     t, acc, gyr, _ = session.imu.aligned()
     segments: dict[str, list[np.ndarray]] = {p: [] for p in AXIS_POSITIONS}
     static_gyro: list[np.ndarray] = []
-    for i, row in enumerate(_read_intervals(positions, ("t_start", "t_end", "position")),
-                            start=2):
-        pos = row[2]
+    iv = read_intervals(positions, columns={"position": "str"})
+    for t0, t1, pos, i in zip(iv.t_start, iv.t_end, iv.table.str("position"), iv.line,
+                              strict=True):
         if pos not in segments:
             raise FormatError(f"position {pos!r}", where=f"{positions} line {i}",
                               expected=" | ".join(AXIS_POSITIONS))
-        sel = (t >= float(row[0])) & (t < float(row[1]))
+        sel = (t >= t0) & (t < t1)
         if not sel.any():
             raise InputError("no samples in the interval", where=f"{positions} line {i}",
                              expected="intervals on the session clock")
@@ -215,20 +192,17 @@ def imu_calibration_from_session(session: Session, positions: Path,
         ccw = np.full(3, np.nan)
         cw = np.full(3, np.nan)
         rate = np.nan
-        for i, row in enumerate(_read_intervals(rate_test,
-                                                ("t_start", "t_end", "axis", "rate_rad_s")),
-                                start=2):
-            axis = "xyz".find(row[2].lower())
-            try:
-                r = float(row[3])
-            except ValueError:
-                raise FormatError(f"rate {row[3]!r}", where=f"{rate_test} line {i}",
-                                  expected="a number in rad/s") from None
-            if axis < 0 or not np.isfinite(r) or r == 0:
-                raise FormatError(f"axis {row[2]!r}, rate {row[3]!r}",
+        rates = read_intervals(rate_test, columns={"axis": "str", "rate_rad_s": "float"})
+        for t0, t1, axis_name, r, i in zip(rates.t_start, rates.t_end,
+                                           rates.table.str("axis"),
+                                           rates.table.float("rate_rad_s"), rates.line,
+                                           strict=True):
+            axis = "xyz".find(axis_name.lower()) if len(axis_name) == 1 else -1
+            if axis < 0 or r == 0:
+                raise FormatError(f"axis {axis_name!r}, rate {r}",
                                   where=f"{rate_test} line {i}",
                                   expected="axis x|y|z and a non-zero rate")
-            sel = (t >= float(row[0])) & (t < float(row[1]))
+            sel = (t >= t0) & (t < t1)
             if not sel.any():
                 raise InputError("no samples in the interval", where=f"{rate_test} line {i}",
                                  expected="intervals on the session clock")

@@ -22,40 +22,17 @@ import typer
 
 from hrtls.cli.errors import reports_errors
 from hrtls.data import Activity, activity_codes
-from hrtls.errors import FormatError, InputError
+from hrtls.errors import InputError
+from hrtls.io.intervals import read_intervals
 
 activity_app = typer.Typer(no_args_is_help=True, help="Activity recognition models.")
 
 
 def read_activity_labels(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Intervals ``(t_start, t_end, codes)`` of an ``activity.csv`` file."""
-    try:
-        lines = Path(path).read_text().strip().splitlines()
-    except OSError as exc:
-        raise FormatError(str(exc), where=str(path), expected="a readable activity.csv") from None
-    header = [h.strip() for h in lines[0].split(",")] if lines else []
-    if header[:3] != ["t_start", "t_end", "activity"]:
-        raise FormatError(f"header {header}", where=f"{path} line 1",
-                          expected="t_start,t_end,activity")
-    t0, t1, labels = [], [], []
-    for i, line in enumerate(lines[1:], start=2):
-        parts = [p.strip() for p in line.split(",")]
-        if len(parts) < 3:
-            raise FormatError(f"{len(parts)} fields", where=f"{path} line {i}",
-                              expected="t_start,t_end,activity")
-        try:
-            a, b = float(parts[0]), float(parts[1])
-        except ValueError:
-            raise FormatError(f"times {parts[:2]}", where=f"{path} line {i}",
-                              expected="numbers in s") from None
-        if not (np.isfinite(a) and np.isfinite(b) and b > a):
-            raise FormatError(f"interval [{a}, {b}]", where=f"{path} line {i}",
-                              expected="finite t_end > t_start")
-        t0.append(a)
-        t1.append(b)
-        labels.append(parts[2])
-    return np.array(t0), np.array(t1), activity_codes(np.array(labels, dtype=str),
-                                                      where=f"{path} activity")
+    iv = read_intervals(path, columns={"activity": "str"})
+    return iv.t_start, iv.t_end, activity_codes(iv.table.str("activity"),
+                                                where=f"{path} activity")
 
 
 def _read_session(path: Path) -> object:

@@ -26,7 +26,8 @@ from rich.table import Table
 
 from hrtls.cli.errors import reports_errors
 from hrtls.data import Checkpoints, GroundTruth, Landmark, StepEvents, activity_codes
-from hrtls.errors import FormatError, InputError
+from hrtls.errors import InputError
+from hrtls.io.intervals import read_intervals
 
 console = Console(highlight=False)
 
@@ -129,20 +130,8 @@ def _read_truth(folder: Path) -> tuple[GroundTruth | None, Checkpoints | None]:
 
 def read_activity_intervals(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """``activity.csv`` (``t_start,t_end,activity``) as a step function (times, codes)."""
-    lines = path.read_text().strip().splitlines()
-    if not lines or [h.strip() for h in lines[0].split(",")][:3] != ["t_start", "t_end",
-                                                                      "activity"]:
-        raise FormatError("bad header", where=f"{path} line 1", expected="t_start,t_end,activity")
-    t, labels = [], []
-    for i, line in enumerate(lines[1:], start=2):
-        parts = line.split(",")
-        try:
-            t.append(float(parts[0]))
-        except (ValueError, IndexError):
-            raise FormatError(f"line {line!r}", where=f"{path} line {i}",
-                              expected="t_start,t_end,activity") from None
-        labels.append(parts[2].strip() if len(parts) > 2 else "")
-    return np.asarray(t), activity_codes(np.asarray(labels, dtype=np.str_), where=str(path))
+    iv = read_intervals(path, columns={"activity": "str"})
+    return iv.t_start, activity_codes(iv.table.str("activity"), where=f"{path} activity")
 
 
 def _read_landmarks(folder: Path) -> dict[str, Landmark]:
