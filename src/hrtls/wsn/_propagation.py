@@ -39,8 +39,9 @@ STATUS_NAMES = ("ok", "too-few-neighbours", "collinear", "ambiguous", "inconsist
 
 
 @numba.njit(cache=True)
-def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[float, float, float]:
-    """Least-squares position from ``c`` circles; returns x, y and the max |range residual|."""
+def _centred_scatter(px: FloatArray, py: FloatArray,
+                     c: int) -> tuple[float, float, float, float, float]:
+    """Mean (mx, my) of the first ``c`` points and their centred scatter sums sxx, sxy, syy."""
     mx = 0.0
     my = 0.0
     for k in range(c):
@@ -51,17 +52,23 @@ def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[floa
     sxx = 0.0
     sxy = 0.0
     syy = 0.0
-    mq = 0.0
-    md = 0.0
     for k in range(c):
         qx = px[k] - mx
         qy = py[k] - my
         sxx += qx * qx
         sxy += qx * qy
         syy += qy * qy
-        mq += qx * qx + qy * qy
+    return mx, my, sxx, sxy, syy
+
+
+@numba.njit(cache=True)
+def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[float, float, float]:
+    """Least-squares position from ``c`` circles; returns x, y and the max |range residual|."""
+    mx, my, sxx, sxy, syy = _centred_scatter(px, py, c)
+    mq = (sxx + syy) / c
+    md = 0.0
+    for k in range(c):
         md += d[k] * d[k]
-    mq /= c
     md /= c
     # -2 q_k . y = d_k^2 - mean(d^2) - |q_k|^2 + mean(|q|^2), normal equations S y = rhs
     rx = 0.0
@@ -115,22 +122,7 @@ def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[floa
 @numba.njit(cache=True)
 def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
     """RMS distance of the points from their best-fit line (sqrt(small eigenvalue / c))."""
-    mx = 0.0
-    my = 0.0
-    for k in range(c):
-        mx += px[k]
-        my += py[k]
-    mx /= c
-    my /= c
-    sxx = 0.0
-    sxy = 0.0
-    syy = 0.0
-    for k in range(c):
-        qx = px[k] - mx
-        qy = py[k] - my
-        sxx += qx * qx
-        sxy += qx * qy
-        syy += qy * qy
+    _, _, sxx, sxy, syy = _centred_scatter(px, py, c)
     tr = 0.5 * (sxx + syy)
     disc = math.sqrt(max(0.25 * (sxx - syy) ** 2 + sxy * sxy, 0.0))
     lam = max(tr - disc, 0.0)
