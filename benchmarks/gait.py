@@ -10,8 +10,9 @@ import argparse
 import json
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from hrtls.frames import wrap_angle
 from hrtls.gait.activity_lda import DEFAULT_MODEL_FILE, LdaModel, train_lda
 from hrtls.gait.activity_tree import calibrate_tree, classify_tree
 from hrtls.gait.features import window_labels
+from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.motion import MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pipeline import GaitAnalyzer, activity_windows, session_inputs
@@ -33,9 +35,17 @@ from hrtls.gait.step_length_fit import (
     fit_weinberg,
 )
 from hrtls.gait.step_length_pendulum import PendulumModel
+from hrtls.gait.step_length_stride import (
+    chord_factor,
+    fit_scale,
+    prorated_stride_lengths,
+    rotation_over,
+    transfer_scale,
+)
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
-from hrtls.gait.turns import TurnDetector
+from hrtls.gait.turns import TurnDetector, TurnParams
 from hrtls.gait.velocity_automaton import VelocityAutomaton
+from hrtls.gait.walking_bouts import WalkingBoutParams
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -87,12 +97,25 @@ class MobgapRun:
     leg_length_m: float
 
 
-def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
-                **kwargs: object) -> list[MobgapRun]:
+@dataclass
+class MobgapRunActivity(MobgapRun):
+    """A :class:`MobgapRun` with the analyzer's own per-sample activity (``activity=None``)."""
+
+    activity: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+_MOBGAP_INPUTS: list[tuple[object, object, np.ndarray, np.ndarray, np.ndarray, object,
+                           float]] = []
+
+
+def mobgap_inputs() -> list[tuple[object, object, np.ndarray, np.ndarray, np.ndarray, object,
+                                  float]]:
+    """Trials with an INDIP walking bout: (id, trial, t, acc, q_nd, mounting, rate), cached."""
+    if _MOBGAP_INPUTS:
+        return _MOBGAP_INPUTS
     from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
     from hrtls.datasets import mobgap
 
-    out = []
     for tid in mobgap.list_trials(DATA / "mobgap_lab"):
         trial = mobgap.load_trial(DATA / "mobgap_lab", tid.participant, tid.test, tid.trial)
         ref = trial.reference.indip
@@ -102,6 +125,18 @@ def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
         t, acc, _, mount, rate = session_inputs(s)
         att = ComplementaryFilter(ComplementaryParams(init_heading_from_mag=False))
         q_nd = att.update(t, acc, s.imu.gyro.values if s.imu.gyro is not None else None).q
+        _MOBGAP_INPUTS.append((tid, trial, t, acc, q_nd, mount, rate))
+    return _MOBGAP_INPUTS
+
+
+def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
+                **kwargs: object) -> list[MobgapRun]:
+    out: list[MobgapRun] = []
+    for tid_o, trial_o, t, acc, q_nd, mount, rate in mobgap_inputs():
+        tid: Any = tid_o
+        trial: Any = trial_o
+        ref = trial.reference.indip
+        s = trial.session
         ga = GaitAnalyzer(rate_hz=rate, step_detector=make_detector(detector),
                           mounting_q_bd=mount, motion=motion, **kwargs)  # type: ignore[arg-type]
         res = ga.process(t, acc, q_nd)
@@ -117,9 +152,11 @@ def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
         # pendulum length: the sensor height above the ground (infoForAlgo SensorHeight)
         info = s.meta.user.model_extra or {}
         leg = float(info.get("sensor_height_m", 0.0) or 0.0) or 0.95
-        out.append(MobgapRun(tid.participant, tid.test, res.steps, ref,
-                             trial.reference.stereophoto, q_nd, t, res.step_excursion_m, state,
-                             (res.motion_sigma_m_s2 > 1.5).astype(np.int64), leg))
+        out.append(MobgapRunActivity(tid.participant, tid.test, res.steps, ref,
+                                     trial.reference.stereophoto, q_nd, t,
+                                     res.step_excursion_m, state,
+                                     (res.motion_sigma_m_s2 > 1.5).astype(np.int64), leg,
+                                     res.activity))
     return out
 
 
@@ -219,6 +256,60 @@ def mobgap_motion(runs: list[MobgapRun]) -> None:
         "(activity='motion')", f"{hits / total * 100:.1f}% ({total} windows)", ">= 97 %")
 
 
+def mobgap_walking_windows(runs: list[MobgapRun], label: str) -> None:
+    """The analyzer's own activity (``activity=None``) on 2 s windows vs the references.
+
+    A window is scored when it lies wholly inside or wholly outside the walking bouts; its
+    prediction is the analyzer's label of that window (the windows share the analyzer's grid).
+    INDIP misses some walks that Stereophoto saw (e.g. HA/001 131-134 s, HA/002 142-147 s),
+    so the union of both references and the windows where both agree are scored too.
+    """
+    res: dict[str, list[int]] = {"INDIP": [0, 0], "INDIP or Stereophoto": [0, 0],
+                                 "both references agree": [0, 0]}
+    for r in runs:
+        act = getattr(r, "activity", None)
+        if act is None or len(act) != len(r.t):
+            return
+        walk = np.isin(act, (int(Activity.WALKING), int(Activity.RUNNING)))
+        li = np.zeros(r.t.shape, dtype=np.int64)
+        for b0, b1 in zip(r.ref.bout_start_s, r.ref.bout_end_s, strict=True):
+            li[(r.t >= b0) & (r.t < b1)] = 1
+        lu = li.copy()
+        if r.stereo is not None:
+            for b0, b1 in zip(r.stereo.bout_start_s, r.stereo.bout_end_s, strict=True):
+                lu[(r.t >= b0) & (r.t < b1)] = 1
+        yi = window_labels(li, 200)
+        yu = window_labels(lu, 200)
+        pred = walk[: yi.size * 200].reshape(yi.size, 200).mean(axis=1) > 0.5
+        for name, y in (("INDIP", yi), ("INDIP or Stereophoto", yu),
+                        ("both references agree", np.where(yi == yu, yi, -1))):
+            ok = y >= 0
+            res[name][0] += int(np.sum(pred[ok] == (y[ok] == 1)))
+            res[name][1] += int(ok.sum())
+    for name, (hits, total) in res.items():
+        row(f"mobgap {label}", f"walking vs not walking, 2 s windows, analyzer activity "
+            f"(activity='motion') vs {name}", f"{hits / max(total, 1) * 100:.1f}% ({total} "
+            "windows)", ">= 97 %" if name == "INDIP" else "")
+
+
+def mobgap_reference_agreement(runs: list[MobgapRun]) -> None:
+    """How well the two reference systems agree on initial contacts (a ceiling for F1)."""
+    for test in ("Test5", "Test11"):
+        tp = fp = fn = 0
+        for r in runs:
+            if r.test != test or r.stereo is None:
+                continue
+            ind = r.ref.initial_contacts_s
+            ind = np.sort(ind[np.isfinite(ind)])
+            for b0, b1 in zip(r.stereo.bout_start_s, r.stereo.bout_end_s, strict=True):
+                ic = reference_ics(r.stereo, b0, b1)
+                a, b, c, _ = match_events(ind[(ind >= b0 - 0.3) & (ind <= b1 + 0.3)], ic)
+                tp, fp, fn = tp + a, fp + b, fn + c
+        row("mobgap references", f"INDIP vs Stereophoto initial contacts, F1 (0.2 s) in "
+            f"Stereophoto bouts, {test}", f"{2 * tp / max(2 * tp + fp + fn, 1):.3f} (TP {tp} "
+            f"FP {fp} FN {fn})", "")
+
+
 def mask_in(steps: object, lo: float, hi: float) -> np.ndarray:
     te = steps.t_end  # type: ignore[attr-defined]
     return np.asarray((te > lo) & (te <= hi))
@@ -256,6 +347,12 @@ def mobgap_length(runs: list[MobgapRun], label: str) -> None:
     trial (leave one walk out). Test11 (daily life): calibrated on all the participant's
     Test5 walks (HA/002 has none: the other participants' walks are pooled). The pendulum
     length is the participant's sensor height (infoForAlgo).
+
+    Every finite INDIP stride is scored: its length is the prorated sum of the detected steps
+    overlapping it (hrtls.gait.step_length_stride); the older score over the strides with
+    exactly two detected steps is kept in brackets. Test11 variants: the chord correction of
+    the stride's rotation about the vertical, and a daily-life factor (least-squares scale of
+    the calibrated model on Test11 strides) learnt on the *other* participants (LOPO).
     """
     walks: dict[tuple[str, int], CalibrationWalk] = {}
     leg: dict[str, float] = {}
@@ -268,12 +365,22 @@ def mobgap_length(runs: list[MobgapRun], label: str) -> None:
             st, h, _ = bout_steps(r, b0, b1)
             if len(st) and np.isfinite(dist) and dist > 0:
                 walks[(r.participant, i)] = CalibrationWalk(st, float(dist), h)
+    # rotation about the vertical over every reference stride (chord correction)
+    stride_rot: list[np.ndarray] = []
+    for r in runs:
+        s0, s1 = r.ref.stride_start_s, r.ref.stride_end_s
+        if r.q_nd is None or not len(s0):
+            stride_rot.append(np.zeros(len(s0)))
+            continue
+        w = TurnDetector().vertical_rate(r.t, r.q_nd)
+        ok = np.isfinite(s0) & np.isfinite(s1)
+        rot = np.zeros(len(s0))
+        rot[ok] = rotation_over(r.t, w, s0[ok], s1[ok])
+        stride_rot.append(rot)
     for kind in ("weinberg", "frequency", "pendulum"):
-        res: dict[str, list[float]] = {"Test5": [], "Test11": []}
-        sums: dict[str, list[float]] = {"Test5": [0.0, 0.0], "Test11": [0.0, 0.0]}
+        # per run: reference lengths, estimates (plain, chord-corrected), 2-step flags
+        per_run: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         dist_err: dict[str, list[float]] = {"Test5": [], "Test11": []}
-        covered = {"Test5": 0, "Test11": 0}
-        total = {"Test5": 0, "Test11": 0}
         ks: list[float] = []
         for i, r in enumerate(runs):
             own = [w for (p, j), w in walks.items() if p == r.participant and j != i]
@@ -287,19 +394,17 @@ def mobgap_length(runs: list[MobgapRun], label: str) -> None:
                 model = fit_pendulum(cal, base=PendulumModel(leg_length_m=leg[r.participant]))
                 ks.append(model.k)
             ref = r.ref
-            for s0, s1, sl in zip(ref.stride_start_s, ref.stride_end_s, ref.stride_length_m,
-                                  strict=True):
-                if not np.isfinite(sl):
-                    continue
-                total[r.test] += 1
-                st, h = select(r, mask_in(r.steps, s0 + 0.15, s1 + 0.2))
-                if len(st) != 2:
-                    continue
-                covered[r.test] += 1
-                est = float(np.sum(model_lengths(model, st, h)))
-                res[r.test].append(abs(est - sl))
-                sums[r.test][0] += est
-                sums[r.test][1] += float(sl)
+            st_all, h_all = select(r, np.ones(len(r.steps.t_end), dtype=bool))
+            lengths = model_lengths(model, st_all, h_all)
+            ok = (np.isfinite(ref.stride_length_m) & np.isfinite(ref.stride_start_s)
+                  & np.isfinite(ref.stride_end_s))
+            est = prorated_stride_lengths(st_all.t_start, st_all.t_end, lengths,
+                                          ref.stride_start_s[ok], ref.stride_end_s[ok])
+            two = np.array([len(select(r, mask_in(r.steps, s0 + 0.15, s1 + 0.2))[0]) == 2
+                            for s0, s1 in zip(ref.stride_start_s[ok], ref.stride_end_s[ok],
+                                              strict=True)], dtype=bool)
+            chord = est.length_m * chord_factor(stride_rot[i][ok])
+            per_run.append((ref.stride_length_m[ok], est.length_m, chord, two))
             for b0, b1, dist in zip(ref.bout_start_s, ref.bout_end_s, ref.bout_length_m,
                                     strict=True):
                 st, h, ic = bout_steps(r, b0, b1)
@@ -309,49 +414,179 @@ def mobgap_length(runs: list[MobgapRun], label: str) -> None:
         extra = f" (K {min(ks):.2f}-{max(ks):.2f})" if ks else ""
         for test, what in (("Test5", "straight walks, leave-one-walk-out"),
                            ("Test11", "daily life")):
-            e = np.asarray(res[test])
+            sel = [k for k, r in enumerate(runs) if r.test == test]
+            true = np.concatenate([per_run[k][0] for k in sel])
+            est = np.concatenate([per_run[k][1] for k in sel])
+            two = np.concatenate([per_run[k][3] for k in sel])
+            e = np.abs(est - true)
             row(f"mobgap {label}", f"stride length MAE {test} ({what}), {kind}",
-                f"{np.mean(e):.3f} m ({covered[test]}/{total[test]} strides with 2 steps)"
+                f"{np.mean(e):.3f} m (all {e.size} strides, prorated steps) "
+                f"[{np.mean(e[two]):.3f} m on the {int(two.sum())} with 2 steps]"
                 + (extra if test == "Test11" else ""), "<= 0.10 m")
-            est, true = sums[test]
             row(f"mobgap {label}", f"summed stride length error {test}, {kind}",
-                f"{(est - true) / true * 100:+.1f}% ({est:.1f} m / {true:.1f} m)", "<= 2 %")
+                f"{(est.sum() - true.sum()) / true.sum() * 100:+.1f}% ({est.sum():.1f} m / "
+                f"{true.sum():.1f} m)", "<= 2 %")
             d = np.asarray(dist_err[test])
             note = "" if test == "Test5" else " (INDIP Length is not the walked path here)"
             row(f"mobgap {label}", f"bout distance error vs INDIP Length {test}, {kind}{note}",
                 f"mean {np.mean(d) * 100:+.1f}%, mean |.| {np.mean(np.abs(d)) * 100:.1f}% "
                 f"(n={d.size})", "<= 2 %" if test == "Test5" else "")
+        # Test11 variants: chord correction; daily-life factor from the other participants
+        daily = [k for k, r in enumerate(runs) if r.test == "Test11"]
+        factor = {runs[k].participant: fit_scale(per_run[k][2], per_run[k][0]) for k in daily}
+        true_l: list[np.ndarray] = []
+        chord_l: list[np.ndarray] = []
+        lopo_l: list[np.ndarray] = []
+        for k in daily:
+            p = runs[k].participant
+            f = transfer_scale(1.0, [(1.0, v) for q, v in factor.items() if q != p])
+            true_l.append(per_run[k][0])
+            chord_l.append(per_run[k][2])
+            lopo_l.append(per_run[k][2] * f)
+        tr_, ch_, lo_ = (np.concatenate(x) for x in (true_l, chord_l, lopo_l))
+        row(f"mobgap {label}", f"stride length Test11 (all strides), {kind}: + chord correction "
+            "/ + chord and daily-life factor from the other participants (LOPO)",
+            f"MAE {np.mean(np.abs(ch_ - tr_)):.3f} m, sum "
+            f"{(ch_.sum() - tr_.sum()) / tr_.sum() * 100:+.1f}%"
+            f" / MAE {np.mean(np.abs(lo_ - tr_)):.3f} m, sum "
+            f"{(lo_.sum() - tr_.sum()) / tr_.sum() * 100:+.1f}% (factors "
+            + ", ".join(f"{q} {v:.2f}" for q, v in factor.items()) + ")", "<= 0.10 m, <= 2 %")
+        if kind == "pendulum":
+            # where the daily-life error comes from: turning strides, strides without 2 steps
+            rot = np.abs(np.concatenate([stride_rot[k][np.isfinite(runs[k].ref.stride_length_m)
+                                                       & np.isfinite(runs[k].ref.stride_start_s)
+                                                       & np.isfinite(runs[k].ref.stride_end_s)]
+                                         for k in daily]))
+            two_steps = np.concatenate([per_run[k][3] for k in daily])
+            err = np.abs(lo_ - tr_)
+            straight = rot < np.deg2rad(20.0)
+            parts = [("straight (|rotation| < 20 deg)", straight & two_steps),
+                     ("turning", ~straight & two_steps),
+                     ("without exactly 2 detected steps", ~two_steps)]
+            row(f"mobgap {label}", "stride length Test11 MAE by stride kind, pendulum + chord + "
+                "LOPO factor", "; ".join(f"{name} {np.mean(err[m]):.3f} m (n={int(m.sum())}, "
+                                         f"true mean {np.mean(tr_[m]):.2f} m)"
+                                         for name, m in parts if m.any()), "")
 
 
 def mobgap_turns(runs: list[MobgapRun]) -> None:
+    """Turn angles vs the Stereophoto reference (mobgap's scoring: reference turns >= 45 deg).
+
+    The sign of ``Turn_Angle`` was checked against the rotation about the vertical over the
+    reference's own interval (positive = counter-clockwise = left, like hrtls); INDIP turns
+    come from a lower-back IMU algorithm themselves (mobgap docs) and are shown for contrast.
+    """
+    min_ref = 45.0
+    # 1. the sensor's rotation about the vertical over the reference's own turn intervals
+    for system in ("Stereophoto", "INDIP"):
+        signed: list[float] = []
+        same_sign = n_all = 0
+        lags = np.arange(-1.0, 1.001, 0.02)
+        lag_err: list[list[float]] = [[] for _ in lags]
+        for r in runs:
+            ref = r.stereo if system == "Stereophoto" else r.ref
+            if r.q_nd is None or ref is None or len(ref.turn_start_s) == 0:
+                continue
+            w = TurnDetector().vertical_rate(r.t, r.q_nd)
+            cum = np.rad2deg(np.concatenate([[0.0], np.cumsum(w[1:] * np.diff(r.t))]))
+            for a, b, ang in zip(ref.turn_start_s, ref.turn_end_s, ref.turn_angle_deg,
+                                 strict=True):
+                if not np.isfinite(ang):
+                    continue
+                own = float(np.interp(b, r.t, cum) - np.interp(a, r.t, cum))
+                n_all += 1
+                same_sign += int(np.sign(own) == np.sign(ang))
+                if abs(ang) >= min_ref:
+                    signed.append(own - ang)
+                    for k, lag in enumerate(lags):
+                        lag_err[k].append(float(np.interp(b + lag, r.t, cum)
+                                                - np.interp(a + lag, r.t, cum) - ang))
+        if not signed:
+            continue
+        e = np.abs(np.asarray(signed))
+        med = [float(np.median(np.abs(v))) for v in lag_err]
+        kb = int(np.argmin(med))
+        row("mobgap turns", f"sensor rotation over {system}'s own turn intervals "
+            f"(turns >= {min_ref:.0f} deg, signed)",
+            f"median |err| {np.median(e):.1f} deg, {np.mean(e <= 10) * 100:.0f}% within 10 deg "
+            f"(n={e.size}); sign agrees {same_sign}/{n_all} (all turns); best common lag "
+            f"{lags[kb]:+.2f} s: median {med[kb]:.1f} deg", "")
+    # 2. turn segmentation with the reference definition, matched by overlap (one-to-one):
+    # free-running; inside walking bouts built from the detected steps (Mobilise-D's 3 s
+    # break rule, >= 4 steps); inside the Stereophoto bouts (mobgap scores its turn algorithm
+    # per reference walking bout: the turn algorithm in isolation)
     yaw_err: list[float] = []
     four_err: list[float] = []
-    for r in runs:
-        ref = r.stereo  # INDIP turn angles disagree even with the integrated gyro
-        if r.q_nd is None or ref is None or len(ref.turn_start_s) == 0:
-            continue
-        fwd = np.column_stack([1 - 2 * (r.q_nd[:, 2] ** 2 + r.q_nd[:, 3] ** 2),
-                               2 * (r.q_nd[:, 1] * r.q_nd[:, 2] + r.q_nd[:, 0] * r.q_nd[:, 3])])
-        # heading of the body forward axis: mobgap z forward is the device z axis
-        q = r.q_nd
-        zx = 2 * (q[:, 1] * q[:, 3] + q[:, 0] * q[:, 2])
-        zy = 2 * (q[:, 2] * q[:, 3] - q[:, 0] * q[:, 1])
-        yaw = np.unwrap(np.arctan2(zy, zx))
-        del fwd
-        h = r.steps.heading_rad
-        te = r.steps.t_end
-        for a, b, ang in zip(ref.turn_start_s, ref.turn_end_s, ref.turn_angle_deg, strict=True):
-            if not np.isfinite(ang):
+    for mode in ("free-running", "own walking bouts", "Stereophoto bouts (in isolation)"):
+        seg_err: list[float] = []
+        n_ref = n_det_in = n_match = 0
+        for r in runs:
+            ref = r.stereo
+            if r.q_nd is None or ref is None or len(ref.turn_start_s) == 0:
                 continue
-            d_yaw = np.rad2deg(np.interp(b, r.t, yaw) - np.interp(a, r.t, yaw))
-            yaw_err.append(abs(abs(d_yaw) - abs(ang)))
-            before = h[(te > a - 2.0) & (te <= a) & np.isfinite(h)]
-            after = h[(te >= b) & (te < b + 2.0) & np.isfinite(h)]
-            if before.size and after.size:
-                hb = np.arctan2(np.sin(before).mean(), np.cos(before).mean())
-                ha = np.arctan2(np.sin(after).mean(), np.cos(after).mean())
-                d_f = np.rad2deg(float(wrap_angle(ha - hb)))
-                four_err.append(abs(abs(d_f) - abs(ang)))
+            det = TurnDetector(TurnParams.reference())
+            if mode == "free-running":
+                turns = det.process(r.t, r.q_nd)
+            elif mode == "own walking bouts":
+                s0, s1 = r.steps.t_start, r.steps.t_end
+                brk = np.flatnonzero(s0[1:] - s1[:-1] > 3.0)
+                first = np.concatenate([[0], brk + 1])
+                last = np.concatenate([brk, [len(s0) - 1]])
+                keep = last - first + 1 >= 4
+                turns = det.process_bouts(r.t, r.q_nd, np.column_stack(
+                    [s0[first[keep]], s1[last[keep]]]).reshape(-1, 2))
+            else:
+                turns = det.process_bouts(r.t, r.q_nd, ref.bouts_s)
+            inside = np.zeros(len(turns), dtype=bool)
+            for b0, b1 in zip(ref.bout_start_s, ref.bout_end_s, strict=True):
+                inside |= (turns.t_end > b0) & (turns.t_start < b1)
+            n_det_in += int(inside.sum())
+            used = np.zeros(len(turns), dtype=bool)
+            # heading of the body forward axis (mobgap z forward = device z axis)
+            q = r.q_nd
+            yaw = np.unwrap(np.arctan2(2 * (q[:, 2] * q[:, 3] - q[:, 0] * q[:, 1]),
+                                       2 * (q[:, 1] * q[:, 3] + q[:, 0] * q[:, 2])))
+            h = r.steps.heading_rad
+            te = r.steps.t_end
+            for a, b, ang in zip(ref.turn_start_s, ref.turn_end_s, ref.turn_angle_deg,
+                                 strict=True):
+                if not (np.isfinite(ang) and abs(ang) >= min_ref):
+                    continue
+                n_ref += 1
+                if mode == "free-running":
+                    d_yaw = np.rad2deg(np.interp(b, r.t, yaw) - np.interp(a, r.t, yaw))
+                    yaw_err.append(abs(d_yaw - ang))
+                    before = h[(te > a - 2.0) & (te <= a) & np.isfinite(h)]
+                    after = h[(te >= b) & (te < b + 2.0) & np.isfinite(h)]
+                    if before.size and after.size:
+                        hb = np.arctan2(np.sin(before).mean(), np.cos(before).mean())
+                        ha = np.arctan2(np.sin(after).mean(), np.cos(after).mean())
+                        four_err.append(abs(np.rad2deg(float(wrap_angle(ha - hb))) - ang))
+                ov = np.minimum(b, turns.t_end) - np.maximum(a, turns.t_start)
+                ov[used] = -np.inf
+                if ov.size == 0 or ov.max() <= 0:
+                    seg_err.append(np.inf)
+                    continue
+                k = int(np.argmax(ov))
+                used[k] = True
+                n_match += 1
+                seg_err.append(abs(np.rad2deg(turns.angle_rad[k]) - ang))
+        se = np.asarray(seg_err)
+        row("mobgap turns", f"turn angle error vs Stereophoto turns >= {min_ref:.0f} deg, turn "
+            f"segmentation (TurnParams.reference, signed, matched by overlap), {mode}",
+            f"median {np.median(se):.1f} deg, {np.mean(se <= 10) * 100:.0f}% within 10 deg "
+            f"(found {n_match}/{n_ref}; {n_det_in} detected in the reference bouts)",
+            "within 10 deg")
+    ye = np.array(yaw_err)
+    row("mobgap turns", f"turn angle error vs Stereophoto turns >= {min_ref:.0f} deg, attitude "
+        "yaw of the body forward axis over the reference interval",
+        f"median {np.median(ye):.1f} deg, {np.mean(ye <= 10) * 100:.0f}% within 10 deg "
+        f"(n={ye.size})", "")
+    fe = np.array(four_err)
+    if fe.size:
+        row("mobgap turns", "turn angle error vs Stereophoto, Fourier heading (2 s around)",
+            f"median {np.median(fe):.1f} deg, {np.mean(fe <= 10) * 100:.0f}% within 10 deg "
+            f"(n={fe.size})", "")
     # walking direction vs the attitude's body-forward yaw during the INDIP walking bouts
     diffs: list[float] = []
     for r in runs:
@@ -372,66 +607,27 @@ def mobgap_turns(runs: list[MobgapRun]) -> None:
     row("mobgap heading", "Fourier heading - body-forward yaw, in walking bouts",
         f"RMS {np.sqrt(np.mean(dd ** 2)):.1f} deg, median |.| {np.median(np.abs(dd)):.1f} deg "
         f"(n={dd.size})", "")
-    # turn segmentation (hrtls.gait.turns) on the attitude: own start/end, matched to the
-    # reference turn it overlaps most; and the rotation about the vertical between the
-    # reference's own start and end (how far the sensor itself is from the reference angle)
-    seg_err: list[float] = []
-    own_err: list[float] = []
-    n_det = 0
-    for r in runs:
-        ref = r.stereo
-        if r.q_nd is None or ref is None or len(ref.turn_start_s) == 0:
-            continue
-        det = TurnDetector()
-        turns = det.process(r.t, r.q_nd)
-        w = TurnDetector().vertical_rate(r.t, r.q_nd)
-        ang_int = np.concatenate([[0.0], np.cumsum(w[1:] * np.diff(r.t))])
-        n_det += len(turns)
-        for a, b, ang in zip(ref.turn_start_s, ref.turn_end_s, ref.turn_angle_deg, strict=True):
-            if not np.isfinite(ang):
-                continue
-            own = np.rad2deg(np.interp(b, r.t, ang_int) - np.interp(a, r.t, ang_int))
-            own_err.append(abs(abs(own) - abs(ang)))
-            ov = np.minimum(b, turns.t_end) - np.maximum(a, turns.t_start)
-            if ov.size == 0 or ov.max() <= 0:
-                seg_err.append(abs(ang))
-                continue
-            seg_err.append(abs(abs(np.rad2deg(turns.angle_rad[int(np.argmax(ov))])) - abs(ang)))
-    se = np.asarray(seg_err)
-    oe = np.asarray(own_err)
-    row("mobgap turns", "|turn angle| error vs Stereophoto, turn segmentation (vertical rate)",
-        f"median {np.median(se):.1f} deg, {np.mean(se <= 10) * 100:.0f}% within 10 deg "
-        f"(n={se.size}; {n_det} turns detected in all)", "within 10 deg")
-    row("mobgap turns", "rotation about the vertical between the reference's own start/end",
-        f"median {np.median(oe):.1f} deg, {np.mean(oe <= 10) * 100:.0f}% within 10 deg "
-        "(sensor vs reference definition)", "")
-    ye = np.array(yaw_err)
-    fe = np.array(four_err)
-    row("mobgap turns", "|turn angle| error vs Stereophoto, attitude yaw (complementary)",
-        f"median {np.median(ye):.1f} deg, {np.mean(ye <= 10) * 100:.0f}% within 10 deg "
-        f"(n={ye.size})", "within 10 deg")
-    if fe.size:
-        row("mobgap turns", "|turn angle| error vs Stereophoto, Fourier heading (2 s around)",
-            f"median {np.median(fe):.1f} deg, {np.mean(fe <= 10) * 100:.0f}% within 10 deg "
-            f"(n={fe.size})", "within 10 deg")
 
 
 def mobgap_activity(sim_data: list[tuple[np.ndarray, np.ndarray]]) -> None:
-    """Walking vs not walking on mobgap windows, leave-one-participant-out."""
+    """Walking vs not walking on mobgap windows, leave-one-participant-out.
+
+    Trained with the default recipe (simulated persons 100-109 instead of 900-911, hrtls.sim
+    training seeds, the other participants); a window counts as walking when the model says
+    walking, running or stairs.
+    """
     real = mobgap_windows()
-    xs = np.concatenate([d[0] for d in sim_data])
-    ys = np.concatenate([d[1] for d in sim_data])
+    syn = [(x, y, np.zeros(0)) for x, y in sim_data]
+    other = hrtls_sim_windows()
     hits = total = 0
     for p in real:
-        xtr = np.concatenate([xs] + [real[q][0] for q in real if q != p])
-        ytr = np.concatenate([ys] + [real[q][1] for q in real if q != p])
-        model = train_lda(xtr, ytr)
+        model = train_default_model(syn, other, {q: v for q, v in real.items() if q != p})
         x, y = real[p]
         ok = y >= 0
         walk_pred = model.predict(x[ok]) != int(Activity.STANDING)
         hits += int(np.sum(walk_pred == (y[ok] == int(Activity.WALKING))))
         total += int(ok.sum())
-    row("mobgap activity", "walking vs not walking, 2 s windows, LOPO (LDA)",
+    row("mobgap activity", "walking vs not walking, 2 s windows, LOPO (default recipe)",
         f"{hits / total * 100:.1f}% ({total} windows)", ">= 97 %")
 
 
@@ -497,26 +693,31 @@ def sim_person_windows(i: int, seed0: int = 100) -> tuple[np.ndarray, np.ndarray
 
 
 def sim_activity(n_persons: int = 10) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Leave-one-person-out on simulated persons 100-109 (Inderst Sec. 6.2, Tab. 6.7)."""
     data = [sim_person_windows(i) for i in range(n_persons)]
     conf = np.zeros((5, 5), dtype=int)
+    conf_pooled = np.zeros((5, 5), dtype=int)
     conf_tree = np.zeros((5, 5), dtype=int)
     for k in range(n_persons):
         xtr = np.concatenate([d[0] for i, d in enumerate(data) if i != k])
         ytr = np.concatenate([d[1] for i, d in enumerate(data) if i != k])
-        model = train_lda(xtr, ytr)
         x, y, tree = data[k]
         ok = y >= 0
-        np.add.at(conf, (y[ok], model.predict(x[ok])), 1)
+        np.add.at(conf, (y[ok], train_lda(xtr, ytr, covariance="per_class").predict(x[ok])), 1)
+        np.add.at(conf_pooled, (y[ok], train_lda(xtr, ytr).predict(x[ok])), 1)
         # tree: d1-d3 are per user (Inderst 4.1.1): calibrated on the person's own windows
         own = np.flatnonzero(ok)
         th = calibrate_tree(tree[own], y[own])
         np.add.at(conf_tree, (y[ok], classify_tree(tree[ok], th)), 1)
     err = 1 - np.trace(conf) / conf.sum()
-    row("sim activity", f"LDA error, leave-one-person-out ({n_persons} persons)",
-        f"{err * 100:.2f}%", "<= 12.44 %")
+    row("sim activity", f"error, leave-one-person-out ({n_persons} persons), eq. 4.8 per-class "
+        "covariance", f"{err * 100:.2f}%", "<= 12.44 %")
     names = ["stand", "walk", "run", "up", "down"]
-    row("sim activity", "LDA confusion (rows true, cols predicted: " + "/".join(names) + ")",
+    row("sim activity", "confusion (rows true, cols predicted: " + "/".join(names) + ")",
         "; ".join(" ".join(str(v) for v in r) for r in conf), "")
+    err_p = 1 - np.trace(conf_pooled) / conf_pooled.sum()
+    row("sim activity", "error, LOPO, pooled covariance (linear discriminant)",
+        f"{err_p * 100:.2f}%", "<= 12.44 %")
     err_t = 1 - np.trace(conf_tree) / conf_tree.sum()
     row("sim activity", "decision tree error, per-person calibrated d1-d3 (in-sample)",
         f"{err_t * 100:.2f}%", "")
@@ -692,6 +893,71 @@ def hrtls_sim_eval(seeds: tuple[int, ...] = (0, 1)) -> None:
             f"(n={he.size})", "<= 5 deg")
         row(f"hrtls.sim {name}", "distance error (profile K) / activity accuracy (default LDA)",
             f"{np.mean(d_err) * 100:+.1f}% / {act_hit / max(act_tot, 1) * 100:.1f}%", "")
+    hrtls_sim_activity(seeds)
+
+
+def sim_session_activity(name: str | object, seed: int, model: LdaModel
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """True and predicted per-sample activity of an hrtls.sim run (the gait stage's output).
+
+    ``name`` is a scenario name or an already simulated run.
+    """
+    from hrtls.sim.scenarios import run_scenario
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r: Any = run_scenario(name, seed=seed) if isinstance(name, str) else name
+        t, acc, q_nd, mount, rate = session_inputs(r.session)
+        res = GaitAnalyzer(rate_hz=rate, mounting_q_bd=mount, activity=model).process(t, acc,
+                                                                                     q_nd)
+    lab = np.interp(res.activity_t, r.activity_t, r.activity).round().astype(np.int64)
+    return lab, res.activity
+
+
+def hrtls_sim_activity(seeds: tuple[int, ...] = (0, 1)) -> None:
+    """Per-sample activity accuracy of the default model on every hrtls.sim scenario.
+
+    Seeds 0-1 were not used in training (the default uses seeds 10, 11, 20, 21); the second
+    number retrains the default recipe without the scenario (leave-one-scenario-out).
+    """
+    model = LdaModel.default()
+    syn = [sim_person_windows(i, seed0=SYN_TRAIN_SEED0) for i in range(12)]
+    other = hrtls_sim_windows()
+    real = mobgap_windows() if DATA.is_dir() else {}
+    worst = (1.0, "")
+    for name in ACTIVITY_SCENARIOS:
+        loso = train_default_model(syn, {k: v for k, v in other.items() if k != name}, real)
+        hit = hit_loso = tot = 0
+        conf = np.zeros((5, 5), dtype=int)
+        for seed in seeds:
+            lab, pred = sim_session_activity(name, seed, model)
+            _, pred_loso = sim_session_activity(name, seed, loso)
+            hit += int(np.sum(lab == pred))
+            hit_loso += int(np.sum(lab == pred_loso))
+            tot += lab.size
+            np.add.at(conf, (lab, pred), 1)
+        acc = hit / max(tot, 1)
+        worst = min(worst, (acc, name))
+        row(f"hrtls.sim {name}", "activity accuracy per sample: default / scenario left out",
+            f"{acc * 100:.1f}% / {hit_loso / max(tot, 1) * 100:.1f}% ({len(seeds)} held-out "
+            "seeds)", ">= 95 %")
+        if np.any(conf[3:].sum(axis=1) > 0):
+            stairs = conf[3:] / np.maximum(conf[3:].sum(axis=1, keepdims=True), 1) * 100
+            row(f"hrtls.sim {name}", "stairs samples -> stand/walk/run/up/down (up; down)",
+                "; ".join(" ".join(f"{v:.0f}%" for v in r) for r in stairs),
+                "stairs recognized")
+    row("hrtls.sim", "worst scenario activity accuracy (default model)",
+        f"{worst[0] * 100:.1f}% ({worst[1]})", ">= 95 %")
+    # held-out random persons (seeds 8000 + i; training used 7000 + i)
+    conf = np.zeros((5, 5), dtype=int)
+    for i in range(8):
+        lab, pred = sim_session_activity(hrtls_sim_person_walk(PERSON_TEST_SEED0 + i), 0, model)
+        np.add.at(conf, (lab, pred), 1)
+    row("hrtls.sim persons", "activity accuracy per sample, 8 held-out random persons",
+        f"{np.trace(conf) / conf.sum() * 100:.1f}%", ">= 95 %")
+    share = conf / np.maximum(conf.sum(axis=1, keepdims=True), 1) * 100
+    row("hrtls.sim persons", "rows true stand/walk/run/up/down -> predicted (% of samples)",
+        "; ".join(" ".join(f"{v:.0f}" for v in r) for r in share), "")
 
 
 def throughput() -> None:
@@ -715,51 +981,153 @@ def throughput() -> None:
             f"(wall clock {len(w.t) / best / 1e6:.2f}; {len(w.t)} samples)", ">= 2 M/s")
 
 
-TRAIN_SCENARIOS = ("basso_test1", "basso_test2", "basso_test5", "basso_test6",
-                   "inderst_multifloor", "inderst_two_users", "colombo_natural",
-                   "office_random_walk")
-TRAIN_SEEDS = (10, 11)
+ACTIVITY_SCENARIOS = ("colombo_circle", "colombo_square", "colombo_natural", "basso_test1",
+                      "basso_test2", "basso_test3", "basso_test4", "basso_test5", "basso_test6",
+                      "tarrio_circle", "tarrio_office", "inderst_ring", "inderst_multifloor",
+                      "inderst_two_users", "office_random_walk")
+"""hrtls.sim scenarios with an IMU (the WSN ones have none)."""
+TRAIN_SEEDS = (10, 11, 20, 21)
+"""Seeds of the hrtls.sim training windows; the benchmark scores seeds 0 and 1."""
+SYN_TRAIN_SEED0 = 900
+"""Simulated persons 900-911 train the default; the LOPO rows use persons 100-109."""
+SOURCE_SYNTHETIC, SOURCE_HRTLS_SIM, SOURCE_MOBGAP = 0, 1, 2
 
 
-def hrtls_sim_windows() -> list[tuple[np.ndarray, np.ndarray]]:
-    """Labelled windows of hrtls.sim scenarios (seeds 10-11; the benchmark scores seeds 0-1)."""
+PERSON_WALKS = 24
+"""hrtls.sim person walks in the default's training set (seeds 7000 + i)."""
+PERSON_TEST_SEED0 = 8000
+"""Held-out person walks (seeds 8000 + i), never used in training."""
+
+
+def hrtls_sim_person_walk(seed: int) -> object:
+    """An hrtls.sim walk of a randomly drawn person (gait, device, placement, route).
+
+    The scenarios of :mod:`hrtls.sim.scenarios` all use one or two fixed persons; these walks
+    draw the person's step-length law, Weinberg ``K``, stairs amplitude, waveform ratios and
+    sway, and a route of walking legs at 0.5-1.7 m/s, stops, stair flights (0.45-0.7 m/s) and
+    running legs (2.4-3.4 m/s); device and placement (belt, rotated clip, random with the
+    device's orientation) are drawn too.
+    """
+    from hrtls.sim.devices import get_device
+    from hrtls.sim.gait_model import GaitParams
+    from hrtls.sim.motion import MotionParams, Waypoint
+    from hrtls.sim.scenarios import simulate_person
+
+    rng = np.random.default_rng(seed)
+    gp = GaitParams(step_a_m=rng.uniform(0.25, 0.38), step_b_s=rng.uniform(0.20, 0.32),
+                    run_a_m=rng.uniform(0.45, 0.65), run_b_s=rng.uniform(0.15, 0.25),
+                    weinberg_k_walk=rng.uniform(0.37, 0.48),
+                    weinberg_k_run=rng.uniform(0.45, 0.55),
+                    stairs_acc_pp_m_s2=rng.uniform(4.0, 6.0),
+                    forward_ratio=rng.uniform(0.5, 0.8), lateral_sway_m=rng.uniform(0.02, 0.035),
+                    harmonic2_ratio=rng.uniform(0.15, 0.3),
+                    harmonic3_ratio=rng.uniform(0.1, 0.22),
+                    amplitude_cv=rng.uniform(0.05, 0.12), lean_rad=rng.uniform(0.0, 0.08),
+                    pelvis_yaw_rad=rng.uniform(0.04, 0.09))
+    mp = MotionParams(stair_tread_m=rng.uniform(0.27, 0.32), stair_riser_m=rng.uniform(0.15, 0.18))
+    wps = [Waypoint(x=0.0, y=0.0)]
+    heading, z = float(rng.uniform(-np.pi, np.pi)), 0.0
+    for _ in range(14):
+        kind = rng.choice(["walk", "stairs", "run"], p=[0.45, 0.35, 0.2])
+        heading += float(rng.uniform(-2.0, 2.0))
+        if kind == "stairs":
+            n = int(rng.integers(10, 23))
+            up = bool(z <= 0.0 or rng.random() < 0.4)
+            leg, speed = n * mp.stair_tread_m, float(rng.uniform(0.45, 0.7))
+            z += n * mp.stair_riser_m * (1.0 if up else -1.0)
+        else:
+            leg = float(rng.uniform(25.0, 70.0) if kind == "run" else rng.uniform(8.0, 40.0))
+            speed = float(rng.uniform(2.4, 3.4) if kind == "run" else rng.uniform(0.5, 1.7))
+        wps.append(Waypoint(x=wps[-1].x + leg * np.cos(heading),
+                            y=wps[-1].y + leg * np.sin(heading), z=z, speed_m_s=speed,
+                            run=kind == "run", corner_radius_m=float(rng.uniform(0.0, 1.5)),
+                            stop_s=float(rng.choice([0.0, 0.0, rng.uniform(2.0, 12.0)]))))
+    device = str(rng.choice(["inemo", "mpu9150_motionfit", "mpu6150_phone", "xsens_mti",
+                             "bma180_imu3000"]))
+    placement = str(rng.choice(["belt", "belt", "rotated", "random"]))
+    return simulate_person("activity_person_walk", seed, {}, wps, device=get_device(device),
+                           gait=gp, motion_params=mp, placement=placement,
+                           with_orientation=placement == "random",
+                           description="random person walk for the activity model")
+
+
+def labelled_windows(r: object) -> tuple[np.ndarray, np.ndarray]:
+    """Features and pure-window labels of a :class:`hrtls.sim.scenarios.SimulationResult`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t, acc, q_nd, mount, rate = session_inputs(r.session)  # type: ignore[attr-defined]
+        wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd, mounting_q_bd=mount)
+    lab = np.interp(t, r.activity_t, r.activity).round().astype(np.int64)  # type: ignore[attr-defined]
+    return wf.lda, window_labels(lab, round(2.0 * rate))
+
+
+def hrtls_sim_windows(seeds: tuple[int, ...] = TRAIN_SEEDS,
+                      scenarios: tuple[str, ...] = ACTIVITY_SCENARIOS,
+                      person_walks: int = PERSON_WALKS
+                      ) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
+    """Labelled windows (features, pure-window labels) of hrtls.sim runs, per scenario.
+
+    The key ``"person_walks"`` holds the random-person walks (seeds 7000 + i).
+    """
     try:
         from hrtls.sim.scenarios import run_scenario
     except ImportError:  # pragma: no cover
-        return []
-    out = []
-    for name in TRAIN_SCENARIOS:
-        for seed in TRAIN_SEEDS:
+        return {}
+    out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for name in scenarios:
+        for seed in seeds:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 r = run_scenario(name, seed=seed)
-                t, acc, q_nd, mount, rate = session_inputs(r.session)
-                wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd, mounting_q_bd=mount)
-            lab = np.interp(t, r.activity_t, r.activity).round().astype(np.int64)
-            y = window_labels(lab, round(2.0 * rate))
-            # the two simulators model stairs differently: stairs come from hrtls.gait.synthetic
-            y[(y == int(Activity.UPSTAIRS)) | (y == int(Activity.DOWNSTAIRS))] = -1
-            out.append((wf.lda, y))
+            out.setdefault(name, []).append(labelled_windows(r))
+    for i in range(person_walks):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out.setdefault("person_walks", []).append(
+                labelled_windows(hrtls_sim_person_walk(7000 + i)))
     return out
 
 
+def activity_training_set(syn: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                          other: dict[str, list[tuple[np.ndarray, np.ndarray]]],
+                          real: dict[str, tuple[np.ndarray, np.ndarray]]
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features, labels and source groups of the default model's training windows."""
+    parts = ([(d[0], d[1], SOURCE_SYNTHETIC) for d in syn]
+             + [(x, y, SOURCE_HRTLS_SIM) for v in other.values() for x, y in v]
+             + [(x, y, SOURCE_MOBGAP) for x, y in real.values()])
+    if not parts:
+        return np.zeros((0, 7)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+            np.concatenate([np.full(len(p[1]), p[2]) for p in parts]))
+
+
+def train_default_model(syn: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                        other: dict[str, list[tuple[np.ndarray, np.ndarray]]],
+                        real: dict[str, tuple[np.ndarray, np.ndarray]],
+                        info: str = "") -> LdaModel:
+    """The default recipe: per-class covariances (eq. 4.8), one component per source."""
+    x, y, g = activity_training_set(syn, other, real)
+    return train_lda(x, y, groups=g, covariance="per_class", info=info)
+
+
 def train_default() -> None:
-    sim = [sim_person_windows(i, seed0=900) for i in range(12)]
+    syn = [sim_person_windows(i, seed0=SYN_TRAIN_SEED0) for i in range(12)]
     other = hrtls_sim_windows()
-    real = mobgap_windows()
-    x = np.concatenate([d[0] for d in sim] + [d[0] for d in other]
-                       + [v[0] for v in real.values()])
-    y = np.concatenate([d[1] for d in sim] + [d[1] for d in other]
-                       + [v[1] for v in real.values()])
-    model = train_lda(x, y, info=(
-        "default hrtls model: 12 simulated persons (hrtls.gait.synthetic, seeds 900-911, "
-        "random mounting) + hrtls.sim scenarios " + ", ".join(TRAIN_SCENARIOS)
-        + f" (seeds {TRAIN_SEEDS}, stairs windows left out) + mobgap lab lower-back "
-        "recordings HA/001, HA/002, MS/001 "
-        "(INDIP walking bouts = walking, the rest = standing); 2 s windows, 6 Hz; "
-        f"{int(np.sum(y >= 0))} windows"))
+    real = mobgap_windows() if DATA.is_dir() else {}
+    _, y, _ = activity_training_set(syn, other, real)
+    model = train_default_model(syn, other, real, info=(
+        "default hrtls model: eq. 4.8 with per-class covariances, class likelihood = equal "
+        "mixture of one Gaussian per source: (0) 12 simulated persons (hrtls.gait.synthetic, "
+        f"seeds {SYN_TRAIN_SEED0}-{SYN_TRAIN_SEED0 + 11}, random mounting), (1) hrtls.sim "
+        "scenarios " + ", ".join(k for k in other if k != "person_walks")
+        + f" (seeds {TRAIN_SEEDS}) and {PERSON_WALKS} random-person walks (seeds 7000-"
+        f"{7000 + PERSON_WALKS - 1}), all classes incl. stairs, "
+        "(2) mobgap lab lower-back recordings " + ", ".join(real)
+        + " (INDIP walking bouts = walking, the rest = standing); 2 s windows, 6 Hz, "
+        f"4x zero-padded DFT; {int(np.sum(y >= 0))} windows"))
     model.save(MODEL_PATH)
-    print(f"wrote {MODEL_PATH}")
+    print(f"wrote {MODEL_PATH}: {model.means.shape[0]} components")
 
 
 def print_table() -> None:
@@ -795,8 +1163,20 @@ def main() -> None:
             mobgap_length(runs, det)
             if det == "peak":
                 mobgap_motion(runs)
+                mobgap_walking_windows(runs, "motion, default analyzer")
+                mobgap_reference_agreement(runs)
                 mobgap_turns(runs)
             oxford_eval(det)
+        # walking bouts from step sequences (hrtls.gait.walking_bouts), and with single missed
+        # steps filled from the step rhythm (hrtls.gait.missed_steps)
+        for label, kw in (("peak+bouts", {"walking_bouts": WalkingBoutParams()}),
+                          ("peak+bouts+fill", {"walking_bouts": WalkingBoutParams(),
+                                               "missed_steps": MissedStepParams()})):
+            runs_b = mobgap_runs("peak", **kw)
+            mobgap_detection(runs_b, label)
+            if label == "peak+bouts":
+                mobgap_walking_windows(runs_b, "motion, walking bouts")
+            oxford_eval("peak", label, **kw)
         if not args.quick:
             # the step gate (gate_steps_with_motion) with the combined motion state
             mobgap_detection(mobgap_runs("peak", gate_steps_with_motion=True), "peak+gate")

@@ -99,3 +99,61 @@ def test_update_keeps_covariance_spd(seed: int, m: int) -> None:
     res = kalman_update(rng.normal(size=4), p, h, r, rng.normal(size=m))
     assert is_spd(res.P)
     assert np.trace(res.P) <= np.trace(p) * (1 + 1e-9)
+
+
+def numpy_kalman(x: np.ndarray, p: np.ndarray, h: np.ndarray, r: np.ndarray, nu: np.ndarray,
+                 threshold: float) -> tuple[str, float, np.ndarray, np.ndarray]:
+    """Reference of the compiled core: numpy Cholesky test, solve, Joseph form."""
+    s = 0.5 * ((h @ p @ h.T + r) + (h @ p @ h.T + r).T)
+    try:
+        np.linalg.cholesky(s)
+    except np.linalg.LinAlgError:
+        return "not_pd", float("nan"), x, p
+    sol = np.linalg.solve(s, np.column_stack([nu, h @ p]))
+    value = float(nu @ sol[:, 0])
+    if value > threshold:
+        return "gate", value, x, p
+    k = sol[:, 1:].T
+    a = np.eye(len(x)) - k @ h
+    q = a @ p @ a.T + k @ r @ k.T
+    return "accepted", value, x + k @ nu, 0.5 * (q + q.T)
+
+
+@settings(max_examples=150, deadline=None)
+@given(n=st.integers(1, 5), m=st.integers(1, 3), seed=st.integers(0, 10_000),
+       scale=st.floats(1e-3, 1e3), singular=st.booleans())
+def test_compiled_update_equals_numpy(n: int, m: int, seed: int, scale: float,
+                                      singular: bool) -> None:
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, n))
+    p = scale * (a @ a.T + 0.01 * np.eye(n))
+    h = rng.normal(size=(m, n))
+    b = rng.normal(size=(m, m))
+    r = b @ b.T + 0.05 * np.eye(m)
+    if singular:    # S = H P H^T + R with a negative direction: not positive definite
+        r = r - (np.max(np.linalg.eigvalsh(h @ p @ h.T + r)) + 1.0) * np.eye(m)
+    x = rng.normal(size=n)
+    nu = rng.normal(size=m) * np.sqrt(scale) * rng.choice([0.1, 1.0, 10.0])
+    thr = chi2_threshold(m, 0.99)
+    status, value, x_ref, p_ref = numpy_kalman(x, p, h, r, nu, thr)
+    res = kalman_update(x, p, h, r, nu, gate_probability=0.99)
+    d = res.diagnostics
+    expected = {"accepted": "accepted", "gate": "rejected", "not_pd": "rejected"}[status]
+    assert d.status == expected
+    if status == "not_pd":
+        assert d.reason == "innovation covariance not positive definite" and np.isnan(d.nis)
+    else:
+        assert d.nis == pytest.approx(value, rel=1e-8, abs=1e-12)
+    np.testing.assert_allclose(res.x, x_ref, rtol=1e-8, atol=1e-9 * np.sqrt(scale))
+    np.testing.assert_allclose(res.P, p_ref, rtol=1e-7, atol=1e-9 * scale)
+    np.testing.assert_array_equal(res.P, res.P.T)
+
+
+def test_angle_wrapped_and_rejection_returns_prior() -> None:
+    x = np.array([0.0, 3.1])
+    p = np.eye(2)
+    h = np.array([[0.0, 1.0]])
+    res = kalman_update(x, p, h, np.array([[0.01]]), np.array([0.5]), angle_index=1)
+    assert -np.pi < res.x[1] <= np.pi and res.x[1] < 0
+    rej = kalman_update(x, p, h, np.array([[0.01]]), np.array([50.0]), gate_probability=0.99)
+    assert rej.x is x and rej.P is p

@@ -16,6 +16,7 @@ from hrtls.fusion.rss import (
     ChannelEstimator,
     ChannelState,
     PathLossModel,
+    RssScan,
     TarrioFusion,
     TarrioParams,
     TarrioState,
@@ -23,6 +24,7 @@ from hrtls.fusion.rss import (
     hyperbolic_wls,
     rss_update,
     scan_position,
+    scan_table,
     update_rss_readings,
 )
 from hrtls.fusion.state import FilterState
@@ -315,3 +317,54 @@ def test_wls_first_reference_as_in_the_paper() -> None:
     np.testing.assert_allclose(fix.xy, p, atol=1e-9)
     with pytest.raises(InputError):
         hyperbolic_wls(GRID, d, reference="bogus")  # type: ignore[arg-type]
+
+
+def reference_group_scans(rss: RssReadings, landmarks: dict[str, Landmark], *,
+                          window_s: float, sensitivity_dbm: float = -95.0,
+                          t_origin: float | None = None) -> list[RssScan]:
+    """Per-window Python loop (the implementation before the vectorized scan table)."""
+    t0 = float(rss.t[0]) if t_origin is None else float(t_origin)
+    keep = rss.rss_dbm >= sensitivity_dbm
+    tt, ids, vals = rss.t[keep], rss.anchor[keep], rss.rss_dbm[keep]
+    if tt.size == 0:
+        return []
+    bins = np.floor((tt - t0) / window_s).astype(np.int64)
+    scans: list[RssScan] = []
+    for chunk in np.split(np.arange(tt.size), np.flatnonzero(np.diff(bins)) + 1):
+        names, inv = np.unique(ids[chunk], return_inverse=True)
+        sums = np.bincount(inv, weights=vals[chunk], minlength=len(names))
+        counts = np.bincount(inv, minlength=len(names)).astype(np.float64)
+        known, xyz, mean, cnt, unknown = [], [], [], [], []
+        for k, name in enumerate(names):
+            lm = landmarks.get(str(name))
+            if lm is None or lm.position is None:
+                unknown.append(str(name))
+                continue
+            known.append(str(name))
+            xyz.append(lm.xyz())
+            mean.append(sums[k] / counts[k])
+            cnt.append(counts[k])
+        scans.append(RssScan(float(tt[chunk[-1]]), known,
+                             np.asarray(xyz, dtype=np.float64).reshape(-1, 3),
+                             np.asarray(mean, dtype=np.float64), np.asarray(cnt), unknown))
+    return scans
+
+
+@settings(max_examples=60, deadline=None)
+@given(reads=st.lists(st.tuples(st.floats(0.0, 3.0), st.sampled_from(
+    ["a0", "a1", "a2", "a5", "zz", "yy"]), st.floats(-100.0, -40.0)), min_size=1, max_size=60),
+       window=st.sampled_from([0.5, 1.0, 2.0]), origin=st.floats(-1.0, 0.0))
+def test_scan_table_equals_reference(reads: list[tuple[float, str, float]], window: float,
+                                     origin: float) -> None:
+    reads = sorted(reads, key=lambda r: r[0])
+    rss = RssReadings(np.array([r[0] for r in reads]), np.array([r[1] for r in reads]),
+                      np.array([r[2] for r in reads]))
+    ref = reference_group_scans(rss, LANDMARKS, window_s=window, t_origin=origin)
+    got = group_scans(rss, LANDMARKS, window_s=window, t_origin=origin)
+    table = scan_table(rss, LANDMARKS, window_s=window, t_origin=origin)
+    assert len(table) == len(ref) == len(got)
+    for a, b in zip(ref, got, strict=True):
+        assert a.t == b.t and a.anchor == b.anchor and a.unknown == b.unknown
+        np.testing.assert_array_equal(a.anchor_xyz, b.anchor_xyz)
+        np.testing.assert_array_equal(a.rss_dbm, b.rss_dbm)      # same summation order
+        np.testing.assert_array_equal(a.count, b.count)

@@ -88,3 +88,35 @@ def test_pendulum_step_model_from_profile(office: SimulationResult) -> None:
                                         ranges=None))
     assert len(res.steps) > 50 and np.all(np.isfinite(res.steps.length_m))
     assert 0.3 < float(np.median(res.steps.length_m[res.steps.length_m > 0])) < 1.2
+
+
+def test_fix_keys_of_the_colombo_targets(tmp_path: Path) -> None:
+    d = preset("default").fixes
+    assert d.partial_step and d.yaw_feedback == "kalman" and d.drift_fraction > 0 and d.gate
+    c = preset("colombo2014").fixes
+    assert not c.gate and c.yaw_feedback == "gain" and not c.partial_step
+    f = tmp_path / "p.toml"
+    f.write_text('[fixes]\ngate = false\ndrift_fraction = 0.2\nyaw_feedback = "kalman"\n')
+    cfg = load_config(f)
+    assert (cfg.fixes.gate, cfg.fixes.drift_fraction, cfg.fixes.yaw_feedback) == \
+        (False, 0.2, "kalman")
+    f.write_text('[fixes]\nyaw_feedback = "always"\n')
+    with pytest.raises(InputError):
+        load_config(f)
+
+
+def test_walking_bout_keys_reach_the_gait_stage(office: SimulationResult) -> None:
+    from hrtls.pipeline import Tracker
+
+    s = office.session.with_parts(fixes=None, rss=None, tags=None, ranges=None)
+    base = preset("default")
+    cfg = base.model_copy(update={"gait": base.gait.model_copy(
+        update={"walking_bouts": True, "fill_missed_steps": True})})
+    plain = Tracker(base).run(s)
+    tr = Tracker(cfg)
+    bouts = tr.run(s)
+    assert tr.gait is not None and tr.gait.bouts is not None and tr.gait.filler is not None
+    true_steps = len(office.true_steps)
+    # both keep the steps of a continuous office walk (bouts drop only isolated steps)
+    assert abs(len(bouts.steps) - true_steps) <= 0.03 * true_steps
+    assert abs(len(bouts.steps) - len(plain.steps)) <= 0.03 * len(plain.steps)

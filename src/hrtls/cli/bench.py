@@ -32,12 +32,16 @@ def papers(
                                        help="Simulation seeds per scenario.")] = 3,
     quick: Annotated[bool, typer.Option("--quick", help="A subset of the cases, one seed.")
                      ] = False,
+    only: Annotated[list[str] | None, typer.Option(
+        "--only", help="Keep the cases whose label contains this text (repeatable), "
+                       "e.g. --only colombo.")] = None,
 ) -> None:
     """Run each paper's scenario with its preset and with default; print one table."""
     from hrtls.jobs.bench import DEFINITIONS, run_bench
 
     with console.status("running") as status:
-        rows = run_bench(seeds=seeds, quick=quick, progress=lambda msg: status.update(msg))
+        rows = run_bench(seeds=seeds, quick=quick, progress=lambda msg: status.update(msg),
+                         only=only or None)
     n = 1 if quick else seeds
     table = Table("scenario", "metric", "paper figure", "paper preset (ours)",
                   "default preset", "target", "met?",

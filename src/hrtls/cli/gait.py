@@ -1,4 +1,4 @@
-"""Gait commands: ``hrtls activity train`` and ``hrtls calibrate steps``.
+"""Gait commands: ``hrtls activity train|calibrate-tree`` and ``hrtls calibrate steps``.
 
 Register in :mod:`hrtls.cli.app` with::
 
@@ -46,21 +46,18 @@ def _read_session(path: Path) -> object:
     return read_any(path)
 
 
-@activity_app.command("train")
-@reports_errors
-def train(
-    sessions: Annotated[list[Path], typer.Argument(help="Labelled session folders (or zips).")],
-    output: Annotated[Path, typer.Option("-o", "--output", help="Model JSON to write.")],
-    window_s: Annotated[float, typer.Option(help="Window length, s.")] = 2.0,
-    cutoff_hz: Annotated[float, typer.Option(help="Low-pass corner before features, Hz.")] = 6.0,
-) -> None:
-    """Train the LDA activity model (Inderst Sec. 4.1.2) on labelled sessions."""
+def labelled_windows(sessions: list[Path], *, window_s: float, cutoff_hz: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tree features (W, 3), LDA features (W, 7) and labels (W,) of labelled sessions.
+
+    Each session folder has an ``activity.csv``; windows not entirely inside one labelled
+    interval get the label UNKNOWN (-1).
+    """
     from hrtls.data import Session
-    from hrtls.gait.activity_lda import train_lda
     from hrtls.gait.features import window_labels
     from hrtls.gait.pipeline import activity_windows, session_inputs
 
-    feats, labels = [], []
+    tree, feats, labels = [], [], []
     for path in sessions:
         session = _read_session(path)
         assert isinstance(session, Session)
@@ -75,17 +72,63 @@ def train(
             per_sample[(t >= lo) & (t < hi)] = c
         wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd, mounting_q_bd=mount,
                               window_s=window_s, cutoff_hz=cutoff_hz)
-        y = window_labels(per_sample, max(4, round(window_s * rate)))
+        tree.append(wf.tree)
         feats.append(wf.lda)
-        labels.append(y)
-    f = np.concatenate(feats)
-    y = np.concatenate(labels)
+        labels.append(window_labels(per_sample, max(4, round(window_s * rate))))
+    return np.concatenate(tree), np.concatenate(feats), np.concatenate(labels)
+
+
+@activity_app.command("train")
+@reports_errors
+def train(
+    sessions: Annotated[list[Path], typer.Argument(help="Labelled session folders (or zips).")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Model JSON to write.")],
+    window_s: Annotated[float, typer.Option(help="Window length, s.")] = 2.0,
+    cutoff_hz: Annotated[float, typer.Option(help="Low-pass corner before features, Hz.")] = 6.0,
+    covariance: Annotated[str, typer.Option(
+        help="'per_class' (eq. 4.8: one covariance per class) or 'pooled' (linear "
+             "discriminant).")] = "per_class",
+) -> None:
+    """Train the LDA activity model (Inderst Sec. 4.1.2) on labelled sessions."""
+    from hrtls.gait.activity_lda import train_lda
+
+    if covariance not in ("per_class", "pooled"):
+        raise InputError(f"--covariance {covariance!r}", where="--covariance",
+                         expected="'per_class' or 'pooled'")
+    _, f, y = labelled_windows(sessions, window_s=window_s, cutoff_hz=cutoff_hz)
     model = train_lda(f, y, window_s=window_s, cutoff_hz=cutoff_hz,
+                      covariance="pooled" if covariance == "pooled" else "per_class",
                       info=f"trained by hrtls on {len(sessions)} session(s), "
-                           f"{int(np.sum(y >= 0))} windows")
+                           f"{int(np.sum(y >= 0))} windows, {covariance} covariance")
     model.save(output)
     counts = {Activity(int(c)).label: int(np.sum(y == c)) for c in np.unique(y[y >= 0])}
     typer.echo(f"wrote {output}: windows per class {counts}")
+
+
+TREE_FORMAT = "hrtls-activity-tree"
+
+
+@activity_app.command("calibrate-tree")
+@reports_errors
+def calibrate_tree_cmd(
+    sessions: Annotated[list[Path], typer.Argument(
+        help="Labelled session folders (or zips) of one user.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Thresholds JSON to write.")],
+) -> None:
+    """Set the user's decision-tree thresholds d1-d3 from labelled walks (Inderst 4.1.1)."""
+    from hrtls.gait.activity_tree import calibrate_tree, classify_tree
+
+    # the gait stage computes the tree features with n_r = 1 (eq. 4.3)
+    tree, _, y = labelled_windows(sessions, window_s=2.0, cutoff_hz=6.0)
+    ok = y >= 0
+    th = calibrate_tree(tree[ok], y[ok])
+    acc = float(np.mean(classify_tree(tree[ok], th) == y[ok])) if ok.any() else float("nan")
+    Path(output).write_text(json.dumps({"format": TREE_FORMAT, "version": 1,
+                                        "thresholds": th.to_dict(),
+                                        "windows": int(ok.sum()),
+                                        "in_sample_accuracy": acc}, indent=1))
+    typer.echo(f"wrote {output}: {th.to_dict()} (in-sample accuracy {acc * 100:.1f}% on "
+               f"{int(ok.sum())} windows)")
 
 
 @reports_errors

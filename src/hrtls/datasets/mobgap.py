@@ -91,8 +91,13 @@ class GaitReference:
     step_length_m, step_bout:
         Step lengths in m (Stereophoto only; INDIP does not report them, so they are empty).
     turn_start_s, turn_end_s, turn_angle_deg, turn_bout:
-        Turns, s; the angle in degrees is signed, but its sign was not always consistent with
-        the integrated vertical gyroscope in a quick check (data README): compare magnitudes.
+        Turns, s; the angle in degrees is signed. Stereophoto: positive is counter-clockwise
+        seen from above (a left turn, like hrtls yaw), checked against the sensor's rotation
+        about the vertical over the turn (29 of 30 Test11 turns agree; the exception is a
+        61 deg turn of HA/002 where the sensor rotates 22 deg the other way). INDIP turns come
+        from a lower-back IMU algorithm (mobgap documentation), not from an independent
+        reference, and agree in sign for only 14 of 21. Turns are cut at the bout limits;
+        mobgap scores only turns of at least 45 deg.
     """
 
     system: str
@@ -141,7 +146,7 @@ class GaitReference:
 
     @property
     def turns(self) -> FloatArray:
-        """Turns as (T, 3) ``[start_s, end_s, angle_deg]`` (sign caveat: see the class)."""
+        """Turns as (T, 3) ``[start_s, end_s, angle_deg]`` (sign: see the class)."""
         return np.column_stack([self.turn_start_s, self.turn_end_s,
                                 self.turn_angle_deg]).reshape(-1, 3)
 

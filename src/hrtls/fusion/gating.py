@@ -17,18 +17,19 @@ accepted and rejected.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Literal
 
+import numba
 import numpy as np
 from scipy import linalg
 from scipy.stats import chi2
 
 from hrtls.errors import InputError
-from hrtls.frames import wrap_angle
 from hrtls.fusion._checks import FloatArray
 
 Status = Literal["accepted", "rejected", "skipped"]
@@ -142,6 +143,88 @@ class UpdateResult:
     diagnostics: UpdateDiagnostics
 
 
+@numba.njit(cache=True)
+def joseph_kernel(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray, nu: FloatArray,
+                  threshold: float, angle_index: int, x_out: FloatArray, p_out: FloatArray,
+                  s_out: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled
+    """Compiled core of :func:`kalman_update` (any small ``n``, ``m``).
+
+    Returns ``(code, nis)``: 0 accepted (``x_out``, ``p_out`` hold the posterior), 1 failed
+    the gate, 2 ``S`` not positive definite (Cholesky fails, as LAPACK's), 3 non-finite input.
+    ``s_out`` receives the symmetrized ``S``.
+    """
+    n = x.shape[0]
+    m = nu.shape[0]
+    for i in range(m):
+        if not np.isfinite(nu[i]):
+            return 3, math.nan
+        for j in range(n):
+            if not np.isfinite(h[i, j]):
+                return 3, math.nan
+        for j in range(m):
+            if not np.isfinite(r[i, j]):
+                return 3, math.nan
+    hp = h @ p                                   # (m, n)
+    a = hp @ h.T + r
+    for i in range(m):
+        for j in range(m):
+            s_out[i, j] = 0.5 * (a[i, j] + a[j, i])
+    # Cholesky S = L L^T; a pivot <= 0 (or NaN) means S is not positive definite
+    el = np.zeros((m, m))
+    for j in range(m):
+        d = s_out[j, j]
+        for k in range(j):
+            d -= el[j, k] * el[j, k]
+        if not d > 0.0:
+            return 2, math.nan
+        el[j, j] = math.sqrt(d)
+        for i in range(j + 1, m):
+            v = s_out[i, j]
+            for k in range(j):
+                v -= el[i, k] * el[j, k]
+            el[i, j] = v / el[j, j]
+    # sol = S^-1 [nu, H P] by forward / back substitution
+    rhs = np.empty((m, n + 1))
+    for i in range(m):
+        rhs[i, 0] = nu[i]
+        for j in range(n):
+            rhs[i, j + 1] = hp[i, j]
+    for c in range(n + 1):
+        for i in range(m):
+            v = rhs[i, c]
+            for k in range(i):
+                v -= el[i, k] * rhs[k, c]
+            rhs[i, c] = v / el[i, i]
+        for i in range(m - 1, -1, -1):
+            v = rhs[i, c]
+            for k in range(i + 1, m):
+                v -= el[k, i] * rhs[k, c]
+            rhs[i, c] = v / el[i, i]
+    value = 0.0
+    for i in range(m):
+        value += nu[i] * rhs[i, 0]
+    if value > threshold:
+        return 1, value
+    # K = P H^T S^-1 = (S^-1 H P)^T
+    k_gain = np.empty((n, m))
+    for i in range(n):
+        for j in range(m):
+            k_gain[i, j] = rhs[j, i + 1]
+    for i in range(n):
+        acc = x[i]
+        for j in range(m):
+            acc += k_gain[i, j] * nu[j]
+        x_out[i] = acc
+    if angle_index >= 0:
+        x_out[angle_index] = np.pi - np.mod(np.pi - x_out[angle_index], 2.0 * np.pi)
+    ia = np.eye(n) - k_gain @ h
+    q = ia @ p @ ia.T + k_gain @ r @ k_gain.T
+    for i in range(n):
+        for j in range(n):
+            p_out[i, j] = 0.5 * (q[i, j] + q[j, i])
+    return 0, value
+
+
 def kalman_update(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray,
                   innovation: FloatArray, *, gate_probability: float | None = None,
                   kind: str = "update", t: float = float("nan"), source: str = "",
@@ -176,33 +259,29 @@ def kalman_update(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray,
     if p.shape != (n, n) or h.shape != (m, n) or r.shape != (m, m):
         raise InputError(f"shapes x{x.shape} P{p.shape} H{h.shape} R{r.shape} nu{innovation.shape}",
                          where=f"{kind} update", expected="consistent Kalman dimensions")
-    if not (np.all(np.isfinite(innovation)) and np.all(np.isfinite(h))
-            and np.all(np.isfinite(r))):
+    threshold = float("inf") if gate_probability is None else chi2_threshold(m, gate_probability)
+    f64 = np.float64
+    xc, pc = np.ascontiguousarray(x, dtype=f64), np.ascontiguousarray(p, dtype=f64)
+    x_new = np.empty(n)
+    p_new = np.empty((n, n))
+    s = np.empty((m, m))
+    code, value = joseph_kernel(xc, pc, np.ascontiguousarray(h, dtype=f64),
+                                np.ascontiguousarray(r, dtype=f64),
+                                np.ascontiguousarray(innovation, dtype=f64), threshold,
+                                -1 if angle_index is None else int(angle_index), x_new, p_new, s)
+    if code == 3:
         raise InputError("non-finite innovation, Jacobian or noise", where=f"{kind} update",
                          expected="finite values")
-    threshold = float("inf") if gate_probability is None else chi2_threshold(m, gate_probability)
-    s = symmetrize(h @ p @ h.T + r)
-    try:
-        np.linalg.cholesky(s)           # positive definite? (small m: numpy is faster)
-    except np.linalg.LinAlgError:
+    if code == 2:
         diag = UpdateDiagnostics(kind, t, "rejected", dof=m, threshold=threshold,
                                  innovation=innovation.copy(), innovation_cov=s, source=source,
                                  reason="innovation covariance not positive definite")
         return UpdateResult(x, p, diag)
-    sol = np.linalg.solve(s, np.column_stack([innovation, h @ p]))
-    value = float(innovation @ sol[:, 0])
-    if value > threshold:
+    if code == 1:
         diag = UpdateDiagnostics(kind, t, "rejected", nis=value, dof=m, threshold=threshold,
                                  innovation=innovation.copy(), innovation_cov=s, source=source,
                                  reason="failed the chi-square gate")
         return UpdateResult(x, p, diag)
-    # K = P H^T S^-1, computed as (S^-1 H P)^T
-    k = sol[:, 1:].T
-    x_new = x + k @ innovation
-    if angle_index is not None:
-        x_new[angle_index] = float(wrap_angle(x_new[angle_index]))
-    a = np.eye(n) - k @ h
-    p_new = symmetrize(a @ p @ a.T + k @ r @ k.T)
     diag = UpdateDiagnostics(kind, t, "accepted", nis=value, dof=m, threshold=threshold,
                              innovation=innovation.copy(), innovation_cov=s, source=source)
     return UpdateResult(x_new, p_new, diag)

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RssReadings
@@ -182,12 +182,16 @@ def hyperbolic_wls(anchors_xy: ArrayLike, distances_m: ArrayLike, *,
     tr = float(info[0, 0] + info[1, 1])
     disc = math.sqrt(max(0.25 * tr * tr - det, 0.0))
     lam_min, lam_max = 0.5 * tr - disc, 0.5 * tr + disc
-    if not lam_min > 0.0 or lam_max / lam_min > 1e12:
+    # (det > 0: with anchors a few ulps apart the eigenvalues pass but det underflows)
+    if not lam_min > 0.0 or lam_max / lam_min > 1e12 or not det > 0.0:
         raise InputError("anchors are collinear", where="hyperbolic_wls",
                          expected="anchors spanning the plane")
     inv = np.array([[info[1, 1], -info[0, 1]], [-info[1, 0], info[0, 0]]]) / det
     xy_rel = inv @ (h.T @ s_inv(b))                                  # (H^T S^-1 H)^-1 H^T S^-1 b
     cov = symmetrize(4.0 * sigma_ln**2 * inv)
+    if not (np.all(np.isfinite(xy_rel)) and np.all(np.isfinite(cov))):
+        raise InputError("anchors are collinear", where="hyperbolic_wls",
+                         expected="anchors spanning the plane")
     return WlsFix(xy_rel + a[ref], cov, ref)
 
 
@@ -206,6 +210,85 @@ class RssScan:
     unknown: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class ScanTable:
+    """Scans as columns (what :func:`group_scans` returns, without per-scan objects).
+
+    Attributes
+    ----------
+    t: scan times, s (S,). first, count: rows of each scan in the row columns (S,).
+    anchor: anchor id per row (M,). anchor_xyz: its position, m (M, 3). rss_dbm: mean RSS per
+    row, dBm (M,). n_readings: readings averaged per row (M,). unknown: per scan, the anchors
+    heard without a known position.
+    """
+
+    t: FloatArray
+    first: NDArray[np.int64]
+    count: NDArray[np.int64]
+    anchor: NDArray[np.str_]
+    anchor_xyz: FloatArray
+    rss_dbm: FloatArray
+    n_readings: FloatArray
+    unknown: list[list[str]]
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def scans(self) -> list[RssScan]:
+        """One :class:`RssScan` per scan."""
+        out: list[RssScan] = []
+        for i in range(len(self)):
+            a, b = int(self.first[i]), int(self.first[i] + self.count[i])
+            out.append(RssScan(float(self.t[i]), self.anchor[a:b].tolist(),
+                               self.anchor_xyz[a:b].copy(), self.rss_dbm[a:b].copy(),
+                               self.n_readings[a:b].copy(), list(self.unknown[i])))
+        return out
+
+
+def scan_table(rss: RssReadings, landmarks: dict[str, Landmark], *, window_s: float,
+               sensitivity_dbm: float = -95.0, t_origin: float | None = None) -> ScanTable:
+    """:func:`group_scans` vectorized: the scans as columns (same windows, order and means)."""
+    w = finite_scalar(window_s, where="group_scans window_s", positive=True)
+    empty = ScanTable(np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                      np.zeros(0, dtype=str), np.zeros((0, 3)), np.zeros(0), np.zeros(0), [])
+    if len(rss) == 0:
+        return empty
+    t0 = float(rss.t[0]) if t_origin is None else float(t_origin)
+    keep = rss.rss_dbm >= sensitivity_dbm
+    tt, ids, vals = rss.t[keep], rss.anchor[keep], rss.rss_dbm[keep]
+    if tt.size == 0:
+        return empty
+    bins = np.floor((tt - t0) / w).astype(np.int64)
+    # consecutive readings in one window form a scan; its time is that of its last reading
+    grp = np.zeros(tt.size, dtype=np.int64)
+    grp[1:] = np.cumsum(np.diff(bins) != 0)
+    n_scans = int(grp[-1]) + 1
+    last = np.flatnonzero(np.append(np.diff(grp) != 0, True))
+    names, a_idx = np.unique(ids, return_inverse=True)
+    key = grp * len(names) + a_idx.astype(np.int64)
+    uk, inv = np.unique(key, return_inverse=True)   # by scan, then by anchor name
+    sums = np.bincount(inv, weights=vals, minlength=len(uk))
+    counts = np.bincount(inv, minlength=len(uk)).astype(np.float64)
+    row_scan = uk // len(names)
+    row_name = uk % len(names)
+    xyz_of = np.full((len(names), 3), np.nan)
+    known_name = np.zeros(len(names), dtype=bool)
+    for j, name in enumerate(names.tolist()):
+        lm = landmarks.get(str(name))
+        if lm is not None and lm.position is not None:
+            known_name[j] = True
+            xyz_of[j] = lm.xyz()
+    known = known_name[row_name]
+    unknown: list[list[str]] = [[] for _ in range(n_scans)]
+    for i in np.flatnonzero(~known).tolist():
+        unknown[int(row_scan[i])].append(str(names[row_name[i]]))
+    ks, kn = row_scan[known], row_name[known]
+    first = np.searchsorted(ks, np.arange(n_scans), side="left").astype(np.int64)
+    count = (np.searchsorted(ks, np.arange(n_scans), side="right") - first).astype(np.int64)
+    return ScanTable(tt[last].astype(np.float64), first, count, names[kn].astype(str),
+                     xyz_of[kn], sums[known] / counts[known], counts[known], unknown)
+
+
 def group_scans(rss: RssReadings, landmarks: dict[str, Landmark], *, window_s: float,
                 sensitivity_dbm: float = -95.0, t_origin: float | None = None) -> list[RssScan]:
     """Average the readings of each anchor over consecutive windows of ``window_s`` seconds.
@@ -214,35 +297,8 @@ def group_scans(rss: RssReadings, landmarks: dict[str, Landmark], *, window_s: f
     its last reading (the position can be computed then); anchors without a known position are
     listed in ``unknown``.
     """
-    w = finite_scalar(window_s, where="group_scans window_s", positive=True)
-    if len(rss) == 0:
-        return []
-    t0 = float(rss.t[0]) if t_origin is None else float(t_origin)
-    keep = rss.rss_dbm >= sensitivity_dbm
-    tt, ids, vals = rss.t[keep], rss.anchor[keep], rss.rss_dbm[keep]
-    if tt.size == 0:
-        return []
-    bins = np.floor((tt - t0) / w).astype(np.int64)
-    scans: list[RssScan] = []
-    edges = np.flatnonzero(np.diff(bins)) + 1
-    for chunk in np.split(np.arange(tt.size), edges):
-        t_scan = float(tt[chunk[-1]])
-        names, inv = np.unique(ids[chunk], return_inverse=True)
-        sums = np.bincount(inv, weights=vals[chunk], minlength=len(names))
-        counts = np.bincount(inv, minlength=len(names)).astype(np.float64)
-        known, xyz, mean, cnt, unknown = [], [], [], [], []
-        for k, name in enumerate(names):
-            lm = landmarks.get(str(name))
-            if lm is None or lm.position is None:
-                unknown.append(str(name))
-                continue
-            known.append(str(name))
-            xyz.append(lm.xyz())
-            mean.append(sums[k] / counts[k])
-            cnt.append(counts[k])
-        scans.append(RssScan(t_scan, known, np.asarray(xyz, dtype=np.float64).reshape(-1, 3),
-                             np.asarray(mean, dtype=np.float64), np.asarray(cnt), unknown))
-    return scans
+    return scan_table(rss, landmarks, window_s=window_s, sensitivity_dbm=sensitivity_dbm,
+                      t_origin=t_origin).scans()
 
 
 def scan_position(scan: RssScan, model: PathLossModel) -> WlsFix:

@@ -273,7 +273,11 @@ class TagCorrector:
         moved = float(np.linalg.norm(x[:2] - p_xy))
         diag = UpdateDiagnostics("tag", t, "accepted", dof=2, innovation=x[:2] - p_xy,
                                  source=source, reason=f"strategy {strategy}")
-        return TagUpdate(state.evolve(x=x, P=new_p), [diag], strategy, moved)
+        # the blocks above are symmetric PSD by construction (and checked in strategy 4), the
+        # heading is untouched: only finiteness is checked (FilterState.from_kernel)
+        new_state = FilterState.from_kernel(state.t, x, symmetrize(new_p),
+                                            state.input_heading_rad, state.has_input_heading)
+        return TagUpdate(new_state, [diag], strategy, moved)
 
     def _kalman(self, state: FilterState, t: float, tags: list[Landmark], centres: FloatArray,
                 sig2: FloatArray) -> TagUpdate:
@@ -285,7 +289,9 @@ class TagCorrector:
             res = kalman_update(state.x, state.P, h, np.eye(2) * v, c - state.x[:2],
                                 gate_probability=self.params.gate_probability, kind="tag", t=t,
                                 source=lm.id, angle_index=IH)
-            state = state.evolve(x=res.x, P=res.P)
+            # Joseph form, symmetrized, heading wrapped: only finiteness needs checking
+            state = FilterState.from_kernel(state.t, res.x, res.P, state.input_heading_rad,
+                                            state.has_input_heading)
             diags.append(res.diagnostics)
         return TagUpdate(state, diags, 0, float(np.linalg.norm(state.x[:2] - start)))
 

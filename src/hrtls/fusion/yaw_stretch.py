@@ -19,7 +19,9 @@ spread it in proportion to each sample's ``dt`` (identical for a constant rate, 
 user stands still at the end that sample carries no direction, so we take the last sample whose
 speed exceeds ``min_speed_m_s``. (iii) The paper gives no variance for the pseudo-measurement; we
 use the angular uncertainty of the end-point offset over the segment,
-``var = (sigma_a^2 + sigma_b^2) / path^2 + sigma_floor^2`` (fix 1-sigmas in m, path length in m).
+``var = (sigma_a^2 + sigma_b^2) / path^2 + sigma_floor^2`` (fix 1-sigmas in m, path length in m),
+plus, with ``drift_fraction`` (our addition), the open-loop shape uncertainty
+``(drift_fraction * walked)^2 / path^2`` (``chord^2`` for the rotation method).
 
 Eq. 28 at ``j = 0`` is exact for a straight segment but wrong on curved ones: the per-sample shift
 ``(l_b - l_a)/m`` is added to the *last* displacement whatever its direction, so when the segment
@@ -62,6 +64,11 @@ class YawStretchParams:
         ``"rotation"`` (chord rotation, default) or ``"paper"`` (eq. 28 at ``j = 0``).
     min_chord_m:
         ``"rotation"`` needs the estimated and fixed chords at least this long.
+    drift_fraction:
+        Dead-reckoning drift per metre walked between the fixes (our addition): the shape of
+        the open-loop segment is uncertain by about ``drift_fraction * path``, which adds
+        ``(drift_fraction * path / chord)^2`` to the variance of the yaw (a lap of a small loop
+        has a long path and a short chord: its chord rotation says little about the yaw).
     """
 
     min_path_m: float = 1.0
@@ -70,10 +77,11 @@ class YawStretchParams:
     max_correction_rad: float = 0.6
     method: Literal["rotation", "paper"] = "rotation"
     min_chord_m: float = 1.0
+    drift_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("min_path_m", "min_speed_m_s", "sigma_floor_rad", "max_correction_rad",
-                     "min_chord_m"):
+                     "min_chord_m", "drift_fraction"):
             finite_scalar(getattr(self, name), where=f"YawStretchParams.{name}",
                           non_negative=True)
         if self.method not in ("rotation", "paper"):
@@ -112,7 +120,8 @@ class YawStretchResult:
 def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: ArrayLike,
                 start_xy: ArrayLike, offset_start: ArrayLike, offset_end: ArrayLike,
                 sigma_start_m: float, sigma_end_m: float,
-                params: YawStretchParams | None = None) -> YawStretchResult:
+                params: YawStretchParams | None = None,
+                path_m: float | None = None) -> YawStretchResult:
     """Stretch the open-loop segment between two fixes and synthesize the yaw (eq. 24-28).
 
     Parameters
@@ -131,6 +140,9 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
         1-sigma of the two fixes, m.
     params:
         Thresholds; defaults of :class:`YawStretchParams`.
+    path_m:
+        Distance walked between the fixes, m, for the drift term of the variance; None: the
+        path of the given samples (a caller passing the chord as one sample passes the path).
     """
     prm = params or YawStretchParams()
     tt = finite_vector(t, where="stretch t")
@@ -164,6 +176,9 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
         v_bar = np.where(dt > 0.0, np.hypot(d[:, 0], d[:, 1]) / dt, v)  # eq. 27
     xy = np.vstack([p0 + la, p0 + la + np.cumsum(d, axis=0)])           # eq. 24-25
     path = float(np.sum(dt * v))
+    walked = path if path_m is None else finite_scalar(path_m, where="stretch path_m",
+                                                        non_negative=True)
+    drift2 = (prm.drift_fraction * walked) ** 2
     if path < prm.min_path_m:
         return YawStretchResult(False, f"path {path:.2f} m shorter than {prm.min_path_m} m",
                                 float("nan"), float("nan"), 0.0, 1.0, theta_bar, v_bar, xy)
@@ -175,7 +190,7 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
     if prm.method == "paper":
         yaw = float(wrap_angle(theta_bar[j0]))                           # eq. 28, j = 0
         corr = float(wrap_angle(yaw - th[j0]))
-        var = (sa * sa + sb * sb) / (path * path) + prm.sigma_floor_rad**2
+        var = (sa * sa + sb * sb + drift2) / (path * path) + prm.sigma_floor_rad**2
     else:
         chord_est = np.sum(step, axis=0)                                 # p_b - p_a
         chord_fix = chord_est + (lb - la)                                # c_b - c_a
@@ -188,7 +203,7 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
         corr = float(wrap_angle(np.arctan2(chord_fix[1], chord_fix[0])
                                 - np.arctan2(chord_est[1], chord_est[0])))
         yaw = float(wrap_angle(th[j0] + corr))
-        var = (sa * sa + sb * sb) / (n_fix * n_fix) + prm.sigma_floor_rad**2
+        var = (sa * sa + sb * sb + drift2) / (n_fix * n_fix) + prm.sigma_floor_rad**2
     scale = float(v_bar[j0] / v[j0]) if v[j0] > 0.0 else 1.0
     if abs(corr) > prm.max_correction_rad:
         return YawStretchResult(False, f"correction {corr:.3f} rad beyond "

@@ -2,6 +2,9 @@
 
 One module per algorithm (see ``docs``/ARCHITECTURE): :mod:`~hrtls.gait.motion` (Basso II-B),
 :mod:`~hrtls.gait.cadence` (periodicity walking detection, step frequency),
+:mod:`~hrtls.gait.walking_bouts` (walking bouts from step sequences),
+:mod:`~hrtls.gait.missed_steps` (one missed step filled in a regular walk),
+:mod:`~hrtls.gait.step_length_stride` (stride lengths from steps, turning chord),
 :mod:`~hrtls.gait.step_length_pendulum` (inverted-pendulum step length),
 :mod:`~hrtls.gait.turns` (turn segmentation on the vertical-axis rate),
 :mod:`~hrtls.gait.activity_tree` and :mod:`~hrtls.gait.activity_lda` (Inderst 4.1),
@@ -16,6 +19,7 @@ from hrtls.gait.activity_lda import LdaModel, train_lda
 from hrtls.gait.activity_tree import TreeThresholds, calibrate_tree, classify_tree
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingParams
+from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams
 from hrtls.gait.motion import MotionDetector, MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
 from hrtls.gait.pipeline import GaitAnalyzer, GaitResult, activity_windows, analyze_session
@@ -34,9 +38,11 @@ from hrtls.gait.step_length_fit import (
     fit_weinberg,
 )
 from hrtls.gait.step_length_pendulum import PendulumModel, vertical_excursion
+from hrtls.gait.step_length_stride import chord_factor, prorated_stride_lengths
 from hrtls.gait.turns import TurnDetector, TurnEvents, TurnParams
 from hrtls.gait.velocity_automaton import AutomatonParams, VelocityAutomaton
 from hrtls.gait.vertical import GravityLevelling, LevelledAcceleration, from_orientation
+from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams, walking_bouts
 
 __all__ = [
     "AutomatonParams",
@@ -51,6 +57,8 @@ __all__ = [
     "GravityLevelling",
     "LdaModel",
     "LevelledAcceleration",
+    "MissedStepFiller",
+    "MissedStepParams",
     "MotionDetector",
     "MotionParams",
     "PeakStepDetector",
@@ -65,17 +73,22 @@ __all__ = [
     "TurnEvents",
     "TurnParams",
     "VelocityAutomaton",
+    "WalkingBoutDetector",
+    "WalkingBoutParams",
     "WeinbergModel",
     "activity_windows",
     "analyze_session",
     "calibrate_tree",
+    "chord_factor",
     "classify_tree",
     "displacements",
     "fit_frequency_law",
     "fit_pendulum",
     "fit_weinberg",
     "from_orientation",
+    "prorated_stride_lengths",
     "step_model_from_dict",
     "train_lda",
     "vertical_excursion",
+    "walking_bouts",
 ]

@@ -38,8 +38,14 @@ from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds, classify_tree
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
-from hrtls.gait.features import StreamingButterworth, WindowFeatures, window_features
+from hrtls.gait.features import (
+    DFT_ZERO_PAD,
+    StreamingButterworth,
+    WindowFeatures,
+    window_features,
+)
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingState
+from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
 from hrtls.gait.motion import STILL, MotionDetector, MotionParams, MotionResult, RunningStdState
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepState
 from hrtls.gait.pll import PllState, PllStepDetector, StepDetection
@@ -53,6 +59,7 @@ from hrtls.gait.vertical import (
     from_orientation,
     rotate,
 )
+from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
 
 IntArray = NDArray[np.int64]
 HEADING_HOLD_DELAY_S = 0.5
@@ -116,6 +123,9 @@ class _Pending:
 
     t: FloatArray = field(default_factory=lambda: np.zeros(0))
     acc: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    # combined motion state and Basso spread of the held samples
+    ms: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    sg: FloatArray = field(default_factory=lambda: np.zeros(0))
     steps: list[StepDetection] = field(default_factory=list)
     headings: list[FloatArray] = field(default_factory=list)
     excursions: list[FloatArray] = field(default_factory=list)
@@ -189,6 +199,17 @@ class GaitAnalyzer:
     activity_window_s, activity_cutoff_hz:
         Window and low-pass corner of the activity features when ``activity`` is not an
         :class:`LdaModel` (a model carries its own), s and Hz.
+    walking_bouts:
+        Step-sequence walking bouts (:mod:`hrtls.gait.walking_bouts`): steps outside a bout
+        (fewer than ``min_steps`` steps with gaps of at most ``max_gap_s``) are dropped, and
+        with ``activity=None`` a window is walking when more than half of it lies in a bout
+        (running when the combined motion state at its end says running). Steps and windows
+        are then released once the bout decision is final (at most
+        ``WalkingBoutParams.max_delay_s`` plus the detection delay later). None (default):
+        off.
+    missed_steps:
+        Insert one step into a gap of about two step periods within a walk
+        (:mod:`hrtls.gait.missed_steps`); None (default): off.
     """
 
     def __init__(self, *, rate_hz: float, step_detector: PeakStepDetector | PllStepDetector
@@ -202,7 +223,9 @@ class GaitAnalyzer:
                  activity_cutoff_hz: float = 6.0,
                  cadence: CadenceParams | None = DEFAULT_CADENCE,
                  gate_lookahead_s: float = 1.6,
-                 pll_enable_m_s2: float | None = None) -> None:
+                 pll_enable_m_s2: float | None = None,
+                 walking_bouts: WalkingBoutParams | None = None,
+                 missed_steps: MissedStepParams | None = None) -> None:
         check_positive(rate_hz, "rate_hz")
         if heading not in ("fourier", "yaw", "none"):
             raise InputError(f"heading {heading!r}", where="heading",
@@ -245,6 +268,11 @@ class GaitAnalyzer:
         self._gate = gate_steps_with_motion or self._pll_enable is not None
         self._step_delay_s = self._step_filter.group_delay_s(1.8)
         self._levelling = GravityLevelling()
+        self.bouts = None if walking_bouts is None else WalkingBoutDetector(
+            walking_bouts, history_s=window_s + 2.0 * walking_bouts.max_gap_s + 2.0)
+        self.filler = None if missed_steps is None else MissedStepFiller(missed_steps)
+        # windows wait for the bout decision when the bouts give the activity
+        self._bout_labels = self.bouts is not None and activity is None
         self.reset()
 
     def reset(self) -> None:
@@ -256,6 +284,10 @@ class GaitAnalyzer:
         self.motion.reset()
         if self.cadence is not None:
             self.cadence.reset()
+        if self.bouts is not None:
+            self.bouts.reset()
+        if self.filler is not None:
+            self.filler.reset()
         self._levelling.reset()
         self._act_filter.reset()
         self._step_filter.reset()
@@ -270,8 +302,25 @@ class GaitAnalyzer:
             return self._levelling.update(t, acc)
         return from_orientation(t, acc, q_nd)
 
+    def _steps_complete_s(self) -> float:
+        """Time before which the step detector has reported all its steps (reported times)."""
+        if isinstance(self.step_detector, PllStepDetector):
+            return self._t_last  # the loop reports a step at its phase crossing
+        v = self.step_detector.state.values
+        # inside a positive lobe its peak (a step end not reported yet) is at or after v[4]
+        c = v[4] if v[2] == 1.0 else v[0]
+        return float(c) - self._step_delay_s if np.isfinite(c) else -math.inf
+
     def _window_labels(self, feats_tree: FloatArray, feats_lda: FloatArray,
-                       sigma_end: FloatArray, state_end: IntArray) -> IntArray:
+                       sigma_end: FloatArray, state_end: IntArray,
+                       walk_share: FloatArray | None = None) -> IntArray:
+        if walk_share is not None:
+            # walking bouts (module walking_bouts); running from the combined motion state
+            run = state_end == int(Activity.RUNNING) if self.cadence is not None else (
+                sigma_end > self.motion.params.run_threshold_m_s2)
+            return np.where(walk_share > 0.5, np.where(run, int(Activity.RUNNING),
+                                                       int(Activity.WALKING)),
+                            int(Activity.STANDING)).astype(np.int64)
         if isinstance(self.activity, LdaModel):
             return self.activity.predict(feats_lda)
         if isinstance(self.activity, TreeThresholds):
@@ -329,6 +378,10 @@ class GaitAnalyzer:
             # report the steps at the peaks of the unfiltered signal: remove the filter delay
             det = StepDetection(det.t_start - self._step_delay_s, det.t_end - self._step_delay_s,
                                 det.frequency_hz, det.acc_max, det.acc_min)
+        if self.filler is not None:
+            det = self.filler.update(det)
+        if self.bouts is not None:
+            self.bouts.add(det.t_end, self._steps_complete_s())
         # vertical excursion of each new step (inverted pendulum length model)
         pm = self._pending
         vb_t = np.concatenate([pm.vb_t, tt])
@@ -419,38 +472,56 @@ class GaitAnalyzer:
         pend = self._pending
         pend.t = np.concatenate([pend.t, tt])
         pend.acc = np.concatenate([pend.acc, lp])
-        sigma_all = np.concatenate([np.full(pend.t.shape[0] - tt.shape[0], np.nan),
-                                    motion.sigma_m_s2])
-        state_all = np.concatenate([np.full(pend.t.shape[0] - tt.shape[0], -1, dtype=np.int64),
-                                    motion.state])
-        j = self.window_samples
-        nw = pend.t.shape[0] // j
-        act_t = pend.t[: nw * j]
-        if nw:
-            wf = window_features(act_t, pend.acc[: nw * j], window_samples=j,
-                                 anthropometric_nr=(self.activity.anthropometric_nr
-                                                    if isinstance(self.activity, TreeThresholds)
-                                                    else 1.0))
-            sig_end = sigma_all[np.arange(1, nw + 1) * j - 1]
-            sig_end = np.where(np.isfinite(sig_end), sig_end, 0.0)
-            state_end = state_all[np.arange(1, nw + 1) * j - 1]
-            labels = self._window_labels(wf.tree, wf.lda, sig_end, state_end)
-            act = np.repeat(labels, j)
-            pend.win_end.extend(wf.t_end.tolist())
-            pend.win_label.extend(labels.tolist())
-            pend.last_label = int(labels[-1])
-            pend.t = pend.t[nw * j:]
-            pend.acc = pend.acc[nw * j:]
-            feats = wf
-        else:
-            act = np.zeros(0, dtype=np.int64)
-            feats = WindowFeatures(np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7)))
+        pend.ms = np.concatenate([pend.ms, motion.state])
+        pend.sg = np.concatenate([pend.sg, motion.sigma_m_s2])
+        act_t, act, feats = self._windows(final=False)
         pend.steps.append(det)
         pend.headings.append(np.asarray(head, dtype=np.float64))
         pend.excursions.append(exc)
         steps, h = self._release(final=False)
+        if self.bouts is not None:
+            # keep the decisions of the held steps
+            held = pend.steps[0].t_end if pend.steps and len(pend.steps[0]) else np.zeros(0)
+            self.bouts.trim(float(held.min()) if held.size else math.inf)
         return GaitResult(steps, act_t, act.astype(np.int64), vel_t, vel_v, motion.sigma_m_s2,
                           lev.frame, feats, h)
+
+    def _windows(self, *, final: bool) -> tuple[FloatArray, IntArray, WindowFeatures]:
+        """Label the complete activity windows that can be labelled (all when ``final``)."""
+        pend = self._pending
+        j = self.window_samples
+        nw = pend.t.shape[0] // j
+        if self._bout_labels and not final and nw and self.bouts is not None:
+            # only windows whose walking state is final
+            ends_t = pend.t[np.arange(1, nw + 1) * j - 1]
+            nw = int(np.searchsorted(ends_t, self.bouts.final_until_s, side="left"))
+        act_t = pend.t[: nw * j]
+        if not nw:
+            return act_t, np.zeros(0, dtype=np.int64), WindowFeatures(
+                np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7)))
+        wf = window_features(act_t, pend.acc[: nw * j], window_samples=j,
+                             anthropometric_nr=(self.activity.anthropometric_nr
+                                                if isinstance(self.activity, TreeThresholds)
+                                                else 1.0),
+                             dft_zero_pad=(self.activity.dft_zero_pad
+                                           if isinstance(self.activity, LdaModel)
+                                           else DFT_ZERO_PAD))
+        idx = np.arange(1, nw + 1) * j - 1
+        sig_end = np.where(np.isfinite(pend.sg[idx]), pend.sg[idx], 0.0)
+        state_end = pend.ms[idx]
+        share = None
+        if self._bout_labels and self.bouts is not None:
+            share = self.bouts.walking(act_t).reshape(nw, j).mean(axis=1)
+        labels = self._window_labels(wf.tree, wf.lda, sig_end, state_end, share)
+        act = np.repeat(labels, j)
+        pend.win_end.extend(wf.t_end.tolist())
+        pend.win_label.extend(labels.tolist())
+        pend.last_label = int(labels[-1])
+        pend.t = pend.t[nw * j:]
+        pend.acc = pend.acc[nw * j:]
+        pend.ms = pend.ms[nw * j:]
+        pend.sg = pend.sg[nw * j:]
+        return act_t, act.astype(np.int64), wf
 
     def _release(self, *, final: bool) -> tuple[StepEvents, FloatArray]:
         """Steps whose activity window is known (all when ``final``) and their excursions."""
@@ -466,6 +537,8 @@ class GaitAnalyzer:
             ready = det.t_end <= (ends[-1] if ends.size else -np.inf)
             if self._gate:
                 ready &= det.t_end + self.gate_lookahead_s <= self._t_last
+        if self.bouts is not None and not final:
+            ready &= self.bouts.decided(det.t_end)
         sel = np.flatnonzero(ready)
         rest = np.flatnonzero(~ready)
         if self._gate:
@@ -482,6 +555,8 @@ class GaitAnalyzer:
             keep_m = pend.mt >= first_needed - 1e-9
             pend.mt = pend.mt[keep_m]
             pend.mv = pend.mv[keep_m]
+        if self.bouts is not None:
+            sel = sel[self.bouts.in_bout(det.t_end[sel])]
         w = np.searchsorted(ends, det.t_end[sel], side="left")
         act = np.where(w < labels.size, labels[np.clip(w, 0, max(labels.size - 1, 0))]
                        if labels.size else int(Activity.UNKNOWN),
@@ -511,14 +586,28 @@ class GaitAnalyzer:
     def flush(self) -> GaitResult:
         """End of the recording: release held steps and label the last partial window."""
         pend = self._pending
+        feats = WindowFeatures(np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7)))
+        win_t = np.zeros(0)
+        win_act = np.zeros(0, dtype=np.int64)
+        if self.bouts is not None:
+            self.bouts.finish()
+            if self._bout_labels:
+                win_t, win_act, feats = self._windows(final=True)
         steps, h = self._release(final=True)
         act_t = pend.t.copy()
         label = pend.last_label if pend.last_label != int(Activity.UNKNOWN) else int(
             Activity.STANDING)
         act = np.full(act_t.shape[0], label, dtype=np.int64)
+        if self._bout_labels and self.bouts is not None and act_t.size:
+            walk = self.bouts.walking(act_t).mean() > 0.5
+            act[:] = int(Activity.WALKING) if walk else int(Activity.STANDING)
         pend.t = np.zeros(0)
         pend.acc = np.zeros((0, 3))
-        return GaitResult(steps, act_t, act, np.zeros(0), np.zeros(0), np.zeros(0), self._frame,
+        pend.ms = np.zeros(0, dtype=np.int64)
+        pend.sg = np.zeros(0)
+        return GaitResult(steps, np.concatenate([win_t, act_t]),
+                          np.concatenate([win_act, act]).astype(np.int64), np.zeros(0),
+                          np.zeros(0), np.zeros(0), self._frame, features=feats,
                           step_excursion_m=h)
 
     # ------------------------------------------------------------------ save / restore
@@ -540,6 +629,8 @@ class GaitAnalyzer:
             "levelling": self._levelling.state.to_dict(),
             "motion": self.motion.state.to_dict(),
             "cadence": None if self.cadence is None else self.cadence.to_dict(),
+            "bouts": None if self.bouts is None else self.bouts.to_dict(),
+            "missed_steps": None if self.filler is None else self.filler.state.to_dict(),
             "step_detector": {
                 "kind": "pll" if isinstance(self.step_detector, PllStepDetector) else "peak",
                 "state": self.step_detector.state.to_dict()},
@@ -550,6 +641,7 @@ class GaitAnalyzer:
                                else self._step_filter.zi.tolist()),
             "pending": {
                 "t": pend.t.tolist(), "acc": pend.acc.tolist(),
+                "ms": pend.ms.tolist(), "sg": pend.sg.tolist(),
                 "steps": np.column_stack([det.t_start, det.t_end, det.frequency_hz,
                                           det.acc_max, det.acc_min]).tolist(),
                 "headings": heads.tolist(),
@@ -580,13 +672,19 @@ class GaitAnalyzer:
                 raise InputError(f"state of a {kind!r} step detector", where="state",
                                  expected="the step detector this analyzer was built with")
             if (d["cadence"] is None) != (self.cadence is None) or (
-                    d["velocity"] is None) != (self.velocity is None):
+                    d["velocity"] is None) != (self.velocity is None) or (
+                    d.get("bouts") is None) != (self.bouts is None) or (
+                    d.get("missed_steps") is None) != (self.filler is None):
                 raise InputError("cadence/velocity presence differs", where="state",
                                  expected="an analyzer built with the same parameters")
             self._levelling.state = LevellingState.from_dict(d["levelling"])
             self.motion.state = RunningStdState.from_dict(d["motion"])
             if self.cadence is not None:
                 self.cadence.from_dict(d["cadence"])
+            if self.bouts is not None:
+                self.bouts.from_dict(d["bouts"])
+            if self.filler is not None:
+                self.filler.state = MissedStepState.from_dict(d["missed_steps"])
             if isinstance(self.step_detector, PllStepDetector):
                 self.step_detector.state = PllState.from_dict(d["step_detector"]["state"])
             else:
@@ -602,6 +700,11 @@ class GaitAnalyzer:
             pend = _Pending()
             pend.t = np.asarray(pd["t"], dtype=np.float64).reshape(-1)
             pend.acc = np.asarray(pd["acc"], dtype=np.float64).reshape(-1, 3)
+            # states written before the held motion state was kept: unknown (-1 / NaN)
+            pend.ms = np.asarray(pd.get("ms", [-1] * pend.t.shape[0]),
+                                 dtype=np.int64).reshape(-1)
+            pend.sg = np.asarray(pd.get("sg", [math.nan] * pend.t.shape[0]),
+                                 dtype=np.float64).reshape(-1)
             pend.steps = [StepDetection.from_rows(np.asarray(pd["steps"], dtype=np.float64))]
             pend.headings = [np.asarray(pd["headings"], dtype=np.float64).reshape(-1)]
             pend.excursions = [np.asarray(pd["excursions"], dtype=np.float64).reshape(-1)]

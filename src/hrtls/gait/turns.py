@@ -12,13 +12,22 @@ an interval is the turned angle.
 pelvis oscillation. A turn is a run of samples with ``|omega_f| > rate_low`` and one sign, whose
 peak ``|omega_f|`` reaches ``rate_high``; two runs of the same sign less than ``merge_s`` apart are
 one turn; a turn is reported when its angle (the integral of ``omega_f`` over it, which equals
-the unfiltered integral up to the cut tails) reaches ``min_angle_rad``. Times are of the
-filtered signal minus the filter's low-frequency delay (``2 / (2 pi cutoff)``).
+the unfiltered integral up to the cut tails) reaches ``min_angle_rad`` and its duration lies in
+``[min_duration_s, max_duration_s]``. Times are of the filtered signal minus the filter's
+low-frequency delay (``2 / (2 pi cutoff)``).
+
+Reference definition (Mobilise-D / mobgap lab data): the turns of the Stereophoto reference are
+scored only when ``|angle| >= 45 deg`` (El-Gohary et al., Sensors 14, 2014: peak rate 15 deg/s,
+boundaries at 5 deg/s, 45 deg, 0.5-10 s). :meth:`TurnParams.reference` gives that definition
+with this module's filter; its sign is positive counter-clockwise seen from above (a left
+turn), which is also the sign of the reference's ``Turn_Angle`` (checked on the data). The
+reference lists turns per walking bout, cut at the bout limits: :meth:`TurnDetector.process_bouts`
+does the same and takes the angle from the unfiltered rate, as El-Gohary does.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numba
@@ -39,6 +48,7 @@ class TurnParams:
     rate_high_rad_s: the turn's peak rate must reach this, rad/s.
     min_angle_rad: smallest reported turn, rad.
     merge_s: runs of the same sign closer than this are one turn, s.
+    min_duration_s, max_duration_s: reported turns last at least / at most this long, s.
     """
 
     cutoff_hz: float = 1.5
@@ -46,6 +56,19 @@ class TurnParams:
     rate_high_rad_s: float = float(np.deg2rad(20.0))
     min_angle_rad: float = float(np.deg2rad(10.0))
     merge_s: float = 0.3
+    min_duration_s: float = 0.0
+    max_duration_s: float = float("inf")
+
+    @classmethod
+    def reference(cls) -> TurnParams:
+        """The turn definition of the Mobilise-D reference scoring: |angle| >= 45 deg, 0.5-10 s.
+
+        The rate thresholds stay at this module's 10/20 deg/s: with the two first-order
+        low-passes at 1.5 Hz (weaker than El-Gohary's smoothing) the pelvis sway of walking
+        reaches 5-15 deg/s, which El-Gohary's 5/15 deg/s would take for turning.
+        """
+        return cls(min_angle_rad=float(np.deg2rad(45.0)), min_duration_s=0.5,
+                   max_duration_s=10.0)
 
 
 @numba.njit(cache=True)
@@ -85,11 +108,12 @@ def turn_kernel(t: FloatArray, w: FloatArray, pars: FloatArray, st: FloatArray,
                 turns: FloatArray) -> int:  # pragma: no cover
     """Segment turns; return the number written to ``turns`` (rows ``t_start, t_end, angle``).
 
-    ``pars = [cutoff_hz, rate_low, rate_high, min_angle, merge_s]``;
+    ``pars = [cutoff_hz, rate_low, rate_high, min_angle, merge_s, min_duration, max_duration]``;
     ``st = [t_last, f1, f2, in_run, sign, run_start, run_end, angle, peak, open]`` where
     ``open`` marks a turn (one or more runs) that may still be merged with the next run.
     """
     fc, lo, hi, min_ang, merge = pars[0], pars[1], pars[2], pars[3], pars[4]
+    d_lo, d_hi = pars[5], pars[6]
     t_last, f1, f2, in_run, sign = st[0], st[1], st[2], st[3], st[4]
     r0, r1, ang, peak, open_ = st[5], st[6], st[7], st[8], st[9]
     delay = 2.0 / (2.0 * np.pi * fc)
@@ -128,7 +152,7 @@ def turn_kernel(t: FloatArray, w: FloatArray, pars: FloatArray, st: FloatArray,
                     peak = abs(v)
                 continue
             if t[i] - r1 >= merge or (above and s != sign):
-                if peak >= hi and abs(ang) >= min_ang:
+                if peak >= hi and abs(ang) >= min_ang and d_lo <= r1 - r0 <= d_hi:
                     turns[nt, 0] = r0 - delay
                     turns[nt, 1] = r1 - delay
                     turns[nt, 2] = ang
@@ -204,8 +228,12 @@ class TurnDetector:
         if p.rate_high_rad_s < p.rate_low_rad_s:
             raise InputError("rate_high_rad_s < rate_low_rad_s", where="TurnParams",
                              expected="rate_high_rad_s >= rate_low_rad_s")
+        if not (0.0 <= p.min_duration_s <= p.max_duration_s and p.max_duration_s > 0):
+            raise InputError(f"durations {p.min_duration_s}..{p.max_duration_s} s",
+                             where="TurnParams",
+                             expected="0 <= min_duration_s <= max_duration_s")
         self._pars = np.array([p.cutoff_hz, p.rate_low_rad_s, p.rate_high_rad_s,
-                               p.min_angle_rad, p.merge_s])
+                               p.min_angle_rad, p.merge_s, p.min_duration_s, p.max_duration_s])
         self.reset()
 
     def reset(self) -> None:
@@ -243,6 +271,73 @@ class TurnDetector:
         """Whole recording (resets first; a turn still open at the end is not reported)."""
         self.reset()
         return self.update(t, q_nd)
+
+    def flush(self) -> TurnEvents:
+        """Close the turn still in progress (end of a bout or of the data) and reset.
+
+        A run still above ``rate_low_rad_s`` at the last sample is cut there (the delayed
+        filtered rate says the turn goes on); a finished run waiting for a merge ends at its
+        last sample minus the filter delay. The turn is reported when it meets the peak,
+        angle and duration criteria.
+        """
+        v = self.state.values
+        fc, hi, min_ang, d_lo, d_hi = (self._pars[0], self._pars[2], self._pars[3],
+                                       self._pars[5], self._pars[6])
+        delay = 2.0 / (2.0 * np.pi * fc)
+        r0, r1, ang, peak = v[5] - delay, v[6] - delay, v[7], v[8]
+        if v[3] == 1.0:
+            r1 = v[0]
+        pending = v[3] == 1.0 or v[9] == 1.0
+        self.reset()
+        if pending and peak >= hi and abs(ang) >= min_ang and d_lo <= r1 - r0 <= d_hi:
+            return TurnEvents(np.array([r0]), np.array([r1]), np.array([ang]))
+        return TurnEvents(np.zeros(0), np.zeros(0), np.zeros(0))
+
+    def process_bouts(self, t: FloatArray, q_nd: FloatArray,
+                      bouts_s: FloatArray) -> TurnEvents:
+        """Turns inside walking bouts only (batch; resets before and after).
+
+        This is how the Mobilise-D reference reports turns: one turn list per walking bout,
+        turns cut at the bout limits (mobgap runs ``TdElGohary`` per gait sequence). The
+        segmentation restarts at each bout; a turn still in progress at a bout end is closed
+        there (:meth:`flush`); turn times are clipped to the bout. As in El-Gohary's method
+        the angle is the integral of the *unfiltered* vertical rate between the turn limits,
+        and ``min_angle_rad`` is applied to that angle.
+
+        Parameters
+        ----------
+        t, q_nd: sample times (s) and attitude quaternions (device -> ENU).
+        bouts_s: (K, 2) ``[start, end]`` in s, sorted and not overlapping.
+        """
+        tt = as_time(t, where="turn time")
+        q = as_matrix(q_nd, where="q_nd", columns=4, length=tt.shape[0])
+        b = as_matrix(bouts_s, where="bouts_s", columns=2)
+        if np.any(b[:, 1] < b[:, 0]) or np.any(b[1:, 0] < b[:-1, 1]):
+            raise InputError("bouts with end < start, unsorted or overlapping", where="bouts_s",
+                             expected="sorted, disjoint [start, end] rows in s")
+        self.reset()
+        w = self.vertical_rate(tt, q)
+        self.reset()
+        cum = np.concatenate([[0.0], np.cumsum(w[1:] * np.diff(tt))])
+        inner = TurnDetector(replace(self.params, min_angle_rad=1e-12))
+        starts: list[FloatArray] = []
+        ends: list[FloatArray] = []
+        for b0, b1 in b:
+            i0 = int(np.searchsorted(tt, b0, side="left"))
+            i1 = int(np.searchsorted(tt, b1, side="right"))
+            if i1 - i0 < 2:
+                continue
+            inner.reset()
+            for ev in (inner.update_rate(tt[i0:i1], w[i0:i1]), inner.flush()):
+                ts = np.clip(ev.t_start, b0, b1)
+                starts.append(ts)
+                ends.append(np.clip(ev.t_end, ts, b1))
+        if not starts:
+            return TurnEvents(np.zeros(0), np.zeros(0), np.zeros(0))
+        ts, te = np.concatenate(starts), np.concatenate(ends)
+        ang = np.interp(te, tt, cum) - np.interp(ts, tt, cum)
+        keep = np.abs(ang) >= self.params.min_angle_rad
+        return TurnEvents(ts[keep], te[keep], ang[keep])
 
 
 __all__ = ["TurnDetector", "TurnEvents", "TurnParams", "TurnState", "turn_kernel",

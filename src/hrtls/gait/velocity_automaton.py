@@ -12,7 +12,14 @@ Fig. 3 (the edges) is not legible in our copy; we use the edges the text implies
 * 0 -> 1 on M1 and M2 and M5 (motion starts with a forward acceleration);
 * 1 -> 2 on M3, 2 -> 1 on M4 with the reset of eq. 13-14: ``delta_v = 0`` and
   ``v = v`` during the first two steps, ``v = v - delta_v`` afterwards;
-* 1 or 2 -> 0 on not M1 (motion ended) or M6 (erroneous sign change), resetting ``x_s = 0``.
+* 1 or 2 -> 0 on not M1 (motion ended), resetting ``x_s = 0``;
+* M6: the text says it "removes sudden, erroneous velocity variations occurring during one
+  step". We read it as: when ``v`` turns negative (a forward walking speed cannot), the
+  variation of the current step is dropped, ``v = v - delta_v`` (the value at the step's
+  start) and ``delta_v = 0``, staying in motion (``m6_reset="step"``, default). The earlier
+  reading, a reset to the still state (``m6_reset="still"``), zeroes the speed of a walker
+  whose slow-down into a corner outweighs the kept increments, and with M2 loses the next
+  ``Tm`` of motion as well (Colombo's square, Case B).
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
 from hrtls.gait.motion import RunningStd, RunningStdState
 
@@ -41,12 +49,15 @@ class AutomatonParams:
     settle_steps: steps during which the velocity increment is kept (2, eq. 14).
     prefilter_hz: corner of two cascaded first-order low-passes applied to ``a_xu`` before the
         zero-crossing guards (our addition: sensor noise otherwise makes M3/M4 chatter), Hz.
+    m6_reset: what M6 does: ``"step"`` drops the current step's increment (default),
+        ``"still"`` goes to the still state (see the module docstring).
     """
 
     sigma_min_m_s2: float = 0.2
     tm_s: float = 0.5
     settle_steps: int = 2
     prefilter_hz: float = 2.0
+    m6_reset: str = "step"
 
 
 @numba.njit(cache=True)
@@ -55,11 +66,13 @@ def automaton_kernel(t: FloatArray, a: FloatArray, sigma: FloatArray, pars: Floa
                      mode_out: np.ndarray) -> None:  # pragma: no cover
     """Run the automaton over a chunk (state updated in place).
 
-    ``pars = [sigma_min, tm, settle_steps, prefilter_hz]``;
+    ``pars = [sigma_min, tm, settle_steps, prefilter_hz, m6_still]`` (``m6_still`` 1: M6 goes
+    to the still state, 0 or absent: M6 restores the step's start velocity);
     ``st = [mode, delta_v, v, t_enter_still, a_prev, steps, t_last, f1, f2]`` (t_last NaN at
     start; f1, f2 the low-pass states).
     """
     smin, tm, settle, fc = pars[0], pars[1], pars[2], pars[3]
+    m6_still = pars.shape[0] > 4 and pars[4] > 0.5
     mode, dv, v, t_still, a_prev, nsteps, t_last = st[0], st[1], st[2], st[3], st[4], st[5], st[6]
     f1, f2 = st[7], st[8]
     for i in range(t.shape[0]):
@@ -89,12 +102,16 @@ def automaton_kernel(t: FloatArray, a: FloatArray, sigma: FloatArray, pars: Floa
             v_old = v
             dv += dt * ai
             v += dt * ai
-            m6 = (v_old > 0.0 and v < 0.0) or (v_old < 0.0 and v > 0.0)
-            if (not m1) or m6:
+            m6 = v_old >= 0.0 and v < 0.0
+            if (not m1) or (m6 and m6_still):
                 mode = 0.0
                 dv = 0.0
                 v = 0.0
                 t_still = t[i]
+            elif m6:
+                # M6: the variation of this step is erroneous; back to its start value
+                v = v - dv
+                dv = 0.0
             elif mode == 1.0 and a_prev > 0.0 and ai <= 0.0:
                 mode = 2.0
             elif mode == 2.0 and a_prev < 0.0 and ai >= 0.0:
@@ -157,7 +174,11 @@ class VelocityAutomaton:
         check_positive(p.sigma_min_m_s2, "sigma_min_m_s2")
         check_positive(p.tm_s, "tm_s")
         check_positive(p.prefilter_hz, "prefilter_hz")
-        self._pars = np.array([p.sigma_min_m_s2, p.tm_s, float(p.settle_steps), p.prefilter_hz])
+        if p.m6_reset not in ("step", "still"):
+            raise InputError(f"m6_reset {p.m6_reset!r}", where="AutomatonParams.m6_reset",
+                             expected="'step' or 'still'")
+        self._pars = np.array([p.sigma_min_m_s2, p.tm_s, float(p.settle_steps), p.prefilter_hz,
+                               float(p.m6_reset == "still")])
         self._std = RunningStd(window_s=p.tm_s)
         self.reset()
 

@@ -54,6 +54,12 @@ class GaitConfig(_Section):
     activity: Literal["lda", "tree", "motion"] = "lda"
     velocity_automaton: bool = False
     gate_steps_with_motion: bool = False
+    walking_bouts: bool = False
+    """drop steps outside walking bouts of >= 3 steps with gaps <= 2 s
+    (:mod:`hrtls.gait.walking_bouts`); with activity = "motion" the bouts also decide walking
+    vs standing. Adds up to about 4 s of step latency."""
+    fill_missed_steps: bool = False
+    """insert one step in a gap of 1.6-2.4 local step periods (:mod:`hrtls.gait.missed_steps`)"""
 
 
 class PredictionConfig(_Section):
@@ -81,6 +87,22 @@ class FixesConfig(_Section):
     yaw_feedback_gain: float = Field(
         default=1.0, ge=0.0, le=1.0,
         description="fraction of each stretching yaw correction fed back to later yaw inputs")
+    gate: bool = Field(
+        default=True, description="chi-square gate on fixes (the paper's eq. 20-22 have none)")
+    drift_fraction: float = Field(
+        default=0.0, ge=0.0, le=1.0,
+        description="dead-reckoning drift per metre walked since the last fix, added as "
+                    "position variance (f L)^2 before a fix's gate and update, and as shape "
+                    "uncertainty to the stretching yaw's variance (our addition)")
+    yaw_feedback: Literal["gain", "kalman"] = Field(
+        default="gain",
+        description="gain: add yaw_feedback_gain x the stretching correction; kalman: weigh "
+                    "it by the state heading variance against the pseudo-measurement's "
+                    "(a scalar Kalman update of the heading, like eq. 8-9 with eta_z)")
+    partial_step: bool = Field(
+        default=False,
+        description="step model: compare a fix with the state plus the part of the step in "
+                    "progress at the fix time (our addition)")
 
 
 class RssConfig(_Section):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from itertools import chain
 from typing import overload
 
 import numpy as np
@@ -18,6 +19,9 @@ from hrtls.fusion.gating import Status, UpdateDiagnostics
 
 ACCEPTED, GATE, NEAR, NOT_SPD, SKIPPED = 0, 1, 2, 3, 4
 """Outcome codes of a block row (the kernel's codes)."""
+REJECTED_REASON, ACCEPTED_REASON = 6, 7
+"""Rows rejected / accepted without an innovation (e.g. collinear anchors, a WLS jump); the
+text is the row's ``reason``."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -28,26 +32,40 @@ class DiagnosticsBlock:
     ----------
     kind: ``"rss"`` or ``"range"`` per row. t: times, s. code: outcome code per row.
     nis, s, nu: NIS, innovation variance and innovation (NaN when not formed).
-    source: anchor / node id per row. reason: text of skipped rows (else ``""``).
+    source: anchor / node id per row. reason: text of skipped rows and of the ``*_REASON``
+    codes (else ``""``).
     threshold: chi-square gate used.
+    dof: measurement dimension per row (None: 1 for every row). Rows with ``dof == 2`` take
+    their innovation and ``S`` from ``nu2`` (n, 2) and ``s2`` (n, 3: ``S00, S01, S11``) and
+    are gated by ``threshold2``.
     """
 
-    kind: list[str]
+    kind: Sequence[str]
     t: np.ndarray
     code: np.ndarray
     nis: np.ndarray
     s: np.ndarray
     nu: np.ndarray
-    source: list[str]
-    reason: list[str]
+    source: Sequence[str]
+    reason: Sequence[str]
     threshold: float
+    dof: np.ndarray | None = None
+    nu2: np.ndarray | None = None
+    s2: np.ndarray | None = None
+    threshold2: float = float("inf")
 
     def row(self, i: int) -> UpdateDiagnostics:
         """Row ``i`` as :class:`UpdateDiagnostics`."""
         code = int(self.code[i])
-        kind, t, src = self.kind[i], float(self.t[i]), self.source[i]
+        kind, t, src = str(self.kind[i]), float(self.t[i]), str(self.source[i])
+        dof = 1 if self.dof is None else int(self.dof[i])
         if code == SKIPPED:
-            return UpdateDiagnostics(kind, t, "skipped", source=src, reason=self.reason[i])
+            return UpdateDiagnostics(kind, t, "skipped", source=src, reason=str(self.reason[i]))
+        if code == REJECTED_REASON:
+            return UpdateDiagnostics(kind, t, "rejected", source=src, reason=str(self.reason[i]))
+        if code == ACCEPTED_REASON:
+            return UpdateDiagnostics(kind, t, "accepted", dof=dof, source=src,
+                                     reason=str(self.reason[i]))
         if code == NEAR:
             what = "anchor" if kind == "rss" else "node"
             return UpdateDiagnostics(kind, t, "rejected", source=src,
@@ -55,6 +73,13 @@ class DiagnosticsBlock:
         status: Status = "accepted" if code == ACCEPTED else "rejected"
         reason = "" if code == ACCEPTED else ("failed the chi-square gate" if code == GATE
                                               else "innovation covariance not positive definite")
+        if dof == 2 and self.nu2 is not None and self.s2 is not None:
+            s00, s01, s11 = (float(v) for v in self.s2[i])
+            return UpdateDiagnostics(kind, t, status, nis=float(self.nis[i]), dof=2,
+                                     threshold=self.threshold2,
+                                     innovation=np.array(self.nu2[i], dtype=np.float64),
+                                     innovation_cov=np.array([[s00, s01], [s01, s11]]),
+                                     source=src, reason=reason)
         return UpdateDiagnostics(kind, t, status, nis=float(self.nis[i]), dof=1,
                                  threshold=self.threshold, innovation=np.array([self.nu[i]]),
                                  innovation_cov=np.array([[self.s[i]]]), source=src,
@@ -62,8 +87,8 @@ class DiagnosticsBlock:
 
     def status_names(self) -> list[str]:
         """Status of each row."""
-        return ["accepted" if c == ACCEPTED else ("skipped" if c == SKIPPED else "rejected")
-                for c in self.code.tolist()]
+        names = ("accepted", "rejected", "skipped")
+        return [names[i] for i in _status_index(self.code).tolist()]
 
 
 class DiagnosticsLog(Sequence[UpdateDiagnostics]):
@@ -127,29 +152,45 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
                 d = out.setdefault(p.kind, {})
                 d[p.status] = d.get(p.status, 0) + 1
         if blocks:
-            kinds = np.concatenate([np.asarray(b.kind) for b in blocks])
+            kinds = np.array(list(chain.from_iterable(b.kind for b in blocks)), dtype=object)
             code = np.concatenate([b.code for b in blocks])
-            status = np.where(code == ACCEPTED, 0, np.where(code == SKIPPED, 2, 1))
+            status = _status_index(code)
             names = ("accepted", "rejected", "skipped")
-            uk, ik = np.unique(kinds, return_inverse=True)
-            table = np.zeros((len(uk), 3), dtype=np.int64)
-            np.add.at(table, (ik, status), 1)
-            for i, k in enumerate(uk.tolist()):
-                d = out.setdefault(k, {})
+            for k in sorted(set(kinds.tolist())):
+                table = np.bincount(status[kinds == k], minlength=3)
+                d = out.setdefault(str(k), {})
                 for j in range(3):
-                    if table[i, j]:
-                        d[names[j]] = d.get(names[j], 0) + int(table[i, j])
+                    if table[j]:
+                        d[names[j]] = d.get(names[j], 0) + int(table[j])
         return out
 
     def first_rejected(self, limit: int) -> list[UpdateDiagnostics]:
         """The first ``limit`` rejected records, in order."""
         out: list[UpdateDiagnostics] = []
+        blocks = [p for p in self._parts if isinstance(p, DiagnosticsBlock)]
+        if blocks:
+            # rejected rows of every block at once, then per block only where there are some
+            bad = _status_index(np.concatenate([b.code for b in blocks])) == 1
+            sizes = [len(b.code) for b in blocks]
+            offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+            cs = np.concatenate([[0], np.cumsum(bad)])
+            n_bad = cs[offsets[1:]] - cs[offsets[:-1]]
+        i_block = 0
         for p in self._parts:
             if len(out) >= limit:
                 break
             if isinstance(p, DiagnosticsBlock):
-                idx = np.flatnonzero((p.code != ACCEPTED) & (p.code != SKIPPED))
-                out.extend(p.row(int(i)) for i in idx[: limit - len(out)])
+                if n_bad[i_block]:
+                    o = int(offsets[i_block])
+                    idx = np.flatnonzero(bad[o:o + len(p.code)])
+                    out.extend(p.row(int(i)) for i in idx[: limit - len(out)])
+                i_block += 1
             elif p.status == "rejected":
                 out.append(p)
         return out
+
+
+def _status_index(code: np.ndarray) -> np.ndarray:
+    """0 accepted, 1 rejected, 2 skipped for block outcome codes."""
+    acc = (code == ACCEPTED) | (code == ACCEPTED_REASON)
+    return np.where(acc, 0, np.where(code == SKIPPED, 2, 1))

@@ -7,10 +7,11 @@ samples and observations, see :mod:`hrtls.pipeline.chunks`) and gets the same re
 
 Per-sample work (attitude, gait, velocity prediction) runs in the compiled kernels of those
 stages. The position filter then handles *events* in time order -- steps, position fixes, RSS
-readings or scans, tag reads, ranges. Runs of consecutive steps, tight RSS readings and ranges
-go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the Python
-fusion parts, tested equal); fixes, tags, bearings, RSS scans and velocity segments are
-handled one at a time in Python (a few per second at most). Observations are held back until
+readings or scans, tag reads, ranges. Runs of consecutive steps, RSS readings or scans and
+ranges go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the
+Python fusion parts, tested equal); fixes, tags, bearings and velocity segments (and, with the
+velocity-driven prediction, every observation) are handled one at a time in Python (a few per
+second at most). Observations are held back until
 the gait stage can no longer release a step before them (``LIVE_LATENCY_S``), tag reads and RSS
 scans until their grouping window has closed, so a chunked run processes events in exactly the
 order of an offline run.
@@ -69,11 +70,14 @@ from hrtls.data.observations import (
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, quat_rotate, wrap_angle
 from hrtls.fusion.fixes import (
+    DRIFT_MIN_PATH_M,
     FixCorrector,
     FixParams,
     FixSchedule,
     StretchMemory,
     YawPseudoMeasurement,
+    partial_step,
+    step_in_progress,
 )
 from hrtls.fusion.gating import (
     UpdateDiagnostics,
@@ -88,9 +92,9 @@ from hrtls.fusion.rss import (
     ChannelEstimatorParams,
     ChannelState,
     PathLossModel,
-    group_scans,
     rss_update,
     scan_position,
+    scan_table,
 )
 from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
@@ -105,12 +109,14 @@ from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityP
 from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
+from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
+from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline.compass import CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
@@ -142,6 +148,8 @@ VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 DEFAULT_VAR_YAW_RAD2 = 0.01
 """Yaw variance when the attitude filter gives none (rad^2)."""
+SCAN_ROWS_TRIM = 4096
+"""Stored anchors of queued RSS scans are trimmed once there are this many (rows)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -256,6 +264,10 @@ class Tracker:
         self._vel_bin = -math.inf
         self._stretch: StretchMemory | None = None
         self._corrected_since_fix = False
+        self._last_speed = 0.0
+        self.fix_jumps: list[tuple[float, float, float]] = []
+        """Accepted fixes: time of the output row holding the corrected state, position change
+        (east, north) made by the fix, m."""
         self.step_scale = 1.0
         self.run_scale = 1.0
         self._anchor_xy: np.ndarray | None = None
@@ -272,6 +284,11 @@ class Tracker:
         self._bulk_ev = np.zeros(0, dtype=np.int64)
         self._bulk_data = np.zeros((0, 5))
         self._bulk_src = np.zeros(0, dtype=str)
+        # diagnostics (kind, reason) of each buffer row, as codes into _label_kind/_reason
+        self._bulk_label = np.zeros(0, dtype=np.int64)
+        self._labels: dict[tuple[str, str], int] = {}
+        self._label_kind = np.zeros(0, dtype=object)
+        self._label_reason = np.zeros(0, dtype=object)
         self._bulk_i = 0
         self._bulk_count = 0
         self._t0 = t0
@@ -280,6 +297,8 @@ class Tracker:
         self._scan_buf_t = np.zeros(0)
         self._scan_buf_a = np.zeros(0, dtype=str)
         self._scan_buf_v = np.zeros(0)
+        self._scan_rows = np.zeros((0, 4))     # anchors of queued scans (kernel SC_* columns)
+        self._scan_base = 0                    # absolute index of _scan_rows[0]
         self._avg_buf_t = np.zeros(0)
         self._avg_buf_a = np.zeros(0, dtype=str)
         self._avg_buf_v = np.zeros(0)
@@ -338,6 +357,8 @@ class Tracker:
                 mounting_q_bd=None if meta.mounting_q_bd is None
                 else np.asarray(meta.mounting_q_bd, dtype=np.float64),
                 gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
+                walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
+                missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
             )
             if meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
                 self.notes.append("device mounting unknown: step headings follow the device x "
@@ -350,7 +371,7 @@ class Tracker:
             sigma_heading_increment_rad=cfg.prediction.sigma_heading_increment_rad))
         self.fix_corrector = FixCorrector(FixParams(
             period_s=cfg.fixes.period_s, require_motion=cfg.fixes.require_motion,
-            gate_probability=cfg.gate_probability,
+            gate_probability=cfg.gate_probability if cfg.fixes.gate else None,
             max_consecutive_rejections=cfg.fixes.max_consecutive_rejections))
         self.fix_schedule = FixSchedule()
         self._fix_phase_set = False
@@ -512,7 +533,9 @@ class Tracker:
             self._track.add(self.state, self._last_activity)
         trajectory = self._track.trajectory()
         steps = (StepEvents.empty() if not self._steps else _concat_steps(self._steps))
-        attitude = AttitudeResult.concatenate(self._attitude) if self._attitude else None
+        # one chunk (offline run): its result as is, no copy of the per-sample arrays
+        attitude = (None if not self._attitude else self._attitude[0]
+                    if len(self._attitude) == 1 else AttitudeResult.concatenate(self._attitude))
         return TrackResult(trajectory, steps, attitude, self.diagnostics,
                            self._report(trajectory, steps))
 
@@ -555,6 +578,14 @@ class Tracker:
         prm[ev.P_ETA_LO], prm[ev.P_ETA_HI] = cp.eta_bounds
         prm[ev.P_CAP_A] = cp.sigma_a_prior_db**2
         prm[ev.P_CAP_ETA] = cp.sigma_eta_prior**2
+        # RSS scans (mode "wls" / "kalman"): the fixed path-loss model, eq. 7 noise, 2-D gate
+        prm[ev.P_SCAN_WLS] = float(cfg.rss.mode == "wls")
+        prm[ev.P_SCAN_WLS_COV] = float(cfg.rss.use_wls_covariance)
+        prm[ev.P_SCAN_SIG_P] = cfg.rss.sigma_position_m
+        prm[ev.P_CHI2_2] = chi2_threshold(2, cfg.gate_probability)
+        prm[ev.P_PL_A] = self.path_loss.a_dbm
+        prm[ev.P_PL_ETA] = self.path_loss.eta
+        prm[ev.P_PL_SIG] = self.path_loss.sigma_db
         return prm
 
     def _attitude_update(self, chunk: Session, t: np.ndarray, acc: np.ndarray,
@@ -644,6 +675,8 @@ class Tracker:
         if not np.any(keep):
             return
         vt, vv, yaw, var = vt[keep], vv[keep], yaw[keep], var[keep]
+        self._path_since_anchor += float(np.sum(np.diff(vt, prepend=self.state.t) * vv))
+        self._last_speed = float(vv[-1])
         res = self.velocity_predictor.run(self.state, vt, vv, yaw, var)
         self.state = res.state
         if self._stretch is not None:
@@ -793,10 +826,25 @@ class Tracker:
         self._add_rows(heap_kind, np.asarray(t, dtype=np.float64), ev_kind, data, src)
 
     def _add_rows(self, heap_kind: int, t: np.ndarray, ev_kind: np.ndarray, data: np.ndarray,
-                  src: np.ndarray) -> None:
-        """Merge rows of the compiled loop into the sorted buffer (order: t, kind, arrival)."""
+                  src: np.ndarray, reason: np.ndarray | None = None) -> None:
+        """Merge rows of the compiled loop into the sorted buffer (order: t, kind, arrival).
+
+        ``reason``: text of the rows' diagnostics when skipped (default: the unknown
+        anchor/node text on ``EV_SKIP`` rows).
+        """
         n = len(t)
         i0 = self._bulk_i
+        name = "rss" if heap_kind == _RSS else ("range" if heap_kind == _RANGE else "")
+        label = np.full(n, self._label(name, ""), dtype=np.int64)
+        if reason is None:
+            skip = ev_kind == ev.EV_SKIP
+            if skip.any():
+                label[skip] = self._label(name, "anchor without a known position"
+                                          if heap_kind == _RSS else "node without a known position")
+        else:
+            reason = np.asarray(reason, dtype=object)
+            for text in set(reason.tolist()) - {""}:
+                label[reason == text] = self._label(name, str(text))
         seq = self._bulk_count + np.arange(n)
         self._bulk_count += n
         bt = np.concatenate([self._bulk_t[i0:], t])
@@ -809,7 +857,18 @@ class Tracker:
         self._bulk_ev = np.concatenate([self._bulk_ev[i0:], ev_kind])[order]
         self._bulk_data = np.concatenate([self._bulk_data[i0:], data])[order]
         self._bulk_src = np.concatenate([self._bulk_src[i0:], src])[order]
+        self._bulk_label = np.concatenate([self._bulk_label[i0:], label])[order]
         self._bulk_i = 0
+
+    def _label(self, kind: str, reason: str) -> int:
+        """Code of a (diagnostics kind, reason) pair of buffer rows."""
+        code = self._labels.get((kind, reason))
+        if code is None:
+            code = len(self._labels)
+            self._labels[(kind, reason)] = code
+            self._label_kind = np.array([*self._label_kind.tolist(), kind], dtype=object)
+            self._label_reason = np.array([*self._label_reason.tolist(), reason], dtype=object)
+        return code
 
     def _flush_tag_groups(self, t_seen: float) -> None:
         """Group tag reads whose grouping window has closed (the same in chunked runs)."""
@@ -841,10 +900,27 @@ class Tracker:
         if n == 0:
             return
         readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
-        for scan in group_scans(readings, self.landmarks, window_s=w,
-                                sensitivity_dbm=self.config.rss.sensitivity_dbm,
-                                t_origin=self._t0):
-            self._push(scan.t, _RSS, i_payload=("scan", scan))
+        table = scan_table(readings, self.landmarks, window_s=w,
+                           sensitivity_dbm=self.config.rss.sensitivity_dbm, t_origin=self._t0)
+        if self._velocity_mode:
+            for scan in table.scans():
+                self._push(scan.t, _RSS, i_payload=("scan", scan))
+        elif len(table):
+            # compiled loop: rows [first anchor row (absolute), number of anchors]
+            start = self._scan_base + len(self._scan_rows)
+            self._scan_rows = np.concatenate([self._scan_rows, np.column_stack(
+                [table.anchor_xyz[:, :2], table.rss_dbm, table.n_readings])])
+            data = np.full((len(table), 5), np.nan)
+            data[:, 0] = start + table.first
+            data[:, 1] = table.count
+            src = np.array([",".join(table.anchor[a:a + c].tolist())
+                            for a, c in zip(table.first.tolist(), table.count.tolist(),
+                                            strict=True)], dtype=str)
+            reason = np.full(len(table), "", dtype=object)
+            few = np.flatnonzero(table.count < 3)
+            reason[few] = [f"{c} anchors heard (WLS needs 3)" for c in table.count[few].tolist()]
+            self._add_rows(_RSS, table.t, np.full(len(table), ev.EV_SCAN, dtype=np.int64),
+                           data, src, reason)
         self._scan_buf_t = self._scan_buf_t[n:]
         self._scan_buf_a = self._scan_buf_a[n:]
         self._scan_buf_v = self._scan_buf_v[n:]
@@ -883,26 +959,15 @@ class Tracker:
             self._velocity_to(math.inf)
 
     def _run_kernel(self, b0: int, b1: int) -> None:
-        """Buffer rows ``b0:b1`` (steps, tight RSS readings, ranges) in the compiled loop."""
+        """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges) in the compiled loop.
+
+        The step scale, running factor, yaw offset and the yaw variance at each step are
+        applied inside the kernel (``S_STEP_SCALE``, ``S_RUN_MULT``, ``S_YAW_OFFSET``).
+        """
         n = b1 - b0
         tt = self._bulk_t[b0:b1]
         kind = self._bulk_ev[b0:b1]
-        data = self._bulk_data[b0:b1].copy()
-        step_rows = np.flatnonzero(kind == ev.EV_STEP)
-        if len(step_rows):
-            run = step_rows[data[step_rows, 3] == int(Activity.RUNNING)]
-            data[step_rows, 0] *= self.step_scale
-            # running steps: their own calibrated factor and learned scale
-            data[run, 0] *= self.running_factor * self.run_scale / self.step_scale
-            self._run_since_anchor += float(np.sum(data[run, 0]))
-            h = data[step_rows, 1]
-            data[step_rows, 1] = h + self._yaw_offset       # NaN (unknown) stays NaN
-            self._path_since_anchor += float(np.sum(data[step_rows, 0]))
-            ok = np.isfinite(h)
-            self._recent_heading.extend(zip(tt[step_rows][ok][-16:].tolist(),
-                                            h[ok][-16:].tolist(), strict=True))
-        if len(step_rows):
-            data[step_rows, 4] = self._var_yaw_at(tt[step_rows])
+        data = self._bulk_data[b0:b1]
         st = self.state
         x = st.x.copy()
         p = st.P.copy()
@@ -912,6 +977,10 @@ class Tracker:
         sc[ev.S_HAS_IN] = float(st.has_input_heading)
         sc[ev.S_LAST_ACT] = self._last_activity
         sc[ev.S_LAST_STEP_END] = self._last_step_end
+        sc[ev.S_STEP_SCALE] = self.step_scale
+        sc[ev.S_RUN_MULT] = self.running_factor * self.run_scale / self.step_scale
+        sc[ev.S_YAW_OFFSET] = self._yaw_offset
+        sc[ev.S_SCAN_BASE] = self._scan_base
         cstate = self.channel_state
         if self.channel_estimator is not None and cstate is not None:
             sc[ev.S_A], sc[ev.S_ETA] = cstate.theta
@@ -932,36 +1001,71 @@ class Tracker:
         nis = np.empty(n)
         s_out = np.empty(n)
         nu = np.empty(n)
+        aux = np.empty((n, 5))
         ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, t_out, x_out, p_out, act,
-                        status, nis, s_out, nu)
+                        status, nis, s_out, nu, self._scan_rows, aux, self._var_t, self._var_v)
         self.state = FilterState.from_kernel(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
                                              bool(sc[ev.S_HAS_IN] > 0.5))
         self._last_activity = int(sc[ev.S_LAST_ACT])
         self._last_step_end = float(sc[ev.S_LAST_STEP_END])
+        self._path_since_anchor += float(sc[ev.S_PATH])
+        self._run_since_anchor += float(sc[ev.S_RUN_PATH])
         if self.channel_estimator is not None and cstate is not None:
             self.channel_state = ChannelState(np.array([sc[ev.S_A], sc[ev.S_ETA]]), chan_cov,
                                               float(sc[ev.S_RESVAR]), int(sc[ev.S_COUNT]))
-        if np.any(kind != ev.EV_STEP):
-            soft = bool(np.any(status == ev.ST_ACCEPTED))
-            self._corrected_since_fix = self._corrected_since_fix or soft
-            self._soft_since_anchor = self._soft_since_anchor or soft
         self._track.add_block(t_out, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
-        self._kernel_diagnostics(b0, b1, kind, status, nis, s_out, nu)
+        n_steps = int(np.count_nonzero(kind == ev.EV_STEP))
+        if n_steps:
+            # the last raw step headings (before the yaw offset), for the turn test of bearings
+            h = data[:, 1]
+            ok = np.flatnonzero((kind == ev.EV_STEP) & np.isfinite(h))[-16:]
+            self._recent_heading.extend(zip(tt[ok].tolist(), h[ok].tolist(), strict=True))
+        if n_steps < n:
+            obs = np.flatnonzero(kind != ev.EV_STEP)
+            code = status[obs]
+            accepted = code == ev.ST_ACCEPTED
+            # an accepted scan (Kalman mode) counts as a correction since the last fix; the
+            # WLS jump does not, and scans do not stop the step-scale learning
+            self._corrected_since_fix = self._corrected_since_fix or bool(np.any(accepted))
+            is_scan = kind[obs] == ev.EV_SCAN
+            self._soft_since_anchor = self._soft_since_anchor or bool(
+                np.any(accepted & ~is_scan))
+            self._kernel_diagnostics(b0, obs, code, nis, s_out, nu, aux, bool(np.any(is_scan)))
+            if len(self._scan_rows) >= SCAN_ROWS_TRIM:
+                self._trim_scan_rows(b1)
 
-    def _kernel_diagnostics(self, b0: int, b1: int, kind: np.ndarray, status: np.ndarray,
-                            nis: np.ndarray, s: np.ndarray, nu: np.ndarray) -> None:
-        rows = np.flatnonzero(kind != ev.EV_STEP)
-        if len(rows) == 0:
-            return
-        heap_kind = self._bulk_k[b0:b1][rows]
-        names = np.where(heap_kind == _RSS, "rss", "range")
-        skip = kind[rows] == ev.EV_SKIP
-        reasons = np.where(skip, np.where(names == "rss", "anchor without a known position",
-                                          "node without a known position"), "")
+    def _trim_scan_rows(self, b1: int) -> None:
+        """Drop the stored scan anchors that no queued scan (buffer rows from ``b1``) needs."""
+        pending = np.flatnonzero(self._bulk_ev[b1:] == ev.EV_SCAN)
+        keep_from = (int(self._bulk_data[b1:][pending, 0].min()) if len(pending)
+                     else self._scan_base + len(self._scan_rows))
+        drop = keep_from - self._scan_base
+        if drop > 0:
+            self._scan_rows = self._scan_rows[drop:]
+            self._scan_base = keep_from
+
+    def _kernel_diagnostics(self, b0: int, obs: np.ndarray, code: np.ndarray, nis: np.ndarray,
+                            s: np.ndarray, nu: np.ndarray, aux: np.ndarray,
+                            has_scans: bool) -> None:
+        """One diagnostics block for the observation rows ``obs`` (relative to ``b0``)."""
+        rows = obs + b0
+        labels = self._bulk_label[rows]
+        reasons = self._label_reason[labels]
+        dof = nu2 = s2 = None
+        if has_scans:
+            is_scan = self._bulk_ev[rows] == ev.EV_SCAN
+            dof = np.where(is_scan, 2, 1)
+            # a scan with < 3 anchors is "skipped" (its reason was set when it was queued)
+            code = np.where(code == ev.ST_FEW, ev.ST_SKIPPED, code)
+            reasons = np.where(code == ev.ST_COLLINEAR, "anchors are collinear",
+                               np.where(code == ev.ST_WLS, "WLS position (RSS alone)",
+                                        reasons))
+            nu2 = aux[obs, :2]
+            s2 = aux[obs, 2:5]
         self.diagnostics.add_block(DiagnosticsBlock(
-            names.tolist(), self._bulk_t[b0:b1][rows], status[rows], nis[rows], s[rows],
-            nu[rows], self._bulk_src[b0:b1][rows].tolist(), reasons.tolist(),
-            float(self._params[ev.P_CHI2_1])))
+            self._label_kind[labels], self._bulk_t[rows], code, nis[obs], s[obs], nu[obs],
+            self._bulk_src[rows], reasons, float(self._params[ev.P_CHI2_1]),
+            dof=dof, nu2=nu2, s2=s2, threshold2=float(self._params[ev.P_CHI2_2])))
 
     def _advance_without_steps(self, t: float) -> None:
         """Bring the state to ``t`` before a correction when no step or velocity drives it."""
@@ -977,6 +1081,10 @@ class Tracker:
                                                  st.has_input_heading)
 
     def _moving(self, t: float) -> bool:
+        if self._velocity_mode:
+            # eq. 19 literally: sigma(a_xu) > sigma_min, i.e. the automaton is in a motion
+            # state (non-zero speed) at the last sample up to t
+            return self._last_speed > 0.0
         if self._motion_t:
             mt = self._motion_t[-1]
             ms = self._motion_sigma[-1]
@@ -1107,41 +1215,92 @@ class Tracker:
             prm = self.fix_corrector.params
             self.fix_corrector = FixCorrector(replace(prm, phase_s=t - prm.slot_tolerance_s / 2))
         prior_xy = self.state.x[:2].copy()
-        upd = self.fix_corrector.update(self.state, self.fix_schedule, t=t, xyz=xyz,
-                                        sigma_m=sigma, moving=self._moving(t), has_z=has_z)
+        # step model: the state stands at the last finished step; the fix is compared with the
+        # state plus the part of the step in progress at t (fixes.partial_step, our addition)
+        lead = np.zeros(2)
+        if cfg.fixes.partial_step and not self._velocity_mode:
+            for st in reversed(self._steps):
+                if len(st) == 0 or st.t_start[0] > t:
+                    continue
+                k = step_in_progress(t, st.t_start, st.t_end)
+                if k >= 0 and st.t_end[k] > self.state.t and math.isfinite(st.heading_rad[k]):
+                    h_k = float(st.heading_rad[k])
+                    h_last = self._recent_heading[-1][1] if self._recent_heading else h_k
+                    scale = (self.running_factor * self.run_scale
+                             if st.activity[k] == int(Activity.RUNNING) else self.step_scale)
+                    lead = partial_step(t, t_start=float(st.t_start[k]),
+                                        t_end=float(st.t_end[k]),
+                                        length_m=float(st.length_m[k]) * scale,
+                                        heading_rad=float(self.state.x[IH]
+                                                          + wrap_angle(h_k - h_last)))
+                break
+        xyz_cmp = np.asarray(xyz, dtype=np.float64).copy()
+        xyz_cmp[:2] -= lead
+        walked = self._path_since_anchor
+        drift = cfg.fixes.drift_fraction * max(walked, DRIFT_MIN_PATH_M)
+        upd = self.fix_corrector.update(self.state, self.fix_schedule, t=t, xyz=xyz_cmp,
+                                        sigma_m=sigma, moving=self._moving(t), has_z=has_z,
+                                        drift_var_m2=drift * drift)
         self.state, self.fix_schedule = upd.state, upd.schedule
         self.diagnostics.append(upd.diagnostics)
         if not upd.diagnostics.accepted:
             return
+        jump = self.state.x[:2] - prior_xy
+        rows = self._track.t
+        if (np.any(lead != 0.0) and rows and len(rows[-1])
+                and float(rows[-1][-1]) == self._last_step_end):
+            # the corrected state is the position at the last step end: its output row
+            # replaces that step's row (a row at t would show it one partial step late)
+            st_ = self.state
+            self.state = FilterState.from_kernel(self._last_step_end, st_.x, st_.P,
+                                                 st_.input_heading_rad, st_.has_input_heading)
+        # at the time of the output row that shows it
+        self.fix_jumps.append((self.state.t, float(jump[0]), float(jump[1])))
         self._learn_scale(prior_xy, self.state.x[:2].copy())
+        # positions at t: the state plus the step in progress
+        prior_xy = prior_xy + lead
         fix_xy = np.asarray(xyz[:2], dtype=np.float64)
         mem = self._stretch
         if cfg.fixes.yaw_stretch and mem is not None and not self._corrected_since_fix:
             if self._velocity_mode:
                 t_in, v_in, yaw_in = mem.t, mem.speed_m_s, mem.yaw_rad
             else:
-                # steps since the last fix: one straight sample from the start to the prior
+                # steps since the last fix: one straight sample from the start to the prior,
+                # at a nominal 1 m/s (its time only scales eq. 26's spreading; a loop's chord
+                # over Tp would otherwise look slower than min_speed_m_s and be dropped)
                 chord = prior_xy - mem.post_xy
-                dur = max(t - mem.t_fix, 1e-3)
-                t_in = np.array([t])
-                v_in = np.array([float(np.hypot(*chord)) / dur])
+                length = max(float(np.hypot(*chord)), 1e-3)
+                t_in = np.array([mem.t_fix + length])
+                v_in = np.array([1.0])
                 yaw_in = np.array([math.atan2(chord[1], chord[0])])
             res = stretch_yaw(t_start=mem.t_fix, t=t_in, speed_m_s=v_in, yaw_rad=yaw_in,
                               start_xy=mem.post_xy, offset_start=mem.fix_xy - mem.post_xy,
                               offset_end=fix_xy - prior_xy, sigma_start_m=mem.sigma_m,
-                              sigma_end_m=sigma, params=YawStretchParams())    # eq. 24-28
+                              sigma_end_m=sigma, path_m=walked,
+                              params=YawStretchParams(
+                                  drift_fraction=cfg.fixes.drift_fraction))   # eq. 24-28
             if res.valid:
                 self.yaw_pseudo.append(YawPseudoMeasurement(t, res.yaw_rad, res.var_yaw_rad2,
                                                             res.correction_rad))
-                delta = cfg.fixes.yaw_feedback_gain * res.correction_rad
+                gain = cfg.fixes.yaw_feedback_gain
+                p_new = self.state.P
+                if cfg.fixes.yaw_feedback == "kalman":
+                    # scalar update of the heading by the pseudo-measurement (Joseph form)
+                    var_h = float(self.state.P[IH, IH])
+                    gain *= var_h / (var_h + res.var_yaw_rad2)
+                    a = np.eye(self.state.P.shape[0])
+                    a[IH, IH] = 1.0 - gain
+                    p_new = a @ self.state.P @ a.T
+                    p_new[IH, IH] += gain * gain * res.var_yaw_rad2
+                delta = gain * res.correction_rad
                 self._yaw_offset = float(wrap_angle(self._yaw_offset + delta))
                 x = self.state.x.copy()
                 x[IH] = float(wrap_angle(x[IH] + delta))
                 self.state = self.state.evolve(
-                    x=x, input_heading_rad=float(wrap_angle(self.state.input_heading_rad
-                                                            + delta)))
+                    x=x, P=p_new, input_heading_rad=float(wrap_angle(
+                        self.state.input_heading_rad + delta)))
         empty = np.zeros(0)
-        self._stretch = StretchMemory(t, self.state.x[:2].copy(), fix_xy, sigma, empty, empty,
+        self._stretch = StretchMemory(t, self.state.x[:2] + lead, fix_xy, sigma, empty, empty,
                                       empty)
         self._corrected_since_fix = False
 
