@@ -7,7 +7,11 @@ Run from the repository root::
     python benchmarks/attitude.py --speed-only --methods quat-ekf,vqf   # speed column only
 
 Variants: ``euler-ekf eq5`` integrates the angles with Colombo eq. 5 itself, ``quat-ekf 4st``
-is the thesis' 4-state EKF (gyro bias only learnt at rest).
+is the thesis' 4-state EKF (gyro bias only learnt at rest). ``euler-ekf dyn0`` switches off
+the variance of the body's acceleration added to the accelerometer noise
+(``dyn_acc_corr_s=0``: Colombo's constant ``Q_g``); ``quat-ekf dyn.1`` switches it on for
+the quaternion EKF (off by default there); ``quat-ekf restvar`` shrinks its gyro-bias
+variances at rest (``bias_var_at_rest=True``, off by default).
 
 Speed: samples per second on 1 M samples after a warm-up, CPU time of this process (other jobs
 on the machine share the cores; CPU time is less disturbed than wall time), best of 3.
@@ -115,6 +119,9 @@ def available() -> dict[str, Runner]:
         "euler-ekf eq5": ours("euler-ekf", exact_propagation=False),
         "quat-ekf": ours("quat-ekf"),
         "quat-ekf 4st": ours("quat-ekf", bias_in_state=False),
+        "euler-ekf dyn0": ours("euler-ekf", dyn_acc_corr_s=0.0),
+        "quat-ekf dyn.1": ours("quat-ekf", dyn_acc_corr_s=0.1),
+        "quat-ekf restvar": ours("quat-ekf", bias_var_at_rest=True),
         "complementary": ours("complementary"),
     }
     for label, module, runner in (("vqf", "vqf", vqf_runner),

@@ -84,6 +84,21 @@ def _read(prm, acc, gyr, mag, has_gyr, has_mag, i):
     return a, an, acc_fin, g, gyr_fin, m, mag_fin
 
 
+def dynamic_var(aux, a, R, dt, tau):
+    """Running per-axis variance of the ENU specific force ``R a`` (EW mean and variance)."""
+    an = R @ a
+    sl = slice(K.AUX_DYN_MEAN, K.AUX_DYN_MEAN + 3)
+    if not np.all(np.isfinite(aux[sl])):
+        aux[sl] = an
+        aux[K.AUX_DYN_VAR] = 0.0
+        return 0.0
+    d = an - aux[sl]
+    k = dt / (tau + dt) if dt > 0 else 0.0
+    aux[sl] += k * d
+    aux[K.AUX_DYN_VAR] = (1 - k) * (aux[K.AUX_DYN_VAR] + k * float(d @ d) / 3)
+    return aux[K.AUX_DYN_VAR]
+
+
 # ---------------------------------------------------------------------------------------------
 # quaternion EKF (Inderst 4.2.1), 7 states [q, b]
 # ---------------------------------------------------------------------------------------------
@@ -92,11 +107,14 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
         _ACC_NOISE,
         _BIAS_P0,
         _BIAS_WALK,
+        _DYN_CORR,
+        _DYN_TAU,
         _GYR_NOISE,
         _MAG_MODE,
         _MAG_NOISE,
         _P0,
         _RATE_REF,
+        _REST_VAR,
     )
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
@@ -150,16 +168,29 @@ def quat_ekf_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True):
                     q = -q
                     P[:4, 4:] *= -1
                     P[4:, :4] *= -1
+                if prm[_REST_VAR] > 0.5 and flags & K.FLAG_REST:
+                    # bias variances down to that of the rest average: P <- D P D
+                    kb = dt / min(prm[K.PRM_BIAS_TAU_S] + dt,
+                                  aux[K.AUX_REST_T] - prm[K.PRM_REST_S] + dt)
+                    v_rest = prm[_GYR_NOISE] ** 2 * kb / (2 - kb)
+                    d = np.ones(7)
+                    d[4:] = np.sqrt(np.minimum(1.0, v_rest / np.diag(P)[4:]))
+                    P = d[:, None] * P * d[None, :]
                 flags |= K.FLAG_GYR
             u = rot_h(q).T @ [0, 0, 1.0]
             rows_h, rows_z, rows_v, rows_H = [], [], [], []
+            v_dyn = 0.0
+            if acc_fin and prm[_DYN_CORR] > 0:  # white-noise equivalent of the body's acceleration
+                var_dyn = dynamic_var(aux, a, rot_h(q), dt, prm[_DYN_TAU])
+                if dt > 0:
+                    v_dyn = 2 * prm[_DYN_CORR] * var_dyn / (dt * g_**2)
             use_a = acc_fin and acc_dev < prm[K.PRM_ACC_GATE]
             if use_a:  # eq. 4.16
                 v = np.array([0, 0, 1.0])
                 rows_z.append(a / an)
                 rows_h.append(rot_h(q).T @ v)
                 rows_H.append(complex_step_jacobian(lambda qq, v=v: rot_h(qq).T @ v, q))
-                rows_v += [prm[_ACC_NOISE] ** 2 * (1 + rate2 / prm[_RATE_REF] ** 2)] * 3
+                rows_v += [prm[_ACC_NOISE] ** 2 * (1 + rate2 / prm[_RATE_REF] ** 2) + v_dyn] * 3
                 flags |= K.FLAG_ACC
             if mag_fin and mag_gate(aux, prm, *m, *u, dt):  # eq. 4.18
                 if prm[_MAG_MODE] > 0.5:
@@ -229,7 +260,17 @@ def quat_to_euler(q):
 
 
 def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=True):
-    from hrtls.attitude.euler_ekf import _EXACT, _P0, _QETA, _QG, _QN, _QW, _RATE_REF
+    from hrtls.attitude.euler_ekf import (
+        _DYN_CORR,
+        _DYN_TAU,
+        _EXACT,
+        _P0,
+        _QETA,
+        _QG,
+        _QN,
+        _QW,
+        _RATE_REF,
+    )
 
     aux = K.new_aux(prm[K.PRM_BIAS0:K.PRM_BIAS0 + 3].copy())
     th = np.zeros(3)
@@ -277,12 +318,17 @@ def euler_ekf_reference(t, acc, gyr, mag, prm, yaw=None, has_gyr=True, has_mag=T
             R = r_zyx(th)
             u = R.T @ [0, 0, 1.0]
             z, h, Hs, v = [], [], [], []
+            q_dyn = 0.0
+            if acc_fin and prm[_DYN_CORR] > 0:  # white-noise equivalent of the body's acceleration
+                var_dyn = dynamic_var(aux, a, R, dt, prm[_DYN_TAU])
+                if dt > 0:
+                    q_dyn = 2 * prm[_DYN_CORR] * var_dyn / dt
             if acc_fin and acc_dev < prm[K.PRM_ACC_GATE]:
                 z.append(a)
                 h.append(R.T @ [0, 0, g_])
                 Hs.append(complex_step_jacobian(lambda x: r_zyx(x).T @ [0, 0, g_], th))
                 # Q_g grows with the rate of turn (rate_ref_rad_s)
-                v += [prm[_QG] * (1.0 + rate2 / prm[_RATE_REF] ** 2)] * 3
+                v += [prm[_QG] * (1.0 + rate2 / prm[_RATE_REF] ** 2) + q_dyn] * 3
             if mag_fin and mag_gate(aux, prm, *m, *u, dt):
                 nb = m - (m @ u) * u
                 z.append(nb / np.linalg.norm(nb))

@@ -43,8 +43,10 @@ def run(method, m, params=None, **kw):
 # ------------------------------------------------------------------------------ reference
 @pytest.mark.parametrize("mode", ["horizontal", "vector"])
 @pytest.mark.parametrize("bias_state", [True, False])
-def test_quat_ekf_matches_reference(motion, mode, bias_state):
-    p = QuatEkfParams(mag_mode=mode, bias_in_state=bias_state, acc_gate_m_s2=1.5)
+@pytest.mark.parametrize("dyn_s", [0.0, 0.1])
+def test_quat_ekf_matches_reference(motion, mode, bias_state, dyn_s):
+    p = QuatEkfParams(mag_mode=mode, bias_in_state=bias_state, acc_gate_m_s2=1.5,
+                      dyn_acc_corr_s=dyn_s)
     n = 400
     f = QuatEkf(p)
     r = f.update(motion.t[:n], motion.acc[:n], motion.gyr[:n], motion.mag[:n])
@@ -58,11 +60,13 @@ def test_quat_ekf_matches_reference(motion, mode, bias_state):
 
 
 @pytest.mark.parametrize("exact", [True, False])
-def test_euler_ekf_matches_reference(motion, exact):
+@pytest.mark.parametrize("dyn_s", [0.0, 0.1])
+def test_euler_ekf_matches_reference(motion, exact, dyn_s):
     n = 400
     yaw = np.full(n, np.nan)
     yaw[150::50] = 0.3
-    f = EulerEkf(EulerEkfParams(acc_gate_m_s2=1.5, exact_propagation=exact))
+    f = EulerEkf(EulerEkfParams(acc_gate_m_s2=1.5, exact_propagation=exact,
+                                dyn_acc_corr_s=dyn_s))
     r = f.update(motion.t[:n], motion.acc[:n], motion.gyr[:n], motion.mag[:n], yaw_rad=yaw)
     th_ref, var_ref = ref.euler_ekf_reference(
         motion.t[:n], motion.acc[:n], motion.gyr[:n], motion.mag[:n], f._prm, yaw=yaw)
@@ -384,8 +388,9 @@ def _steady_turn(n: int = 2500, rate: float = 1.9, a_c: float = 3.0):
 def test_euler_ekf_rate_adaptive_acc_variance_limits_turn_tilt():
     # the true roll is 0; the specific force says atan(3 / 9.81) ~ 17 deg
     t, acc, gyr = _steady_turn()
-    paper = EulerEkf(EulerEkfParams(rate_ref_rad_s=math.inf, acc_gate_m_s2=math.inf))
-    ours = EulerEkf(EulerEkfParams(acc_gate_m_s2=math.inf))
+    paper = EulerEkf(EulerEkfParams(rate_ref_rad_s=math.inf, acc_gate_m_s2=math.inf,
+                                    dyn_acc_corr_s=0.0))
+    ours = EulerEkf(EulerEkfParams(acc_gate_m_s2=math.inf, dyn_acc_corr_s=0.0))
     roll_paper = np.abs(paper.update(t, acc, gyr, None).roll[-1])
     roll_ours = np.abs(ours.update(t, acc, gyr, None).roll[-1])
     assert roll_ours < 0.5 * roll_paper
@@ -398,3 +403,99 @@ def test_euler_ekf_rate_ref_inf_is_constant_variance():
     np.testing.assert_allclose(a.q, b.q, atol=1e-12)
     with pytest.raises(InputError):
         EulerEkfParams(rate_ref_rad_s=0.0)
+
+
+# ------------------------------------------------------------------------------ walking start
+@pytest.mark.parametrize("method", ["euler-ekf"])
+def test_walking_start_is_not_pitch(method):
+    """Colombo Case A start: the ~1 m/s^2 forward acceleration must stay acceleration.
+
+    With the papers' constant accelerometer noise the Euler EKF turned half of it into pitch
+    (levelled forward acceleration ~0.55 of the truth); the variance of the body's
+    acceleration added to the noise (``dyn_acc_corr_s``) keeps it at ~0.85-1.0.
+    """
+    from hrtls.frames import GRAVITY_M_S2, quat_rotate
+    from hrtls.sim.scenarios import run_scenario
+
+    sim = run_scenario("colombo_circle", 0)
+    t, acc, gyr, mag = sim.session.imu.aligned()
+    heading = np.interp(t, sim.motion.t, np.unwrap(sim.motion.heading))
+    speed = np.interp(t, sim.motion.t, sim.motion.speed)
+    ramp = (np.gradient(speed, t) > 0.5) & (t < t[0] + 10.0)
+    assert ramp.sum() > 100
+
+    def forward(params):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DegradedInputWarning)
+            q = make_filter(method, params).update(t, acc, gyr, mag).q
+        a_n = quat_rotate(q[ramp], acc[ramp]) - [0.0, 0.0, GRAVITY_M_S2]
+        fwd = a_n[:, 0] * np.cos(heading[ramp]) + a_n[:, 1] * np.sin(heading[ramp])
+        return float(np.mean(fwd))
+
+    q_true = sim.imu.ideal.q_nd
+    idx = np.searchsorted(sim.imu.ideal.t, t[ramp]).clip(0, len(q_true) - 1)
+    a_true = quat_rotate(q_true[idx], acc[ramp]) - [0.0, 0.0, GRAVITY_M_S2]
+    true_fwd = float(np.mean(a_true[:, 0] * np.cos(heading[ramp])
+                             + a_true[:, 1] * np.sin(heading[ramp])))
+    params = make_filter(method).params_type
+    assert forward(params()) > 0.75 * true_fwd
+    assert forward(params(dyn_acc_corr_s=0.0)) < 0.7 * true_fwd
+
+
+def test_state_of_the_older_aux_layout_loads(motion):
+    """States saved before the body-acceleration variance (27 aux values) still load."""
+    f = EulerEkf()
+    f.update(motion.t[:200], motion.acc[:200], motion.gyr[:200], motion.mag[:200])
+    d = f.state.to_dict()
+    d["aux"] = d["aux"][:K.AUX_DYN_MEAN]
+    state = AttitudeState.from_dict(json.loads(json.dumps(d)))
+    assert state.aux.shape == (K.AUX_SIZE,)
+    g = EulerEkf()
+    g.restore(state)
+    r = g.update(motion.t[200:400], motion.acc[200:400], motion.gyr[200:400],
+                 motion.mag[200:400])
+    assert np.all(np.isfinite(r.q))
+
+
+@pytest.mark.parametrize("at_rest", [True, False])
+def test_quat_ekf_bias_variance_at_rest_matches_reference(at_rest):
+    """A 3 s rest with a gyro bias: the rest update shrinks the bias variances (reference)."""
+    m = make_motion(500, seed=4, rest_s=3.0, bias=0.01)
+    f = QuatEkf(QuatEkfParams(acc_gate_m_s2=1.5, bias_var_at_rest=at_rest))
+    r = f.update(m.t, m.acc, m.gyr, m.mag)
+    assert np.count_nonzero(r.flags & K.FLAG_REST) > 100
+    q_ref, flags, P_ref, _ = ref.quat_ekf_reference(m.t, m.acc, m.gyr, m.mag, f._prm)
+    np.testing.assert_array_equal(r.flags, flags)
+    np.testing.assert_allclose(r.q, q_ref, atol=1e-9)
+    np.testing.assert_allclose(f.state.P, P_ref, atol=1e-12)
+    P = f.state.P
+    assert np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > -1e-12)
+    if at_rest:
+        # ~ sigma_g^2 dt / (2 tau) after the rest, not the initial (0.01 rad/s)^2
+        assert np.max(np.diag(P)[4:]) < 1e-5
+
+
+def test_quat_ekf_walking_start_is_not_pitch():
+    """Colombo Case A start, quaternion EKF: with ``bias_var_at_rest`` the bias states do not
+    take up the tilt the start-up acceleration suggests (the default still does)."""
+    from hrtls.frames import GRAVITY_M_S2, quat_rotate
+    from hrtls.sim.scenarios import run_scenario
+
+    sim = run_scenario("colombo_circle", 1)
+    t, acc, gyr, mag = sim.session.imu.aligned()
+    heading = np.interp(t, sim.motion.t, np.unwrap(sim.motion.heading))
+    speed = np.interp(t, sim.motion.t, sim.motion.speed)
+    ramp = (np.gradient(speed, t) > 0.5) & (t < t[0] + 10.0)
+    c, s = np.cos(heading[ramp]), np.sin(heading[ramp])
+    q_true = sim.imu.ideal.q_nd
+    idx = np.searchsorted(sim.imu.ideal.t, t[ramp]).clip(0, len(q_true) - 1)
+    a_true = quat_rotate(q_true[idx], acc[ramp]) - [0.0, 0.0, GRAVITY_M_S2]
+    true_fwd = float(np.mean(a_true[:, 0] * c + a_true[:, 1] * s))
+
+    def forward(**kw):
+        q = QuatEkf(QuatEkfParams(**kw)).update(t, acc, gyr, mag).q
+        a_n = quat_rotate(q[ramp], acc[ramp]) - [0.0, 0.0, GRAVITY_M_S2]
+        return float(np.mean(a_n[:, 0] * c + a_n[:, 1] * s))
+
+    assert forward(bias_var_at_rest=True) > 0.75 * true_fwd
+    assert forward() < 0.7 * true_fwd

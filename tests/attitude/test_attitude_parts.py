@@ -119,3 +119,55 @@ def test_orientation_errors_split_heading_and_inclination():
     assert len(e3.index) == n - 15
     with pytest.raises(InputError):
         orientation_errors(q_est[:3], q_ref)
+
+
+# ------------------------------------------------------------------------------ body acceleration
+def _sample(dt, a):
+    from hrtls.attitude import _kernels as K
+
+    return K.Sample(dt, a[0], a[1], a[2], float(np.linalg.norm(a)), True, 0.0, 0.0, 0.0, 0.0,
+                    True, 0.0, 0.0, 0.0, False)
+
+
+def test_dynamic_acc_var_hand_computed():
+    """First sample starts the mean; then ``k = dt / (tau + dt)``,
+    ``var = (1 - k) (var + k d^2 / 3)``."""
+    from hrtls.attitude import _kernels as K
+
+    f = K.dynamic_acc_var.py_func
+    aux = K.new_aux(np.zeros(3))
+    # q = 90 deg about z: device x -> ENU y
+    c = np.sqrt(0.5)
+    assert f(aux, _sample(0.0, (1.0, 0.0, 9.0)), c, 0.0, 0.0, c, 1.0) == 0.0
+    np.testing.assert_allclose(aux[K.AUX_DYN_MEAN:K.AUX_DYN_MEAN + 3], [0.0, 1.0, 9.0],
+                               atol=1e-12)
+    # second sample: ENU (0, 4, 9) -> d = (0, 3, 0), k = 0.5
+    v = f(aux, _sample(1.0, (4.0, 0.0, 9.0)), c, 0.0, 0.0, c, 1.0)
+    assert v == pytest.approx(0.5 * 0.5 * 9.0 / 3.0)
+    np.testing.assert_allclose(aux[K.AUX_DYN_MEAN:K.AUX_DYN_MEAN + 3], [0.0, 2.5, 9.0],
+                               atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-20, 20)),
+                min_size=2, max_size=40),
+       st.floats(1e-3, 0.1), st.floats(0.05, 5.0))
+def test_dynamic_acc_var_properties(values, dt, tau):
+    """Never negative, compiled = Python, and a rotated device gives the same variance."""
+    from hrtls.attitude import _kernels as K
+
+    aux_c = K.new_aux(np.zeros(3))
+    aux_p = K.new_aux(np.zeros(3))
+    aux_r = K.new_aux(np.zeros(3))
+    q = np.array([0.8, 0.2, -0.4, 0.4])
+    q /= np.linalg.norm(q)
+    rot = Rotation.from_quat(q[[1, 2, 3, 0]])
+    for a in values:
+        a = np.asarray(a)
+        vc = K.dynamic_acc_var(aux_c, _sample(dt, a), 1.0, 0.0, 0.0, 0.0, tau)
+        vp = K.dynamic_acc_var.py_func(aux_p, _sample(dt, a), 1.0, 0.0, 0.0, 0.0, tau)
+        # the same ENU vector seen by a rotated device
+        vr = K.dynamic_acc_var(aux_r, _sample(dt, rot.inv().apply(a)), *q, tau)
+        assert vc >= 0.0
+        assert vc == pytest.approx(vp, rel=1e-9, abs=1e-9)
+        assert vr == pytest.approx(vc, rel=1e-6, abs=1e-6)

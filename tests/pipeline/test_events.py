@@ -65,12 +65,13 @@ def run_kernel(kind: np.ndarray, t: np.ndarray, data: np.ndarray, prm: np.ndarra
     n = len(kind)
     out = {"t": np.empty(n), "x": np.empty((n, 4)), "p": np.empty((n, 4, 4)),
            "act": np.empty(n, dtype=np.int64), "status": np.empty(n, dtype=np.int64),
-           "nis": np.empty(n), "s": np.empty(n), "nu": np.empty(n), "aux": np.empty((n, 5))}
+           "nis": np.empty(n), "s": np.empty(n), "nu": np.empty(n), "aux": np.empty((n, 5)),
+           "recent": np.empty((ev.N_RECENT, 2))}
     ev.event_kernel(kind, t, data, prm, sc, chan_cov, x, p, out["t"], out["x"], out["p"],
                     out["act"], out["status"], out["nis"], out["s"], out["nu"],
                     np.zeros((0, 4)) if scan is None else scan, out["aux"],
                     np.zeros(0) if var_t is None else var_t,
-                    np.zeros(0) if var_v is None else var_v)
+                    np.zeros(0) if var_v is None else var_v, out["recent"])
     return out
 
 
@@ -153,7 +154,9 @@ def test_observation_kernel_equals_python(obs: list[tuple[bool, float, float, fl
     sc[ev.S_A], sc[ev.S_ETA], sc[ev.S_SIGMA_DB] = -60.0, 2.5, 5.0
     sc[ev.S_RESVAR] = 25.0
     x, p = start.x.copy(), start.P.copy()
-    run_kernel(kind, np.arange(1.0, n + 1), data, prm, sc, cstate_cov0(est, model), x, p)
+    out = run_kernel(kind, np.arange(1.0, n + 1), data, prm, sc, cstate_cov0(est, model), x, p)
+    assert sc[ev.S_N_SOFT] == np.count_nonzero(out["status"] == ev.ST_ACCEPTED)
+    assert sc[ev.S_N_STEPS] == 0 and sc[ev.S_N_SCANS] == 0
     np.testing.assert_allclose(x, state.x, atol=1e-8)
     np.testing.assert_allclose(p, state.P, atol=1e-8)
 
@@ -326,3 +329,26 @@ def _condition(a: np.ndarray, d: np.ndarray) -> float:
     info = h.T @ np.linalg.solve(s, h)
     w = np.linalg.eigvalsh(0.5 * (info + info.T))
     return float(w[-1] / w[0]) if w[0] > 0 else math.inf
+
+
+@settings(max_examples=60, deadline=None)
+@given(headings=st.lists(st.one_of(st.just(math.nan), st.floats(-3.0, 3.0)), min_size=1,
+                         max_size=50))
+def test_recent_heading_ring(headings: list[float]) -> None:
+    """The ring holds the last N_RECENT finite raw headings; counters count steps."""
+    prm, _ = params(True, False)
+    n = len(headings)
+    data = np.array([[0.7, h, 0.0, int(Activity.WALKING), np.nan] for h in headings])
+    t = np.arange(1.0, n + 1)
+    sc = ev.initial_scalars()
+    sc[ev.S_YAW_OFFSET] = 0.4                  # the ring keeps headings before the offset
+    start = FilterState.initial(t=0.0)
+    out = run_kernel(np.zeros(n, dtype=np.int64), t, data, prm, sc, np.eye(2),
+                     start.x.copy(), start.P.copy())
+    finite = [(ti, h) for ti, h in zip(t.tolist(), headings, strict=True) if math.isfinite(h)]
+    assert sc[ev.S_N_STEPS] == n and sc[ev.S_N_HEADINGS] == len(finite)
+    c = len(finite)
+    ring = out["recent"].tolist()
+    if c > ev.N_RECENT:
+        ring = ring[c % ev.N_RECENT:] + ring[:c % ev.N_RECENT]
+    assert [tuple(r) for r in ring[:min(c, ev.N_RECENT)]] == finite[-ev.N_RECENT:]

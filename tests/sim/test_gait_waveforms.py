@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import replace
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,73 @@ def test_amplitude_parameters_scale_their_channel():
     assert abs(h1[0, 5]) / abs(h0[0, 5]) == pytest.approx(2.0, rel=0.05)
     assert abs(h1[1, 0]) / abs(h0[1, 0]) == pytest.approx(0.5, rel=0.08)
     assert abs(h1[1, 2]) / abs(h0[1, 2]) == pytest.approx(1.0, rel=0.05)
+
+
+def _up_and_down(params: GaitParams, speed: float = 0.55) -> tuple:
+    """A 16-tread flight up, a stop and turn at the top, the same flight down."""
+    run, rise, n = 0.3, 0.17, 16
+    wps = [Waypoint(x=0.0, y=0.0),
+           Waypoint(x=n * run, y=0.0, z=n * rise, speed_m_s=speed, stop_s=2.0,
+                    corner_radius_m=0.0),
+           Waypoint(x=0.0, y=0.0, z=0.0, speed_m_s=speed)]
+    motion = simulate_motion(wps, rate_hz=100.0)
+    gait = simulate_gait(motion, params, np.random.default_rng(3))
+    imu = ideal_imu(body_kinematics(motion, gait))
+    return motion, gait, imu
+
+
+def _flight_amplitudes(motion, gait, imu, activity: int, speed: float) -> tuple[float, float]:
+    """Median per-step vertical peak-to-peak and per-stride lateral peak-to-peak (m/s^2)."""
+    from hrtls.sim.gait_model import fill_step_extremes
+
+    steps = fill_step_extremes(gait.steps, motion.t, imu.accel_n[:, 2])
+    mid = 0.5 * (steps.t_start + steps.t_end)
+    v = np.interp(mid, motion.t, motion.speed)
+    ok = (steps.activity == activity) & (v > 0.97 * speed)
+    assert ok.sum() >= 6
+    vertical = float(np.median(steps.acc_max[ok] - steps.acc_min[ok]))
+    # lateral acceleration of the waist in the heading frame: second difference of its
+    # medio-lateral displacement (the nominal path is straight on a flight)
+    dt = motion.dt
+    lat = np.gradient(np.gradient(gait.offset_body[:, 1], dt), dt)
+    idx = np.flatnonzero(ok)
+    pp = [np.ptp(lat[(motion.t >= steps.t_start[a]) & (motion.t < steps.t_end[b])])
+          for a, b in pairwise(idx) if b == a + 1]
+    return vertical, float(np.median(pp))
+
+
+def test_stairs_down_has_larger_impacts_and_sway_than_up():
+    # Inderst Sec. 4.1.1: up / down differ in the medio-lateral amplitude (larger going down)
+    p = GaitParams(amplitude_cv=0.0, step_cv=0.0)
+    motion, gait, imu = _up_and_down(p)
+    v_up, ml_up = _flight_amplitudes(motion, gait, imu, 3, 0.55)
+    v_down, ml_down = _flight_amplitudes(motion, gait, imu, 4, 0.55)
+    assert v_up == pytest.approx(p.stairs_up_acc_pp_m_s2, rel=0.08)
+    assert v_down == pytest.approx(p.stairs_down_acc_pp_m_s2, rel=0.08)
+    assert ml_down / ml_up == pytest.approx(p.stairs_down_sway_gain, rel=0.08)
+    # symmetric parameters give symmetric flights (the direction is the only difference)
+    sym = replace(p, stairs_down_acc_pp_m_s2=p.stairs_up_acc_pp_m_s2, stairs_down_sway_gain=1.0)
+    motion, gait, imu = _up_and_down(sym)
+    v_up, ml_up = _flight_amplitudes(motion, gait, imu, 3, 0.55)
+    v_down, ml_down = _flight_amplitudes(motion, gait, imu, 4, 0.55)
+    assert v_down / v_up == pytest.approx(1.0, rel=0.05)
+    assert ml_down / ml_up == pytest.approx(1.0, rel=0.05)
+
+
+def test_descending_fills_slow_stairs_samples_from_the_flight():
+    from hrtls.sim.gait_model import _descending
+
+    p = GaitParams()
+    motion, _, _ = _up_and_down(p)
+    down = _descending(motion)
+    stairs = motion.gait == 2
+    dz = np.gradient(motion.xyz[:, 2])
+    # every stairs sample that moves vertically is classified by its direction, also the
+    # slow ones at the ends of a flight whose activity label is standing
+    moving_z = stairs & (np.abs(dz) > 1e-9)
+    assert np.any(moving_z & (motion.activity == 0))
+    np.testing.assert_array_equal(down[moving_z], dz[moving_z] < 0)
+    assert not np.any(down[~stairs])
 
 
 def test_initial_contacts_alternate_and_cover_every_step():

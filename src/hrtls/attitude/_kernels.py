@@ -49,7 +49,9 @@ AUX_N_GYR_REJ = 21  # gyroscope samples not integrated (non-finite, saturated, b
 AUX_N_BAD = 22  # samples with at least one non-finite or saturated sensor value
 AUX_N = 23  # samples processed
 AUX_ALP = 24  # 24..26 low-passed specific force for rest detection, m/s^2
-AUX_SIZE = 27
+AUX_DYN_MEAN = 27  # 27..29 running mean of the ENU specific force, m/s^2 (NaN: not started)
+AUX_DYN_VAR = 30  # running per-axis variance of the ENU specific force, (m/s^2)^2
+AUX_SIZE = 31
 
 # ------------------------------------------------------------------------------------------
 # shared parameter layout
@@ -87,6 +89,7 @@ def new_aux(bias0: FloatArray) -> FloatArray:
     aux[AUX_T_PREV] = np.nan
     aux[AUX_BIAS : AUX_BIAS + 3] = bias0
     aux[AUX_LP : AUX_LP + 3] = bias0
+    aux[AUX_DYN_MEAN : AUX_DYN_MEAN + 3] = np.nan
     return aux
 
 
@@ -586,6 +589,36 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     elif has_gyr:
         aux[AUX_N_GYR_REJ] += 1.0
     return flags
+
+
+@numba.njit(inline="always", **JIT)
+def dynamic_acc_var(aux: FloatArray, s: Any, w: float, x: float, y: float, z: float,
+                    tau_s: float) -> float:
+    """Running per-axis variance of the body's acceleration, (m/s^2)^2.
+
+    The specific force is rotated into ENU with the predicted attitude ``q``, so that turning
+    the device does not count as motion; its exponentially weighted mean and variance (time
+    constant ``tau_s``) are kept in ``aux``: with ``k = dt / (tau_s + dt)`` and the deviation
+    ``d`` from the previous mean, ``mean += k d`` and ``var = (1 - k) (var + k |d|^2 / 3)``.
+    Call only with a usable accelerometer sample.
+    """
+    n0, n1, n2 = rot(w, x, y, z, s.a0, s.a1, s.a2)
+    if not math.isfinite(aux[AUX_DYN_MEAN]):
+        aux[AUX_DYN_MEAN] = n0
+        aux[AUX_DYN_MEAN + 1] = n1
+        aux[AUX_DYN_MEAN + 2] = n2
+        aux[AUX_DYN_VAR] = 0.0
+        return 0.0
+    d0 = n0 - aux[AUX_DYN_MEAN]
+    d1 = n1 - aux[AUX_DYN_MEAN + 1]
+    d2 = n2 - aux[AUX_DYN_MEAN + 2]
+    k = s.dt / (tau_s + s.dt) if s.dt > 0.0 else 0.0
+    aux[AUX_DYN_MEAN] += k * d0
+    aux[AUX_DYN_MEAN + 1] += k * d1
+    aux[AUX_DYN_MEAN + 2] += k * d2
+    var = (1.0 - k) * (aux[AUX_DYN_VAR] + k * (d0 * d0 + d1 * d1 + d2 * d2) / 3.0)
+    aux[AUX_DYN_VAR] = var
+    return var
 
 
 @numba.njit(inline="always", **JIT)

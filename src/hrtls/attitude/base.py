@@ -245,6 +245,10 @@ class AttitudeState:
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"cannot read attitude state: {exc}", where="attitude state",
                              expected="a dictionary written by AttitudeState.to_dict") from exc
+        if state.aux.shape == (K.AUX_DYN_MEAN,):
+            # written before the body-acceleration variance existed: it restarts
+            aux = np.concatenate([state.aux, [np.nan, np.nan, np.nan, 0.0]])
+            state = cls(state.method, state.x, state.P, aux)
         if state.aux.shape != (K.AUX_SIZE,):
             raise InputError(f"aux has {state.aux.size} values", where="attitude state",
                              expected=f"{K.AUX_SIZE} values")

@@ -33,7 +33,14 @@ Case A circle: r ~ 1 m at ~1.5-1.9 m/s, 2-4 m/s^2 sideways, which the paper's co
 turns into several degrees of tilt and a biased forward acceleration for the velocity
 automaton): ``Q_g`` grows with the rate of turn, ``Q_g (1 + (|w| / rate_ref_rad_s)^2)``, and
 the ``| |a| - g |`` gate is 0.5 m/s^2 instead of the common 1.0. ``rate_ref_rad_s=inf`` and
-``acc_gate_m_s2=inf`` give the paper's filter. Near pitch +-90 deg the Euler rates are
+``acc_gate_m_s2=inf`` give the paper's filter. A second extension, against the accelerations of
+walking itself (the paper's ``Q_g`` with its large ``Q_w`` tilts the estimate towards a
+start-up acceleration within ~0.5 s, so that the levelled forward acceleration the velocity
+automaton integrates came out at about half its value): the running variance ``s^2`` of the
+specific force in ENU (window ``dyn_acc_window_s``) is read as a coloured disturbance of
+correlation time ``dyn_acc_corr_s`` and added as its white-noise equivalent,
+``Q_g' = Q_g (1 + (|w| / rate_ref)^2) + 2 s^2 tau / T`` (``dyn_acc_corr_s=0`` for the paper).
+Near pitch +-90 deg the Euler rates are
 singular: ``cos(pitch)`` is clamped to ``1e-3``.
 """
 
@@ -49,6 +56,7 @@ from numpy.typing import NDArray
 
 from hrtls.attitude import _kernels as K
 from hrtls.attitude.base import AttitudeFilter, CommonParams
+from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
 __all__ = ["EulerEkf", "EulerEkfParams"]
@@ -60,6 +68,8 @@ _QETA = K.PRM_SPECIFIC + 3
 _P0 = K.PRM_SPECIFIC + 4
 _EXACT = K.PRM_SPECIFIC + 5
 _RATE_REF = K.PRM_SPECIFIC + 6
+_DYN_TAU = K.PRM_SPECIFIC + 7
+_DYN_CORR = K.PRM_SPECIFIC + 8
 
 _COS_MIN = 1e-3
 
@@ -91,6 +101,19 @@ class EulerEkfParams(CommonParams):
         specific force a biased gravity reference and tilts the estimate; on a 1 m circle at
         walking speed it is ~3 m/s^2, ~15 deg). ``inf`` gives the constant ``Q_g`` of the
         paper.
+    dyn_acc_window_s:
+        Time constant of the running variance of the body's acceleration (the specific force
+        rotated into ENU with the predicted attitude), s.
+    dyn_acc_corr_s:
+        Correlation time ``tau`` of the body's acceleration, s (our extension; 0 gives the
+        paper's ``Q_g``). While walking, the specific force is gravity plus an acceleration
+        of ~1 m/s^2 that stays on one side for a large part of a step or, when starting or
+        stopping, for seconds; with the paper's ``Q_g`` it tilts the estimate (the levelled
+        forward acceleration of a start from rest came out at half its value). A disturbance
+        of variance ``s^2`` and correlation time ``tau`` acts on a slower filter like white
+        noise of density ``2 s^2 tau``, i.e. a per-sample variance ``2 s^2 tau / T``, which
+        is added to ``Q_g``: at rest it vanishes, while walking it makes the tilt follow the
+        gyroscope over several seconds.
     exact_propagation:
         Propagate the angles by composing rotations, ``R+ = R(theta) exp([w]x T)``, instead of
         the first-order step of eq. 5 (of which it is the exact form); the covariance still
@@ -106,18 +129,24 @@ class EulerEkfParams(CommonParams):
     p0_var_rad2: float = 0.001
     exact_propagation: bool = True
     rate_ref_rad_s: float = 0.5
+    dyn_acc_window_s: float = 1.0
+    dyn_acc_corr_s: float = 0.1
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
         self._require_positive(("gyro_var_rad2_s2", "acc_var_m2_s4", "north_var",
-                                "yaw_var_rad2", "p0_var_rad2", "rate_ref_rad_s"),
+                                "yaw_var_rad2", "p0_var_rad2", "rate_ref_rad_s",
+                                "dyn_acc_window_s"),
                                inf_ok=("rate_ref_rad_s",))
+        if not (math.isfinite(self.dyn_acc_corr_s) and self.dyn_acc_corr_s >= 0.0):
+            raise InputError(f"dyn_acc_corr_s = {self.dyn_acc_corr_s}", where="EulerEkfParams",
+                             expected="a finite value >= 0 s (0: the paper's constant Q_g)")
 
     def specific_values(self) -> tuple[float, ...]:
-        """Kernel parameters ``_QW`` .. ``_RATE_REF``."""
+        """Kernel parameters ``_QW`` .. ``_DYN_CORR``."""
         return (self.gyro_var_rad2_s2, self.acc_var_m2_s4, self.north_var, self.yaw_var_rad2,
                 self.p0_var_rad2, 1.0 if self.exact_propagation else 0.0,
-                self.rate_ref_rad_s)
+                self.rate_ref_rad_s, self.dyn_acc_window_s, self.dyn_acc_corr_s)
 
 
 @numba.njit(**K.JIT)
@@ -198,6 +227,8 @@ def euler_ekf_kernel(
     qw = prm[_QW]
     exact = prm[_EXACT] > 0.5
     acc_rate_k = 1.0 / prm[_RATE_REF] ** 2
+    dyn_tau = prm[_DYN_TAU]
+    dyn_k = 2.0 * prm[_DYN_CORR]  # Q_dyn = 2 s^2 tau / T
     for i in range(n):
         s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
         dt = s.dt
@@ -278,6 +309,11 @@ def euler_ekf_kernel(
             uy = cp * sr
             uz = cp * cr
             use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
+            q_dyn = 0.0
+            if s.acc_fin and dyn_k > 0.0:
+                var_dyn = K.dynamic_acc_var(aux, s, cw, cx, cy_, cz, dyn_tau)
+                if dt > 0.0:
+                    q_dyn = dyn_k * var_dyn / dt
             use_m = False
             if s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, dt):
                 z0, z1, z2, zn = K.horizontal_unit(s.m0, s.m1, s.m2, ux, uy, uz)
@@ -296,7 +332,8 @@ def euler_ekf_kernel(
                            (-g * cp * sr, -g * sp * cr, 0.0))
                     use_a = K.block3_update(P, dx, jac, s.a0 - g * ux, s.a1 - g * uy,
                                             s.a2 - g * uz,
-                                            prm[_QG] * (1.0 + rate2 * acc_rate_k), ph)
+                                            prm[_QG] * (1.0 + rate2 * acc_rate_k) + q_dyn,
+                                            ph)
                 if use_m:
                     # h = R^T [0, 1, 0] (north)
                     h0 = sy * cp

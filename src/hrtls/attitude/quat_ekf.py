@@ -61,6 +61,9 @@ _BIAS_STATE = K.PRM_SPECIFIC + 5
 _BIAS_P0 = K.PRM_SPECIFIC + 6
 _BIAS_WALK = K.PRM_SPECIFIC + 7
 _RATE_REF = K.PRM_SPECIFIC + 8
+_DYN_TAU = K.PRM_SPECIFIC + 9
+_DYN_CORR = K.PRM_SPECIFIC + 10
+_REST_VAR = K.PRM_SPECIFIC + 11
 _NS = 7  # states: quaternion and gyro bias (zero bias blocks for the 4-state filter)
 
 
@@ -89,11 +92,40 @@ class QuatEkfParams(CommonParams):
         Initial standard deviation of the gyro bias, rad/s.
     bias_walk_rad_s2:
         Random-walk density of the gyro bias, rad/s per sqrt(s).
+    bias_var_at_rest:
+        While the rest detector updates the gyro bias (:class:`CommonParams` ``rest_*``,
+        ``bias_tau_s``), shrink the variance of the bias states to that of the rest average,
+        ``sigma_g^2 k / (2 - k)`` with the averaging weight ``k`` of the rest update (about
+        ``sigma_g^2 dt / (2 bias_tau_s)``), keeping their correlations (``P <- D P D``, ``D``
+        diagonal). Our extension: the rest update changes the bias outside the EKF, so
+        without it the bias states keep their initial variance after a rest and, when the
+        walk begins, take up the tilt that the start-up acceleration suggests (the tilt then
+        drifts: the levelled forward acceleration of Colombo's start came out at ~0.65 of the
+        truth, ~0.9 with this option). Needs ``bias_in_state`` and ``estimate_bias``. Off by
+        default: it improves the tilt and heading of ``benchmarks/attitude.py`` (simulated
+        walks) and leaves BROAD unchanged, but the locked bias no longer soaks up the gyro
+        scale error of steady turns, and the default preset's position on Colombo's circles
+        and squares got 0.01-0.06 m worse.
     rate_ref_rad_s:
         The accelerometer variance grows as ``acc_noise^2 (1 + (|w| / rate_ref)^2)`` with the
         rate of turn ``|w|`` (our extension: centripetal acceleration makes the specific force
         a worse gravity reference while turning; ``inf`` gives the constant variance of the
         thesis).
+    dyn_acc_window_s:
+        Time constant of the running variance of the body's acceleration (the specific force
+        rotated into ENU with the predicted attitude), s.
+    dyn_acc_corr_s:
+        Correlation time ``tau`` of the body's acceleration, s (our extension; 0 gives the
+        thesis' constant variance). The acceleration of a walking body (and the seconds-long
+        forward acceleration of a start or stop) is read as white noise of density
+        ``2 s^2 tau`` added to the specific force, ``s^2`` its running variance: the
+        direction variance gains ``2 s^2 tau / (T g^2)`` per sample of period ``T``. At rest
+        it vanishes; while walking the tilt follows the gyroscope over several seconds
+        instead of the accelerations of the walk. Off by default: this filter's small gyro
+        noise already makes its tilt loop slow (tens of seconds once converged), and on
+        ``benchmarks/attitude.py`` the term made the BROAD and simulated-walk tilt worse
+        (the gyro-bias states then carry the tilt longer); the Euler EKF, whose paper ``Q_w``
+        is large, needs it.
     """
 
     gyro_noise_rad_s: float = 0.005
@@ -104,24 +136,32 @@ class QuatEkfParams(CommonParams):
     bias_in_state: bool = True
     bias_sigma_rad_s: float = 0.01
     bias_walk_rad_s2: float = 1e-5
+    bias_var_at_rest: bool = False
     rate_ref_rad_s: float = 2.0
+    dyn_acc_window_s: float = 1.0
+    dyn_acc_corr_s: float = 0.0
 
     def __post_init__(self) -> None:
         CommonParams.__post_init__(self)
         self._require_positive(("gyro_noise_rad_s", "acc_noise", "mag_noise", "p0_var",
-                                "bias_sigma_rad_s", "bias_walk_rad_s2", "rate_ref_rad_s"),
+                                "bias_sigma_rad_s", "bias_walk_rad_s2", "rate_ref_rad_s",
+                                "dyn_acc_window_s"),
                                inf_ok=("rate_ref_rad_s",))
+        if not (math.isfinite(self.dyn_acc_corr_s) and self.dyn_acc_corr_s >= 0.0):
+            raise InputError(f"dyn_acc_corr_s = {self.dyn_acc_corr_s}", where="QuatEkfParams",
+                             expected="a finite value >= 0 s (0: the thesis' constant variance)")
         if self.mag_mode not in ("vector", "horizontal"):
             raise InputError(f"mag_mode = {self.mag_mode!r}", where="QuatEkfParams",
                              expected="'vector' or 'horizontal'")
 
     def specific_values(self) -> tuple[float, ...]:
-        """Kernel parameters ``_GYR_NOISE`` .. ``_RATE_REF``."""
+        """Kernel parameters ``_GYR_NOISE`` .. ``_REST_VAR``."""
         b = self.bias_in_state
         return (self.gyro_noise_rad_s, self.acc_noise, self.mag_noise,
                 0.0 if self.mag_mode == "vector" else 1.0, self.p0_var, 1.0 if b else 0.0,
                 self.bias_sigma_rad_s**2 if b else 0.0, self.bias_walk_rad_s2**2 if b else 0.0,
-                self.rate_ref_rad_s)
+                self.rate_ref_rad_s, self.dyn_acc_window_s, self.dyn_acc_corr_s,
+                1.0 if (b and self.bias_var_at_rest and self.estimate_bias) else 0.0)
 
 
 @numba.njit(inline="always", **K.JIT)
@@ -239,6 +279,22 @@ def _predict(
     P[6, 6] += bw
 
 
+@numba.njit(inline="always", **K.JIT)
+def _shrink_bias_var(P: FloatArray, v: float) -> None:
+    """Bias variances above ``v`` down to ``v``: ``P <- D P D``.
+
+    ``D = diag(1, 1, 1, 1, d4, d5, d6)`` with ``d = min(1, sqrt(v / P_ii))``: the correlations
+    are kept and ``P`` stays positive semidefinite.
+    """
+    for r in range(4, _NS):
+        if P[r, r] > v:
+            f = math.sqrt(v / P[r, r])
+            for c in range(_NS):
+                P[r, c] *= f
+            for c in range(_NS):
+                P[c, r] *= f
+
+
 @numba.njit(**K.JIT)
 def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
     """Initial covariance: ``p0`` per quaternion component, the bias variance, projected."""
@@ -263,8 +319,12 @@ def quat_ekf_kernel(
     qv_k = (0.5 * prm[_GYR_NOISE]) ** 2  # Q = qv_k dt^2 (I - q q^T), eq. 4.14 reading
     va = prm[_ACC_NOISE] ** 2
     acc_rate_k = 1.0 / prm[_RATE_REF] ** 2
+    dyn_tau = prm[_DYN_TAU]
+    dyn_k = 2.0 * prm[_DYN_CORR] / prm[K.PRM_GRAVITY] ** 2  # 2 s^2 tau / (T g^2)
     vm = prm[_MAG_NOISE] ** 2
     horizontal = prm[_MAG_MODE] > 0.5
+    rest_var = prm[_REST_VAR] > 0.5
+    gyr_var = prm[_GYR_NOISE] ** 2
     for i in range(n):
         s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
         if aux[K.AUX_INIT] < 0.5:
@@ -290,6 +350,11 @@ def quat_ekf_kernel(
                 _predict(x, P, work, wx, wy, wz, s.dt, qv_k * s.dt * s.dt,
                          prm[_BIAS_WALK] * s.dt)
                 _normalize(x, P)
+                if rest_var and (flags & K.FLAG_REST) != 0:
+                    # the rest update's averaging weight (K.rest_and_bias)
+                    kb = s.dt / min(prm[K.PRM_BIAS_TAU_S] + s.dt,
+                                    aux[K.AUX_REST_T] - prm[K.PRM_REST_S] + s.dt)
+                    _shrink_bias_var(P, gyr_var * kb / (2.0 - kb))
             elif has_gyr:
                 aux[K.AUX_N_GYR_REJ] += 1.0
             # ---- gates and stacked measurement, eq. 4.15-4.18
@@ -299,6 +364,11 @@ def quat_ekf_kernel(
             qz = x[3]
             ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
             use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
+            v_dyn = 0.0
+            if s.acc_fin and dyn_k > 0.0:
+                var_dyn = K.dynamic_acc_var(aux, s, w, qx, qy, qz, dyn_tau)
+                if s.dt > 0.0:
+                    v_dyn = dyn_k * var_dyn / s.dt
             use_m = False
             if s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, s.dt):
                 if horizontal:
@@ -321,7 +391,7 @@ def quat_ekf_kernel(
                     an = s.an
                     use_a = K.block3_update7(P, dx, jac, s.a0 / an - ux, s.a1 / an - uy,
                                              s.a2 / an - uz,
-                                             va * (1.0 + rate2 * acc_rate_k), ph)
+                                             va * (1.0 + rate2 * acc_rate_k) + v_dyn, ph)
                 if use_m:
                     h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
                     jac = K.rot_t_jac(w, qx, qy, qz, v0, v1, v2)

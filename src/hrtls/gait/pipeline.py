@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from hrtls.data import Activity, Session, StepEvents
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.frames import GRAVITY_M_S2, quat_conjugate, quat_rotate, quat_to_matrix
+from hrtls.frames import GRAVITY_M_S2, quat_conjugate, quat_rotate, quat_to_matrix, wrap_angle
 from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds, classify_tree
@@ -66,6 +66,7 @@ HEADING_HOLD_DELAY_S = 0.5
 EXCURSION_BUFFER_S = 5.0
 DEFAULT_CADENCE = CadenceParams()
 HeadingSource = Literal["fourier", "yaw", "none"]
+StepYaw = Literal["endpoints", "mean"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -210,6 +211,10 @@ class GaitAnalyzer:
     missed_steps:
         Insert one step into a gap of about two step periods within a walk
         (:mod:`hrtls.gait.missed_steps`); None (default): off.
+    step_yaw:
+        With ``heading="yaw"``: a step's heading is the circular mean of the yaw at its start
+        and end (``"endpoints"``) or the time average of the yaw over the step (``"mean"``,
+        which follows a turn made during the step).
     """
 
     def __init__(self, *, rate_hz: float, step_detector: PeakStepDetector | PllStepDetector
@@ -225,8 +230,13 @@ class GaitAnalyzer:
                  gate_lookahead_s: float = 1.6,
                  pll_enable_m_s2: float | None = None,
                  walking_bouts: WalkingBoutParams | None = None,
-                 missed_steps: MissedStepParams | None = None) -> None:
+                 missed_steps: MissedStepParams | None = None,
+                 step_yaw: StepYaw = "endpoints") -> None:
         check_positive(rate_hz, "rate_hz")
+        if step_yaw not in ("endpoints", "mean"):
+            raise InputError(f"step_yaw {step_yaw!r}", where="step_yaw",
+                             expected="'endpoints' or 'mean'")
+        self.step_yaw: StepYaw = step_yaw
         if heading not in ("fourier", "yaw", "none"):
             raise InputError(f"heading {heading!r}", where="heading",
                              expected="'fourier', 'yaw' or 'none'")
@@ -404,7 +414,8 @@ class GaitAnalyzer:
         if self.heading == "fourier":
             head = self.fourier.update(tt, lev.horizontal_m_s2, det.t_end).heading_rad
         elif self.heading == "yaw" and fwd_n is not None:
-            # mean direction of the body forward axis over the step (its start and end)
+            # mean direction of the body forward axis over the step: of its start and end
+            # yaw ("endpoints") or the time average over the step ("mean")
             # (unwrapped continuously across chunks; the last seconds are kept so that a step
             # starting or ending before this chunk reads the same yaw as in a whole run)
             yaw = np.unwrap(np.arctan2(fwd_n[:, 1], fwd_n[:, 0]))
@@ -413,9 +424,19 @@ class GaitAnalyzer:
                 yaw += 2.0 * np.pi * np.round((pm.yaw_last - yaw[0]) / (2.0 * np.pi))
             yb_t = np.concatenate([pm.yb_t, tt])
             yb_y = np.concatenate([pm.yb_y, yaw])
-            y_end = np.interp(det.t_end, yb_t, yb_y)
-            y_start = np.interp(det.t_start, yb_t, yb_y)
-            head = np.arctan2(np.sin(y_start) + np.sin(y_end), np.cos(y_start) + np.cos(y_end))
+            if self.step_yaw == "mean" and yb_t.size > 1:
+                # time average of the unwrapped yaw over [t_start, t_end] (trapezoid rule)
+                area = np.concatenate([[0.0], np.cumsum(0.5 * (yb_y[1:] + yb_y[:-1])
+                                                        * np.diff(yb_t))])
+                span = det.t_end - det.t_start
+                mean = (np.interp(det.t_end, yb_t, area)
+                        - np.interp(det.t_start, yb_t, area)) / np.where(span > 0, span, 1.0)
+                head = wrap_angle(np.where(span > 0, mean, np.interp(det.t_end, yb_t, yb_y)))
+            else:
+                y_end = np.interp(det.t_end, yb_t, yb_y)
+                y_start = np.interp(det.t_start, yb_t, yb_y)
+                head = np.arctan2(np.sin(y_start) + np.sin(y_end),
+                                  np.cos(y_start) + np.cos(y_end))
             pm.yaw_last = float(yaw[-1])
             recent = yb_t >= tt[-1] - EXCURSION_BUFFER_S
             pm.yb_t = yb_t[recent]

@@ -1,4 +1,4 @@
-"""Compiled event loop of the tracker: runs of steps, tight RSS readings and ranges.
+"""Compiled event loop of the tracker: runs of steps, RSS readings or scans and ranges.
 
 The tracker's frequent events -- detected steps (Inderst eq. 4.23-4.25 with the floor level
 constraint), single RSS readings in the tight mode (EKF in the dB domain, with the online
@@ -16,6 +16,9 @@ bearings, velocity segments) stay in Python.
 
 Every scalar measurement goes through :func:`_scalar_update`: the chi-square gate on the NIS
 and the Joseph-form covariance, symmetrized (as :func:`hrtls.fusion.gating.kalman_update`).
+The step length scale, running factor and yaw offset of the tracker and the attitude yaw
+variance at each step are applied inside the loop too, and the loop counts what the tracker
+needs afterwards (``S_N_*``), so that a run costs little Python around the compiled call.
 """
 
 from __future__ import annotations
@@ -48,11 +51,15 @@ SC_X, SC_Y, SC_RSS, SC_COUNT = 0, 1, 2, 3
 # indices into the mutable scalar state vector (start from :func:`initial_scalars`)
 (S_T, S_IN_HEAD, S_HAS_IN, S_LAST_ACT, S_LAST_STEP_END, S_A, S_ETA, S_RESVAR, S_COUNT,
  S_SIGMA_DB, S_STEP_SCALE, S_RUN_MULT, S_YAW_OFFSET, S_PATH, S_RUN_PATH,
- S_SCAN_BASE) = range(16)
-N_SCALARS = 16
+ S_SCAN_BASE, S_N_STEPS, S_N_SOFT, S_N_SCAN_OK, S_N_SCANS, S_N_HEADINGS) = range(21)
+N_SCALARS = 21
 # S_STEP_SCALE multiplies every step length, S_RUN_MULT running steps once more; S_YAW_OFFSET
 # is added to step headings; S_PATH / S_RUN_PATH accumulate the (scaled) lengths of all /
-# running steps; S_SCAN_BASE is subtracted from the scan row index of scan events.
+# running steps; S_SCAN_BASE is subtracted from the scan row index of scan events. Counts of
+# the run: S_N_STEPS steps, S_N_SOFT accepted readings / ranges, S_N_SCAN_OK accepted scan
+# updates, S_N_SCANS scans, S_N_HEADINGS steps with a finite heading (kept in ``recent``).
+N_RECENT = 16
+"""Rows of the kernel's ring of the last (time, raw heading) of steps."""
 
 WALKING, STANDING, RUNNING, UPSTAIRS, DOWNSTAIRS = 1, 0, 2, 3, 4
 
@@ -63,6 +70,8 @@ def initial_scalars() -> FloatArray:
     sc[S_STEP_SCALE] = 1.0
     sc[S_RUN_MULT] = 1.0
     return sc
+
+
 LN10 = math.log(10.0)
 
 
@@ -447,7 +456,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                  t_out: FloatArray, x_out: FloatArray, p_out: FloatArray, act_out: IntArray,
                  status: IntArray, nis_out: FloatArray, s_out: FloatArray,
                  nu_out: FloatArray, scan: FloatArray, aux_out: FloatArray,
-                 var_t: FloatArray, var_v: FloatArray) -> None:  # pragma: no cover - compiled
+                 var_t: FloatArray, var_v: FloatArray,
+                 recent: FloatArray) -> None:  # pragma: no cover - compiled
     """Process a run of events in order; ``x``, ``p``, ``sc``, ``chan_cov`` are updated in place.
 
     ``data`` columns: step ``[length, heading, dz, activity, var_heading]`` (length and
@@ -456,7 +466,9 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
     ``[ax, ay, az, rss_dbm]``; range ``[nx, ny, nz, range, sigma (NaN: default)]``; scan
     ``[first row in scan, number of rows]`` with ``scan`` (M, 4) the anchors heard
     (``SC_*`` columns). ``aux_out`` (n, 5): innovation (2) and ``S`` (``S00, S01, S11``) of
-    the 2-D scan updates (NaN otherwise).
+    the 2-D scan updates (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
+    ``(t, heading)`` with a finite heading (before the yaw offset); row ``i`` of the ring is
+    the ``i + N_RECENT j``-th such step of the run (``S_N_HEADINGS`` counts them).
     """
     h = np.zeros(4)
     for k in range(kind.shape[0]):
@@ -476,6 +488,12 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                 sc[S_RUN_PATH] += length
             sc[S_PATH] += length
             var_h = _interp(var_t, var_v, t[k]) if var_t.shape[0] else data[k, 4]
+            sc[S_N_STEPS] += 1.0
+            if np.isfinite(data[k, 1]):
+                r = int(sc[S_N_HEADINGS]) % recent.shape[0]
+                recent[r, 0] = t[k]
+                recent[r, 1] = data[k, 1]
+                sc[S_N_HEADINGS] += 1.0
             _step(prm, sc, x, p, t[k], length, data[k, 1] + sc[S_YAW_OFFSET], data[k, 2], act,
                   var_h)
         else:
@@ -488,6 +506,9 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                                 aux_out[k])
                 status[k] = st
                 nis_out[k] = nis
+                sc[S_N_SCANS] += 1.0
+                if st == ST_ACCEPTED:
+                    sc[S_N_SCAN_OK] += 1.0
             elif ev == EV_RSS:
                 dx = x[0] - data[k, 0]
                 dy = x[1] - data[k, 1]
@@ -509,6 +530,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                     nu = data[k, 3] - pred
                     st, nis, s = _scalar_update(x, p, h, sc[S_SIGMA_DB] ** 2, nu,
                                                 prm[P_CHI2_1], prm[P_USE_CHI2] > 0.5)
+                    if st == ST_ACCEPTED:
+                        sc[S_N_SOFT] += 1.0
                     status[k] = st
                     nis_out[k] = nis
                     s_out[k] = s
@@ -528,6 +551,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, prm: FloatArra
                     nu = data[k, 3] - pred
                     st, nis, s = _scalar_update(x, p, h, sig * sig, nu, prm[P_CHI2_1],
                                                 prm[P_USE_CHI2] > 0.5)
+                    if st == ST_ACCEPTED:
+                        sc[S_N_SOFT] += 1.0
                     status[k] = st
                     nis_out[k] = nis
                     s_out[k] = s

@@ -359,6 +359,7 @@ class Tracker:
                 gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
                 walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
                 missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
+                step_yaw=cfg.gait.step_yaw,
             )
             if meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
                 self.notes.append("device mounting unknown: step headings follow the device x "
@@ -1002,8 +1003,10 @@ class Tracker:
         s_out = np.empty(n)
         nu = np.empty(n)
         aux = np.empty((n, 5))
+        recent = np.empty((ev.N_RECENT, 2))
         ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, t_out, x_out, p_out, act,
-                        status, nis, s_out, nu, self._scan_rows, aux, self._var_t, self._var_v)
+                        status, nis, s_out, nu, self._scan_rows, aux, self._var_t, self._var_v,
+                        recent)
         self.state = FilterState.from_kernel(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
                                              bool(sc[ev.S_HAS_IN] > 0.5))
         self._last_activity = int(sc[ev.S_LAST_ACT])
@@ -1014,23 +1017,25 @@ class Tracker:
             self.channel_state = ChannelState(np.array([sc[ev.S_A], sc[ev.S_ETA]]), chan_cov,
                                               float(sc[ev.S_RESVAR]), int(sc[ev.S_COUNT]))
         self._track.add_block(t_out, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
-        n_steps = int(np.count_nonzero(kind == ev.EV_STEP))
-        if n_steps:
+        n_steps = int(sc[ev.S_N_STEPS])
+        n_head = int(sc[ev.S_N_HEADINGS])
+        if n_head:
             # the last raw step headings (before the yaw offset), for the turn test of bearings
-            h = data[:, 1]
-            ok = np.flatnonzero((kind == ev.EV_STEP) & np.isfinite(h))[-16:]
-            self._recent_heading.extend(zip(tt[ok].tolist(), h[ok].tolist(), strict=True))
+            last = recent.tolist()
+            if n_head > ev.N_RECENT:      # ring: oldest first
+                cut = n_head % ev.N_RECENT
+                last = last[cut:] + last[:cut]
+            self._recent_heading.extend(
+                (float(ts), float(hd)) for ts, hd in last[:min(n_head, ev.N_RECENT)])
         if n_steps < n:
-            obs = np.flatnonzero(kind != ev.EV_STEP)
-            code = status[obs]
-            accepted = code == ev.ST_ACCEPTED
+            n_soft, n_scan_ok = int(sc[ev.S_N_SOFT]), int(sc[ev.S_N_SCAN_OK])
             # an accepted scan (Kalman mode) counts as a correction since the last fix; the
             # WLS jump does not, and scans do not stop the step-scale learning
-            self._corrected_since_fix = self._corrected_since_fix or bool(np.any(accepted))
-            is_scan = kind[obs] == ev.EV_SCAN
-            self._soft_since_anchor = self._soft_since_anchor or bool(
-                np.any(accepted & ~is_scan))
-            self._kernel_diagnostics(b0, obs, code, nis, s_out, nu, aux, bool(np.any(is_scan)))
+            self._corrected_since_fix = self._corrected_since_fix or n_soft + n_scan_ok > 0
+            self._soft_since_anchor = self._soft_since_anchor or n_soft > 0
+            obs = np.flatnonzero(kind != ev.EV_STEP) if n_steps else np.arange(n)
+            self._kernel_diagnostics(b0, obs, status[obs], nis, s_out, nu, aux,
+                                     sc[ev.S_N_SCANS] > 0)
             if len(self._scan_rows) >= SCAN_ROWS_TRIM:
                 self._trim_scan_rows(b1)
 
