@@ -120,3 +120,27 @@ def test_input_errors(walk) -> None:
     ga.update(walk.t[:10], walk.acc_d[:10], walk.q_nd[:10])
     with pytest.raises(InputError):
         ga.update(walk.t[:10], walk.acc_d[:10])  # time goes back
+
+
+@pytest.mark.parametrize("step_yaw", ["endpoints", "mean"])
+def test_motion_labels_do_not_need_features(walk, step_yaw: str) -> None:
+    kw = {"rate_hz": 100.0, "mounting_q_bd": walk.q_bd, "heading": "yaw", "step_yaw": step_yaw}
+    full = GaitAnalyzer(**kw).process(walk.t, walk.acc_d, walk.q_nd)
+    lean = GaitAnalyzer(**kw, window_features=False).process(walk.t, walk.acc_d, walk.q_nd)
+    np.testing.assert_array_equal(full.activity, lean.activity)
+    np.testing.assert_array_equal(full.steps.t_end, lean.steps.t_end)
+    np.testing.assert_array_equal(full.steps.heading_rad, lean.steps.heading_rad)
+    np.testing.assert_array_equal(full.features.t_end, lean.features.t_end)
+    assert np.all(np.isfinite(full.features.lda)) and np.all(np.isnan(lean.features.lda))
+
+
+def test_step_yaw_mean_follows_a_turn_within_the_step(walk) -> None:
+    kw = {"rate_hz": 100.0, "mounting_q_bd": walk.q_bd, "heading": "yaw"}
+    ends = GaitAnalyzer(**kw).process(walk.t, walk.acc_d, walk.q_nd).steps
+    mean = GaitAnalyzer(**kw, step_yaw="mean").process(walk.t, walk.acc_d, walk.q_nd).steps
+    # the walk turns slowly (0.03 rad/s): both readings agree to well under a degree
+    np.testing.assert_array_equal(ends.t_end, mean.t_end)
+    d = wrap_angle(ends.heading_rad - mean.heading_rad)
+    assert np.nanmax(np.abs(d)) < np.deg2rad(3.0)
+    with pytest.raises(InputError, match="step_yaw"):
+        GaitAnalyzer(**kw, step_yaw="middle")  # type: ignore[arg-type]

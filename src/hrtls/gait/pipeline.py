@@ -215,6 +215,10 @@ class GaitAnalyzer:
         With ``heading="yaw"``: a step's heading is the circular mean of the yaw at its start
         and end (``"endpoints"``) or the time average of the yaw over the step (``"mean"``,
         which follows a turn made during the step).
+    window_features:
+        Compute the activity features of every window even when ``activity`` is None (they
+        are returned in :attr:`GaitResult.features`, e.g. for training); False skips them
+        when nothing uses them (the features are then NaN).
     """
 
     def __init__(self, *, rate_hz: float, step_detector: PeakStepDetector | PllStepDetector
@@ -231,8 +235,9 @@ class GaitAnalyzer:
                  pll_enable_m_s2: float | None = None,
                  walking_bouts: WalkingBoutParams | None = None,
                  missed_steps: MissedStepParams | None = None,
-                 step_yaw: StepYaw = "endpoints") -> None:
+                 step_yaw: StepYaw = "endpoints", window_features: bool = True) -> None:
         check_positive(rate_hz, "rate_hz")
+        self.window_features = bool(window_features)
         if step_yaw not in ("endpoints", "mean"):
             raise InputError(f"step_yaw {step_yaw!r}", where="step_yaw",
                              expected="'endpoints' or 'mean'")
@@ -507,6 +512,16 @@ class GaitAnalyzer:
         return GaitResult(steps, act_t, act.astype(np.int64), vel_t, vel_v, motion.sigma_m_s2,
                           lev.frame, feats, h)
 
+    def _features(self, act_t: FloatArray, acc: FloatArray, j: int) -> WindowFeatures:
+        """Activity features of whole windows (Inderst Sec. 4.1) with the classifier's settings."""
+        return window_features(act_t, acc, window_samples=j,
+                               anthropometric_nr=(self.activity.anthropometric_nr
+                                                  if isinstance(self.activity, TreeThresholds)
+                                                  else 1.0),
+                               dft_zero_pad=(self.activity.dft_zero_pad
+                                             if isinstance(self.activity, LdaModel)
+                                             else DFT_ZERO_PAD))
+
     def _windows(self, *, final: bool) -> tuple[FloatArray, IntArray, WindowFeatures]:
         """Label the complete activity windows that can be labelled (all when ``final``)."""
         pend = self._pending
@@ -520,13 +535,13 @@ class GaitAnalyzer:
         if not nw:
             return act_t, np.zeros(0, dtype=np.int64), WindowFeatures(
                 np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7)))
-        wf = window_features(act_t, pend.acc[: nw * j], window_samples=j,
-                             anthropometric_nr=(self.activity.anthropometric_nr
-                                                if isinstance(self.activity, TreeThresholds)
-                                                else 1.0),
-                             dft_zero_pad=(self.activity.dft_zero_pad
-                                           if isinstance(self.activity, LdaModel)
-                                           else DFT_ZERO_PAD))
+        if self.activity is None and not self.window_features:
+            # motion-based labels need no features: only the window times (NaN features)
+            starts = act_t[np.arange(nw) * j]
+            ends = act_t[np.arange(1, nw + 1) * j - 1]
+            wf = WindowFeatures(starts, ends, np.full((nw, 3), np.nan), np.full((nw, 7), np.nan))
+        else:
+            wf = self._features(act_t, pend.acc[: nw * j], j)
         idx = np.arange(1, nw + 1) * j - 1
         sig_end = np.where(np.isfinite(pend.sg[idx]), pend.sg[idx], 0.0)
         state_end = pend.ms[idx]

@@ -360,6 +360,7 @@ class Tracker:
                 walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
                 missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
                 step_yaw=cfg.gait.step_yaw,
+                window_features=cfg.gait.activity != "motion",
             )
             if meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
                 self.notes.append("device mounting unknown: step headings follow the device x "
