@@ -68,7 +68,7 @@ from hrtls.data.observations import (
     TagDetections,
 )
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.frames import quat_conjugate, quat_multiply, quat_rotate, wrap_angle
+from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
 from hrtls.fusion.fixes import (
     DRIFT_MIN_PATH_M,
     FixCorrector,
@@ -650,15 +650,15 @@ class Tracker:
         vt = result.velocity_t
         q_bd = (np.array([1.0, 0, 0, 0]) if self.meta.mounting_q_bd is None
                 else np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
-        q_nb = quat_multiply(q_nd, quat_conjugate(q_bd))
-        fwd = quat_rotate(q_nb, np.array([1.0, 0.0, 0.0]))
-        yaw_all = np.arctan2(fwd[:, 1], fwd[:, 0])
         idx = np.clip(np.searchsorted(t, vt), 0, len(t) - 1)
+        # yaw of the body x axis (first column of the rotation matrix of q_nb)
+        w, x, y, z = quat_multiply(q_nd[idx], quat_conjugate(q_bd)).T
+        yaw = np.arctan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
         var = self._var_yaw_at(vt)
         var = np.where(np.isfinite(var), var, DEFAULT_VAR_YAW_RAD2)
         self._vel_t = np.concatenate([self._vel_t, vt])
         self._vel_v = np.concatenate([self._vel_v, np.maximum(result.velocity_m_s, 0.0)])
-        self._vel_yaw = np.concatenate([self._vel_yaw, yaw_all[idx]])
+        self._vel_yaw = np.concatenate([self._vel_yaw, yaw])
         self._vel_var = np.concatenate([self._vel_var, var])
 
     def _velocity_to(self, t_end: float) -> None:
