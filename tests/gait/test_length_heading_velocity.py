@@ -32,10 +32,8 @@ from hrtls.gait.step_length_fit import (
     mean_frequency,
 )
 from hrtls.gait.velocity_automaton import (
-    AutomatonParams,
     AutomatonState,
     VelocityAutomaton,
-    automaton_kernel,
 )
 
 
@@ -157,58 +155,6 @@ def test_fourier_heading_chunks_equal_batch() -> None:
 def test_average_two_is_circular() -> None:
     out = average_two(np.array([np.pi - 0.1, -np.pi + 0.1]), np.nan)
     assert abs(abs(out[1]) - np.pi) < 1e-12
-
-
-def slow_automaton(t: np.ndarray, a: np.ndarray, sigma: np.ndarray,
-                   p: AutomatonParams) -> np.ndarray:
-    """Pure-Python transcription of the automaton (reference for the numba kernel)."""
-    mode, dv, v, nsteps = 0, 0.0, 0.0, 0
-    t_still = t[0]
-    f1 = f2 = a_prev = a[0]
-    out = np.empty_like(a)
-    for i in range(len(t)):
-        dt = 0.0 if i == 0 else t[i] - t[i - 1]
-        al = 1 - np.exp(-2 * np.pi * p.prefilter_hz * dt)
-        f1 += al * (a[i] - f1)
-        f2 += al * (f1 - f2)
-        ai = f2
-        if mode == 0:
-            dv = v = 0.0
-            if sigma[i] > p.sigma_min_m_s2 and t[i] - t_still >= p.tm_s and ai > 0:
-                mode, nsteps, dv, v = 1, 0, dt * ai, dt * ai
-        else:
-            v_old = v
-            dv += dt * ai
-            v += dt * ai
-            if sigma[i] <= p.sigma_min_m_s2 or v_old * v < 0:
-                mode, dv, v, t_still = 0, 0.0, 0.0, t[i]
-            elif mode == 1 and a_prev > 0 and ai <= 0:
-                mode = 2
-            elif mode == 2 and a_prev < 0 and ai >= 0:
-                nsteps += 1
-                if nsteps > p.settle_steps:
-                    v -= dv
-                dv = 0.0
-                mode = 1
-        a_prev = ai
-        out[i] = v
-    return out
-
-
-def test_automaton_kernel_matches_python_reference() -> None:
-    rng = np.random.default_rng(4)
-    t = np.arange(0, 20, 0.01)
-    a = np.where((t > 3) & (t < 15), 1.2 * np.sin(2 * np.pi * 1.8 * t) + 0.3 * (t < 4), 0.0)
-    a = a + rng.normal(0, 0.05, t.size)
-    sigma = np.where((t > 3.2) & (t < 15.2), 0.8, 0.05)
-    p = AutomatonParams()
-    st_ = AutomatonState().values.copy()
-    v = np.empty_like(t)
-    mode = np.empty(t.size, dtype=np.int64)
-    pars = np.array([p.sigma_min_m_s2, p.tm_s, float(p.settle_steps), p.prefilter_hz])
-    automaton_kernel(t, a, sigma, pars, st_, v, mode)
-    np.testing.assert_allclose(v, slow_automaton(t, a, sigma, p), atol=1e-12)
-    assert np.all(v[t < 3] == 0.0) and np.all(v[t > 16] == 0.0)
 
 
 def test_automaton_keeps_start_velocity_and_chunks() -> None:

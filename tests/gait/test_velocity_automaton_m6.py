@@ -111,3 +111,19 @@ def test_step_reading_never_gives_a_negative_speed(seed: int, amp: float, brake:
 def test_bad_m6_reading_is_named() -> None:
     with pytest.raises(InputError, match="m6_reset"):
         VelocityAutomaton(AutomatonParams(m6_reset="sometimes"))
+
+
+def test_automaton_kernel_matches_python_reference() -> None:
+    rng = np.random.default_rng(4)
+    t = np.arange(0, 20, 0.01)
+    a = np.where((t > 3) & (t < 15), 1.2 * np.sin(2 * np.pi * 1.8 * t) + 0.3 * (t < 4), 0.0)
+    a = a + rng.normal(0, 0.05, t.size)
+    sigma = np.where((t > 3.2) & (t < 15.2), 0.8, 0.05)
+    p = AutomatonParams()
+    st_ = AutomatonState().values.copy()
+    v = np.empty_like(t)
+    mode = np.empty(t.size, dtype=np.int64)
+    pars = np.array([p.sigma_min_m_s2, p.tm_s, float(p.settle_steps), p.prefilter_hz])
+    automaton_kernel(t, a, sigma, pars, st_, v, mode)
+    np.testing.assert_allclose(v, slow_automaton_m6(t, a, sigma, p)[0], atol=1e-12)
+    assert np.all(v[t < 3] == 0.0) and np.all(v[t > 16] == 0.0)
