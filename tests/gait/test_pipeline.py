@@ -142,5 +142,8 @@ def test_step_yaw_mean_follows_a_turn_within_the_step(walk) -> None:
     np.testing.assert_array_equal(ends.t_end, mean.t_end)
     d = wrap_angle(ends.heading_rad - mean.heading_rad)
     assert np.nanmax(np.abs(d)) < np.deg2rad(3.0)
+    # no step turns by 20 deg: "turns" keeps every endpoint heading
+    turns = GaitAnalyzer(**kw, step_yaw="turns").process(walk.t, walk.acc_d, walk.q_nd).steps
+    np.testing.assert_array_equal(turns.heading_rad, ends.heading_rad)
     with pytest.raises(InputError, match="step_yaw"):
         GaitAnalyzer(**kw, step_yaw="middle")  # type: ignore[arg-type]

@@ -66,7 +66,9 @@ HEADING_HOLD_DELAY_S = 0.5
 EXCURSION_BUFFER_S = 5.0
 DEFAULT_CADENCE = CadenceParams()
 HeadingSource = Literal["fourier", "yaw", "none"]
-StepYaw = Literal["endpoints", "mean"]
+StepYaw = Literal["endpoints", "mean", "turns"]
+TURNING_STEP_RAD = math.radians(20.0)
+"""step_yaw="turns": a step turning more than this uses the time-averaged yaw"""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -214,7 +216,8 @@ class GaitAnalyzer:
     step_yaw:
         With ``heading="yaw"``: a step's heading is the circular mean of the yaw at its start
         and end (``"endpoints"``) or the time average of the yaw over the step (``"mean"``,
-        which follows a turn made during the step).
+        which follows a turn made during the step), or the time average only for steps that
+        turn by more than ``TURNING_STEP_RAD`` (``"turns"``).
     window_features:
         Compute the activity features of every window even when ``activity`` is None (they
         are returned in :attr:`GaitResult.features`, e.g. for training); False skips them
@@ -238,9 +241,9 @@ class GaitAnalyzer:
                  step_yaw: StepYaw = "endpoints", window_features: bool = True) -> None:
         check_positive(rate_hz, "rate_hz")
         self.window_features = bool(window_features)
-        if step_yaw not in ("endpoints", "mean"):
+        if step_yaw not in ("endpoints", "mean", "turns"):
             raise InputError(f"step_yaw {step_yaw!r}", where="step_yaw",
-                             expected="'endpoints' or 'mean'")
+                             expected="'endpoints', 'mean' or 'turns'")
         self.step_yaw: StepYaw = step_yaw
         if heading not in ("fourier", "yaw", "none"):
             raise InputError(f"heading {heading!r}", where="heading",
@@ -429,19 +432,20 @@ class GaitAnalyzer:
                 yaw += 2.0 * np.pi * np.round((pm.yaw_last - yaw[0]) / (2.0 * np.pi))
             yb_t = np.concatenate([pm.yb_t, tt])
             yb_y = np.concatenate([pm.yb_y, yaw])
-            if self.step_yaw == "mean" and yb_t.size > 1:
+            y_end = np.interp(det.t_end, yb_t, yb_y)
+            y_start = np.interp(det.t_start, yb_t, yb_y)
+            head = np.arctan2(np.sin(y_start) + np.sin(y_end), np.cos(y_start) + np.cos(y_end))
+            if self.step_yaw != "endpoints" and yb_t.size > 1:
                 # time average of the unwrapped yaw over [t_start, t_end] (trapezoid rule)
                 area = np.concatenate([[0.0], np.cumsum(0.5 * (yb_y[1:] + yb_y[:-1])
                                                         * np.diff(yb_t))])
                 span = det.t_end - det.t_start
                 mean = (np.interp(det.t_end, yb_t, area)
                         - np.interp(det.t_start, yb_t, area)) / np.where(span > 0, span, 1.0)
-                head = wrap_angle(np.where(span > 0, mean, np.interp(det.t_end, yb_t, yb_y)))
-            else:
-                y_end = np.interp(det.t_end, yb_t, yb_y)
-                y_start = np.interp(det.t_start, yb_t, yb_y)
-                head = np.arctan2(np.sin(y_start) + np.sin(y_end),
-                                  np.cos(y_start) + np.cos(y_end))
+                use = span > 0
+                if self.step_yaw == "turns":
+                    use &= np.abs(y_end - y_start) > TURNING_STEP_RAD
+                head = np.where(use, wrap_angle(mean), head)
             pm.yaw_last = float(yaw[-1])
             recent = yb_t >= tt[-1] - EXCURSION_BUFFER_S
             pm.yb_t = yb_t[recent]

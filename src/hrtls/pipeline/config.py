@@ -51,9 +51,9 @@ class GaitConfig(_Section):
     weinberg_k: float | None = Field(default=None, gt=0.0,
                                      description="overrides the user's profile")
     heading: Literal["yaw", "fourier"] = "yaw"
-    step_yaw: Literal["endpoints", "mean"] = "endpoints"
-    """with heading = "yaw": circular mean of the yaw at step start and end, or its time
-    average over the step (follows a turn made during the step)"""
+    step_yaw: Literal["endpoints", "mean", "turns"] = "endpoints"
+    """with heading = "yaw": circular mean of the yaw at step start and end, its time average
+    over the step (follows a turn made during the step), or the average for turning steps only"""
     activity: Literal["lda", "tree", "motion"] = "lda"
     velocity_automaton: bool = False
     gate_steps_with_motion: bool = False
