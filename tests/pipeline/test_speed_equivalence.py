@@ -26,17 +26,10 @@ class PythonScanTracker(Tracker):
     """Scans through the heap and ``_apply_rss`` (the Python reference path)."""
 
     def _flush_scans(self, t_seen: float) -> None:
-        if len(self._scan_buf_t) == 0:
-            return
-        w = self.config.rss.window_s
-        if math.isfinite(t_seen):
-            end_bin = math.floor((t_seen - self._t0) / w)
-            done = np.floor((self._scan_buf_t - self._t0) / w) < end_bin
-        else:
-            done = np.ones(len(self._scan_buf_t), dtype=bool)
-        n = int(np.count_nonzero(done))
+        n = self._closed_scan_rows(t_seen)
         if n == 0:
             return
+        w = self.config.rss.window_s
         readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
         for scan in group_scans(readings, self.landmarks, window_s=w,
                                 sensitivity_dbm=self.config.rss.sensitivity_dbm,

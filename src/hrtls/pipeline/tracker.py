@@ -888,19 +888,22 @@ class Tracker:
         self._tag_buf_t = self._tag_buf_t[used:]
         self._tag_buf_id = self._tag_buf_id[used:]
 
+    def _closed_scan_rows(self, t_seen: float) -> int:
+        """Buffered RSS readings whose ``window_s`` window (from the session start) closed."""
+        if len(self._scan_buf_t) == 0:
+            return 0
+        if not math.isfinite(t_seen):
+            return len(self._scan_buf_t)
+        w = self.config.rss.window_s
+        end_bin = math.floor((t_seen - self._t0) / w)
+        return int(np.count_nonzero(np.floor((self._scan_buf_t - self._t0) / w) < end_bin))
+
     def _flush_scans(self, t_seen: float) -> None:
         """Average RSS over windows of ``window_s`` from the session start once they closed."""
-        if len(self._scan_buf_t) == 0:
-            return
-        w = self.config.rss.window_s
-        if math.isfinite(t_seen):
-            end_bin = math.floor((t_seen - self._t0) / w)
-            done = np.floor((self._scan_buf_t - self._t0) / w) < end_bin
-        else:
-            done = np.ones(len(self._scan_buf_t), dtype=bool)
-        n = int(np.count_nonzero(done))
+        n = self._closed_scan_rows(t_seen)
         if n == 0:
             return
+        w = self.config.rss.window_s
         readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
         table = scan_table(readings, self.landmarks, window_s=w,
                            sensitivity_dbm=self.config.rss.sensitivity_dbm, t_origin=self._t0)
