@@ -18,7 +18,7 @@ from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.config import PRESETS, TrackerConfig
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
-from hrtls.pipeline.tracker import TrackResult, average_rss_per_anchor
+from hrtls.pipeline.tracker import TrackResult, average_rss_per_anchor, hard_iron_samples
 from hrtls.sim.scenarios import SimulationResult
 
 from .test_chunked import assert_same
@@ -75,9 +75,11 @@ def _chunked(cfg: TrackerConfig, sim: SimulationResult, chunk_s: float,
     imu = s.imu
     assert imu is not None
     tr = Tracker(cfg)
+    mag_hi, up_hi = hard_iron_samples(imu)
     tr.start(s.meta, s.landmarks, has_imu=True, has_gyro=imu.gyro is not None,
              has_mag=imu.mag is not None, has_orientation=s.orientation is not None,
-             rate_hz=imu.accel.rate_hz, t0=s.time_span()[0], mounting_acc_d_m_s2=acc)
+             rate_hz=imu.accel.rate_hz, t0=s.time_span()[0], mounting_acc_d_m_s2=acc,
+             hard_iron_mag_ut=mag_hi, hard_iron_up_d=up_hi)
     for part in split_session(s, chunk_s):
         tr.update(part)
     return tr.finish()

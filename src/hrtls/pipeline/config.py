@@ -39,6 +39,13 @@ class AttitudeConfig(_Section):
     mounting_window_s: float = Field(
         default=0.0, ge=0.0, description="handheld mounting: accelerometer seconds from the "
         "start used offline (0 = the whole recording); live, the samples given to start()")
+    mag_hard_iron: Literal["off", "fit"] = "off"
+    """``fit``: estimate the magnetometer's hard-iron offset from the recording's own turns
+    (:func:`hrtls.calibration.hard_iron.fit_hard_iron`, our addition) and subtract it before
+    the attitude stage; for devices never calibrated with a figure of eight (Inderst App. B)."""
+    mag_hard_iron_window_s: float = Field(
+        default=0.0, ge=0.0, description="hard-iron fit: magnetometer seconds from the start "
+        "used offline (0 = the whole recording); live, the samples given to start()")
 
 
 class GaitConfig(_Section):

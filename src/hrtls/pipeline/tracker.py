@@ -52,8 +52,10 @@ import numpy as np
 from hrtls.attitude.base import AttitudeFilter, AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import make_filter
+from hrtls.calibration.hard_iron import fit_hard_iron
 from hrtls.data import (
     Activity,
+    ImuStream,
     Landmark,
     Session,
     SessionMeta,
@@ -152,6 +154,23 @@ SCAN_ROWS_TRIM = 4096
 """Stored anchors of queued RSS scans are trimmed once there are this many (rows)."""
 
 
+def hard_iron_samples(imu: ImuStream, window_s: float = 0.0
+                      ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Magnetometer samples and mean up direction for the hard-iron fit of :meth:`Tracker.start`.
+
+    The first ``window_s`` of the magnetometer (0: all of it) and the mean accelerometer
+    reading over the same time; ``(None, None)`` without a magnetometer.
+    """
+    if imu.mag is None or not len(imu.mag.t):
+        return None, None
+    tm = imu.mag.t
+    sel = tm < tm[0] + window_s if window_s > 0 else np.ones(len(tm), dtype=bool)
+    ta = imu.accel.t
+    acc = imu.accel.values[(ta >= tm[sel][0]) & (ta <= tm[sel][-1])]
+    up = np.nanmean(acc if len(acc) else imu.accel.values, axis=0)
+    return imu.mag.values[sel], up
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class TrackResult:
     """What the tracker produced.
@@ -226,7 +245,9 @@ class Tracker:
     def start(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
               rate_hz: float, t0: float,
-              mounting_acc_d_m_s2: np.ndarray | None = None) -> None:
+              mounting_acc_d_m_s2: np.ndarray | None = None,
+              hard_iron_mag_ut: np.ndarray | None = None,
+              hard_iron_up_d: np.ndarray | None = None) -> None:
         """Prepare for a recording with these sensors; the next ``update`` continues from t0.
 
         ``mounting_acc_d_m_s2`` (N, 3): device-frame accelerometer samples for the ``handheld``
@@ -234,10 +255,17 @@ class Tracker:
         ``mounting_window_s`` (0: all of it); live, pass the samples available at start (e.g.
         a few seconds of walking buffered before the first ``update``). Without them the
         session's mounting is kept (noted in the report).
+
+        ``hard_iron_mag_ut`` (N, 3) and ``hard_iron_up_d`` (3,): raw magnetometer samples and
+        the device's mean up direction (mean accelerometer reading) for ``[attitude]
+        mag_hard_iron = "fit"``; offline, :meth:`run` passes the first
+        ``mag_hard_iron_window_s`` of the recording (0: all of it).
         """
         cfg = self.config
         self.notes: list[str] = []
         meta = self._resolve_mounting(meta, mounting_acc_d_m_s2, has_imu=has_imu)
+        self.hard_iron_ut = self._fit_hard_iron(hard_iron_mag_ut, hard_iron_up_d,
+                                                has_mag=has_imu and has_mag)
         self.meta = meta
         geo = None if meta.georeference is None else meta.georeference.to_georeference()
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
@@ -405,6 +433,26 @@ class Tracker:
         self._t_last_sample = t0
         self._started = True
 
+    def _fit_hard_iron(self, mag: np.ndarray | None, up_d: np.ndarray | None, *,
+                       has_mag: bool) -> np.ndarray | None:
+        """The configured hard-iron offset (uT, device frame), or None (noted in the report)."""
+        if self.config.attitude.mag_hard_iron != "fit" or not has_mag:
+            return None
+        if mag is None or not len(mag):
+            self._degrade("magnetometer hard iron: no samples given to start(); field used raw")
+            return None
+        try:
+            fit = fit_hard_iron(mag, up_d=up_d)
+        except InputError as exc:
+            self._degrade(f"magnetometer hard iron not fitted ({exc}); field used raw")
+            return None
+        self.notes.append(
+            "magnetometer hard iron fitted on the recording's turns: c = ["
+            f"{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
+            f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
+            f"of turning, {fit.n_used} samples")
+        return fit.hard_iron_ut
+
     def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray | None, *,
                           has_imu: bool) -> SessionMeta:
         """The session metadata with the configured device mounting (noted in the report)."""
@@ -489,11 +537,15 @@ class Tracker:
             if (w := self.config.attitude.mounting_window_s) > 0:
                 sel &= ta < t_from + w
             acc_mount = imu.accel.values[sel] if sel.any() else imu.accel.values
+        mag_hi = up_hi = None
+        if imu is not None and self.config.attitude.mag_hard_iron == "fit":
+            mag_hi, up_hi = hard_iron_samples(imu, self.config.attitude.mag_hard_iron_window_s)
         self.start(session.meta, session.landmarks, has_imu=imu is not None,
                    has_gyro=imu is not None and imu.gyro is not None,
                    has_mag=imu is not None and imu.mag is not None,
                    has_orientation=session.orientation is not None, rate_hz=rate, t0=t0,
-                   mounting_acc_d_m_s2=acc_mount)
+                   mounting_acc_d_m_s2=acc_mount, hard_iron_mag_ut=mag_hi,
+                   hard_iron_up_d=up_hi)
         self.update(session)
         return self.finish()
 
@@ -595,6 +647,8 @@ class Tracker:
         filt = self.attitude_filter
         if filt is None:
             return None
+        if mag is not None and self.hard_iron_ut is not None:
+            mag = mag - self.hard_iron_ut
         if isinstance(filt, DeviceOrientation):
             assert chunk.orientation is not None
             res = filt.run(chunk.orientation, t)
