@@ -96,3 +96,11 @@ def test_offset_recovered_for_any_offset_and_mounting_yaw(cx: float, cy: float, 
     fit = fit_hard_iron(mag, up_d=acc.mean(axis=0))
     assert np.hypot(*(fit.hard_iron_ut[:2] - c[:2])) < 0.15
     assert math.isfinite(fit.residual_ut)
+
+
+def test_long_recordings_are_thinned_without_changing_the_offset() -> None:
+    c = np.array([2.5, -4.0, 0.0])
+    mag, acc = walking_field(c, np.linspace(0.0, 1440.0, 60_000), seed=4)
+    thinned = fit_hard_iron(mag, up_d=acc.mean(axis=0), max_samples=5_000)
+    assert thinned.n_used <= 5_000
+    assert thinned.hard_iron_ut[:2] == pytest.approx(c[:2], abs=0.1)

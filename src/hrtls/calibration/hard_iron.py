@@ -82,16 +82,20 @@ def _arc_deg(p: FloatArray) -> float:
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
                   min_arc_deg: float = 240.0, gate_fraction: float = 0.15,
-                  min_field_ut: float = 5.0, min_samples: int = 50) -> HardIronFit:
+                  min_field_ut: float = 5.0, min_samples: int = 50,
+                  max_samples: int = 20_000) -> HardIronFit:
     """Hard-iron offset from the raw field samples (N, 3) of a recording, uT.
 
     ``up_d``: the device's mean up direction in the device frame (e.g. the mean accelerometer
-    reading of a waist-worn device); None for samples in all orientations. See the module notes.
+    reading of a waist-worn device); None for samples in all orientations. Longer inputs are
+    thinned evenly to ``max_samples``. See the module notes.
     """
     m = np.asarray(mag_ut, dtype=np.float64)
     if m.ndim != 2 or m.shape[1] != 3:
         raise InputError(f"shape {m.shape}", where="hard-iron fit", expected="(N, 3) uT")
     m = m[np.all(np.isfinite(m), axis=1)]
+    if len(m) > max_samples:  # evenly thinned: the offset needs the headings, not every sample
+        m = m[:: -(-len(m) // max_samples)]
     if len(m) < min_samples:
         raise InputError(f"{len(m)} finite samples", where="hard-iron fit",
                          expected=f"at least {min_samples}")

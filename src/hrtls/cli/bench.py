@@ -29,7 +29,7 @@ def _num(value: float) -> str:
 @reports_errors
 def papers(
     seeds: Annotated[int, typer.Option("--seeds", "-n", min=1,
-                                       help="Simulation seeds per scenario.")] = 3,
+                                       help="Simulation seeds per scenario.")] = 10,
     quick: Annotated[bool, typer.Option("--quick", help="A subset of the cases, one seed.")
                      ] = False,
     only: Annotated[list[str] | None, typer.Option(
