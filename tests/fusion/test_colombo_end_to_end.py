@@ -14,7 +14,7 @@ from hrtls.jobs.bench import _fix_period_of, _track, p97_axis, predicted_track, 
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.diagnostics import DiagnosticsLog
-from hrtls.pipeline.tracker import TrackResult, hard_iron_samples
+from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult, run_scenario
 
 
@@ -77,11 +77,7 @@ def test_chunked_equals_offline_with_fixes(circle: SimulationResult, name: str) 
         imu = s.imu
         assert imu is not None
         live = Tracker(cfg)
-        mag_hi, up_hi = hard_iron_samples(imu)
-        live.start(s.meta, s.landmarks, has_imu=True, has_gyro=imu.gyro is not None,
-                   has_mag=imu.mag is not None, has_orientation=s.orientation is not None,
-                   rate_hz=imu.accel.rate_hz, t0=s.time_span()[0],
-                   hard_iron_mag_ut=mag_hi, hard_iron_up_d=up_hi)
+        live.start_session(s)
         for part in split_session(s, 5.0):
             live.update(part)
         res = live.finish()

@@ -7,7 +7,7 @@ import pytest
 
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
-from hrtls.pipeline.tracker import TrackResult, hard_iron_samples
+from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
 
@@ -16,11 +16,7 @@ def chunked_run(name: str, sim: SimulationResult, chunk_s: float) -> TrackResult
     tr = Tracker(preset(name))
     imu = s.imu
     assert imu is not None
-    mag_hi, up_hi = hard_iron_samples(imu)
-    tr.start(s.meta, s.landmarks, has_imu=True, has_gyro=imu.gyro is not None,
-             has_mag=imu.mag is not None, has_orientation=s.orientation is not None,
-             rate_hz=imu.accel.rate_hz, t0=s.time_span()[0], hard_iron_mag_ut=mag_hi,
-             hard_iron_up_d=up_hi)
+    tr.start_session(s)
     for part in split_session(s, chunk_s):
         tr.update(part)
     return tr.finish()

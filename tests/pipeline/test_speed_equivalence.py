@@ -18,7 +18,7 @@ from hrtls.data.observations import RssReadings
 from hrtls.fusion.rss import group_scans
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.tracker import _RSS, TrackResult, hard_iron_samples
+from hrtls.pipeline.tracker import _RSS, TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
 
@@ -111,11 +111,7 @@ def test_scan_store_trimmed_in_chunked_run(office: SimulationResult,
     imu = s.imu
     assert imu is not None
     tr = Tracker(cfg)
-    mag_hi, up_hi = hard_iron_samples(imu)
-    tr.start(s.meta, s.landmarks, has_imu=True, has_gyro=imu.gyro is not None,
-             has_mag=imu.mag is not None, has_orientation=s.orientation is not None,
-             rate_hz=imu.accel.rate_hz, t0=s.time_span()[0], hard_iron_mag_ut=mag_hi,
-             hard_iron_up_d=up_hi)
+    tr.start_session(s)
     for part in split_session(s, 7.0):
         tr.update(part)
         assert len(tr._scan_rows) < 200        # trimmed: only the queued scans' anchors

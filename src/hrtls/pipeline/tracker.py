@@ -523,6 +523,17 @@ class Tracker:
     # ------------------------------------------------------------------ processing
     def run(self, session: Session) -> TrackResult:
         """Track a whole session (the same code path as the live chunks)."""
+        self.start_session(session)
+        self.update(session)
+        return self.finish()
+
+    def start_session(self, session: Session) -> None:
+        """:meth:`start` for this session's sensors, with the start samples :meth:`run` uses.
+
+        The hand-held mounting and the hard-iron fit get the recording's own samples (their
+        windows), so feeding the session's chunks to :meth:`update` afterwards reproduces
+        :meth:`run` exactly.
+        """
         imu = session.imu
         rate = imu.accel.rate_hz if imu is not None else 0.0
         t0 = session.time_span()[0]
@@ -546,8 +557,6 @@ class Tracker:
                    has_orientation=session.orientation is not None, rate_hz=rate, t0=t0,
                    mounting_acc_d_m_s2=acc_mount, hard_iron_mag_ut=mag_hi,
                    hard_iron_up_d=up_hi)
-        self.update(session)
-        return self.finish()
 
     def update(self, chunk: Session) -> None:
         """Consume the samples and observations of one chunk (in time order across chunks)."""
