@@ -60,9 +60,20 @@ def test_disturbed_samples_are_dropped() -> None:
 
 
 def test_too_little_turning_is_refused_with_the_angle() -> None:
-    mag, acc = walking_field(np.array([3.0, 0.0, 0.0]), np.linspace(0.0, 120.0, 2000))
-    with pytest.raises(InputError, match=r"turned through \d+ deg.*at least 240 deg"):
-        fit_hard_iron(mag, up_d=acc.mean(axis=0))
+    mag, acc = walking_field(np.array([3.0, 0.0, 0.0]), np.linspace(0.0, 120.0, 4000))
+    with pytest.raises(InputError, match=r"turned through 1[12]\d deg.*at least 180 deg"):
+        fit_hard_iron(mag, up_d=acc.mean(axis=0), block_samples=40)
+
+
+def test_block_means_keep_a_half_turn_accurate() -> None:
+    # single samples: the 3 deg sway biases a circle fit to a short arc; block means do not
+    c = np.array([4.0, -3.0, 1.0])
+    mag, acc = walking_field(c, np.linspace(0.0, 200.0, 8000), seed=5)
+    fit = fit_hard_iron(mag, up_d=acc.mean(axis=0), block_samples=50)
+    assert fit.hard_iron_ut[:2] == pytest.approx(c[:2], abs=0.15)
+    assert fit.arc_deg == pytest.approx(200.0, abs=5.0)
+    with pytest.raises(InputError, match="block_samples"):
+        fit_hard_iron(mag, block_samples=0)
 
 
 @pytest.mark.parametrize("bad", [np.zeros((10, 3)), np.zeros((100, 2)), np.full((100, 3), np.nan)])

@@ -15,12 +15,17 @@ of ``c``; a least-squares circle fit (``|p|^2 = 2 c.p + k``) gives it. The part 
 change the horizontal field direction at that tilt. Without ``up_d`` the samples are taken to
 cover all orientations (a figure of eight) and a sphere is fitted in 3-D.
 
+The samples are first averaged over blocks of about a second: the pelvis sways at the stride
+frequency and tilts part of the vertical field into the horizontal plane, which biases a circle
+fit to a short arc; block means remove that sway, so the fit and its coverage test stay true
+down to half a turn.
+
 Samples off the circle (sphere) by more than ``gate_fraction`` of its radius (magnetic
 disturbances) are dropped and the fit is repeated, up to three times, each time judging all
-samples against the latest fit. The fit is refused
-(:class:`InputError`) when the field directions in the fitted plane leave a gap wider than
-``360 - min_arc_deg`` degrees, when the fitted radius is below ``min_field_ut`` or when the
-samples span less than one radius: with less turning the centre is not determined.
+samples against the latest fit. The fit is refused (:class:`InputError`) when the field
+directions in the fitted plane leave a gap wider than ``360 - min_arc_deg`` degrees (180 by
+default), when the fitted radius is below ``min_field_ut`` or when the samples span less than
+one radius: with less turning the centre is not determined.
 """
 
 from __future__ import annotations
@@ -81,18 +86,28 @@ def _arc_deg(p: FloatArray) -> float:
 
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
-                  min_arc_deg: float = 240.0, gate_fraction: float = 0.15,
+                  block_samples: int = 1, min_arc_deg: float = 180.0, gate_fraction: float = 0.15,
                   min_field_ut: float = 5.0, min_samples: int = 50,
                   max_samples: int = 20_000) -> HardIronFit:
     """Hard-iron offset from the raw field samples (N, 3) of a recording, uT.
 
     ``up_d``: the device's mean up direction in the device frame (e.g. the mean accelerometer
-    reading of a waist-worn device); None for samples in all orientations. Longer inputs are
-    thinned evenly to ``max_samples``. See the module notes.
+    reading of a waist-worn device); None for samples in all orientations. ``block_samples``:
+    consecutive samples averaged before the fit (about one second of data averages out the
+    sway of each stride). Longer inputs are thinned evenly to ``max_samples`` (after the
+    averaging). See the module notes.
     """
     m = np.asarray(mag_ut, dtype=np.float64)
     if m.ndim != 2 or m.shape[1] != 3:
         raise InputError(f"shape {m.shape}", where="hard-iron fit", expected="(N, 3) uT")
+    if block_samples < 1:
+        raise InputError(f"block_samples = {block_samples}", where="hard-iron fit",
+                         expected="at least 1")
+    if block_samples > 1:
+        n = len(m) // block_samples * block_samples
+        blocks = m[:n].reshape(-1, block_samples, 3)
+        ok = np.all(np.isfinite(blocks), axis=(1, 2))  # a block with a gap is dropped
+        m = blocks[ok].mean(axis=1)
     m = m[np.all(np.isfinite(m), axis=1)]
     if len(m) > max_samples:  # evenly thinned: the offset needs the headings, not every sample
         m = m[:: -(-len(m) // max_samples)]

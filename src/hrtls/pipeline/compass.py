@@ -22,6 +22,10 @@ rotated back about the vertical by it.
   ``max_drift_c_ut`` over the last ``stable_s``, nor when the fitted field is not an Earth
   field (``earth_field_ut``; before the first turns the samples lie on an arc that a small
   sphere fits well).
+* ``field_corrected = True``: the field given is already hard-iron corrected (the tracker's
+  ``[attitude] mag_hard_iron = "fit"``, :mod:`hrtls.calibration.hard_iron`). There is no
+  warm-up, and until the own fit has settled ``c`` is zero and the field magnitude is the RMS
+  of the samples so far.
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ class CompassParams:
     stable_s: float = 20.0
     max_drift_c_ut: float = 0.5
     earth_field_ut: tuple[float, float] = (20.0, 70.0)
+    field_corrected: bool = False
 
 
 @numba.njit(cache=True)
@@ -98,6 +103,17 @@ class CompassYaw:
         self.last_error = 0.0
 
     def _solve(self) -> None:
+        self._solve_sphere()
+        if self.params.field_corrected and not math.isfinite(self.radius):
+            # until the own fit has settled: the corrected field as it is
+            count = self.n_tot[3, 3]
+            if count >= 10.0:
+                r = math.sqrt(self.y_tot[3] / count)
+                lo, hi = self.params.earth_field_ut
+                self.c = np.zeros(3)
+                self.radius = r if lo <= r <= hi else math.nan
+
+    def _solve_sphere(self) -> None:
         w = self.params.prior_weight
         n = self.n_tot + np.diag([w, w, w, 0.0])
         count = self.n_tot[3, 3]
@@ -170,7 +186,8 @@ class CompassYaw:
             # a disturbed field changes its magnitude or its dip (angle below the horizon)
             dip = np.arctan2(-mn[:, 2], np.hypot(mn[:, 0], mn[:, 1]))
             dip_ref = np.arctan2(-v[:, 2], np.hypot(v[:, 0], v[:, 1]))
-            ok = ((t >= self.t_pose + prm.reference_s) & (t - self.t_first >= prm.warmup_s)
+            warmup = 0.0 if prm.field_corrected else prm.warmup_s
+            ok = ((t >= self.t_pose + prm.reference_s) & (t - self.t_first >= warmup)
                   & np.isfinite(r_of)
                   & (np.abs(mag_r - r_of) <= prm.gate_fraction * np.nan_to_num(r_of))
                   & (np.abs(dip - dip_ref) <= math.radians(prm.gate_dip_deg)))

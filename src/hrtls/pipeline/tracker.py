@@ -120,7 +120,7 @@ from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
-from hrtls.pipeline.compass import CompassYaw
+from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
@@ -265,7 +265,7 @@ class Tracker:
         self.notes: list[str] = []
         meta = self._resolve_mounting(meta, mounting_acc_d_m_s2, has_imu=has_imu)
         self.hard_iron_ut = self._fit_hard_iron(hard_iron_mag_ut, hard_iron_up_d,
-                                                has_mag=has_imu and has_mag)
+                                                has_mag=has_imu and has_mag, rate_hz=rate_hz)
         self.meta = meta
         geo = None if meta.georeference is None else meta.georeference.to_georeference()
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
@@ -365,7 +365,9 @@ class Tracker:
         self._use_mag = cfg.attitude.use_magnetometer and has_mag
         # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
         # filters already fuse the magnetometer with their own disturbance gates
-        self._compass = (CompassYaw(self._t_pose)
+        # with the hard iron already removed, the compass needs no warm-up of its own
+        self._compass = (CompassYaw(self._t_pose, CompassParams(
+                             field_corrected=self.hard_iron_ut is not None))
                          if cfg.attitude.compass_yaw and has_mag
                          and isinstance(self.attitude_filter, DeviceOrientation) else None)
         # --- gait
@@ -434,15 +436,18 @@ class Tracker:
         self._started = True
 
     def _fit_hard_iron(self, mag: np.ndarray | None, up_d: np.ndarray | None, *,
-                       has_mag: bool) -> np.ndarray | None:
-        """The configured hard-iron offset (uT, device frame), or None (noted in the report)."""
+                       has_mag: bool, rate_hz: float) -> np.ndarray | None:
+        """The configured hard-iron offset (uT, device frame), or None (noted in the report).
+
+        Blocks of ``rate_hz`` samples (a second at the IMU rate) are averaged before the fit.
+        """
         if self.config.attitude.mag_hard_iron != "fit" or not has_mag:
             return None
         if mag is None or not len(mag):
             self._degrade("magnetometer hard iron: no samples given to start(); field used raw")
             return None
         try:
-            fit = fit_hard_iron(mag, up_d=up_d)
+            fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(rate_hz)))
         except InputError as exc:
             self._degrade(f"magnetometer hard iron not fitted ({exc}); field used raw")
             return None
