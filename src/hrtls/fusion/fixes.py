@@ -206,7 +206,9 @@ class FixCorrector:
         if recover:
             diag = replace(diag, reason=f"applied without gate after {schedule.rejections} "
                            "rejections in a row")
-        new_state = state.evolve(x=res.x, P=res.P)
+        # the compiled Joseph update keeps P symmetric PSD and wraps the heading
+        new_state = FilterState.from_kernel(state.t, res.x, res.P, state.input_heading_rad,
+                                            state.has_input_heading)
         return FixUpdate(new_state, new_schedule, diag)
 
 

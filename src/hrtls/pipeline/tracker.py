@@ -164,11 +164,15 @@ def hard_iron_samples(imu: ImuStream, window_s: float = 0.0
     if imu.mag is None or not len(imu.mag.t):
         return None, None
     tm = imu.mag.t
-    sel = tm < tm[0] + window_s if window_s > 0 else np.ones(len(tm), dtype=bool)
+    n_mag = int(np.searchsorted(tm, tm[0] + window_s)) if window_s > 0 else len(tm)
+    n_mag = max(n_mag, 1)
     ta = imu.accel.t
-    acc = imu.accel.values[(ta >= tm[sel][0]) & (ta <= tm[sel][-1])]
-    up = np.nanmean(acc if len(acc) else imu.accel.values, axis=0)
-    return imu.mag.values[sel], up
+    a0, a1 = np.searchsorted(ta, [tm[0], tm[n_mag - 1]], side="left")
+    acc = imu.accel.values[a0:a1 + 1] if a1 >= a0 else imu.accel.values
+    up = acc.mean(axis=0)
+    if not np.all(np.isfinite(up)):
+        up = np.nanmean(acc, axis=0)
+    return imu.mag.values[:n_mag], up
 
 
 @dataclass(frozen=True, slots=True, eq=False)
