@@ -7,7 +7,11 @@ from hrtls.data.results import Activity, StepEvents
 from hrtls.errors import InputError
 from hrtls.fusion.gating import is_spd
 from hrtls.fusion.state import FilterState
-from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
+from hrtls.fusion.step_prediction import (
+    FIRST_STRIDE_MAX_TURN_RAD,
+    StepPredictionParams,
+    StepPredictor,
+)
 
 
 def start() -> FilterState:
@@ -72,11 +76,32 @@ def test_state_mode_keeps_heading_corrections() -> None:
     pred = StepPredictor(StepPredictionParams(heading_mode="state"))
     s = pred.predict(start(), t=1.0, length_m=1.0, heading_rad=0.2)
     assert s.heading == pytest.approx(0.0)          # first step: reference only
+    assert s.reference_pending
     s = s.evolve(x=np.array([*s.x[:3], 0.5]))        # a correction to the heading
     s = pred.predict(s, t=2.0, length_m=1.0, heading_rad=0.3)
-    assert s.heading == pytest.approx(0.6)           # corrected heading + input change 0.1
-    inp = StepPredictor().predict(s, t=3.0, length_m=1.0, heading_rad=0.3)
+    assert s.heading == pytest.approx(0.55)          # first stride: half the change 0.1
+    assert not s.reference_pending
+    s = pred.predict(s, t=3.0, length_m=1.0, heading_rad=0.4)
+    assert s.heading == pytest.approx(0.65)          # then every change in full
+    inp = StepPredictor().predict(s, t=4.0, length_m=1.0, heading_rad=0.3)
     assert inp.heading == pytest.approx(0.3)         # input mode: heading is the parameter
+
+
+def test_a_start_into_a_turn_keeps_the_whole_second_step_change() -> None:
+    pred = StepPredictor(StepPredictionParams(heading_mode="state"))
+    turn = FIRST_STRIDE_MAX_TURN_RAD + 0.05
+    s = pred.predict(start(), t=1.0, length_m=1.0, heading_rad=0.2)
+    s = pred.predict(s, t=2.0, length_m=1.0, heading_rad=0.2 + turn)
+    assert s.heading == pytest.approx(turn)
+
+
+def test_pending_reference_survives_save_and_restore() -> None:
+    pred = StepPredictor(StepPredictionParams(heading_mode="state"))
+    s = pred.predict(start(), t=1.0, length_m=1.0, heading_rad=0.2)
+    back = FilterState.from_dict(s.to_dict())
+    assert back.reference_pending and back.has_input_heading
+    assert not FilterState.from_dict({k: v for k, v in s.to_dict().items()
+                                      if k != "reference_pending"}).reference_pending
 
 
 def test_bad_steps_raise() -> None:

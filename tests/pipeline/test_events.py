@@ -79,20 +79,30 @@ step_st = st.tuples(st.floats(0.0, 1.5), st.floats(-math.pi, math.pi), st.floats
                     st.sampled_from(ACTS), st.floats(1e-4, 0.1))
 
 
+small_turn_step_st = st.tuples(st.floats(0.0, 1.5), st.floats(0.0, 0.3), st.floats(-0.2, 0.2),
+                              st.sampled_from(ACTS), st.floats(1e-4, 0.1))
+
+
 @settings(max_examples=60, deadline=None)
-@given(steps=st.lists(step_st, min_size=1, max_size=30), mode_state=st.booleans())
+@given(steps=st.lists(step_st | small_turn_step_st, min_size=1, max_size=30),
+       mode_state=st.booleans(), heading_known=st.booleans())
 def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, float]],
-                                    mode_state: bool) -> None:
+                                    mode_state: bool, heading_known: bool) -> None:
     prm, sp = params(mode_state, False)
+    prm[ev.P_HEAD_KNOWN] = float(heading_known)
     start = FilterState.initial(t=0.0, heading_rad=0.3)
-    # Python: the tracker's per-step sequence
+    # Python: the tracker's per-step sequence (a known start heading: the first step's heading
+    # is the reference before the step; unknown: the predictor takes or adopts it)
     state = start
     predictor = StepPredictor(sp)
     for i, (length, heading, dz, act, var) in enumerate(steps):
-        if not state.has_input_heading:
+        preset = heading_known and not state.has_input_heading
+        if preset:
             state = state.evolve(input_heading_rad=heading, has_input_heading=True)
         state = predictor.predict(state, t=float(i + 1), length_m=length, heading_rad=heading,
                                   dz_m=dz, activity=act, var_heading_rad2=var)
+        if preset:   # the preset reference is still one step's heading
+            state = state.evolve(reference_pending=True)
         if act in (int(Activity.WALKING), int(Activity.STANDING)):
             state, _ = floor_level_update(state, 3.0, gate_probability=None)
     # kernel

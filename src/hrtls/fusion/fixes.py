@@ -208,7 +208,8 @@ class FixCorrector:
                            "rejections in a row")
         # the compiled Joseph update keeps P symmetric PSD and wraps the heading
         new_state = FilterState.from_kernel(state.t, res.x, res.P, state.input_heading_rad,
-                                            state.has_input_heading)
+                                            state.has_input_heading,
+                                            state.reference_pending)
         return FixUpdate(new_state, new_schedule, diag)
 
 

@@ -490,7 +490,8 @@ class TarrioFusion:
         t_end = float(tt[-1]) if n else state.filter.t
         t_end = max(t_end, t_upd)
         new_filter = FilterState(t_end, x_now, p_upd, state.filter.input_heading_rad,
-                                 state.filter.has_input_heading)
+                                 state.filter.has_input_heading,
+                                 state.filter.reference_pending)
         new_state = TarrioState(new_filter, x_upd, t_upd, last_v)
         return TarrioResult(tt, xy_out, cov_out, np.asarray(t_fixes),
                             np.asarray(xy_fixes).reshape(-1, 2), diags, new_state)

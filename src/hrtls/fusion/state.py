@@ -8,7 +8,9 @@ Position in the ENU navigation frame (m), heading in rad CCW from east wrapped t
 ``input_heading_rad`` remembers the last heading *input* (from the attitude filter or the step
 detector) so that, in ``heading_mode="state"``, predictions integrate heading *changes* of the
 input into the state heading and heading corrections persist (see
-:mod:`hrtls.fusion.step_prediction`).
+:mod:`hrtls.fusion.step_prediction`). ``reference_pending`` is true between the first heading
+input and the second: the reference is then completed over the first stride (see
+:data:`hrtls.fusion.step_prediction.FIRST_STRIDE_MAX_TURN_RAD`).
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ class FilterState:
     P: 4x4 covariance (m^2, m rad, rad^2), symmetric positive semi-definite.
     input_heading_rad: last heading input seen by a predictor (rad).
     has_input_heading: whether ``input_heading_rad`` is valid.
+    reference_pending: whether only one heading input has been seen (the first step's).
     """
 
     t: float
@@ -50,6 +53,7 @@ class FilterState:
     P: FloatArray
     input_heading_rad: float = 0.0
     has_input_heading: bool = False
+    reference_pending: bool = False
 
     def __post_init__(self) -> None:
         t = finite_scalar(self.t, where="filter state t")
@@ -77,6 +81,7 @@ class FilterState:
         object.__setattr__(self, "P", p)
         object.__setattr__(self, "input_heading_rad", float(wrap_angle(h_in)))
         object.__setattr__(self, "has_input_heading", bool(self.has_input_heading))
+        object.__setattr__(self, "reference_pending", bool(self.reference_pending))
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -103,7 +108,7 @@ class FilterState:
 
     @classmethod
     def from_kernel(cls, t: float, x: FloatArray, p: FloatArray, input_heading_rad: float,
-                    has_input_heading: bool) -> FilterState:
+                    has_input_heading: bool, reference_pending: bool = False) -> FilterState:
         """Wrap the output of a compiled filter loop without the full validation.
 
         The loops of :mod:`hrtls.pipeline._events` keep ``P`` exactly symmetric (Joseph form,
@@ -120,6 +125,7 @@ class FilterState:
         object.__setattr__(state, "P", np.array(p, dtype=np.float64))
         object.__setattr__(state, "input_heading_rad", float(input_heading_rad))
         object.__setattr__(state, "has_input_heading", bool(has_input_heading))
+        object.__setattr__(state, "reference_pending", bool(reference_pending))
         return state
 
     def evolve(self, **changes: Any) -> FilterState:
@@ -152,7 +158,8 @@ class FilterState:
         """JSON-able form."""
         return {"t": self.t, "x": self.x.tolist(), "P": self.P.tolist(),
                 "input_heading_rad": self.input_heading_rad,
-                "has_input_heading": self.has_input_heading}
+                "has_input_heading": self.has_input_heading,
+                "reference_pending": self.reference_pending}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> FilterState:
@@ -164,7 +171,8 @@ class FilterState:
         return cls(float(data["t"]), np.asarray(data["x"], dtype=np.float64),
                    np.asarray(data["P"], dtype=np.float64),
                    float(data.get("input_heading_rad", 0.0)),
-                   bool(data.get("has_input_heading", False)))
+                   bool(data.get("has_input_heading", False)),
+                   bool(data.get("reference_pending", False)))
 
 
 def independent_block(p: FloatArray, idx: list[int], block: FloatArray) -> FloatArray:

@@ -276,7 +276,8 @@ class TagCorrector:
         # the blocks above are symmetric PSD by construction (and checked in strategy 4), the
         # heading is untouched: only finiteness is checked (FilterState.from_kernel)
         new_state = FilterState.from_kernel(state.t, x, symmetrize(new_p),
-                                            state.input_heading_rad, state.has_input_heading)
+                                            state.input_heading_rad, state.has_input_heading,
+                                            state.reference_pending)
         return TagUpdate(new_state, [diag], strategy, moved)
 
     def _kalman(self, state: FilterState, t: float, tags: list[Landmark], centres: FloatArray,
@@ -291,7 +292,7 @@ class TagCorrector:
                                 source=lm.id, angle_index=IH)
             # Joseph form, symmetrized, heading wrapped: only finiteness needs checking
             state = FilterState.from_kernel(state.t, res.x, res.P, state.input_heading_rad,
-                                            state.has_input_heading)
+                                            state.has_input_heading, state.reference_pending)
             diags.append(res.diagnostics)
         return TagUpdate(state, diags, 0, float(np.linalg.norm(state.x[:2] - start)))
 

@@ -29,6 +29,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.fusion.step_prediction import FIRST_STRIDE_MAX_TURN_RAD
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -51,13 +53,15 @@ SC_X, SC_Y, SC_RSS, SC_COUNT = 0, 1, 2, 3
 # indices into the mutable scalar state vector (start from :func:`initial_scalars`)
 (S_T, S_IN_HEAD, S_HAS_IN, S_LAST_ACT, S_LAST_STEP_END, S_A, S_ETA, S_RESVAR, S_COUNT,
  S_SIGMA_DB, S_STEP_SCALE, S_RUN_MULT, S_YAW_OFFSET, S_PATH, S_RUN_PATH,
- S_SCAN_BASE, S_N_STEPS, S_N_SOFT, S_N_SCAN_OK, S_N_SCANS, S_N_HEADINGS) = range(21)
-N_SCALARS = 21
+ S_SCAN_BASE, S_N_STEPS, S_N_SOFT, S_N_SCAN_OK, S_N_SCANS, S_N_HEADINGS,
+ S_REF_PENDING) = range(22)
+N_SCALARS = 22
 # S_STEP_SCALE multiplies every step length, S_RUN_MULT running steps once more; S_YAW_OFFSET
 # is added to step headings; S_PATH / S_RUN_PATH accumulate the (scaled) lengths of all /
 # running steps; S_SCAN_BASE is subtracted from the scan row index of scan events. Counts of
 # the run: S_N_STEPS steps, S_N_SOFT accepted readings / ranges, S_N_SCAN_OK accepted scan
 # updates, S_N_SCANS scans, S_N_HEADINGS steps with a finite heading (kept in ``recent``).
+# S_REF_PENDING: FilterState.reference_pending (the heading reference is one step's heading).
 N_RECENT = 16
 """Rows of the kernel's ring of the last (time, raw heading) of steps."""
 
@@ -136,7 +140,10 @@ def _step(prm: FloatArray, sc: FloatArray, x: FloatArray, p: FloatArray, t: floa
           length: float, heading: float, dz: float, act: int,
           var_h_in: float) -> None:  # pragma: no cover - compiled
     """Eq. 4.23-4.25 (StepPredictor.predict) and the floor constraint, in place."""
-    if prm[P_HEAD_KNOWN] > 0.5 and sc[S_HAS_IN] < 0.5 and np.isfinite(heading):
+    # the reference is set by this step's heading: before it with a known start heading
+    # (preset), else by the heading logic below; either way the first stride completes it
+    first = sc[S_HAS_IN] < 0.5 and np.isfinite(heading)
+    if prm[P_HEAD_KNOWN] > 0.5 and first:
         sc[S_IN_HEAD] = _wrap(heading)
         sc[S_HAS_IN] = 1.0
     t_new = max(t, sc[S_T])
@@ -150,7 +157,10 @@ def _step(prm: FloatArray, sc: FloatArray, x: FloatArray, p: FloatArray, t: floa
                 p[i, 3] = 0.0
             p[3, 3] = var_h
         elif sc[S_HAS_IN] > 0.5:
-            x[3] = _wrap(x[3] + _wrap(h_in - sc[S_IN_HEAD]))
+            inc = _wrap(h_in - sc[S_IN_HEAD])
+            if sc[S_REF_PENDING] > 0.5 and abs(inc) < FIRST_STRIDE_MAX_TURN_RAD:
+                inc *= 0.5   # reference = mean of the first two step headings
+            x[3] = _wrap(x[3] + inc)
             p[3, 3] += prm[P_SIG_HEAD_INC] ** 2
         elif p[3, 3] > var_h:
             x[3] = h_in
@@ -160,6 +170,7 @@ def _step(prm: FloatArray, sc: FloatArray, x: FloatArray, p: FloatArray, t: floa
             p[3, 3] = var_h
         sc[S_IN_HEAD] = h_in
         sc[S_HAS_IN] = 1.0
+        sc[S_REF_PENDING] = 1.0 if first else 0.0
     x[3] = _wrap(x[3])
     sc[S_T] = t_new
     sc[S_LAST_ACT] = act

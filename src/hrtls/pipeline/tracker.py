@@ -1052,6 +1052,7 @@ class Tracker:
         sc[ev.S_T] = st.t
         sc[ev.S_IN_HEAD] = st.input_heading_rad
         sc[ev.S_HAS_IN] = float(st.has_input_heading)
+        sc[ev.S_REF_PENDING] = float(st.reference_pending)
         sc[ev.S_LAST_ACT] = self._last_activity
         sc[ev.S_LAST_STEP_END] = self._last_step_end
         sc[ev.S_STEP_SCALE] = self.step_scale
@@ -1084,7 +1085,8 @@ class Tracker:
                         status, nis, s_out, nu, self._scan_rows, aux, self._var_t, self._var_v,
                         recent)
         self.state = FilterState.from_kernel(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
-                                             bool(sc[ev.S_HAS_IN] > 0.5))
+                                             bool(sc[ev.S_HAS_IN] > 0.5),
+                                             bool(sc[ev.S_REF_PENDING] > 0.5))
         self._last_activity = int(sc[ev.S_LAST_ACT])
         self._last_step_end = float(sc[ev.S_LAST_STEP_END])
         self._path_since_anchor += float(sc[ev.S_PATH])
@@ -1159,7 +1161,7 @@ class Tracker:
             self.state = predict_random_walk(st, t, RandomWalkParams())
         else:   # only the time changes: no need to validate the state again
             self.state = FilterState.from_kernel(t, st.x, st.P, st.input_heading_rad,
-                                                 st.has_input_heading)
+                                                 st.has_input_heading, st.reference_pending)
 
     def _moving(self, t: float) -> bool:
         if self._velocity_mode:
@@ -1334,7 +1336,8 @@ class Tracker:
             # replaces that step's row (a row at t would show it one partial step late)
             st_ = self.state
             self.state = FilterState.from_kernel(self._last_step_end, st_.x, st_.P,
-                                                 st_.input_heading_rad, st_.has_input_heading)
+                                                 st_.input_heading_rad, st_.has_input_heading,
+                                                 st_.reference_pending)
         # at the time of the output row that shows it
         self.fix_jumps.append((self.state.t, float(jump[0]), float(jump[1])))
         self._learn_scale(prior_xy, self.state.x[:2].copy())
