@@ -115,7 +115,8 @@ class FilterState:
         symmetrized) and the heading wrapped; only finiteness is checked here (NaN never
         leaves a filter).
         """
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p)) and math.isfinite(t)
+        # a sum is finite only when every term is (one reduction per array, not two)
+        if not (math.isfinite(float(np.sum(x)) + float(np.sum(p))) and math.isfinite(t)
                 and math.isfinite(input_heading_rad)):
             raise InputError("non-finite state from the compiled loop", where="filter state",
                              expected="finite x, P and t")
