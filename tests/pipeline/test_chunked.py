@@ -14,8 +14,6 @@ from hrtls.sim.scenarios import SimulationResult
 def chunked_run(name: str, sim: SimulationResult, chunk_s: float) -> TrackResult:
     s = sim.session
     tr = Tracker(preset(name))
-    imu = s.imu
-    assert imu is not None
     tr.start_session(s)
     for part in split_session(s, chunk_s):
         tr.update(part)

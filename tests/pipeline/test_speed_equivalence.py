@@ -108,8 +108,6 @@ def test_scan_store_trimmed_in_chunked_run(office: SimulationResult,
     offline = Tracker(cfg).run(office.session)
     monkeypatch.setattr(tracker_module, "SCAN_ROWS_TRIM", 1)
     s = office.session
-    imu = s.imu
-    assert imu is not None
     tr = Tracker(cfg)
     tr.start_session(s)
     for part in split_session(s, 7.0):
