@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from hrtls.frames import heading_from_quat, quat_conjugate, quat_from_euler, quat_rotate, wrap_angle
-from hrtls.pipeline.compass import CompassYaw
+from hrtls.pipeline.compass import CompassParams, CompassYaw
 
 FIELD_N = np.array([0.0, 20.0, -35.0])     # uT, north = +y, dip ~60 deg
 HARD_IRON = np.array([5.0, -8.0, 12.0])
@@ -41,6 +41,22 @@ def test_wander_removed() -> None:
     # before the warm-up nothing is changed
     early = t < comp.params.warmup_s
     np.testing.assert_allclose(qc[early], q[early], atol=1e-12)
+
+
+def test_corrected_field_starts_without_warm_up() -> None:
+    # the hard iron already removed (mag_hard_iron = "fit"): corrections start after the
+    # reference window instead of after the 60 s warm-up, and are right from there on
+    t, yaw, drift, q, mag = _recording(3)
+    comp = CompassYaw(0.0, CompassParams(field_corrected=True))
+    qc = comp.correct(t, q, mag - HARD_IRON)
+    err = np.asarray(wrap_angle(heading_from_quat(qc) - yaw))
+    const = float(np.mean(drift[t < comp.params.reference_s]))
+    settled = (t > comp.params.reference_s + 5.0 * comp.params.tau_s) & (t < 60.0)
+    assert np.max(np.abs(err[settled] - const)) < np.radians(1.5)
+    raw = np.asarray(wrap_angle(heading_from_quat(q) - yaw))
+    assert np.max(np.abs(raw[settled] - const)) > np.radians(2.0)  # there was wander to remove
+    late = t > 120.0
+    assert np.max(np.abs(err[late] - const)) < np.radians(1.5)
 
 
 def test_chunk_invariant() -> None:
