@@ -10,7 +10,13 @@ from hypothesis import strategies as st
 from hrtls.errors import InputError
 from hrtls.frames import GRAVITY_M_S2, quat_from_euler, quat_rotate
 from hrtls.gait.motion import RUN, STILL, WALK, MotionDetector, MotionParams, RunningStd
-from hrtls.gait.vertical import GravityLevelling, LevelledAcceleration, from_orientation, rotate
+from hrtls.gait.vertical import (
+    GravityLevelling,
+    LevelledAcceleration,
+    from_orientation,
+    heading_of,
+    rotate,
+)
 
 
 def slow_window_std(t: np.ndarray, x: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:
@@ -84,6 +90,20 @@ def test_rotate_kernel_matches_frames() -> None:
     v = rng.normal(size=(50, 3))
     np.testing.assert_allclose(rotate(q, v), quat_rotate(q, v), atol=1e-12)
     np.testing.assert_allclose(rotate(q, v[0]), quat_rotate(q, v[0]), atol=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), spin=st.floats(0.0, 2.0))
+def test_heading_kernel_equals_unwrapped_arctan2_of_rotate(seed: int, spin: float) -> None:
+    # a yaw that keeps turning (several wraps) with tilt and noise; any device-frame vector
+    rng = np.random.default_rng(seed)
+    n = 3000
+    yaw = np.cumsum(rng.normal(spin, 0.3, n)) * 0.05
+    q = quat_from_euler(rng.normal(0.0, 0.2, n), rng.normal(0.0, 0.2, n), yaw)
+    v = rng.normal(size=3)
+    v[2] *= 0.2   # mostly horizontal, so the heading is defined
+    ref = np.unwrap(np.arctan2(*rotate(q, v)[:, 1::-1].T))
+    np.testing.assert_allclose(heading_of(q, v), ref, atol=1e-9, rtol=0)
 
 
 def test_from_orientation_rejects_non_unit() -> None:

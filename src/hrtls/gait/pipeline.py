@@ -57,6 +57,7 @@ from hrtls.gait.vertical import (
     LevelledAcceleration,
     LevellingState,
     from_orientation,
+    heading_of,
     rotate,
 )
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
@@ -415,18 +416,17 @@ class GaitAnalyzer:
         # --- heading per step
         # body forward axis in ENU: rotate the device-frame image of body x by q_nd
         fwd_n = None
-        needs_fwd = self.heading == "yaw" or (self.velocity is not None and self.mounting_known)
-        if q_nd is not None and needs_fwd:
-            fwd_d = quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
+        fwd_d = quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
+        if q_nd is not None and self.velocity is not None and self.mounting_known:
             fwd_n = rotate(q_nd, fwd_d)
         if self.heading == "fourier":
             head = self.fourier.update(tt, lev.horizontal_m_s2, det.t_end).heading_rad
-        elif self.heading == "yaw" and fwd_n is not None:
+        elif self.heading == "yaw" and q_nd is not None:
             # mean direction of the body forward axis over the step: of its start and end
             # yaw ("endpoints") or the time average over the step ("mean")
             # (unwrapped continuously across chunks; the last seconds are kept so that a step
             # starting or ending before this chunk reads the same yaw as in a whole run)
-            yaw = np.unwrap(np.arctan2(fwd_n[:, 1], fwd_n[:, 0]))
+            yaw = heading_of(q_nd, fwd_d)
             pm = self._pending
             if np.isfinite(pm.yaw_last):
                 yaw += 2.0 * np.pi * np.round((pm.yaw_last - yaw[0]) / (2.0 * np.pi))

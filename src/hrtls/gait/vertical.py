@@ -14,6 +14,7 @@ Two ways to level the accelerometer (specific force ``f``, device frame, m/s^2):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,6 +78,40 @@ def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     vv = np.ascontiguousarray(np.atleast_2d(v), dtype=np.float64)
     out = np.empty((qq.shape[0], 3))
     rotate_kernel(qq, vv, out)
+    return out
+
+
+@numba.njit(cache=True)
+def heading_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pragma: no cover
+    """Unwrapped ENU heading (rad, CCW from east) of ``v`` (3,) rotated by each ``q[i]``.
+
+    One pass for ``np.unwrap(arctan2(y, x))`` of :func:`rotate`: a jump of more than pi
+    between samples is taken as a wrap, as ``np.unwrap`` does.
+    """
+    vx, vy, vz = v[0], v[1], v[2]
+    off = 0.0
+    prev = 0.0
+    for i in range(q.shape[0]):
+        w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+        tx = 2.0 * (y * vz - z * vy)
+        ty = 2.0 * (z * vx - x * vz)
+        tz = 2.0 * (x * vy - y * vx)
+        a = math.atan2(vy + w * ty + (z * tx - x * tz), vx + w * tx + (y * tz - z * ty))
+        if i > 0:
+            d = a - prev
+            if d > math.pi:
+                off -= 2.0 * math.pi
+            elif d < -math.pi:
+                off += 2.0 * math.pi
+        prev = a
+        out[i] = a + off
+
+
+def heading_of(q: FloatArray, v: FloatArray) -> FloatArray:
+    """Unwrapped heading (rad) of the device-frame vector ``v`` (3,) in ENU per ``q`` (N, 4)."""
+    qq = np.ascontiguousarray(q, dtype=np.float64)
+    out = np.empty(qq.shape[0])
+    heading_kernel(qq, np.ascontiguousarray(v, dtype=np.float64).reshape(3), out)
     return out
 
 
