@@ -12,10 +12,12 @@ from hypothesis import strategies as st
 
 from hrtls.errors import InputError
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
+from hrtls.gait.pipeline import GaitAnalyzer
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.walking_bouts import WalkingBoutParams
+
+from ._chunks import run_with_restarts
 
 
 def steps_at(t: list[float]) -> StepDetection:
@@ -98,15 +100,7 @@ def test_pipeline_fills_a_dropped_step() -> None:
                             walking_bouts=WalkingBoutParams())
 
     whole = make().process(w.t, w.acc_d, w.q_nd)
-    ga = make()
-    parts = []
-    for a, b in itertools.pairwise([0, 333, 1200, 1800, len(w.t)]):
-        parts.append(ga.update(w.t[a:b], w.acc_d[a:b], w.q_nd[a:b]))
-        state = json.loads(json.dumps(ga.state(), allow_nan=False))
-        ga = make()
-        ga.restore(state)
-    parts.append(ga.flush())
-    joined = GaitResult.concat(parts)
+    joined = run_with_restarts(make, w.t, w.acc_d, w.q_nd, [0, 333, 1200, 1800, len(w.t)])
     np.testing.assert_allclose(joined.steps.t_end, whole.steps.t_end, atol=1e-9)
     np.testing.assert_array_equal(joined.activity, whole.activity)
     with pytest.raises(InputError):

@@ -20,6 +20,8 @@ from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 
+from ._chunks import run_with_restarts
+
 
 @pytest.fixture(scope="module")
 def walk():
@@ -255,14 +257,8 @@ def test_pll_enable_floor_runs_the_loop_early_and_stays_chunk_exact(walk) -> Non
     assert abs(int(np.sum((te > 4.0) & (te < 29.0))) - int(np.sum(walking))) <= 4
     assert np.sum(te < 3.5) == 0  # standing still at the start: no steps
     kw["step_detector"] = PllStepDetector()
-    ga = GaitAnalyzer(**kw)
-    parts = []
-    for a, b in itertools.pairwise([0, 700, 701, 2222, len(walk.t)]):
-        parts.append(ga.update(walk.t[a:b], walk.acc_d[a:b], walk.q_nd[a:b]))
-        state = json.loads(json.dumps(ga.state(), allow_nan=False))
-        ga = GaitAnalyzer(**{**kw, "step_detector": PllStepDetector()})
-        ga.restore(state)
-    parts.append(ga.flush())
-    assert_same(GaitResult.concat(parts), whole)
+    joined = run_with_restarts(lambda: GaitAnalyzer(**{**kw, "step_detector": PllStepDetector()}),
+                               walk.t, walk.acc_d, walk.q_nd, [0, 700, 701, 2222, len(walk.t)])
+    assert_same(joined, whole)
     with pytest.raises(InputError):
         GaitAnalyzer(rate_hz=100.0, pll_enable_m_s2=-1.0)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from hrtls.data import Activity
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
+from hrtls.gait.pipeline import GaitAnalyzer
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.walking_bouts import (
@@ -27,6 +27,8 @@ from hrtls.gait.walking_bouts import (
     walking_bouts,
     walking_mask,
 )
+
+from ._chunks import run_with_restarts
 
 
 def slow_in_bout(t: list[float], gap: float, n: int) -> list[bool]:
@@ -165,16 +167,8 @@ def test_pipeline_chunked_with_state_equals_offline(walk, detector: str) -> None
                             step_detector=PllStepDetector() if detector == "pll" else None)
 
     whole = make().process(walk.t, walk.acc_d, walk.q_nd)
-    ga = make()
-    parts = []
     bounds = [0, 90, 1234, 1235, 2600, 4100, 5000, len(walk.t)]
-    for a, b in itertools.pairwise(bounds):
-        parts.append(ga.update(walk.t[a:b], walk.acc_d[a:b], walk.q_nd[a:b]))
-        state = json.loads(json.dumps(ga.state(), allow_nan=False))
-        ga = make()
-        ga.restore(state)
-    parts.append(ga.flush())
-    joined = GaitResult.concat(parts)
+    joined = run_with_restarts(make, walk.t, walk.acc_d, walk.q_nd, bounds)
     np.testing.assert_allclose(joined.steps.t_end, whole.steps.t_end, atol=1e-9)
     np.testing.assert_array_equal(joined.steps.activity, whole.steps.activity)
     np.testing.assert_array_equal(joined.activity_t, whole.activity_t)

@@ -14,7 +14,6 @@ import math
 import numpy as np
 import pytest
 
-from hrtls.data.observations import RssReadings
 from hrtls.fusion.rss import group_scans
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.config import TrackerConfig
@@ -26,18 +25,13 @@ class PythonScanTracker(Tracker):
     """Scans through the heap and ``_apply_rss`` (the Python reference path)."""
 
     def _flush_scans(self, t_seen: float) -> None:
-        n = self._closed_scan_rows(t_seen)
-        if n == 0:
+        readings = self._take_closed_scans(t_seen)
+        if readings is None:
             return
-        w = self.config.rss.window_s
-        readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
-        for scan in group_scans(readings, self.landmarks, window_s=w,
+        for scan in group_scans(readings, self.landmarks, window_s=self.config.rss.window_s,
                                 sensitivity_dbm=self.config.rss.sensitivity_dbm,
                                 t_origin=self._t0):
             self._push(scan.t, _RSS, i_payload=("scan", scan))
-        self._scan_buf_t = self._scan_buf_t[n:]
-        self._scan_buf_a = self._scan_buf_a[n:]
-        self._scan_buf_v = self._scan_buf_v[n:]
 
 
 def with_rss(cfg: TrackerConfig, **changes: object) -> TrackerConfig:

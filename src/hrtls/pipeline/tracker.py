@@ -443,7 +443,8 @@ class Tracker:
                        has_mag: bool, rate_hz: float) -> np.ndarray | None:
         """The configured hard-iron offset (uT, device frame), or None (noted in the report).
 
-        Blocks of ``rate_hz`` samples (a second at the IMU rate) are averaged before the fit.
+        Blocks of ``rate_hz`` magnetometer samples are averaged before the fit: one second when
+        the magnetometer runs at the accelerometer rate, longer when it is slower.
         """
         if self.config.attitude.mag_hard_iron != "fit" or not has_mag:
             return None
@@ -960,23 +961,32 @@ class Tracker:
         self._tag_buf_t = self._tag_buf_t[used:]
         self._tag_buf_id = self._tag_buf_id[used:]
 
-    def _closed_scan_rows(self, t_seen: float) -> int:
-        """Buffered RSS readings whose ``window_s`` window (from the session start) closed."""
+    def _take_closed_scans(self, t_seen: float) -> RssReadings | None:
+        """Remove and return the buffered RSS readings whose window closed before ``t_seen``.
+
+        Windows are ``window_s`` long from the session start; None when no reading is due.
+        """
         if len(self._scan_buf_t) == 0:
-            return 0
-        if not math.isfinite(t_seen):
-            return len(self._scan_buf_t)
-        w = self.config.rss.window_s
-        end_bin = math.floor((t_seen - self._t0) / w)
-        return int(np.count_nonzero(np.floor((self._scan_buf_t - self._t0) / w) < end_bin))
+            return None
+        n = len(self._scan_buf_t)
+        if math.isfinite(t_seen):
+            w = self.config.rss.window_s
+            end_bin = math.floor((t_seen - self._t0) / w)
+            n = int(np.count_nonzero(np.floor((self._scan_buf_t - self._t0) / w) < end_bin))
+        if n == 0:
+            return None
+        readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
+        self._scan_buf_t = self._scan_buf_t[n:]
+        self._scan_buf_a = self._scan_buf_a[n:]
+        self._scan_buf_v = self._scan_buf_v[n:]
+        return readings
 
     def _flush_scans(self, t_seen: float) -> None:
         """Average RSS over windows of ``window_s`` from the session start once they closed."""
-        n = self._closed_scan_rows(t_seen)
-        if n == 0:
+        readings = self._take_closed_scans(t_seen)
+        if readings is None:
             return
         w = self.config.rss.window_s
-        readings = RssReadings(self._scan_buf_t[:n], self._scan_buf_a[:n], self._scan_buf_v[:n])
         table = scan_table(readings, self.landmarks, window_s=w,
                            sensitivity_dbm=self.config.rss.sensitivity_dbm, t_origin=self._t0)
         if self._velocity_mode:
@@ -998,9 +1008,6 @@ class Tracker:
             reason[few] = [f"{c} anchors heard (WLS needs 3)" for c in table.count[few].tolist()]
             self._add_rows(_RSS, table.t, np.full(len(table), ev.EV_SCAN, dtype=np.int64),
                            data, src, reason)
-        self._scan_buf_t = self._scan_buf_t[n:]
-        self._scan_buf_a = self._scan_buf_a[n:]
-        self._scan_buf_v = self._scan_buf_v[n:]
 
     # ------------------------------------------------------------------ event loop
     def _drain(self, horizon: float) -> None:
