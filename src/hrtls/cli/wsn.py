@@ -130,6 +130,39 @@ def simulate(
     _plot(plot, net, title=f"{nodes} nodes, rho = {radius:g} m")
 
 
+def _ids(net: Any, idx: np.ndarray, limit: int = 12) -> str:
+    names = [net.ids[int(i)] for i in idx[:limit]]
+    return ", ".join(names) + (f" and {idx.size - limit} more" if idx.size > limit else "")
+
+
+def _explain_unlocalized(net: Any, loc: Any, network: Path, *, with_agent: bool) -> None:
+    """Say why nodes stayed unlocalized and which command localizes them."""
+    from hrtls.wsn.diagnostics import unlocalized_reasons
+
+    why = unlocalized_reasons(net, loc)
+    if why.n_unlocalized == 0:
+        return
+    typer.echo(f"{why.n_unlocalized} nodes unlocalized:")
+    if why.under_covered.size:
+        typer.echo(f"  {why.under_covered.size} have fewer than three localized neighbours "
+                   f"(propagation needs three ranges, or two and a shadow edge): "
+                   f"{_ids(net, why.under_covered)}")
+    if why.inconsistent.size:
+        typer.echo(f"  {why.inconsistent.size} had ranges that fit no candidate position and were "
+                   f"left out (check --noise): {_ids(net, why.inconsistent)}")
+    if why.unreachable.size:
+        typer.echo(f"  {why.unreachable.size} have no chain of links to a localized node: "
+                   f"{_ids(net, why.unreachable)}")
+    if why.under_covered.size and not with_agent:
+        typer.echo(f"next: a mobile agent adds the missing ranges: `hrtls wsn plan {network} "
+                   "--simulate` (simulated rescuer and planner), or a measured walk with "
+                   "`--agent PATH.csv --ranges RANGES.csv`")
+    if why.unreachable.size:
+        typer.echo("next: parts without links to the localized part are reached by an agent "
+                   "passing within radio range, or by a robot that searches beyond the links "
+                   "(tight cooperation, `hrtls wsn experiment --study tight`)")
+
+
 @app.command("localize")
 @reports_errors
 def localize(
@@ -191,9 +224,7 @@ def localize(
     counts = {k: names.count(k) for k in METHOD_NAMES}
     typer.echo(f"{loc.n_localized}/{net.n_nodes} localized: "
                + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
-    bad = loc.inconsistent()
-    if bad.size:
-        typer.echo(f"inconsistent (left unlocalized): {', '.join(net.ids[i] for i in bad)}")
+    _explain_unlocalized(net, loc, network, with_agent=agent is not None)
     if net.has_position.any():
         m = loc.localized & net.has_position & ~net.anchor
         if m.any():
@@ -204,7 +235,8 @@ def localize(
         save_network(output, net, estimate_m=est, method=names, covariance_m2=cov)
         typer.echo(f"written {output}")
     _plot(plot, net, loc_all if agent is not None else loc, title=f"{method.upper()}",
-          waypoints_m=xy if agent is not None else None, agent_links=links or None)
+          waypoints_m=xy if agent is not None else None, agent_links=links or None,
+          covariance_m2=cov)
 
 
 @app.command("plan")
@@ -250,6 +282,7 @@ def plan(
                    f"points: {nav.localization.n_localized}/{net.n_nodes} "
                    f"({'complete' if nav.complete else 'incomplete'}), "
                    f"walked {nav.distance_m:.3g} m")
+        _explain_unlocalized(net, nav.localization, network, with_agent=True)
         if network_output is not None:
             save_network(network_output, net, estimate_m=nav.localization.estimate_m,
                          method=nav.localization.method_names)
