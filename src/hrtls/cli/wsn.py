@@ -325,8 +325,16 @@ def experiment(
     tight_plot: Annotated[Path | None, typer.Option(
         help="PNG of one example tight-cooperation run (robot path, disconnected graph).")]
     = None,
+    engine_name: Annotated[str, typer.Option(
+        "--engine", help="Where the networks run: local | ray (same numbers either way).")]
+    = "local",
+    workers: Annotated[int | None, typer.Option(
+        help="Networks simulated at once (default: all cores).")] = None,
+    ray_address: Annotated[str | None, typer.Option(
+        help="With --engine ray: cluster address (default: a local Ray).")] = None,
 ) -> None:
     """Run the thesis' studies (Fig. 6.11, 6.13-6.17, 2 % noise) and print tables."""
+    from hrtls.runner import make_engine
     from hrtls.wsn import experiment as ex
 
     if study not in ("loose", "tight", "noise", "all"):
@@ -334,25 +342,27 @@ def experiment(
                          expected="loose, tight, noise or all")
     if networks < 1 or noise_networks < 1:
         raise InputError("network count < 1", where="--networks", expected=">= 1")
+    engine = make_engine(engine_name, workers=workers, ray_address=ray_address)
     if study in ("loose", "all"):
-        s = ex.loose_study(n_networks=networks, seed=seed)
+        s = ex.loose_study(n_networks=networks, seed=seed, engine=engine)
         typer.echo(f"\nLoose cooperation (Fig. 6.11): {s.n_nodes} nodes in the unit square, "
                    f"rho = {s.radius_m:g}, seeds in a corner, {networks} networks")
         typer.echo(ex.format_table(s.rows))
         typer.echo(f"way point kinds: {s.waypoint_kinds}")
     if study in ("tight", "all"):
         for n_nodes, side in ((50, 1.0), (10, 0.5), (15, 1.0)):
-            t = ex.tight_study(n_networks=networks, n_nodes=n_nodes, side_m=side, seed=seed + 1)
+            t = ex.tight_study(n_networks=networks, n_nodes=n_nodes, side_m=side, seed=seed + 1,
+                               engine=engine)
             typer.echo(f"\nTight cooperation with a robot (Fig. 6.13-6.17): {n_nodes} nodes in "
                        f"a {side:g} m square, rho = {t.radius_m:g}, d_r = 2 rho, "
                        f"Delta = {t.delta_m:g} m, {networks} networks")
             typer.echo(ex.format_table(t.rows))
     if study in ("noise", "all"):
-        z = ex.noise_study(n_networks=noise_networks, seed=seed + 2)
+        z = ex.noise_study(n_networks=noise_networks, seed=seed + 2, engine=engine)
         typer.echo(f"\nRange noise {100 * z.noise_fraction:g} % (refinement: least squares)")
         typer.echo(ex.format_table(z.rows))
         t = ex.tight_study(n_networks=noise_networks, range_noise_fraction=z.noise_fraction,
-                           seed=seed + 3)
+                           seed=seed + 3, engine=engine)
         typer.echo(f"\nTight cooperation with {100 * z.noise_fraction:g} % range noise "
                    f"(robot odometry exact), {noise_networks} networks")
         typer.echo(ex.format_table(t.rows))
