@@ -53,10 +53,12 @@ from hrtls.attitude.base import AttitudeFilter, AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import make_filter
 from hrtls.calibration.hard_iron import fit_hard_iron
+from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
 from hrtls.data import (
     Activity,
     ImuStream,
     Landmark,
+    OrientationSeries,
     Session,
     SessionMeta,
     StartPose,
@@ -150,6 +152,8 @@ VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 DEFAULT_VAR_YAW_RAD2 = 0.01
 """Yaw variance when the attitude filter gives none (rad^2)."""
+RATE_SAMPLES = 512
+"""Leading accelerometer samples whose median spacing gives the nominal rate (start_session)."""
 SCAN_ROWS_TRIM = 4096
 """Stored anchors of queued RSS scans are trimmed once there are this many (rows)."""
 
@@ -232,6 +236,36 @@ class _Track:
                                 activity=np.concatenate(self.activity)[keep])
 
 
+class _HeldImu:
+    """IMU samples held until the hand-held mounting window has elapsed (aligned arrays)."""
+
+    def __init__(self) -> None:
+        self.t = np.zeros(0)
+        self.acc = np.zeros((0, 3))
+        self.gyr: np.ndarray | None = None
+        self.mag: np.ndarray | None = None
+        self.ot = np.zeros(0)
+        self.oq = np.zeros((0, 4))
+        self.has_orientation = False
+
+    def add(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+            mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
+        first = not len(self.t)
+        self.t = np.concatenate([self.t, t])
+        self.acc = np.concatenate([self.acc, acc])
+        if gyr is not None:
+            self.gyr = gyr.copy() if first or self.gyr is None else np.concatenate([self.gyr, gyr])
+        if mag is not None:
+            self.mag = mag.copy() if first or self.mag is None else np.concatenate([self.mag, mag])
+        if orientation is not None:
+            self.has_orientation = True
+            self.ot = np.concatenate([self.ot, orientation.t])
+            self.oq = np.concatenate([self.oq, orientation.q])
+
+    def orientation(self) -> OrientationSeries | None:
+        return OrientationSeries(self.ot, self.oq) if self.has_orientation else None
+
+
 class Tracker:
     """Track one agent from a session (offline) or from chunks of it (live).
 
@@ -248,28 +282,39 @@ class Tracker:
     # ------------------------------------------------------------------ set-up
     def start(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
-              rate_hz: float, t0: float,
-              mounting_acc_d_m_s2: np.ndarray | None = None,
-              hard_iron_mag_ut: np.ndarray | None = None,
-              hard_iron_up_d: np.ndarray | None = None) -> None:
+              rate_hz: float, t0: float) -> None:
         """Prepare for a recording with these sensors; the next ``update`` continues from t0.
 
-        ``mounting_acc_d_m_s2`` (N, 3): device-frame accelerometer samples for the ``handheld``
-        mounting (``[attitude] mounting``). Offline, :meth:`run` passes the recording's first
-        ``mounting_window_s`` (0: all of it); live, pass the samples available at start (e.g.
-        a few seconds of walking buffered before the first ``update``). Without them the
-        session's mounting is kept (noted in the report).
-
-        ``hard_iron_mag_ut`` (N, 3) and ``hard_iron_up_d`` (3,): raw magnetometer samples and
-        the device's mean up direction (mean accelerometer reading) for ``[attitude]
-        mag_hard_iron = "fit"``; offline, :meth:`run` passes the first
-        ``mag_hard_iron_window_s`` of the recording (0: all of it).
+        Nothing here looks at samples: the hand-held mounting (``[attitude] mounting``) is
+        estimated once ``mounting_window_s`` of accelerometer samples from the start pose have
+        arrived, the hard iron (``mag_hard_iron = "fit"``) by a running fit applied from the
+        time it is accepted.
         """
+        self._begin(meta, landmarks, has_imu=has_imu, has_gyro=has_gyro, has_mag=has_mag,
+                    has_orientation=has_orientation, rate_hz=rate_hz, t0=t0)
+
+    def _begin(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
+               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
+               rate_hz: float, t0: float, fixed_mounting_acc: np.ndarray | None = None,
+               fixed_hard_iron_ut: np.ndarray | None = None) -> None:
+        """:meth:`start`; ``fixed_*``: the whole-recording estimates of ``[offline] two_pass``."""
         cfg = self.config
         self.notes: list[str] = []
-        meta = self._resolve_mounting(meta, mounting_acc_d_m_s2, has_imu=has_imu)
-        self.hard_iron_ut = self._fit_hard_iron(hard_iron_mag_ut, hard_iron_up_d,
-                                                has_mag=has_imu and has_mag, rate_hz=rate_hz)
+        self._two_pass = False
+        self._mounting_pending = cfg.attitude.mounting == "handheld" and has_imu
+        if self._mounting_pending and fixed_mounting_acc is not None:
+            meta = self._resolve_mounting(meta, fixed_mounting_acc)
+            self._mounting_pending = False
+        elif not self._mounting_pending:
+            self._note_session_mounting(meta)
+        self.hard_iron_fixed_ut = fixed_hard_iron_ut
+        self.hard_iron: RunningHardIron | None = None
+        if cfg.attitude.mag_hard_iron == "fit" and has_imu and has_mag and \
+                fixed_hard_iron_ut is None:
+            self.hard_iron = RunningHardIron(RunningHardIronParams(
+                block_samples=max(1, round(rate_hz))))
+        self._rate_hz = rate_hz
+        self._held = _HeldImu()
         self.meta = meta
         geo = None if meta.georeference is None else meta.georeference.to_georeference()
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
@@ -371,34 +416,16 @@ class Tracker:
         # filters already fuse the magnetometer with their own disturbance gates
         # with the hard iron already removed, the compass needs no warm-up of its own
         self._compass = (CompassYaw(self._t_pose, CompassParams(
-                             field_corrected=self.hard_iron_ut is not None))
+                             field_corrected=self.hard_iron is not None
+                             or self.hard_iron_fixed_ut is not None))
                          if cfg.attitude.compass_yaw and has_mag
                          and isinstance(self.attitude_filter, DeviceOrientation) else None)
-        # --- gait
+        # --- gait (with the hand-held mounting: once it is known)
         self.gait: GaitAnalyzer | None = None
         self.running_factor = 1.0
-        if has_imu:
-            self.gait = GaitAnalyzer(
-                rate_hz=rate_hz,
-                step_detector=PllStepDetector() if cfg.gait.step_detector == "pll"
-                else PeakStepDetector(),
-                step_model=self._step_model(meta),
-                activity=self._activity_model(),
-                heading=cfg.gait.heading if self.attitude_method != "none" else "fourier",
-                velocity=VelocityAutomaton() if (cfg.gait.velocity_automaton
-                                                 or cfg.prediction.model == "velocity")
-                else None,
-                mounting_q_bd=None if meta.mounting_q_bd is None
-                else np.asarray(meta.mounting_q_bd, dtype=np.float64),
-                gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
-                walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
-                missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
-                step_yaw=cfg.gait.step_yaw,
-                window_features=cfg.gait.activity != "motion",
-            )
-            if meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
-                self.notes.append("device mounting unknown: step headings follow the device x "
-                                  "axis; only their changes are used (heading in the state)")
+        self._step_model_obj = self._step_model(meta) if has_imu else None
+        if has_imu and not self._mounting_pending:
+            self._build_gait()
         # --- position filter parts
         heading_mode = cfg.prediction.heading_mode
         self.step_predictor = StepPredictor(StepPredictionParams(
@@ -439,54 +466,95 @@ class Tracker:
         self._t_last_sample = t0
         self._started = True
 
-    def _fit_hard_iron(self, mag: np.ndarray | None, up_d: np.ndarray | None, *,
-                       has_mag: bool, rate_hz: float) -> np.ndarray | None:
-        """The configured hard-iron offset (uT, device frame), or None (noted in the report).
+    def _build_gait(self) -> None:
+        """The gait stage, for the mounting now known (``self.meta``)."""
+        cfg = self.config
+        assert self._step_model_obj is not None
+        self.gait = GaitAnalyzer(
+            rate_hz=self._rate_hz,
+            step_detector=PllStepDetector() if cfg.gait.step_detector == "pll"
+            else PeakStepDetector(),
+            step_model=self._step_model_obj,
+            activity=self._activity_model(),
+            heading=cfg.gait.heading if self.attitude_method != "none" else "fourier",
+            velocity=VelocityAutomaton() if (cfg.gait.velocity_automaton
+                                             or cfg.prediction.model == "velocity")
+            else None,
+            mounting_q_bd=None if self.meta.mounting_q_bd is None
+            else np.asarray(self.meta.mounting_q_bd, dtype=np.float64),
+            gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
+            walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
+            missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
+            step_yaw=cfg.gait.step_yaw,
+            window_features=cfg.gait.activity != "motion",
+        )
+        if self.meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
+            self.notes.append("device mounting unknown: step headings follow the device x "
+                              "axis; only their changes are used (heading in the state)")
+
+    def _fit_hard_iron_offline(self, imu: ImuStream) -> np.ndarray | None:
+        """``[offline] two_pass``: the hard iron fitted on the whole recording (or None, noted).
 
         Blocks of ``rate_hz`` magnetometer samples are averaged before the fit: one second when
         the magnetometer runs at the accelerometer rate, longer when it is slower.
         """
-        if self.config.attitude.mag_hard_iron != "fit" or not has_mag:
-            return None
-        if mag is None or not len(mag):
-            self._degrade("magnetometer hard iron: no samples given to start(); field used raw")
+        mag, up_d = hard_iron_samples(imu)
+        if mag is None:
             return None
         try:
-            fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(rate_hz)))
+            fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(imu.accel.rate_hz)))
         except InputError as exc:
-            self._degrade(f"magnetometer hard iron not fitted ({exc}); field used raw")
+            self._offline_notes.append((True, f"magnetometer hard iron not fitted ({exc}); "
+                                        "field used raw"))
             return None
-        self.notes.append(
-            "magnetometer hard iron fitted on the recording's turns: c = ["
-            f"{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
+        self._offline_notes.append((False,
+            "magnetometer hard iron fitted on the whole recording's turns ([offline] two_pass):"
+            f" c = [{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
             f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
-            f"of turning, {fit.n_used} samples")
+            f"of turning, {fit.n_used} samples"))
         return fit.hard_iron_ut
 
-    def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray | None, *,
-                          has_imu: bool) -> SessionMeta:
-        """The session metadata with the configured device mounting (noted in the report)."""
-        kind = self.config.attitude.mounting
-        if kind == "handheld" and has_imu:
-            if acc_d is not None and len(acc_d):
-                try:
-                    q_bd = handheld_mounting_q_bd(acc_d)
-                except InputError as exc:  # e.g. a phone held upright: top edge vertical
-                    self._degrade(f"hand-held mounting not estimable ({exc}); using the "
-                                  "session's mounting")
-                    return meta
-                self.notes.append(
-                    "mounting: hand-held in front (device +y forward), tilt from the mean "
-                    f"specific force of {len(acc_d)} samples: q_bd = "
-                    f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
-                return meta.model_copy(update={"mounting_q_bd": tuple(float(v)
-                                                                       for v in q_bd)})
-            self.notes.append("mounting 'handheld' asked but no accelerometer samples at start; "
-                              "using the session's mounting")
+    def _note_hard_iron(self) -> None:
+        """Report line of the running hard-iron fit (at the end of the recording)."""
+        hi = self.hard_iron
+        if hi is None:
+            return
+        st = hi.state
+        if not hi.accepted:
+            self._degrade("magnetometer hard iron not fitted (no fit accepted: the walk turned "
+                          "too little or the field was disturbed); field used raw")
+            return
+        self.notes.append(
+            "magnetometer hard iron fitted on the turns so far (running fit, first accepted at "
+            f"t = {st.t_accepted:.1f} s, {st.n_fits} fits): c = ["
+            f"{', '.join(f'{v:.2f}' for v in st.c_ut)}] uT, horizontal field "
+            f"{st.field_ut:.1f} uT, residual {st.residual_ut:.2f} uT, {st.arc_deg:.0f} deg "
+            f"of turning, {st.n_used} block means; the field was used raw before")
+
+    def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray) -> SessionMeta:
+        """The session metadata with the hand-held mounting from these samples (noted)."""
+        if len(acc_d):
+            try:
+                q_bd = handheld_mounting_q_bd(acc_d)
+            except InputError as exc:  # e.g. a phone held upright: top edge vertical
+                self._degrade(f"hand-held mounting not estimable ({exc}); using the "
+                              "session's mounting")
+                self._note_session_mounting(meta)
+                return meta
+            self.notes.append(
+                "mounting: hand-held in front (device +y forward), tilt from the mean "
+                f"specific force of {len(acc_d)} samples: q_bd = "
+                f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
+            return meta.model_copy(update={"mounting_q_bd": tuple(float(v) for v in q_bd)})
+        self.notes.append("mounting 'handheld' asked but no accelerometer samples from the start "
+                          "pose on; using the session's mounting")
+        self._note_session_mounting(meta)
+        return meta
+
+    def _note_session_mounting(self, meta: SessionMeta) -> None:
         if meta.mounting_q_bd is not None:
             self.notes.append("mounting: from the session (meta.mounting_q_bd = "
                               f"[{', '.join(f'{v:.4f}' for v in meta.mounting_q_bd)}])")
-        return meta
 
     def _degrade(self, message: str) -> None:
         self.notes.append(message)
@@ -532,41 +600,57 @@ class Tracker:
 
     # ------------------------------------------------------------------ processing
     def run(self, session: Session) -> TrackResult:
-        """Track a whole session (the same code path as the live chunks)."""
-        self.start_session(session)
+        """Track a whole session (the same code path as the live chunks).
+
+        With ``[offline] two_pass = true`` the hard iron and the hand-held mounting are first
+        fitted on the whole recording and kept fixed (offline only, named in the report).
+        """
+        if self.config.offline.two_pass:
+            self._start_two_pass(session)
+        else:
+            self.start_session(session)
         self.update(session)
         return self.finish()
 
     def start_session(self, session: Session) -> None:
-        """:meth:`start` for this session's sensors, with the start samples :meth:`run` uses.
+        """:meth:`start` with the sensors this session has.
 
-        The hand-held mounting and the hard-iron fit get the recording's own samples (their
-        windows), so feeding the session's chunks to :meth:`update` afterwards reproduces
-        :meth:`run` exactly.
+        Of its samples only the first ``RATE_SAMPLES`` accelerometer times are read (the
+        nominal rate: median spacing), so a session cut later starts the same tracker.
         """
+        self._begin(**self._session_sensors(session))
+
+    @staticmethod
+    def _session_sensors(session: Session) -> dict[str, Any]:
         imu = session.imu
-        rate = imu.accel.rate_hz if imu is not None else 0.0
-        t0 = session.time_span()[0]
-        acc_mount = None
+        return {"meta": session.meta, "landmarks": session.landmarks, "has_imu": imu is not None,
+                "has_gyro": imu is not None and imu.gyro is not None,
+                "has_mag": imu is not None and imu.mag is not None,
+                "has_orientation": session.orientation is not None,
+                "rate_hz": _leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
+                "t0": session.time_span()[0]}
+
+    def _start_two_pass(self, session: Session) -> None:
+        """``[offline] two_pass``: start with the whole recording's hard iron and mounting."""
+        imu = session.imu
+        self._offline_notes: list[tuple[bool, str]] = []
+        acc_mount = hard_iron = None
         if imu is not None and self.config.attitude.mounting == "handheld":
             # the walk starts at the start pose: samples before it (phone lying or being
             # picked up) would bias the mean tilt
             pose_t = session.meta.start_pose.t if session.meta.start_pose is not None else None
             ta = imu.accel.t
-            t_from = float(ta[0]) if pose_t is None else max(float(ta[0]), float(pose_t))
-            sel = ta >= t_from
-            if (w := self.config.attitude.mounting_window_s) > 0:
-                sel &= ta < t_from + w
+            sel = ta >= (float(ta[0]) if pose_t is None else max(float(ta[0]), float(pose_t)))
             acc_mount = imu.accel.values[sel] if sel.any() else imu.accel.values
-        mag_hi = up_hi = None
-        if imu is not None and self.config.attitude.mag_hard_iron == "fit":
-            mag_hi, up_hi = hard_iron_samples(imu, self.config.attitude.mag_hard_iron_window_s)
-        self.start(session.meta, session.landmarks, has_imu=imu is not None,
-                   has_gyro=imu is not None and imu.gyro is not None,
-                   has_mag=imu is not None and imu.mag is not None,
-                   has_orientation=session.orientation is not None, rate_hz=rate, t0=t0,
-                   mounting_acc_d_m_s2=acc_mount, hard_iron_mag_ut=mag_hi,
-                   hard_iron_up_d=up_hi)
+        if imu is not None and imu.mag is not None and \
+                self.config.attitude.mag_hard_iron == "fit":
+            hard_iron = self._fit_hard_iron_offline(imu)
+        notes = self._offline_notes
+        self._begin(**self._session_sensors(session), fixed_mounting_acc=acc_mount,
+                    fixed_hard_iron_ut=hard_iron)
+        self._two_pass = True
+        for degraded, text in notes:
+            (self._degrade if degraded else self.notes.append)(text)
 
     def update(self, chunk: Session) -> None:
         """Consume the samples and observations of one chunk (in time order across chunks)."""
@@ -574,18 +658,16 @@ class Tracker:
             raise InputError("update() before start()", where="Tracker",
                              expected="start() (or run()) first")
         self._queue_observations(chunk)
-        if chunk.imu is not None and self.gait is not None:
+        if chunk.imu is not None and self.has_imu:
             t, acc, gyr, mag = chunk.imu.aligned()
-            q_nd = self._attitude_update(chunk, t, acc, gyr, mag)
-            result = self.gait.update(t, acc, q_nd)
-            self._consume_gait(result, t, q_nd)
-            self._t_last_sample = float(t[-1])
-            # events before the last classified sample are final, except steps the detector
-            # may still report (it needs up to LIVE_LATENCY_S of later samples)
-            if len(result.activity_t):
-                self._horizon = max(self._horizon, min(float(result.activity_t[-1]),
-                                                       float(t[-1]) - LIVE_LATENCY_S))
-        elif self.gait is None:
+            if self._mounting_pending:
+                self._held.add(t, acc, gyr, mag, chunk.orientation)
+                t_from = max(float(self._held.t[0]), self._t_pose)
+                if float(t[-1]) >= t_from + self.config.attitude.mounting_window_s:
+                    self._release_held()
+            else:
+                self._process_imu(t, acc, gyr, mag, chunk.orientation)
+        elif not self.has_imu:
             self._horizon = max(self._horizon, _chunk_end(chunk))
         # tag reads / RSS readings still being grouped hold back everything after them
         limit = self._horizon
@@ -596,6 +678,9 @@ class Tracker:
 
     def finish(self) -> TrackResult:
         """End of the recording: release held steps and observations, build the result."""
+        if self._mounting_pending:   # shorter than the mounting window: what there is
+            self._release_held()
+        self._note_hard_iron()
         if self.gait is not None:
             self._consume_gait(self.gait.flush(), None, None)
         self._flush_tag_groups(math.inf)
@@ -661,16 +746,56 @@ class Tracker:
         prm[ev.P_PL_SIG] = self.path_loss.sigma_db
         return prm
 
-    def _attitude_update(self, chunk: Session, t: np.ndarray, acc: np.ndarray,
-                         gyr: np.ndarray | None, mag: np.ndarray | None) -> np.ndarray | None:
+    def _process_imu(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+                     mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
+        """Attitude and gait over one chunk of aligned samples; advances the horizon."""
+        assert self.gait is not None
+        q_nd = self._attitude_update(t, acc, gyr, mag, orientation)
+        result = self.gait.update(t, acc, q_nd)
+        self._consume_gait(result, t, q_nd)
+        self._t_last_sample = float(t[-1])
+        # events before the last classified sample are final, except steps the detector
+        # may still report (it needs up to LIVE_LATENCY_S of later samples)
+        if len(result.activity_t):
+            self._horizon = max(self._horizon, min(float(result.activity_t[-1]),
+                                                   float(t[-1]) - LIVE_LATENCY_S))
+
+    def _release_held(self) -> None:
+        """The mounting window has elapsed (or the recording ended): mounting, gait, samples."""
+        held = self._held
+        self._mounting_pending = False
+        if not len(held.t):
+            self.meta = self._resolve_mounting(self.meta, np.zeros((0, 3)))
+            self._build_gait()
+            return
+        t_from = max(float(held.t[0]), self._t_pose)
+        sel = (held.t >= t_from) & (held.t < t_from + self.config.attitude.mounting_window_s)
+        self.meta = self._resolve_mounting(self.meta, held.acc[sel])
+        self._build_gait()
+        self._held = _HeldImu()
+        self._process_imu(held.t, held.acc, held.gyr, held.mag, held.orientation())
+
+    def _hard_iron_at(self, t: np.ndarray, acc: np.ndarray, mag: np.ndarray
+                      ) -> np.ndarray | None:
+        """Hard iron in force at each sample (N, 3; NaN rows: not known yet), or None."""
+        if self.hard_iron_fixed_ut is not None:
+            return np.broadcast_to(self.hard_iron_fixed_ut, mag.shape)
+        if self.hard_iron is None:
+            return None
+        return self.hard_iron.update(t, mag, acc)
+
+    def _attitude_update(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+                         mag: np.ndarray | None, orientation: OrientationSeries | None
+                         ) -> np.ndarray | None:
         filt = self.attitude_filter
         if filt is None:
             return None
-        if mag is not None and self.hard_iron_ut is not None:
-            mag = mag - self.hard_iron_ut
+        c_of = None if mag is None else self._hard_iron_at(t, acc, mag)
+        if mag is not None and c_of is not None:
+            mag = mag - np.nan_to_num(c_of, nan=0.0)
         if isinstance(filt, DeviceOrientation):
-            assert chunk.orientation is not None
-            res = filt.run(chunk.orientation, t)
+            assert orientation is not None
+            res = filt.run(orientation, t)
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DegradedInputWarning)
@@ -680,7 +805,7 @@ class Tracker:
         if res.frame == "nb" and self.meta.mounting_q_bd is not None:
             q = quat_multiply(q, np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
         if self._compass is not None and mag is not None and len(mag) == len(res.t):
-            q = self._compass.correct(res.t, np.asarray(q), mag)
+            q = self._compass.correct(res.t, np.asarray(q), mag, c_of)
         var = (res.var_rpy[:, 2] if res.var_rpy is not None
                else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
         # keep the yaw variance of the samples later events may still need
@@ -1476,6 +1601,7 @@ class Tracker:
             "running_step_length_scale": self.run_scale,
             "running_step_factor": self.running_factor,
             "yaw_pseudo_measurements": len(self.yaw_pseudo),
+            "offline": {"two_pass": self._two_pass},
             "summary": {
                 "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
                 "steps": len(steps),
@@ -1527,6 +1653,12 @@ def average_rss_per_anchor(rss: RssReadings, window_s: float, *,
     anchor = anchors[uniq // n_bins]
     order = np.lexsort((anchor, t_last))
     return RssReadings(t_last[order], anchor[order], mean[order], rss.name)
+
+
+def _leading_rate_hz(t: np.ndarray) -> float:
+    """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
+    head = t[:RATE_SAMPLES]
+    return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0
 
 
 def _chunk_end(chunk: Session) -> float:
