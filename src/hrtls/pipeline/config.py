@@ -215,3 +215,34 @@ def preset(name: str) -> TrackerConfig:
     text = resources.files("hrtls.pipeline").joinpath("presets", f"{name}.toml").read_text(
         encoding="utf-8")
     return _validate(tomllib.loads(text), where=f"preset {name}")
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise InputError(f"a {type(value).__name__}", where="to_toml", expected="a TOML scalar")
+
+
+def to_toml(config: TrackerConfig) -> str:
+    """The complete effective configuration as TOML (``load_config`` reads it back).
+
+    Every key is written with its value (unset optional keys, e.g. ``weinberg_k``, are written
+    as comments: TOML has no null).
+    """
+    data = config.model_dump(mode="json")
+    top = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    out = [*top, ""]
+    for section, values in data.items():
+        if not isinstance(values, dict):
+            continue
+        out.append(f"[{section}]")
+        for k, v in values.items():
+            out.append(f"# {k} = (not set)" if v is None else f"{k} = {_toml_value(v)}")
+        out.append("")
+    return "\n".join(out)

@@ -71,7 +71,7 @@ from hrtls.data.observations import (
     RssReadings,
     TagDetections,
 )
-from hrtls.errors import DegradedInputWarning, InputError
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
 from hrtls.fusion.fixes import (
     DRIFT_MIN_PATH_M,
@@ -122,10 +122,12 @@ from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
+from hrtls.pipeline.output import Estimates, TrackRows
 
 FloatArray = np.ndarray
 
@@ -199,43 +201,6 @@ class TrackResult:
     report: dict[str, Any]
 
 
-class _Track:
-    """Accumulated output rows, in blocks (one row per event; several at one time keep the last)."""
-
-    def __init__(self) -> None:
-        self.t: list[np.ndarray] = []
-        self.x: list[np.ndarray] = []
-        self.cov: list[np.ndarray] = []
-        self.var_h: list[np.ndarray] = []
-        self.activity: list[np.ndarray] = []
-
-    def add(self, state: FilterState, activity: int) -> None:
-        self.add_block(np.array([state.t]), state.x[None, :], state.P[None, :2, :2],
-                       np.array([state.P[IH, IH]]), np.array([activity]))
-
-    def add_block(self, t: np.ndarray, x: np.ndarray, cov_xy: np.ndarray, var_h: np.ndarray,
-                  activity: np.ndarray) -> None:
-        if len(t):
-            self.t.append(t)
-            self.x.append(x)
-            self.cov.append(cov_xy)
-            self.var_h.append(var_h)
-            self.activity.append(np.asarray(activity, dtype=np.int64))
-
-    def trajectory(self) -> Trajectory:
-        if not self.t:
-            return Trajectory.build(t=np.zeros(0), xyz=np.zeros((0, 3)))
-        t = np.concatenate(self.t)
-        x = np.concatenate(self.x)
-        # several events at one time: keep the latest state for that time
-        keep = np.ones(len(t), dtype=bool)
-        keep[:-1] = t[1:] > t[:-1]
-        return Trajectory.build(t=t[keep], xyz=x[keep, :3], heading_rad=x[keep, IH],
-                                cov_xy=np.concatenate(self.cov)[keep],
-                                var_heading=np.concatenate(self.var_h)[keep],
-                                activity=np.concatenate(self.activity)[keep])
-
-
 class _HeldImu:
     """IMU samples held until the hand-held mounting window has elapsed (aligned arrays)."""
 
@@ -299,7 +264,15 @@ class Tracker:
                fixed_hard_iron_ut: np.ndarray | None = None) -> None:
         """:meth:`start`; ``fixed_*``: the whole-recording estimates of ``[offline] two_pass``."""
         cfg = self.config
+        self._start_args: dict[str, Any] = {
+            "meta": meta.model_dump(mode="json"),
+            "landmarks": {k: lm.model_dump(mode="json") for k, lm in landmarks.items()},
+            "has_imu": has_imu, "has_gyro": has_gyro, "has_mag": has_mag,
+            "has_orientation": has_orientation, "rate_hz": rate_hz, "t0": t0}
         self.notes: list[str] = []
+        self._steps_hidden = 0
+        self._diag_base: dict[str, Any] = {"counts": {}, "rejected": [], "accepted_t": [],
+                                           "yaw_pseudo": 0}
         self._two_pass = False
         self._mounting_pending = cfg.attitude.mounting == "handheld" and has_imu
         if self._mounting_pending and fixed_mounting_acc is not None:
@@ -320,7 +293,7 @@ class Tracker:
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
                           else lm for k, lm in landmarks.items()}
         self.diagnostics = DiagnosticsLog()
-        self._track = _Track()
+        self._track = TrackRows()
         self._steps: list[StepEvents] = []
         self._attitude: list[AttitudeResult] = []
         self._pending: list[tuple[float, int, int, Any]] = []
@@ -690,12 +663,164 @@ class Tracker:
         if self._velocity_mode:
             self._track.add(self.state, self._last_activity)
         trajectory = self._track.trajectory()
-        steps = (StepEvents.empty() if not self._steps else _concat_steps(self._steps))
+        shown = self._steps[self._steps_hidden:]
+        steps = StepEvents.empty() if not shown else _concat_steps(shown)
         # one chunk (offline run): its result as is, no copy of the per-sample arrays
         attitude = (None if not self._attitude else self._attitude[0]
                     if len(self._attitude) == 1 else AttitudeResult.concatenate(self._attitude))
         return TrackResult(trajectory, steps, attitude, self.diagnostics,
                            self._report(trajectory, steps))
+
+
+    # ------------------------------------------------------------------ live reading
+    def estimates_since(self, t_after_s: float = -math.inf) -> Estimates:
+        """The trajectory rows produced so far with time > ``t_after_s`` (no :meth:`finish`).
+
+        Rows are final except the last one: a later event at the same time replaces it (read
+        again from the previous row's time to see it). After :meth:`restore`, rows from before
+        the snapshot are not repeated.
+        """
+        if not self._started:
+            raise InputError("estimates_since() before start()", where="Tracker",
+                             expected="start() first")
+        acc = self.diagnostics.accepted_times()
+        base = np.asarray(self._diag_base["accepted_t"], dtype=np.float64)
+        if len(base):
+            acc = np.concatenate([base, acc])
+        return self._track.since(t_after_s, acc, self.meta.floor_height_m)
+
+    # ------------------------------------------------------------------ snapshot / restore
+    _PLAIN = ("_anchor_xy", "_avg_buf_a", "_avg_buf_t", "_avg_buf_v", "_bulk_count",
+              "_corrected_since_fix", "_fix_phase_set", "_horizon", "_ignored_before_pose",
+              "_labels", "_last_activity", "_last_speed", "_last_step_end",
+              "_mounting_pending", "_path_since_anchor", "_pending", "_recent_heading",
+              "_rss_note", "_run_since_anchor", "_scan_base", "_scan_buf_a", "_scan_buf_t",
+              "_scan_buf_v", "_scan_rows", "_seen_obs", "_seq", "_soft_since_anchor",
+              "_stretch", "_t_last_sample", "_tag_buf_id", "_tag_buf_t", "_var_t", "_var_v",
+              "_vel_bin", "_vel_t", "_vel_v", "_vel_var", "_vel_yaw", "_yaw_offset",
+              "channel_state", "fix_schedule", "notes", "run_scale", "step_scale", "state",
+              "tag_memory", "_two_pass", "hard_iron_fixed_ut")
+    _BULK = ("_bulk_t", "_bulk_k", "_bulk_seq", "_bulk_ev", "_bulk_data", "_bulk_src",
+             "_bulk_label")
+    _COMPASS = ("n_tot", "y_tot", "n_cur", "y_cur", "cur_block", "c", "radius", "history",
+                "s1", "s2", "n_ref", "t_first", "smooth", "last_error")
+    _HELD = ("t", "acc", "gyr", "mag", "ot", "oq", "has_orientation")
+
+    def snapshot(self) -> bytes:
+        """The state as bytes (versioned, zlib + msgpack of plain values, no code).
+
+        Holds what the tracker needs to continue (filters, gait and attitude states, held
+        samples and events, learned scales, hard iron, mounting, report counters), not the
+        rows already produced: read those with :meth:`estimates_since` first. A tracker from
+        :meth:`restore` fed the rest of the data produces the same rows as this one would.
+        """
+        if not self._started:
+            raise InputError("snapshot() before start()", where="Tracker",
+                             expected="start() first")
+        st = self.state
+        plain = {name: getattr(self, name) for name in self._PLAIN}
+        i0 = self._bulk_i
+        plain.update({name: getattr(self, name)[i0:] for name in self._BULK})
+        plain["_label_kind"] = self._label_kind
+        plain["_label_reason"] = self._label_reason
+        # history the future still needs: the step block in progress, the motion blocks from
+        # the latest one before the state's time, the last output row
+        j = max([k for k, b in enumerate(self._steps) if len(b) and b.t_start[0] <= st.t],
+                default=0)
+        steps = self._steps[j:]
+        m = max([k for k, b in enumerate(self._motion_t) if len(b) and b[0] <= st.t], default=0)
+        rows = self._track
+        last_row = None
+        if rows.last_time() is not None:
+            last_row = (float(rows.t[-1][-1]), rows.x[-1][-1], rows.cov[-1][-1],
+                        float(rows.var_h[-1][-1]), int(rows.activity[-1][-1]))
+        rejected = list(self._diag_base["rejected"])
+        rejected += [d.to_dict() for d in self.diagnostics.first_rejected(200 - len(rejected))]
+        acc_t = self.diagnostics.accepted_times()
+        counts = self._report_counts()
+        out: dict[str, Any] = {
+            "config": self.config.model_dump(mode="json"),
+            "start": self._start_args,
+            "meta": self.meta.model_dump(mode="json"),
+            "gait_built": self.gait is not None,
+            "plain": plain,
+            "steps": steps,
+            "motion_t": self._motion_t[m:],
+            "motion_sigma": self._motion_sigma[m:],
+            "last_row": last_row,
+            "fix_phase_s": self.fix_corrector.params.phase_s,
+            "gait": None if self.gait is None else self.gait.state(),
+            "attitude": (self.attitude_filter.state
+                         if isinstance(self.attitude_filter, AttitudeFilter) else None),
+            "compass": None if self._compass is None else {
+                k: getattr(self._compass, k) for k in self._COMPASS},
+            "hard_iron": None if self.hard_iron is None else self.hard_iron.state,
+            "held": {k: getattr(self._held, k) for k in self._HELD},
+            "diag": {"counts": counts, "rejected": rejected[:200],
+                     "accepted_t": ([float(acc_t[-1])] if len(acc_t)
+                                    else list(self._diag_base["accepted_t"])[-1:]),
+                     "yaw_pseudo": self._diag_base["yaw_pseudo"] + len(self.yaw_pseudo)},
+        }
+        return snap.pack(out)
+
+    def _report_counts(self) -> dict[str, dict[str, int]]:
+        counts = self.diagnostics.counts()
+        for kind, by_status in self._diag_base["counts"].items():
+            d = counts.setdefault(kind, {})
+            for status, n in by_status.items():
+                d[status] = d.get(status, 0) + n
+        return counts
+
+    @classmethod
+    def restore(cls, data: bytes) -> Tracker:
+        """A tracker continuing from :meth:`snapshot` bytes (its configuration inside)."""
+        d = snap.unpack(data)
+        try:
+            tr = cls(TrackerConfig.model_validate(d["config"]))
+            a = d["start"]
+            tr._begin(SessionMeta.model_validate(a["meta"]),
+                      {k: Landmark.model_validate(v) for k, v in a["landmarks"].items()},
+                      has_imu=a["has_imu"], has_gyro=a["has_gyro"], has_mag=a["has_mag"],
+                      has_orientation=a["has_orientation"], rate_hz=a["rate_hz"], t0=a["t0"],
+                      fixed_hard_iron_ut=d["plain"]["hard_iron_fixed_ut"])
+            tr.meta = SessionMeta.model_validate(d["meta"])
+            if d["gait_built"] and tr.gait is None:
+                tr._build_gait()
+            for name, value in d["plain"].items():
+                setattr(tr, name, value)
+            tr._bulk_i = 0
+            tr._label_kind = np.asarray(d["plain"]["_label_kind"], dtype=object)
+            tr._label_reason = np.asarray(d["plain"]["_label_reason"], dtype=object)
+            tr._params = tr._kernel_params()
+            tr._steps = list(d["steps"])
+            tr._steps_hidden = len(tr._steps)
+            tr._motion_t = list(d["motion_t"])
+            tr._motion_sigma = list(d["motion_sigma"])
+            tr._track = TrackRows()
+            if d["last_row"] is not None:
+                t_r, x_r, cov_r, var_r, act_r = d["last_row"]
+                tr._track.add_block(np.array([t_r]), x_r[None, :], cov_r[None], np.array([var_r]),
+                                    np.array([act_r]))
+                tr._track.hidden = 1
+            if tr._fix_phase_set:
+                tr.fix_corrector = FixCorrector(replace(tr.fix_corrector.params,
+                                                        phase_s=d["fix_phase_s"]))
+            if tr.gait is not None:
+                tr.gait.restore(d["gait"])
+            if isinstance(tr.attitude_filter, AttitudeFilter):
+                tr.attitude_filter.restore(d["attitude"])
+            if tr._compass is not None:
+                for k, v in d["compass"].items():
+                    setattr(tr._compass, k, v)
+            if tr.hard_iron is not None:
+                tr.hard_iron.state = d["hard_iron"]
+            for k, v in d["held"].items():
+                setattr(tr._held, k, v)
+            tr._diag_base = d["diag"]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise FormatError(f"incomplete or foreign snapshot ({exc!r})", where="snapshot",
+                              expected="bytes from Tracker.snapshot()") from None
+        return tr
 
     # ------------------------------------------------------------------ stages
     def _kernel_params(self) -> np.ndarray:
@@ -1580,7 +1705,7 @@ class Tracker:
 
     # ------------------------------------------------------------------ report
     def _report(self, trajectory: Trajectory, steps: StepEvents) -> dict[str, Any]:
-        counts = self.diagnostics.counts()
+        counts = self._report_counts()
         if self._t_pose > self._t0:
             ignored = ", ".join(f"{n} {k}" for k, n in self._ignored_before_pose.items())
             self.notes.append(f"start pose holds at t = {self._t_pose:.3f} s: attitude and gait "
@@ -1589,7 +1714,8 @@ class Tracker:
         if self.has_imu and not self._seen_obs:
             self.notes.append("no infrastructure observations: pure dead reckoning (the error "
                               "grows with the distance walked)")
-        rejected = [d.to_dict() for d in self.diagnostics.first_rejected(200)]
+        rejected = list(self._diag_base["rejected"])
+        rejected += [d.to_dict() for d in self.diagnostics.first_rejected(200 - len(rejected))]
         final = self.state
         report: dict[str, Any] = {
             "config": self.config.model_dump(),
@@ -1600,7 +1726,7 @@ class Tracker:
             "step_length_scale": self.step_scale,
             "running_step_length_scale": self.run_scale,
             "running_step_factor": self.running_factor,
-            "yaw_pseudo_measurements": len(self.yaw_pseudo),
+            "yaw_pseudo_measurements": self._diag_base["yaw_pseudo"] + len(self.yaw_pseudo),
             "offline": {"two_pass": self._two_pass},
             "summary": {
                 "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
