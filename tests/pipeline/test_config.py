@@ -120,3 +120,38 @@ def test_walking_bout_keys_reach_the_gait_stage(office: SimulationResult) -> Non
     # both keep the steps of a continuous office walk (bouts drop only isolated steps)
     assert abs(len(bouts.steps) - true_steps) <= 0.03 * true_steps
     assert abs(len(bouts.steps) - len(plain.steps)) <= 0.03 * len(plain.steps)
+
+
+# ---------------------------------------------------------------- hrtls config show
+@pytest.mark.parametrize("name", PRESETS)
+def test_config_show_round_trips(tmp_path: Path, name: str) -> None:
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+    from hrtls.pipeline.config import load_config
+
+    out = CliRunner().invoke(app, ["config", "show", "--preset", name])
+    assert out.exit_code == 0, out.output
+    path = tmp_path / "cfg.toml"
+    path.write_text(out.output, encoding="utf-8")
+    assert load_config(path) == preset(name)
+    again = CliRunner().invoke(app, ["config", "show", "--config", str(path)])
+    assert again.output == out.output
+
+
+def test_config_show_unknown_key_names_it(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+
+    path = tmp_path / "bad.toml"
+    path.write_text("[attitude]\nmounting_windw_s = 3.0\n", encoding="utf-8")
+    out = CliRunner().invoke(app, ["config", "show", "--config", str(path)])
+    assert out.exit_code != 0
+    assert "mounting_windw_s" in out.output
+
+
+def test_default_tracker_is_the_default_preset() -> None:
+    from hrtls.pipeline import Tracker
+
+    assert Tracker().config == preset("default")

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from hrtls.data import RssReadings
+from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.errors import InputError
 from hrtls.frames import quat_rotate
 from hrtls.jobs import ipin_eval
@@ -18,7 +19,7 @@ from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.config import PRESETS, TrackerConfig
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
-from hrtls.pipeline.tracker import TrackResult, average_rss_per_anchor, hard_iron_samples
+from hrtls.pipeline.tracker import TrackResult, average_rss_per_anchor
 from hrtls.sim.scenarios import SimulationResult
 
 from .test_chunked import assert_same
@@ -69,32 +70,35 @@ def test_handheld_mounting_is_estimated_and_noted(office: SimulationResult) -> N
     assert any(n.startswith("mounting: from the session") for n in res0.report["notes"])
 
 
-def _chunked(cfg: TrackerConfig, sim: SimulationResult, chunk_s: float,
-             acc: np.ndarray | None) -> TrackResult:
+def _chunked(cfg: TrackerConfig, sim: SimulationResult, chunk_s: float) -> TrackResult:
     s = sim.session
-    imu = s.imu
-    assert imu is not None
     tr = Tracker(cfg)
-    mag_hi, up_hi = hard_iron_samples(imu)
-    tr.start(s.meta, s.landmarks, has_imu=True, has_gyro=imu.gyro is not None,
-             has_mag=imu.mag is not None, has_orientation=s.orientation is not None,
-             rate_hz=imu.accel.rate_hz, t0=s.time_span()[0], mounting_acc_d_m_s2=acc,
-             hard_iron_mag_ut=mag_hi, hard_iron_up_d=up_hi)
+    tr.start_session(s)
     for part in split_session(s, chunk_s):
         tr.update(part)
     return tr.finish()
 
 
-def test_handheld_live_needs_samples_at_start(office: SimulationResult) -> None:
-    """Live: the samples given to start() decide; none -> the session's mounting (noted)."""
+def test_handheld_live_equals_offline_and_uses_the_leading_window(
+        office: SimulationResult) -> None:
+    """The mounting comes from the first mounting_window_s after the pose, chunked or not."""
     cfg = _handheld(office)
     imu = office.session.imu
     assert imu is not None
     offline = Tracker(cfg).run(office.session)
-    live = _chunked(cfg, office, 5.0, imu.accel.values)  # the whole walk, as offline
-    assert_same(offline, live)
-    none = _chunked(cfg, office, 5.0, None)
-    assert any("no accelerometer samples at start" in n for n in none.report["notes"])
+    assert_same(offline, _chunked(cfg, office, 5.0))
+    note = next(n for n in offline.report["notes"] if n.startswith("mounting: hand-held"))
+    rate = imu.accel.rate_hz
+    n_win = int(np.count_nonzero(imu.accel.t < imu.accel.t[0] + cfg.attitude.mounting_window_s))
+    assert f"specific force of {n_win} samples" in note, (note, rate)
+    q_expected = handheld_mounting_q_bd(imu.accel.values[:n_win])
+    assert note.endswith("[" + ", ".join(f"{v:.4f}" for v in q_expected) + "]")
+    # [offline] two_pass: the whole recording's mean specific force
+    two = _with(cfg, "offline", two_pass=True)
+    res2 = Tracker(two).run(office.session)
+    assert any(f"specific force of {len(imu.accel.t)} samples" in n
+               for n in res2.report["notes"])
+    assert res2.report["offline"]["two_pass"] is True
 
 
 # ---------------------------------------------------------------- RSS averaging
@@ -151,7 +155,7 @@ def test_average_split_at_window_edges_is_the_same(rows: list[tuple[float, str, 
 def test_rss_average_chunked_equals_offline(office: SimulationResult, average_s: float) -> None:
     cfg = _with(preset("default"), "rss", average_s=average_s)
     offline = Tracker(cfg).run(office.session)
-    assert_same(offline, _chunked(cfg, office, 5.0, None))
+    assert_same(offline, _chunked(cfg, office, 5.0))
     raw = Tracker(preset("default")).run(office.session)
     n_avg = sum(offline.report["corrections"]["rss"].values())
     n_raw = sum(raw.report["corrections"]["rss"].values())
@@ -160,7 +164,14 @@ def test_rss_average_chunked_equals_offline(office: SimulationResult, average_s:
 
 def test_handheld_upright_phone_degrades(office: SimulationResult) -> None:
     """Top edge vertical: the forward axis is undefined; the session's mounting is kept."""
-    upright = np.tile([0.0, 9.81, 0.0], (100, 1))
-    res = _chunked(_handheld(office), office, 30.0, upright)
+    imu = office.session.imu
+    assert imu is not None
+    # the accelerometer of a phone standing on its bottom edge, gravity along device +y
+    acc = np.tile([0.0, 9.81, 0.0], (len(imu.accel.t), 1))
+    upright = office.session.with_parts(imu=ImuStream(
+        SensorSeries(imu.accel.t, acc, "accelerometer"), imu.gyro, imu.mag, check_units=False))
+    sim = SimulationResult(**{**{f: getattr(office, f) for f in office.__dataclass_fields__},
+                              "session": upright})
+    res = _chunked(_handheld(office), sim, 30.0)
     assert any("not estimable" in n for n in res.report["notes"])
     assert np.all(np.isfinite(res.trajectory.xyz))

@@ -139,6 +139,7 @@ def _register() -> None:
     """Attach the commands that live in their own modules."""
     from hrtls.cli import attitude as attitude_cli
     from hrtls.cli import bench as bench_cli
+    from hrtls.cli import config as config_cli
     from hrtls.cli import gait as gait_cli
     from hrtls.cli import ipin as ipin_cli
     from hrtls.cli import sim as sim_cli
@@ -156,6 +157,7 @@ def _register() -> None:
     app.add_typer(gait_cli.activity_app, name="activity")
     app.add_typer(wsn_cli.app, name="wsn")
     app.add_typer(bench_cli.app, name="bench")
+    app.add_typer(config_cli.app, name="config")
 
 
 _register()

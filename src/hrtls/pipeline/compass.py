@@ -25,7 +25,10 @@ rotated back about the vertical by it.
 * ``field_corrected = True``: the field given is already hard-iron corrected (the tracker's
   ``[attitude] mag_hard_iron = "fit"``, :mod:`hrtls.calibration.hard_iron`). There is no
   warm-up, and until the own fit has settled ``c`` is zero and the field magnitude is the RMS
-  of the samples so far.
+  of the samples so far. A running external estimate is given per sample
+  (``hard_iron_ut`` of :meth:`CompassYaw.correct`, NaN rows before it is known): those samples
+  come raw and are neither fitted nor corrected, and the reference direction, kept on the raw
+  field, is taken with the external offset in force at each sample.
 """
 
 from __future__ import annotations
@@ -134,11 +137,20 @@ class CompassYaw:
                        and float(np.hypot(*(self.c[:2] - old[:2]))) <= prm.max_drift_c_ut)
             self.radius = r if settled and lo <= r <= hi else math.nan
 
-    def correct(self, t: FloatArray, q_nd: FloatArray, mag: FloatArray) -> FloatArray:
-        """The attitude ``q_nd`` with the estimated yaw wander removed (same shape)."""
+    def correct(self, t: FloatArray, q_nd: FloatArray, mag: FloatArray,
+                hard_iron_ut: FloatArray | None = None) -> FloatArray:
+        """The attitude ``q_nd`` with the estimated yaw wander removed (same shape).
+
+        ``hard_iron_ut`` (N, 3): the external offset already removed from ``mag`` at each
+        sample (``field_corrected``; NaN rows: not known yet, ``mag`` raw there).
+        """
         prm = self.params
         if len(t) == 0:
             return np.asarray(q_nd)
+        known = (np.ones(len(t), dtype=bool) if hard_iron_ut is None
+                 else np.all(np.isfinite(hard_iron_ut), axis=1))
+        c_ext = np.zeros((len(t), 3)) if hard_iron_ut is None else np.where(
+            known[:, None], hard_iron_ut, 0.0)
         if math.isnan(self.t_first):
             self.t_first = float(t[0])
         blocks = np.floor(t / prm.block_s)
@@ -161,10 +173,12 @@ class CompassYaw:
             r_of[i0:i1] = self.radius
             rr = rows[i0:i1]
             bb = b[i0:i1]
+            keep = known[i0:i1]
             if math.isfinite(self.radius):
                 # disturbed samples do not enter the fit
-                keep = (np.abs(np.linalg.norm(mag[i0:i1] - self.c, axis=1) - self.radius)
-                        <= prm.gate_fraction * self.radius)
+                keep = keep & (np.abs(np.linalg.norm(mag[i0:i1] - self.c, axis=1)
+                                      - self.radius) <= prm.gate_fraction * self.radius)
+            if not keep.all():
                 rr, bb = rr[keep], bb[keep]
             self.n_cur += rr.T @ rr
             self.y_cur += rr.T @ bb
@@ -173,13 +187,13 @@ class CompassYaw:
         ang = np.arctan2(mn[:, 1], mn[:, 0])
         ref = (t >= self.t_pose) & (t < self.t_pose + prm.reference_s)
         if np.any(ref):
-            self.s1 += np.einsum("nij,nj->i", rot[ref], mag[ref])
+            self.s1 += np.einsum("nij,nj->i", rot[ref], mag[ref] + c_ext[ref])
             self.s2 += np.sum(rot[ref], axis=0)
             self.n_ref += int(np.count_nonzero(ref))
         err = np.zeros(len(t))
         ok = np.zeros(len(t))
         if self.n_ref:
-            v = self.s1[None, :] - np.einsum("ij,nj->ni", self.s2, c_of)
+            v = self.s1[None, :] - np.einsum("ij,nj->ni", self.s2, c_of + c_ext)
             a_ref = np.arctan2(v[:, 1], v[:, 0])
             err = np.asarray(np.angle(np.exp(1j * (ang - a_ref))))
             mag_r = np.linalg.norm(mag - c_of, axis=1)
@@ -188,7 +202,7 @@ class CompassYaw:
             dip_ref = np.arctan2(-v[:, 2], np.hypot(v[:, 0], v[:, 1]))
             warmup = 0.0 if prm.field_corrected else prm.warmup_s
             ok = ((t >= self.t_pose + prm.reference_s) & (t - self.t_first >= warmup)
-                  & np.isfinite(r_of)
+                  & known & np.isfinite(r_of)
                   & (np.abs(mag_r - r_of) <= prm.gate_fraction * np.nan_to_num(r_of))
                   & (np.abs(dip - dip_ref) <= math.radians(prm.gate_dip_deg)))
         e = _smooth_kernel(np.asarray(t, dtype=np.float64), err, ok.astype(np.float64),

@@ -37,15 +37,14 @@ class AttitudeConfig(_Section):
     ``handheld`` estimates it for a phone held in front in portrait (top edge forward) from
     the mean specific force (:func:`hrtls.pipeline.mounting.handheld_mounting_q_bd`)."""
     mounting_window_s: float = Field(
-        default=0.0, ge=0.0, description="handheld mounting: accelerometer seconds from the "
-        "start used offline (0 = the whole recording); live, the samples given to start()")
+        default=10.0, gt=0.0, description="handheld mounting: seconds of accelerometer from "
+        "the start pose over which the mean specific force gives the mounting; the gait stage "
+        "starts once they have arrived (its steps are released then)")
     mag_hard_iron: Literal["off", "fit"] = "off"
-    """``fit``: estimate the magnetometer's hard-iron offset from the recording's own turns
-    (:func:`hrtls.calibration.hard_iron.fit_hard_iron`, our addition) and subtract it before
-    the attitude stage; for devices never calibrated with a figure of eight (Inderst App. B)."""
-    mag_hard_iron_window_s: float = Field(
-        default=0.0, ge=0.0, description="hard-iron fit: magnetometer seconds from the start "
-        "used offline (0 = the whole recording); live, the samples given to start()")
+    """``fit``: estimate the magnetometer's hard-iron offset from the walk's own turns as the
+    samples arrive (:mod:`hrtls.calibration.hard_iron_running`, our addition) and subtract it
+    before the attitude stage from the time a fit is accepted (the field is used raw before);
+    for devices never calibrated with a figure of eight (Inderst App. B)."""
 
 
 class GaitConfig(_Section):
@@ -157,6 +156,14 @@ class RangesConfig(_Section):
     enabled: bool = True
 
 
+class OfflineConfig(_Section):
+    """Refinements that need the whole recording (offline only, never on the live path)."""
+
+    two_pass: bool = Field(
+        default=False, description="Tracker.run only: fit the hard iron and the hand-held "
+        "mounting on the whole recording first, then track with them fixed")
+
+
 class TrackerConfig(_Section):
     """The whole tracker."""
 
@@ -169,6 +176,7 @@ class TrackerConfig(_Section):
     rss: RssConfig = RssConfig()
     tags: TagsConfig = TagsConfig()
     ranges: RangesConfig = RangesConfig()
+    offline: OfflineConfig = OfflineConfig()
     gate_probability: float = Field(default=0.997, gt=0.5, lt=1.0)
     floor_snap: bool = True
 
@@ -207,3 +215,34 @@ def preset(name: str) -> TrackerConfig:
     text = resources.files("hrtls.pipeline").joinpath("presets", f"{name}.toml").read_text(
         encoding="utf-8")
     return _validate(tomllib.loads(text), where=f"preset {name}")
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise InputError(f"a {type(value).__name__}", where="to_toml", expected="a TOML scalar")
+
+
+def to_toml(config: TrackerConfig) -> str:
+    """The complete effective configuration as TOML (``load_config`` reads it back).
+
+    Every key is written with its value (unset optional keys, e.g. ``weinberg_k``, are written
+    as comments: TOML has no null).
+    """
+    data = config.model_dump(mode="json")
+    top = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    out = [*top, ""]
+    for section, values in data.items():
+        if not isinstance(values, dict):
+            continue
+        out.append(f"[{section}]")
+        for k, v in values.items():
+            out.append(f"# {k} = (not set)" if v is None else f"{k} = {_toml_value(v)}")
+        out.append("")
+    return "\n".join(out)

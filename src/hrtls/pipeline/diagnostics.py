@@ -98,6 +98,21 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
         self._parts: list[UpdateDiagnostics | DiagnosticsBlock] = []
         self._flat: list[UpdateDiagnostics] | None = None
         self._n = 0
+        self._accepted_t = np.zeros(0)
+        self._accepted_parts = 0
+
+    def accepted_times(self) -> np.ndarray:
+        """Times of the accepted records, in order (kept up to date incrementally)."""
+        new: list[np.ndarray] = [self._accepted_t]
+        for p in self._parts[self._accepted_parts:]:
+            if isinstance(p, DiagnosticsBlock):
+                new.append(p.t[(p.code == ACCEPTED) | (p.code == ACCEPTED_REASON)])
+            elif p.accepted:
+                new.append(np.array([p.t]))
+        self._accepted_parts = len(self._parts)
+        if len(new) > 1:
+            self._accepted_t = np.concatenate(new)
+        return self._accepted_t
 
     def append(self, item: UpdateDiagnostics) -> None:
         """Add one record."""

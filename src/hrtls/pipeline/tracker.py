@@ -53,10 +53,12 @@ from hrtls.attitude.base import AttitudeFilter, AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import make_filter
 from hrtls.calibration.hard_iron import fit_hard_iron
+from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
 from hrtls.data import (
     Activity,
     ImuStream,
     Landmark,
+    OrientationSeries,
     Session,
     SessionMeta,
     StartPose,
@@ -69,7 +71,7 @@ from hrtls.data.observations import (
     RssReadings,
     TagDetections,
 )
-from hrtls.errors import DegradedInputWarning, InputError
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
 from hrtls.fusion.fixes import (
     DRIFT_MIN_PATH_M,
@@ -120,10 +122,12 @@ from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, preset
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
+from hrtls.pipeline.output import Estimates, TrackRows
 
 FloatArray = np.ndarray
 
@@ -150,6 +154,8 @@ VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 DEFAULT_VAR_YAW_RAD2 = 0.01
 """Yaw variance when the attitude filter gives none (rad^2)."""
+RATE_SAMPLES = 512
+"""Leading accelerometer samples whose median spacing gives the nominal rate (start_session)."""
 SCAN_ROWS_TRIM = 4096
 """Stored anchors of queued RSS scans are trimmed once there are this many (rows)."""
 
@@ -195,41 +201,34 @@ class TrackResult:
     report: dict[str, Any]
 
 
-class _Track:
-    """Accumulated output rows, in blocks (one row per event; several at one time keep the last)."""
+class _HeldImu:
+    """IMU samples held until the hand-held mounting window has elapsed (aligned arrays)."""
 
     def __init__(self) -> None:
-        self.t: list[np.ndarray] = []
-        self.x: list[np.ndarray] = []
-        self.cov: list[np.ndarray] = []
-        self.var_h: list[np.ndarray] = []
-        self.activity: list[np.ndarray] = []
+        self.t = np.zeros(0)
+        self.acc = np.zeros((0, 3))
+        self.gyr: np.ndarray | None = None
+        self.mag: np.ndarray | None = None
+        self.ot = np.zeros(0)
+        self.oq = np.zeros((0, 4))
+        self.has_orientation = False
 
-    def add(self, state: FilterState, activity: int) -> None:
-        self.add_block(np.array([state.t]), state.x[None, :], state.P[None, :2, :2],
-                       np.array([state.P[IH, IH]]), np.array([activity]))
+    def add(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+            mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
+        first = not len(self.t)
+        self.t = np.concatenate([self.t, t])
+        self.acc = np.concatenate([self.acc, acc])
+        if gyr is not None:
+            self.gyr = gyr.copy() if first or self.gyr is None else np.concatenate([self.gyr, gyr])
+        if mag is not None:
+            self.mag = mag.copy() if first or self.mag is None else np.concatenate([self.mag, mag])
+        if orientation is not None:
+            self.has_orientation = True
+            self.ot = np.concatenate([self.ot, orientation.t])
+            self.oq = np.concatenate([self.oq, orientation.q])
 
-    def add_block(self, t: np.ndarray, x: np.ndarray, cov_xy: np.ndarray, var_h: np.ndarray,
-                  activity: np.ndarray) -> None:
-        if len(t):
-            self.t.append(t)
-            self.x.append(x)
-            self.cov.append(cov_xy)
-            self.var_h.append(var_h)
-            self.activity.append(np.asarray(activity, dtype=np.int64))
-
-    def trajectory(self) -> Trajectory:
-        if not self.t:
-            return Trajectory.build(t=np.zeros(0), xyz=np.zeros((0, 3)))
-        t = np.concatenate(self.t)
-        x = np.concatenate(self.x)
-        # several events at one time: keep the latest state for that time
-        keep = np.ones(len(t), dtype=bool)
-        keep[:-1] = t[1:] > t[:-1]
-        return Trajectory.build(t=t[keep], xyz=x[keep, :3], heading_rad=x[keep, IH],
-                                cov_xy=np.concatenate(self.cov)[keep],
-                                var_heading=np.concatenate(self.var_h)[keep],
-                                activity=np.concatenate(self.activity)[keep])
+    def orientation(self) -> OrientationSeries | None:
+        return OrientationSeries(self.ot, self.oq) if self.has_orientation else None
 
 
 class Tracker:
@@ -248,34 +247,53 @@ class Tracker:
     # ------------------------------------------------------------------ set-up
     def start(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
-              rate_hz: float, t0: float,
-              mounting_acc_d_m_s2: np.ndarray | None = None,
-              hard_iron_mag_ut: np.ndarray | None = None,
-              hard_iron_up_d: np.ndarray | None = None) -> None:
+              rate_hz: float, t0: float) -> None:
         """Prepare for a recording with these sensors; the next ``update`` continues from t0.
 
-        ``mounting_acc_d_m_s2`` (N, 3): device-frame accelerometer samples for the ``handheld``
-        mounting (``[attitude] mounting``). Offline, :meth:`run` passes the recording's first
-        ``mounting_window_s`` (0: all of it); live, pass the samples available at start (e.g.
-        a few seconds of walking buffered before the first ``update``). Without them the
-        session's mounting is kept (noted in the report).
-
-        ``hard_iron_mag_ut`` (N, 3) and ``hard_iron_up_d`` (3,): raw magnetometer samples and
-        the device's mean up direction (mean accelerometer reading) for ``[attitude]
-        mag_hard_iron = "fit"``; offline, :meth:`run` passes the first
-        ``mag_hard_iron_window_s`` of the recording (0: all of it).
+        Nothing here looks at samples: the hand-held mounting (``[attitude] mounting``) is
+        estimated once ``mounting_window_s`` of accelerometer samples from the start pose have
+        arrived, the hard iron (``mag_hard_iron = "fit"``) by a running fit applied from the
+        time it is accepted.
         """
+        self._begin(meta, landmarks, has_imu=has_imu, has_gyro=has_gyro, has_mag=has_mag,
+                    has_orientation=has_orientation, rate_hz=rate_hz, t0=t0)
+
+    def _begin(self, meta: SessionMeta, landmarks: dict[str, Landmark], *,
+               has_imu: bool, has_gyro: bool, has_mag: bool, has_orientation: bool,
+               rate_hz: float, t0: float, fixed_mounting_acc: np.ndarray | None = None,
+               fixed_hard_iron_ut: np.ndarray | None = None) -> None:
+        """:meth:`start`; ``fixed_*``: the whole-recording estimates of ``[offline] two_pass``."""
         cfg = self.config
+        self._start_args: dict[str, Any] = {
+            "meta": meta.model_dump(mode="json"),
+            "landmarks": {k: lm.model_dump(mode="json") for k, lm in landmarks.items()},
+            "has_imu": has_imu, "has_gyro": has_gyro, "has_mag": has_mag,
+            "has_orientation": has_orientation, "rate_hz": rate_hz, "t0": t0}
         self.notes: list[str] = []
-        meta = self._resolve_mounting(meta, mounting_acc_d_m_s2, has_imu=has_imu)
-        self.hard_iron_ut = self._fit_hard_iron(hard_iron_mag_ut, hard_iron_up_d,
-                                                has_mag=has_imu and has_mag, rate_hz=rate_hz)
+        self._steps_hidden = 0
+        self._diag_base: dict[str, Any] = {"counts": {}, "rejected": [], "accepted_t": [],
+                                           "yaw_pseudo": 0}
+        self._two_pass = False
+        self._mounting_pending = cfg.attitude.mounting == "handheld" and has_imu
+        if self._mounting_pending and fixed_mounting_acc is not None:
+            meta = self._resolve_mounting(meta, fixed_mounting_acc)
+            self._mounting_pending = False
+        elif not self._mounting_pending:
+            self._note_session_mounting(meta)
+        self.hard_iron_fixed_ut = fixed_hard_iron_ut
+        self.hard_iron: RunningHardIron | None = None
+        if cfg.attitude.mag_hard_iron == "fit" and has_imu and has_mag and \
+                fixed_hard_iron_ut is None:
+            self.hard_iron = RunningHardIron(RunningHardIronParams(
+                block_samples=max(1, round(rate_hz))))
+        self._rate_hz = rate_hz
+        self._held = _HeldImu()
         self.meta = meta
         geo = None if meta.georeference is None else meta.georeference.to_georeference()
         self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
                           else lm for k, lm in landmarks.items()}
         self.diagnostics = DiagnosticsLog()
-        self._track = _Track()
+        self._track = TrackRows()
         self._steps: list[StepEvents] = []
         self._attitude: list[AttitudeResult] = []
         self._pending: list[tuple[float, int, int, Any]] = []
@@ -371,34 +389,16 @@ class Tracker:
         # filters already fuse the magnetometer with their own disturbance gates
         # with the hard iron already removed, the compass needs no warm-up of its own
         self._compass = (CompassYaw(self._t_pose, CompassParams(
-                             field_corrected=self.hard_iron_ut is not None))
+                             field_corrected=self.hard_iron is not None
+                             or self.hard_iron_fixed_ut is not None))
                          if cfg.attitude.compass_yaw and has_mag
                          and isinstance(self.attitude_filter, DeviceOrientation) else None)
-        # --- gait
+        # --- gait (with the hand-held mounting: once it is known)
         self.gait: GaitAnalyzer | None = None
         self.running_factor = 1.0
-        if has_imu:
-            self.gait = GaitAnalyzer(
-                rate_hz=rate_hz,
-                step_detector=PllStepDetector() if cfg.gait.step_detector == "pll"
-                else PeakStepDetector(),
-                step_model=self._step_model(meta),
-                activity=self._activity_model(),
-                heading=cfg.gait.heading if self.attitude_method != "none" else "fourier",
-                velocity=VelocityAutomaton() if (cfg.gait.velocity_automaton
-                                                 or cfg.prediction.model == "velocity")
-                else None,
-                mounting_q_bd=None if meta.mounting_q_bd is None
-                else np.asarray(meta.mounting_q_bd, dtype=np.float64),
-                gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
-                walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
-                missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
-                step_yaw=cfg.gait.step_yaw,
-                window_features=cfg.gait.activity != "motion",
-            )
-            if meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
-                self.notes.append("device mounting unknown: step headings follow the device x "
-                                  "axis; only their changes are used (heading in the state)")
+        self._step_model_obj = self._step_model(meta) if has_imu else None
+        if has_imu and not self._mounting_pending:
+            self._build_gait()
         # --- position filter parts
         heading_mode = cfg.prediction.heading_mode
         self.step_predictor = StepPredictor(StepPredictionParams(
@@ -439,54 +439,95 @@ class Tracker:
         self._t_last_sample = t0
         self._started = True
 
-    def _fit_hard_iron(self, mag: np.ndarray | None, up_d: np.ndarray | None, *,
-                       has_mag: bool, rate_hz: float) -> np.ndarray | None:
-        """The configured hard-iron offset (uT, device frame), or None (noted in the report).
+    def _build_gait(self) -> None:
+        """The gait stage, for the mounting now known (``self.meta``)."""
+        cfg = self.config
+        assert self._step_model_obj is not None
+        self.gait = GaitAnalyzer(
+            rate_hz=self._rate_hz,
+            step_detector=PllStepDetector() if cfg.gait.step_detector == "pll"
+            else PeakStepDetector(),
+            step_model=self._step_model_obj,
+            activity=self._activity_model(),
+            heading=cfg.gait.heading if self.attitude_method != "none" else "fourier",
+            velocity=VelocityAutomaton() if (cfg.gait.velocity_automaton
+                                             or cfg.prediction.model == "velocity")
+            else None,
+            mounting_q_bd=None if self.meta.mounting_q_bd is None
+            else np.asarray(self.meta.mounting_q_bd, dtype=np.float64),
+            gate_steps_with_motion=cfg.gait.gate_steps_with_motion,
+            walking_bouts=WalkingBoutParams() if cfg.gait.walking_bouts else None,
+            missed_steps=MissedStepParams() if cfg.gait.fill_missed_steps else None,
+            step_yaw=cfg.gait.step_yaw,
+            window_features=cfg.gait.activity != "motion",
+        )
+        if self.meta.mounting_q_bd is None and cfg.gait.heading == "yaw":
+            self.notes.append("device mounting unknown: step headings follow the device x "
+                              "axis; only their changes are used (heading in the state)")
+
+    def _fit_hard_iron_offline(self, imu: ImuStream) -> np.ndarray | None:
+        """``[offline] two_pass``: the hard iron fitted on the whole recording (or None, noted).
 
         Blocks of ``rate_hz`` magnetometer samples are averaged before the fit: one second when
         the magnetometer runs at the accelerometer rate, longer when it is slower.
         """
-        if self.config.attitude.mag_hard_iron != "fit" or not has_mag:
-            return None
-        if mag is None or not len(mag):
-            self._degrade("magnetometer hard iron: no samples given to start(); field used raw")
+        mag, up_d = hard_iron_samples(imu)
+        if mag is None:
             return None
         try:
-            fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(rate_hz)))
+            fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(imu.accel.rate_hz)))
         except InputError as exc:
-            self._degrade(f"magnetometer hard iron not fitted ({exc}); field used raw")
+            self._offline_notes.append((True, f"magnetometer hard iron not fitted ({exc}); "
+                                        "field used raw"))
             return None
-        self.notes.append(
-            "magnetometer hard iron fitted on the recording's turns: c = ["
-            f"{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
+        self._offline_notes.append((False,
+            "magnetometer hard iron fitted on the whole recording's turns ([offline] two_pass):"
+            f" c = [{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
             f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
-            f"of turning, {fit.n_used} samples")
+            f"of turning, {fit.n_used} samples"))
         return fit.hard_iron_ut
 
-    def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray | None, *,
-                          has_imu: bool) -> SessionMeta:
-        """The session metadata with the configured device mounting (noted in the report)."""
-        kind = self.config.attitude.mounting
-        if kind == "handheld" and has_imu:
-            if acc_d is not None and len(acc_d):
-                try:
-                    q_bd = handheld_mounting_q_bd(acc_d)
-                except InputError as exc:  # e.g. a phone held upright: top edge vertical
-                    self._degrade(f"hand-held mounting not estimable ({exc}); using the "
-                                  "session's mounting")
-                    return meta
-                self.notes.append(
-                    "mounting: hand-held in front (device +y forward), tilt from the mean "
-                    f"specific force of {len(acc_d)} samples: q_bd = "
-                    f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
-                return meta.model_copy(update={"mounting_q_bd": tuple(float(v)
-                                                                       for v in q_bd)})
-            self.notes.append("mounting 'handheld' asked but no accelerometer samples at start; "
-                              "using the session's mounting")
+    def _note_hard_iron(self) -> None:
+        """Report line of the running hard-iron fit (at the end of the recording)."""
+        hi = self.hard_iron
+        if hi is None:
+            return
+        st = hi.state
+        if not hi.accepted:
+            self._degrade("magnetometer hard iron not fitted (no fit accepted: the walk turned "
+                          "too little or the field was disturbed); field used raw")
+            return
+        self.notes.append(
+            "magnetometer hard iron fitted on the turns so far (running fit, first accepted at "
+            f"t = {st.t_accepted:.1f} s, {st.n_fits} fits): c = ["
+            f"{', '.join(f'{v:.2f}' for v in st.c_ut)}] uT, horizontal field "
+            f"{st.field_ut:.1f} uT, residual {st.residual_ut:.2f} uT, {st.arc_deg:.0f} deg "
+            f"of turning, {st.n_used} block means; the field was used raw before")
+
+    def _resolve_mounting(self, meta: SessionMeta, acc_d: np.ndarray) -> SessionMeta:
+        """The session metadata with the hand-held mounting from these samples (noted)."""
+        if len(acc_d):
+            try:
+                q_bd = handheld_mounting_q_bd(acc_d)
+            except InputError as exc:  # e.g. a phone held upright: top edge vertical
+                self._degrade(f"hand-held mounting not estimable ({exc}); using the "
+                              "session's mounting")
+                self._note_session_mounting(meta)
+                return meta
+            self.notes.append(
+                "mounting: hand-held in front (device +y forward), tilt from the mean "
+                f"specific force of {len(acc_d)} samples: q_bd = "
+                f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
+            return meta.model_copy(update={"mounting_q_bd": tuple(float(v) for v in q_bd)})
+        self.notes.append("mounting 'handheld' asked but no accelerometer samples from the start "
+                          "pose on; using the session's mounting")
+        self._note_session_mounting(meta)
+        return meta
+
+    def _note_session_mounting(self, meta: SessionMeta) -> None:
         if meta.mounting_q_bd is not None:
             self.notes.append("mounting: from the session (meta.mounting_q_bd = "
                               f"[{', '.join(f'{v:.4f}' for v in meta.mounting_q_bd)}])")
-        return meta
 
     def _degrade(self, message: str) -> None:
         self.notes.append(message)
@@ -532,41 +573,57 @@ class Tracker:
 
     # ------------------------------------------------------------------ processing
     def run(self, session: Session) -> TrackResult:
-        """Track a whole session (the same code path as the live chunks)."""
-        self.start_session(session)
+        """Track a whole session (the same code path as the live chunks).
+
+        With ``[offline] two_pass = true`` the hard iron and the hand-held mounting are first
+        fitted on the whole recording and kept fixed (offline only, named in the report).
+        """
+        if self.config.offline.two_pass:
+            self._start_two_pass(session)
+        else:
+            self.start_session(session)
         self.update(session)
         return self.finish()
 
     def start_session(self, session: Session) -> None:
-        """:meth:`start` for this session's sensors, with the start samples :meth:`run` uses.
+        """:meth:`start` with the sensors this session has.
 
-        The hand-held mounting and the hard-iron fit get the recording's own samples (their
-        windows), so feeding the session's chunks to :meth:`update` afterwards reproduces
-        :meth:`run` exactly.
+        Of its samples only the first ``RATE_SAMPLES`` accelerometer times are read (the
+        nominal rate: median spacing), so a session cut later starts the same tracker.
         """
+        self._begin(**self._session_sensors(session))
+
+    @staticmethod
+    def _session_sensors(session: Session) -> dict[str, Any]:
         imu = session.imu
-        rate = imu.accel.rate_hz if imu is not None else 0.0
-        t0 = session.time_span()[0]
-        acc_mount = None
+        return {"meta": session.meta, "landmarks": session.landmarks, "has_imu": imu is not None,
+                "has_gyro": imu is not None and imu.gyro is not None,
+                "has_mag": imu is not None and imu.mag is not None,
+                "has_orientation": session.orientation is not None,
+                "rate_hz": _leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
+                "t0": session.time_span()[0]}
+
+    def _start_two_pass(self, session: Session) -> None:
+        """``[offline] two_pass``: start with the whole recording's hard iron and mounting."""
+        imu = session.imu
+        self._offline_notes: list[tuple[bool, str]] = []
+        acc_mount = hard_iron = None
         if imu is not None and self.config.attitude.mounting == "handheld":
             # the walk starts at the start pose: samples before it (phone lying or being
             # picked up) would bias the mean tilt
             pose_t = session.meta.start_pose.t if session.meta.start_pose is not None else None
             ta = imu.accel.t
-            t_from = float(ta[0]) if pose_t is None else max(float(ta[0]), float(pose_t))
-            sel = ta >= t_from
-            if (w := self.config.attitude.mounting_window_s) > 0:
-                sel &= ta < t_from + w
+            sel = ta >= (float(ta[0]) if pose_t is None else max(float(ta[0]), float(pose_t)))
             acc_mount = imu.accel.values[sel] if sel.any() else imu.accel.values
-        mag_hi = up_hi = None
-        if imu is not None and self.config.attitude.mag_hard_iron == "fit":
-            mag_hi, up_hi = hard_iron_samples(imu, self.config.attitude.mag_hard_iron_window_s)
-        self.start(session.meta, session.landmarks, has_imu=imu is not None,
-                   has_gyro=imu is not None and imu.gyro is not None,
-                   has_mag=imu is not None and imu.mag is not None,
-                   has_orientation=session.orientation is not None, rate_hz=rate, t0=t0,
-                   mounting_acc_d_m_s2=acc_mount, hard_iron_mag_ut=mag_hi,
-                   hard_iron_up_d=up_hi)
+        if imu is not None and imu.mag is not None and \
+                self.config.attitude.mag_hard_iron == "fit":
+            hard_iron = self._fit_hard_iron_offline(imu)
+        notes = self._offline_notes
+        self._begin(**self._session_sensors(session), fixed_mounting_acc=acc_mount,
+                    fixed_hard_iron_ut=hard_iron)
+        self._two_pass = True
+        for degraded, text in notes:
+            (self._degrade if degraded else self.notes.append)(text)
 
     def update(self, chunk: Session) -> None:
         """Consume the samples and observations of one chunk (in time order across chunks)."""
@@ -574,18 +631,16 @@ class Tracker:
             raise InputError("update() before start()", where="Tracker",
                              expected="start() (or run()) first")
         self._queue_observations(chunk)
-        if chunk.imu is not None and self.gait is not None:
+        if chunk.imu is not None and self.has_imu:
             t, acc, gyr, mag = chunk.imu.aligned()
-            q_nd = self._attitude_update(chunk, t, acc, gyr, mag)
-            result = self.gait.update(t, acc, q_nd)
-            self._consume_gait(result, t, q_nd)
-            self._t_last_sample = float(t[-1])
-            # events before the last classified sample are final, except steps the detector
-            # may still report (it needs up to LIVE_LATENCY_S of later samples)
-            if len(result.activity_t):
-                self._horizon = max(self._horizon, min(float(result.activity_t[-1]),
-                                                       float(t[-1]) - LIVE_LATENCY_S))
-        elif self.gait is None:
+            if self._mounting_pending:
+                self._held.add(t, acc, gyr, mag, chunk.orientation)
+                t_from = max(float(self._held.t[0]), self._t_pose)
+                if float(t[-1]) >= t_from + self.config.attitude.mounting_window_s:
+                    self._release_held()
+            else:
+                self._process_imu(t, acc, gyr, mag, chunk.orientation)
+        elif not self.has_imu:
             self._horizon = max(self._horizon, _chunk_end(chunk))
         # tag reads / RSS readings still being grouped hold back everything after them
         limit = self._horizon
@@ -596,6 +651,9 @@ class Tracker:
 
     def finish(self) -> TrackResult:
         """End of the recording: release held steps and observations, build the result."""
+        if self._mounting_pending:   # shorter than the mounting window: what there is
+            self._release_held()
+        self._note_hard_iron()
         if self.gait is not None:
             self._consume_gait(self.gait.flush(), None, None)
         self._flush_tag_groups(math.inf)
@@ -605,12 +663,164 @@ class Tracker:
         if self._velocity_mode:
             self._track.add(self.state, self._last_activity)
         trajectory = self._track.trajectory()
-        steps = (StepEvents.empty() if not self._steps else _concat_steps(self._steps))
+        shown = self._steps[self._steps_hidden:]
+        steps = StepEvents.empty() if not shown else _concat_steps(shown)
         # one chunk (offline run): its result as is, no copy of the per-sample arrays
         attitude = (None if not self._attitude else self._attitude[0]
                     if len(self._attitude) == 1 else AttitudeResult.concatenate(self._attitude))
         return TrackResult(trajectory, steps, attitude, self.diagnostics,
                            self._report(trajectory, steps))
+
+
+    # ------------------------------------------------------------------ live reading
+    def estimates_since(self, t_after_s: float = -math.inf) -> Estimates:
+        """The trajectory rows produced so far with time > ``t_after_s`` (no :meth:`finish`).
+
+        Rows are final except the last one: a later event at the same time replaces it (read
+        again from the previous row's time to see it). After :meth:`restore`, rows from before
+        the snapshot are not repeated.
+        """
+        if not self._started:
+            raise InputError("estimates_since() before start()", where="Tracker",
+                             expected="start() first")
+        acc = self.diagnostics.accepted_times()
+        base = np.asarray(self._diag_base["accepted_t"], dtype=np.float64)
+        if len(base):
+            acc = np.concatenate([base, acc])
+        return self._track.since(t_after_s, acc, self.meta.floor_height_m)
+
+    # ------------------------------------------------------------------ snapshot / restore
+    _PLAIN = ("_anchor_xy", "_avg_buf_a", "_avg_buf_t", "_avg_buf_v", "_bulk_count",
+              "_corrected_since_fix", "_fix_phase_set", "_horizon", "_ignored_before_pose",
+              "_labels", "_last_activity", "_last_speed", "_last_step_end",
+              "_mounting_pending", "_path_since_anchor", "_pending", "_recent_heading",
+              "_rss_note", "_run_since_anchor", "_scan_base", "_scan_buf_a", "_scan_buf_t",
+              "_scan_buf_v", "_scan_rows", "_seen_obs", "_seq", "_soft_since_anchor",
+              "_stretch", "_t_last_sample", "_tag_buf_id", "_tag_buf_t", "_var_t", "_var_v",
+              "_vel_bin", "_vel_t", "_vel_v", "_vel_var", "_vel_yaw", "_yaw_offset",
+              "channel_state", "fix_schedule", "notes", "run_scale", "step_scale", "state",
+              "tag_memory", "_two_pass", "hard_iron_fixed_ut")
+    _BULK = ("_bulk_t", "_bulk_k", "_bulk_seq", "_bulk_ev", "_bulk_data", "_bulk_src",
+             "_bulk_label")
+    _COMPASS = ("n_tot", "y_tot", "n_cur", "y_cur", "cur_block", "c", "radius", "history",
+                "s1", "s2", "n_ref", "t_first", "smooth", "last_error")
+    _HELD = ("t", "acc", "gyr", "mag", "ot", "oq", "has_orientation")
+
+    def snapshot(self) -> bytes:
+        """The state as bytes (versioned, zlib + msgpack of plain values, no code).
+
+        Holds what the tracker needs to continue (filters, gait and attitude states, held
+        samples and events, learned scales, hard iron, mounting, report counters), not the
+        rows already produced: read those with :meth:`estimates_since` first. A tracker from
+        :meth:`restore` fed the rest of the data produces the same rows as this one would.
+        """
+        if not self._started:
+            raise InputError("snapshot() before start()", where="Tracker",
+                             expected="start() first")
+        st = self.state
+        plain = {name: getattr(self, name) for name in self._PLAIN}
+        i0 = self._bulk_i
+        plain.update({name: getattr(self, name)[i0:] for name in self._BULK})
+        plain["_label_kind"] = self._label_kind
+        plain["_label_reason"] = self._label_reason
+        # history the future still needs: the step block in progress, the motion blocks from
+        # the latest one before the state's time, the last output row
+        j = max([k for k, b in enumerate(self._steps) if len(b) and b.t_start[0] <= st.t],
+                default=0)
+        steps = self._steps[j:]
+        m = max([k for k, b in enumerate(self._motion_t) if len(b) and b[0] <= st.t], default=0)
+        rows = self._track
+        last_row = None
+        if rows.last_time() is not None:
+            last_row = (float(rows.t[-1][-1]), rows.x[-1][-1], rows.cov[-1][-1],
+                        float(rows.var_h[-1][-1]), int(rows.activity[-1][-1]))
+        rejected = list(self._diag_base["rejected"])
+        rejected += [d.to_dict() for d in self.diagnostics.first_rejected(200 - len(rejected))]
+        acc_t = self.diagnostics.accepted_times()
+        counts = self._report_counts()
+        out: dict[str, Any] = {
+            "config": self.config.model_dump(mode="json"),
+            "start": self._start_args,
+            "meta": self.meta.model_dump(mode="json"),
+            "gait_built": self.gait is not None,
+            "plain": plain,
+            "steps": steps,
+            "motion_t": self._motion_t[m:],
+            "motion_sigma": self._motion_sigma[m:],
+            "last_row": last_row,
+            "fix_phase_s": self.fix_corrector.params.phase_s,
+            "gait": None if self.gait is None else self.gait.state(),
+            "attitude": (self.attitude_filter.state
+                         if isinstance(self.attitude_filter, AttitudeFilter) else None),
+            "compass": None if self._compass is None else {
+                k: getattr(self._compass, k) for k in self._COMPASS},
+            "hard_iron": None if self.hard_iron is None else self.hard_iron.state,
+            "held": {k: getattr(self._held, k) for k in self._HELD},
+            "diag": {"counts": counts, "rejected": rejected[:200],
+                     "accepted_t": ([float(acc_t[-1])] if len(acc_t)
+                                    else list(self._diag_base["accepted_t"])[-1:]),
+                     "yaw_pseudo": self._diag_base["yaw_pseudo"] + len(self.yaw_pseudo)},
+        }
+        return snap.pack(out)
+
+    def _report_counts(self) -> dict[str, dict[str, int]]:
+        counts = self.diagnostics.counts()
+        for kind, by_status in self._diag_base["counts"].items():
+            d = counts.setdefault(kind, {})
+            for status, n in by_status.items():
+                d[status] = d.get(status, 0) + n
+        return counts
+
+    @classmethod
+    def restore(cls, data: bytes) -> Tracker:
+        """A tracker continuing from :meth:`snapshot` bytes (its configuration inside)."""
+        d = snap.unpack(data)
+        try:
+            tr = cls(TrackerConfig.model_validate(d["config"]))
+            a = d["start"]
+            tr._begin(SessionMeta.model_validate(a["meta"]),
+                      {k: Landmark.model_validate(v) for k, v in a["landmarks"].items()},
+                      has_imu=a["has_imu"], has_gyro=a["has_gyro"], has_mag=a["has_mag"],
+                      has_orientation=a["has_orientation"], rate_hz=a["rate_hz"], t0=a["t0"],
+                      fixed_hard_iron_ut=d["plain"]["hard_iron_fixed_ut"])
+            tr.meta = SessionMeta.model_validate(d["meta"])
+            if d["gait_built"] and tr.gait is None:
+                tr._build_gait()
+            for name, value in d["plain"].items():
+                setattr(tr, name, value)
+            tr._bulk_i = 0
+            tr._label_kind = np.asarray(d["plain"]["_label_kind"], dtype=object)
+            tr._label_reason = np.asarray(d["plain"]["_label_reason"], dtype=object)
+            tr._params = tr._kernel_params()
+            tr._steps = list(d["steps"])
+            tr._steps_hidden = len(tr._steps)
+            tr._motion_t = list(d["motion_t"])
+            tr._motion_sigma = list(d["motion_sigma"])
+            tr._track = TrackRows()
+            if d["last_row"] is not None:
+                t_r, x_r, cov_r, var_r, act_r = d["last_row"]
+                tr._track.add_block(np.array([t_r]), x_r[None, :], cov_r[None], np.array([var_r]),
+                                    np.array([act_r]))
+                tr._track.hidden = 1
+            if tr._fix_phase_set:
+                tr.fix_corrector = FixCorrector(replace(tr.fix_corrector.params,
+                                                        phase_s=d["fix_phase_s"]))
+            if tr.gait is not None:
+                tr.gait.restore(d["gait"])
+            if isinstance(tr.attitude_filter, AttitudeFilter):
+                tr.attitude_filter.restore(d["attitude"])
+            if tr._compass is not None:
+                for k, v in d["compass"].items():
+                    setattr(tr._compass, k, v)
+            if tr.hard_iron is not None:
+                tr.hard_iron.state = d["hard_iron"]
+            for k, v in d["held"].items():
+                setattr(tr._held, k, v)
+            tr._diag_base = d["diag"]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise FormatError(f"incomplete or foreign snapshot ({exc!r})", where="snapshot",
+                              expected="bytes from Tracker.snapshot()") from None
+        return tr
 
     # ------------------------------------------------------------------ stages
     def _kernel_params(self) -> np.ndarray:
@@ -661,16 +871,56 @@ class Tracker:
         prm[ev.P_PL_SIG] = self.path_loss.sigma_db
         return prm
 
-    def _attitude_update(self, chunk: Session, t: np.ndarray, acc: np.ndarray,
-                         gyr: np.ndarray | None, mag: np.ndarray | None) -> np.ndarray | None:
+    def _process_imu(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+                     mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
+        """Attitude and gait over one chunk of aligned samples; advances the horizon."""
+        assert self.gait is not None
+        q_nd = self._attitude_update(t, acc, gyr, mag, orientation)
+        result = self.gait.update(t, acc, q_nd)
+        self._consume_gait(result, t, q_nd)
+        self._t_last_sample = float(t[-1])
+        # events before the last classified sample are final, except steps the detector
+        # may still report (it needs up to LIVE_LATENCY_S of later samples)
+        if len(result.activity_t):
+            self._horizon = max(self._horizon, min(float(result.activity_t[-1]),
+                                                   float(t[-1]) - LIVE_LATENCY_S))
+
+    def _release_held(self) -> None:
+        """The mounting window has elapsed (or the recording ended): mounting, gait, samples."""
+        held = self._held
+        self._mounting_pending = False
+        if not len(held.t):
+            self.meta = self._resolve_mounting(self.meta, np.zeros((0, 3)))
+            self._build_gait()
+            return
+        t_from = max(float(held.t[0]), self._t_pose)
+        sel = (held.t >= t_from) & (held.t < t_from + self.config.attitude.mounting_window_s)
+        self.meta = self._resolve_mounting(self.meta, held.acc[sel])
+        self._build_gait()
+        self._held = _HeldImu()
+        self._process_imu(held.t, held.acc, held.gyr, held.mag, held.orientation())
+
+    def _hard_iron_at(self, t: np.ndarray, acc: np.ndarray, mag: np.ndarray
+                      ) -> np.ndarray | None:
+        """Hard iron in force at each sample (N, 3; NaN rows: not known yet), or None."""
+        if self.hard_iron_fixed_ut is not None:
+            return np.broadcast_to(self.hard_iron_fixed_ut, mag.shape)
+        if self.hard_iron is None:
+            return None
+        return self.hard_iron.update(t, mag, acc)
+
+    def _attitude_update(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+                         mag: np.ndarray | None, orientation: OrientationSeries | None
+                         ) -> np.ndarray | None:
         filt = self.attitude_filter
         if filt is None:
             return None
-        if mag is not None and self.hard_iron_ut is not None:
-            mag = mag - self.hard_iron_ut
+        c_of = None if mag is None else self._hard_iron_at(t, acc, mag)
+        if mag is not None and c_of is not None:
+            mag = mag - np.nan_to_num(c_of, nan=0.0)
         if isinstance(filt, DeviceOrientation):
-            assert chunk.orientation is not None
-            res = filt.run(chunk.orientation, t)
+            assert orientation is not None
+            res = filt.run(orientation, t)
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DegradedInputWarning)
@@ -680,7 +930,7 @@ class Tracker:
         if res.frame == "nb" and self.meta.mounting_q_bd is not None:
             q = quat_multiply(q, np.asarray(self.meta.mounting_q_bd, dtype=np.float64))
         if self._compass is not None and mag is not None and len(mag) == len(res.t):
-            q = self._compass.correct(res.t, np.asarray(q), mag)
+            q = self._compass.correct(res.t, np.asarray(q), mag, c_of)
         var = (res.var_rpy[:, 2] if res.var_rpy is not None
                else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
         # keep the yaw variance of the samples later events may still need
@@ -1455,7 +1705,7 @@ class Tracker:
 
     # ------------------------------------------------------------------ report
     def _report(self, trajectory: Trajectory, steps: StepEvents) -> dict[str, Any]:
-        counts = self.diagnostics.counts()
+        counts = self._report_counts()
         if self._t_pose > self._t0:
             ignored = ", ".join(f"{n} {k}" for k, n in self._ignored_before_pose.items())
             self.notes.append(f"start pose holds at t = {self._t_pose:.3f} s: attitude and gait "
@@ -1464,7 +1714,8 @@ class Tracker:
         if self.has_imu and not self._seen_obs:
             self.notes.append("no infrastructure observations: pure dead reckoning (the error "
                               "grows with the distance walked)")
-        rejected = [d.to_dict() for d in self.diagnostics.first_rejected(200)]
+        rejected = list(self._diag_base["rejected"])
+        rejected += [d.to_dict() for d in self.diagnostics.first_rejected(200 - len(rejected))]
         final = self.state
         report: dict[str, Any] = {
             "config": self.config.model_dump(),
@@ -1475,7 +1726,8 @@ class Tracker:
             "step_length_scale": self.step_scale,
             "running_step_length_scale": self.run_scale,
             "running_step_factor": self.running_factor,
-            "yaw_pseudo_measurements": len(self.yaw_pseudo),
+            "yaw_pseudo_measurements": self._diag_base["yaw_pseudo"] + len(self.yaw_pseudo),
+            "offline": {"two_pass": self._two_pass},
             "summary": {
                 "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
                 "steps": len(steps),
@@ -1527,6 +1779,12 @@ def average_rss_per_anchor(rss: RssReadings, window_s: float, *,
     anchor = anchors[uniq // n_bins]
     order = np.lexsort((anchor, t_last))
     return RssReadings(t_last[order], anchor[order], mean[order], rss.name)
+
+
+def _leading_rate_hz(t: np.ndarray) -> float:
+    """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
+    head = t[:RATE_SAMPLES]
+    return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0
 
 
 def _chunk_end(chunk: Session) -> float:
