@@ -114,9 +114,9 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
     data = np.array([[a, b, c, d, e] for a, b, c, d, e in steps], dtype=np.float64)
     out = run_kernel(np.zeros(n, dtype=np.int64), np.arange(1.0, n + 1), data, prm, sc,
                      cov, x, p)
-    np.testing.assert_allclose(x[:3], state.x[:3], atol=1e-10)
-    assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-10
-    np.testing.assert_allclose(p, state.P, atol=1e-10)
+    np.testing.assert_allclose(x[:3], state.x[:3], atol=1e-12)
+    assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-12
+    np.testing.assert_allclose(p, state.P, atol=1e-12)
     np.testing.assert_allclose(out["p"], np.transpose(out["p"], (0, 2, 1)), atol=0)
 
 
@@ -162,8 +162,8 @@ def test_observation_kernel_equals_python(obs: list[tuple[bool, float, float, fl
     out = run_kernel(kind, np.arange(1.0, n + 1), data, prm, sc, cov, x, p)
     assert sc["n_soft"][0] == np.count_nonzero(out["status"] == ev.ST_ACCEPTED)
     assert sc["n_steps"][0] == 0 and sc["n_scans"][0] == 0
-    np.testing.assert_allclose(x, state.x, atol=1e-8)
-    np.testing.assert_allclose(p, state.P, atol=1e-8)
+    np.testing.assert_allclose(x, state.x, atol=1e-12)
+    np.testing.assert_allclose(p, state.P, atol=1e-12)
 
 
 def test_tracker_uses_kernel_and_reports(office) -> None:  # type: ignore[no-untyped-def]

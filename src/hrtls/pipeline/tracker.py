@@ -105,9 +105,9 @@ from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityP
 from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.peak_steps import PeakStepDetector
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.step_length_pendulum import PendulumModel
