@@ -38,7 +38,7 @@ def read_activity_labels(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray
 def _read_session(path: Path) -> object:
     """Any recording hrtls reads (session folder, zip, other formats) as a Session."""
     try:
-        from hrtls.io.readers.detect import read_any
+        from hrtls.recordings import read_any
     except ImportError:  # pragma: no cover - older trees: session folders only
         from hrtls.io.session import read_session
 
