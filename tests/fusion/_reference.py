@@ -72,8 +72,12 @@ def step_reference(prm: StepPredictionParams, x: np.ndarray, p: np.ndarray,
 
 
 def hyperbolic_wls_reference(a: np.ndarray, d: np.ndarray, sigma_ln: float, ref: int
-                             ) -> tuple[np.ndarray, np.ndarray] | None:
-    """Tarrio eq. 2 with explicit matrices (``S`` formed and solved); None when collinear."""
+                             ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Tarrio eq. 2 with explicit matrices (``S`` formed and solved).
+
+    Returns the position, its covariance and the condition number of ``H^T S^-1 H`` (the
+    position is NaN when the anchors are collinear: singular or condition above 1e12).
+    """
     others = [i for i in range(len(d)) if i != ref]
     rel = a[others] - a[ref]
     h = 2.0 * rel
@@ -81,23 +85,13 @@ def hyperbolic_wls_reference(a: np.ndarray, d: np.ndarray, sigma_ln: float, ref:
     s = np.diag(d[others] ** 4) + d[ref] ** 4
     info = h.T @ np.linalg.solve(s, h)
     w = np.linalg.eigvalsh(0.5 * (info + info.T))
-    if not w[0] > 0.0 or w[1] / w[0] > 1e12:
-        return None
+    cond = float(w[1] / w[0]) if w[0] > 0.0 else math.inf
+    if not cond <= 1e12:
+        return np.full(2, np.nan), np.full((2, 2), np.nan), cond
     inv = np.linalg.inv(info)
     xy = inv @ (h.T @ np.linalg.solve(s, b)) + a[ref]
     cov = 4.0 * sigma_ln**2 * inv
-    return xy, 0.5 * (cov + cov.T)
-
-
-def condition(a: np.ndarray, d: np.ndarray) -> float:
-    """Condition number of ``H^T S^-1 H`` of eq. 2 (nearest reference)."""
-    ref = int(np.argmin(d))
-    others = [i for i in range(len(d)) if i != ref]
-    h = 2.0 * (a[others] - a[ref])
-    s = np.diag(d[others] ** 4) + d[ref] ** 4
-    info = h.T @ np.linalg.solve(s, h)
-    w = np.linalg.eigvalsh(0.5 * (info + info.T))
-    return float(w[-1] / w[0]) if w[0] > 0 else math.inf
+    return xy, 0.5 * (cov + cov.T), cond
 
 
 def channel_reference(theta: np.ndarray, cov: np.ndarray, res_var: float, rss: float, d: float,
