@@ -31,6 +31,10 @@ Heading handling (``heading_mode``):
   step adds only half its change, unless the two steps turn by more than
   ``FIRST_STRIDE_MAX_TURN_RAD`` (a start into a turn). Measured on ``hrtls bench papers``
   (ten seeds): Basso tests 1-6 0.87/0.87/0.70/1.01/0.93/0.41 % -> 0.72/0.68/0.53/0.80/0.81/0.39 %.
+
+One step is the compiled :func:`predict_step` on plain arrays and a
+:data:`STEP_PREDICTION_DTYPE` record; :meth:`StepPredictor.predict` validates its inputs and
+calls it, and so does the tracker's event loop.
 """
 
 from __future__ import annotations
