@@ -21,11 +21,11 @@ from hrtls.datasets.mobgap import GaitReference
 from hrtls.frames import wrap_angle
 from hrtls.gait.activity_lda import DEFAULT_MODEL_FILE, LdaModel, default_loss, train_lda
 from hrtls.gait.activity_tree import calibrate_tree, classify_tree
+from hrtls.gait.analyzer import GaitAnalyzer, activity_windows, session_inputs
 from hrtls.gait.features import window_labels
 from hrtls.gait.missed_steps import MissedStepParams
-from hrtls.gait.motion import MotionParams
+from hrtls.gait.motion_detector import MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector
-from hrtls.gait.pipeline import GaitAnalyzer, activity_windows, session_inputs
 from hrtls.gait.pll import PllStepDetector, StepDetection
 from hrtls.gait.step_length import FrequencyLawModel, WeinbergModel
 from hrtls.gait.step_length_fit import (
@@ -1010,7 +1010,7 @@ def hrtls_sim_person_walk(seed: int) -> object:
     """
     from hrtls.sim.devices import get_device
     from hrtls.sim.gait_model import GaitParams
-    from hrtls.sim.motion import MotionParams, Waypoint
+    from hrtls.sim.motion_truth import MotionParams, Waypoint
     from hrtls.sim.scenarios import simulate_person
 
     rng = np.random.default_rng(seed)

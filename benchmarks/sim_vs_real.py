@@ -38,7 +38,7 @@ from hrtls.sim.gait_model import (
     waveform_harmonics,
 )
 from hrtls.sim.imu_model import body_kinematics, ideal_imu
-from hrtls.sim.motion import Waypoint, simulate_motion
+from hrtls.sim.motion_truth import Waypoint, simulate_motion
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -223,7 +223,7 @@ def heading_errors(names: tuple[str, ...] = ("basso_test1", "basso_test2"),
                    seeds: tuple[int, ...] = (0, 1)) -> None:
     """Median |error| of the Fourier tip-to-tail step heading on simulated Basso walks."""
     from hrtls.frames import wrap_angle
-    from hrtls.gait.pipeline import analyze_session
+    from hrtls.gait.analyzer import analyze_session
     from hrtls.sim.scenarios import run_scenario
 
     print("\nFourier tip-to-tail heading (GaitAnalyzer heading='fourier') vs truth")

@@ -10,8 +10,9 @@ from hrtls.data.landmarks import Landmark
 from hrtls.fusion.fixes import FixCorrector, FixParams, FixSchedule
 from hrtls.fusion.floors import floor_level_update
 from hrtls.fusion.gating import is_spd
+from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.ranges import range_update
-from hrtls.fusion.rss import PathLossModel, rss_update
+from hrtls.fusion.rss import rss_update
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
 from hrtls.fusion.tags import TagCorrector, TagParams, bearing_heading_correction

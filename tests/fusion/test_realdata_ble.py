@@ -10,14 +10,11 @@ import pytest
 
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RssReadings
+from hrtls.fusion.channel import ChannelEstimator
+from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
-from hrtls.fusion.rss import (
-    ChannelEstimator,
-    PathLossModel,
-    group_scans,
-    scan_position,
-    update_rss_readings,
-)
+from hrtls.fusion.rss import update_rss_readings
+from hrtls.fusion.rss_scans import group_scans, scan_position
 from hrtls.fusion.state import FilterState
 
 pytestmark = pytest.mark.realdata

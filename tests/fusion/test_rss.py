@@ -11,22 +11,17 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RssReadings
 from hrtls.data.session import ChannelModel
 from hrtls.errors import InputError
+from hrtls.fusion.channel import ChannelEstimator, ChannelState
 from hrtls.fusion.gating import is_spd, summarize
+from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss import (
-    ChannelEstimator,
-    ChannelState,
-    PathLossModel,
-    RssScan,
     TarrioFusion,
     TarrioParams,
     TarrioState,
-    group_scans,
-    hyperbolic_wls,
     rss_update,
-    scan_position,
-    scan_table,
     update_rss_readings,
 )
+from hrtls.fusion.rss_scans import RssScan, group_scans, hyperbolic_wls, scan_position, scan_table
 from hrtls.fusion.state import FilterState
 
 GRID = np.array([[x, y] for x in (0.0, 10.0, 20.0) for y in (0.0, 10.0, 20.0)])

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 
 
 def run_with_restarts(make: Callable[[], GaitAnalyzer], t: np.ndarray, acc: np.ndarray,

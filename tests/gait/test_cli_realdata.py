@@ -14,7 +14,7 @@ from hrtls.cli import gait as gait_cli
 from hrtls.data import ImuStream, SensorSeries, Session, SessionMeta
 from hrtls.errors import FormatError
 from hrtls.gait.activity_lda import LdaModel
-from hrtls.gait.pipeline import GaitAnalyzer, analyze_session, session_inputs
+from hrtls.gait.analyzer import GaitAnalyzer, analyze_session, session_inputs
 from hrtls.gait.synthetic import SimPerson, simulate
 
 

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hrtls.errors import InputError
+from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
-from hrtls.gait.pipeline import GaitAnalyzer
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.walking_bouts import WalkingBoutParams

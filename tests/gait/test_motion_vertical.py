@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from hrtls.errors import InputError
 from hrtls.frames import GRAVITY_M_S2, quat_from_euler, quat_rotate
-from hrtls.gait.motion import RUN, STILL, WALK, MotionDetector, MotionParams, RunningStd
+from hrtls.gait.motion_detector import RUN, STILL, WALK, MotionDetector, MotionParams, RunningStd
 from hrtls.gait.vertical import (
     GravityLevelling,
     LevelledAcceleration,

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from scipy.integrate import cumulative_trapezoid
 
 from hrtls.errors import InputError
-from hrtls.gait.pipeline import GaitAnalyzer
+from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.step_length import displacements, step_model_from_dict
 from hrtls.gait.step_length_fit import CalibrationWalk, fit_pendulum

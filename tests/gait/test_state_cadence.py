@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.gait.activity_lda import LdaModel
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
-from hrtls.gait.motion import RUN, STILL, WALK
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
+from hrtls.gait.motion_detector import RUN, STILL, WALK
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.velocity_automaton import VelocityAutomaton

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hrtls.errors import InputError
-from hrtls.gait.motion import MotionDetector, MotionParams
+from hrtls.gait.motion_detector import MotionDetector, MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams, PeakStepState
 from hrtls.gait.pll import PllParams, PllState, PllStepDetector
 

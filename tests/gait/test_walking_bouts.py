@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from hrtls.data import Activity
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.gait.pipeline import GaitAnalyzer
+from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.walking_bouts import (
@@ -220,8 +220,8 @@ def test_real_mobgap_daily_life_walking_windows(shared_data) -> None:
     """MS/001 daily life: bouts raise the walking/not-walking window accuracy vs INDIP."""
     from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
     from hrtls.datasets import mobgap
+    from hrtls.gait.analyzer import session_inputs
     from hrtls.gait.features import window_labels
-    from hrtls.gait.pipeline import session_inputs
 
     trial = mobgap.load_trial(shared_data / "mobgap_lab", "MS/001", "Test11", "Trial1")
     t, acc, _, mount, rate = session_inputs(trial.session)

@@ -10,8 +10,9 @@ from hypothesis import strategies as st
 
 from hrtls.errors import FormatError, InputError, RepairWarning, UnitError
 from hrtls.frames import GRAVITY_M_S2, quat_angle_between
-from hrtls.io.readers import read_android, read_any
+from hrtls.io.readers import read_android
 from hrtls.io.readers.android import sensor_from_name
+from hrtls.recordings import read_any
 
 from ._synth import motion, write_android, zip_folder
 

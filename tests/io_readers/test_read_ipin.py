@@ -8,7 +8,8 @@ import pytest
 
 from hrtls.errors import FormatError, InputError, RepairWarning
 from hrtls.frames import Georeference, quat_angle_between
-from hrtls.io.readers import ipin_beacon_id, read_any, read_beacons_csv, read_ipin
+from hrtls.io.readers import ipin_beacon_id, read_beacons_csv, read_ipin
+from hrtls.recordings import read_any
 
 from ._synth import LAT0, LON0, motion, write_beacons, write_ipin, zip_folder
 

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from hrtls.errors import FormatError, InputError, RepairWarning
-from hrtls.io.readers import detect_format, read_any, read_phyphox
+from hrtls.io.readers import read_phyphox
 from hrtls.io.readers.phyphox import classify_column
+from hrtls.recordings import detect_format, read_any
 
 from ._synth import motion, write_phyphox, zip_folder
 

@@ -7,7 +7,8 @@ import pytest
 
 from hrtls.errors import FormatError, InputError, RepairWarning
 from hrtls.frames import quat_angle_between
-from hrtls.io.readers import detect_format, read_any, read_sensorlogger
+from hrtls.io.readers import read_sensorlogger
+from hrtls.recordings import detect_format, read_any
 
 from ._synth import motion, write_sensorlogger, zip_folder
 

@@ -16,15 +16,8 @@ from hypothesis import strategies as st
 
 from hrtls.data import Session
 from hrtls.errors import FormatError, InputError
-from hrtls.io.readers import (
-    FORMATS,
-    detect_format,
-    read_android,
-    read_any,
-    read_ipin,
-    read_phyphox,
-    read_sensorlogger,
-)
+from hrtls.io.readers import read_android, read_ipin, read_phyphox, read_sensorlogger
+from hrtls.recordings import FORMATS, detect_format, read_any
 
 from ._synth import (
     motion,

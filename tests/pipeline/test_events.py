@@ -1,4 +1,10 @@
-"""The compiled event loop does exactly what the Python fusion parts do one event at a time."""
+"""The compiled event loop does exactly what the Python fusion parts do one event at a time.
+
+Both call the same compiled functions of :mod:`hrtls.fusion` (their maths is checked against
+readable references in ``tests/fusion/test_compiled_oracles.py``); these tests check the loop's
+own work: event order, the start-heading preset, scale / offset / variance handling, counts,
+outcome codes and the heading ring.
+"""
 
 from __future__ import annotations
 
@@ -11,17 +17,14 @@ from hypothesis import strategies as st
 
 from hrtls.data import Activity
 from hrtls.errors import InputError
+from hrtls.fusion.channel import ChannelEstimator
 from hrtls.fusion.floors import floor_level_update
-from hrtls.fusion.gating import chi2_threshold, kalman_update
+from hrtls.fusion.gating import kalman_update
+from hrtls.fusion.path_loss import PathLossModel
+from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update
-from hrtls.fusion.rss import (
-    ChannelEstimator,
-    PathLossModel,
-    RssScan,
-    hyperbolic_wls,
-    rss_update,
-    scan_position,
-)
+from hrtls.fusion.rss import rss_update
+from hrtls.fusion.rss_scans import RssScan, scan_position
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
 from hrtls.pipeline import _events as ev
@@ -32,29 +35,28 @@ ACTS = [int(Activity.WALKING), int(Activity.STANDING), int(Activity.UPSTAIRS),
         int(Activity.DOWNSTAIRS), int(Activity.RUNNING)]
 
 
-def params(mode_state: bool, chan: bool, has_imu: bool = True) -> np.ndarray:
+def params(mode_state: bool, chan: bool, has_imu: bool = True, *,
+           gate_probability: float = 0.999, model: PathLossModel | None = None,
+           scan_mode: str = "kalman", wls_cov: bool = False
+           ) -> tuple[np.ndarray, StepPredictionParams]:
+    """Loop parameters as the tracker builds them (floors of 3 m, 0.1 m snap)."""
     sp = StepPredictionParams(heading_mode="state" if mode_state else "input",
                               sigma_heading_increment_rad=0.01)
-    prm = np.zeros(ev.N_PARAMS)
-    prm[ev.P_Q_ALONG], prm[ev.P_Q_ACROSS], prm[ev.P_Q_VERT] = (sp.q_along, sp.q_across,
-                                                               sp.q_vertical)
-    prm[ev.P_STAIR_D], prm[ev.P_STAIR_H] = sp.stair_depth_m, sp.stair_height_m
-    prm[ev.P_STAIRS_MODEL] = 1.0
-    prm[ev.P_MODE_STATE] = float(mode_state)
-    prm[ev.P_SIG_HEAD], prm[ev.P_SIG_HEAD_INC] = sp.sigma_heading_rad, 0.01
-    prm[ev.P_FLOOR_SNAP], prm[ev.P_FLOOR_H], prm[ev.P_FLOOR_SIG] = 1.0, 3.0, 0.1
-    prm[ev.P_CHI2_1], prm[ev.P_USE_CHI2] = 10.8, 1.0
-    prm[ev.P_HEAD_KNOWN], prm[ev.P_HAS_IMU] = 1.0, float(has_imu)
-    prm[ev.P_RW_SPEED], prm[ev.P_RW_VERT], prm[ev.P_RW_HEAD] = 1.0, 0.05, 0.5
-    prm[ev.P_RSS_MIN_D], prm[ev.P_D0] = 0.5, 1.0
-    prm[ev.P_RANGE_SIG], prm[ev.P_RANGE_MIN_D] = 0.5, 0.1
-    cp = ChannelEstimator().params
-    prm[ev.P_CHAN_EST] = float(chan)
-    prm[ev.P_FORGET], prm[ev.P_CHAN_MIN_D] = cp.forgetting, cp.min_distance_m
-    prm[ev.P_CHAN_MAX_VAR] = cp.max_position_var_m2
-    prm[ev.P_ETA_LO], prm[ev.P_ETA_HI] = cp.eta_bounds
-    prm[ev.P_CAP_A], prm[ev.P_CAP_ETA] = cp.sigma_a_prior_db**2, cp.sigma_eta_prior**2
+    prm = ev.loop_params(
+        step=sp, path_loss=model or PathLossModel(), range_params=RangeParams(),
+        channel=ChannelEstimator().params if chan else None, random_walk=RandomWalkParams(),
+        floor_snap=True, floor_height_m=3.0, floor_sigma_m=0.1,
+        gate_probability=gate_probability, heading_known=True, has_imu=has_imu,
+        rss_min_distance_m=0.5, scan_jump=scan_mode == "wls", scan_wls_covariance=wls_cov,
+        scan_sigma_position_m=2.0)
     return prm, sp
+
+
+def state_record(start: FilterState, **kw: object) -> tuple[np.ndarray, np.ndarray]:
+    """Loop state at ``start`` with the default path-loss model unless given."""
+    kw.setdefault("path_loss", PathLossModel())
+    kw.setdefault("channel", None)
+    return ev.loop_state(start, **kw)  # type: ignore[arg-type]
 
 
 def run_kernel(kind: np.ndarray, t: np.ndarray, data: np.ndarray, prm: np.ndarray,
@@ -89,7 +91,7 @@ small_turn_step_st = st.tuples(st.floats(0.0, 1.5), st.floats(0.0, 0.3), st.floa
 def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, float]],
                                     mode_state: bool, heading_known: bool) -> None:
     prm, sp = params(mode_state, False)
-    prm[ev.P_HEAD_KNOWN] = float(heading_known)
+    prm["heading_known"] = heading_known
     start = FilterState.initial(t=0.0, heading_rad=0.3)
     # Python: the tracker's per-step sequence (a known start heading: the first step's heading
     # is the reference before the step; unknown: the predictor takes or adopts it)
@@ -108,14 +110,13 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
     # kernel
     n = len(steps)
     x, p = start.x.copy(), start.P.copy()
-    sc = ev.initial_scalars()
-    sc[ev.S_T] = 0.0
+    sc, cov = state_record(start)
     data = np.array([[a, b, c, d, e] for a, b, c, d, e in steps], dtype=np.float64)
     out = run_kernel(np.zeros(n, dtype=np.int64), np.arange(1.0, n + 1), data, prm, sc,
-                     np.eye(2), x, p)
-    np.testing.assert_allclose(x[:3], state.x[:3], atol=1e-10)
-    assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-10
-    np.testing.assert_allclose(p, state.P, atol=1e-10)
+                     cov, x, p)
+    np.testing.assert_allclose(x[:3], state.x[:3], atol=1e-12)
+    assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-12
+    np.testing.assert_allclose(p, state.P, atol=1e-12)
     np.testing.assert_allclose(out["p"], np.transpose(out["p"], (0, 2, 1)), atol=0)
 
 
@@ -128,10 +129,9 @@ obs_st = st.tuples(st.booleans(), st.floats(0.0, 20.0), st.floats(0.0, 20.0),
        has_imu=st.booleans())
 def test_observation_kernel_equals_python(obs: list[tuple[bool, float, float, float, float]],
                                           chan: bool, has_imu: bool) -> None:
-    from hrtls.fusion.random_walk import predict_random_walk
-
-    prm, _ = params(True, chan, has_imu)
+    gate = 1 - 1e-3 * 1.0000001
     model = PathLossModel(a_dbm=-60.0, eta=2.5, sigma_db=5.0)
+    prm, _ = params(True, chan, has_imu, gate_probability=gate, model=model)
     est = ChannelEstimator()
     cstate = est.start(model)
     start = FilterState.initial(t=0.0, xyz=(5.0, 5.0, 0.0), sigma_xy_m=2.0)
@@ -147,32 +147,23 @@ def test_observation_kernel_equals_python(obs: list[tuple[bool, float, float, fl
                 cstate, _ = est.update(cstate, rss_dbm=[value], distance_m=[d],
                                        distance_var_m2=float(np.trace(state.P[:2, :2])))
                 m = cstate.model()
-            state = rss_update(state, a, value, m, gate_probability=1 - 1e-3 * 1.0000001).state
+            state = rss_update(state, a, value, m, gate_probability=gate).state
         else:
             state = range_update(state, a, rng, float("nan"),
-                                 params=RangeParams(gate_probability=1 - 1e-3 * 1.0000001)
-                                 ).state
+                                 params=RangeParams(gate_probability=gate)).state
     n = len(obs)
     kind = np.array([ev.EV_RSS if o[0] else ev.EV_RANGE for o in obs], dtype=np.int64)
     data = np.full((n, 5), np.nan)
     for k, (is_rss, ax, ay, value, rng) in enumerate(obs):
         data[k, :3] = (ax, ay, 1.0)
         data[k, 3] = value if is_rss else rng
-    prm[ev.P_CHI2_1] = float(__import__("scipy.stats", fromlist=["chi2"]).chi2.ppf(
-        1 - 1e-3 * 1.0000001, 1))
-    sc = ev.initial_scalars()
-    sc[ev.S_A], sc[ev.S_ETA], sc[ev.S_SIGMA_DB] = -60.0, 2.5, 5.0
-    sc[ev.S_RESVAR] = 25.0
+    sc, cov = state_record(start, path_loss=model, channel=est.start(model))
     x, p = start.x.copy(), start.P.copy()
-    out = run_kernel(kind, np.arange(1.0, n + 1), data, prm, sc, cstate_cov0(est, model), x, p)
-    assert sc[ev.S_N_SOFT] == np.count_nonzero(out["status"] == ev.ST_ACCEPTED)
-    assert sc[ev.S_N_STEPS] == 0 and sc[ev.S_N_SCANS] == 0
-    np.testing.assert_allclose(x, state.x, atol=1e-8)
-    np.testing.assert_allclose(p, state.P, atol=1e-8)
-
-
-def cstate_cov0(est: ChannelEstimator, model: PathLossModel) -> np.ndarray:
-    return est.start(model).cov.copy()
+    out = run_kernel(kind, np.arange(1.0, n + 1), data, prm, sc, cov, x, p)
+    assert sc["n_soft"][0] == np.count_nonzero(out["status"] == ev.ST_ACCEPTED)
+    assert sc["n_steps"][0] == 0 and sc["n_scans"][0] == 0
+    np.testing.assert_allclose(x, state.x, atol=1e-12)
+    np.testing.assert_allclose(p, state.P, atol=1e-12)
 
 
 def test_tracker_uses_kernel_and_reports(office) -> None:  # type: ignore[no-untyped-def]
@@ -207,28 +198,23 @@ def test_step_scale_offset_and_variance_in_kernel(
     prep[:, 4] = np.interp(t, var_t, var_v) if with_var else np.nan
     start = FilterState.initial(t=0.0, heading_rad=0.3)
     x0, p0 = start.x.copy(), start.P.copy()
-    sc0 = ev.initial_scalars()
-    run_kernel(np.zeros(n, dtype=np.int64), t, prep, prm, sc0, np.eye(2), x0, p0)
+    sc0, cov0 = state_record(start)
+    run_kernel(np.zeros(n, dtype=np.int64), t, prep, prm, sc0, cov0, x0, p0)
     x1, p1 = start.x.copy(), start.P.copy()
-    sc1 = ev.initial_scalars()
-    sc1[ev.S_STEP_SCALE], sc1[ev.S_RUN_MULT], sc1[ev.S_YAW_OFFSET] = scale, run_mult, yaw_offset
-    run_kernel(np.zeros(n, dtype=np.int64), t, raw, prm, sc1, np.eye(2), x1, p1,
+    sc1, cov1 = state_record(start, step_scale=scale, running_multiplier=run_mult,
+                             yaw_offset_rad=yaw_offset)
+    run_kernel(np.zeros(n, dtype=np.int64), t, raw, prm, sc1, cov1, x1, p1,
                var_t=var_t, var_v=var_v)
     np.testing.assert_allclose(x1[:3], x0[:3], atol=1e-10)
     assert abs(math.remainder(x1[3] - x0[3], 2 * math.pi)) < 1e-10
     np.testing.assert_allclose(p1, p0, atol=1e-10)
-    assert sc1[ev.S_PATH] == pytest.approx(float(np.sum(prep[:, 0])), abs=1e-9)
-    assert sc1[ev.S_RUN_PATH] == pytest.approx(float(np.sum(prep[run, 0])), abs=1e-9)
+    assert sc1["path_m"][0] == pytest.approx(float(np.sum(prep[:, 0])), abs=1e-9)
+    assert sc1["running_path_m"][0] == pytest.approx(float(np.sum(prep[run, 0])), abs=1e-9)
 
 
 def scan_params(mode: str, wls_cov: bool, model: PathLossModel) -> np.ndarray:
-    prm, _ = params(True, False)
-    prm[ev.P_SCAN_WLS] = float(mode == "wls")
-    prm[ev.P_SCAN_WLS_COV] = float(wls_cov)
-    prm[ev.P_SCAN_SIG_P] = 2.0
-    prm[ev.P_CHI2_2] = chi2_threshold(2, GATE)
-    prm[ev.P_PL_A], prm[ev.P_PL_ETA], prm[ev.P_PL_SIG] = model.a_dbm, model.eta, model.sigma_db
-    return prm
+    return params(True, False, gate_probability=GATE, model=model, scan_mode=mode,
+                  wls_cov=wls_cov)[0]
 
 
 def python_scan(state: FilterState, scan: RssScan, model: PathLossModel, mode: str,
@@ -280,12 +266,10 @@ def test_scan_kernel_equals_python(anchors: list[tuple[float, float, float, int]
     ref, status, nis = python_scan(start.evolve(t=3.0), scan, model, mode, wls_cov)
     rows = np.column_stack([xy, scan.rss_dbm, scan.count]).reshape(-1, 4)
     x, p = start.x.copy(), start.P.copy()
-    sc = ev.initial_scalars()
-    sc[ev.S_T] = 1.0
-    sc[ev.S_SCAN_BASE] = 10.0                   # absolute row indices are shifted by it
+    sc, cov = state_record(start, scan_base=10)   # absolute row indices are shifted by it
     data = np.array([[10.0, len(anchors), np.nan, np.nan, np.nan]])
     out = run_kernel(np.array([ev.EV_SCAN]), np.array([3.0]), data,
-                     scan_params(mode, wls_cov, model), sc, np.eye(2), x, p, scan=rows)
+                     scan_params(mode, wls_cov, model), sc, cov, x, p, scan=rows)
     code = int(out["status"][0])
     expected = {"few": ev.ST_FEW, "collinear": ev.ST_COLLINEAR, "wls": ev.ST_WLS,
                 "accepted": ev.ST_ACCEPTED, "rejected": ev.ST_GATE}[status]
@@ -296,38 +280,11 @@ def test_scan_kernel_equals_python(anchors: list[tuple[float, float, float, int]
     tol = 1e-13 * cond + 1e-9
     np.testing.assert_allclose(x, ref.x, rtol=tol, atol=tol)
     np.testing.assert_allclose(p, ref.P, rtol=tol, atol=tol)
-    assert sc[ev.S_T] == 3.0
+    assert sc["t"][0] == 3.0
     if status in ("accepted", "rejected"):
         assert out["nis"][0] == pytest.approx(nis, rel=tol, abs=1e-9)
         np.testing.assert_allclose(out["aux"][0, :2], scan_position(scan, model).xy - start.x[:2],
                                    rtol=tol, atol=tol)
-
-
-@settings(max_examples=150, deadline=None)
-@given(pts=st.lists(st.tuples(st.floats(-20.0, 20.0), st.floats(-20.0, 20.0),
-                              st.floats(0.2, 30.0)), min_size=3, max_size=9),
-       sigma_ln=st.floats(0.05, 1.0))
-def test_wls_kernel_equals_hyperbolic_wls(pts: list[tuple[float, float, float]],
-                                          sigma_ln: float) -> None:
-    a = np.array([[p[0], p[1]] for p in pts])
-    d = np.array([p[2] for p in pts])
-    out = np.empty(5)
-    ok = ev.hyperbolic_wls_kernel(a, d, sigma_ln, out)
-    try:
-        fix = hyperbolic_wls(a, d, sigma_ln=sigma_ln)
-    except InputError:
-        # the same test on rounding-level different sums: only near-degenerate cases may differ
-        assert not ok or _condition(a, d) > 1e10
-        return
-    if not ok:
-        assert _condition(a, d) > 1e10
-        return
-    scale = max(1.0, float(np.max(np.abs(fix.xy))))
-    cond = _condition(a, d)
-    tol = 1e-12 * cond * scale + 1e-9
-    np.testing.assert_allclose(out[:2], fix.xy, rtol=0, atol=tol)
-    np.testing.assert_allclose(out[2:], [fix.cov[0, 0], fix.cov[0, 1], fix.cov[1, 1]],
-                               rtol=1e-12 * cond + 1e-9, atol=1e-12)
 
 
 def _condition(a: np.ndarray, d: np.ndarray) -> float:
@@ -350,13 +307,13 @@ def test_recent_heading_ring(headings: list[float]) -> None:
     n = len(headings)
     data = np.array([[0.7, h, 0.0, int(Activity.WALKING), np.nan] for h in headings])
     t = np.arange(1.0, n + 1)
-    sc = ev.initial_scalars()
-    sc[ev.S_YAW_OFFSET] = 0.4                  # the ring keeps headings before the offset
     start = FilterState.initial(t=0.0)
-    out = run_kernel(np.zeros(n, dtype=np.int64), t, data, prm, sc, np.eye(2),
+    # the ring keeps headings before the offset
+    sc, cov = state_record(start, yaw_offset_rad=0.4)
+    out = run_kernel(np.zeros(n, dtype=np.int64), t, data, prm, sc, cov,
                      start.x.copy(), start.P.copy())
     finite = [(ti, h) for ti, h in zip(t.tolist(), headings, strict=True) if math.isfinite(h)]
-    assert sc[ev.S_N_STEPS] == n and sc[ev.S_N_HEADINGS] == len(finite)
+    assert sc["n_steps"][0] == n and sc["n_headings"][0] == len(finite)
     c = len(finite)
     ring = out["recent"].tolist()
     if c > ev.N_RECENT:

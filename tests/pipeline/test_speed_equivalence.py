@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from hrtls.fusion.rss import group_scans
+from hrtls.fusion.rss_scans import group_scans
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import _RSS, TrackResult

@@ -91,8 +91,8 @@ def test_parallel_batch_equals_one_process(recordings, tmp_path):
 
 
 def test_track_one_matches_plain_tracker(recordings, tmp_path):
-    from hrtls.io.readers.detect import read_any
     from hrtls.pipeline import Tracker, preset
+    from hrtls.recordings import read_any
 
     task = plan_batch([recordings / "circle0"], tmp_path, preset="default", config_path=None)[0]
     s = track_one(task)

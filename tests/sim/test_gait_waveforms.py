@@ -23,7 +23,7 @@ from hrtls.sim.gait_model import (
     waveform_harmonics,
 )
 from hrtls.sim.imu_model import body_kinematics, ideal_imu
-from hrtls.sim.motion import Waypoint, simulate_motion
+from hrtls.sim.motion_truth import Waypoint, simulate_motion
 
 POINTS = 100
 
@@ -331,7 +331,7 @@ def test_levelled_signals_reject_bad_input():
 def test_fourier_heading_on_simulated_basso_walk():
     """Basso's tip-to-tail heading needs the real AP timing; ~90 deg off on the old model."""
     from hrtls.frames import wrap_angle
-    from hrtls.gait.pipeline import analyze_session
+    from hrtls.gait.analyzer import analyze_session
     from hrtls.sim.scenarios import run_scenario
 
     res = run_scenario("basso_test1", 0)

@@ -18,7 +18,7 @@ from hrtls.frames import (
 from hrtls.sim.devices import get_device
 from hrtls.sim.gait_model import GaitParams, simulate_gait
 from hrtls.sim.imu_model import BodyKinematics, body_kinematics, ideal_imu, simulate_imu
-from hrtls.sim.motion import Waypoint, simulate_motion
+from hrtls.sim.motion_truth import Waypoint, simulate_motion
 from hrtls.sim.scenarios import mounting_quaternion, run_scenario
 
 

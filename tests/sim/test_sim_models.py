@@ -35,7 +35,7 @@ from hrtls.sim.infrastructure import (
     rss_readings,
 )
 from hrtls.sim.magnetic import EarthField, MagneticAnomaly, MagneticEnvironment
-from hrtls.sim.motion import (
+from hrtls.sim.motion_truth import (
     Waypoint,
     _run_profile_kernel,
     build_geometry,

@@ -40,7 +40,7 @@ BeaconsOption = Annotated[Path | None, typer.Option(
 
 def _load(path: Path, fmt: str | None, *, repair: bool, check_units: bool,
           beacons: Path | None) -> Session:
-    from hrtls.io.readers.detect import read_any
+    from hrtls.recordings import read_any
 
     if not path.exists():
         raise InputError("no such file or folder", where=str(path),
@@ -52,7 +52,7 @@ def _load(path: Path, fmt: str | None, *, repair: bool, check_units: bool,
 @reports_errors
 def formats() -> None:
     """List the input formats hrtls reads."""
-    from hrtls.io.readers.detect import FORMATS
+    from hrtls.recordings import FORMATS
 
     table = Table("format", "what")
     for name, reader in FORMATS.items():
@@ -70,7 +70,7 @@ def info(
 ) -> None:
     """Describe a recording: format, duration, rates, gaps, sensors, suspected unit problems."""
     from hrtls.io.inspect import summarize
-    from hrtls.io.readers.detect import detect_format
+    from hrtls.recordings import detect_format
 
     detected = fmt or detect_format(path)
     with warnings.catch_warnings(record=True) as repairs:
@@ -115,8 +115,8 @@ def convert(
     overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
 ) -> None:
     """Convert a recording into a session folder (SI units, ENU, checked)."""
-    from hrtls.io.readers.detect import detect_format
     from hrtls.io.session import write_session
+    from hrtls.recordings import detect_format
 
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                TimeElapsedColumn())

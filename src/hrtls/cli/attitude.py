@@ -66,7 +66,7 @@ def read_any_session(path: Path, *, repair: bool = False) -> Session:
     if is_session(path):
         return read_session(path, repair=repair)
     try:
-        from hrtls.io.readers.detect import read_any
+        from hrtls.recordings import read_any
     except ImportError:  # pragma: no cover - readers not installed
         return read_session(path, repair=repair)
     return read_any(path, repair=repair)

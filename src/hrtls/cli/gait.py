@@ -38,7 +38,7 @@ def read_activity_labels(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray
 def _read_session(path: Path) -> object:
     """Any recording hrtls reads (session folder, zip, other formats) as a Session."""
     try:
-        from hrtls.io.readers.detect import read_any
+        from hrtls.recordings import read_any
     except ImportError:  # pragma: no cover - older trees: session folders only
         from hrtls.io.session import read_session
 
@@ -54,8 +54,8 @@ def labelled_windows(sessions: list[Path], *, window_s: float, cutoff_hz: float
     interval get the label UNKNOWN (-1).
     """
     from hrtls.data import Session
+    from hrtls.gait.analyzer import activity_windows, session_inputs
     from hrtls.gait.features import window_labels
-    from hrtls.gait.pipeline import activity_windows, session_inputs
 
     tree, feats, labels = [], [], []
     for path in sessions:
@@ -149,8 +149,8 @@ def calibrate_steps(
 ) -> None:
     """Fit the step-length model from walks of known length (Basso eq. 1-2) into a profile."""
     from hrtls.data import Session, UserProfile
+    from hrtls.gait.analyzer import GaitAnalyzer, session_inputs
     from hrtls.gait.peak_steps import PeakStepDetector
-    from hrtls.gait.pipeline import GaitAnalyzer, session_inputs
     from hrtls.gait.pll import PllStepDetector, StepDetection
     from hrtls.gait.step_length_fit import (
         CalibrationWalk,

@@ -64,9 +64,9 @@ def track(
                           expected="a folder of recordings or a glob (one recording: no engine)")
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
-    from hrtls.io.readers.detect import read_any
     from hrtls.jobs.track import evaluate_track, write_track_outputs
     from hrtls.pipeline import Tracker, load_config, preset
+    from hrtls.recordings import read_any
 
     if config is not None and preset_name is not None:
         raise InputError("both --config and --preset", where="hrtls track",

@@ -6,13 +6,22 @@
 * :mod:`~hrtls.fusion.velocity_prediction` -- Colombo eq. 15-17 (numba kernel).
 * :mod:`~hrtls.fusion.fixes` -- Colombo eq. 18-23 (fixes while moving, period Tp) and the loop.
 * :mod:`~hrtls.fusion.yaw_stretch` -- Colombo eq. 24-28 (yaw pseudo-measurement).
-* :mod:`~hrtls.fusion.rss` -- Tarrio eq. 1, 2, 5-13, tight RSS EKF, channel re-estimation.
+* :mod:`~hrtls.fusion.path_loss` -- Tarrio eq. 1 (log-normal path loss).
+* :mod:`~hrtls.fusion.rss_scans` -- RSS scans and their positions (Tarrio eq. 2, hyperbolic WLS).
+* :mod:`~hrtls.fusion.rss` -- Tarrio eq. 5-13 and the tight RSS EKF.
+* :mod:`~hrtls.fusion.channel` -- online re-estimation of the channel ``A``, ``eta``.
 * :mod:`~hrtls.fusion.tags` -- Inderst eq. 4.26-4.33 (four tag strategies), 4.21-4.22 (bearings).
 * :mod:`~hrtls.fusion.ranges` -- Inderst eq. 4.34-4.35 (range EKF).
 * :mod:`~hrtls.fusion.floors` -- floor index and level constraint.
 * :mod:`~hrtls.fusion.random_walk` -- prediction without motion sensors (infrastructure only).
+
+The frequent predictions and corrections (steps, random walk, floor level, RSS reading, range,
+scan position, channel, the scalar and 2-D Joseph updates) are numba functions on plain arrays
+and parameter records (``*_DTYPE``), called by the Python API here and by the tracker's compiled
+event loop (:mod:`hrtls.pipeline._events`): each is written once.
 """
 
+from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams, ChannelState
 from hrtls.fusion.fixes import (
     ColomboRunResult,
     FixCorrector,
@@ -30,24 +39,18 @@ from hrtls.fusion.gating import (
     kalman_update,
     summarize,
 )
+from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update, update_ranges
 from hrtls.fusion.rss import (
-    ChannelEstimator,
-    ChannelEstimatorParams,
-    ChannelState,
-    PathLossModel,
-    RssScan,
     TarrioFusion,
     TarrioParams,
     TarrioState,
-    group_scans,
     hold_last_fix,
-    hyperbolic_wls,
     rss_update,
-    scan_position,
     update_rss_readings,
 )
+from hrtls.fusion.rss_scans import RssScan, group_scans, hyperbolic_wls, scan_position
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
 from hrtls.fusion.tags import (

@@ -160,7 +160,8 @@ class FixCorrector:
         has_z:
             Whether z was measured.
         cov_xy:
-            Full 2x2 covariance of a planar fix (e.g. from :func:`hrtls.fusion.rss.hyperbolic_wls`);
+            Full 2x2 covariance of a planar fix (e.g. from
+            :func:`hrtls.fusion.rss_scans.hyperbolic_wls`);
             replaces ``sigma_m^2 I`` when given and z is not used.
         drift_var_m2:
             Variance added to the predicted east and north position before the gate and the

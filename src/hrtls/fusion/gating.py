@@ -13,6 +13,13 @@ Every correction of the position filter goes through :func:`kalman_update`:
 
 The result carries an :class:`UpdateDiagnostics` record so a report can count what each source
 accepted and rejected.
+
+The 4-state filter's frequent corrections use two compiled special cases on plain arrays,
+callable from other compiled code (the tracker's event loop) and from Python:
+:func:`scalar_update` (one scalar measurement, any ``h``) and :func:`position_update` (a 2-D
+position, ``H = [I2 0]``). Both return an outcome code (:data:`ACCEPTED`, :data:`GATED`,
+:data:`NOT_SPD`); :func:`scalar_diagnostics` turns a scalar outcome into
+:class:`UpdateDiagnostics`.
 """
 
 from __future__ import annotations
@@ -33,6 +40,12 @@ from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray
 
 Status = Literal["accepted", "rejected", "skipped"]
+
+ACCEPTED, GATED, TOO_NEAR, NOT_SPD = 0, 1, 2, 3
+"""Outcome codes of the compiled corrections: accepted, failed the gate, estimate too near the
+landmark (no direction), innovation covariance not positive definite."""
+N_FILTER_STATE = 4
+"""Size of the rescuer filter state ``[x, y, z, heading]`` the compiled corrections work on."""
 
 DEFAULT_GATE_PROBABILITY = 0.999
 """Default gate: an observation is rejected when its NIS exceeds the 99.9 % chi-square quantile."""
@@ -223,6 +236,126 @@ def joseph_kernel(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray, nu
         for j in range(n):
             p_out[i, j] = 0.5 * (q[i, j] + q[j, i])
     return 0, value
+
+
+@numba.njit(cache=True, error_model="numpy")
+def wrap_rad(a: float) -> float:  # pragma: no cover - compiled
+    """Angle wrapped to ``(-pi, pi]`` (as :func:`hrtls.frames.wrap_angle`)."""
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def symmetrize_in_place(p: FloatArray) -> None:  # pragma: no cover - compiled
+    """``P <- (P + P^T) / 2`` for the 4x4 filter covariance (the diagonal is kept exactly)."""
+    for i in range(N_FILTER_STATE):
+        for j in range(i + 1, N_FILTER_STATE):
+            m = 0.5 * (p[i, j] + p[j, i])
+            p[i, j] = m
+            p[j, i] = m
+
+
+@numba.njit(cache=True, error_model="numpy")
+def scalar_update(x: FloatArray, p: FloatArray, h: tuple[float, float, float, float], r: float,
+                  nu: float, threshold: float, gated: bool
+                  ) -> tuple[int, float, float]:  # pragma: no cover - compiled
+    """Gated Joseph-form update of the 4-state filter with one scalar measurement, in place.
+
+    ``h`` is the measurement row, ``r`` its variance, ``nu = z - h(x)``; the heading ``x[3]``
+    is wrapped after the update. Returns ``(code, nis, S)`` with ``S = h P h^T + r``; the state
+    is unchanged unless the code is :data:`ACCEPTED`. The Joseph form
+    ``P+ = (I - k h) P (I - k h)^T + k r k^T`` is expanded without temporaries:
+    ``P+_ij = P_ij - k_i (h P)_j - q_i k_j + r k_i k_j`` with ``q = (I - k h) P h^T``, then
+    symmetrized.
+    """
+    ph0 = p[0, 0] * h[0] + p[0, 1] * h[1] + p[0, 2] * h[2] + p[0, 3] * h[3]
+    ph1 = p[1, 0] * h[0] + p[1, 1] * h[1] + p[1, 2] * h[2] + p[1, 3] * h[3]
+    ph2 = p[2, 0] * h[0] + p[2, 1] * h[1] + p[2, 2] * h[2] + p[2, 3] * h[3]
+    ph3 = p[3, 0] * h[0] + p[3, 1] * h[1] + p[3, 2] * h[2] + p[3, 3] * h[3]
+    s = r + (h[0] * ph0 + h[1] * ph1 + h[2] * ph2 + h[3] * ph3)
+    if not s > 0.0:
+        return NOT_SPD, math.nan, s
+    nis = nu * nu / s
+    if gated and nis > threshold:
+        return GATED, nis, s
+    k = (ph0 / s, ph1 / s, ph2 / s, ph3 / s)
+    ph = (ph0, ph1, ph2, ph3)
+    hp = (h[0] * p[0, 0] + h[1] * p[1, 0] + h[2] * p[2, 0] + h[3] * p[3, 0],
+          h[0] * p[0, 1] + h[1] * p[1, 1] + h[2] * p[2, 1] + h[3] * p[3, 1],
+          h[0] * p[0, 2] + h[1] * p[1, 2] + h[2] * p[2, 2] + h[3] * p[3, 2],
+          h[0] * p[0, 3] + h[1] * p[1, 3] + h[2] * p[2, 3] + h[3] * p[3, 3])
+    hph = hp[0] * h[0] + hp[1] * h[1] + hp[2] * h[2] + hp[3] * h[3]
+    for i in range(N_FILTER_STATE):
+        x[i] += k[i] * nu
+    x[3] = wrap_rad(x[3])
+    for i in range(N_FILTER_STATE):
+        qi = ph[i] - k[i] * hph
+        for j in range(N_FILTER_STATE):
+            p[i, j] = p[i, j] - k[i] * hp[j] - qi * k[j] + k[i] * r * k[j]
+    symmetrize_in_place(p)
+    return ACCEPTED, nis, s
+
+
+@numba.njit(cache=True, error_model="numpy")
+def position_update(x: FloatArray, p: FloatArray, r00: float, r01: float, r11: float,
+                    nu0: float, nu1: float, threshold: float,
+                    aux: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled
+    """Gated Joseph update of the 4-state filter with a 2-D position (``H = [I2 0]``), in place.
+
+    ``R = [[r00, r01], [r01, r11]]``, ``nu = (nu0, nu1)``; ``aux`` receives
+    ``[nu0, nu1, S00, S01, S11]``. Returns ``(code, nis)``.
+    """
+    s00 = p[0, 0] + r00
+    s11 = p[1, 1] + r11
+    s01 = 0.5 * ((p[0, 1] + r01) + (p[1, 0] + r01))
+    aux[0] = nu0
+    aux[1] = nu1
+    aux[2] = s00
+    aux[3] = s01
+    aux[4] = s11
+    det = s00 * s11 - s01 * s01
+    if not (s00 > 0.0 and det > 0.0):      # Cholesky of a 2x2 fails
+        return NOT_SPD, math.nan
+    i00 = s11 / det
+    i01 = -s01 / det
+    i11 = s00 / det
+    nis = nu0 * (i00 * nu0 + i01 * nu1) + nu1 * (i01 * nu0 + i11 * nu1)
+    if nis > threshold:
+        return GATED, nis
+    # K = P H^T S^-1 (4x2)
+    kk = np.empty((N_FILTER_STATE, 2))
+    for i in range(N_FILTER_STATE):
+        kk[i, 0] = p[i, 0] * i00 + p[i, 1] * i01
+        kk[i, 1] = p[i, 0] * i01 + p[i, 1] * i11
+    for i in range(N_FILTER_STATE):
+        x[i] += kk[i, 0] * nu0 + kk[i, 1] * nu1
+    x[3] = wrap_rad(x[3])
+    a = np.eye(N_FILTER_STATE)
+    for i in range(N_FILTER_STATE):
+        a[i, 0] -= kk[i, 0]
+        a[i, 1] -= kk[i, 1]
+    apa = a @ p @ a.T
+    for i in range(N_FILTER_STATE):
+        for j in range(N_FILTER_STATE):
+            krk = (kk[i, 0] * (r00 * kk[j, 0] + r01 * kk[j, 1])
+                   + kk[i, 1] * (r01 * kk[j, 0] + r11 * kk[j, 1]))
+            p[i, j] = apa[i, j] + krk
+    symmetrize_in_place(p)
+    return ACCEPTED, nis
+
+
+def scalar_diagnostics(kind: str, t: float, code: int, nis_value: float, s: float, nu: float,
+                       threshold: float, source: str = "") -> UpdateDiagnostics:
+    """:class:`UpdateDiagnostics` of a :func:`scalar_update` outcome (as :func:`kalman_update`)."""
+    innovation = np.array([nu])
+    cov = np.array([[s]])
+    if code == ACCEPTED:
+        return UpdateDiagnostics(kind, t, "accepted", nis=nis_value, dof=1, threshold=threshold,
+                                 innovation=innovation, innovation_cov=cov, source=source)
+    reason = ("failed the chi-square gate" if code == GATED
+              else "innovation covariance not positive definite")
+    return UpdateDiagnostics(kind, t, "rejected", nis=nis_value if code == GATED else math.nan,
+                             dof=1, threshold=threshold, innovation=innovation,
+                             innovation_cov=cov, source=source, reason=reason)
 
 
 def kalman_update(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray,

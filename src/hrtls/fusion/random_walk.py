@@ -5,17 +5,23 @@ alone" baseline) the filter still needs a prediction between observations. The p
 where it is and its covariance grows like that of a walker of unknown direction,
 ``P_xy += sigma_speed^2 dt I`` (a velocity white-noise model), ``P_zz += sigma_vertical^2 dt``,
 ``P_hh += sigma_heading_rate^2 dt``. This is our addition; none of the papers needs it.
+
+:func:`random_walk_covariance` is the compiled growth on plain arrays (with the parameters as a
+:data:`RANDOM_WALK_DTYPE` record), shared by :func:`predict_random_walk` and the tracker's
+event loop.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from hrtls.errors import InputError
-from hrtls.fusion._checks import finite_scalar
-from hrtls.fusion.state import IH, IZ, FilterState
+from hrtls.fusion._checks import FloatArray, finite_scalar
+from hrtls.fusion._records import to_record
+from hrtls.fusion.state import FilterState
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,6 +44,26 @@ class RandomWalkParams:
             finite_scalar(getattr(self, name), where=f"RandomWalkParams.{name}",
                           non_negative=True)
 
+    def record(self) -> np.ndarray:
+        """The parameters as a one-element :data:`RANDOM_WALK_DTYPE` array."""
+        return to_record(RANDOM_WALK_DTYPE, self)
+
+
+RANDOM_WALK_DTYPE = np.dtype([("sigma_speed_m_s", np.float64),
+                              ("sigma_vertical_m_s", np.float64),
+                              ("sigma_heading_rate_rad_s", np.float64)])
+"""Record of :class:`RandomWalkParams` for compiled code (same field names)."""
+
+
+@numba.njit(cache=True, error_model="numpy")
+def random_walk_covariance(prm: np.record, p: FloatArray, dt: float) -> None:
+    # pragma: no cover - compiled
+    """Grow the covariance ``p`` over ``dt`` seconds in place (``prm``: a random-walk record)."""
+    p[0, 0] += prm.sigma_speed_m_s ** 2 * dt
+    p[1, 1] += prm.sigma_speed_m_s ** 2 * dt
+    p[2, 2] += prm.sigma_vertical_m_s ** 2 * dt
+    p[3, 3] += prm.sigma_heading_rate_rad_s ** 2 * dt
+
 
 def predict_random_walk(state: FilterState, t: float,
                         params: RandomWalkParams | None = None) -> FilterState:
@@ -47,10 +73,6 @@ def predict_random_walk(state: FilterState, t: float,
     if tt < state.t:
         raise InputError(f"t = {tt} s is before the filter time {state.t} s",
                          where="random walk t", expected="time order")
-    dt = tt - state.t
     p = state.P.copy()
-    p[0, 0] += prm.sigma_speed_m_s**2 * dt
-    p[1, 1] += prm.sigma_speed_m_s**2 * dt
-    p[IZ, IZ] += prm.sigma_vertical_m_s**2 * dt
-    p[IH, IH] += prm.sigma_heading_rate_rad_s**2 * dt
-    return state.evolve(t=tt, P=np.asarray(p))
+    random_walk_covariance(prm.record()[0], p, tt - state.t)
+    return state.evolve(t=tt, P=p)

@@ -4,9 +4,11 @@ Expected measurement (eq. 4.34), the horizontal distance to node ``i`` at ``(x_i
 
     h(p) = sqrt((x - x_i)^2 + (y - y_i)^2)
 
-with Jacobian ``H = [(x - x_i)/h, (y - y_i)/h, 0, 0]``; the update of eq. 4.35 is done by
-:func:`hrtls.fusion.gating.kalman_update` (Joseph form, NIS gate). With ``use_3d=True`` the
-slant range including ``z - z_i`` is used instead (the thesis works in the plane).
+with Jacobian ``H = [(x - x_i)/h, (y - y_i)/h, 0, 0]``; the update of eq. 4.35 is the
+compiled scalar Joseph update :func:`hrtls.fusion.gating.scalar_update` (NIS gate), called by
+:func:`range_correction` on plain arrays (the tracker's event loop calls it too). With
+``use_3d=True`` the slant range including ``z - z_i`` is used instead (the thesis works in the
+plane).
 
 Near the node the range carries no direction: when the predicted distance is below
 ``min_distance_m`` the reading is rejected (the Jacobian is undefined at 0).
@@ -17,14 +19,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
-from hrtls.fusion._checks import finite_scalar, finite_vector, probability
-from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, rejected, skipped
-from hrtls.fusion.state import IH, N_STATE, FilterState
+from hrtls.fusion._checks import FloatArray, finite_scalar, finite_vector, probability
+from hrtls.fusion.gating import (
+    TOO_NEAR,
+    UpdateDiagnostics,
+    chi2_threshold,
+    rejected,
+    scalar_diagnostics,
+    scalar_update,
+    skipped,
+)
+from hrtls.fusion.state import FilterState
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,6 +74,33 @@ class RangeUpdate:
     diagnostics: UpdateDiagnostics
 
 
+@numba.njit(cache=True, error_model="numpy")
+def range_correction(x: FloatArray, p: FloatArray, node_x: float, node_y: float, node_z: float,
+                     range_m: float, sigma_m: float, min_distance_m: float, threshold: float,
+                     gated: bool, use_3d: bool
+                     ) -> tuple[int, float, float, float]:  # pragma: no cover - compiled
+    """Eq. 4.34-4.35 with one range on plain arrays, in place.
+
+    Returns ``(code, nis, S, nu)``: :data:`~hrtls.fusion.gating.TOO_NEAR` (state unchanged,
+    NaNs) when the predicted distance is below ``min_distance_m``, else the outcome of
+    :func:`~hrtls.fusion.gating.scalar_update`.
+    """
+    dx = x[0] - node_x
+    dy = x[1] - node_y
+    if use_3d:
+        dz = x[2] - node_z
+        pred = math.sqrt(dx * dx + dy * dy + dz * dz)                 # eq. 4.34
+    else:
+        dz = 0.0
+        pred = math.sqrt(dx * dx + dy * dy)
+    if pred < min_distance_m:
+        return TOO_NEAR, math.nan, math.nan, math.nan
+    nu = range_m - pred
+    code, nis, s = scalar_update(x, p, (dx / pred, dy / pred, dz / pred, 0.0),
+                                 sigma_m * sigma_m, nu, threshold, gated)   # eq. 4.35
+    return code, nis, s, nu
+
+
 def range_update(state: FilterState, node_xyz: ArrayLike, range_m: float, sigma_m: float, *,
                  params: RangeParams | None = None, t: float | None = None, source: str = "",
                  kind: str = "range") -> RangeUpdate:
@@ -89,17 +127,16 @@ def range_update(state: FilterState, node_xyz: ArrayLike, range_m: float, sigma_
     sig = prm.default_sigma_m if not math.isfinite(float(sigma_m)) else finite_scalar(
         sigma_m, where="range sigma_m", positive=True)
     tt = state.t if t is None else float(t)
-    dims = 3 if prm.use_3d else 2
-    delta = state.x[:dims] - node[:dims]
-    pred = float(np.linalg.norm(delta))                      # eq. 4.34
-    if pred < prm.min_distance_m:
+    gated = prm.gate_probability is not None
+    threshold = chi2_threshold(1, prm.gate_probability) if prm.gate_probability is not None \
+        else math.inf
+    x, p = state.x.copy(), state.P.copy()
+    code, nis, s, nu = range_correction(x, p, node[0], node[1], node[2], z, sig,
+                                        prm.min_distance_m, threshold, gated, prm.use_3d)
+    if code == TOO_NEAR:
         return RangeUpdate(state, rejected(kind, tt, "estimate on top of the node", source))
-    h = np.zeros((1, N_STATE))
-    h[0, :dims] = delta / pred
-    res = kalman_update(state.x, state.P, h, np.array([[sig * sig]]), np.array([z - pred]),
-                        gate_probability=prm.gate_probability, kind=kind, t=tt, source=source,
-                        angle_index=IH)                      # eq. 4.35
-    return RangeUpdate(state.evolve(x=res.x, P=res.P), res.diagnostics)
+    diag = scalar_diagnostics(kind, tt, code, nis, s, nu, threshold, source)
+    return RangeUpdate(state.evolve(x=x, P=p) if diag.accepted else state, diag)
 
 
 def ranges_at(measurements: RangeMeasurements, t_from: float, t_to: float) -> np.ndarray:

@@ -1,19 +1,8 @@
-"""RSS of beacons: path loss, hyperbolic positioning, Kalman fusion, channel re-estimation.
+"""RSS of beacons fused with the position filter (Tarrio, Besada, Casar).
 
-From Tarrio, Besada, Casar (calibration-free RSS + inertial tracking):
+The path loss (eq. 1) is :mod:`hrtls.fusion.path_loss`, the scan positions (eq. 2) are
+:mod:`hrtls.fusion.rss_scans`, the channel re-estimation is :mod:`hrtls.fusion.channel`.
 
-* :class:`PathLossModel` -- log-normal path loss (eq. 1), ``rss = A - 10 eta log10(d/d0) + N(0,
-  sigma)``; inverted to a distance ``d = d0 10^((A - rss)/(10 eta))`` whose log is Gaussian with
-  standard deviation ``sigma ln(10) / (10 eta)`` (so ``sigma_d ~ d sigma ln10/(10 eta)``).
-* :func:`hyperbolic_wls` -- weighted hyperbolic least squares (eq. 2). Subtracting the circle of
-  a reference anchor ``r`` from the others linearizes the problem:
-  ``2 (a_i - a_r)^T (p - a_r) = |a_i - a_r|^2 - d_i^2 + d_r^2`` with the covariance of the
-  right-hand side proportional to ``S = diag(d_i^4) + d_r^4 1 1^T``.
-  Reading: the paper writes ``H`` and ``b`` with the first anchor at the origin; we translate the
-  coordinates so that the reference anchor is the origin, and choose as reference the anchor with
-  the *smallest* estimated distance (its ``d^4`` weight, the common term of ``S``, is then
-  smallest). The position covariance is ``4 sigma_ln^2 (H^T S^-1 H)^-1`` (first order,
-  ``var(d^2) ~ 4 d^4 sigma_ln^2``).
 * :class:`TarrioFusion` -- the linear Kalman filter of eq. 5-13 with the inertial velocity as
   control input: between RSS fixes the position is dead-reckoned (eq. 13), at each fix it is
   predicted (eq. 8) with ``Q`` of eq. 6 and corrected (eq. 10-12, Joseph form, gated).
@@ -23,31 +12,24 @@ From Tarrio, Besada, Casar (calibration-free RSS + inertial tracking):
   velocity sample, literally.
 * :func:`rss_update` -- the tighter variant: each RSS reading corrects the position filter
   directly by an EKF in the dB domain (``h(p) = A - 10 eta log10(|p - a|/d0)``, variance
-  ``sigma^2``), or, with ``domain="range"``, as a range ``d`` with ``sigma_d`` through
-  :func:`hrtls.fusion.ranges.range_update`.
-* :class:`ChannelEstimator` -- online re-estimation of ``A`` and ``eta``: recursive least squares
-  with exponential forgetting on ``rss = A - 10 eta log10(d/d0)`` where ``d`` is the distance from
-  the current position estimate to the anchor. Each reading is weighted by
-  ``sigma^2 / (sigma^2 + (10 eta / ln 10)^2 var_d / d^2)`` so that readings taken while the
-  position is uncertain count less; readings nearer than ``min_distance_m`` or taken with a
-  position variance above ``max_position_var_m2`` are skipped. The prior ``(A, eta)`` with its
-  covariance regularizes the start; the covariance is capped at the prior to avoid wind-up when
-  the geometry does not excite both parameters. The shadowing ``sigma`` is re-estimated as the
-  exponentially weighted RMS of the prior residuals.
+  ``sigma^2``, compiled in :func:`rss_db_correction`), or, with ``domain="range"``, as a range
+  ``d`` with ``sigma_d`` through :func:`hrtls.fusion.ranges.range_update`.
+* :func:`update_rss_readings` -- the tight variant over several readings, optionally
+  re-estimating the channel first.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
 
+import numba
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RssReadings
-from hrtls.data.session import ChannelModel
 from hrtls.errors import InputError
 from hrtls.fusion._checks import (
     FloatArray,
@@ -56,258 +38,20 @@ from hrtls.fusion._checks import (
     non_decreasing_time,
     probability,
 )
+from hrtls.fusion.channel import ChannelEstimator, ChannelState
 from hrtls.fusion.gating import (
+    TOO_NEAR,
     UpdateDiagnostics,
+    chi2_threshold,
     kalman_update,
     rejected,
+    scalar_diagnostics,
+    scalar_update,
     skipped,
-    symmetrize,
 )
+from hrtls.fusion.path_loss import LN10, PathLossModel
 from hrtls.fusion.ranges import RangeParams, range_update
 from hrtls.fusion.state import IH, N_STATE, FilterState
-
-LN10 = math.log(10.0)
-
-
-# ------------------------------------------------------------------------------------------
-# eq. 1: log-normal path loss
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class PathLossModel:
-    """Log-normal path loss (Tarrio eq. 1).
-
-    Attributes
-    ----------
-    a_dbm: RSS at the reference distance ``d0``, dBm (``A``).
-    eta: path-loss exponent.
-    sigma_db: shadowing standard deviation, dB.
-    d0_m: reference distance, m.
-    """
-
-    a_dbm: float = -59.0
-    eta: float = 2.0
-    sigma_db: float = 4.0
-    d0_m: float = 1.0
-
-    def __post_init__(self) -> None:
-        finite_scalar(self.a_dbm, where="PathLossModel.a_dbm")
-        finite_scalar(self.eta, where="PathLossModel.eta", positive=True)
-        finite_scalar(self.sigma_db, where="PathLossModel.sigma_db", positive=True)
-        finite_scalar(self.d0_m, where="PathLossModel.d0_m", positive=True)
-
-    @classmethod
-    def from_channel(cls, channel: ChannelModel) -> PathLossModel:
-        """From a session's ``channel`` block."""
-        return cls(a_dbm=channel.a_dbm, eta=channel.eta, sigma_db=channel.sigma_db)
-
-    @property
-    def sigma_ln(self) -> float:
-        """Standard deviation of ``ln d`` implied by the shadowing."""
-        return self.sigma_db * LN10 / (10.0 * self.eta)
-
-    def expected_rss(self, distance_m: ArrayLike) -> FloatArray:
-        """Mean RSS at a distance, dBm."""
-        d = np.asarray(distance_m, dtype=np.float64)
-        return np.asarray(self.a_dbm - 10.0 * self.eta * np.log10(d / self.d0_m))
-
-    def distance(self, rss_dbm: ArrayLike) -> FloatArray:
-        """Distance estimate (the median of the log-normal distance), m."""
-        r = np.asarray(rss_dbm, dtype=np.float64)
-        return np.asarray(self.d0_m * 10.0 ** ((self.a_dbm - r) / (10.0 * self.eta)))
-
-    def distance_sigma(self, rss_dbm: ArrayLike) -> FloatArray:
-        """First-order 1-sigma of :meth:`distance`, m."""
-        return np.asarray(self.distance(rss_dbm) * self.sigma_ln)
-
-
-# ------------------------------------------------------------------------------------------
-# eq. 2: weighted hyperbolic least squares
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True, eq=False)
-class WlsFix:
-    """Position from :func:`hyperbolic_wls`: ``xy`` (m), ``cov`` (2x2, m^2), reference index."""
-
-    xy: FloatArray
-    cov: FloatArray
-    reference: int
-
-
-def hyperbolic_wls(anchors_xy: ArrayLike, distances_m: ArrayLike, *,
-                   sigma_ln: float = 0.5,
-                   reference: Literal["nearest", "first"] = "nearest") -> WlsFix:
-    """Weighted hyperbolic least-squares position (Tarrio eq. 2).
-
-    Parameters
-    ----------
-    anchors_xy:
-        Anchor positions, m (N, 2), N >= 3, not collinear.
-    distances_m:
-        Estimated distances, m (N,), > 0.
-    sigma_ln:
-        Standard deviation of ``ln d`` (scales the covariance only).
-    reference:
-        Anchor whose circle is subtracted: the one with the smallest distance (default) or the
-        first one, as the paper writes eq. 2.
-    """
-    a = np.asarray(anchors_xy, dtype=np.float64)
-    if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)):
-        raise InputError(f"shape {a.shape}", where="hyperbolic_wls anchors_xy",
-                         expected="finite (N, 2) anchor positions")
-    d = finite_vector(distances_m, where="hyperbolic_wls distances_m", length=a.shape[0])
-    if a.shape[0] < 3:
-        raise InputError(f"{a.shape[0]} anchors", where="hyperbolic_wls",
-                         expected="at least 3 anchors")
-    if np.any(d <= 0.0):
-        raise InputError("distance <= 0", where="hyperbolic_wls distances_m",
-                         expected="positive distances")
-    if reference not in ("nearest", "first"):
-        raise InputError(f"reference {reference!r}", where="hyperbolic_wls",
-                         expected="'nearest' or 'first'")
-    ref = int(np.argmin(d)) if reference == "nearest" else 0
-    others = np.array([i for i in range(a.shape[0]) if i != ref])
-    rel = a[others] - a[ref]
-    h = 2.0 * rel                                                    # H of eq. 2
-    b = np.sum(rel * rel, axis=1) - d[others] ** 2 + d[ref] ** 2     # b~ of eq. 2
-    # S of eq. 2 is diag(d_i^4) + d_r^4 1 1^T: its inverse by Sherman-Morrison
-    dinv = 1.0 / d[others] ** 4
-    c_ref = d[ref] ** 4
-    k = c_ref / (1.0 + c_ref * float(np.sum(dinv)))
-
-    def s_inv(m: FloatArray) -> FloatArray:
-        dm = dinv[:, None] * m if m.ndim == 2 else dinv * m
-        return np.asarray(dm - k * np.outer(dinv, dinv @ m).reshape(dm.shape))
-
-    info = h.T @ s_inv(h)
-    det = float(info[0, 0] * info[1, 1] - info[0, 1] * info[1, 0])
-    tr = float(info[0, 0] + info[1, 1])
-    disc = math.sqrt(max(0.25 * tr * tr - det, 0.0))
-    lam_min, lam_max = 0.5 * tr - disc, 0.5 * tr + disc
-    # (det > 0: with anchors a few ulps apart the eigenvalues pass but det underflows)
-    if not lam_min > 0.0 or lam_max / lam_min > 1e12 or not det > 0.0:
-        raise InputError("anchors are collinear", where="hyperbolic_wls",
-                         expected="anchors spanning the plane")
-    inv = np.array([[info[1, 1], -info[0, 1]], [-info[1, 0], info[0, 0]]]) / det
-    xy_rel = inv @ (h.T @ s_inv(b))                                  # (H^T S^-1 H)^-1 H^T S^-1 b
-    cov = symmetrize(4.0 * sigma_ln**2 * inv)
-    if not (np.all(np.isfinite(xy_rel)) and np.all(np.isfinite(cov))):
-        raise InputError("anchors are collinear", where="hyperbolic_wls",
-                         expected="anchors spanning the plane")
-    return WlsFix(xy_rel + a[ref], cov, ref)
-
-
-# ------------------------------------------------------------------------------------------
-# scans: readings grouped per localization period
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True, eq=False)
-class RssScan:
-    """Readings of one localization period, averaged per anchor (dB domain)."""
-
-    t: float
-    anchor: list[str]
-    anchor_xyz: FloatArray
-    rss_dbm: FloatArray
-    count: FloatArray
-    unknown: list[str] = field(default_factory=list)
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class ScanTable:
-    """Scans as columns (what :func:`group_scans` returns, without per-scan objects).
-
-    Attributes
-    ----------
-    t: scan times, s (S,). first, count: rows of each scan in the row columns (S,).
-    anchor: anchor id per row (M,). anchor_xyz: its position, m (M, 3). rss_dbm: mean RSS per
-    row, dBm (M,). n_readings: readings averaged per row (M,). unknown: per scan, the anchors
-    heard without a known position.
-    """
-
-    t: FloatArray
-    first: NDArray[np.int64]
-    count: NDArray[np.int64]
-    anchor: NDArray[np.str_]
-    anchor_xyz: FloatArray
-    rss_dbm: FloatArray
-    n_readings: FloatArray
-    unknown: list[list[str]]
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    def scans(self) -> list[RssScan]:
-        """One :class:`RssScan` per scan."""
-        out: list[RssScan] = []
-        for i in range(len(self)):
-            a, b = int(self.first[i]), int(self.first[i] + self.count[i])
-            out.append(RssScan(float(self.t[i]), self.anchor[a:b].tolist(),
-                               self.anchor_xyz[a:b].copy(), self.rss_dbm[a:b].copy(),
-                               self.n_readings[a:b].copy(), list(self.unknown[i])))
-        return out
-
-
-def scan_table(rss: RssReadings, landmarks: dict[str, Landmark], *, window_s: float,
-               sensitivity_dbm: float = -95.0, t_origin: float | None = None) -> ScanTable:
-    """:func:`group_scans` vectorized: the scans as columns (same windows, order and means)."""
-    w = finite_scalar(window_s, where="group_scans window_s", positive=True)
-    empty = ScanTable(np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
-                      np.zeros(0, dtype=str), np.zeros((0, 3)), np.zeros(0), np.zeros(0), [])
-    if len(rss) == 0:
-        return empty
-    t0 = float(rss.t[0]) if t_origin is None else float(t_origin)
-    keep = rss.rss_dbm >= sensitivity_dbm
-    tt, ids, vals = rss.t[keep], rss.anchor[keep], rss.rss_dbm[keep]
-    if tt.size == 0:
-        return empty
-    bins = np.floor((tt - t0) / w).astype(np.int64)
-    # consecutive readings in one window form a scan; its time is that of its last reading
-    grp = np.zeros(tt.size, dtype=np.int64)
-    grp[1:] = np.cumsum(np.diff(bins) != 0)
-    n_scans = int(grp[-1]) + 1
-    last = np.flatnonzero(np.append(np.diff(grp) != 0, True))
-    names, a_idx = np.unique(ids, return_inverse=True)
-    key = grp * len(names) + a_idx.astype(np.int64)
-    uk, inv = np.unique(key, return_inverse=True)   # by scan, then by anchor name
-    sums = np.bincount(inv, weights=vals, minlength=len(uk))
-    counts = np.bincount(inv, minlength=len(uk)).astype(np.float64)
-    row_scan = uk // len(names)
-    row_name = uk % len(names)
-    xyz_of = np.full((len(names), 3), np.nan)
-    known_name = np.zeros(len(names), dtype=bool)
-    for j, name in enumerate(names.tolist()):
-        lm = landmarks.get(str(name))
-        if lm is not None and lm.position is not None:
-            known_name[j] = True
-            xyz_of[j] = lm.xyz()
-    known = known_name[row_name]
-    unknown: list[list[str]] = [[] for _ in range(n_scans)]
-    for i in np.flatnonzero(~known).tolist():
-        unknown[int(row_scan[i])].append(str(names[row_name[i]]))
-    ks, kn = row_scan[known], row_name[known]
-    first = np.searchsorted(ks, np.arange(n_scans), side="left").astype(np.int64)
-    count = (np.searchsorted(ks, np.arange(n_scans), side="right") - first).astype(np.int64)
-    return ScanTable(tt[last].astype(np.float64), first, count, names[kn].astype(str),
-                     xyz_of[kn], sums[known] / counts[known], counts[known], unknown)
-
-
-def group_scans(rss: RssReadings, landmarks: dict[str, Landmark], *, window_s: float,
-                sensitivity_dbm: float = -95.0, t_origin: float | None = None) -> list[RssScan]:
-    """Average the readings of each anchor over consecutive windows of ``window_s`` seconds.
-
-    Readings below ``sensitivity_dbm`` are dropped (Tarrio Sec. IV); a scan's time is that of
-    its last reading (the position can be computed then); anchors without a known position are
-    listed in ``unknown``.
-    """
-    return scan_table(rss, landmarks, window_s=window_s, sensitivity_dbm=sensitivity_dbm,
-                      t_origin=t_origin).scans()
-
-
-def scan_position(scan: RssScan, model: PathLossModel) -> WlsFix:
-    """Eq. 1 + eq. 2 on one scan (raises :class:`InputError` with < 3 anchors)."""
-    d = model.distance(scan.rss_dbm)
-    # averaging n readings in dB shrinks the shadowing spread by sqrt(n)
-    sigma_ln = model.sigma_ln / math.sqrt(float(np.mean(scan.count))) if len(scan.count) \
-        else model.sigma_ln
-    return hyperbolic_wls(scan.anchor_xyz[:, :2], d, sigma_ln=sigma_ln)
 
 
 # ------------------------------------------------------------------------------------------
@@ -526,6 +270,36 @@ class RssUpdate:
     diagnostics: UpdateDiagnostics
 
 
+@numba.njit(cache=True, error_model="numpy")
+def rss_db_correction(x: FloatArray, p: FloatArray, anchor_x: float, anchor_y: float,
+                      anchor_z: float, rss_dbm: float, a_dbm: float, eta: float, d0_m: float,
+                      sigma_db: float, min_distance_m: float, threshold: float, gated: bool,
+                      use_3d: bool) -> tuple[int, float, float, float]:  # pragma: no cover
+    """EKF update with one RSS reading in the dB domain on plain arrays, in place.
+
+    ``h(p) = A - 10 eta log10(d/d0)`` with ``A = a_dbm``; ``sigma_db`` is the reading's
+    1-sigma. Returns ``(code, nis, S, nu)``: :data:`~hrtls.fusion.gating.TOO_NEAR` (NaNs) when
+    the estimate is nearer than ``min_distance_m``, else the outcome of
+    :func:`~hrtls.fusion.gating.scalar_update`.
+    """
+    dx = x[0] - anchor_x
+    dy = x[1] - anchor_y
+    if use_3d:
+        dz = x[2] - anchor_z
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    else:
+        dz = 0.0
+        dist = math.sqrt(dx * dx + dy * dy)
+    if dist < min_distance_m:
+        return TOO_NEAR, math.nan, math.nan, math.nan
+    pred = a_dbm - 10.0 * eta * math.log10(dist / d0_m)
+    g = -10.0 * eta / LN10 / (dist * dist)     # H = -10 eta / ln10 (p - a)^T / d^2
+    nu = rss_dbm - pred
+    code, nis, s = scalar_update(x, p, (g * dx, g * dy, g * dz, 0.0), sigma_db * sigma_db, nu,
+                                 threshold, gated)
+    return code, nis, s, nu
+
+
 def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
                model: PathLossModel, *, domain: Literal["db", "range"] = "db",
                min_distance_m: float = 0.5, gate_probability: float | None = 0.999,
@@ -533,10 +307,11 @@ def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
     """EKF update of the position filter with one RSS reading.
 
     ``domain="db"``: ``z = rss``, ``h = A - 10 eta log10(d/d0)``,
-    ``H = -10 eta / ln10 (p - a)^T / d^2``, ``R = sigma^2``. ``domain="range"``: the reading is
-    converted by eq. 1 to ``d`` with ``sigma_d`` and applied by the range EKF. ``d`` is planar,
-    or with ``use_3d`` the slant distance using the state's z (anchors at other heights).
-    Estimates nearer than ``min_distance_m`` are rejected (no direction).
+    ``H = -10 eta / ln10 (p - a)^T / d^2``, ``R = sigma^2`` (:func:`rss_db_correction`).
+    ``domain="range"``: the reading is converted by eq. 1 to ``d`` with ``sigma_d`` and applied
+    by the range EKF. ``d`` is planar, or with ``use_3d`` the slant distance using the state's z
+    (anchors at other heights). Estimates nearer than ``min_distance_m`` are rejected (no
+    direction).
     """
     a = finite_vector(anchor_xyz, where="rss anchor_xyz", length=3)
     z = finite_scalar(rss_dbm, where="rss rss_dbm")
@@ -550,145 +325,15 @@ def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
         return RssUpdate(upd.state, upd.diagnostics)
     if domain != "db":
         raise InputError(f"domain {domain!r}", where="rss_update", expected="'db' or 'range'")
-    dims = 3 if use_3d else 2
-    delta = state.x[:dims] - a[:dims]
-    dist = float(np.linalg.norm(delta))
-    if dist < min_distance_m:
+    threshold = math.inf if gate_probability is None else chi2_threshold(1, gate_probability)
+    x, p = state.x.copy(), state.P.copy()
+    code, nis, s, nu = rss_db_correction(x, p, a[0], a[1], a[2], z, model.a_dbm, model.eta,
+                                         model.d0_m, model.sigma_db, min_distance_m,
+                                         threshold, gate_probability is not None, use_3d)
+    if code == TOO_NEAR:
         return RssUpdate(state, rejected("rss", tt, "estimate on top of the anchor", source))
-    pred = model.a_dbm - 10.0 * model.eta * math.log10(dist / model.d0_m)
-    h = np.zeros((1, N_STATE))
-    h[0, :dims] = -10.0 * model.eta / LN10 * delta / (dist * dist)
-    res = kalman_update(state.x, state.P, h, np.array([[model.sigma_db**2]]),
-                        np.array([z - pred]), gate_probability=gate_probability, kind="rss",
-                        t=tt, source=source, angle_index=IH)
-    return RssUpdate(state.evolve(x=res.x, P=res.P), res.diagnostics)
-
-
-# ------------------------------------------------------------------------------------------
-# online re-estimation of A and eta
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class ChannelEstimatorParams:
-    """Parameters of :class:`ChannelEstimator`.
-
-    Attributes
-    ----------
-    forgetting: RLS forgetting factor in (0, 1]; effective memory ``1 / (1 - forgetting)``.
-    sigma_a_prior_db: 1-sigma of the prior ``A``, dB.
-    sigma_eta_prior: 1-sigma of the prior ``eta``.
-    min_distance_m: readings estimated nearer than this are skipped.
-    max_position_var_m2: readings taken with ``trace(P_xy)`` above this are skipped.
-    eta_bounds: admissible ``eta`` range (estimates are clipped).
-    """
-
-    forgetting: float = 0.999
-    sigma_a_prior_db: float = 10.0
-    sigma_eta_prior: float = 1.0
-    min_distance_m: float = 1.0
-    max_position_var_m2: float = 25.0
-    eta_bounds: tuple[float, float] = (1.0, 6.0)
-
-    def __post_init__(self) -> None:
-        f = finite_scalar(self.forgetting, where="ChannelEstimatorParams.forgetting",
-                          positive=True)
-        if f > 1.0:
-            raise InputError(f"{f}", where="ChannelEstimatorParams.forgetting",
-                             expected="a value in (0, 1]")
-        for name in ("sigma_a_prior_db", "sigma_eta_prior", "min_distance_m",
-                     "max_position_var_m2"):
-            finite_scalar(getattr(self, name), where=f"ChannelEstimatorParams.{name}",
-                          positive=True)
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class ChannelState:
-    """RLS state: ``theta = [A, eta]``, its covariance, the residual variance, the count."""
-
-    theta: FloatArray
-    cov: FloatArray
-    residual_var_db2: float
-    count: int = 0
-
-    def model(self, d0_m: float = 1.0) -> PathLossModel:
-        """The current path-loss model."""
-        return PathLossModel(a_dbm=float(self.theta[0]), eta=float(self.theta[1]),
-                             sigma_db=math.sqrt(self.residual_var_db2), d0_m=d0_m)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able form."""
-        return {"theta": self.theta.tolist(), "cov": self.cov.tolist(),
-                "residual_var_db2": self.residual_var_db2, "count": self.count}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ChannelState:
-        """Inverse of :meth:`to_dict`."""
-        return cls(finite_vector(data["theta"], where="channel theta", length=2),
-                   np.asarray(data["cov"], dtype=np.float64),
-                   float(data["residual_var_db2"]), int(data.get("count", 0)))
-
-
-class ChannelEstimator:
-    """Recursive least squares with forgetting for ``A`` and ``eta`` (see the module docstring)."""
-
-    def __init__(self, params: ChannelEstimatorParams | None = None) -> None:
-        self.params = params or ChannelEstimatorParams()
-
-    def start(self, prior: PathLossModel) -> ChannelState:
-        """Initial state at the prior model."""
-        prm = self.params
-        cov = np.diag([prm.sigma_a_prior_db**2, prm.sigma_eta_prior**2])
-        return ChannelState(np.array([prior.a_dbm, prior.eta]), cov, prior.sigma_db**2, 0)
-
-    def update(self, cstate: ChannelState, *, rss_dbm: ArrayLike, distance_m: ArrayLike,
-               distance_var_m2: ArrayLike | float = 0.0, d0_m: float = 1.0
-               ) -> tuple[ChannelState, int]:
-        """Feed readings with the distances to the current position estimate.
-
-        Returns the new state and how many readings were used.
-        """
-        prm = self.params
-        r = finite_vector(np.atleast_1d(np.asarray(rss_dbm, dtype=np.float64)),
-                          where="channel rss_dbm")
-        d = finite_vector(np.atleast_1d(np.asarray(distance_m, dtype=np.float64)),
-                          where="channel distance_m", length=r.size)
-        dv = np.broadcast_to(np.asarray(distance_var_m2, dtype=np.float64), (r.size,))
-        theta = cstate.theta.copy()
-        cov = cstate.cov.copy()
-        res_var = cstate.residual_var_db2
-        count = cstate.count
-        cap = np.diag([prm.sigma_a_prior_db**2, prm.sigma_eta_prior**2])
-        lam = prm.forgetting
-        used = 0
-        for i in range(r.size):
-            if d[i] < prm.min_distance_m or dv[i] > prm.max_position_var_m2:
-                continue
-            phi = np.array([1.0, -10.0 * math.log10(d[i] / d0_m)])
-            e = float(r[i] - phi @ theta)
-            slope = 10.0 * theta[1] / LN10
-            # residual variance of this reading: shadowing + position error through the slope
-            s2 = res_var + slope * slope * dv[i] / (d[i] * d[i])
-            pphi = cov @ phi
-            # bounded pull of one reading (2.5 sigma of its predicted residual): an outlier or
-            # a wrong position estimate cannot drag A and eta away
-            lim = 2.5 * math.sqrt(s2 + float(phi @ pphi))
-            e = min(max(e, -lim), lim)
-            w = res_var / s2
-            k = pphi / (lam / w + float(phi @ pphi))
-            theta = theta + k * e
-            cov = (cov - np.outer(k, pphi)) / lam
-            cov = symmetrize(cov)
-            # cap at the prior (no wind-up without excitation)
-            if np.trace(cov) > np.trace(cap):
-                cov = cov * (np.trace(cap) / np.trace(cov))
-            # eta clipped to its bounds: move A along their correlation (conditional mean)
-            eta_c = float(np.clip(theta[1], *prm.eta_bounds))
-            if eta_c != theta[1]:
-                theta[0] += cov[0, 1] / cov[1, 1] * (eta_c - theta[1])
-                theta[1] = eta_c
-            res_var = lam * res_var + (1.0 - lam) * e * e
-            count += 1
-            used += 1
-        return ChannelState(theta, cov, max(res_var, 1e-6), count), used
+    diag = scalar_diagnostics("rss", tt, code, nis, s, nu, threshold, source)
+    return RssUpdate(state.evolve(x=x, P=p) if diag.accepted else state, diag)
 
 
 def update_rss_readings(state: FilterState, rss: RssReadings, indices: ArrayLike,

@@ -31,26 +31,31 @@ Heading handling (``heading_mode``):
   step adds only half its change, unless the two steps turn by more than
   ``FIRST_STRIDE_MAX_TURN_RAD`` (a start into a turn). Measured on ``hrtls bench papers``
   (ten seeds): Basso tests 1-6 0.87/0.87/0.70/1.01/0.93/0.41 % -> 0.72/0.68/0.53/0.80/0.81/0.39 %.
+
+One step is the compiled :func:`predict_step` on plain arrays and a
+:data:`STEP_PREDICTION_DTYPE` record; :meth:`StepPredictor.predict` validates its inputs and
+calls it, and so does the tracker's event loop.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
+import numba
 import numpy as np
 
 from hrtls.data.results import Activity, StepEvents
 from hrtls.errors import InputError
-from hrtls.frames import wrap_angle
 from hrtls.fusion._checks import FloatArray, finite_scalar
-from hrtls.fusion.gating import symmetrize
+from hrtls.fusion._records import to_record
+from hrtls.fusion.gating import symmetrize_in_place, wrap_rad
 from hrtls.fusion.state import IH, N_STATE, FilterState
 
 HeadingMode = Literal["input", "state"]
 FIRST_STRIDE_MAX_TURN_RAD = float(np.deg2rad(10.0))
 """The first two step headings are averaged into the reference only when they differ by less."""
-_STAIRS = (int(Activity.UPSTAIRS), int(Activity.DOWNSTAIRS))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,6 +108,11 @@ class StepPredictionParams:
                              where="StepPredictionParams.heading_mode",
                              expected="'input' or 'state'")
 
+    def record(self) -> np.ndarray:
+        """The parameters as a one-element :data:`STEP_PREDICTION_DTYPE` array."""
+        return to_record(STEP_PREDICTION_DTYPE, self,
+                         heading_from_state=self.heading_mode == "state")
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class StepPredictionResult:
@@ -124,24 +134,98 @@ class StepPredictionResult:
     state: FilterState
 
 
-def propagate(x: FloatArray, p: FloatArray, displacement: FloatArray, heading: float,
-              q_frame: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Add a displacement made along ``heading`` and propagate the covariance.
+STEP_PREDICTION_DTYPE = np.dtype([
+    ("q_along", np.float64), ("q_across", np.float64), ("q_vertical", np.float64),
+    ("stair_depth_m", np.float64), ("stair_height_m", np.float64),
+    ("stairs_from_model", np.bool_), ("heading_from_state", np.bool_),
+    ("sigma_heading_rad", np.float64), ("sigma_heading_increment_rad", np.float64)])
+"""Record of :class:`StepPredictionParams` for compiled code (``heading_from_state``:
+``heading_mode == "state"``)."""
 
-    ``F = I`` except ``F[0:2, 3] = d(l_xy)/d(heading)``; ``P+ = F P F^T + R Qf R^T`` where ``Qf``
-    (3x3, step frame) is already scaled (eq. 4.23 with the Jacobian of Colombo eq. 17).
+_STANDING, _UPSTAIRS, _DOWNSTAIRS = (int(Activity.STANDING), int(Activity.UPSTAIRS),
+                                     int(Activity.DOWNSTAIRS))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def predict_step(prm: np.record, x: FloatArray, p: FloatArray, input_heading_rad: float,
+                 has_input_heading: bool, reference_pending: bool, length_m: float,
+                 heading_rad: float, dz_m: float, activity: int, var_heading_rad2: float
+                 ) -> tuple[float, bool, bool]:  # pragma: no cover - compiled
+    """One step of eq. 4.23-4.25 on plain arrays, in place (see the module docstring).
+
+    ``prm`` is a :data:`STEP_PREDICTION_DTYPE` record; ``x`` (4,) and ``p`` (4, 4) the state;
+    ``input_heading_rad``, ``has_input_heading``, ``reference_pending`` the heading input
+    memory of :class:`~hrtls.fusion.state.FilterState`. ``heading_rad``
+    NaN: unknown (the state heading is used); ``var_heading_rad2`` NaN: ``sigma_heading_rad^2``.
+    Returns the new ``(input_heading_rad, has_input_heading, reference_pending)``.
+
+    The covariance is ``P+ = F P F^T + R(phi) Qf R(phi)^T`` with ``F = I`` except
+    ``F[0:2, 3] = d(l_xy)/d(heading)`` and ``Qf = |l_j|^2 diag(q_along, q_across, q_vertical)``
+    (eq. 4.23 with the Jacobian of Colombo eq. 17), expanded in place.
     """
-    c, s = np.cos(heading), np.sin(heading)
-    horiz = float(np.hypot(displacement[0], displacement[1]))
-    f = np.eye(N_STATE)
-    f[0, IH] = -horiz * s
-    f[1, IH] = horiz * c
-    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    q = np.zeros((N_STATE, N_STATE))
-    q[:3, :3] = rot @ q_frame @ rot.T
-    x_new = x.copy()
-    x_new[:3] += displacement
-    return x_new, symmetrize(f @ p @ f.T + q)
+    var_h = prm.sigma_heading_rad ** 2 if not np.isfinite(var_heading_rad2) \
+        else var_heading_rad2
+    pending = reference_pending
+    if np.isfinite(heading_rad):
+        h_in = wrap_rad(heading_rad)
+        if not prm.heading_from_state:
+            x[3] = h_in
+            for i in range(4):
+                p[3, i] = 0.0
+                p[i, 3] = 0.0
+            p[3, 3] = var_h
+        elif has_input_heading:
+            inc = wrap_rad(h_in - input_heading_rad)
+            if reference_pending and abs(inc) < FIRST_STRIDE_MAX_TURN_RAD:
+                inc *= 0.5   # reference = mean of the first two step headings
+            x[3] = wrap_rad(x[3] + inc)
+            p[3, 3] += prm.sigma_heading_increment_rad ** 2
+        elif p[3, 3] > var_h:
+            # first input, and it knows the heading better than the state: adopt it
+            x[3] = h_in
+            for i in range(4):
+                p[3, i] = 0.0
+                p[i, 3] = 0.0
+            p[3, 3] = var_h
+        pending = not has_input_heading
+        input_heading_rad = h_in
+        has_input_heading = True
+    x[3] = wrap_rad(x[3])
+    if activity == _STANDING:
+        # eq. 4.23 with l_j = 0: nothing moves, nothing grows
+        return input_heading_rad, has_input_heading, pending
+    if activity in (_UPSTAIRS, _DOWNSTAIRS) and prm.stairs_from_model:
+        horiz = prm.stair_depth_m
+        vert = prm.stair_height_m if activity == _UPSTAIRS else -prm.stair_height_m
+    else:
+        horiz = length_m
+        vert = dz_m
+    c = math.cos(x[3])
+    s = math.sin(x[3])
+    size2 = horiz * horiz + vert * vert
+    qa = size2 * prm.q_along
+    qc = size2 * prm.q_across
+    qv = size2 * prm.q_vertical
+    # F P F^T with F = I + f0 e0 e3^T + f1 e1 e3^T
+    f0 = -horiz * s
+    f1 = horiz * c
+    for j in range(4):
+        p[0, j] += f0 * p[3, j]
+        p[1, j] += f1 * p[3, j]
+    for i in range(4):
+        p[i, 0] += f0 * p[i, 3]
+        p[i, 1] += f1 * p[i, 3]
+    # + R diag(qa, qc, qv) R^T
+    p[0, 0] += c * c * qa + s * s * qc
+    p[0, 1] += c * s * qa - s * c * qc
+    p[1, 0] += s * c * qa - c * s * qc
+    p[1, 1] += s * s * qa + c * c * qc
+    p[2, 2] += qv
+    symmetrize_in_place(p)
+    x[0] += horiz * c
+    x[1] += horiz * s
+    x[2] += vert
+    return input_heading_rad, has_input_heading, pending
 
 
 class StepPredictor:
@@ -149,6 +233,7 @@ class StepPredictor:
 
     def __init__(self, params: StepPredictionParams | None = None) -> None:
         self.params = params or StepPredictionParams()
+        self._record: tuple[StepPredictionParams, np.ndarray] | None = None
 
     def predict(self, state: FilterState, *, t: float, length_m: float, heading_rad: float,
                 dz_m: float = 0.0, activity: int = int(Activity.WALKING),
@@ -174,7 +259,6 @@ class StepPredictor:
         var_heading_rad2:
             Variance of ``heading_rad``; default ``sigma_heading_rad^2``.
         """
-        prm = self.params
         t = finite_scalar(t, where="step t")
         if t < state.t:
             raise InputError(f"step at {t} s is before the filter time {state.t} s",
@@ -182,51 +266,21 @@ class StepPredictor:
         length = finite_scalar(length_m, where="step length_m", non_negative=True)
         dz = finite_scalar(dz_m, where="step dz_m")
         act = int(activity)
-        var_h = (prm.sigma_heading_rad**2 if var_heading_rad2 is None
+        var_h = (math.nan if var_heading_rad2 is None
                  else finite_scalar(var_heading_rad2, where="step var_heading",
                                     non_negative=True))
         x = state.x.copy()
         p = state.P.copy()
-        heading_known = bool(np.isfinite(heading_rad))
-        # heading of the step
-        input_heading = state.input_heading_rad
-        has_input = state.has_input_heading
-        pending = state.reference_pending
-        if heading_known:
-            h_in = float(wrap_angle(heading_rad))
-            if prm.heading_mode == "input":
-                x[IH] = h_in
-                p[IH, :] = 0.0
-                p[:, IH] = 0.0
-                p[IH, IH] = var_h
-            elif has_input:
-                inc = float(wrap_angle(h_in - input_heading))
-                if pending and abs(inc) < FIRST_STRIDE_MAX_TURN_RAD:
-                    inc *= 0.5   # reference = mean of the first two step headings
-                x[IH] = float(wrap_angle(x[IH] + inc))
-                p[IH, IH] += prm.sigma_heading_increment_rad**2
-            elif p[IH, IH] > var_h:
-                # first input, and it knows the heading better than the state: adopt it
-                x[IH] = h_in
-                p[IH, :] = 0.0
-                p[:, IH] = 0.0
-                p[IH, IH] = var_h
-            pending = not has_input
-            input_heading, has_input = h_in, True
-        if act == int(Activity.STANDING):
-            # eq. 4.23 with l_j = 0: nothing moves, nothing grows
-            return FilterState(t, x, p, input_heading, has_input, pending)
-        if act in _STAIRS and prm.stairs_from_model:
-            horiz = prm.stair_depth_m
-            vert = prm.stair_height_m if act == int(Activity.UPSTAIRS) else -prm.stair_height_m
-        else:
-            horiz, vert = length, dz
-        heading = float(x[IH])
-        disp = np.array([horiz * np.cos(heading), horiz * np.sin(heading), vert])
-        size2 = horiz * horiz + vert * vert
-        q_frame = size2 * np.diag([prm.q_along, prm.q_across, prm.q_vertical])
-        x_new, p_new = propagate(x, p, disp, heading, q_frame)
-        return FilterState(t, x_new, p_new, input_heading, has_input, pending)
+        heading, has_input, pending = predict_step(
+            self.record()[0], x, p, state.input_heading_rad, state.has_input_heading,
+            state.reference_pending, length, float(heading_rad), dz, act, var_h)
+        return FilterState(t, x, p, heading, has_input, pending)
+
+    def record(self) -> np.ndarray:
+        """:attr:`params` as a one-element :data:`STEP_PREDICTION_DTYPE` array."""
+        if self._record is None or self._record[0] is not self.params:
+            self._record = (self.params, self.params.record())
+        return self._record[1]
 
     def run(self, state: FilterState, steps: StepEvents,
             var_heading_rad2: FloatArray | float | None = None) -> StepPredictionResult:

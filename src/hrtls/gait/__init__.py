@@ -1,6 +1,7 @@
 """Gait analysis: motion and activity, steps, step length, walking heading and velocity.
 
-One module per algorithm (see ``docs``/ARCHITECTURE): :mod:`~hrtls.gait.motion` (Basso II-B),
+One module per algorithm (see ``docs``/ARCHITECTURE):
+:mod:`~hrtls.gait.motion_detector` (Basso II-B),
 :mod:`~hrtls.gait.cadence` (periodicity walking detection, step frequency),
 :mod:`~hrtls.gait.walking_bouts` (walking bouts from step sequences),
 :mod:`~hrtls.gait.missed_steps` (one missed step filled in a regular walk),
@@ -12,17 +13,17 @@ One module per algorithm (see ``docs``/ARCHITECTURE): :mod:`~hrtls.gait.motion` 
 :mod:`~hrtls.gait.step_length` and :mod:`~hrtls.gait.step_length_fit` (Weinberg, Basso II-D,
 Inderst eq. 4.25), :mod:`~hrtls.gait.fourier_heading` (Basso III),
 :mod:`~hrtls.gait.velocity_automaton` (Colombo III-C), :mod:`~hrtls.gait.vertical` (levelling)
-and :mod:`~hrtls.gait.pipeline` (:class:`GaitAnalyzer`, composing them).
+and :mod:`~hrtls.gait.analyzer` (:class:`GaitAnalyzer`, composing them).
 """
 
 from hrtls.gait.activity_lda import LdaModel, train_lda
 from hrtls.gait.activity_tree import TreeThresholds, calibrate_tree, classify_tree
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult, activity_windows, analyze_session
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingParams
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams
-from hrtls.gait.motion import MotionDetector, MotionParams
+from hrtls.gait.motion_detector import MotionDetector, MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult, activity_windows, analyze_session
 from hrtls.gait.pll import PllParams, PllStepDetector, StepDetection
 from hrtls.gait.step_length import (
     FrequencyLawModel,

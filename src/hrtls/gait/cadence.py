@@ -1,11 +1,11 @@
 """Walking detection and step frequency from the periodicity of vertical acceleration.
 
-A complement to the spread test of Basso Sec. II-B (:mod:`hrtls.gait.motion`): a slow walker
-(about 0.9 m/s or less) moves the pelvis so little that the 2 s standard deviation of vertical
-acceleration stays below Basso's 1.5 m/s^2, and a phone in a trouser pocket shakes so much that
-walking exceeds the 5 m/s^2 running level. What separates walking from other movement is that it
-is *periodic* at the step frequency (0.7-4 Hz); what separates running from walking is the step
-frequency (Basso Sec. II-D: walking 1.5-2.2 Hz, running 2.7-4.2 Hz).
+A complement to the spread test of Basso Sec. II-B (:mod:`hrtls.gait.motion_detector`): a slow
+walker (about 0.9 m/s or less) moves the pelvis so little that the 2 s standard deviation of
+vertical acceleration stays below Basso's 1.5 m/s^2, and a phone in a trouser pocket shakes so
+much that walking exceeds the 5 m/s^2 running level. What separates walking from other movement is
+that it is *periodic* at the step frequency (0.7-4 Hz); what separates running from walking is the
+step frequency (Basso Sec. II-D: walking 1.5-2.2 Hz, running 2.7-4.2 Hz).
 
 Method (our design, not from the papers): the vertical acceleration (already low-passed by the
 analyzer's step filter) is averaged over blocks of ``decimation`` samples (about 25 Hz). Every
@@ -219,8 +219,8 @@ class CadenceResult:
     periodic: 1 where the last evaluated window was periodic walking or running, else 0.
     frequency_hz: step frequency of that window, Hz (NaN when not periodic).
     r: best normalized autocorrelation of that window (-1 before the first evaluation).
-    state: combined motion state (0 still, 1 walking, 2 running, as :mod:`hrtls.gait.motion`);
-        empty from :meth:`CadenceDetector.periodicity`.
+    state: combined motion state (0 still, 1 walking, 2 running, as
+        :mod:`hrtls.gait.motion_detector`); empty from :meth:`CadenceDetector.periodicity`.
     """
 
     periodic: IntArray

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
-from hrtls.gait.motion import RunningStd, RunningStdState
+from hrtls.gait.motion_detector import RunningStd, RunningStdState
 from hrtls.gait.pll import StepDetection
 
 

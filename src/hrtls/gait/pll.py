@@ -40,7 +40,7 @@ from hrtls.gait._state import (
     check_positive,
     state_from_dict,
 )
-from hrtls.gait.motion import RUN, MotionResult
+from hrtls.gait.motion_detector import RUN, MotionResult
 
 TWO_PI = 2.0 * np.pi
 

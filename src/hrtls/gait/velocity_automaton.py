@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
-from hrtls.gait.motion import RunningStd, RunningStdState
+from hrtls.gait.motion_detector import RunningStd, RunningStdState
 
 IntArray = NDArray[np.int64]
 

@@ -64,7 +64,7 @@ def is_batch(spec: str) -> bool:
     path = Path(spec)
     if not path.is_dir():
         return False
-    from hrtls.io.readers.detect import detect_format
+    from hrtls.recordings import detect_format
 
     try:
         if detect_format(path) in _WHOLE_FOLDER_FORMATS:
@@ -80,7 +80,7 @@ def _entries(folder: Path) -> list[Path]:
 
 
 def _is_recording(path: Path) -> bool:
-    from hrtls.io.readers.detect import detect_format
+    from hrtls.recordings import detect_format
 
     try:
         detect_format(path)
@@ -126,9 +126,9 @@ def plan_batch(recordings: Sequence[Path], output: Path, *, preset: str | None,
 
 def track_one(task: TrackTask) -> TrackSummary:
     """Read, track and write one recording (runs on any worker)."""
-    from hrtls.io.readers.detect import read_any
     from hrtls.jobs.track import evaluate_track, write_track_outputs
     from hrtls.pipeline import Tracker, load_config, preset
+    from hrtls.recordings import read_any
 
     cfg = (load_config(Path(task.config_path)) if task.config_path is not None
            else preset(task.preset or "default"))

@@ -73,6 +73,7 @@ from hrtls.data.observations import (
 )
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
+from hrtls.fusion.channel import ChannelEstimator, ChannelState
 from hrtls.fusion.fixes import (
     DRIFT_MIN_PATH_M,
     FixCorrector,
@@ -85,21 +86,14 @@ from hrtls.fusion.fixes import (
 )
 from hrtls.fusion.gating import (
     UpdateDiagnostics,
-    chi2_threshold,
     kalman_update,
     skipped,
 )
+from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update
-from hrtls.fusion.rss import (
-    ChannelEstimator,
-    ChannelEstimatorParams,
-    ChannelState,
-    PathLossModel,
-    rss_update,
-    scan_position,
-    scan_table,
-)
+from hrtls.fusion.rss import rss_update
+from hrtls.fusion.rss_scans import scan_position, scan_table
 from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
 from hrtls.fusion.tags import (
@@ -113,9 +107,9 @@ from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityP
 from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.peak_steps import PeakStepDetector
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.step_length_pendulum import PendulumModel
@@ -824,52 +818,18 @@ class Tracker:
 
     # ------------------------------------------------------------------ stages
     def _kernel_params(self) -> np.ndarray:
-        """Parameter vector of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
+        """Parameter record of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
         cfg = self.config
-        sp = self.step_predictor.params
-        rw = RandomWalkParams()
-        cp = ChannelEstimatorParams() if self.channel_estimator is None \
-            else self.channel_estimator.params
-        prm = np.zeros(ev.N_PARAMS)
-        prm[ev.P_Q_ALONG] = sp.q_along
-        prm[ev.P_Q_ACROSS] = sp.q_across
-        prm[ev.P_Q_VERT] = sp.q_vertical
-        prm[ev.P_STAIR_D] = sp.stair_depth_m
-        prm[ev.P_STAIR_H] = sp.stair_height_m
-        prm[ev.P_STAIRS_MODEL] = float(sp.stairs_from_model)
-        prm[ev.P_MODE_STATE] = float(sp.heading_mode == "state")
-        prm[ev.P_SIG_HEAD] = sp.sigma_heading_rad
-        prm[ev.P_SIG_HEAD_INC] = sp.sigma_heading_increment_rad
-        prm[ev.P_FLOOR_SNAP] = float(cfg.floor_snap)
-        prm[ev.P_FLOOR_H] = self.meta.floor_height_m
-        prm[ev.P_FLOOR_SIG] = FLOOR_SIGMA_M
-        prm[ev.P_CHI2_1] = chi2_threshold(1, cfg.gate_probability)
-        prm[ev.P_USE_CHI2] = 1.0
-        prm[ev.P_HEAD_KNOWN] = float(self.heading_known)
-        prm[ev.P_HAS_IMU] = float(self.has_imu)
-        prm[ev.P_RW_SPEED] = rw.sigma_speed_m_s
-        prm[ev.P_RW_VERT] = rw.sigma_vertical_m_s
-        prm[ev.P_RW_HEAD] = rw.sigma_heading_rate_rad_s
-        prm[ev.P_RSS_MIN_D] = RSS_MIN_DISTANCE_M
-        prm[ev.P_D0] = self.path_loss.d0_m
-        prm[ev.P_RANGE_SIG] = self.range_params.default_sigma_m
-        prm[ev.P_RANGE_MIN_D] = self.range_params.min_distance_m
-        prm[ev.P_CHAN_EST] = float(self.channel_estimator is not None)
-        prm[ev.P_FORGET] = cp.forgetting
-        prm[ev.P_CHAN_MIN_D] = cp.min_distance_m
-        prm[ev.P_CHAN_MAX_VAR] = cp.max_position_var_m2
-        prm[ev.P_ETA_LO], prm[ev.P_ETA_HI] = cp.eta_bounds
-        prm[ev.P_CAP_A] = cp.sigma_a_prior_db**2
-        prm[ev.P_CAP_ETA] = cp.sigma_eta_prior**2
-        # RSS scans (mode "wls" / "kalman"): the fixed path-loss model, eq. 7 noise, 2-D gate
-        prm[ev.P_SCAN_WLS] = float(cfg.rss.mode == "wls")
-        prm[ev.P_SCAN_WLS_COV] = float(cfg.rss.use_wls_covariance)
-        prm[ev.P_SCAN_SIG_P] = cfg.rss.sigma_position_m
-        prm[ev.P_CHI2_2] = chi2_threshold(2, cfg.gate_probability)
-        prm[ev.P_PL_A] = self.path_loss.a_dbm
-        prm[ev.P_PL_ETA] = self.path_loss.eta
-        prm[ev.P_PL_SIG] = self.path_loss.sigma_db
-        return prm
+        return ev.loop_params(
+            step=self.step_predictor.params, path_loss=self.path_loss,
+            range_params=self.range_params,
+            channel=None if self.channel_estimator is None else self.channel_estimator.params,
+            random_walk=RandomWalkParams(), floor_snap=cfg.floor_snap,
+            floor_height_m=self.meta.floor_height_m, floor_sigma_m=FLOOR_SIGMA_M,
+            gate_probability=cfg.gate_probability, heading_known=self.heading_known,
+            has_imu=self.has_imu, rss_min_distance_m=RSS_MIN_DISTANCE_M,
+            scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,
+            scan_sigma_position_m=cfg.rss.sigma_position_m)
 
     def _process_imu(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
                      mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
@@ -1296,7 +1256,8 @@ class Tracker:
         """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges) in the compiled loop.
 
         The step scale, running factor, yaw offset and the yaw variance at each step are
-        applied inside the kernel (``S_STEP_SCALE``, ``S_RUN_MULT``, ``S_YAW_OFFSET``).
+        applied inside the kernel (``step_scale``, ``running_multiplier``, ``yaw_offset_rad`` of
+        the loop state).
         """
         n = b1 - b0
         tt = self._bulk_t[b0:b1]
@@ -1305,29 +1266,12 @@ class Tracker:
         st = self.state
         x = st.x.copy()
         p = st.P.copy()
-        sc = np.zeros(ev.N_SCALARS)
-        sc[ev.S_T] = st.t
-        sc[ev.S_IN_HEAD] = st.input_heading_rad
-        sc[ev.S_HAS_IN] = float(st.has_input_heading)
-        sc[ev.S_REF_PENDING] = float(st.reference_pending)
-        sc[ev.S_LAST_ACT] = self._last_activity
-        sc[ev.S_LAST_STEP_END] = self._last_step_end
-        sc[ev.S_STEP_SCALE] = self.step_scale
-        sc[ev.S_RUN_MULT] = self.running_factor * self.run_scale / self.step_scale
-        sc[ev.S_YAW_OFFSET] = self._yaw_offset
-        sc[ev.S_SCAN_BASE] = self._scan_base
-        cstate = self.channel_state
-        if self.channel_estimator is not None and cstate is not None:
-            sc[ev.S_A], sc[ev.S_ETA] = cstate.theta
-            sc[ev.S_RESVAR] = cstate.residual_var_db2
-            sc[ev.S_COUNT] = cstate.count
-            sc[ev.S_SIGMA_DB] = math.sqrt(cstate.residual_var_db2)
-            chan_cov = cstate.cov.copy()
-        else:
-            sc[ev.S_A], sc[ev.S_ETA] = self.path_loss.a_dbm, self.path_loss.eta
-            sc[ev.S_SIGMA_DB] = self.path_loss.sigma_db
-            sc[ev.S_RESVAR] = self.path_loss.sigma_db**2
-            chan_cov = np.eye(2)
+        cstate = self.channel_state if self.channel_estimator is not None else None
+        rec, chan_cov = ev.loop_state(
+            st, path_loss=self.path_loss, channel=cstate, last_activity=self._last_activity,
+            last_step_end_s=self._last_step_end, step_scale=self.step_scale,
+            running_multiplier=self.running_factor * self.run_scale / self.step_scale,
+            yaw_offset_rad=self._yaw_offset, scan_base=self._scan_base)
         t_out = np.empty(n)
         x_out = np.empty((n, 4))
         p_out = np.empty((n, 4, 4))
@@ -1338,22 +1282,22 @@ class Tracker:
         nu = np.empty(n)
         aux = np.empty((n, 5))
         recent = np.empty((ev.N_RECENT, 2))
-        ev.event_kernel(kind, tt, data, self._params, sc, chan_cov, x, p, t_out, x_out, p_out, act,
-                        status, nis, s_out, nu, self._scan_rows, aux, self._var_t, self._var_v,
-                        recent)
-        self.state = FilterState.from_kernel(float(sc[ev.S_T]), x, p, float(sc[ev.S_IN_HEAD]),
-                                             bool(sc[ev.S_HAS_IN] > 0.5),
-                                             bool(sc[ev.S_REF_PENDING] > 0.5))
-        self._last_activity = int(sc[ev.S_LAST_ACT])
-        self._last_step_end = float(sc[ev.S_LAST_STEP_END])
-        self._path_since_anchor += float(sc[ev.S_PATH])
-        self._run_since_anchor += float(sc[ev.S_RUN_PATH])
-        if self.channel_estimator is not None and cstate is not None:
-            self.channel_state = ChannelState(np.array([sc[ev.S_A], sc[ev.S_ETA]]), chan_cov,
-                                              float(sc[ev.S_RESVAR]), int(sc[ev.S_COUNT]))
+        ev.event_kernel(kind, tt, data, self._params, rec, chan_cov, x, p, t_out, x_out, p_out,
+                        act, status, nis, s_out, nu, self._scan_rows, aux, self._var_t,
+                        self._var_v, recent)
+        sc = rec[0]
+        self.state = FilterState.from_kernel(float(sc["t"]), x, p, float(sc["input_heading_rad"]),
+                                             bool(sc["has_input_heading"]),
+                                             bool(sc["reference_pending"]))
+        self._last_activity = int(sc["last_activity"])
+        self._last_step_end = float(sc["last_step_end_s"])
+        self._path_since_anchor += float(sc["path_m"])
+        self._run_since_anchor += float(sc["running_path_m"])
+        if cstate is not None:
+            self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
         self._track.add_block(t_out, x_out, p_out[:, :2, :2], p_out[:, IH, IH], act)
-        n_steps = int(sc[ev.S_N_STEPS])
-        n_head = int(sc[ev.S_N_HEADINGS])
+        n_steps = int(sc["n_steps"])
+        n_head = int(sc["n_headings"])
         if n_head:
             # the last raw step headings (before the yaw offset), for the turn test of bearings
             last = recent.tolist()
@@ -1363,14 +1307,14 @@ class Tracker:
             self._recent_heading.extend(
                 (float(ts), float(hd)) for ts, hd in last[:min(n_head, ev.N_RECENT)])
         if n_steps < n:
-            n_soft, n_scan_ok = int(sc[ev.S_N_SOFT]), int(sc[ev.S_N_SCAN_OK])
+            n_soft, n_scan_ok = int(sc["n_soft"]), int(sc["n_scan_accepted"])
             # an accepted scan (Kalman mode) counts as a correction since the last fix; the
             # WLS jump does not, and scans do not stop the step-scale learning
             self._corrected_since_fix = self._corrected_since_fix or n_soft + n_scan_ok > 0
             self._soft_since_anchor = self._soft_since_anchor or n_soft > 0
             obs = np.flatnonzero(kind != ev.EV_STEP) if n_steps else np.arange(n)
             self._kernel_diagnostics(b0, obs, status[obs], nis, s_out, nu, aux,
-                                     sc[ev.S_N_SCANS] > 0)
+                                     sc["n_scans"] > 0)
             if len(self._scan_rows) >= SCAN_ROWS_TRIM:
                 self._trim_scan_rows(b1)
 
@@ -1404,8 +1348,8 @@ class Tracker:
             s2 = aux[obs, 2:5]
         self.diagnostics.add_block(DiagnosticsBlock(
             self._label_kind[labels], self._bulk_t[rows], code, nis[obs], s[obs], nu[obs],
-            self._bulk_src[rows], reasons, float(self._params[ev.P_CHI2_1]),
-            dof=dof, nu2=nu2, s2=s2, threshold2=float(self._params[ev.P_CHI2_2])))
+            self._bulk_src[rows], reasons, float(self._params["gate_1d"][0]),
+            dof=dof, nu2=nu2, s2=s2, threshold2=float(self._params["gate_2d"][0])))
 
     def _advance_without_steps(self, t: float) -> None:
         """Bring the state to ``t`` before a correction when no step or velocity drives it."""

@@ -93,7 +93,7 @@ from scipy.ndimage import gaussian_filter1d
 from hrtls.data import Activity, StepEvents
 from hrtls.errors import InputError
 from hrtls.frames import GRAVITY_M_S2
-from hrtls.sim.motion import GAIT_RUN, GAIT_STAIRS, MotionTruth
+from hrtls.sim.motion_truth import GAIT_RUN, GAIT_STAIRS, MotionTruth
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]

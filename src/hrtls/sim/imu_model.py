@@ -39,7 +39,7 @@ from hrtls.sim.devices import DeviceModel
 from hrtls.sim.errors import ErrorRealization, apply_sensor_errors, realize_errors, sample_times
 from hrtls.sim.gait_model import GaitResult
 from hrtls.sim.magnetic import MagneticEnvironment
-from hrtls.sim.motion import MotionTruth
+from hrtls.sim.motion_truth import MotionTruth
 
 FloatArray = NDArray[np.float64]
 

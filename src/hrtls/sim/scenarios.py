@@ -56,7 +56,7 @@ from hrtls.sim.infrastructure import (
     rss_readings,
 )
 from hrtls.sim.magnetic import EarthField, MagneticEnvironment, random_anomalies
-from hrtls.sim.motion import (
+from hrtls.sim.motion_truth import (
     MotionParams,
     MotionTruth,
     Waypoint,

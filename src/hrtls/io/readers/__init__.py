@@ -10,21 +10,18 @@ format name       what                                          reader
 ``hrtls-session`` the session folder/zip                        ``hrtls.io.session``
 ================= ============================================= =========================
 
-:func:`read_any` detects the format (:func:`detect_format`) and calls the right reader.
+One entry point over these and the public datasets (format detection, ``read_any``) is
+:mod:`hrtls.recordings`.
 """
 
 from hrtls.io.readers.android import read_android
-from hrtls.io.readers.detect import FORMATS, detect_format, read_any
 from hrtls.io.readers.ipin import ipin_beacon_id, read_beacons_csv, read_ipin
 from hrtls.io.readers.phyphox import read_phyphox
 from hrtls.io.readers.sensorlogger import read_sensorlogger
 
 __all__ = [
-    "FORMATS",
-    "detect_format",
     "ipin_beacon_id",
     "read_android",
-    "read_any",
     "read_beacons_csv",
     "read_ipin",
     "read_phyphox",

@@ -46,7 +46,13 @@ from hrtls.gait.features import (
 )
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingState
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
-from hrtls.gait.motion import STILL, MotionDetector, MotionParams, MotionResult, RunningStdState
+from hrtls.gait.motion_detector import (
+    STILL,
+    MotionDetector,
+    MotionParams,
+    MotionResult,
+    RunningStdState,
+)
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepState
 from hrtls.gait.pll import PllState, PllStepDetector, StepDetection
 from hrtls.gait.step_length import StairsModel, StepModel, WeinbergModel, displacements

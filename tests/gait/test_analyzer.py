@@ -12,8 +12,8 @@ from hrtls.data import Activity
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import wrap_angle
 from hrtls.gait.activity_lda import LdaModel
-from hrtls.gait.motion import MotionParams
-from hrtls.gait.pipeline import GaitAnalyzer, GaitResult
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
+from hrtls.gait.motion_detector import MotionParams
 from hrtls.gait.pll import PllStepDetector
 from hrtls.gait.step_length import WeinbergModel
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate

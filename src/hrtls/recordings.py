@@ -1,19 +1,21 @@
-"""Format sniffing and one entry point for every reader.
+"""Any recording in one call: format sniffing over the user formats and the public datasets.
 
-:func:`detect_format` looks at names and the first bytes of the files (never at whole files);
-:func:`read_any` detects the format when it is not given and calls the reader registered in
-:data:`FORMATS`.
+This module sits above :mod:`hrtls.io` (readers of the formats users have) and
+:mod:`hrtls.datasets` (the public recordings, whose loaders may use the io readers), so that
+neither of them imports the other's registry. :func:`detect_format` looks at names and the first
+bytes of the files (never at whole files); :func:`read_any` detects the format when it is not
+given and calls the reader registered in :data:`FORMATS`.
 
 Signatures looked for, in this order:
 
 * ``hrtls-session``: a folder or zip with session files (``imu.csv``, ``session.json``, ...);
+* the public datasets of :mod:`hrtls.datasets.formats` (``mobgap``, ``oxford-step``,
+  ``broad``, ``ble-rssi``), recognized by their file names and first bytes;
 * ``sensorlogger``: ``Metadata.csv`` or known sensor files whose header starts
   ``time,seconds_elapsed``;
 * ``phyphox``: a CSV whose header starts with ``"Time (s)"``;
 * ``ipin``: lines ``ACCE;``, ``POSI;`` ... or the GetSensorData header;
-* ``android``: files named after a sensor whose first data line is ``TIMESTAMP X Y Z``;
-* the public datasets of :mod:`hrtls.datasets.formats` (``mobgap``, ``oxford-step``,
-  ``broad``, ``ble-rssi``), recognized by their file names and first bytes.
+* ``android``: files named after a sensor whose first data line is ``TIMESTAMP X Y Z``.
 """
 
 from __future__ import annotations
