@@ -1,8 +1,10 @@
-"""Attitude (orientation) estimation: Euler EKF, quaternion EKF, complementary filter, device.
+"""Attitude (orientation) estimation: Euler EKF, quaternion EKF, complementary filter, inertial
+low-pass filter, device.
 
 All sensor-fusion filters share one interface (:class:`AttitudeFilter`): typed parameters, a
 saveable state, ``update`` on chunks and ``run`` on a whole stream. Pick one by name with
-:func:`make_filter` (``euler-ekf``, ``quat-ekf``, ``complementary``); ``device`` passes through
+:func:`make_filter` (``euler-ekf``, ``quat-ekf``, ``complementary``,
+``inertial-lp``); ``device`` passes through
 an orientation the phone computed (:class:`DeviceOrientation`).
 """
 
@@ -12,7 +14,8 @@ from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParam
 from hrtls.attitude.device import DeviceOrientation, DeviceParams, frame_to_enu
 from hrtls.attitude.euler_ekf import EulerEkf, EulerEkfParams
 from hrtls.attitude.fqa import fqa, fqa_quaternion
-from hrtls.attitude.metrics import OrientationErrors, orientation_errors
+from hrtls.attitude.inertial_lowpass import InertialLowpass, InertialLowpassParams
+from hrtls.evaluate.orientation import OrientationErrors, orientation_errors
 from hrtls.attitude.quat_ekf import QuatEkf, QuatEkfParams
 from hrtls.attitude.registry import FILTERS, METHODS, make_filter
 
@@ -30,6 +33,8 @@ __all__ = [
     "EulerEkf",
     "EulerEkfParams",
     "GyroBiasEstimate",
+    "InertialLowpass",
+    "InertialLowpassParams",
     "OrientationErrors",
     "QuatEkf",
     "QuatEkfParams",
