@@ -28,12 +28,11 @@ from hrtls.attitude import make_filter, orientation_errors
 from hrtls.attitude.inertial_lowpass import InertialLowpassParams
 
 GRID: dict[str, list[float]] = {
-    "tau_acc_s": [3.0, 5.0, 8.0, 12.0],
-    "tau_mag_s": [5.0, 9.0, 15.0],
-    "mag_norm_gate_uT": [3.0, 5.0, 8.0],
-    "mag_dip_gate_rad": [float(np.deg2rad(5.0)), float(np.deg2rad(10.0))],
-    "bias_sigma_motion_rad_s": [float(np.deg2rad(0.05)), float(np.deg2rad(0.1)),
-                                float(np.deg2rad(0.2))],
+    "tau_acc_s": [4.0, 5.0, 6.0, 8.0],
+    "tau_mag_s": [9.0, 15.0],
+    "mag_norm_gate_uT": [2.0, 3.0, 5.0],
+    "mag_dip_gate_rad": [float(np.deg2rad(d)) for d in (3.0, 5.0, 10.0)],
+    "bias_sigma_motion_rad_s": [float(np.deg2rad(d)) for d in (0.1, 0.2, 0.4)],
 }
 QUICK: dict[str, list[float]] = {
     "tau_acc_s": [3.0, 6.0],

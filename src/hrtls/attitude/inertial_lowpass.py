@@ -116,7 +116,8 @@ _MINIT = 52  # count of the averaging first heading corrections (0: done)
 _MFIRST = 53  # 1.0 while the reference is only the first sample
 _VTILT = 54  # roll/pitch variance, rad^2
 _VHEAD = 55  # heading variance, rad^2
-_NX = 56
+_LPOK = 56  # 1.0 once the low-passes were started on a sample
+_NX = 57
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -240,10 +241,12 @@ def _biquad_steady(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: fl
 
 @numba.njit(**K.JIT)
 def _set_gains(x: FloatArray, prm: FloatArray, dt: float) -> None:
-    """Gains for the sample period ``dt``: Butterworth by the bilinear transform with
-    pre-warping, ``K = tan(pi f_c dt)``, ``b0 = K^2 / (1 + sqrt2 K + K^2)``,
-    ``a1 = 2 (K^2 - 1) / (.)``, ``a2 = (1 - sqrt2 K + K^2) / (.)``; first-order gains
-    ``1 - exp(-dt / tau)``."""
+    """Gains for the sample period ``dt``.
+
+    Butterworth by the bilinear transform with pre-warping, ``K = tan(pi f_c dt)``,
+    ``b0 = K^2 / (1 + sqrt2 K + K^2)``, ``a1 = 2 (K^2 - 1) / (.)``,
+    ``a2 = (1 - sqrt2 K + K^2) / (.)``; first-order gains ``1 - exp(-dt / tau)``.
+    """
     fc = math.sqrt(2.0) / (2.0 * math.pi * prm[_TAU_ACC])
     kk = math.tan(min(math.pi * fc * dt, 1.2))
     nrm = 1.0 / (1.0 + math.sqrt(2.0) * kk + kk * kk)
@@ -291,9 +294,11 @@ def _restart_lowpass(x: FloatArray, aux: FloatArray, a_i: tuple[float, float, fl
 @numba.njit(inline="always", **K.JIT)
 def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y: FloatArray,
                  wv: FloatArray, clip: float, M: FloatArray, k: FloatArray) -> None:
-    """Kalman update of the bias: ``S = H P H^T + diag(wv)``, ``K = P H^T S^-1``,
-    ``b += K y``, ``P -= K H P`` (``H`` row-major 3 x 3, ``M`` and ``k`` work space); ``b``
-    clipped."""
+    """Kalman update of the bias, ``b`` clipped.
+
+    ``S = H P H^T + diag(wv)``, ``K = P H^T S^-1``, ``b += K y``, ``P -= K H P`` (``H``
+    row-major 3 x 3, ``M`` and ``k`` work space).
+    """
     for a in range(3):
         for r in range(3):
             M[a, r] = P[a, 0] * H[3 * r] + P[a, 1] * H[3 * r + 1] + P[a, 2] * H[3 * r + 2]
@@ -373,6 +378,7 @@ def inertial_lowpass_kernel(
             K.set_q(x, _QA, 1.0, 0.0, 0.0, 0.0)
             x[_DELTA] = 0.0
             x[_DT] = 0.0
+            x[_LPOK] = 0.0
             mag0 = (flags & K.FLAG_MAG) != 0
             x[_MN] = aux[K.AUX_MREF_N]
             x[_MDIP] = aux[K.AUX_MREF_DIP]
@@ -411,7 +417,7 @@ def inertial_lowpass_kernel(
             wx, wy, wz = K.unbiased_rate(aux, s)
             rate = math.sqrt(wx * wx + wy * wy + wz * wz)
             gw, gx, gy, gz = K.gyro_quat_step(gw, gx, gy, gz, wx, wy, wz, dt)
-        restart = x[_DT] == 0.0 or dt > prm[K.PRM_MAX_DT]  # first sample after init, gap
+        restart = x[_LPOK] < 0.5 or dt > prm[K.PRM_MAX_DT]  # not started yet, or a gap
         if abs(dt - x[_DT]) > 0.01 * x[_DT]:
             _set_gains(x, prm, dt)
         for a in range(3):
@@ -431,6 +437,7 @@ def inertial_lowpass_kernel(
             a2 = x[_CA2]
             if restart:
                 _restart_lowpass(x, aux, a_i, rr)
+                x[_LPOK] = 1.0
             l0 = _biquad(x, _ALP, a_i[0], b0, a1, a2)
             l1 = _biquad(x, _ALP + 2, a_i[1], b0, a1, a2)
             l2 = _biquad(x, _ALP + 4, a_i[2], b0, a1, a2)
@@ -582,8 +589,9 @@ def inertial_lowpass_kernel(
 
 
 class InertialLowpass(AttitudeFilter):
-    """Inclination from the low-passed specific force in an almost-inertial frame, heading
-    with magnetic-disturbance rejection, gyro bias at rest and in motion (after VQF).
+    """Inclination from the specific force low-passed in an almost-inertial frame (after VQF).
+
+    Heading with magnetic-disturbance rejection, gyro bias at rest and in motion.
 
     Examples
     --------

@@ -1,5 +1,7 @@
-"""Attitude methods by name: ``euler-ekf``, ``quat-ekf``, ``complementary``, ``inertial-lp``,
-``device``."""
+"""Attitude methods by name.
+
+``euler-ekf``, ``quat-ekf``, ``complementary``, ``inertial-lp``, ``device``.
+"""
 
 from __future__ import annotations
 

@@ -157,8 +157,10 @@ def orientation_table(score: OrientationScore, title: str = "") -> Table:
 
 def evaluate_orientation(estimate_csv: Path, reference: Path,
                          output: Path | None = None) -> OrientationScore:
-    """Score an attitude CSV against a reference; write ``<stem>_orientation.json`` (the body of
-    ``hrtls evaluate ATTITUDE.csv --truth REFERENCE``)."""
+    """Score an attitude CSV against a reference; write ``<stem>_orientation.json``.
+
+    The body of ``hrtls evaluate ATTITUDE.csv --truth REFERENCE``.
+    """
     import json
 
     est = read_orientation_csv(estimate_csv)
@@ -183,7 +185,8 @@ def attitude(
     output: Annotated[Path, typer.Option("--output", "-o", help="CSV to write.")] = Path(
         "attitude.csv"),
     method: Annotated[str, typer.Option(
-        "--method", "-m", help="euler-ekf | quat-ekf | complementary | inertial-lp | device")] = "quat-ekf",
+        "--method", "-m",
+        help="euler-ekf | quat-ekf | complementary | inertial-lp | device")] = "quat-ekf",
     calibration: Annotated[Path | None, typer.Option(
         "--calibration", "-c", help="IMU calibration JSON (from `hrtls calibrate`).")] = None,
     repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows (warns).")] = False,

@@ -249,7 +249,8 @@ def evaluate(
     """Score an estimated trajectory against ground truth; write report.json and plots.
 
     RESULT_DIR may instead be the CSV of ``hrtls attitude``: it is scored against the reference
-    orientation ``--truth`` (CSV or BROAD trial) and ``<stem>_orientation.json`` is written."""
+    orientation ``--truth`` (CSV or BROAD trial) and ``<stem>_orientation.json`` is written.
+    """
     if result_dir.is_file():
         from hrtls.cli.attitude import evaluate_orientation, orientation_table
 
