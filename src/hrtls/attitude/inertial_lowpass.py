@@ -95,7 +95,7 @@ _WALK = K.PRM_SPECIFIC + 18
 # ---- state layout
 _QG = 0  # 0..3 q_gyr (d -> I)
 _QA = 4  # 4..7 q_acc (I -> E')
-_DELTA = 8  # heading correction about the vertical, rad
+_HC = 8  # cos(delta / 2) of the heading correction delta about the vertical
 _ALP = 9  # 9..14 biquad state of lp(a_I), two per axis
 _RLP = 15  # 15..32 biquad state of lp(R_6), row-major, two per entry
 _RBLP = 33  # 33..38 biquad state of lp(R_6 b)
@@ -117,7 +117,8 @@ _MFIRST = 53  # 1.0 while the reference is only the first sample
 _VTILT = 54  # roll/pitch variance, rad^2
 _VHEAD = 55  # heading variance, rad^2
 _LPOK = 56  # 1.0 once the low-passes were started on a sample
-_NX = 57
+_HS = 57  # sin(delta / 2)
+_NX = 58
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -376,7 +377,8 @@ def inertial_lowpass_kernel(
                 continue
             K.set_q(x, _QG, w, qx, qy, qz)
             K.set_q(x, _QA, 1.0, 0.0, 0.0, 0.0)
-            x[_DELTA] = 0.0
+            x[_HC] = 1.0
+            x[_HS] = 0.0
             x[_DT] = 0.0
             x[_LPOK] = 0.0
             mag0 = (flags & K.FLAG_MAG) != 0
@@ -495,8 +497,10 @@ def inertial_lowpass_kernel(
         # ---- 3. heading [3.3] with 5. disturbance rejection [3.5]
         use_m = False
         k_head = 0.0
+        sw, sx, sy, sz = K.qmul(aw, ax, ay, az, gw, gx, gy, gz)  # q_6
+        hc = x[_HC]
+        hs = x[_HS]
         if s.mag_fin:
-            sw, sx, sy, sz = K.qmul(aw, ax, ay, az, gw, gx, gy, gz)
             m0, m1, m2 = K.rot(sw, sx, sy, sz, s.m0, s.m1, s.m2)
             mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
             if mn > 1e-6:
@@ -556,9 +560,20 @@ def inertial_lowpass_kernel(
                     x[_MREJ_T] = max(x[_MREJ_T] - prm[_M_REJ_FACTOR] * dt, 0.0)
                 hn = m0 * m0 + m1 * m1
                 if k_head > 0.0 and hn > 1e-12:
-                    err = 0.5 * math.pi - math.atan2(m1, m0) - x[_DELTA]
-                    err = (err + math.pi) % (2.0 * math.pi) - math.pi
-                    x[_DELTA] = (x[_DELTA] + k_head * err + math.pi) % (2.0 * math.pi) - math.pi
+                    # wrap(delta* - delta) is the angle from the field turned by delta to
+                    # north: atan2(h_x, h_y) with h = R_z(delta) m
+                    c_d = hc * hc - hs * hs
+                    s_d = 2.0 * hc * hs
+                    err = math.atan2(c_d * m0 - s_d * m1, s_d * m0 + c_d * m1)
+                    # delta += k err, on the half-angle pair
+                    c, sc = K.cos_sinc(0.5 * k_head * err)
+                    si = sc * 0.5 * k_head * err
+                    hc, hs = hc * c - hs * si, hs * c + hc * si
+                    hn = math.sqrt(hc * hc + hs * hs)
+                    hc /= hn
+                    hs /= hn
+                    x[_HC] = hc
+                    x[_HS] = hs
                     use_m = True
                     if x[_MINIT] > 0.5:
                         x[_MINIT] += 1.0
@@ -573,9 +588,6 @@ def inertial_lowpass_kernel(
         K.set_q(x, _QG, gw, gx, gy, gz)
         K.set_q(x, _QA, aw, ax, ay, az)
         # ---- output q = R_z(delta) * q_acc * q_gyr
-        sw, sx, sy, sz = K.qmul(aw, ax, ay, az, gw, gx, gy, gz)
-        hc = math.cos(0.5 * x[_DELTA])
-        hs = math.sin(0.5 * x[_DELTA])
         w, qx, qy, qz = K.qmul(hc, 0.0, 0.0, hs, sw, sx, sy, sz)
         qn = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
         if w < 0.0:
@@ -607,6 +619,7 @@ class InertialLowpass(AttitudeFilter):
         x = np.zeros(_NX)
         x[_QG] = 1.0
         x[_QA] = 1.0
+        x[_HC] = 1.0
         return x, np.zeros((3, 3))
 
     def _kernel(self, t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray,
