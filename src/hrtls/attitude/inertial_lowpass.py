@@ -309,19 +309,9 @@ def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y: FloatArray,
     s11 = H[3] * M[0, 1] + H[4] * M[1, 1] + H[5] * M[2, 1] + wv[1]
     s12 = H[3] * M[0, 2] + H[4] * M[1, 2] + H[5] * M[2, 2]
     s22 = H[6] * M[0, 2] + H[7] * M[1, 2] + H[8] * M[2, 2] + wv[2]
-    c00 = s11 * s22 - s12 * s12
-    c01 = s02 * s12 - s01 * s22
-    c02 = s01 * s12 - s02 * s11
-    det = s00 * c00 + s01 * c01 + s02 * c02
-    if not det > 0.0:
+    ok, i00, i01, i02, i11, i12, i22 = K.sym3_inverse(s00, s01, s02, s11, s12, s22)
+    if not ok:
         return
-    inv = 1.0 / det
-    i00 = c00 * inv
-    i01 = c01 * inv
-    i02 = c02 * inv
-    i11 = (s00 * s22 - s02 * s02) * inv
-    i12 = (s01 * s02 - s00 * s12) * inv
-    i22 = (s00 * s11 - s01 * s01) * inv
     for a in range(3):
         m0 = M[a, 0]
         m1 = M[a, 1]
