@@ -123,6 +123,7 @@ def available() -> dict[str, Runner]:
         "quat-ekf dyn.1": ours("quat-ekf", dyn_acc_corr_s=0.1),
         "quat-ekf restvar": ours("quat-ekf", bias_var_at_rest=True),
         "complementary": ours("complementary"),
+        "inertial-lp": ours("inertial-lp"),
     }
     for label, module, runner in (("vqf", "vqf", vqf_runner),
                                   ("imufusion", "imufusion", imufusion_runner),

@@ -1,4 +1,8 @@
-"""The three sensor-fusion filters: reference agreement, invariants, robustness, streaming."""
+"""The sensor-fusion filters: reference agreement, invariants, robustness, streaming.
+
+``ALL`` tests run for every registered filter; ``METHODS`` ones need the accelerometer gate of
+the three gated filters (``inertial-lp`` has its own tests in ``test_inertial_lowpass``).
+"""
 
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ from . import _reference as ref
 from .conftest import make_motion
 
 METHODS = ["euler-ekf", "quat-ekf", "complementary"]
+ALL = [*METHODS, "inertial-lp"]
 
 
 def run(method, m, params=None, **kw):
@@ -84,7 +89,7 @@ def test_complementary_matches_reference(motion):
 
 
 # ------------------------------------------------------------------------------ accuracy
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_static_initialisation_matches_truth(method):
     m = make_motion(50, seed=5, noise=False, rest_s=10.0)
     _, r = run(method, m)
@@ -125,7 +130,7 @@ def test_euler_ekf_first_order_step_is_close():
     assert 1e-4 < np.max(ang) < 2e-2
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_tracks_noisy_motion(method, motion):
     _, r = run(method, motion)
     ang = np.rad2deg(quat_angle_between(r.q, motion.q))
@@ -160,7 +165,7 @@ finite = st.floats(-50, 50, allow_nan=False, allow_infinity=False)
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 10_000), method=st.sampled_from(METHODS),
+@given(seed=st.integers(0, 10_000), method=st.sampled_from(ALL),
        amp=st.floats(0.0, 3.0), acc_amp=st.floats(0.0, 8.0))
 def test_unit_quaternion_and_psd_covariance(seed, method, amp, acc_amp):
     m = make_motion(200, seed=seed, amp_rad=amp, accel_amp=acc_amp)
@@ -176,7 +181,7 @@ def test_unit_quaternion_and_psd_covariance(seed, method, amp, acc_amp):
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 10_000), method=st.sampled_from(METHODS),
+@given(seed=st.integers(0, 10_000), method=st.sampled_from(ALL),
        data=st.data())
 def test_no_nan_leaves_with_bad_samples(seed, method, data):
     m = make_motion(150, seed=seed)
@@ -201,7 +206,7 @@ def test_no_nan_leaves_with_bad_samples(seed, method, data):
     assert r.rejected["acc"] >= int(np.sum(~np.isfinite(acc).all(1)))
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_all_nan_input_gives_identity_and_counts(method):
     n = 20
     t = np.arange(n) * 0.01
@@ -214,7 +219,7 @@ def test_all_nan_input_gives_identity_and_counts(method):
 
 # ------------------------------------------------------------------------------ streaming
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(method=st.sampled_from(METHODS),
+@given(method=st.sampled_from(ALL),
        cuts=st.lists(st.integers(1, 299), max_size=6, unique=True))
 def test_chunked_update_equals_batch(method, cuts):
     m = make_motion(300, seed=11)
@@ -229,7 +234,7 @@ def test_chunked_update_equals_batch(method, cuts):
     assert joined.rejected == batch.rejected
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_state_save_restore_continues_identically(method, motion):
     f = make_filter(method)
     f.update(motion.t[:300], motion.acc[:300], motion.gyr[:300], motion.mag[:300])
@@ -252,7 +257,7 @@ def test_restore_rejects_other_method(motion):
         AttitudeState.from_dict({"method": "quat-ekf"})
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_run_equals_update_on_stream(method, motion):
     imu = ImuStream(SensorSeries(motion.t, motion.acc), SensorSeries(motion.t, motion.gyr),
                     SensorSeries(motion.t, motion.mag))
@@ -274,7 +279,7 @@ def test_mounting_gives_body_frame(motion):
                                0.0, atol=1e-7)
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_bad_time_and_shapes_raise(method, motion):
     f = make_filter(method)
     with pytest.raises(InputError):
@@ -337,7 +342,7 @@ def test_kernel_helpers():
         np.testing.assert_allclose(K.heading_from_mag(1, 0, 0, 0, 0.0, 0.0, 5.0), [1, 0, 0, 0])
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ALL)
 def test_unknown_inputs_and_param_layout(method, motion):
     f = make_filter(method)
     with pytest.raises(InputError, match="unexpected inputs"):

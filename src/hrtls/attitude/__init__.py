@@ -1,9 +1,9 @@
-"""Attitude (orientation) estimation: Euler EKF, quaternion EKF, complementary filter, device.
+"""Attitude (orientation) estimation: EKFs, complementary and inertial low-pass filters, device.
 
 All sensor-fusion filters share one interface (:class:`AttitudeFilter`): typed parameters, a
 saveable state, ``update`` on chunks and ``run`` on a whole stream. Pick one by name with
-:func:`make_filter` (``euler-ekf``, ``quat-ekf``, ``complementary``); ``device`` passes through
-an orientation the phone computed (:class:`DeviceOrientation`).
+:func:`make_filter` (``euler-ekf``, ``quat-ekf``, ``complementary``, ``inertial-lp``);
+``device`` passes through an orientation the phone computed (:class:`DeviceOrientation`).
 """
 
 from hrtls.attitude.base import AttitudeFilter, AttitudeResult, AttitudeState, CommonParams
@@ -12,9 +12,10 @@ from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParam
 from hrtls.attitude.device import DeviceOrientation, DeviceParams, frame_to_enu
 from hrtls.attitude.euler_ekf import EulerEkf, EulerEkfParams
 from hrtls.attitude.fqa import fqa, fqa_quaternion
-from hrtls.attitude.metrics import OrientationErrors, orientation_errors
+from hrtls.attitude.inertial_lowpass import InertialLowpass, InertialLowpassParams
 from hrtls.attitude.quat_ekf import QuatEkf, QuatEkfParams
 from hrtls.attitude.registry import FILTERS, METHODS, make_filter
+from hrtls.evaluate.orientation import OrientationErrors, orientation_errors
 
 __all__ = [
     "FILTERS",
@@ -30,6 +31,8 @@ __all__ = [
     "EulerEkf",
     "EulerEkfParams",
     "GyroBiasEstimate",
+    "InertialLowpass",
+    "InertialLowpassParams",
     "OrientationErrors",
     "QuatEkf",
     "QuatEkfParams",

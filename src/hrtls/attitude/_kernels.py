@@ -402,6 +402,25 @@ def nav_rotation_var(
         out[i, r] = 4.0 * acc
 
 
+@numba.njit(inline="always", **JIT)
+def sym3_inverse(
+    s00: float, s01: float, s02: float, s11: float, s12: float, s22: float
+) -> tuple[bool, float, float, float, float, float, float]:
+    """Inverse of a symmetric positive definite 3 x 3 matrix by cofactors (upper triangle).
+
+    Returns False and zeros when the determinant is not positive.
+    """
+    c00 = s11 * s22 - s12 * s12
+    c01 = s02 * s12 - s01 * s22
+    c02 = s01 * s12 - s02 * s11
+    det = s00 * c00 + s01 * c01 + s02 * c02
+    if not det > 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    inv = 1.0 / det
+    return (True, c00 * inv, c01 * inv, c02 * inv, (s00 * s22 - s02 * s02) * inv,
+            (s01 * s02 - s00 * s12) * inv, (s00 * s11 - s01 * s01) * inv)
+
+
 def make_block3(n: int, m: int) -> Callable[..., bool]:
     """Compile the 3-row block update for ``n`` states of which the first ``m`` are measured.
 
@@ -459,20 +478,9 @@ def make_block3(n: int, m: int) -> Callable[..., bool]:
             e0 -= h0 * dx[a]
             e1 -= h1 * dx[a]
             e2 -= h2 * dx[a]
-        # symmetric 3x3 inverse by cofactors
-        c00 = s11 * s22 - s12 * s12
-        c01 = s02 * s12 - s01 * s22
-        c02 = s01 * s12 - s02 * s11
-        det = s00 * c00 + s01 * c01 + s02 * c02
-        if not det > 0.0:
+        ok, i00, i01, i02, i11, i12, i22 = sym3_inverse(s00, s01, s02, s11, s12, s22)
+        if not ok:
             return False
-        inv = 1.0 / det
-        i00 = c00 * inv
-        i01 = c01 * inv
-        i02 = c02 * inv
-        i11 = (s00 * s22 - s02 * s02) * inv
-        i12 = (s01 * s02 - s00 * s12) * inv
-        i22 = (s00 * s11 - s01 * s01) * inv
         for a in range(n):
             p0 = ph[a, 0]
             p1 = ph[a, 1]

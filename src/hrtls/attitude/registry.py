@@ -1,4 +1,7 @@
-"""Attitude methods by name: ``euler-ekf``, ``quat-ekf``, ``complementary``, ``device``."""
+"""Attitude methods by name.
+
+``euler-ekf``, ``quat-ekf``, ``complementary``, ``inertial-lp``, ``device``.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +9,7 @@ from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.attitude.complementary import ComplementaryFilter
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.euler_ekf import EulerEkf
+from hrtls.attitude.inertial_lowpass import InertialLowpass
 from hrtls.attitude.quat_ekf import QuatEkf
 from hrtls.errors import InputError
 
@@ -15,6 +19,7 @@ FILTERS: dict[str, type[AttitudeFilter]] = {
     EulerEkf.name: EulerEkf,
     QuatEkf.name: QuatEkf,
     ComplementaryFilter.name: ComplementaryFilter,
+    InertialLowpass.name: InertialLowpass,
 }
 """Sensor-fusion filters (they consume an IMU stream)."""
 

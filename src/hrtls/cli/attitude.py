@@ -9,7 +9,11 @@ Register in :mod:`hrtls.cli.app` with::
     # calibrate_app.command("mag")(attitude_cli.calibrate_mag)
 
 ``attitude`` writes ``t,qw,qx,qy,qz,roll,pitch,yaw`` (ENU, rad; body frame when the session
-gives ``mounting_q_bd``, else device frame).
+gives ``mounting_q_bd``, else device frame). When the recording carries a reference orientation
+(a BROAD trial, ``orientation_reference.csv`` in a session folder, or ``--reference``) it also
+prints the inclination and heading RMS against it, per segment and overall
+(:func:`hrtls.evaluate.orientation.score_orientation`); ``hrtls evaluate ATTITUDE.csv --truth
+REFERENCE`` scores a written CSV the same way (:func:`evaluate_orientation`).
 
 ``calibrate imu`` needs a positions file ``t_start,t_end,position`` (position one of
 ``+x,-x,+y,-y,+z,-z``: the device axis pointing up in that static interval) and optionally a
@@ -26,6 +30,8 @@ from typing import Annotated
 
 import numpy as np
 import typer
+from rich.console import Console
+from rich.table import Table
 
 from hrtls.attitude.base import AttitudeResult
 from hrtls.attitude.device import DeviceOrientation, DeviceParams
@@ -39,7 +45,14 @@ from hrtls.calibration.imu import (
 )
 from hrtls.data import Session
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.evaluate.orientation import OrientationScore, score_orientation
 from hrtls.io.intervals import read_intervals
+from hrtls.io.orientation import (
+    OrientationTable,
+    find_reference_orientation,
+    read_orientation_csv,
+    read_reference_orientation,
+)
 
 __all__ = [
     "attitude",
@@ -48,6 +61,8 @@ __all__ = [
     "calibrate_imu",
     "calibrate_mag",
     "compute_attitude",
+    "evaluate_orientation",
+    "orientation_table",
     "read_any_session",
     "write_attitude_csv",
 ]
@@ -122,6 +137,41 @@ def attitude_command(session: Path, output: Path, method: str = "quat-ekf", *,
     return result
 
 
+def _score(t: np.ndarray, q: np.ndarray, ref: OrientationTable) -> OrientationScore:
+    return score_orientation(t, q, ref.t, ref.q, mask=ref.mask)
+
+
+def orientation_table(score: OrientationScore, title: str = "") -> Table:
+    """Inclination and heading RMS (deg) per segment and overall as a rich table."""
+    table = Table("segment", "t start (s)", "t end (s)", "samples", "inclination RMS (deg)",
+                  "heading RMS (deg)", title=title or None)
+    rows = [(str(i + 1), s) for i, s in enumerate(score.segments)] + [("all", score.overall)]
+    for label, seg in rows:
+        table.add_row(label, f"{seg.t_start_s:.1f}", f"{seg.t_end_s:.1f}", str(seg.n),
+                      f"{np.rad2deg(seg.inclination_rms_rad):.2f}",
+                      f"{np.rad2deg(seg.heading_rms_rad):.2f}")
+    table.caption = (f"heading offset removed: {np.rad2deg(score.heading_offset_rad):.2f} deg; "
+                     f"{score.overall.n} of {score.n_reference} reference samples scored")
+    return table
+
+
+def evaluate_orientation(estimate_csv: Path, reference: Path,
+                         output: Path | None = None) -> OrientationScore:
+    """Score an attitude CSV against a reference; write ``<stem>_orientation.json``.
+
+    The body of ``hrtls evaluate ATTITUDE.csv --truth REFERENCE``.
+    """
+    import json
+
+    est = read_orientation_csv(estimate_csv)
+    score = _score(est.t, est.q, read_reference_orientation(reference))
+    out = output if output is not None else estimate_csv.parent
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{estimate_csv.stem}_orientation.json").write_text(
+        json.dumps(score.to_dict(), indent=2) + "\n")
+    return score
+
+
 def _report(result: AttitudeResult) -> str:
     n = len(result)
     if n == 0:
@@ -135,10 +185,14 @@ def attitude(
     output: Annotated[Path, typer.Option("--output", "-o", help="CSV to write.")] = Path(
         "attitude.csv"),
     method: Annotated[str, typer.Option(
-        "--method", "-m", help="euler-ekf | quat-ekf | complementary | device")] = "quat-ekf",
+        "--method", "-m",
+        help="euler-ekf | quat-ekf | complementary | inertial-lp | device")] = "quat-ekf",
     calibration: Annotated[Path | None, typer.Option(
         "--calibration", "-c", help="IMU calibration JSON (from `hrtls calibrate`).")] = None,
     repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows (warns).")] = False,
+    reference: Annotated[Path | None, typer.Option(
+        "--reference", help="Reference orientation (CSV t,qw,qx,qy,qz[,movement] or BROAD "
+        "trial) to score against; found in the recording when it carries one.")] = None,
 ) -> None:
     """Estimate the orientation (ENU) and write t,qw,qx,qy,qz,roll,pitch,yaw."""
     from hrtls.cli.errors import reports_errors
@@ -148,6 +202,11 @@ def attitude(
         result = attitude_command(session, output, method, calibration=calibration,
                                   repair=repair)
         typer.echo(f"{output}: {_report(result)}")
+        ref = (read_reference_orientation(reference) if reference is not None
+               else find_reference_orientation(session))
+        if ref is not None:
+            Console().print(orientation_table(_score(result.t, result.q, ref),
+                                              title=f"{method} against {ref.source}"))
 
     _go()
 

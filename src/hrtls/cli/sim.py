@@ -239,13 +239,23 @@ def report_table(report: dict[str, Any]) -> Table:
 @reports_errors
 def evaluate(
     result_dir: Annotated[Path, typer.Argument(help="Folder with trajectory.csv [steps.csv].")],
-    truth: Annotated[Path, typer.Option("--truth", help="Session folder with ground truth.")],
+    truth: Annotated[Path, typer.Option("--truth", help="Session folder with ground truth "
+                                        "(or a reference orientation).")],
     output: Annotated[Path | None, typer.Option(
         "--output", "-o", help="Where to write report.json and plots (default RESULT_DIR).")
     ] = None,
     plots: Annotated[bool, typer.Option(help="Write PNG plots.")] = True,
 ) -> None:
-    """Score an estimated trajectory against ground truth; write report.json and plots."""
+    """Score an estimated trajectory against ground truth; write report.json and plots.
+
+    RESULT_DIR may instead be the CSV of ``hrtls attitude``: it is scored against the reference
+    orientation ``--truth`` (CSV or BROAD trial) and ``<stem>_orientation.json`` is written.
+    """
+    if result_dir.is_file():
+        from hrtls.cli.attitude import evaluate_orientation, orientation_table
+
+        console.print(orientation_table(evaluate_orientation(result_dir, truth, output)))
+        return
     report = evaluate_result(result_dir, truth, output=output, plots=plots)
     console.print(report_table(report))
     console.print(f"wrote {(output or result_dir) / 'report.json'}")

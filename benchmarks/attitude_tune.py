@@ -1,0 +1,114 @@
+"""Leave-one-trial-out choice of the ``inertial-lp`` parameters (issue 13's tuning discipline).
+
+Units: the BROAD trials in ``../shared/data/broad`` and the simulated walks of
+``benchmarks/attitude.py`` (seeds 1-3, 300 s). A parameter set's score on a unit is
+``(inc / inc_vqf + head / head_vqf) / 2`` (RMS in degrees as in ``benchmarks/attitude.py``,
+VQF 9-D with its defaults on the same data as the yardstick). For every unit the grid point
+with the best mean score over the *other* units is chosen and scored on the held-out unit;
+the defaults are the grid point best over all units. Prints per-unit held-out figures, their
+mean / median / worst, and the chosen sets::
+
+    python benchmarks/attitude_tune.py            # the full grid (a few minutes)
+    python benchmarks/attitude_tune.py --quick    # a smaller grid
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from attitude import BROAD, as_q_nb, dataset_broad, dataset_sim_walk, vqf_runner
+from hrtls.attitude import make_filter, orientation_errors
+from hrtls.attitude.inertial_lowpass import InertialLowpassParams
+
+GRID: dict[str, list[float]] = {
+    "tau_acc_s": [4.0, 5.0, 6.0, 8.0],
+    "tau_mag_s": [9.0, 15.0],
+    "mag_norm_gate_uT": [2.0, 3.0, 5.0],
+    "mag_dip_gate_rad": [float(np.deg2rad(d)) for d in (3.0, 5.0, 10.0)],
+    "bias_sigma_motion_rad_s": [float(np.deg2rad(d)) for d in (0.1, 0.2, 0.4)],
+}
+QUICK: dict[str, list[float]] = {
+    "tau_acc_s": [3.0, 6.0],
+    "tau_mag_s": [9.0],
+    "mag_norm_gate_uT": [5.0],
+    "mag_dip_gate_rad": [float(np.deg2rad(10.0))],
+    "bias_sigma_motion_rad_s": [float(np.deg2rad(0.1))],
+}
+
+
+def rms_deg(q: np.ndarray, acc: np.ndarray, q_ref: np.ndarray, mask: np.ndarray
+            ) -> tuple[float, float]:
+    err = orientation_errors(as_q_nb(q, acc), q_ref, mask)
+    return float(np.rad2deg(err.inclination_rms_rad)), float(np.rad2deg(err.heading_rms_rad))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a two-point grid")
+    args = ap.parse_args()
+    grid = QUICK if args.quick else GRID
+    units: dict[str, tuple] = {}
+    if BROAD.is_dir():
+        for p in sorted(BROAD.glob("*.hdf5")):
+            units["broad-" + p.stem.split("_")[0]] = dataset_broad(p)
+    else:
+        print(f"note: {BROAD} not found; simulated walks only")
+    for seed in (1, 2, 3):
+        units[f"sim-walk{seed}"] = dataset_sim_walk(300.0, seed)
+    names = list(units)
+    vqf = {u: rms_deg(vqf_runner(t, acc, gyr, mag, rate), acc, q_ref, mask)
+           for u, (t, acc, gyr, mag, q_ref, mask, rate) in units.items()}
+    keys = list(grid)
+    points = [dict(zip(keys, v, strict=True)) for v in itertools.product(*grid.values())]
+    figures = np.empty((len(points), len(names), 2))
+    for i, point in enumerate(points):
+        params = InertialLowpassParams(**point)  # type: ignore[arg-type]
+        for j, u in enumerate(names):
+            t, acc, gyr, mag, q_ref, mask, _ = units[u]
+            q = make_filter("inertial-lp", params).update(t, acc, gyr, mag).q
+            figures[i, j] = rms_deg(q, acc, q_ref, mask)
+    ref = np.array([vqf[u] for u in names])
+    score = 0.5 * (figures[:, :, 0] / ref[:, 0] + figures[:, :, 1] / ref[:, 1])
+
+    def show(point: dict[str, float]) -> str:
+        return ", ".join(f"{k}={np.rad2deg(v):.3g} deg" if k.endswith("rad")
+                         or k.endswith("rad_s") else f"{k}={v:g}" for k, v in point.items())
+
+    print(f"{len(points)} grid points, {len(names)} units")
+    print(f"{'held-out unit':14s} {'inc':>6s} {'head':>6s} | {'vqf inc':>7s} {'vqf head':>8s}"
+          " | chosen on the other units")
+    held = np.empty((len(names), 2))
+    for j, u in enumerate(names):
+        others = [k for k in range(len(names)) if k != j]
+        best = int(np.argmin(score[:, others].mean(axis=1)))
+        held[j] = figures[best, j]
+        print(f"{u:14s} {held[j, 0]:6.2f} {held[j, 1]:6.2f} | {ref[j, 0]:7.2f} {ref[j, 1]:8.2f}"
+              f" | {show(points[best])}")
+    for label, sel in (("BROAD", [k for k, u in enumerate(names) if u.startswith("broad")]),
+                       ("sim walks", [k for k, u in enumerate(names) if u.startswith("sim")])):
+        if not sel:
+            continue
+        h = held[sel]
+        r = ref[sel]
+        print(f"{label} held-out: inclination mean/median/worst {h[:, 0].mean():.2f} / "
+              f"{np.median(h[:, 0]):.2f} / {h[:, 0].max():.2f} deg (VQF {r[:, 0].mean():.2f} / "
+              f"{np.median(r[:, 0]):.2f} / {r[:, 0].max():.2f}); heading {h[:, 1].mean():.2f} / "
+              f"{np.median(h[:, 1]):.2f} / {h[:, 1].max():.2f} deg (VQF {r[:, 1].mean():.2f} / "
+              f"{np.median(r[:, 1]):.2f} / {r[:, 1].max():.2f}); worst inclination ratio to VQF "
+              f"{(h[:, 0] / r[:, 0]).max():.2f}")
+    best_all = int(np.argmin(score.mean(axis=1)))
+    print(f"best over all units (the defaults): {show(points[best_all])}")
+    print("its per-unit figures: " + ", ".join(
+        f"{u} {figures[best_all, j, 0]:.2f}/{figures[best_all, j, 1]:.2f}"
+        for j, u in enumerate(names)))
+
+
+if __name__ == "__main__":
+    main()
