@@ -154,7 +154,12 @@ def _careful(text: str, header: list[str], kinds: Mapping[str, ColumnKind], *,
     """Row-by-row parse: the table, or the first malformed line (after the fast path failed)."""
     reader = csv.reader(io.StringIO(text))
     cells: list[list[str]] = [[] for _ in header]
-    for line_no, row in enumerate(reader, start=1):
+    line_no = 0
+    for row in reader:
+        first, line_no = line_no + 1, reader.line_num
+        if line_no > first or any("\n" in c or "\r" in c for c in row):
+            raise FormatError("a quoted value runs past the end of the line",
+                              where=f"{name} line {first}", expected="quotes closed on their line")
         if line_no == 1 or not row or (len(row) == 1 and not row[0].strip()):
             continue  # a blank line; a line of bare commas is a row of empty fields
         if len(row) != len(header):

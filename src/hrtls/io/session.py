@@ -313,6 +313,16 @@ def session_from_tables(tables: Mapping[str, pa.Table], *, meta: SessionMeta | N
 def _assemble(src: _Tables, meta: SessionMeta, landmarks: dict[str, Landmark], *, repair: bool,
               check_units: bool) -> Session:
     imu = _read_imu(src, repair=repair, check_units=check_units)
+    session = Session(meta=meta, imu=imu, landmarks=landmarks, **other_parts(src, repair=repair))
+    for label, ids in session.unknown_ids().items():
+        shown = ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else "")
+        warnings.warn(f"{label}: {len(ids)} id(s) not in landmarks.json ({shown}); "
+                      "their readings cannot be placed", DegradedInputWarning, stacklevel=3)
+    return session
+
+
+def other_parts(src: _Tables, *, repair: bool) -> dict[str, Any]:
+    """Every part of the session but the IMU, by :class:`~hrtls.data.Session` field name."""
     pressure = None
     if (found := src.table("pressure")) is not None:
         table, name = found
@@ -351,14 +361,8 @@ def _assemble(src: _Tables, meta: SessionMeta, landmarks: dict[str, Landmark], *
         labels = cp.get("label", np.full(len(cp["t"]), "", dtype=np.str_))
         checkpoints = Checkpoints(cp["t"], np.column_stack([cp["x"], cp["y"], cp["z"]]), labels,
                                   cp["name"])
-    session = Session(meta=meta, imu=imu, pressure=pressure, orientation=orientation,
-                      fixes=fixes, rss=rss_obj, tags=tags_obj, ranges=ranges_obj,
-                      landmarks=landmarks, truth=truth, checkpoints=checkpoints)
-    for label, ids in session.unknown_ids().items():
-        shown = ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else "")
-        warnings.warn(f"{label}: {len(ids)} id(s) not in landmarks.json ({shown}); "
-                      "their readings cannot be placed", DegradedInputWarning, stacklevel=3)
-    return session
+    return {"pressure": pressure, "orientation": orientation, "fixes": fixes, "rss": rss_obj,
+            "tags": tags_obj, "ranges": ranges_obj, "truth": truth, "checkpoints": checkpoints}
 
 
 def _read_fixes(src: _Tables, *, repair: bool) -> PositionFixes | None:
