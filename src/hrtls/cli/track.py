@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Annotated
 
@@ -33,28 +32,35 @@ def track(
     beacons: Annotated[Path | None, typer.Option(
         "--beacons", help="Beacon positions CSV for IPIN logfiles.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
+    format_out: Annotated[str, typer.Option(
+        "--format-out", help="Trajectory and steps tables as csv | parquet.")] = "csv",
 ) -> None:
-    """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json."""
+    """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
+
+    A session folder or zip is read in chunks (bounded memory) unless --repair is given or the
+    configuration needs the whole recording at start (hand-held mounting, hard-iron fit).
+    """
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
-    from hrtls.io.readers.detect import read_any
-    from hrtls.jobs.track import evaluate_track, write_track_outputs
-    from hrtls.pipeline import Tracker, load_config, preset
+    from hrtls.jobs.track import evaluate_track, track_recording, write_track_outputs
+    from hrtls.pipeline import load_config, preset
 
     if config is not None and preset_name is not None:
         raise InputError("both --config and --preset", where="hrtls track",
                          expected="one of them")
+    if format_out not in ("csv", "parquet"):
+        raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
+    if not session.exists():
+        raise InputError("no such file or folder", where=str(session),
+                         expected="a recording (session folder, zip, logfile, ...)")
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
-    with console.status(f"reading {session}"):
-        data = read_any(session, repair=repair, beacons=beacons)
-    n = 0 if data.imu is None else len(data.imu.accel)
-    with console.status(f"tracking with {cfg.name}"):
-        start = time.perf_counter()
-        result = Tracker(cfg).run(data)
-        seconds = time.perf_counter() - start
+    with console.status(f"tracking {session} with {cfg.name}"):
+        run = track_recording(session, cfg, repair=repair, beacons=beacons)
+    result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
-                        evaluation=evaluation)
+                        evaluation=evaluation, table_format="parquet"
+                        if format_out == "parquet" else "csv")
     summary = result.report["summary"]
     console.print(f"[bold]{cfg.name}[/bold]: {summary['steps']} steps, "
                   f"{summary['distance_walked_m']:.1f} m walked, "
