@@ -66,3 +66,18 @@ def test_stream_malformed_row_keeps_exact_message(walk, tmp_path):
     (bad / "imu.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(FormatError, match=r"imu\.csv line 5001: 'ay' is 'oops'; expected a number"):
         track_recording(bad, preset("default"), chunk_rows=1000)
+
+
+def test_input_only_the_careful_reader_takes_is_tracked_whole(walk, tmp_path):
+    session = read_session(walk / "csv")
+    d = tmp_path / "spaced"
+    write_session(session, d)
+    lines = (d / "imu.csv").read_text().splitlines()
+    fields = lines[100].split(",")
+    fields[1] = "0_0"  # Python's float() reads it, Arrow's parser does not
+    lines[100] = ",".join(fields)
+    (d / "imu.csv").write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = track_recording(d, preset("default"), chunk_rows=1000)
+    assert not run.streamed and run.samples == len(session.imu.accel)

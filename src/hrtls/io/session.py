@@ -109,6 +109,10 @@ class _SessionFiles:
     def read(self, name: str) -> bytes:
         return self._source.read(self._members[name])
 
+    def member(self, name: str) -> str:
+        """The source member holding session file ``name``."""
+        return self._members[name]
+
     def table(self, stem: str) -> tuple[Table, str] | None:
         found = [stem + suffix for suffix in TABLE_SUFFIXES if stem + suffix in self.names]
         if not found:
@@ -321,8 +325,18 @@ def _assemble(src: _Tables, meta: SessionMeta, landmarks: dict[str, Landmark], *
     return session
 
 
-def other_parts(src: _Tables, *, repair: bool) -> dict[str, Any]:
-    """Every part of the session but the IMU, by :class:`~hrtls.data.Session` field name."""
+def truth_from(table: Table, name: str, *, repair: bool = False) -> GroundTruth:
+    """The ground truth of a checked ``truth`` table."""
+    xyz = _group(table, ("x", "y", "z"), name=name)
+    assert xyz is not None
+    groups = [xyz] + ([table.float("heading")] if "heading" in table.present else [])
+    t, groups = _repaired(table.float("t"), groups, name=name, repair=repair)
+    return GroundTruth(t, groups[0], groups[1] if len(groups) > 1 else None, name)
+
+
+def other_parts(src: _Tables, *, repair: bool, skip: frozenset[str] = frozenset()
+                ) -> dict[str, Any]:
+    """Every part of the session but the IMU (and ``skip``), by Session field name."""
     pressure = None
     if (found := src.table("pressure")) is not None:
         table, name = found
@@ -349,13 +363,8 @@ def other_parts(src: _Tables, *, repair: bool) -> dict[str, Any]:
             ranges["t"], ranges["node"], ranges["range"],
             ranges.get("sigma", np.full(len(ranges["t"]), np.nan)), ranges["name"])
     truth = None
-    if (found := src.table("truth")) is not None:
-        table, name = found
-        xyz = _group(table, ("x", "y", "z"), name=name)
-        assert xyz is not None
-        groups = [xyz] + ([table.float("heading")] if "heading" in table.present else [])
-        t, groups = _repaired(table.float("t"), groups, name=name, repair=repair)
-        truth = GroundTruth(t, groups[0], groups[1] if len(groups) > 1 else None, name)
+    if "truth" not in skip and (found := src.table("truth")) is not None:
+        truth = truth_from(*found, repair=repair)
     checkpoints = None
     if (cp := _read_obs(src, "checkpoints", repair=repair)) is not None:
         labels = cp.get("label", np.full(len(cp["t"]), "", dtype=np.str_))

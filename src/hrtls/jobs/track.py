@@ -13,7 +13,7 @@ from hrtls.errors import InputError
 from hrtls.evaluate.report import EvaluationInputs, build_report
 from hrtls.io.geojson import write_geojson
 from hrtls.io.session import TableFormat
-from hrtls.io.stream import DEFAULT_CHUNK_ROWS, open_stream
+from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -26,8 +26,9 @@ OUTPUT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parq
 class TrackRun:
     """A tracked recording.
 
-    ``session`` holds, when streamed, only the first IMU chunk; ``tracker_s`` is the time
-    spent in the tracker alone; ``streamed`` tells whether the IMU was read in chunks.
+    ``session`` holds, when streamed, only the first IMU chunk, and ``result.attitude`` is
+    None (the per-sample attitude is not kept); ``tracker_s`` is the time spent in the tracker
+    alone; ``streamed`` tells whether the IMU was read in chunks.
     """
 
     result: TrackResult
@@ -60,13 +61,20 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     stream = None
     if not repair and beacons is None and detect_format(path) == "hrtls-session":
         stream = open_stream(path, chunk_rows=chunk_rows)
-    tracker = Tracker(config)
-    if stream is None:
-        session = read_any(path, repair=repair, beacons=beacons)
-        start = time.perf_counter()
-        result = tracker.run(session)
-        n = 0 if session.imu is None else len(session.imu.accel)
-        return TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+    if stream is not None:
+        try:
+            return _track_stream(stream, config)
+        except NotStreamable:
+            pass  # the careful reader accepts what the chunked reader refused
+    session = read_any(path, repair=repair, beacons=beacons)
+    start = time.perf_counter()
+    result = Tracker(config).run(session)
+    n = 0 if session.imu is None else len(session.imu.accel)
+    return TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+
+
+def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
+    tracker = Tracker(config, keep_attitude=False)
     if streams(config):
         tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
                       has_mag=stream.has_mag,
@@ -86,8 +94,11 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     start = time.perf_counter()
     result = tracker.finish()
     seconds += time.perf_counter() - start
+    del tracker
     assert first is not None
-    return TrackRun(result, stream.session(first), stream.n_rows, seconds, streamed=True)
+    # the ground truth is read only now, for the evaluation: it is not held while tracking
+    session = stream.session(first).with_parts(truth=stream.truth())
+    return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
 
 
 def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
