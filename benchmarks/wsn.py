@@ -80,12 +80,18 @@ def main() -> None:
     ap.add_argument("--noise-networks", type=int, default=300)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--timing-only", action="store_true")
+    ap.add_argument("--engine", default="local", help="local | ray (same numbers either way)")
+    ap.add_argument("--workers", type=int, default=None, help="networks at once (default: cores)")
+    ap.add_argument("--ray-address", default=None)
     args = ap.parse_args()
+    from hrtls.runner import make_engine
+
+    engine = make_engine(args.engine, workers=args.workers, ray_address=args.ray_address)
     timing()
     if args.timing_only:
         return
     t = time.perf_counter()
-    s = ex.loose_study(n_networks=args.networks, seed=args.seed)
+    s = ex.loose_study(n_networks=args.networks, seed=args.seed, engine=engine)
     print(f"\nLoose cooperation (Fig. 6.11): {s.n_nodes} nodes, unit square, rho = "
           f"{s.radius_m:g}, seeds in a corner, {args.networks} networks "
           f"({time.perf_counter() - t:.1f} s)")
@@ -98,7 +104,8 @@ def main() -> None:
                        PlannerParams(heuristic=False)),
                       ("heuristic without shared way points", PlannerParams(share_seeds=False))):
         t = time.perf_counter()
-        s = ex.loose_study(n_networks=args.networks, seed=args.seed, planner=prm)
+        s = ex.loose_study(n_networks=args.networks, seed=args.seed, planner=prm,
+                          engine=engine)
         print(f"\nPlanner ablation: {name} ({time.perf_counter() - t:.1f} s)")
         print(ex.format_table(s.rows))
 
@@ -106,7 +113,7 @@ def main() -> None:
     k = max(1, args.networks // 5)
     drift = RescuerParams(step_length_m=0.02, heading_noise_rad=0.003,
                           step_length_noise_fraction=0.01, correct_every_steps=10)
-    s = ex.loose_study(n_networks=k, seed=args.seed, rescuer=drift)
+    s = ex.loose_study(n_networks=k, seed=args.seed, rescuer=drift, engine=engine)
     print(f"\nLoose cooperation with a dead-reckoning rescuer (heading random walk 0.003 rad/step,"
           f" 1 % step length, 2 cm steps, range corrections every 10 steps), {k} networks "
           f"({time.perf_counter() - t:.1f} s)")
@@ -114,19 +121,19 @@ def main() -> None:
     for n_nodes, side in ((50, 1.0), (10, 0.5), (15, 1.0)):
         t = time.perf_counter()
         r = ex.tight_study(n_networks=args.networks, n_nodes=n_nodes, side_m=side,
-                           seed=args.seed + 1)
+                           seed=args.seed + 1, engine=engine)
         print(f"\nTight cooperation, robot (Fig. 6.13-6.17): {n_nodes} nodes in a {side:g} m "
               f"square, rho = {r.radius_m:g}, d_r = 2 rho, Delta = {r.delta_m:g} m, "
               f"{args.networks} networks ({time.perf_counter() - t:.1f} s)")
         print(ex.format_table(r.rows))
     t = time.perf_counter()
-    z = ex.noise_study(n_networks=args.noise_networks, seed=args.seed + 2)
+    z = ex.noise_study(n_networks=args.noise_networks, seed=args.seed + 2, engine=engine)
     print(f"\nRange noise {100 * z.noise_fraction:g} %: SELA (+ planner), then least-squares "
           f"refinement, {args.noise_networks} networks ({time.perf_counter() - t:.1f} s)")
     print(ex.format_table(z.rows))
     t = time.perf_counter()
     r = ex.tight_study(n_networks=args.noise_networks, range_noise_fraction=z.noise_fraction,
-                       seed=args.seed + 3)
+                       seed=args.seed + 3, engine=engine)
     print(f"\nTight cooperation with {100 * z.noise_fraction:g} % range noise, 50 nodes, "
           f"{args.noise_networks} networks ({time.perf_counter() - t:.1f} s)")
     print(ex.format_table(r.rows))

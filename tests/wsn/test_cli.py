@@ -86,3 +86,24 @@ def test_experiment_small(tmp_path):
     assert "Loose cooperation" in r.output and "Tight cooperation" in r.output
     assert "Range noise" in r.output
     assert (tmp_path / "e.png").exists() and (tmp_path / "t.png").exists()
+
+
+def test_default_localize_explains_and_points_to_the_agent(tmp_path):
+    net = tmp_path / "net.json"
+    assert _invoke("simulate", "-o", net).exit_code == 0
+    r = _invoke("localize", net)
+    assert r.exit_code == 0, r.output
+    assert "fewer than three localized neighbours" in r.output
+    assert f"hrtls wsn plan {net} --simulate" in r.output
+
+
+def test_plan_simulate_never_repeats_a_way_point(tmp_path):
+    net = tmp_path / "net.json"
+    wp = tmp_path / "wp.csv"
+    assert _invoke("simulate", "-o", net).exit_code == 0
+    r = _invoke("plan", net, "--simulate", "-o", wp)
+    assert r.exit_code == 0, r.output
+    xy = np.loadtxt(wp, delimiter=",", skiprows=1, usecols=(1, 2))
+    gaps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    assert xy.shape[0] > 3
+    assert gaps.min() > 1e-6

@@ -89,3 +89,21 @@ def test_candidate_way_point_for_two_covered_node():
 def test_params_validation():
     with pytest.raises(InputError):
         PlannerParams(arc_samples=2)
+
+
+def test_dead_reckoning_agent_completes_connected_network_regression() -> None:
+    # Network 22 of `loose_study(n_networks=40, seed=777)` with a dead-reckoning rescuer: the
+    # arc search used to reject every point of the circle because the temporary agent nodes'
+    # tracking error (~3 cm) exceeded the 4 mm range tolerance; nodes 5, 6, 30, 47 stayed
+    # unlocalized in a connected network.
+    drift = RescuerParams(step_length_m=0.02, heading_noise_rad=0.003,
+                          step_length_noise_fraction=0.01, correct_every_steps=10)
+    rng = [np.random.default_rng(s) for s in np.random.SeedSequence(777).spawn(40)][22]
+    net = corner_seed_network(rng, n_nodes=50, radius_m=0.2)
+    assert connected_components(net).max() == 0
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=0.2, radio_range_m=0.2)
+    agent = RescuerAgent(world, net.position_m[0], params=drift, rng=rng)
+    nav = safe_navigation(net, agent)
+    assert nav.complete
+    err = np.linalg.norm(nav.localization.estimate_m - net.position_m, axis=1)
+    assert err.max() < 0.5 * 0.2

@@ -32,14 +32,39 @@ def track(
     beacons: Annotated[Path | None, typer.Option(
         "--beacons", help="Beacon positions CSV for IPIN logfiles.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
+    engine: Annotated[str, typer.Option(
+        "--engine", help="Batch engine for a folder or glob of recordings: local | ray.")]
+    = "local",
+    workers: Annotated[int | None, typer.Option(
+        "--workers", help="Batch: recordings tracked at once (default: all cores).")] = None,
+    ray_address: Annotated[str | None, typer.Option(
+        "--ray-address", help="Batch with --engine ray: cluster address (default: local Ray).")]
+    = None,
     format_out: Annotated[str, typer.Option(
         "--format-out", help="Trajectory and steps tables as csv | parquet.")] = "csv",
 ) -> None:
     """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
 
-    A session folder or zip is read in chunks (bounded memory) unless --repair is given or the
-    configuration needs the whole recording at start (hand-held mounting, hard-iron fit).
+    A session folder or zip is read in chunks (bounded memory) unless --repair is given.
+
+    SESSION may also be a folder of recordings or a quoted glob ('runs/*.zip'): each recording
+    gets a result folder under OUTPUT and OUTPUT/summary.csv lists them all.
     """
+    from hrtls.jobs.batch import is_batch
+
+    if is_batch(str(session)):
+        from hrtls.cli.batch import track_batch
+
+        track_batch(str(session), output, config=config, preset_name=preset_name, plot=plot,
+                    repair=repair, overwrite=overwrite, engine=engine, workers=workers,
+                    ray_address=ray_address)
+        return
+    if engine != "local" or workers is not None or ray_address is not None:
+        from hrtls.errors import InputError as EngineError
+
+        raise EngineError("--engine, --workers and --ray-address are for batches",
+                          where=str(session),
+                          expected="a folder of recordings or a glob (one recording: no engine)")
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
     from hrtls.jobs.track import evaluate_track, track_recording, write_track_outputs

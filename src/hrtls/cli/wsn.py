@@ -130,6 +130,39 @@ def simulate(
     _plot(plot, net, title=f"{nodes} nodes, rho = {radius:g} m")
 
 
+def _ids(net: Any, idx: np.ndarray, limit: int = 12) -> str:
+    names = [net.ids[int(i)] for i in idx[:limit]]
+    return ", ".join(names) + (f" and {idx.size - limit} more" if idx.size > limit else "")
+
+
+def _explain_unlocalized(net: Any, loc: Any, network: Path, *, with_agent: bool) -> None:
+    """Say why nodes stayed unlocalized and which command localizes them."""
+    from hrtls.wsn.diagnostics import unlocalized_reasons
+
+    why = unlocalized_reasons(net, loc)
+    if why.n_unlocalized == 0:
+        return
+    typer.echo(f"{why.n_unlocalized} nodes unlocalized:")
+    if why.under_covered.size:
+        typer.echo(f"  {why.under_covered.size} have fewer than three localized neighbours "
+                   f"(propagation needs three ranges, or two and a shadow edge): "
+                   f"{_ids(net, why.under_covered)}")
+    if why.inconsistent.size:
+        typer.echo(f"  {why.inconsistent.size} had ranges that fit no candidate position and were "
+                   f"left out (check --noise): {_ids(net, why.inconsistent)}")
+    if why.unreachable.size:
+        typer.echo(f"  {why.unreachable.size} have no chain of links to a localized node: "
+                   f"{_ids(net, why.unreachable)}")
+    if why.under_covered.size and not with_agent:
+        typer.echo(f"next: a mobile agent adds the missing ranges: `hrtls wsn plan {network} "
+                   "--simulate` (simulated rescuer and planner), or a measured walk with "
+                   "`--agent PATH.csv --ranges RANGES.csv`")
+    if why.unreachable.size:
+        typer.echo("next: parts without links to the localized part are reached by an agent "
+                   "passing within radio range, or by a robot that searches beyond the links "
+                   "(tight cooperation, `hrtls wsn experiment --study tight`)")
+
+
 @app.command("localize")
 @reports_errors
 def localize(
@@ -191,9 +224,7 @@ def localize(
     counts = {k: names.count(k) for k in METHOD_NAMES}
     typer.echo(f"{loc.n_localized}/{net.n_nodes} localized: "
                + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
-    bad = loc.inconsistent()
-    if bad.size:
-        typer.echo(f"inconsistent (left unlocalized): {', '.join(net.ids[i] for i in bad)}")
+    _explain_unlocalized(net, loc, network, with_agent=agent is not None)
     if net.has_position.any():
         m = loc.localized & net.has_position & ~net.anchor
         if m.any():
@@ -204,7 +235,8 @@ def localize(
         save_network(output, net, estimate_m=est, method=names, covariance_m2=cov)
         typer.echo(f"written {output}")
     _plot(plot, net, loc_all if agent is not None else loc, title=f"{method.upper()}",
-          waypoints_m=xy if agent is not None else None, agent_links=links or None)
+          waypoints_m=xy if agent is not None else None, agent_links=links or None,
+          covariance_m2=cov)
 
 
 @app.command("plan")
@@ -250,6 +282,7 @@ def plan(
                    f"points: {nav.localization.n_localized}/{net.n_nodes} "
                    f"({'complete' if nav.complete else 'incomplete'}), "
                    f"walked {nav.distance_m:.3g} m")
+        _explain_unlocalized(net, nav.localization, network, with_agent=True)
         if network_output is not None:
             save_network(network_output, net, estimate_m=nav.localization.estimate_m,
                          method=nav.localization.method_names)
@@ -292,8 +325,16 @@ def experiment(
     tight_plot: Annotated[Path | None, typer.Option(
         help="PNG of one example tight-cooperation run (robot path, disconnected graph).")]
     = None,
+    engine_name: Annotated[str, typer.Option(
+        "--engine", help="Where the networks run: local | ray (same numbers either way).")]
+    = "local",
+    workers: Annotated[int | None, typer.Option(
+        help="Networks simulated at once (default: all cores).")] = None,
+    ray_address: Annotated[str | None, typer.Option(
+        help="With --engine ray: cluster address (default: a local Ray).")] = None,
 ) -> None:
     """Run the thesis' studies (Fig. 6.11, 6.13-6.17, 2 % noise) and print tables."""
+    from hrtls.runner import make_engine
     from hrtls.wsn import experiment as ex
 
     if study not in ("loose", "tight", "noise", "all"):
@@ -301,25 +342,27 @@ def experiment(
                          expected="loose, tight, noise or all")
     if networks < 1 or noise_networks < 1:
         raise InputError("network count < 1", where="--networks", expected=">= 1")
+    engine = make_engine(engine_name, workers=workers, ray_address=ray_address)
     if study in ("loose", "all"):
-        s = ex.loose_study(n_networks=networks, seed=seed)
+        s = ex.loose_study(n_networks=networks, seed=seed, engine=engine)
         typer.echo(f"\nLoose cooperation (Fig. 6.11): {s.n_nodes} nodes in the unit square, "
                    f"rho = {s.radius_m:g}, seeds in a corner, {networks} networks")
         typer.echo(ex.format_table(s.rows))
         typer.echo(f"way point kinds: {s.waypoint_kinds}")
     if study in ("tight", "all"):
         for n_nodes, side in ((50, 1.0), (10, 0.5), (15, 1.0)):
-            t = ex.tight_study(n_networks=networks, n_nodes=n_nodes, side_m=side, seed=seed + 1)
+            t = ex.tight_study(n_networks=networks, n_nodes=n_nodes, side_m=side, seed=seed + 1,
+                               engine=engine)
             typer.echo(f"\nTight cooperation with a robot (Fig. 6.13-6.17): {n_nodes} nodes in "
                        f"a {side:g} m square, rho = {t.radius_m:g}, d_r = 2 rho, "
                        f"Delta = {t.delta_m:g} m, {networks} networks")
             typer.echo(ex.format_table(t.rows))
     if study in ("noise", "all"):
-        z = ex.noise_study(n_networks=noise_networks, seed=seed + 2)
+        z = ex.noise_study(n_networks=noise_networks, seed=seed + 2, engine=engine)
         typer.echo(f"\nRange noise {100 * z.noise_fraction:g} % (refinement: least squares)")
         typer.echo(ex.format_table(z.rows))
         t = ex.tight_study(n_networks=noise_networks, range_noise_fraction=z.noise_fraction,
-                           seed=seed + 3)
+                           seed=seed + 3, engine=engine)
         typer.echo(f"\nTight cooperation with {100 * z.noise_fraction:g} % range noise "
                    f"(robot odometry exact), {noise_networks} networks")
         typer.echo(ex.format_table(t.rows))

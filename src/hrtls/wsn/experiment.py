@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from hrtls.errors import InputError
+from hrtls.parallel import Engine, LocalEngine, values_or_raise
 from hrtls.wsn.agents import (
     RangeWorld,
     RescuerAgent,
@@ -46,8 +47,13 @@ from hrtls.wsn.tight import TightParams, tight_cooperation
 from hrtls.wsn.trilateration import PropagationParams, trilaterate_network
 
 
-def _rngs(seed: int, count: int) -> list[np.random.Generator]:
-    return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(count)]
+def _seeds(seed: int, count: int) -> list[np.random.SeedSequence]:
+    """One independent seed per network (the same wherever the network is simulated)."""
+    return list(np.random.SeedSequence(seed).spawn(count))
+
+
+def _run(engine: Engine | None, fn: Any, tasks: list[Any], where: str) -> list[Any]:
+    return values_or_raise((engine or LocalEngine()).map(fn, tasks), where=where)
 
 
 def _max_error(net: Network, est: np.ndarray, mask: np.ndarray) -> float:
@@ -57,6 +63,44 @@ def _max_error(net: Network, est: np.ndarray, mask: np.ndarray) -> float:
 
 
 # ------------------------------------------------------------------------------------------
+_LooseRecord = tuple[bool, float, float, float, bool, int, float, float, float, float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class _LooseTask:
+    seed: np.random.SeedSequence
+    n_nodes: int
+    radius_m: float
+    planner: PlannerParams | None
+    rescuer: RescuerParams | None
+    prop_params: PropagationParams | None
+
+
+def _loose_one(task: _LooseTask) -> tuple[_LooseRecord, dict[str, int]]:
+    """One network of the loose-cooperation study: its record and way-point kinds."""
+    rng = np.random.default_rng(task.seed)
+    n_nodes, radius_m = task.n_nodes, task.radius_m
+    net = corner_seed_network(rng, n_nodes=n_nodes, radius_m=radius_m)
+    tla = trilaterate_network(net)
+    sela = shadow_edge_localize(net)
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=radius_m,
+                       radio_range_m=radius_m)
+    agent = RescuerAgent(world, net.position_m[0], params=task.rescuer or RescuerParams(),
+                         rng=rng)
+    nav = safe_navigation(net, agent, params=task.planner, prop_params=task.prop_params)
+    kinds: dict[str, int] = {}
+    for w in nav.waypoints:
+        kinds[w.kind] = kinds.get(w.kind, 0) + 1
+    connected = bool(connected_components(net).max() == 0)
+    loc = nav.localization
+    err = max(_max_error(net, r.estimate_m, r.localized) for r in (tla, sela, loc))
+    mm = loc.localized & ~net.anchor
+    sq = float(np.sum((loc.estimate_m[mm] - net.position_m[mm]) ** 2))
+    return ((connected, tla.n_localized / n_nodes, sela.n_localized / n_nodes,
+             loc.n_localized / n_nodes, nav.complete, len(nav.waypoints), nav.distance_m,
+             err / radius_m, sq, float(mm.sum())), kinds)
+
+
 @dataclass(frozen=True)
 class LooseRow:
     """One group of networks of the loose-cooperation study (fractions of all nodes)."""
@@ -94,34 +138,25 @@ def loose_study(
     planner: PlannerParams | None = None,
     rescuer: RescuerParams | None = None,
     prop_params: PropagationParams | None = None,
+    engine: Engine | None = None,
 ) -> LooseStudy:
     """Fig. 6.11 study: TLA vs SELA vs SELA + planner over random corner-seed networks.
 
     The default rescuer is perfectly tracked (the thesis' setting); pass ``rescuer`` with
     dead-reckoning noise to see how the agent's tracking error enters the node positions.
+    ``engine`` spreads the networks over processes or a cluster (same numbers as one process).
     """
     if n_networks < 1:
         raise InputError(f"{n_networks} networks", where="loose_study", expected=">= 1")
-    rec: list[tuple[bool, float, float, float, bool, int, float, float, float, float]] = []
+    tasks = [_LooseTask(seed=sq, n_nodes=n_nodes, radius_m=radius_m, planner=planner,
+                        rescuer=rescuer, prop_params=prop_params)
+             for sq in _seeds(seed, n_networks)]
+    results = _run(engine, _loose_one, tasks, "loose_study")
+    rec = [r[0] for r in results]
     kinds: dict[str, int] = {}
-    for rng in _rngs(seed, n_networks):
-        net = corner_seed_network(rng, n_nodes=n_nodes, radius_m=radius_m)
-        tla = trilaterate_network(net)
-        sela = shadow_edge_localize(net)
-        world = RangeWorld(true_positions_m=net.position_m, link_radius_m=radius_m,
-                           radio_range_m=radius_m)
-        agent = RescuerAgent(world, net.position_m[0], params=rescuer or RescuerParams(), rng=rng)
-        nav = safe_navigation(net, agent, params=planner, prop_params=prop_params)
-        for w in nav.waypoints:
-            kinds[w.kind] = kinds.get(w.kind, 0) + 1
-        connected = bool(connected_components(net).max() == 0)
-        loc = nav.localization
-        err = max(_max_error(net, r.estimate_m, r.localized) for r in (tla, sela, loc))
-        mm = loc.localized & ~net.anchor
-        sq = float(np.sum((loc.estimate_m[mm] - net.position_m[mm]) ** 2))
-        rec.append((connected, tla.n_localized / n_nodes, sela.n_localized / n_nodes,
-                    loc.n_localized / n_nodes, nav.complete, len(nav.waypoints), nav.distance_m,
-                    err / radius_m, sq, float(mm.sum())))
+    for _, k in results:
+        for name, count in k.items():
+            kinds[name] = kinds.get(name, 0) + count
     rows = []
     for name, sel in (("all", lambda r: True), ("connected", lambda r: r[0]),
                       ("disconnected", lambda r: not r[0])):
@@ -142,6 +177,56 @@ def loose_study(
 
 
 # ------------------------------------------------------------------------------------------
+_TightRecord = tuple[str, float, bool, int, int, float, float, float, float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class _TightTask:
+    seed: np.random.SeedSequence
+    index: int
+    base_seed: int
+    n_nodes: int
+    radius_m: float
+    side_m: float
+    delta_m: float
+    range_noise_fraction: float
+    robot: RobotParams
+
+
+def _tight_one(task: _TightTask) -> _TightRecord:
+    """One network of the tight-cooperation study."""
+    rng = np.random.default_rng(task.seed)
+    n_nodes, radius_m, side_m = task.n_nodes, task.radius_m, task.side_m
+    delta, noise = task.delta_m, task.range_noise_fraction
+    d_r = 2.0 * radius_m
+    net = random_network(rng, n_nodes=n_nodes, radius_m=radius_m, width_m=side_m,
+                         height_m=side_m, anchors="none", range_noise_fraction=noise)
+    if connected_components(net).max() == 0:
+        group = "connected"
+    elif connected_components(net, radius_m=d_r).max() == 0:
+        group = "disconnected, d_r-connected"
+    else:
+        group = "disconnected beyond d_r"
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=radius_m,
+                       radio_range_m=d_r, range_noise_fraction=noise, rng=rng)
+    agent = RobotAgent(world, np.zeros(3), params=task.robot,
+                       seed=task.base_seed * 7919 + task.index)
+    res = tight_cooperation(net, agent, params=TightParams(
+        delta_m=delta, radio_range_m=d_r, search_region_m=(0.0, 0.0, side_m, side_m),
+        range_noise_fraction=noise))
+    loc = res.localization
+    m = loc.localized
+    err = np.linalg.norm(loc.estimate_m[m] - net.position_m[m], axis=1)
+    prior = np.full(n_nodes, np.inf)
+    prior[res.assigned] = delta
+    ref = refine_network(net, loc, prior_sigma_m=prior, params=RefineParams(
+        range_sigma_fraction=max(noise, 0.002), covariance=False))
+    err_r = np.linalg.norm(ref.estimate_m[m] - net.position_m[m], axis=1)
+    return (group, loc.n_localized / n_nodes, res.complete, len(res.assigned), res.legs,
+            res.distance_m, float(np.sum(err**2)), float(np.sum(err_r**2)),
+            float(err.max(initial=0.0)))
+
+
 @dataclass(frozen=True)
 class TightRow:
     """One connectivity class of the tight-cooperation study."""
@@ -178,6 +263,7 @@ def tight_study(
     range_noise_fraction: float = 0.0,
     robot: RobotParams | None = None,
     seed: int = 1,
+    engine: Engine | None = None,
 ) -> TightStudy:
     """Fig. 6.13-6.17 study: anchor-free random networks localized by a robot (Algorithm 1).
 
@@ -188,37 +274,13 @@ def tight_study(
     if n_networks < 1:
         raise InputError(f"{n_networks} networks", where="tight_study", expected=">= 1")
     delta = delta_fraction * radius_m
-    d_r = 2.0 * radius_m
     rp = robot or RobotParams(arrival_radius_m=0.2 * delta,
                               range_noise_fraction=range_noise_fraction)
-    rec: list[tuple[str, float, bool, int, int, float, float, float, float]] = []
-    for k, rng in enumerate(_rngs(seed, n_networks)):
-        net = random_network(rng, n_nodes=n_nodes, radius_m=radius_m, width_m=side_m,
-                             height_m=side_m, anchors="none",
-                             range_noise_fraction=range_noise_fraction)
-        if connected_components(net).max() == 0:
-            group = "connected"
-        elif connected_components(net, radius_m=d_r).max() == 0:
-            group = "disconnected, d_r-connected"
-        else:
-            group = "disconnected beyond d_r"
-        world = RangeWorld(true_positions_m=net.position_m, link_radius_m=radius_m,
-                           radio_range_m=d_r, range_noise_fraction=range_noise_fraction, rng=rng)
-        agent = RobotAgent(world, np.zeros(3), params=rp, seed=seed * 7919 + k)
-        res = tight_cooperation(net, agent, params=TightParams(
-            delta_m=delta, radio_range_m=d_r, search_region_m=(0.0, 0.0, side_m, side_m),
-            range_noise_fraction=range_noise_fraction))
-        loc = res.localization
-        m = loc.localized
-        err = np.linalg.norm(loc.estimate_m[m] - net.position_m[m], axis=1)
-        prior = np.full(n_nodes, np.inf)
-        prior[res.assigned] = delta
-        ref = refine_network(net, loc, prior_sigma_m=prior, params=RefineParams(
-            range_sigma_fraction=max(range_noise_fraction, 0.002), covariance=False))
-        err_r = np.linalg.norm(ref.estimate_m[m] - net.position_m[m], axis=1)
-        rec.append((group, loc.n_localized / n_nodes, res.complete, len(res.assigned), res.legs,
-                    res.distance_m, float(np.sum(err**2)), float(np.sum(err_r**2)),
-                    float(err.max(initial=0.0))))
+    tasks = [_TightTask(seed=sq, index=k, base_seed=seed, n_nodes=n_nodes, radius_m=radius_m,
+                        side_m=side_m, delta_m=delta, range_noise_fraction=range_noise_fraction,
+                        robot=rp)
+             for k, sq in enumerate(_seeds(seed, n_networks))]
+    rec = _run(engine, _tight_one, tasks, "tight_study")
     rows = []
     for name in ("all", "connected", "disconnected, d_r-connected", "disconnected beyond d_r"):
         g = [r for r in rec if name == "all" or r[0] == name]
@@ -238,6 +300,65 @@ def tight_study(
 
 
 # ------------------------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class _NoiseTask:
+    seed: np.random.SeedSequence
+    n_nodes: int
+    radius_m: float
+    noise_fraction: float
+    planner: bool
+    prop_params: PropagationParams
+
+
+@dataclass(frozen=True, kw_only=True)
+class _NoiseRecord:
+    flagged: int
+    n_localized: int = 0
+    sq_before: float = 0.0
+    sq_after: float = 0.0
+    gross_before: int = 0
+    gross_after: int = 0
+    refined_over_rho: tuple[float, ...] = ()
+    nees: tuple[float, ...] = ()
+
+
+def _noise_one(task: _NoiseTask) -> _NoiseRecord:
+    """One network of the range-noise study."""
+    rng = np.random.default_rng(task.seed)
+    rho, noise, pp = task.radius_m, task.noise_fraction, task.prop_params
+    net = corner_seed_network(rng, n_nodes=task.n_nodes, radius_m=rho,
+                              range_noise_fraction=noise)
+    if task.planner:
+        world = RangeWorld(true_positions_m=net.position_m, link_radius_m=rho,
+                           radio_range_m=rho, range_noise_fraction=noise, rng=rng)
+        agent = RescuerAgent(world, net.position_m[0], params=RescuerParams(), rng=rng)
+        nav = safe_navigation(net, agent, prop_params=pp)
+        loc = nav.localization
+        temps, links = nav.temp_positions_m, nav.temp_links
+    else:
+        loc = shadow_edge_localize(net, params=pp)
+        temps, links = np.zeros((0, 2)), ()
+    m = loc.localized & ~net.anchor
+    flagged = int(loc.inconsistent().size)
+    if not m.any():
+        return _NoiseRecord(flagged=flagged)
+    e0 = np.linalg.norm(loc.estimate_m[m] - net.position_m[m], axis=1)
+    ref = refine_network(net, loc, params=RefineParams(range_sigma_fraction=noise),
+                         agent_positions_m=temps, agent_links=links)
+    d1 = ref.estimate_m[m] - net.position_m[m]
+    e1 = np.linalg.norm(d1, axis=1)
+    cov = ref.covariance_m2[m]
+    ok = np.linalg.det(cov) > 0
+    nees: tuple[float, ...] = ()
+    if ok.any():
+        nees = tuple(np.einsum("ni,nij,nj->n", d1[ok], np.linalg.inv(cov[ok]), d1[ok]).tolist())
+    return _NoiseRecord(flagged=flagged, n_localized=int(m.sum()),
+                        sq_before=float(np.sum(e0**2)), sq_after=float(np.sum(e1**2)),
+                        gross_before=int(np.sum(e0 > 0.5 * rho)),
+                        gross_after=int(np.sum(e1 > 0.5 * rho)),
+                        refined_over_rho=tuple((e1 / rho).tolist()), nees=nees)
+
+
 @dataclass(frozen=True)
 class NoiseRow:
     """One configuration of the range-noise study."""
@@ -269,6 +390,7 @@ def noise_study(
     seed: int = 2,
     max_gdops: Sequence[float] = (2.0, 2.5, 3.0),
     with_planner: bool = True,
+    engine: Engine | None = None,
 ) -> NoiseStudy:
     """Ranges with relative noise: localized fraction, flips and RMSE before/after refinement.
 
@@ -285,48 +407,18 @@ def noise_study(
         configs.append(("SELA+planner 50 nodes rho=0.2 gdop<=2.5", 50, 0.2, 2.5, True))
     for name, n_nodes, rho, gdop, plan in configs:
         pp = dataclasses.replace(PropagationParams.for_noise(noise_fraction), max_gdop=gdop)
-        sq0 = 0.0
-        sq1 = 0.0
-        med: list[float] = []
-        nees: list[float] = []
-        nloc = 0
-        flagged = 0
-        gross0 = 0
-        gross1 = 0
-        for rng in _rngs(seed, n_networks):
-            net = corner_seed_network(rng, n_nodes=n_nodes, radius_m=rho,
-                                      range_noise_fraction=noise_fraction)
-            if plan:
-                world = RangeWorld(true_positions_m=net.position_m, link_radius_m=rho,
-                                   radio_range_m=rho, range_noise_fraction=noise_fraction,
-                                   rng=rng)
-                agent = RescuerAgent(world, net.position_m[0], params=RescuerParams(), rng=rng)
-                nav = safe_navigation(net, agent, prop_params=pp)
-                loc = nav.localization
-                temps, links = nav.temp_positions_m, nav.temp_links
-            else:
-                loc = shadow_edge_localize(net, params=pp)
-                temps, links = np.zeros((0, 2)), ()
-            m = loc.localized & ~net.anchor
-            flagged += int(loc.inconsistent().size)
-            if not m.any():
-                continue
-            e0 = np.linalg.norm(loc.estimate_m[m] - net.position_m[m], axis=1)
-            ref = refine_network(net, loc, params=RefineParams(range_sigma_fraction=noise_fraction),
-                                 agent_positions_m=temps, agent_links=links)
-            d1 = ref.estimate_m[m] - net.position_m[m]
-            e1 = np.linalg.norm(d1, axis=1)
-            cov = ref.covariance_m2[m]
-            ok = np.linalg.det(cov) > 0
-            if ok.any():
-                nees.extend(np.einsum("ni,nij,nj->n", d1[ok], np.linalg.inv(cov[ok]),
-                                      d1[ok]).tolist())
-            sq0 += float(np.sum(e0**2))
-            sq1 += float(np.sum(e1**2))
-            med.extend((e1 / rho).tolist())
-            nloc += int(m.sum())
-            gross0 += int(np.sum(e0 > 0.5 * rho))
-            gross1 += int(np.sum(e1 > 0.5 * rho))
+        tasks = [_NoiseTask(seed=sq, n_nodes=n_nodes, radius_m=rho,
+                            noise_fraction=noise_fraction, planner=plan, prop_params=pp)
+                 for sq in _seeds(seed, n_networks)]
+        parts = _run(engine, _noise_one, tasks, "noise_study")
+        sq0 = sum(p.sq_before for p in parts)
+        sq1 = sum(p.sq_after for p in parts)
+        med = [v for p in parts for v in p.refined_over_rho]
+        nees = [v for p in parts for v in p.nees]
+        nloc = sum(p.n_localized for p in parts)
+        flagged = sum(p.flagged for p in parts)
+        gross0 = sum(p.gross_before for p in parts)
+        gross1 = sum(p.gross_after for p in parts)
         rows.append(NoiseRow(
             setting=name, networks=n_networks,
             localized=nloc / (n_networks * (n_nodes - 3)),

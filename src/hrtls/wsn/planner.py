@@ -20,13 +20,20 @@ Planner (one round), reading of the thesis used here:
   midpoint of the two vertices nearest to the pivot (Fig. 5.5);
 * nodes whose seeds share two or three nodes share one way point, the centroid of theirs.
 
-The heuristic does not always make progress. To guarantee that every connected network ends fully
-localized (with exact ranges and a well-tracked agent), a round without progress falls back to an
-*arc search* for one frontier node ``u`` with pivot ``p``: ``u`` lies on the circle of radius
-``d_up`` around ``p``, outside the radius ``rho`` of every localized node it does not hear; the
-agent goes to the middle of the longest still-feasible arc. Either it hears ``u`` (``u`` becomes
-2-covered and a candidate visit resolves it) or the agent's own shadow removes at least a 60 degree
-arc, so at most a handful of visits are needed per node.
+The heuristic does not always make progress. A round without progress falls back to an *arc
+search* for one frontier node ``u`` with pivot ``p``: ``u`` lies on the circle of radius ``d_up``
+around ``p``, outside the radius ``rho`` of every localized node it does not hear; the agent goes
+to the middle of the longest still-feasible arc. Either it hears ``u`` (``u`` becomes 2-covered and
+a candidate visit resolves it) or the agent's own shadow removes at least a 60 degree arc, so at
+most a handful of visits are needed per node.
+
+What is guaranteed: with exact ranges and an exactly tracked agent, every connected network ends
+fully localized within ``max_waypoints``. With a dead-reckoning agent the temporary nodes carry
+its tracking error; the arc constraints are widened by three position sigmas of the nodes they
+use, and when the ranges to the other localized neighbours still rule out the whole circle the
+search keeps the shadow constraints only, so an inconsistent estimate does not end the search.
+A node can still be given up after ``max_arc_visits_per_node`` visits when the agent's error
+exceeds those margins (``SafeNavigationResult.complete`` then says so).
 """
 
 from __future__ import annotations
@@ -316,17 +323,27 @@ def arc_waypoint(
     p = loc.estimate_m[nb[0]]
     th = np.linspace(0.0, 2.0 * np.pi, prm.arc_samples, endpoint=False)
     s = p + float(d[0]) * np.stack([np.cos(th), np.sin(th)], axis=1)
-    tol = max(pp.range_tolerance_fraction * rho, 1e-9 * rho)
-    ok = np.ones(th.size, dtype=bool)
+    tol = max(pp.range_tolerance_fraction * rho, 0.02 * rho)
+    # Position uncertainty of the localized nodes (a tracked agent's temporary nodes carry the
+    # agent's tracking error) widens every constraint by three of its sigmas.
+    slack = 3.0 * (loc.sigma_m[nb[0]] + loc.sigma_m)
+    ranges_ok = np.ones(th.size, dtype=bool)
     for j, dj in zip(nb[1:].tolist(), d[1:].tolist(), strict=True):
-        ok &= np.abs(np.linalg.norm(s - loc.estimate_m[j], axis=1) - dj) <= max(tol, 0.02 * rho)
+        res = np.abs(np.linalg.norm(s - loc.estimate_m[j], axis=1) - dj)
+        ranges_ok &= res <= tol + slack[j]
     linked = set(adj.indices[adj.indptr[u]:adj.indptr[u + 1]].tolist())
     others = np.array([j for j in np.flatnonzero(loc.localized) if j not in linked and j != u],
                       dtype=np.int64)
     lim = rho * (1.0 - pp.shadow_margin_fraction)
+    shadow_ok = np.ones(th.size, dtype=bool)
     if others.size:
         dist = np.linalg.norm(s[:, None, :] - loc.estimate_m[others][None], axis=2)
-        ok &= np.all(dist >= lim, axis=1)
+        shadow_ok = np.all(dist >= lim - slack[others][None, :], axis=1)
+    ok = ranges_ok & shadow_ok
+    if not ok.any():
+        # The ranges to the other localized neighbours disagree with every point of the circle
+        # (inconsistent node estimates): search the circle with the shadow constraints only.
+        ok = shadow_ok
     if not ok.any():
         return None
     if ok.all():
@@ -436,6 +453,8 @@ def safe_navigation(
                 break
             if all(loc.localized[t] for t in wp.targets):
                 continue
+            if _already_visited(wp.position_m, visited, tol_m=1e-3 * net.radius_m):
+                continue  # the same ranges again: no new information
             loc = visit(wp)
         if int(np.count_nonzero(loc.localized[:n])) > before:
             continue
@@ -467,6 +486,10 @@ def safe_navigation(
         initial=initial, complete=bool(np.all(real.localized)),
         temp_links=tuple(aug.temp_links),
     )
+
+
+def _already_visited(position_m: FloatArray, visited: list[WayPoint], *, tol_m: float) -> bool:
+    return any(float(np.linalg.norm(w.position_m - position_m)) <= tol_m for w in visited)
 
 
 def _frontier_key(adj: Adjacency, loc: Localization, u: int, here: FloatArray) -> tuple[int, float]:
