@@ -20,8 +20,9 @@ from hrtls.attitude.base import AttitudeState
 from hrtls.calibration.hard_iron_running import RunningHardIronState
 from hrtls.data import StepEvents
 from hrtls.errors import FormatError
+from hrtls.fusion.channel import ChannelState
 from hrtls.fusion.fixes import FixSchedule, StretchMemory
-from hrtls.fusion.rss import ChannelState, RssScan
+from hrtls.fusion.rss_scans import RssScan
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.tags import TagMemory
 
