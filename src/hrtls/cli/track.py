@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Annotated
 
@@ -41,8 +40,12 @@ def track(
     ray_address: Annotated[str | None, typer.Option(
         "--ray-address", help="Batch with --engine ray: cluster address (default: local Ray).")]
     = None,
+    format_out: Annotated[str, typer.Option(
+        "--format-out", help="Trajectory and steps tables as csv | parquet.")] = "csv",
 ) -> None:
     """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
+
+    A session folder or zip is read in chunks (bounded memory) unless --repair is given.
 
     SESSION may also be a folder of recordings or a quoted glob ('runs/*.zip'): each recording
     gets a result folder under OUTPUT and OUTPUT/summary.csv lists them all.
@@ -64,24 +67,25 @@ def track(
                           expected="a folder of recordings or a glob (one recording: no engine)")
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
-    from hrtls.jobs.track import evaluate_track, write_track_outputs
-    from hrtls.pipeline import Tracker, load_config, preset
-    from hrtls.recordings import read_any
+    from hrtls.jobs.track import evaluate_track, track_recording, write_track_outputs
+    from hrtls.pipeline import load_config, preset
 
     if config is not None and preset_name is not None:
         raise InputError("both --config and --preset", where="hrtls track",
                          expected="one of them")
+    if format_out not in ("csv", "parquet"):
+        raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
+    if not session.exists():
+        raise InputError("no such file or folder", where=str(session),
+                         expected="a recording (session folder, zip, logfile, ...)")
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
-    with console.status(f"reading {session}"):
-        data = read_any(session, repair=repair, beacons=beacons)
-    n = 0 if data.imu is None else len(data.imu.accel)
-    with console.status(f"tracking with {cfg.name}"):
-        start = time.perf_counter()
-        result = Tracker(cfg).run(data)
-        seconds = time.perf_counter() - start
+    with console.status(f"tracking {session} with {cfg.name}"):
+        run = track_recording(session, cfg, repair=repair, beacons=beacons)
+    result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
-                        evaluation=evaluation)
+                        evaluation=evaluation, table_format="parquet"
+                        if format_out == "parquet" else "csv")
     summary = result.report["summary"]
     console.print(f"[bold]{cfg.name}[/bold]: {summary['steps']} steps, "
                   f"{summary['distance_walked_m']:.1f} m walked, "

@@ -30,10 +30,12 @@ from __future__ import annotations
 import json
 import warnings
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, Literal, Protocol
 
 import numpy as np
+import pyarrow as pa
 from pydantic import ValidationError
 
 from hrtls.data import (
@@ -52,18 +54,32 @@ from hrtls.data import (
 )
 from hrtls.data.validation import FloatArray, drop_non_finite, repair_time_order
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
-from hrtls.io.csvtable import ColumnKind, Table, format_table, read_table
+from hrtls.io.csvtable import Table
+from hrtls.io.schema import SESSION_TABLES, TABLE_SUFFIXES
 from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
+from hrtls.io.tables import decode_table, encode_table, from_arrow, to_arrow
 
-SESSION_FILES = ("imu.csv", "gyro.csv", "mag.csv", "pressure.csv", "orientation.csv",
-                 "fixes.csv", "rss.csv", "tags.csv", "ranges.csv", "landmarks.json",
-                 "session.json", "truth.csv", "checkpoints.csv")
-"""Every file a session may hold."""
+SESSION_FILES = (*(stem + suffix for suffix in TABLE_SUFFIXES for stem in SESSION_TABLES),
+                 "landmarks.json", "session.json")
+"""Every file a session may hold: each table as ``.csv`` or ``.parquet``, and the JSON files."""
 
-RESULT_FILES = ("trajectory.csv", "steps.csv", "trajectory.geojson", "report.json")
+RESULT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parquet",
+                "trajectory.geojson", "report.json")
 """Outputs that may sit beside a session without being part of it."""
 
+TableFormat = Literal["csv", "parquet"]
+"""How a session's tables are written: ``csv`` (interchange) or ``parquet`` (typed, zstd)."""
+
 _AXES = ("x", "y", "z")
+
+
+class _Tables(Protocol):
+    """Where a session's tables come from: files, or Arrow tables in memory."""
+
+    label: str
+
+    def table(self, stem: str) -> tuple[Table, str] | None:
+        """The checked table ``stem`` and its name for messages (None when absent)."""
 
 
 class _SessionFiles:
@@ -93,12 +109,36 @@ class _SessionFiles:
     def read(self, name: str) -> bytes:
         return self._source.read(self._members[name])
 
+    def member(self, name: str) -> str:
+        """The source member holding session file ``name``."""
+        return self._members[name]
 
-def _table(src: _SessionFiles, name: str, kinds: dict[str, ColumnKind], required: tuple[str, ...]
-           ) -> Table | None:
-    if name not in src.names:
-        return None
-    return read_table(src.read(name), name=name, kinds=kinds, required=required)
+    def table(self, stem: str) -> tuple[Table, str] | None:
+        found = [stem + suffix for suffix in TABLE_SUFFIXES if stem + suffix in self.names]
+        if not found:
+            return None
+        if len(found) > 1:
+            raise FormatError(f"both {' and '.join(found)}", where=self.label,
+                              expected=f"one {stem} table")
+        name = found[0]
+        return decode_table(self.read(name), table=stem, name=name), name
+
+
+class _ArrowTables:
+    """Arrow tables in memory, by table name (see :func:`session_from_tables`)."""
+
+    def __init__(self, tables: Mapping[str, pa.Table]):
+        unknown = [k for k in tables if k not in SESSION_TABLES]
+        if unknown:
+            raise FormatError(f"unknown table(s) {', '.join(unknown)}", where="session tables",
+                              expected=f"tables among {', '.join(SESSION_TABLES)}")
+        self._tables = tables
+        self.label = "session tables"
+
+    def table(self, stem: str) -> tuple[Table, str] | None:
+        if stem not in self._tables:
+            return None
+        return from_arrow(self._tables[stem], table=stem, name=stem), stem
 
 
 def _group(table: Table, cols: tuple[str, ...], *, name: str) -> FloatArray | None:
@@ -120,49 +160,46 @@ def _repaired(t: FloatArray, groups: list[FloatArray], *, name: str, repair: boo
     return repair_time_order(t, groups, where=name, strict=strict)
 
 
-def _read_vector_file(src: _SessionFiles, name: str, prefix: str, *, repair: bool
+def _read_vector_file(src: _Tables, stem: str, prefix: str, *, repair: bool
                       ) -> SensorSeries | None:
-    cols = tuple(prefix + a for a in _AXES)
-    table = _table(src, name, dict.fromkeys(("t", *cols), "float"), ("t", *cols))
-    if table is None:
+    found = src.table(stem)
+    if found is None:
         return None
-    group = _group(table, cols, name=name)
+    table, name = found
+    group = _group(table, tuple(prefix + a for a in _AXES), name=name)
     assert group is not None
     t, (values,) = _repaired(table.float("t"), [group], name=name, repair=repair)
     return SensorSeries(t, values, name)
 
 
-def _read_imu(src: _SessionFiles, *, repair: bool, check_units: bool) -> ImuStream | None:
-    gyro_cols = tuple("g" + a for a in _AXES)
-    mag_cols = tuple("m" + a for a in _AXES)
-    acc_cols = tuple("a" + a for a in _AXES)
-    kinds: dict[str, ColumnKind] = dict.fromkeys(("t", *acc_cols, *gyro_cols, *mag_cols), "float")
-    table = _table(src, "imu.csv", kinds, ("t", *acc_cols))
-    gyro_file = _read_vector_file(src, "gyro.csv", "g", repair=repair)
-    mag_file = _read_vector_file(src, "mag.csv", "m", repair=repair)
-    if table is None:
+def _read_imu(src: _Tables, *, repair: bool, check_units: bool) -> ImuStream | None:
+    found = src.table("imu")
+    gyro_file = _read_vector_file(src, "gyro", "g", repair=repair)
+    mag_file = _read_vector_file(src, "mag", "m", repair=repair)
+    if found is None:
         if gyro_file is not None or mag_file is not None:
-            raise FormatError("gyro.csv or mag.csv without imu.csv", where=src.label,
-                              expected="imu.csv with the accelerometer")
+            raise FormatError("gyro or mag table without an imu table", where=src.label,
+                              expected="imu.csv (or imu.parquet) with the accelerometer")
         return None
-    acc = _group(table, acc_cols, name="imu.csv")
-    gyr = _group(table, gyro_cols, name="imu.csv")
-    mag = _group(table, mag_cols, name="imu.csv")
-    for inline, separate, label in ((gyr, gyro_file, "gyro.csv"), (mag, mag_file, "mag.csv")):
+    table, name = found
+    acc = _group(table, tuple("a" + a for a in _AXES), name=name)
+    gyr = _group(table, tuple("g" + a for a in _AXES), name=name)
+    mag = _group(table, tuple("m" + a for a in _AXES), name=name)
+    for inline, separate, label in ((gyr, gyro_file, "gyro"), (mag, mag_file, "mag")):
         if inline is not None and separate is not None:
-            raise FormatError(f"both imu.csv columns and {label}", where=src.label,
-                              expected=f"the sensor in one place only: imu.csv or {label}")
+            raise FormatError(f"both {name} columns and {separate.name}", where=src.label,
+                              expected=f"the sensor in one place only: {name} or {label}")
     assert acc is not None
     groups = [g for g in (acc, gyr, mag) if g is not None]
-    t, groups = _repaired(table.float("t"), groups, name="imu.csv", repair=repair)
+    t, groups = _repaired(table.float("t"), groups, name=name, repair=repair)
     it = iter(groups)
     acc_v = next(it)
     gyr_v = next(it) if gyr is not None else None
     mag_v = next(it) if mag is not None else None
     return ImuStream(
-        SensorSeries(t, acc_v, "imu.csv accelerometer"),
-        gyro_file if gyr_v is None else SensorSeries(t, gyr_v, "imu.csv gyroscope"),
-        mag_file if mag_v is None else SensorSeries(t, mag_v, "imu.csv magnetometer"),
+        SensorSeries(t, acc_v, f"{name} accelerometer"),
+        gyro_file if gyr_v is None else SensorSeries(t, gyr_v, f"{name} gyroscope"),
+        mag_file if mag_v is None else SensorSeries(t, mag_v, f"{name} magnetometer"),
         check_units=check_units,
     )
 
@@ -257,7 +294,8 @@ def read_session(path: Path | str, *, repair: bool = False, check_units: bool = 
     path = Path(path)
     src = _SessionFiles(open_source(path, max_bytes=max_bytes))
     try:
-        return _assemble(src, repair=repair, check_units=check_units)
+        return _assemble(src, _read_meta(src), _read_landmarks(src), repair=repair,
+                         check_units=check_units)
     except InputError as exc:
         if str(path) not in exc.where and exc.where:
             raise type(exc)(exc.problem, where=f"{path}/{exc.where}", expected=exc.expected,
@@ -265,84 +303,100 @@ def read_session(path: Path | str, *, repair: bool = False, check_units: bool = 
         raise
 
 
-def _assemble(src: _SessionFiles, *, repair: bool, check_units: bool) -> Session:
-    meta = _read_meta(src)
+def session_from_tables(tables: Mapping[str, pa.Table], *, meta: SessionMeta | None = None,
+                        landmarks: Mapping[str, Landmark] | None = None, repair: bool = False,
+                        check_units: bool = True) -> Session:
+    """A session from Arrow tables by name (``imu``, ``rss``, ...; see :func:`session_tables`).
+
+    The tables are checked as the files of a session folder are (messages name ``imu row N``).
+    """
+    return _assemble(_ArrowTables(tables), meta or SessionMeta(), dict(landmarks or {}),
+                     repair=repair, check_units=check_units)
+
+
+def _assemble(src: _Tables, meta: SessionMeta, landmarks: dict[str, Landmark], *, repair: bool,
+              check_units: bool) -> Session:
     imu = _read_imu(src, repair=repair, check_units=check_units)
-    pressure = None
-    table = _table(src, "pressure.csv", {"t": "float", "pressure_pa": "float"},
-                   ("t", "pressure_pa"))
-    if table is not None:
-        t, (p,) = _repaired(table.float("t"), [table.float("pressure_pa")], name="pressure.csv",
-                            repair=repair)
-        pressure = SensorSeries(t, p, "pressure.csv")
-    orientation = None
-    qcols = ("qw", "qx", "qy", "qz")
-    table = _table(src, "orientation.csv", dict.fromkeys(("t", *qcols), "float"), ("t", *qcols))
-    if table is not None:
-        q = _group(table, qcols, name="orientation.csv")
-        assert q is not None
-        t, (q,) = _repaired(table.float("t"), [q], name="orientation.csv", repair=repair)
-        orientation = OrientationSeries(t, q, "orientation.csv")
-    fixes = _read_fixes(src, repair=repair)
-    rss = _read_obs(src, "rss.csv", {"t": "float", "anchor": "str", "rss_dbm": "float"},
-                    ("t", "anchor", "rss_dbm"), repair=repair)
-    rss_obj = None if rss is None else RssReadings(rss["t"], rss["anchor"], rss["rss_dbm"],
-                                                   "rss.csv")
-    tags = _read_obs(src, "tags.csv", {"t": "float", "tag": "str"}, ("t", "tag"), repair=repair)
-    tags_obj = None if tags is None else TagDetections(tags["t"], tags["tag"], "tags.csv")
-    ranges = _read_obs(src, "ranges.csv", {"t": "float", "node": "str", "range": "float",
-                                           "sigma": "float_or_empty"},
-                       ("t", "node", "range"), repair=repair)
-    ranges_obj = None if ranges is None else RangeMeasurements(
-        ranges["t"], ranges["node"], ranges["range"],
-        ranges.get("sigma", np.full(len(ranges["t"]), np.nan)), "ranges.csv")
-    truth = None
-    table = _table(src, "truth.csv", dict.fromkeys(("t", "x", "y", "z", "heading"), "float"),
-                   ("t", "x", "y", "z"))
-    if table is not None:
-        xyz = _group(table, ("x", "y", "z"), name="truth.csv")
-        assert xyz is not None
-        groups = [xyz] + ([table.float("heading")] if "heading" in table.present else [])
-        t, groups = _repaired(table.float("t"), groups, name="truth.csv", repair=repair)
-        truth = GroundTruth(t, groups[0], groups[1] if len(groups) > 1 else None, "truth.csv")
-    checkpoints = None
-    cp = _read_obs(src, "checkpoints.csv", {"t": "float", "x": "float", "y": "float",
-                                             "z": "float", "label": "str"},
-                   ("t", "x", "y", "z"), repair=repair)
-    if cp is not None:
-        labels = cp.get("label", np.full(len(cp["t"]), "", dtype=np.str_))
-        checkpoints = Checkpoints(cp["t"], np.column_stack([cp["x"], cp["y"], cp["z"]]), labels,
-                                  "checkpoints.csv")
-    session = Session(meta=meta, imu=imu, pressure=pressure, orientation=orientation,
-                      fixes=fixes, rss=rss_obj, tags=tags_obj, ranges=ranges_obj,
-                      landmarks=_read_landmarks(src), truth=truth, checkpoints=checkpoints)
+    session = Session(meta=meta, imu=imu, landmarks=landmarks, **other_parts(src, repair=repair))
     for label, ids in session.unknown_ids().items():
         shown = ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else "")
-        warnings.warn(f"{label}.csv: {len(ids)} id(s) not in landmarks.json ({shown}); "
-                      "their readings cannot be placed", DegradedInputWarning, stacklevel=2)
+        warnings.warn(f"{label}: {len(ids)} id(s) not in landmarks.json ({shown}); "
+                      "their readings cannot be placed", DegradedInputWarning, stacklevel=3)
     return session
 
 
-def _read_fixes(src: _SessionFiles, *, repair: bool) -> PositionFixes | None:
-    table = _table(src, "fixes.csv", dict.fromkeys(("t", "x", "y", "z", "sigma"), "float"),
-                   ("t", "x", "y", "sigma"))
-    if table is None:
+def truth_from(table: Table, name: str, *, repair: bool = False) -> GroundTruth:
+    """The ground truth of a checked ``truth`` table."""
+    xyz = _group(table, ("x", "y", "z"), name=name)
+    assert xyz is not None
+    groups = [xyz] + ([table.float("heading")] if "heading" in table.present else [])
+    t, groups = _repaired(table.float("t"), groups, name=name, repair=repair)
+    return GroundTruth(t, groups[0], groups[1] if len(groups) > 1 else None, name)
+
+
+def other_parts(src: _Tables, *, repair: bool, skip: frozenset[str] = frozenset()
+                ) -> dict[str, Any]:
+    """Every part of the session but the IMU (and ``skip``), by Session field name."""
+    pressure = None
+    if (found := src.table("pressure")) is not None:
+        table, name = found
+        t, (p,) = _repaired(table.float("t"), [table.float("pressure_pa")], name=name,
+                            repair=repair)
+        pressure = SensorSeries(t, p, name)
+    orientation = None
+    if (found := src.table("orientation")) is not None:
+        table, name = found
+        q = _group(table, ("qw", "qx", "qy", "qz"), name=name)
+        assert q is not None
+        t, (q,) = _repaired(table.float("t"), [q], name=name, repair=repair)
+        orientation = OrientationSeries(t, q, name)
+    fixes = _read_fixes(src, repair=repair)
+    rss_obj = None
+    if (rss := _read_obs(src, "rss", repair=repair)) is not None:
+        rss_obj = RssReadings(rss["t"], rss["anchor"], rss["rss_dbm"], rss["name"])
+    tags_obj = None
+    if (tags := _read_obs(src, "tags", repair=repair)) is not None:
+        tags_obj = TagDetections(tags["t"], tags["tag"], tags["name"])
+    ranges_obj = None
+    if (ranges := _read_obs(src, "ranges", repair=repair)) is not None:
+        ranges_obj = RangeMeasurements(
+            ranges["t"], ranges["node"], ranges["range"],
+            ranges.get("sigma", np.full(len(ranges["t"]), np.nan)), ranges["name"])
+    truth = None
+    if "truth" not in skip and (found := src.table("truth")) is not None:
+        truth = truth_from(*found, repair=repair)
+    checkpoints = None
+    if (cp := _read_obs(src, "checkpoints", repair=repair)) is not None:
+        labels = cp.get("label", np.full(len(cp["t"]), "", dtype=np.str_))
+        checkpoints = Checkpoints(cp["t"], np.column_stack([cp["x"], cp["y"], cp["z"]]), labels,
+                                  cp["name"])
+    return {"pressure": pressure, "orientation": orientation, "fixes": fixes, "rss": rss_obj,
+            "tags": tags_obj, "ranges": ranges_obj, "truth": truth, "checkpoints": checkpoints}
+
+
+def _read_fixes(src: _Tables, *, repair: bool) -> PositionFixes | None:
+    found = src.table("fixes")
+    if found is None:
         return None
+    table, name = found
     has_z = "z" in table.present
     z = table.float("z") if has_z else np.zeros(table.n_rows)
     xyz = np.column_stack([table.float("x"), table.float("y"), z])
-    t, (xyz, sigma) = _repaired(table.float("t"), [xyz, table.float("sigma")], name="fixes.csv",
+    t, (xyz, sigma) = _repaired(table.float("t"), [xyz, table.float("sigma")], name=name,
                                 repair=repair, strict=False)
-    return PositionFixes(t, xyz, sigma, has_z, "fixes.csv")
+    return PositionFixes(t, xyz, sigma, has_z, name)
 
 
-def _read_obs(src: _SessionFiles, name: str, kinds: dict[str, ColumnKind],
-              required: tuple[str, ...], *, repair: bool) -> dict[str, Any] | None:
-    """Observation table as a dict of columns (time non-decreasing, sorted with ``repair``)."""
-    table = _table(src, name, kinds, required)
-    if table is None:
+def _read_obs(src: _Tables, stem: str, *, repair: bool) -> dict[str, Any] | None:
+    """Observation table as a dict of columns (time non-decreasing, sorted with ``repair``).
+
+    ``"name"`` holds the table's name for messages.
+    """
+    found = src.table(stem)
+    if found is None:
         return None
-    cols = {c: table.columns[c] for c in table.present}
+    table, name = found
+    cols: dict[str, Any] = {c: table.columns[c] for c in table.present}
     t = table.float("t")
     if repair and len(t) > 1 and np.any(np.diff(t) < 0):
         others = [c for c in table.present if c != "t"]
@@ -350,20 +404,21 @@ def _read_obs(src: _SessionFiles, name: str, kinds: dict[str, ColumnKind],
                                      strict=False)
         cols = dict(zip(others, moved, strict=True))
     cols["t"] = t
+    cols["name"] = name
     return cols
 
 
 # ------------------------------------------------------------------------------------------------
 # Writing
 # ------------------------------------------------------------------------------------------------
-def session_files(session: Session) -> dict[str, bytes]:
-    """Render a session as ``{file name: bytes}``, exactly what :func:`write_session` writes."""
-    files: dict[str, str] = {}
+def session_columns(session: Session) -> dict[str, dict[str, np.ndarray]]:
+    """The columns of each of the session's tables, by table name (``imu``, ``rss``, ...)."""
+    out: dict[str, dict[str, np.ndarray]] = {}
     imu = session.imu
     if imu is not None:
         cols: dict[str, np.ndarray] = {"t": imu.accel.t}
         cols.update({"a" + a: imu.accel.values[:, i] for i, a in enumerate(_AXES)})
-        for series, prefix, separate in ((imu.gyro, "g", "gyro.csv"), (imu.mag, "m", "mag.csv")):
+        for series, prefix, separate in ((imu.gyro, "g", "gyro"), (imu.mag, "m", "mag")):
             if series is None:
                 continue
             if imu.shares_time(series):
@@ -371,61 +426,86 @@ def session_files(session: Session) -> dict[str, bytes]:
             else:
                 own = {"t": series.t}
                 own.update({prefix + a: series.values[:, i] for i, a in enumerate(_AXES)})
-                files[separate] = format_table(own)
-        files["imu.csv"] = format_table(cols)
+                out[separate] = own
+        out["imu"] = cols
     if session.pressure is not None:
-        files["pressure.csv"] = format_table({"t": session.pressure.t,
-                                              "pressure_pa": session.pressure.values[:, 0]})
+        out["pressure"] = {"t": session.pressure.t, "pressure_pa": session.pressure.values[:, 0]}
     if session.orientation is not None:
         q = session.orientation.q
-        files["orientation.csv"] = format_table({"t": session.orientation.t, "qw": q[:, 0],
-                                                 "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]})
+        out["orientation"] = {"t": session.orientation.t, "qw": q[:, 0], "qx": q[:, 1],
+                              "qy": q[:, 2], "qz": q[:, 3]}
     if session.fixes is not None:
         f = session.fixes
         cols = {"t": f.t, "x": f.xyz[:, 0], "y": f.xyz[:, 1]}
         if f.has_z:
             cols["z"] = f.xyz[:, 2]
         cols["sigma"] = f.sigma_m
-        files["fixes.csv"] = format_table(cols)
+        out["fixes"] = cols
     if session.rss is not None:
-        files["rss.csv"] = format_table({"t": session.rss.t, "anchor": session.rss.anchor,
-                                         "rss_dbm": session.rss.rss_dbm})
+        out["rss"] = {"t": session.rss.t, "anchor": session.rss.anchor,
+                      "rss_dbm": session.rss.rss_dbm}
     if session.tags is not None:
-        files["tags.csv"] = format_table({"t": session.tags.t, "tag": session.tags.tag})
+        out["tags"] = {"t": session.tags.t, "tag": session.tags.tag}
     if session.ranges is not None:
         r = session.ranges
         cols = {"t": r.t, "node": r.node, "range": r.range_m}
         if not np.all(np.isnan(r.sigma_m)):
             cols["sigma"] = r.sigma_m
-        files["ranges.csv"] = format_table(cols)
+        out["ranges"] = cols
     if session.truth is not None:
         tr = session.truth
         cols = {"t": tr.t, "x": tr.xyz[:, 0], "y": tr.xyz[:, 1], "z": tr.xyz[:, 2]}
         if tr.heading_rad is not None:
             cols["heading"] = tr.heading_rad
-        files["truth.csv"] = format_table(cols)
+        out["truth"] = cols
     if session.checkpoints is not None:
         c = session.checkpoints
         cols = {"t": c.t, "x": c.xyz[:, 0], "y": c.xyz[:, 1], "z": c.xyz[:, 2]}
         if np.any(np.char.str_len(c.label) > 0):
             cols["label"] = c.label
-        files["checkpoints.csv"] = format_table(cols)
+        out["checkpoints"] = cols
+    return {stem: out[stem] for stem in SESSION_TABLES if stem in out}
+
+
+def session_tables(session: Session) -> dict[str, pa.Table]:
+    """The session's tables as typed Arrow tables (units in the field metadata), by name.
+
+    :func:`session_from_tables` turns them back into the session (with its meta and landmarks).
+    """
+    return {stem: to_arrow(cols, table=stem) for stem, cols in session_columns(session).items()}
+
+
+def session_files(session: Session, *, table_format: TableFormat = "csv") -> dict[str, bytes]:
+    """Render a session as ``{file name: bytes}``, exactly what :func:`write_session` writes."""
+    suffix = _suffix(table_format)
+    files = {stem + suffix: encode_table(cols, table=stem, suffix=suffix)
+             for stem, cols in session_columns(session).items()}
     if session.landmarks:
         items = [lm.model_dump(mode="json", exclude_none=True)
                  for lm in session.landmarks.values()]
-        files["landmarks.json"] = json.dumps(items, indent=2) + "\n"
-    files["session.json"] = session.meta.model_dump_json(indent=2, exclude_none=True) + "\n"
-    return {name: text.encode("utf-8") for name, text in files.items()}
+        files["landmarks.json"] = (json.dumps(items, indent=2) + "\n").encode("utf-8")
+    files["session.json"] = (session.meta.model_dump_json(indent=2, exclude_none=True)
+                             + "\n").encode("utf-8")
+    return files
 
 
-def write_session(session: Session, path: Path | str, *, overwrite: bool = False) -> Path:
+def _suffix(table_format: str) -> str:
+    if table_format not in ("csv", "parquet"):
+        raise InputError(f"table format {table_format!r}", where="table_format",
+                         expected="csv or parquet")
+    return "." + table_format
+
+
+def write_session(session: Session, path: Path | str, *, overwrite: bool = False,
+                  table_format: TableFormat = "csv") -> Path:
     """Write a session as a folder, or as a zip when ``path`` ends in ``.zip``.
 
-    With ``overwrite`` an existing folder's session files are replaced (stale ones removed;
-    other files are left alone); without it an existing target is an error.
+    ``table_format``: tables as ``.csv`` (default) or ``.parquet`` files. With ``overwrite`` an
+    existing folder's session files are replaced (stale ones, in either format, removed; other
+    files are left alone); without it an existing target is an error.
     """
     path = Path(path)
-    files = session_files(session)
+    files = session_files(session, table_format=table_format)
     if path.suffix.lower() == ".zip":
         if path.exists() and not overwrite:
             raise InputError("already exists", where=str(path),

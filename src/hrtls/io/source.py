@@ -13,7 +13,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Literal
+from typing import IO, Literal
 
 from hrtls.errors import FormatError, InputError
 
@@ -48,6 +48,16 @@ class Source:
     names: list[str]
     kind: Literal["folder", "zip", "file"]
     _reader: Callable[[str, int], bytes]
+    _opener: Callable[[str], IO[bytes]] | None = None
+
+    def open(self, name: str) -> IO[bytes]:
+        """Member ``name`` as a binary file (read in pieces, for files too large to hold)."""
+        if name not in self.names:
+            raise InputError(f"no member {name!r}", where=str(self.path),
+                             expected=f"one of {', '.join(self.names[:10])}")
+        if self._opener is None:
+            return (self.path if self.kind == "file" else self.path / name).open("rb")
+        return self._opener(name)
 
     def read(self, name: str) -> bytes:
         """Contents of member ``name``."""
@@ -178,4 +188,4 @@ def _zip_source(path: Path, max_bytes: int) -> Source:
                               expected="an intact zip")
         return data
 
-    return Source(path, sorted(members), "zip", read)
+    return Source(path, sorted(members), "zip", read, lambda name: zf.open(members[name]))

@@ -1,30 +1,154 @@
-"""The result tables of ``hrtls track``: ``trajectory.csv`` and ``steps.csv``.
+"""Typed Arrow tables for every hrtls table, Parquet I/O, and the ``hrtls track`` results.
 
-``trajectory.csv``: ``t,x,y,z,heading,var_x,cov_xy,var_y,var_heading,activity[,lat,lon]``
-(m, rad, m^2, rad^2; activity as a label; ``lat,lon`` in degrees when a georeference is known).
-``steps.csv``: ``t_start,t_end,length,heading,dz,activity[,frequency,acc_max,acc_min]``.
-Unknown numbers (NaN) are written as empty fields.
+The Arrow-table API (:func:`to_arrow`, :func:`from_arrow`) is what the session files, the
+service's raw log and exports share: a table of :data:`hrtls.io.schema.TABLES` as a
+:class:`pyarrow.Table` with float64 numbers (NaN as null), text as strings, each field's unit in
+its metadata (``b"unit"``) and the table's name in the schema metadata (``b"hrtls.table"``).
+:func:`from_arrow` applies the checks of the file readers (finite numbers, non-empty labels,
+stated units matching ours) and names the first row that fails.
+
+Result tables: ``trajectory.csv``/``.parquet``:
+``t,x,y,z,heading,var_x,cov_xy,var_y,var_heading,activity[,lat,lon]`` (m, rad, m^2, rad^2;
+activity as a label; ``lat,lon`` in degrees when a georeference is known) and
+``steps.csv``/``.parquet``: ``t_start,t_end,length,heading,dz,activity[,frequency,acc_max,
+acc_min]``. Unknown numbers (NaN) are written as empty fields (nulls in Parquet). The format
+follows the file suffix.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from numpy.typing import NDArray
 
 from hrtls.data import StepEvents, Trajectory, activity_codes, activity_labels
+from hrtls.errors import FormatError, UnitError
 from hrtls.frames import Georeference
-from hrtls.io.csvtable import ColumnKind, format_table, read_table
+from hrtls.io.csvtable import (
+    Table,
+    arrow_columns,
+    arrow_from_columns,
+    check_columns,
+    csv_bytes,
+    read_table,
+)
+from hrtls.io.schema import TABLE_KEY, TABLES, UNIT_KEY, TableSpec
 
-TRAJECTORY_COLUMNS = ("t", "x", "y", "z", "heading", "var_x", "cov_xy", "var_y", "var_heading",
-                      "activity")
-STEP_COLUMNS = ("t_start", "t_end", "length", "heading", "dz", "activity")
-STEP_EXTRA_COLUMNS = ("frequency", "acc_max", "acc_min")
+PARQUET_COMPRESSION = "zstd"
+"""Codec of the Parquet files hrtls writes."""
 
 
-def trajectory_table(trajectory: Trajectory, *, georeference: Georeference | None = None
-                     ) -> str:
-    """``trajectory.csv`` text (with ``lat,lon`` when a georeference is given)."""
+def _spec(table: str) -> TableSpec:
+    try:
+        return TABLES[table]
+    except KeyError:
+        raise FormatError(f"unknown table {table!r}", where="table",
+                          expected=f"one of {', '.join(TABLES)}") from None
+
+
+def to_arrow(columns: Mapping[str, NDArray[np.generic]], *, table: str) -> pa.Table:
+    """A typed Arrow table of ``table`` (a name in :data:`~hrtls.io.schema.TABLES`).
+
+    Columns keep their given order; each must be one the table allows.
+
+    Raises
+    ------
+    FormatError
+        For an unknown table or column, or a missing required column.
+    """
+    spec = _spec(table)
+    check_columns(list(columns), spec.kinds, spec.required, where=f"{table} table")
+    arrow = arrow_from_columns(columns)
+    fields = [pa.field(f.name, pa.string() if spec.kinds[f.name] == "str" else pa.float64(),
+                       metadata={UNIT_KEY: spec.units[f.name].encode()})
+              for f in arrow.schema]
+    schema = pa.schema(fields, metadata={TABLE_KEY: table.encode()})
+    return pa.Table.from_arrays(arrow.columns, schema=schema)
+
+
+def from_arrow(arrow: pa.Table, *, table: str, name: str | None = None) -> Table:
+    """The checked columns of an Arrow table of ``table`` (``name`` labels messages).
+
+    Integer and float columns are read as float64; text columns must be strings. A field whose
+    metadata states a unit other than ours is refused (hrtls writes SI units only).
+
+    Raises
+    ------
+    FormatError, UnitError
+        Naming the column (``name schema``) or the row (``name row N``, first row 1).
+    """
+    spec = _spec(table)
+    label = name or table
+    check_columns(arrow.column_names, spec.kinds, spec.required, where=f"{label} schema")
+    for f in arrow.schema:
+        numeric = pa.types.is_floating(f.type) or pa.types.is_integer(f.type)
+        text = pa.types.is_string(f.type) or pa.types.is_large_string(f.type)
+        if not (text if spec.kinds[f.name] == "str" else numeric):
+            raise FormatError(f"column {f.name!r} has type {f.type}", where=f"{label} schema",
+                              expected="text" if spec.kinds[f.name] == "str" else "numbers")
+        unit = (f.metadata or {}).get(UNIT_KEY)
+        if unit is not None and unit.decode() != spec.units[f.name]:
+            raise UnitError(f"column {f.name!r} is in {unit.decode()!r}",
+                            where=f"{label} schema", expected=f"{spec.units[f.name]!r}")
+    columns, problem = arrow_columns(arrow, spec.kinds)
+    if problem is not None:
+        raise FormatError(problem.problem, where=f"{label} row {problem.row + 1}",
+                          expected=problem.expected)
+    return Table(columns, tuple(arrow.column_names), arrow.num_rows)
+
+
+def parquet_bytes(arrow: pa.Table) -> bytes:
+    """``arrow`` as a compressed Parquet file."""
+    out = pa.BufferOutputStream()
+    pq.write_table(arrow, out, compression=PARQUET_COMPRESSION)
+    return bytes(out.getvalue())
+
+
+def read_parquet(data: bytes, *, table: str, name: str) -> Table:
+    """Parse a Parquet file of ``table`` and check it like :func:`from_arrow`.
+
+    Raises
+    ------
+    FormatError
+        For a file that is not Parquet, and as :func:`from_arrow`.
+    """
+    try:
+        arrow = pq.read_table(pa.BufferReader(data))
+    except (pa.ArrowException, OSError) as exc:
+        raise FormatError(f"not a readable Parquet file ({exc})", where=name,
+                          expected="a Parquet table") from None
+    return from_arrow(arrow, table=table, name=name)
+
+
+def encode_table(columns: Mapping[str, NDArray[np.generic]], *, table: str, suffix: str
+                 ) -> bytes:
+    """The file contents of ``table`` as ``.csv`` or ``.parquet``."""
+    arrow = to_arrow(columns, table=table)
+    if suffix == ".parquet":
+        return parquet_bytes(arrow)
+    if suffix == ".csv":
+        return csv_bytes(arrow)
+    raise FormatError(f"suffix {suffix!r}", where=table, expected=".csv or .parquet")
+
+
+def decode_table(data: bytes, *, table: str, name: str) -> Table:
+    """Parse a ``.csv`` or ``.parquet`` file (by the suffix of ``name``) of ``table``."""
+    if name.lower().endswith(".parquet"):
+        return read_parquet(data, table=table, name=name)
+    spec = _spec(table)
+    return read_table(data, name=name, kinds=spec.kinds, required=spec.required)
+
+
+# --------------------------------------------------------------------------------------------
+# Results of ``hrtls track``
+# --------------------------------------------------------------------------------------------
+def trajectory_columns(trajectory: Trajectory, *, georeference: Georeference | None = None
+                       ) -> dict[str, np.ndarray]:
+    """Columns of the ``trajectory`` table (with ``lat,lon`` when a georeference is given)."""
     tr = trajectory
     cols: dict[str, np.ndarray] = {
         "t": tr.t, "x": tr.xyz[:, 0], "y": tr.xyz[:, 1], "z": tr.xyz[:, 2],
@@ -36,33 +160,36 @@ def trajectory_table(trajectory: Trajectory, *, georeference: Georeference | Non
         wgs = georeference.to_wgs84(tr.xyz)
         cols["lat"] = wgs[:, 0]
         cols["lon"] = wgs[:, 1]
-    return format_table(cols)
+    return cols
+
+
+def trajectory_table(trajectory: Trajectory, *, georeference: Georeference | None = None
+                     ) -> str:
+    """``trajectory.csv`` text (with ``lat,lon`` when a georeference is given)."""
+    return encode_table(trajectory_columns(trajectory, georeference=georeference),
+                        table="trajectory", suffix=".csv").decode("utf-8")
 
 
 def write_trajectory(trajectory: Trajectory, path: Path, *,
                      georeference: Georeference | None = None) -> Path:
-    """Write ``trajectory.csv``."""
-    path.write_text(trajectory_table(trajectory, georeference=georeference), encoding="utf-8")
+    """Write ``trajectory.csv`` or ``trajectory.parquet`` (by the suffix of ``path``)."""
+    path.write_bytes(encode_table(trajectory_columns(trajectory, georeference=georeference),
+                                  table="trajectory", suffix=path.suffix.lower()))
     return path
 
 
-def read_trajectory(path: Path) -> Trajectory:
-    """Read ``trajectory.csv`` (``lat,lon`` columns, if any, are ignored: x, y are the truth)."""
-    kinds: dict[str, ColumnKind] = dict.fromkeys(TRAJECTORY_COLUMNS, "float_or_empty")
-    kinds.update({"t": "float", "x": "float", "y": "float", "z": "float", "activity": "str",
-                  "lat": "float", "lon": "float"})
-    table = read_table(path.read_bytes(), name=path.name, kinds=kinds,
-                       required=("t", "x", "y", "z"))
+def trajectory_from_table(table: Table, *, name: str) -> Trajectory:
+    """A trajectory from its checked table (``lat,lon``, if any, are ignored: x, y are kept)."""
     n = table.n_rows
 
-    def col(name: str, default: float) -> np.ndarray:
-        return table.float(name) if name in table.present else np.full(n, default)
+    def col(c: str, default: float) -> np.ndarray:
+        return table.float(c) if c in table.present else np.full(n, default)
 
     cov = np.zeros((n, 2, 2))
     cov[:, 0, 0] = np.nan_to_num(col("var_x", 0.0))
     cov[:, 1, 1] = np.nan_to_num(col("var_y", 0.0))
     cov[:, 0, 1] = cov[:, 1, 0] = np.nan_to_num(col("cov_xy", 0.0))
-    activity = (activity_codes(table.str("activity"), where=f"{path.name} activity")
+    activity = (activity_codes(table.str("activity"), where=f"{name} activity")
                 if "activity" in table.present else np.full(n, -1))
     return Trajectory.build(
         t=table.float("t"),
@@ -71,41 +198,52 @@ def read_trajectory(path: Path) -> Trajectory:
         activity=activity)
 
 
-def steps_table(steps: StepEvents) -> str:
-    """``steps.csv`` text."""
-    cols: dict[str, np.ndarray] = {
+def read_trajectory(path: Path) -> Trajectory:
+    """Read ``trajectory.csv`` or ``trajectory.parquet``."""
+    table = decode_table(path.read_bytes(), table="trajectory", name=path.name)
+    return trajectory_from_table(table, name=path.name)
+
+
+def steps_columns(steps: StepEvents) -> dict[str, np.ndarray]:
+    """Columns of the ``steps`` table."""
+    return {
         "t_start": steps.t_start, "t_end": steps.t_end, "length": steps.length_m,
         "heading": steps.heading_rad, "dz": steps.dz_m,
         "activity": activity_labels(steps.activity),
         "frequency": steps.frequency_hz, "acc_max": steps.acc_max, "acc_min": steps.acc_min,
     }
-    return format_table(cols)
+
+
+def steps_table(steps: StepEvents) -> str:
+    """``steps.csv`` text."""
+    return encode_table(steps_columns(steps), table="steps", suffix=".csv").decode("utf-8")
 
 
 def write_steps(steps: StepEvents, path: Path) -> Path:
-    """Write ``steps.csv``."""
-    path.write_text(steps_table(steps), encoding="utf-8")
+    """Write ``steps.csv`` or ``steps.parquet`` (by the suffix of ``path``)."""
+    path.write_bytes(encode_table(steps_columns(steps), table="steps",
+                                  suffix=path.suffix.lower()))
     return path
 
 
-def read_steps(path: Path) -> StepEvents:
-    """Read ``steps.csv``."""
-    kinds: dict[str, ColumnKind] = dict.fromkeys(STEP_COLUMNS + STEP_EXTRA_COLUMNS,
-                                                 "float_or_empty")
-    kinds.update({"t_start": "float", "t_end": "float", "length": "float", "activity": "str"})
-    table = read_table(path.read_bytes(), name=path.name, kinds=kinds,
-                       required=("t_start", "t_end", "length"))
-    n = table.n_rows
+def steps_from_table(table: Table, *, name: str) -> StepEvents:
+    """Step events from their checked table."""
+    def col(c: str) -> np.ndarray | None:
+        return table.float(c) if c in table.present else None
 
-    def col(name: str) -> np.ndarray | None:
-        return table.float(name) if name in table.present else None
-
-    activity = (activity_codes(table.str("activity"), where=f"{path.name} activity")
+    if not table.n_rows:
+        return StepEvents.empty()
+    activity = (activity_codes(table.str("activity"), where=f"{name} activity")
                 if "activity" in table.present else None)
     dz = col("dz")
     return StepEvents.build(
         t_start=table.float("t_start"), t_end=table.float("t_end"),
         length_m=table.float("length"), heading_rad=col("heading"),
         dz_m=None if dz is None else np.nan_to_num(dz), activity=activity,
-        frequency_hz=col("frequency"), acc_max=col("acc_max"), acc_min=col("acc_min"),
-    ) if n else StepEvents.empty()
+        frequency_hz=col("frequency"), acc_max=col("acc_max"), acc_min=col("acc_min"))
+
+
+def read_steps(path: Path) -> StepEvents:
+    """Read ``steps.csv`` or ``steps.parquet``."""
+    return steps_from_table(decode_table(path.read_bytes(), table="steps", name=path.name),
+                            name=path.name)

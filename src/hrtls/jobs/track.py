@@ -3,23 +3,111 @@
 from __future__ import annotations
 
 import json
+import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hrtls.data import Session
+from hrtls.data import ImuStream, Session
 from hrtls.errors import InputError
 from hrtls.evaluate.report import EvaluationInputs, build_report
 from hrtls.io.geojson import write_geojson
+from hrtls.io.session import TableFormat
+from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
-from hrtls.pipeline.tracker import TrackResult
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.tracker import Tracker, TrackResult
 
-OUTPUT_FILES = ("trajectory.csv", "steps.csv", "trajectory.geojson", "report.json")
+OUTPUT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parquet",
+                "trajectory.geojson", "report.json")
+
+
+@dataclass(frozen=True, slots=True)
+class TrackRun:
+    """A tracked recording.
+
+    ``session`` holds, when streamed, only the first IMU chunk, and ``result.attitude`` is
+    None (the per-sample attitude is not kept); ``tracker_s`` is the time spent in the tracker
+    alone; ``streamed`` tells whether the IMU was read in chunks.
+    """
+
+    result: TrackResult
+    session: Session
+    samples: int
+    tracker_s: float
+    streamed: bool
+
+
+def streams(config: TrackerConfig) -> bool:
+    """True when ``config`` needs no samples at :meth:`Tracker.start`.
+
+    The hand-held mounting and the hard-iron fit need the accelerometer and magnetometer over
+    their windows.
+    """
+    return config.attitude.mounting != "handheld" and config.attitude.mag_hard_iron != "fit"
+
+
+def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
+                    beacons: Path | None = None, chunk_rows: int = DEFAULT_CHUNK_ROWS
+                    ) -> TrackRun:
+    """Track a recording; a session folder or zip is streamed in chunks when it can be.
+
+    Streaming (bounded memory) feeds ``chunk_rows`` IMU rows at a time to
+    :meth:`Tracker.update`, which gives the result of :meth:`Tracker.run` on the whole session.
+    Other formats and ``repair`` read the whole recording.
+    """
+    from hrtls.recordings import detect_format, read_any
+
+    stream = None
+    if not repair and beacons is None and detect_format(path) == "hrtls-session":
+        stream = open_stream(path, chunk_rows=chunk_rows)
+    if stream is not None:
+        try:
+            return _track_stream(stream, config)
+        except NotStreamable:
+            pass  # the careful reader accepts what the chunked reader refused
+    session = read_any(path, repair=repair, beacons=beacons)
+    start = time.perf_counter()
+    result = Tracker(config).run(session)
+    n = 0 if session.imu is None else len(session.imu.accel)
+    return TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+
+
+def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
+    tracker = Tracker(config, keep_attitude=False)
+    if streams(config):
+        tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
+                      has_mag=stream.has_mag,
+                      has_orientation=stream.parts["orientation"] is not None,
+                      rate_hz=stream.rate_hz, t0=stream.t0)
+    else:
+        # the hand-held mounting and the hard-iron fit look at the whole accelerometer and
+        # magnetometer: read those columns alone, once
+        tracker.start_session(stream.session(stream.start_imu()))
+    first: ImuStream | None = None
+    seconds = 0.0
+    for chunk in stream.chunks():
+        first = first or chunk.imu
+        start = time.perf_counter()
+        tracker.update(chunk)
+        seconds += time.perf_counter() - start
+    start = time.perf_counter()
+    result = tracker.finish()
+    seconds += time.perf_counter() - start
+    del tracker
+    assert first is not None
+    # the ground truth is read only now, for the evaluation: it is not held while tracking
+    session = stream.session(first).with_parts(truth=stream.truth())
+    return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
 
 
 def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                         overwrite: bool = False, plot: bool = False,
-                        evaluation: dict[str, Any] | None = None) -> list[Path]:
-    """Write trajectory.csv, steps.csv, trajectory.geojson, report.json (and track.png)."""
+                        evaluation: dict[str, Any] | None = None,
+                        table_format: TableFormat = "csv") -> list[Path]:
+    """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png)."""
+    if table_format not in ("csv", "parquet"):
+        raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     out_dir.mkdir(parents=True, exist_ok=True)
     existing = [n for n in OUTPUT_FILES if (out_dir / n).exists()]
     if existing and not overwrite:
@@ -27,8 +115,9 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                          expected="an empty or new folder (or --overwrite)")
     geo = session.georeference
     written = [
-        write_trajectory(result.trajectory, out_dir / "trajectory.csv", georeference=geo),
-        write_steps(result.steps, out_dir / "steps.csv"),
+        write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
+                         georeference=geo),
+        write_steps(result.steps, out_dir / f"steps.{table_format}"),
         write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
                       landmarks=session.resolved_landmarks() if geo else session.landmarks,
                       georeference=geo, time_origin_unix_s=session.meta.time_origin_unix_s,

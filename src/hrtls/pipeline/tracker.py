@@ -232,10 +232,15 @@ class Tracker:
     ----------
     config:
         What to run; the ``default`` preset when None.
+    keep_attitude:
+        Keep the per-sample attitude for :attr:`TrackResult.attitude` (None without it): about
+        64 bytes per IMU sample, which long recordings streamed in chunks may not want to hold.
     """
 
-    def __init__(self, config: TrackerConfig | None = None) -> None:
+    def __init__(self, config: TrackerConfig | None = None, *, keep_attitude: bool = True
+                 ) -> None:
         self.config = config if config is not None else preset("default")
+        self.keep_attitude = keep_attitude
         self._started = False
 
     # ------------------------------------------------------------------ set-up
@@ -885,7 +890,8 @@ class Tracker:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DegradedInputWarning)
                 res = filt.update(t, acc, gyr, mag if self._use_mag else None)
-        self._attitude.append(res)
+        if self.keep_attitude:
+            self._attitude.append(res)
         q = res.q
         if res.frame == "nb" and self.meta.mounting_q_bd is not None:
             q = quat_multiply(q, np.asarray(self.meta.mounting_q_bd, dtype=np.float64))

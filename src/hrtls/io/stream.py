@@ -1,0 +1,319 @@
+"""A session folder or zip read in chunks of IMU rows, so memory stays bounded.
+
+:func:`open_stream` reads every table but the IMU whole (they are small: observations, ground
+truth, a separate gyroscope or magnetometer) and the IMU table's time column, then
+:meth:`SessionStream.chunks` reads the IMU table from its file piece by piece and yields
+consecutive :class:`~hrtls.data.Session` chunks of about ``chunk_rows`` IMU rows with the
+observations of the same time span, the way the live service feeds
+:meth:`hrtls.pipeline.Tracker.update`. Gyroscope or magnetometer samples with their own clock are
+interpolated onto the accelerometer times from the whole series, exactly as
+:meth:`hrtls.data.ImuStream.aligned` does offline.
+
+A chunk that fails a check (a malformed value) makes the stream read the whole session with
+:func:`hrtls.io.session.read_session`, which raises the exact message (file, line, column,
+value), or, if the careful reader accepts the file, :class:`NotStreamable`. Repairs need the
+whole recording, so a stream never repairs: a session whose IMU time does not increase, or whose
+header is not on the first line, is not streamed (None).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from hrtls.data import GroundTruth, ImuStream, Landmark, SensorSeries, Session, SessionMeta
+from hrtls.data.session import SESSION_PARTS
+from hrtls.errors import InputError
+from hrtls.io.csvtable import Table, _header, arrow_columns
+from hrtls.io.schema import TABLES
+from hrtls.io.session import (
+    _group,
+    _read_landmarks,
+    _read_meta,
+    _read_vector_file,
+    _SessionFiles,
+    other_parts,
+    read_session,
+    truth_from,
+)
+from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
+
+DEFAULT_CHUNK_ROWS = 1 << 16
+"""IMU rows per chunk (about 11 minutes at 100 Hz)."""
+
+_AXES = ("x", "y", "z")
+_CSV_BYTES_PER_ROW = 160
+"""Block size of the CSV reader per requested chunk row (a 10-column row is ~150 bytes)."""
+
+
+class _Fallback(Exception):
+    """A chunk failed a check: the whole-session reader explains it."""
+
+
+class NotStreamable(Exception):
+    """The whole-session reader accepts what the chunked reader refused: read it whole.
+
+    For instance spaces around numbers, which only the careful CSV path reads.
+    """
+
+
+@dataclass(frozen=True, slots=True)
+class _TableFile:
+    """A table's file: its name, columns and a way to open it again (read in pieces)."""
+
+    name: str
+    header: list[str]
+    open: Callable[[], IO[bytes]]
+
+    @property
+    def parquet(self) -> bool:
+        return self.name.endswith(".parquet")
+
+    def columns(self, columns: list[str]) -> pa.Table:
+        """Some columns, whole (float64)."""
+        with self.open() as fh:
+            if self.parquet:
+                return pq.read_table(fh, columns=columns)
+            return pacsv.read_csv(fh, read_options=self._read_options(1 << 24),
+                                  convert_options=self._convert(columns))
+
+    def batches(self, rows: int) -> Iterator[pa.RecordBatch]:
+        """Consecutive record batches of about ``rows`` rows."""
+        with self.open() as fh:
+            if self.parquet:
+                yield from pq.ParquetFile(fh).iter_batches(batch_size=rows)
+                return
+            yield from pacsv.open_csv(fh, read_options=self._read_options(
+                rows * _CSV_BYTES_PER_ROW), convert_options=self._convert(self.header))
+
+    def _read_options(self, block_size: int) -> pacsv.ReadOptions:
+        return pacsv.ReadOptions(column_names=self.header, skip_rows=1, block_size=block_size)
+
+    def _convert(self, columns: list[str]) -> pacsv.ConvertOptions:
+        return pacsv.ConvertOptions(include_columns=columns, null_values=[""],
+                                    column_types=dict.fromkeys(columns, pa.float64()))
+
+
+def _checked(table: pa.Table, stem: str = "imu") -> Table:
+    columns, problem = arrow_columns(table, TABLES[stem].kinds)
+    if problem is not None:
+        raise _Fallback
+    return Table(columns, tuple(table.column_names), table.num_rows)
+
+
+@dataclass(frozen=True, slots=True)
+class SessionStream:
+    """A session whose IMU is read chunk by chunk (see :func:`open_stream`).
+
+    Attributes
+    ----------
+    meta, landmarks:
+        As in the session.
+    parts:
+        Every other part of the session but the ground truth (:meth:`truth`), read whole.
+    rate_hz:
+        The accelerometer's nominal rate over the whole recording (median spacing), Hz.
+    t0:
+        Earliest time over all streams, observations and ground truth, s.
+    n_rows:
+        IMU rows.
+    """
+
+    path: Path
+    meta: SessionMeta
+    landmarks: dict[str, Landmark]
+    parts: dict[str, Any]
+    rate_hz: float
+    t0: float
+    n_rows: int
+    has_gyro: bool
+    has_mag: bool
+    _imu: _TableFile = field(repr=False)
+    _truth: _TableFile | None = field(repr=False)
+    _gyro: SensorSeries | None = field(repr=False)
+    _mag: SensorSeries | None = field(repr=False)
+    _chunk_rows: int = field(repr=False)
+    _check_units: bool = field(repr=False)
+    _max_bytes: int = field(repr=False)
+
+    def session(self, imu: ImuStream) -> Session:
+        """The whole session but for its IMU, which is ``imu`` (e.g. one chunk)."""
+        return Session(meta=self.meta, imu=imu, landmarks=self.landmarks, **self.parts)
+
+    def truth(self) -> GroundTruth | None:
+        """The ground truth, read now (it is not held while the IMU streams)."""
+        if self._truth is None:
+            return None
+        try:
+            table = _checked(self._truth.columns(self._truth.header), "truth")
+        except (_Fallback, pa.ArrowException):
+            self._explain()
+            raise
+        return truth_from(table, self._truth.name)
+
+    def start_imu(self) -> ImuStream:
+        """What :meth:`hrtls.pipeline.Tracker.start_session` looks at, without the whole IMU.
+
+        The accelerometer and magnetometer of the whole recording (for the hand-held mounting
+        and the hard-iron fit) and the gyroscope's first chunk only (it is only checked for).
+        """
+        name = self._imu.name
+        try:
+            checked = _checked(self._imu.columns(
+                [c for c in self._imu.header if c == "t" or c[0] in "am"]))
+        except (_Fallback, pa.ArrowException):
+            self._explain()
+            raise
+        t = checked.float("t")
+        acc = _group(checked, tuple("a" + a for a in _AXES), name=name)
+        mag = _group(checked, tuple("m" + a for a in _AXES), name=name)
+        assert acc is not None
+        gyro = self._gyro
+        if gyro is None and self.has_gyro:
+            gyro = next(self._imu_chunks()).gyro
+        return ImuStream(SensorSeries(t, acc, f"{name} accelerometer"), gyro,
+                         self._mag if mag is None else SensorSeries(t, mag, name),
+                         check_units=False)
+
+    def chunks(self) -> Iterator[Session]:
+        """Consecutive chunks: about ``chunk_rows`` IMU rows and the observations of their span.
+
+        Every observation goes into exactly one chunk: those before the first IMU row into the
+        first, those after the last into the last.
+        """
+        t_prev = -math.inf
+        pending: ImuStream | None = None
+        for imu in self._imu_chunks():
+            if pending is not None:
+                yield self._chunk(pending, t_prev, float(imu.accel.t[0]))
+                t_prev = float(imu.accel.t[0])
+            pending = imu
+        if pending is not None:
+            yield self._chunk(pending, t_prev, math.inf)
+
+    def _chunk(self, imu: ImuStream, t_start: float, t_end: float) -> Session:
+        from hrtls.pipeline.chunks import session_window
+
+        observed = self.session(imu).with_parts(truth=None, checkpoints=None)
+        window = session_window(observed, t_start, t_end)
+        assert window is not None  # it holds the chunk's IMU rows
+        return window
+
+    def _explain(self) -> None:
+        """Read the whole session: raises the exact message of what failed in a chunk.
+
+        Raises
+        ------
+        NotStreamable
+            When the whole session reads (the chunked reader is stricter).
+        """
+        read_session(self.path, max_bytes=self._max_bytes)
+        raise NotStreamable(str(self.path))
+
+    def _imu_chunks(self) -> Iterator[ImuStream]:
+        try:
+            for batch in self._imu.batches(self._chunk_rows):
+                if batch.num_rows:
+                    yield self._imu_of(_checked(pa.Table.from_batches([batch])))
+        except (_Fallback, pa.ArrowException):
+            self._explain()
+
+    def _imu_of(self, table: Table) -> ImuStream:
+        name = self._imu.name
+        t = table.float("t")
+        acc = _group(table, tuple("a" + a for a in _AXES), name=name)
+        gyr = _group(table, tuple("g" + a for a in _AXES), name=name)
+        mag = _group(table, tuple("m" + a for a in _AXES), name=name)
+        assert acc is not None
+        if gyr is None and self._gyro is not None:
+            gyr = self._gyro.interpolate(t)
+        if mag is None and self._mag is not None:
+            mag = self._mag.interpolate(t)
+        return ImuStream(SensorSeries(t, acc, f"{name} accelerometer"),
+                         None if gyr is None else SensorSeries(t, gyr, f"{name} gyroscope"),
+                         None if mag is None else SensorSeries(t, mag, f"{name} magnetometer"),
+                         check_units=self._check_units)
+
+
+def open_stream(path: Path | str, *, chunk_rows: int = DEFAULT_CHUNK_ROWS,
+                check_units: bool = True, max_bytes: int = DEFAULT_MAX_BYTES
+                ) -> SessionStream | None:
+    """Open a session folder or zip for chunked reading.
+
+    None when it cannot stream: no IMU table, a header not on the first line, or IMU times
+    that do not increase (:func:`~hrtls.io.session.read_session` with ``repair`` handles those).
+
+    Raises
+    ------
+    FormatError, InputError
+        As :func:`hrtls.io.session.read_session`, naming the file, line and field.
+    """
+    if chunk_rows < 2:
+        raise InputError(f"chunk_rows = {chunk_rows}", where="chunk_rows",
+                         expected="at least 2 rows")
+    path = Path(path)
+    source = open_source(path, max_bytes=max_bytes)
+    src = _SessionFiles(source)
+    names = [n for n in ("imu.csv", "imu.parquet") if n in src.names]
+    truths = [n for n in ("truth.csv", "truth.parquet") if n in src.names]
+    if len(names) != 1 or len(truths) > 1:
+        return None  # the whole-session reader explains
+    imu = _table_file(source, src, names[0])
+    truth = _table_file(source, src, truths[0]) if truths else None
+    if imu is None or (truths and truth is None):
+        return None
+    t = _time(imu)
+    if t is None or len(t) < 2 or np.any(np.diff(t) <= 0):
+        read_session(path, max_bytes=max_bytes)  # raises the exact message, or is valid
+        return None
+    starts = [] if truth is None else [float(tt[0]) for tt in [_time(truth)]
+                                       if tt is not None and len(tt)]
+    header = imu.header
+    parts = other_parts(src, repair=False, skip=frozenset({"truth"}))
+    gyro = _read_vector_file(src, "gyro", "g", repair=False)
+    mag = _read_vector_file(src, "mag", "m", repair=False)
+    starts += [float(v.t[0]) for k, v in parts.items()
+               if k in SESSION_PARTS and v is not None and len(v.t)]
+    return SessionStream(
+        path=path, meta=_read_meta(src), landmarks=_read_landmarks(src), parts=parts,
+        rate_hz=float(1.0 / np.median(np.diff(t))), t0=min([float(t[0]), *starts]),
+        n_rows=len(t), has_gyro=gyro is not None or "gx" in header,
+        has_mag=mag is not None or "mx" in header, _imu=imu, _truth=truth, _gyro=gyro,
+        _mag=mag, _chunk_rows=chunk_rows, _check_units=check_units, _max_bytes=max_bytes)
+
+
+def _table_file(source: Source, src: _SessionFiles, name: str) -> _TableFile | None:
+    """The table's file, or None when its header is not on the first line (read it whole)."""
+    member = src.member(name)
+    if name.endswith(".parquet"):
+        try:
+            with source.open(member) as fh:
+                header = list(pq.ParquetFile(fh).schema_arrow.names)
+        except (pa.ArrowException, OSError):
+            return None
+    else:
+        head = source.head(member, 1 << 16)
+        header, start = _header(head, name=name)
+        if head[:start].count(b"\n") != 1:
+            return None
+    return _TableFile(name, header, lambda: source.open(member))
+
+
+def _time(table: _TableFile) -> np.ndarray | None:
+    """The time column (None when it cannot be read or is not finite)."""
+    try:
+        col = table.columns(["t"]).column("t")
+    except (pa.ArrowException, KeyError):
+        return None
+    if col.null_count:
+        return None
+    t = np.asarray(col.to_numpy(), dtype=np.float64)
+    return t if np.all(np.isfinite(t)) else None
