@@ -69,7 +69,8 @@ def failure(index: int, exc: BaseException) -> Outcome[R]:
     return Outcome(index=index, error=text, detail=detail)
 
 
-def _call(fn: Callable[[T], R], index: int, item: T) -> Outcome[R]:
+def call_item(fn: Callable[[T], R], index: int, item: T) -> Outcome[R]:
+    """``fn(item)`` as the outcome of item ``index`` (an exception becomes a failure)."""
     try:
         return Outcome(index=index, value=fn(item))
     except Exception as exc:  # reported per item; the batch goes on
@@ -97,14 +98,14 @@ class LocalEngine:
         out: list[Outcome[R] | None] = [None] * total
         if self.workers == 1 or total <= 1:
             for i, item in enumerate(items):
-                out[i] = _call(fn, i, item)
+                out[i] = call_item(fn, i, item)
                 if progress is not None:
                     progress(i + 1, total)
             return [o for o in out if o is not None]
         with ProcessPoolExecutor(max_workers=min(self.workers, total),
                                  mp_context=get_context("spawn")) as pool:
             pending: dict[Future[Outcome[R]], int] = {
-                pool.submit(_call, fn, i, item): i for i, item in enumerate(items)}
+                pool.submit(call_item, fn, i, item): i for i, item in enumerate(items)}
             done = 0
             while pending:
                 finished, _ = wait(pending, return_when=FIRST_COMPLETED)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from hrtls.errors import InputError
-from hrtls.parallel import Outcome, ProgressCallback, failure
+from hrtls.parallel import Outcome, ProgressCallback, call_item, failure
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -26,13 +26,6 @@ def _import_ray() -> Any:
         raise InputError("Ray is not installed", where="--engine ray",
                          expected="pip install 'hrtls[ray]'") from None
     return ray
-
-
-def _run_item(fn: Callable[[Any], Any], index: int, item: Any) -> Outcome[Any]:
-    try:
-        return Outcome(index=index, value=fn(item))
-    except Exception as exc:  # reported per item; the batch goes on
-        return failure(index, exc)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,7 +58,7 @@ class RayEngine:
             progress: ProgressCallback | None = None) -> list[Outcome[R]]:
         """Apply ``fn`` to every item as Ray tasks; one outcome per item, in item order."""
         ray = _import_ray()
-        task = ray.remote(num_cpus=1, max_retries=0)(_run_item)
+        task = ray.remote(num_cpus=1, max_retries=0)(call_item)
         total = len(items)
         out: list[Outcome[R] | None] = [None] * total
         fn_ref = ray.put(fn)
