@@ -36,16 +36,19 @@ RepairOption = Annotated[bool, typer.Option(
     "--repair", help="Sort backward times, merge duplicates, drop NaN rows (with warnings).")]
 BeaconsOption = Annotated[Path | None, typer.Option(
     "--beacons", help="CSV of beacon positions for IPIN logfiles (id/lat/lon/floor).")]
+TrialOption = Annotated[str | None, typer.Option(
+    "--trial", help="Trial of a multi-trial recording (mobgap: e.g. Test5/Trial1).")]
 
 
 def _load(path: Path, fmt: str | None, *, repair: bool, check_units: bool,
-          beacons: Path | None) -> Session:
-    from hrtls.recordings import read_any
+          beacons: Path | None, trial: str | None = None) -> Session:
+    from hrtls.recordings import read_any, reader_options
 
     if not path.exists():
         raise InputError("no such file or folder", where=str(path),
                          expected="a recording (session folder, zip, logfile, ...)")
-    return read_any(path, fmt=fmt, repair=repair, check_units=check_units, beacons=beacons)
+    return read_any(path, fmt=fmt, repair=repair, check_units=check_units, beacons=beacons,
+                    **reader_options(fmt, trial=trial))
 
 
 @app.command()
@@ -67,6 +70,7 @@ def info(
     path: Annotated[Path, typer.Argument(help="Recording: session folder/zip or a user format.")],
     fmt: FormatOption = None,
     beacons: BeaconsOption = None,
+    trial: TrialOption = None,
 ) -> None:
     """Describe a recording: format, duration, rates, gaps, sensors, suspected unit problems."""
     from hrtls.io.inspect import summarize
@@ -75,7 +79,8 @@ def info(
     detected = fmt or detect_format(path)
     with warnings.catch_warnings(record=True) as repairs:
         warnings.simplefilter("always")
-        session = _load(path, detected, repair=True, check_units=False, beacons=beacons)
+        session = _load(path, detected, repair=True, check_units=False, beacons=beacons,
+                        trial=trial)
     summary = summarize(session)
     console.print(f"[bold]{path}[/bold]  format [cyan]{detected}[/cyan]  "
                   f"duration {summary.duration_s:.1f} s  "
@@ -112,6 +117,7 @@ def convert(
     fmt: FormatOption = None,
     repair: RepairOption = False,
     beacons: BeaconsOption = None,
+    trial: TrialOption = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
 ) -> None:
     """Convert a recording into a session folder (SI units, ENU, checked)."""
@@ -125,7 +131,8 @@ def convert(
         detected = fmt or detect_format(path)
         progress.update(task, advance=1, description=f"reading {detected}")
         try:
-            session = _load(path, detected, repair=repair, check_units=True, beacons=beacons)
+            session = _load(path, detected, repair=repair, check_units=True, beacons=beacons,
+                            trial=trial)
         except UnitError as exc:
             raise UnitError(exc.problem, where=exc.where, expected=exc.expected,
                             hint="see `hrtls info` and the reader's unit options") from None
