@@ -64,7 +64,34 @@ def test_repair_error_of_a_session_names_the_flag(tmp_path: Path) -> None:
     session = _session(tmp_path)
     imu = session / "imu.csv"
     lines = imu.read_text().splitlines(keepends=True)
-    imu.write_text("".join(lines[:300] + [lines[299]] + lines[300:]))
+    imu.write_text("".join([*lines[:300], lines[299], *lines[300:]]))
     result = runner.invoke(app, ["track", str(session), "-o", str(tmp_path / "o")])
     assert result.exit_code == 2
     assert "--repair" in result.output and "repair=True" not in result.output
+
+
+def test_root_help_lists_every_command_without_importing_it() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys; from typer.testing import CliRunner; from hrtls.cli.app import app; "
+            "r = CliRunner().invoke(app, ['--help']); print(r.output); "
+            "print(sorted(m for m in sys.modules if m.startswith(('hrtls.', 'numpy', 'scipy', "
+            "'numba'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    from hrtls.cli.app import _COMMANDS
+
+    for name in _COMMANDS:
+        assert f"  {name} " in out
+    loaded = out.strip().splitlines()[-1]
+    assert "numpy" not in loaded and "hrtls.pipeline" not in loaded and "hrtls.cli.track" \
+        not in loaded
+
+
+def test_summaries_are_the_commands_own_first_lines() -> None:
+    from hrtls.cli.app import _COMMANDS, SUMMARIES, load_command
+
+    for name in _COMMANDS:
+        command = load_command(name)
+        assert SUMMARIES[name] == (command.help or "").strip().splitlines()[0], name

@@ -131,3 +131,10 @@ def test_params_are_checked() -> None:
     with pytest.raises(InputError, match="jump_min_s"):
         ClockParams(jump_min_s=0.0)
     assert ClockJump(3, -1.0, 0.1, 2.0).forward is False
+
+
+def test_rows_out_of_order_are_left_to_sorting() -> None:
+    t = np.arange(600) * 0.01
+    t = np.concatenate([t[:200], t[400:], t[200:400]])  # a block written late fills a hole
+    out = repair_backward_jumps(t, where="x")
+    np.testing.assert_array_equal(out, t)

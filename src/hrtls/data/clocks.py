@@ -39,10 +39,10 @@ REPAIR_FLAG = "--repair (repair=True in Python)"
 class ClockParams:
     """When a step between samples counts as a clock jump.
 
-    A forward step is a jump when it exceeds both ``jump_min_s`` and ``jump_factor`` times the
-    stream's median step; a backward step when it is longer than ``backward_jitter_s`` (shorter
-    backward steps are jitter, sorted by the readers' repair). Two streams disagree when the
-    overlap of their spans is below ``min_overlap`` of the shorter span.
+    A step (forward or backward) is a jump when it exceeds ``jump_min_s``,
+    ``backward_jitter_s`` (backward) and ``jump_factor`` times the stream's median step;
+    shorter backward steps are jitter, sorted by the readers' repair. Two streams disagree when
+    the overlap of their spans is below ``min_overlap`` of the shorter span.
     """
 
     jump_min_s: float = 1.0
@@ -101,8 +101,10 @@ def find_jumps(t: FloatArray, *, params: ClockParams | None = None) -> list[Cloc
         return []
     dt = np.diff(t)
     nominal = nominal_step(t)
+    if nominal <= 0.0:
+        return []
     limit = max(p.jump_min_s, p.jump_factor * nominal)
-    idx = np.flatnonzero((dt > limit) | (dt < -p.backward_jitter_s))
+    idx = np.flatnonzero((dt > limit) | (dt < -max(p.backward_jitter_s, limit)))
     return [ClockJump(int(i) + 1, float(dt[i]), nominal, float(t[i])) for i in idx]
 
 
@@ -124,6 +126,21 @@ def _describe(jump: ClockJump) -> str:
     return f"clock jumps {way} by {abs(jump.step_s):.3f} s (nominal step {jump.nominal_dt_s:.4f} s)"
 
 
+def _resets(t: FloatArray, jump: ClockJump, end: int) -> bool:
+    """True when the samples before ``jump`` already cover the times recorded after it.
+
+    A clock reset records the same times twice; rows written out of order fill a hole.
+    ``end`` is the index where the segment after the jump ends.
+    """
+    lo = jump.t_before_s + jump.step_s
+    hi = min(jump.t_before_s, float(np.max(t[jump.index:end])))
+    if hi <= lo:
+        return False
+    before = np.asarray(t[:jump.index])
+    inside = int(np.count_nonzero((before >= lo) & (before <= hi)))
+    return inside >= 0.5 * (hi - lo) / jump.nominal_dt_s
+
+
 def repair_backward_jumps(t: FloatArray, *, where: str, params: ClockParams | None = None
                           ) -> FloatArray:
     """Remove backward jumps (clock resets) from ``t`` before sorting; warns for each.
@@ -131,7 +148,10 @@ def repair_backward_jumps(t: FloatArray, *, where: str, params: ClockParams | No
     Sorting a stream whose clock was reset interleaves two segments; shifting the segment after
     the reset keeps the samples in recorded order.
     """
-    back = [j for j in find_jumps(t, params=params) if not j.forward]
+    t = np.asarray(t, dtype=np.float64)
+    jumps = find_jumps(t, params=params)
+    ends = [j.index for j in jumps[1:]] + [len(t)] if jumps else []
+    back = [j for j, end in zip(jumps, ends, strict=True) if not j.forward and _resets(t, j, end)]
     if not back:
         return np.asarray(t, dtype=np.float64)
     for jump in back:
