@@ -7,10 +7,9 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-import click
 import typer
 from rich.console import Console
-from typer.core import TyperGroup
+from typer.core import TyperCommand, TyperGroup
 
 from hrtls.cli.errors import Verbosity, reports_errors
 from hrtls.errors import InputError, UnitError
@@ -54,7 +53,7 @@ SUMMARIES: dict[str, str] = {
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 
 
-def load_command(name: str) -> click.Command:
+def load_command(name: str) -> Any:
     """The click command ``name`` of :data:`_COMMANDS`, imported now."""
     module_name, attribute, kind = _COMMANDS[name]
     module = importlib.import_module(module_name)
@@ -81,17 +80,17 @@ class _LazyGroup(TyperGroup):
         super().__init__(**attrs)
         self._listing = False
         for name in _COMMANDS:
-            self.commands.setdefault(name, click.Command(name, short_help=SUMMARIES[name],
-                                                         help=SUMMARIES[name]))
+            self.commands.setdefault(name, TyperCommand(name, short_help=SUMMARIES[name],
+                                                        help=SUMMARIES[name]))
 
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
         command = self.commands.get(cmd_name)
         if cmd_name in _COMMANDS and not self._listing and command is not None \
                 and command.callback is None:
             command = self.commands[cmd_name] = load_command(cmd_name)
         return command
 
-    def format_help(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+    def format_help(self, ctx: Any, formatter: Any) -> None:
         self._listing = True
         try:
             super().format_help(ctx, formatter)
