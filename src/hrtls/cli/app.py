@@ -42,7 +42,8 @@ SUMMARIES: dict[str, str] = {
     "ipin": "Track from the first POSI (start, heading unknown); errors "
             "at the later POSI landmarks.",
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",
-    "evaluate": "Score an estimated trajectory against ground truth; write report.json and plots.",
+    "evaluate": "Score a result folder against ground truth; write evaluation.json and plots "
+                "beside it.",
     "attitude": "Estimate the orientation (ENU) and write t,qw,qx,qy,qz,roll,pitch,yaw.",
     "calibrate": "Sensor calibration files.",
     "activity": "Activity recognition models.",

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hrtls.data import ImuStream, Session
 from hrtls.data.clocks import ClockStream, check_clocks
 from hrtls.errors import InputError, RepairWarning
@@ -87,6 +89,11 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
                                                            beacons=beacons, **options)
     meta = stream.meta if stream is not None else session.meta if session is not None else None
     input_report = _input_report(fmt, caught, [] if meta is None else meta.notes)
+    input_report["path"] = str(path)
+    t_imu = stream.imu_t if stream is not None else (
+        None if session is None or session.imu is None else session.imu.accel.t)
+    if t_imu is not None and len(t_imu):
+        input_report["imu"] = imu_fingerprint(t_imu)
     if stream is not None:
         try:
             return _with_input(_track_stream(stream, config), input_report)
@@ -98,6 +105,11 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     n = 0 if session.imu is None else len(session.imu.accel)
     run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
     return _with_input(run, input_report)
+
+
+def imu_fingerprint(t: np.ndarray) -> dict[str, float | int]:
+    """What identifies a recording's IMU stream: samples and first/last time (s)."""
+    return {"samples": len(t), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
 
 
 def _input_report(fmt: str, caught: list[warnings.WarningMessage], notes: list[str]
