@@ -10,8 +10,9 @@ The floor is a state machine run sample by sample (causal, compiled):
   stays within ``freeze_fraction`` of a floor height of it, ``level`` follows it with time
   constant ``drift_tau_s``: weather drift (about 1 hPa an hour, 8 m) is absorbed;
 * a change faster than people climb (``max_climb_m_s`` over 1 s of the altitude smoothed over
-  ``step_smooth_s``) is a pressure step of a door or the ventilation: ``level`` moves with the
-  altitude while it lasts (fast elevators are taken for pressure steps too);
+  ``step_smooth_s``) is a pressure step of a door or the ventilation: while it lasts (until
+  the change is below half that speed) the altitude is held, and the step is removed from
+  then on (fast elevators are taken for pressure steps too);
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -62,6 +63,9 @@ class BaroFloorParams:
             if not (np.isfinite(value) and value > 0.0):
                 raise InputError(f"{name} = {value}", where="BaroFloorParams",
                                  expected="a positive finite number")
+        if self.step_smooth_s >= self.smooth_s:
+            raise InputError(f"step_smooth_s {self.step_smooth_s} >= smooth_s {self.smooth_s}",
+                             where="BaroFloorParams", expected="step_smooth_s < smooth_s")
         if self.freeze_fraction >= self.change_fraction or self.change_fraction >= 1.0:
             raise InputError(f"freeze_fraction {self.freeze_fraction}, change_fraction "
                              f"{self.change_fraction}", where="BaroFloorParams",
@@ -100,38 +104,55 @@ class BaroFloors:
 def relative_altitude(t: FloatArray, pressure_pa: FloatArray, *, smooth_s: float) -> FloatArray:
     """Causally smoothed altitude above the first reading, m (hypsometric equation)."""
     p = np.asarray(pressure_pa, dtype=np.float64)
-    a = scale_height_m(float(p[0])) * np.log(p[0] / p)
-    c = np.concatenate([[0.0], np.cumsum(a)])
-    start = np.searchsorted(t, t - smooth_s, side="left")
-    n = np.arange(1, len(t) + 1) - start
-    return np.asarray((c[1:] - c[start]) / n)
+    return _causal_mean(t, scale_height_m(float(p[0])) * np.log(p[0] / p), smooth_s)
 
 
 @numba.njit(cache=True)
-def _floor_machine(t: FloatArray, a: FloatArray, fast: FloatArray, height: float, hold_s: float,
-                   change: float, freeze: float, tau_s: float, max_climb: float,
-                   smooth_s: float) -> tuple[FloatArray, NDArray[np.int64], int
-                                             ]:  # pragma: no cover - compiled
+def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float
+                           ) -> tuple[FloatArray, int]:  # pragma: no cover - compiled
+    """``fast`` altitude without the changes faster than ``max_climb`` (pressure steps).
+
+    While the change over the last second is faster (and until it falls below half of that),
+    the altitude is held where it was 1 s before the step was seen; when the change is slower
+    again, the step is subtracted from then on. A climb during a step is lost (a pressure
+    transient before it is not taken for a climb); the floor machine rounds the rest.
+    """
+    n = len(t)
+    out = np.empty(n)
+    offset = 0.0
+    in_step = False
+    f_start = 0.0
+    steps = 0
+    j = 0
+    for i in range(n):
+        while t[j] < t[i] - 1.0:
+            j += 1
+        limit = 0.5 * max_climb if in_step else max_climb
+        fast_change = (t[i] - t[j] > 0.5
+                       and abs(fast[i] - fast[j]) > limit * (t[i] - t[j]))
+        if fast_change and not in_step:
+            in_step = True
+            steps += 1
+            f_start = fast[j]
+        if in_step and not fast_change:
+            offset += fast[i] - f_start
+            in_step = False
+        out[i] = f_start - offset if in_step else fast[i] - offset
+    return out, steps
+
+
+@numba.njit(cache=True)
+def _floor_machine(t: FloatArray, a: FloatArray, height: float, hold_s: float, change: float,
+                   freeze: float, tau_s: float
+                   ) -> tuple[FloatArray, NDArray[np.int64]]:  # pragma: no cover - compiled
     n = len(t)
     level = np.empty(n)
     floor = np.zeros(n, dtype=np.int64)
     lv = a[0]
     fl = 0
     pending = -1.0
-    last_step = -np.inf
-    steps = 0
-    j = 0  # first sample within the last second
     for i in range(n):
         if i > 0:
-            while t[j] < t[i] - 1.0:
-                j += 1
-            if t[i] - t[j] > 0.5 and abs(fast[i] - fast[j]) > max_climb * (t[i] - t[j]):
-                if t[i] - last_step > smooth_s + 1.0:
-                    steps += 1
-                last_step = t[i]
-            if t[i] - last_step <= smooth_s + 1.0:
-                lv += a[i] - a[i - 1]
-                pending = -1.0
             d = a[i] - lv
             if abs(d) < freeze * height:
                 lv += d * min(1.0, (t[i] - t[i - 1]) / tau_s)
@@ -147,7 +168,14 @@ def _floor_machine(t: FloatArray, a: FloatArray, fast: FloatArray, height: float
                 pending = -1.0
         level[i] = lv
         floor[i] = fl
-    return level, floor, steps
+    return level, floor
+
+
+def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    start = np.searchsorted(t, t - window_s, side="left")
+    n = np.arange(1, len(t) + 1) - start
+    return np.asarray((c[1:] - c[start]) / n)
 
 
 def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None
@@ -168,10 +196,10 @@ def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorPara
     if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(pa)) or np.any(pa <= 0):
         raise InputError("times not increasing or pressures not positive",
                          where="baro_floors", expected="increasing times, pressures in Pa > 0")
-    a = relative_altitude(t, pa, smooth_s=p.smooth_s)
     fast = relative_altitude(t, pa, smooth_s=p.step_smooth_s)
-    level, floor, steps = _floor_machine(t, a, fast, p.floor_height_m, p.hold_s,
-                                         p.change_fraction, p.freeze_fraction, p.drift_tau_s,
-                                         p.max_climb_m_s, p.smooth_s)
+    steady, steps = _remove_pressure_steps(t, fast, p.max_climb_m_s)
+    a = _causal_mean(t, steady, p.smooth_s - p.step_smooth_s)
+    level, floor = _floor_machine(t, a, p.floor_height_m, p.hold_s, p.change_fraction,
+                                  p.freeze_fraction, p.drift_tau_s)
     z = floor * p.floor_height_m + (a - level)
     return BaroFloors(t, a, level, floor, z, steps)

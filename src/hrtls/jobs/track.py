@@ -187,10 +187,11 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                                          encoding="utf-8")
     written.append(out_dir / "report.json")
     if plot:
-        from hrtls.evaluate.plots import plot_trajectory
+        from hrtls.evaluate.floor_plots import plot_track_by_floor
 
-        written.append(plot_trajectory(
+        written.append(plot_track_by_floor(
             out_dir / "track.png", result.trajectory, session.truth,
+            floor_height_m=session.meta.floor_height_m,
             checkpoints=session.checkpoints, landmarks=_positioned(session),
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
             title=f"hrtls track ({result.report['config']['name']})", ellipses=25))
