@@ -29,6 +29,7 @@ _COMMANDS: dict[str, tuple[str, str, str]] = {
     "wsn": ("hrtls.cli.wsn", "app", "group"),
     "bench": ("hrtls.cli.bench", "app", "group"),
     "config": ("hrtls.cli.config", "app", "group"),
+    "serve": ("hrtls.cli.serve", "serve", "command"),
 }
 """Commands in their own modules: name -> (module, attribute, command or group of commands).
 
@@ -50,6 +51,8 @@ SUMMARIES: dict[str, str] = {
     "wsn": "Sensor-network self-localization with mobile agents (Inderst Ch. 5-6).",
     "bench": "Benchmarks against the papers' published figures.",
     "config": "Tracker configurations.",
+    "serve": "Run the supervisor: live tracking of the team, REST + WebSocket API and "
+             "dashboard.",
 }
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 
