@@ -1,0 +1,135 @@
+"""Browser fixtures: Playwright driving Debian's chromium, with the internet blocked.
+
+Every page runs with requests to anything but loopback aborted and recorded, so each test also
+checks that the dashboard works offline. Screenshots go to ``build/web-artifacts`` (or
+``$HRTLS_ARTIFACTS``).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from functools import partial
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import pytest
+
+from hrtls.web import asset_root
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+LOOPBACK = {"127.0.0.1", "localhost", "[::1]", "::1"}
+
+
+def chromium_executable() -> str | None:
+    """Path of the system chromium ($HRTLS_CHROMIUM overrides), or None."""
+    env = os.environ.get("HRTLS_CHROMIUM")
+    if env:
+        return env
+    for name in ("chromium", "chromium-browser"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+def artifacts_dir() -> Path:
+    path = Path(os.environ.get("HRTLS_ARTIFACTS", REPO_ROOT / "build" / "web-artifacts"))
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+@pytest.fixture(scope="session")
+def browser():
+    executable = chromium_executable()
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        if os.environ.get("CI"):
+            raise
+        pytest.skip("playwright is not installed (pip install -e '.[test]')")
+    if executable is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is missing: .ci/run installs it with apt-get")
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=executable,
+                              args=["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"])
+        yield b
+        b.close()
+
+
+@dataclass
+class PageLog:
+    """What a page did besides rendering: blocked external requests, errors, failed loads."""
+
+    external: list[str] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+    def assert_clean(self) -> None:
+        assert not self.external, f"the page tried to reach the internet: {self.external}"
+        assert not self.errors, f"JavaScript errors: {self.errors}"
+        assert not self.failed, f"failed loads: {self.failed}"
+
+
+@pytest.fixture
+def page_log() -> PageLog:
+    return PageLog()
+
+
+@pytest.fixture
+def page(browser, page_log: PageLog):
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+
+    def route(r):
+        host = urlsplit(r.request.url).hostname or ""
+        if r.request.url.startswith(("http://", "https://", "ws://", "wss://")) and \
+                host not in LOOPBACK:
+            page_log.external.append(r.request.url)
+            r.abort()
+        else:
+            r.continue_()
+
+    context.route("**/*", route)
+    pg = context.new_page()
+    pg.on("pageerror", lambda exc: page_log.errors.append(str(exc)))
+    pg.on("console", lambda m: page_log.errors.append(m.text) if m.type == "error"
+          and "401" not in m.text and "403" not in m.text else None)
+    pg.on("requestfailed", lambda r: page_log.failed.append(f"{r.url} {r.failure}")
+          if urlsplit(r.url).hostname in LOOPBACK and "/ws" not in r.url else None)
+    yield pg
+    context.close()
+
+
+@pytest.fixture
+def screenshot():
+    """Save a screenshot of a page as a test artifact: ``screenshot(page, name)`` -> path."""
+
+    def save(pg, name: str) -> Path:
+        path = artifacts_dir() / f"{name}.png"
+        pg.screenshot(path=str(path))
+        return path
+
+    return save
+
+
+class _QuietHandler(SimpleHTTPRequestHandler):
+    def log_message(self, format: str, *args: object) -> None:
+        pass
+
+
+@pytest.fixture(scope="session")
+def static_server() -> Iterator[str]:
+    """The packaged assets alone, over loopback (no API behind them)."""
+    handler = partial(_QuietHandler, directory=str(asset_root()))
+    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
