@@ -20,14 +20,10 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from functools import partial
-from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-
-from hrtls.web import asset_root
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOOPBACK = {"127.0.0.1", "localhost", "[::1]", "::1"}
@@ -106,10 +102,13 @@ def page(browser, page_log: PageLog):
     context.route("**/*", route)
     pg = context.new_page()
     pg.on("pageerror", lambda exc: page_log.errors.append(str(exc)))
+    # HTTP refusals show as console errors too; the tests check statuses themselves
     pg.on("console", lambda m: page_log.errors.append(m.text) if m.type == "error"
-          and "401" not in m.text and "403" not in m.text else None)
+          and not m.text.startswith("Failed to load resource: the server responded") else None)
+    # ERR_ABORTED: a request cut short by a navigation (reload, sign-out), not a failed load
     pg.on("requestfailed", lambda r: page_log.failed.append(f"{r.url} {r.failure}")
-          if urlsplit(r.url).hostname in LOOPBACK and "/ws" not in r.url else None)
+          if urlsplit(r.url).hostname in LOOPBACK and "ERR_ABORTED" not in (r.failure or "")
+          else None)
     yield pg
     context.close()
 
@@ -124,23 +123,6 @@ def screenshot():
         return path
 
     return save
-
-
-class _QuietHandler(SimpleHTTPRequestHandler):
-    def log_message(self, format: str, *args: object) -> None:
-        pass
-
-
-@pytest.fixture(scope="session")
-def static_server() -> Iterator[str]:
-    """The packaged assets alone, over loopback (no API behind them)."""
-    handler = partial(_QuietHandler, directory=str(asset_root()))
-    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    yield f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
 
 
 @dataclass
