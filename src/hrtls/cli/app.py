@@ -23,6 +23,7 @@ _COMMANDS: dict[str, tuple[str, str, str]] = {
     "ipin": ("hrtls.cli.ipin", "ipin", "command"),
     "simulate": ("hrtls.cli.sim", "simulate", "command"),
     "evaluate": ("hrtls.cli.sim", "evaluate", "command"),
+    "export": ("hrtls.cli.export", "export", "command"),
     "attitude": ("hrtls.cli.attitude", "attitude", "command"),
     "calibrate": ("hrtls.cli.attitude", "calibrate_app", "group"),
     "activity": ("hrtls.cli.gait", "activity_app", "group"),
@@ -45,6 +46,7 @@ SUMMARIES: dict[str, str] = {
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",
     "evaluate": "Score a result folder against ground truth; write evaluation.json and plots "
                 "beside it.",
+    "export": "Export a result as GPX, OGC Moving Features JSON, GeoJSON or CSV.",
     "attitude": "Estimate the orientation (ENU) and write t,qw,qx,qy,qz,roll,pitch,yaw.",
     "calibrate": "Sensor calibration files.",
     "activity": "Activity recognition models.",

@@ -15,7 +15,7 @@ from hrtls.data import ImuStream, Session
 from hrtls.data.clocks import ClockStream, check_clocks
 from hrtls.errors import InputError, RepairWarning
 from hrtls.evaluate.report import EvaluationInputs, build_report
-from hrtls.io.geojson import write_geojson
+from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
@@ -23,8 +23,10 @@ from hrtls.pipeline.barometric import apply_baro_floors, with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
+LOCAL_GEOJSON = "trajectory.local.json"
+"""The track of a recording without a georeference (local metres, not RFC 7946)."""
 OUTPUT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parquet",
-                "trajectory.geojson", "report.json")
+                "trajectory.geojson", LOCAL_GEOJSON, "report.json")
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +93,10 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     meta = stream.meta if stream is not None else session.meta if session is not None else None
     input_report = _input_report(fmt, caught, [] if meta is None else meta.notes)
     input_report["path"] = str(path)
+    if meta is not None:
+        input_report["time_origin_unix_s"] = meta.time_origin_unix_s
+        input_report["georeference"] = (None if meta.georeference is None
+                                        else meta.georeference.model_dump())
     t_imu = stream.imu_t if stream is not None else (
         None if session is None or session.imu is None else session.imu.accel.t)
     if t_imu is not None and len(t_imu):
@@ -165,7 +171,11 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                         overwrite: bool = False, plot: bool = False,
                         evaluation: dict[str, Any] | None = None,
                         table_format: TableFormat = "csv") -> list[Path]:
-    """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png)."""
+    """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png).
+
+    The GeoJSON is ``trajectory.geojson`` (RFC 7946, WGS-84) when the recording has a
+    georeference, else :data:`LOCAL_GEOJSON` (local metres, a type map tools refuse).
+    """
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     check_output_dir(out_dir, overwrite=overwrite)
@@ -176,9 +186,13 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                          georeference=geo),
         write_steps(result.steps, out_dir / f"steps.{table_format}"),
         write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                      landmarks=session.resolved_landmarks() if geo else session.landmarks,
-                      georeference=geo, time_origin_unix_s=session.meta.time_origin_unix_s,
-                      overwrite=True),
+                      landmarks=session.resolved_landmarks(), georeference=geo,
+                      time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
+        if geo is not None else
+        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                            landmarks=session.landmarks,
+                            time_origin_unix_s=session.meta.time_origin_unix_s,
+                            overwrite=True),
     ]
     report = dict(result.report)
     if evaluation is not None:
