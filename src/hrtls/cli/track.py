@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from hrtls.cli.errors import reports_errors
+from hrtls.jobs.warmup import mark_compiled
 
 console = Console(highlight=False)
 
@@ -112,6 +113,7 @@ def track(
     if evaluation is not None:
         console.print(report_table(evaluation))
     console.print(f"wrote {output}")
+    mark_compiled()
 
 
 @reports_errors
@@ -135,5 +137,6 @@ def demo(
                       _fmt(row.checkpoint_mean_m, ""), _fmt(row.checkpoint_max_m, ""),
                       _fmt(row.error_p90_m, ""), f"{row.seconds:.2f}")
     Console(highlight=False, width=max(console.width, 120)).print(table)
-    console.print(f"sessions, results (trajectory.csv, steps.csv, trajectory.geojson, "
+    console.print(f"sessions, results (trajectory.csv, steps.csv, trajectory GeoJSON, "
                   f"report.json) and plots (track.png) are in {output}/")
+    mark_compiled()
