@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -12,7 +14,39 @@ from rich.table import Table
 from hrtls.cli.errors import reports_errors
 from hrtls.jobs.warmup import mark_compiled
 
+if TYPE_CHECKING:
+    from hrtls.jobs.track import Progress
+
 console = Console(highlight=False)
+
+
+@contextlib.contextmanager
+def progress_bars(show: bool | None) -> Iterator[Progress | None]:
+    """A rich progress bar with ETA fed by :data:`hrtls.jobs.track.Progress` calls.
+
+    ``show`` None: only when the console is a terminal. Reading has no total (a pulsing bar).
+    """
+    if not (console.is_terminal if show is None else show):
+        yield None
+        return
+    from rich.progress import (
+        BarColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.progress import Progress as Bars
+
+    with Bars(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+              TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console,
+              transient=True) as bars:
+        task = bars.add_task("starting", total=None)
+
+        def update(what: str, done: float, total: float | None) -> None:
+            bars.update(task, description=what, completed=done, total=total)
+
+        yield update
 
 
 def _fmt(value: float | None, unit: str = " m") -> str:
@@ -47,6 +81,9 @@ def track(
         "--format", "-f", help="Input format (default: detected). See `hrtls formats`.")] = None,
     trial: Annotated[str | None, typer.Option(
         "--trial", help="Trial of a multi-trial recording (mobgap: e.g. Test5/Trial1).")] = None,
+    show_progress: Annotated[bool | None, typer.Option(
+        "--progress/--no-progress", help="Progress bars (default: only on a terminal).")]
+    = None,
 ) -> None:
     """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
 
@@ -90,9 +127,9 @@ def track(
                          expected="a recording (session folder, zip, logfile, ...)")
     check_output_dir(output, overwrite=overwrite)
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
-    with console.status(f"tracking {session} with {cfg.name}"):
+    with progress_bars(show_progress) as progress:
         run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
-                              trial=trial)
+                              trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,

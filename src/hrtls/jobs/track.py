@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,9 +66,16 @@ def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
                          expected="an empty or new folder (or --overwrite)")
 
 
+Progress = Callable[[str, float, float | None], None]
+"""``(what, done, total)``: called while reading (total None) and tracking (IMU rows or s)."""
+PROGRESS_CHUNK_S = 60.0
+"""Window fed to the tracker at a time when progress is reported (whole-session formats)."""
+
+
 def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
                     beacons: Path | None = None, chunk_rows: int = DEFAULT_CHUNK_ROWS,
-                    fmt: str | None = None, trial: str | None = None) -> TrackRun:
+                    fmt: str | None = None, trial: str | None = None,
+                    progress: Progress | None = None) -> TrackRun:
     """Track a recording; a session folder or zip is streamed in chunks when it can be.
 
     Streaming (bounded memory) feeds ``chunk_rows`` IMU rows at a time to
@@ -76,11 +84,18 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     ``trial`` are passed to :func:`hrtls.recordings.read_any`. ``result.report["input"]``
     lists the format, every repair warned while reading and the reader's notes (unit
     conversions, clock offsets).
+
+    ``progress`` is told what is being done: reading (no total), then tracking (IMU rows of a
+    stream, or seconds of a whole session, which is then fed in windows of
+    :data:`PROGRESS_CHUNK_S` as the live service would; the result equals the one-call run to
+    rounding).
     """
     from hrtls.recordings import detect_format, read_any, reader_options
 
     fmt = fmt or detect_format(path)
     options = reader_options(fmt, trial=trial)
+    if progress:
+        progress(f"reading {path.name} ({fmt})", 0.0, None)
     stream = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -103,15 +118,20 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
         input_report["imu"] = imu_fingerprint(t_imu)
     if stream is not None:
         try:
-            return _with_input(_track_stream(stream, config), input_report)
+            return _with_input(_track_stream(stream, config, progress), input_report, config)
         except NotStreamable:
             session = read_any(path, fmt=fmt, repair=repair, beacons=beacons, **options)
     assert session is not None
     start = time.perf_counter()
-    result = with_baro_floors(Tracker(config).run(session), session, config)
+    tracker = Tracker(config)
+    if progress is None or config.offline.two_pass:
+        raw = tracker.run(session)
+    else:
+        raw = _run_in_windows(tracker, session, progress)
+    result = with_baro_floors(raw, session, config)
     n = 0 if session.imu is None else len(session.imu.accel)
     run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
-    return _with_input(run, input_report)
+    return _with_input(run, input_report, config)
 
 
 def imu_fingerprint(t: np.ndarray) -> dict[str, float | int]:
@@ -131,12 +151,39 @@ def _input_report(fmt: str, caught: list[warnings.WarningMessage], notes: list[s
     return {"format": fmt, "repairs": repairs, "notes": list(notes)}
 
 
-def _with_input(run: TrackRun, input_report: dict[str, Any]) -> TrackRun:
-    run.result.report["input"] = input_report
+HANDHELD_FORMATS = frozenset({"ipin"})
+"""Formats recorded with a phone held in the hand (IPIN: in front of the face or chest)."""
+
+
+def _with_input(run: TrackRun, input_report: dict[str, Any], config: TrackerConfig
+                ) -> TrackRun:
+    report = run.result.report
+    report["input"] = input_report
+    placement = (run.session.meta.placement or "").lower()
+    handheld = input_report["format"] in HANDHELD_FORMATS or placement in ("hand", "handheld")
+    if handheld and config.attitude.mounting != "handheld":
+        note = (f"this is a hand-held phone recording ({input_report['format']}) but the "
+                f"configuration {config.name!r} expects a body-worn device: use --preset "
+                "handheld-phone (or [attitude] mounting = \"handheld\")")
+        report.setdefault("notes", []).append(note)
     return run
 
 
-def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
+def _run_in_windows(tracker: Tracker, session: Session, progress: Progress) -> TrackResult:
+    from hrtls.pipeline.chunks import split_session
+
+    t0, t1 = session.time_span()
+    tracker.start_session(session)
+    for part in split_session(session, PROGRESS_CHUNK_S):
+        tracker.update(part)
+        done = min(t1, part.time_span()[1]) - t0
+        progress("tracking", done, t1 - t0)
+    progress("tracking", t1 - t0, t1 - t0)
+    return tracker.finish()
+
+
+def _track_stream(stream: SessionStream, config: TrackerConfig,
+                  progress: Progress | None = None) -> TrackRun:
     tracker = Tracker(config, keep_attitude=False)
     if streams(config):
         tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
@@ -149,11 +196,15 @@ def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
         tracker.start_session(stream.session(stream.start_imu()))
     first: ImuStream | None = None
     seconds = 0.0
+    rows = 0
     for chunk in stream.chunks():
         first = first or chunk.imu
         start = time.perf_counter()
         tracker.update(chunk)
         seconds += time.perf_counter() - start
+        rows += 0 if chunk.imu is None else len(chunk.imu.accel)
+        if progress:
+            progress("reading and tracking", rows, stream.n_rows)
     start = time.perf_counter()
     result = tracker.finish()
     result = apply_baro_floors(result, stream.parts.get("pressure"),
