@@ -47,11 +47,12 @@ from hrtls.data import (
 from hrtls.errors import InputError
 from hrtls.evaluate.metrics import ErrorStats, error_stats
 from hrtls.frames import quat_multiply
+from hrtls.fusion.rss_scans import average_rss_per_anchor
 from hrtls.gait.step_length import WeinbergModel
 from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
-from hrtls.pipeline.tracker import Tracker, TrackResult, average_rss_per_anchor
+from hrtls.pipeline.tracker import Tracker, TrackResult
 
 FloatArray = NDArray[np.float64]
 
