@@ -112,6 +112,7 @@ def track(
     from hrtls.jobs.track import (
         check_output_dir,
         evaluate_track,
+        reference_steps,
         track_recording,
         write_track_outputs,
     )
@@ -132,6 +133,9 @@ def track(
                               trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
+    reference = reference_steps(result, data)
+    if reference is not None:
+        result.report["reference_steps"] = reference
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
                         evaluation=evaluation, table_format="parquet"
                         if format_out == "parquet" else "csv")
@@ -140,6 +144,13 @@ def track(
                   f"{summary['distance_walked_m']:.1f} m walked, "
                   f"{n:,} IMU samples in {seconds:.2f} s"
                   f"{f' ({n / seconds:,.0f} samples/s)' if n and seconds > 0 else ''}")
+    if reference is not None:
+        inside = reference.get("ours_in_reference_bouts")
+        error = reference["error_fraction"]
+        bouts = "" if inside is None else f", {inside} inside the reference walking bouts"
+        off = "" if error is None else f", {100 * error:+.1f} %"
+        console.print(f"steps: {reference['ours']} ours{bouts}; reference "
+                      f"{reference['reference']} ({reference['source']}){off}")
     counts = result.report["corrections"]
     if counts:
         console.print("corrections: " + "; ".join(

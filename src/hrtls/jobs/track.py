@@ -277,3 +277,28 @@ def evaluate_track(result: TrackResult, session: Session,
     return build_report(EvaluationInputs(estimate=result.trajectory, estimated_steps=result.steps,
                                          truth=session.truth, checkpoints=session.checkpoints,
                                          reference=reference or {}))
+
+
+def reference_steps(result: TrackResult, session: Session) -> dict[str, Any] | None:
+    """Our step count beside the recording's reference (mobgap, Oxford), or None.
+
+    With reference walking bouts (``intervals_s``) our steps ending inside them (with 0.5 s
+    of margin) are counted too, since the reference counts only those.
+    """
+    ref = session.meta.source.get("reference_steps")
+    if not isinstance(ref, dict) or "count" not in ref:
+        return None
+    ours = len(result.steps)
+    out: dict[str, Any] = {"reference": int(ref["count"]), "source": str(ref.get("source", "")),
+                           "ours": ours}
+    intervals = ref.get("intervals_s")
+    if intervals:
+        ends = result.steps.t_end
+        inside = np.zeros(len(ends), dtype=bool)
+        for start, end in intervals:
+            inside |= (ends >= float(start) - 0.5) & (ends <= float(end) + 0.5)
+        out["ours_in_reference_bouts"] = int(np.count_nonzero(inside))
+    counted = out.get("ours_in_reference_bouts", ours)
+    out["error_fraction"] = (counted - out["reference"]) / out["reference"] \
+        if out["reference"] else None
+    return out
