@@ -120,3 +120,15 @@ def test_export_refuses_what_the_result_cannot_give_and_writes_the_rest(tmp_path
     assert (tmp_path / "t.csv").read_text() == (out / "trajectory.csv").read_text()
     bad = runner.invoke(app, ["export", str(out), "--to", "kml"])
     assert bad.exit_code == 2 and "gpx | mf-json | geojson | csv" in bad.output
+
+
+def test_convert_checks_its_output_before_reading(tmp_path: Path) -> None:
+    session = _session(tmp_path)
+    target = tmp_path / "taken"
+    target.write_text("x")
+    res = runner.invoke(app, ["convert", str(session), "-o", str(target)])
+    assert res.exit_code == 2 and "exists and is not a folder" in res.output
+    ok = runner.invoke(app, ["convert", str(session), "-o", str(tmp_path / "copy")])
+    assert ok.exit_code == 0, ok.output
+    again = runner.invoke(app, ["convert", str(session), "-o", str(tmp_path / "copy")])
+    assert again.exit_code == 2 and "--overwrite" in again.output

@@ -230,9 +230,19 @@ def convert(
     """Convert a recording into a session folder (SI units, ENU, checked)."""
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from hrtls.io.session import write_session
+    from hrtls.io.session import SESSION_FILES, write_session
     from hrtls.recordings import detect_format
 
+    if output.suffix.lower() == ".zip":
+        if output.exists() and not overwrite:
+            raise InputError("already exists", where=str(output), expected="a new path (or "
+                             "--overwrite)")
+    elif output.exists() and not output.is_dir():
+        raise InputError("exists and is not a folder", where=str(output),
+                         expected="a folder path or a .zip")
+    elif output.is_dir() and not overwrite and any((output / n).exists() for n in SESSION_FILES):
+        raise InputError("already holds a session", where=str(output),
+                         expected="a new or empty folder (or --overwrite)")
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:

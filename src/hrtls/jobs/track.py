@@ -20,9 +20,11 @@ from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
-from hrtls.pipeline.barometric import apply_baro_floors, with_baro_floors
+from hrtls.pipeline.barometric import apply_baro_floors
 from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.tracker import Tracker, TrackResult
+from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
 LOCAL_GEOJSON = "trajectory.local.json"
 """The track of a recording without a georeference (local metres, not RFC 7946)."""
@@ -128,7 +130,7 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
         raw = tracker.run(session)
     else:
         raw = _run_in_windows(tracker, session, progress)
-    result = with_baro_floors(raw, session, config)
+    result = finish_track(raw, session, config)
     n = 0 if session.imu is None else len(session.imu.accel)
     run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
     return _with_input(run, input_report, config)
@@ -215,6 +217,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     assert first is not None
     # the ground truth is read only now, for the evaluation: it is not held while tracking
     session = stream.session(first).with_parts(truth=stream.truth())
+    result = widen_unobservable_heading(result, session)
     return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
 
 
@@ -259,7 +262,9 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
             floor_height_m=session.meta.floor_height_m,
             checkpoints=session.checkpoints, landmarks=_positioned(session),
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
-            title=f"hrtls track ({result.report['config']['name']})", ellipses=25))
+            title=f"hrtls track ({result.report['config']['name']})"
+            + ("" if result.report.get("heading", {}).get("observable", True)
+               else ", heading unobservable: shape only"), ellipses=25))
     return written
 
 

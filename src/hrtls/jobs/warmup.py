@@ -74,8 +74,8 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
     import warnings
 
     from hrtls.pipeline import Tracker, preset
-    from hrtls.pipeline.barometric import with_baro_floors
     from hrtls.pipeline.config import PRESETS
+    from hrtls.pipeline.finish import finish_track
     from hrtls.sim.scenarios import run_scenario
 
     start = time.perf_counter()
@@ -88,6 +88,6 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
             if progress:
                 progress(f"compiling for preset {name}")
             cfg = preset(name)
-            with_baro_floors(Tracker(cfg).run(session), session, cfg)
+            finish_track(Tracker(cfg).run(session), session, cfg)
     mark_compiled()
     return time.perf_counter() - start
