@@ -73,17 +73,18 @@ def test_step_length_kinds(tmp_path: Path, kind: str) -> None:
 def test_pendulum_step_model_from_profile(office: SimulationResult) -> None:
     from hrtls.gait.step_length_pendulum import PendulumModel
     from hrtls.pipeline import Tracker
+    from hrtls.pipeline.build import step_model
 
     s = office.session
     cfg = preset("default").model_copy(update={
         "gait": preset("default").gait.model_copy(update={"step_length": "pendulum"})})
     meta = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
         "step_model": {"kind": "pendulum", "k": 1.1, "leg_length_m": 0.9}})})
-    model = Tracker(cfg)._step_model(meta)
+    model, _ = step_model(cfg.gait, meta)
     assert isinstance(model, PendulumModel) and model.k == 1.1 and model.leg_length_m == 0.9
     plain = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
         "step_model": {"kind": "weinberg", "k": 0.5}})})
-    assert Tracker(cfg)._step_model(plain) == PendulumModel()
+    assert step_model(cfg.gait, plain)[0] == PendulumModel()
     res = Tracker(cfg).run(s.with_parts(meta=meta, fixes=None, rss=None, tags=None,
                                         ranges=None))
     assert len(res.steps) > 50 and np.all(np.isfinite(res.steps.length_m))

@@ -165,10 +165,10 @@ def test_cli_simulate_and_evaluate(tmp_path):
     write_steps(read_steps(out / "truth_steps.csv"), result / "steps.csv")
     res = runner.invoke(_app(), ["evaluate", str(result), "--truth", str(out)])
     assert res.exit_code == 0, res.output
-    report = json.loads((result / "report.json").read_text())
+    report = json.loads((result / "evaluation.json").read_text())
     assert report["position"]["max"] < 1e-6
     assert report["steps"]["count_error"] == 0
-    for png in ("trajectory.png", "error.png", "cdf.png"):
+    for png in ("evaluation_trajectory.png", "evaluation_error.png", "evaluation_cdf.png"):
         assert (result / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     res = runner.invoke(_app(), ["simulate", "nope", "-o", str(tmp_path / "x")])
     assert res.exit_code == 2

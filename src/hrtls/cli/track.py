@@ -42,6 +42,10 @@ def track(
     = None,
     format_out: Annotated[str, typer.Option(
         "--format-out", help="Trajectory and steps tables as csv | parquet.")] = "csv",
+    fmt: Annotated[str | None, typer.Option(
+        "--format", "-f", help="Input format (default: detected). See `hrtls formats`.")] = None,
+    trial: Annotated[str | None, typer.Option(
+        "--trial", help="Trial of a multi-trial recording (mobgap: e.g. Test5/Trial1).")] = None,
 ) -> None:
     """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
 
@@ -67,7 +71,12 @@ def track(
                           expected="a folder of recordings or a glob (one recording: no engine)")
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
-    from hrtls.jobs.track import evaluate_track, track_recording, write_track_outputs
+    from hrtls.jobs.track import (
+        check_output_dir,
+        evaluate_track,
+        track_recording,
+        write_track_outputs,
+    )
     from hrtls.pipeline import load_config, preset
 
     if config is not None and preset_name is not None:
@@ -78,9 +87,11 @@ def track(
     if not session.exists():
         raise InputError("no such file or folder", where=str(session),
                          expected="a recording (session folder, zip, logfile, ...)")
+    check_output_dir(output, overwrite=overwrite)
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
     with console.status(f"tracking {session} with {cfg.name}"):
-        run = track_recording(session, cfg, repair=repair, beacons=beacons)
+        run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
+                              trial=trial)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,

@@ -4,17 +4,22 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hrtls.data import ImuStream, Session
-from hrtls.errors import InputError
+from hrtls.data.clocks import ClockStream, check_clocks
+from hrtls.errors import InputError, RepairWarning
 from hrtls.evaluate.report import EvaluationInputs, build_report
 from hrtls.io.geojson import write_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
+from hrtls.pipeline.barometric import apply_baro_floors, with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
@@ -47,30 +52,82 @@ def streams(config: TrackerConfig) -> bool:
     return config.attitude.mounting != "handheld" and config.attitude.mag_hard_iron != "fit"
 
 
+def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
+    """Refuse, before any work, an output that is a file or a folder holding results."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError("is a file", where=str(out_dir),
+                         expected="a folder for the results (a new or an empty one)")
+    existing = [n for n in OUTPUT_FILES if (out_dir / n).exists()]
+    if existing and not overwrite:
+        raise InputError(f"already holds results ({', '.join(existing)})", where=str(out_dir),
+                         expected="an empty or new folder (or --overwrite)")
+
+
 def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
-                    beacons: Path | None = None, chunk_rows: int = DEFAULT_CHUNK_ROWS
-                    ) -> TrackRun:
+                    beacons: Path | None = None, chunk_rows: int = DEFAULT_CHUNK_ROWS,
+                    fmt: str | None = None, trial: str | None = None) -> TrackRun:
     """Track a recording; a session folder or zip is streamed in chunks when it can be.
 
     Streaming (bounded memory) feeds ``chunk_rows`` IMU rows at a time to
     :meth:`Tracker.update`, which gives the result of :meth:`Tracker.run` on the whole session.
-    Other formats and ``repair`` read the whole recording.
+    Other formats and ``repair`` read the whole recording. ``fmt`` (detected when None) and
+    ``trial`` are passed to :func:`hrtls.recordings.read_any`. ``result.report["input"]``
+    lists the format, every repair warned while reading and the reader's notes (unit
+    conversions, clock offsets).
     """
-    from hrtls.recordings import detect_format, read_any
+    from hrtls.recordings import detect_format, read_any, reader_options
 
+    fmt = fmt or detect_format(path)
+    options = reader_options(fmt, trial=trial)
     stream = None
-    if not repair and beacons is None and detect_format(path) == "hrtls-session":
-        stream = open_stream(path, chunk_rows=chunk_rows)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if not repair and beacons is None and fmt == "hrtls-session":
+            stream = open_stream(path, chunk_rows=chunk_rows)
+            if stream is not None:
+                check_clocks([ClockStream(*s) for s in stream.sensor_times()])
+        session = None if stream is not None else read_any(path, fmt=fmt, repair=repair,
+                                                           beacons=beacons, **options)
+    meta = stream.meta if stream is not None else session.meta if session is not None else None
+    input_report = _input_report(fmt, caught, [] if meta is None else meta.notes)
+    input_report["path"] = str(path)
+    t_imu = stream.imu_t if stream is not None else (
+        None if session is None or session.imu is None else session.imu.accel.t)
+    if t_imu is not None and len(t_imu):
+        input_report["imu"] = imu_fingerprint(t_imu)
     if stream is not None:
         try:
-            return _track_stream(stream, config)
+            return _with_input(_track_stream(stream, config), input_report)
         except NotStreamable:
-            pass  # the careful reader accepts what the chunked reader refused
-    session = read_any(path, repair=repair, beacons=beacons)
+            session = read_any(path, fmt=fmt, repair=repair, beacons=beacons, **options)
+    assert session is not None
     start = time.perf_counter()
-    result = Tracker(config).run(session)
+    result = with_baro_floors(Tracker(config).run(session), session, config)
     n = 0 if session.imu is None else len(session.imu.accel)
-    return TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+    run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+    return _with_input(run, input_report)
+
+
+def imu_fingerprint(t: np.ndarray) -> dict[str, float | int]:
+    """What identifies a recording's IMU stream: samples and first/last time (s)."""
+    return {"samples": len(t), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
+
+
+def _input_report(fmt: str, caught: list[warnings.WarningMessage], notes: list[str]
+                  ) -> dict[str, Any]:
+    """What reading did: format, repairs (warned again here) and the reader's notes."""
+    repairs: list[str] = []
+    for w in caught:
+        text = str(w.message)
+        if issubclass(w.category, RepairWarning) and text not in repairs:
+            repairs.append(text)
+        warnings.warn(w.message, w.category, stacklevel=3)
+    return {"format": fmt, "repairs": repairs, "notes": list(notes)}
+
+
+def _with_input(run: TrackRun, input_report: dict[str, Any]) -> TrackRun:
+    run.result.report["input"] = input_report
+    return run
 
 
 def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
@@ -93,6 +150,9 @@ def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
         seconds += time.perf_counter() - start
     start = time.perf_counter()
     result = tracker.finish()
+    result = apply_baro_floors(result, stream.parts.get("pressure"),
+                               floor_height_m=stream.meta.floor_height_m,
+                               enabled=config.barometer)
     seconds += time.perf_counter() - start
     del tracker
     assert first is not None
@@ -108,11 +168,8 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
     """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png)."""
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
+    check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
-    existing = [n for n in OUTPUT_FILES if (out_dir / n).exists()]
-    if existing and not overwrite:
-        raise InputError(f"already holds results ({', '.join(existing)})", where=str(out_dir),
-                         expected="an empty or new folder (or --overwrite)")
     geo = session.georeference
     written = [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
@@ -130,10 +187,11 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                                          encoding="utf-8")
     written.append(out_dir / "report.json")
     if plot:
-        from hrtls.evaluate.plots import plot_trajectory
+        from hrtls.evaluate.floor_plots import plot_track_by_floor
 
-        written.append(plot_trajectory(
+        written.append(plot_track_by_floor(
             out_dir / "track.png", result.trajectory, session.truth,
+            floor_height_m=session.meta.floor_height_m,
             checkpoints=session.checkpoints, landmarks=_positioned(session),
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
             title=f"hrtls track ({result.report['config']['name']})", ellipses=25))

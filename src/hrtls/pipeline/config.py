@@ -179,6 +179,8 @@ class TrackerConfig(_Section):
     offline: OfflineConfig = OfflineConfig()
     gate_probability: float = Field(default=0.997, gt=0.5, lt=1.0)
     floor_snap: bool = True
+    barometer: bool = Field(default=True, description="heights and floors from the "
+                            "recording's barometer when it has one (hrtls.pipeline.barometric)")
 
 
 PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range",

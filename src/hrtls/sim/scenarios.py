@@ -38,6 +38,7 @@ from hrtls.data import (
 from hrtls.data.session import StartPose, UserProfile
 from hrtls.errors import InputError
 from hrtls.frames import quat_from_rotation, quat_from_rotvec, quat_multiply
+from hrtls.sim.barometer import with_barometer
 from hrtls.sim.devices import DeviceModel, get_device
 from hrtls.sim.gait_model import GaitParams, fill_step_extremes, simulate_gait
 from hrtls.sim.imu_model import BodyKinematics, SimulatedImu, body_kinematics, simulate_imu
@@ -322,7 +323,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
                       "readings_per_period": 5},
     "tarrio_office": {"user": 1, "readings_per_period": 5},
     "inderst_ring": {"tags": "all", "distance_m": 500.0, "speed_m_s": 0.9},
-    "inderst_multifloor": {"speed_m_s": 1.1, "pressure": False},
+    "inderst_multifloor": {"speed_m_s": 1.1, "pressure": True},
     "inderst_two_users": {"user": "A", "tags": True},
     "inderst_wsn_random": {"n_nodes": 50, "radius": 0.2, "n_anchors": 4,
                            "distance_sigma": 0.005},
@@ -624,16 +625,18 @@ def inderst_multifloor(seed: int, **options: Any) -> SimulationResult:
     ref = {"paper": "Inderst thesis Sec. 6.3.1, Table 6.8", "path_length_m": 280.0,
            "pdr_errors_m": [0, 7, 8.5, 10, 10, 22, 26, 22, 24],
            "activity_accuracy": 0.832}
-    return simulate_person(
+    result = simulate_person(
         "inderst_multifloor", seed, o, wps, device=get_device("mpu9150_motionfit"),
         motion_params=mp, magnetic=MagneticEnvironment(anomalies=anomalies),
-        with_pressure=bool(o["pressure"]), infra=Infrastructure(checkpoints=cps),
+        infra=Infrastructure(checkpoints=cps),
         floor_height_m=fh, reference=ref,
         description="Inderst Sec. 6.3.1: flat walk with three circles, two flights up, a loop "
                     "on the first floor, two flights down and back to the start (~270 m)",
         notes=["reading: 'going upstairs and upstairs' taken as up, then down again, since the "
                "last phase is flat back to the start", "stairs: 0.30 m treads, 0.165 m risers, "
                "two flights of 10 per floor"], rngs=r)
+    # a barometer with noise, weather drift and door/ventilation steps (its own random stream)
+    return with_barometer(result) if o["pressure"] else result
 
 
 def inderst_two_users(seed: int, **options: Any) -> SimulationResult:
