@@ -7,19 +7,23 @@ checks that the dashboard works offline. Screenshots go to ``build/web-artifacts
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
+import socket
+import subprocess
+import sys
 import threading
+import time
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from functools import partial
-from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-
-from hrtls.web import asset_root
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOOPBACK = {"127.0.0.1", "localhost", "[::1]", "::1"}
@@ -98,10 +102,13 @@ def page(browser, page_log: PageLog):
     context.route("**/*", route)
     pg = context.new_page()
     pg.on("pageerror", lambda exc: page_log.errors.append(str(exc)))
+    # HTTP refusals show as console errors too; the tests check statuses themselves
     pg.on("console", lambda m: page_log.errors.append(m.text) if m.type == "error"
-          and "401" not in m.text and "403" not in m.text else None)
+          and not m.text.startswith("Failed to load resource: the server responded") else None)
+    # ERR_ABORTED: a request cut short by a navigation (reload, sign-out), not a failed load
     pg.on("requestfailed", lambda r: page_log.failed.append(f"{r.url} {r.failure}")
-          if urlsplit(r.url).hostname in LOOPBACK and "/ws" not in r.url else None)
+          if urlsplit(r.url).hostname in LOOPBACK and "ERR_ABORTED" not in (r.failure or "")
+          else None)
     yield pg
     context.close()
 
@@ -118,18 +125,104 @@ def screenshot():
     return save
 
 
-class _QuietHandler(SimpleHTTPRequestHandler):
-    def log_message(self, format: str, *args: object) -> None:
-        pass
+@dataclass
+class Service:
+    """A real ``hrtls serve`` on loopback with its own SQLite database."""
+
+    url: str
+    token: str
+    db: Path
+    process: subprocess.Popen[str]
+    log: Path
+
+    def api(self, method: str, path: str, body: object | None = None,
+            token: str | None = None) -> tuple[int, object]:
+        """Call the API as a plain HTTP client; returns (status, parsed JSON or None)."""
+        data = None if body is None else json.dumps(body).encode()
+        req = urllib.request.Request(f"{self.url}/api/v1{path}", data=data, method=method)
+        req.add_header("Authorization", f"Bearer {token or self.token}")
+        if data is not None:
+            req.add_header("Content-Type", "application/json")
+        try:
+            with urllib.request.urlopen(req, timeout=30) as resp:
+                raw = resp.read()
+                return resp.status, (json.loads(raw) if raw else None)
+        except urllib.error.HTTPError as err:
+            raw = err.read()
+            return err.code, (json.loads(raw) if raw else None)
 
 
-@pytest.fixture(scope="session")
-def static_server() -> Iterator[str]:
-    """The packaged assets alone, over loopback (no API behind them)."""
-    handler = partial(_QuietHandler, directory=str(asset_root()))
-    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    yield f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def hrtls_command() -> list[str]:
+    """The ``hrtls`` console script of this interpreter's environment."""
+    script = Path(sys.executable).with_name("hrtls")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "hrtls.cli.app"]
+
+
+TOKEN_LINE = re.compile(r"commander token[^:]*:\s*(\S+)")
+
+
+def start_service(folder: Path, *extra: str) -> Service:
+    """Start ``hrtls serve`` on a free loopback port; wait until it answers."""
+    port = _free_port()
+    db = folder / "hrtls.db"
+    log = folder / "serve.log"
+    out = log.open("w")
+    proc = subprocess.Popen([*hrtls_command(), "serve", "--db", str(db), "--host", "127.0.0.1",
+                             "--port", str(port), *extra],
+                            stdout=subprocess.PIPE, stderr=out, text=True)
+    assert proc.stdout is not None
+    token = None
+    deadline = time.monotonic() + 60
+    while token is None and time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        out.write(line)
+        out.flush()
+        match = TOKEN_LINE.search(line)
+        if match:
+            token = match.group(1)
+    if token is None:
+        proc.kill()
+        raise RuntimeError(f"hrtls serve printed no commander token: {log.read_text()}")
+    url = f"http://127.0.0.1:{port}"
+    while time.monotonic() < deadline:
+        try:
+            with urllib.request.urlopen(f"{url}/api/v1/health", timeout=2):
+                break
+        except OSError:
+            time.sleep(0.2)
+    threading.Thread(target=lambda: [out.write(x) for x in proc.stdout or []],
+                     daemon=True).start()
+    return Service(url=url, token=token, db=db, process=proc, log=log)
+
+
+def stop_service(service: Service) -> None:
+    service.process.terminate()
+    try:
+        service.process.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        service.process.kill()
+        service.process.wait()
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory) -> Iterator[Service]:
+    svc = start_service(tmp_path_factory.mktemp("serve"))
+    yield svc
+    stop_service(svc)
+
+
+def login(page, service: Service, token: str | None = None) -> None:
+    """Open the dashboard and sign in with a token (the commander's by default)."""
+    page.goto(service.url + "/")
+    page.wait_for_selector("body[data-ready='1']")
+    page.fill("#login-token", token or service.token)
+    page.click("#login-submit")
+    page.wait_for_selector("#app:not([hidden])")

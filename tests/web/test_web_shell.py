@@ -1,4 +1,4 @@
-"""The page shell on its own: it loads offline and shows nothing but the login form."""
+"""The page shell: it loads offline from the package; its pure geometry module is exact."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from hrtls.web import LEAFLET_VERSION
 
 
-def test_page_loads_offline_and_shows_only_the_login(page, page_log, static_server, screenshot):
-    page.goto(static_server + "/index.html")
+def test_page_loads_offline_and_shows_only_the_login(page, page_log, service, screenshot):
+    page.goto(service.url + "/")
     page.wait_for_selector("body[data-ready='1']")
     assert page.is_visible("#login-form")
     assert page.is_hidden("#app")
@@ -30,8 +30,8 @@ def test_page_loads_offline_and_shows_only_the_login(page, page_log, static_serv
 
 
 @pytest.fixture
-def geometry(page, static_server):
-    page.goto(static_server + "/index.html")
+def geometry(page, service):
+    page.goto(service.url + "/")
     page.wait_for_selector("body[data-ready='1']")
     return page
 

@@ -10,6 +10,7 @@ from typing import Any
 
 from hrtls.jobs.track import evaluate_track, write_track_outputs
 from hrtls.pipeline import Tracker, TrackerConfig, preset
+from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import FixesConfig, RangesConfig, RssConfig, TagsConfig
 from hrtls.sim.scenarios import run_scenario, write_result
 
@@ -62,7 +63,7 @@ def run_demo(out_dir: Path, *, seed: int = 0, overwrite: bool = False,
             if progress:
                 progress(f"tracking {mission}: {label}")
             start = time.perf_counter()
-            result = Tracker(cfg).run(sim.session)
+            result = with_baro_floors(Tracker(cfg).run(sim.session), sim.session, cfg)
             seconds = time.perf_counter() - start
             evaluation = evaluate_track(result, sim.session, sim.reference)
             folder = out_dir / mission / label.replace(" ", "_")

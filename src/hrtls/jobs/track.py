@@ -19,6 +19,7 @@ from hrtls.io.geojson import write_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
+from hrtls.pipeline.barometric import apply_baro_floors, with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
@@ -101,7 +102,7 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
             session = read_any(path, fmt=fmt, repair=repair, beacons=beacons, **options)
     assert session is not None
     start = time.perf_counter()
-    result = Tracker(config).run(session)
+    result = with_baro_floors(Tracker(config).run(session), session, config)
     n = 0 if session.imu is None else len(session.imu.accel)
     run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
     return _with_input(run, input_report)
@@ -149,6 +150,9 @@ def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
         seconds += time.perf_counter() - start
     start = time.perf_counter()
     result = tracker.finish()
+    result = apply_baro_floors(result, stream.parts.get("pressure"),
+                               floor_height_m=stream.meta.floor_height_m,
+                               enabled=config.barometer)
     seconds += time.perf_counter() - start
     del tracker
     assert first is not None
@@ -183,10 +187,11 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                                          encoding="utf-8")
     written.append(out_dir / "report.json")
     if plot:
-        from hrtls.evaluate.plots import plot_trajectory
+        from hrtls.evaluate.floor_plots import plot_track_by_floor
 
-        written.append(plot_trajectory(
+        written.append(plot_track_by_floor(
             out_dir / "track.png", result.trajectory, session.truth,
+            floor_height_m=session.meta.floor_height_m,
             checkpoints=session.checkpoints, landmarks=_positioned(session),
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
             title=f"hrtls track ({result.report['config']['name']})", ellipses=25))

@@ -4,12 +4,13 @@ import { formatAge, formatClock, quality } from "./geometry.js";
 import { MapView } from "./mapview.js";
 
 const TRAIL_WINDOW_S = 300;
-const ALARM_KINDS = new Set(["pass_prealarm", "pass_alarm", "fall", "silent", "lost_confidence",
-  "uncertainty", "sos"]);
-const ALARM_TEXT = {
+const ALARM_KINDS = new Set(["pass_prealarm", "pass_alarm", "fall", "silent", "uncertainty", "sos"]);
+const EVENT_TEXT = {
   pass_prealarm: "PASS pre-alarm", pass_alarm: "PASS ALARM", fall: "FALL", silent: "silent agent",
-  lost_confidence: "lost confidence", uncertainty: "lost confidence", sos: "SOS",
+  uncertainty: "lost confidence", sos: "SOS", floor_change: "floor change", zone_enter: "entered",
+  zone_leave: "left", checkin: "check-in", order_receipt: "order receipt",
 };
+const ORDER_TEXT = { evacuate: "evacuate", checkin: "check-in", goto: "go to", text: "message" };
 const COMPASS = ["N", "NE", "E", "SE", "S", "SW", "W", "NW"];
 
 function el(tag, attrs = {}, ...children) {
@@ -48,7 +49,7 @@ export class Dashboard {
     this.replay = { active: false, playing: false, t: 0, speed: 1, timer: null, start: 0, end: 0 };
     this.renderQueued = false;
     this.closed = false;
-    document.getElementById("role").textContent = `${who.name || who.role} (${who.role})`;
+    document.getElementById("role").textContent = `${who.label || who.role} (${who.role})`;
     document.querySelectorAll(".commander-only").forEach((n) => { n.hidden = !this.commander; });
     this.map = new MapView(document.getElementById("map"), {
       onMapClick: (p) => this.mapClicked(p),
@@ -64,21 +65,19 @@ export class Dashboard {
     const select = document.getElementById("mission-select");
     select.replaceChildren(...missions.map((m) => el("option", { value: m.id }, m.name || m.id)));
     const wanted = new URLSearchParams(location.search).get("mission");
-    const chosen = missions.find((m) => String(m.id) === wanted) || missions[missions.length - 1];
-    if (!chosen) {
-      this.setConnection("offline", "no mission yet");
-      this.retryTimer = setTimeout(() => { if (!this.closed) this.start(); }, 2000);
-      return;
-    }
+    const active = missions.filter((m) => m.status === "active");
+    const chosen = missions.find((m) => String(m.id) === wanted) || active[active.length - 1]
+      || missions[missions.length - 1];
+    if (!chosen) throw new Error("no mission yet");
     select.value = chosen.id;
     await this.openMission(chosen.id);
-    this.tick = setInterval(() => this.scheduleRender(), 1000);
+    if (!this.tick) this.tick = setInterval(() => this.scheduleRender(), 1000);
   }
 
   close() {
     this.closed = true;
     clearInterval(this.tick);
-    clearTimeout(this.retryTimer);
+    clearTimeout(this.infraTimer);
     this.stopReplayTimer();
     if (this.live) this.live.close();
     this.map.map.remove();
@@ -93,11 +92,10 @@ export class Dashboard {
     const floors = this.mission.floors;
     this.floor = floors.length ? floors[0].index : 0;
     this.infra = await this.api.infrastructure(id).catch(() => this.infra);
-    const snap = await this.api.snapshot(id);
-    this.applySnapshot(snap);
-    for (const order of await this.api.orders(id).catch(() => [])) this.orders.set(order.id, order);
+    this.applySnapshot(await this.api.snapshot(id));
     this.live = this.api.live(id, {
-      onDelta: (d) => this.applyDelta(d),
+      onPicture: (p) => { if (!this.replay.active) { this.applySnapshot(p); this.scheduleRender(); } },
+      onDelta: (d) => { if (!this.replay.active) this.applyDelta(d); },
       onState: (s) => this.setConnection(s),
       onUnauthorized: this.onUnauthorized,
     });
@@ -111,30 +109,36 @@ export class Dashboard {
     let a = this.agents.get(id);
     if (!a) {
       a = { id, name: meta.name || id, kind: meta.kind || "rescuer", est: null, trail: [],
-        info: {}, lastSeenWall: null };
+        info: {}, lastDataT: null };
       this.agents.set(id, a);
     }
     if (meta.name) a.name = meta.name;
     if (meta.kind) a.kind = meta.kind;
     if (meta.info) Object.assign(a.info, meta.info);
+    if (meta.lastDataT !== undefined && meta.lastDataT !== null) a.lastDataT = meta.lastDataT;
     return a;
   }
 
-  applySnapshot(snap) {
-    this.serverOffsetS = (snap.server_time ?? Date.now() / 1000) - Date.now() / 1000;
-    for (const a of snap.agents) this.agent(a.id, a);
-    for (const e of snap.estimates) this.applyEstimate(e);
-    for (const [id, trail] of Object.entries(snap.trails || {})) this.agent(id).trail = trail;
-    for (const ev of snap.events) this.events.set(ev.id, ev);
-    this.missionTime = snap.mission_time ?? this.missionTime;
+  // A whole picture (snapshot, or replay at a time): replaces estimates, trails and events.
+  applySnapshot(p, { replay = false } = {}) {
+    if (!replay) this.clockOffsetS = p.t - (Date.now() / 1000 - this.mission.t0Unix);
+    for (const a of this.agents.values()) { a.est = null; a.trail = []; }
+    for (const a of p.agents) this.agent(a.id, a);
+    for (const e of p.estimates) this.agent(e.agent).est = e;
+    for (const [id, trail] of Object.entries(p.trails)) this.agent(id).trail = trail.slice();
+    this.events.clear();
+    for (const ev of p.events) this.events.set(ev.id, ev);
+    for (const o of p.orders) this.orders.set(o.id, o);
+    if (!replay) this.missionTime = Math.max(this.missionTime ?? 0, p.t);
   }
 
   applyDelta(d) {
-    for (const a of d.agents || []) this.agent(a.id, a);
-    for (const e of d.estimates || []) this.applyEstimate(e);
-    for (const ev of d.events || []) this.events.set(ev.id, { ...this.events.get(ev.id), ...ev });
-    for (const o of d.orders || []) this.orders.set(o.id, { ...this.orders.get(o.id), ...o });
-    if (d.mission_time !== undefined) this.missionTime = d.mission_time;
+    for (const a of d.agents) this.agent(a.id, a);
+    for (const e of d.estimates) this.applyEstimate(e);
+    for (const ev of d.events) this.events.set(ev.id, { ...this.events.get(ev.id), ...ev });
+    for (const o of d.orders) this.orders.set(o.id, { ...this.orders.get(o.id), ...o });
+    if (d.orders.length) this.refreshInfrastructure();
+    if (Number.isFinite(d.t)) this.missionTime = Math.max(this.missionTime ?? 0, d.t);
     this.scheduleRender();
   }
 
@@ -142,25 +146,34 @@ export class Dashboard {
     const a = this.agent(e.agent);
     if (a.est && e.t < a.est.t) return;
     a.est = e;
-    a.lastSeenWall = e.received_at ?? this.serverNow();
-    if (Number.isFinite(e.t)) this.missionTime = Math.max(this.missionTime ?? 0, e.t);
     const last = a.trail[a.trail.length - 1];
     if (!last || e.t > last.t) a.trail.push({ t: e.t, x: e.x, y: e.y, floor: e.floor });
     while (a.trail.length && a.trail[0].t < e.t - TRAIL_WINDOW_S) a.trail.shift();
   }
 
-  serverNow() { return Date.now() / 1000 + (this.serverOffsetS || 0); }
+  refreshInfrastructure() {
+    clearTimeout(this.infraTimer);
+    this.infraTimer = setTimeout(async () => {
+      this.infra = await this.api.infrastructure(this.missionId).catch(() => this.infra);
+      this.scheduleRender();
+    }, 200);
+  }
 
+  // Mission time now, on the service's clock.
+  missionNow() { return Date.now() / 1000 - this.mission.t0Unix + (this.clockOffsetS || 0); }
+
+  // Age of an agent's last data: mission time now minus its last sample (or estimate) time.
   ageOf(a) {
     if (!a.est) return Infinity;
     if (this.replay.active) return Math.max(0, this.replay.t - a.est.t);
-    return Math.max(0, this.serverNow() - a.lastSeenWall);
+    const last = Math.max(a.lastDataT ?? -Infinity, a.est.t);
+    return Math.max(0, this.missionNow() - last);
   }
 
   isStale(a) {
     if (!a.est) return true;
     if (!this.replay.active && a.est.stale) return true;
-    return this.ageOf(a) > (this.mission?.stale_after_s ?? 10);
+    return this.ageOf(a) > (this.mission?.staleAfterS ?? 10);
   }
 
   // ---- rendering ------------------------------------------------------------------------------
@@ -236,20 +249,23 @@ export class Dashboard {
 
   renderAlarms() {
     const alarms = this.alarmEvents();
-    const open = alarms.filter((e) => !e.acknowledged_at && !e.cleared);
+    const open = alarms.filter((e) => e.acknowledged_at === null && e.cleared_t === null);
     const count = document.getElementById("alarm-count");
     count.textContent = String(open.length);
     count.classList.toggle("active", open.length > 0);
     document.getElementById("alarms").replaceChildren(...alarms.map((e) => {
       const a = this.agents.get(e.agent);
-      const cls = `${e.level || (e.kind === "pass_prealarm" ? "pre_alarm" : "alarm")}${e.acknowledged_at ? " acknowledged" : ""}`;
+      const acked = e.acknowledged_at !== null;
+      const cls = `${e.severity}${acked ? " acknowledged" : ""}${e.cleared_t !== null ? " cleared" : ""}`;
       const place = Number.isFinite(e.x) ? ` at (${e.x.toFixed(1)}, ${e.y.toFixed(1)}) F${e.floor ?? "?"}` : "";
       const item = el("li", { class: cls, dataset: { event: e.id, kind: e.kind },
         onclick: () => this.focusEvent(e) },
-      el("strong", {}, ALARM_TEXT[e.kind] || e.kind), ` ${a?.name || e.agent || ""} `,
+      el("strong", {}, EVENT_TEXT[e.kind] || e.kind), ` ${a?.name || e.agent || ""} `,
       el("span", { class: "muted" }, `t ${formatClock(e.t)}${place}`));
-      if (e.acknowledged_at) {
-        item.append(el("div", { class: "muted" }, `acknowledged by ${e.acknowledged_by || "?"}`));
+      if (e.cleared_t !== null) item.append(el("div", { class: "muted" }, `cleared at ${formatClock(e.cleared_t)}`));
+      if (acked) {
+        item.append(el("div", { class: "muted ack-by" },
+          `acknowledged by ${e.acknowledged_by} at ${formatClock(e.acknowledged_at)}`));
       } else if (this.commander) {
         item.append(el("button", { type: "button", class: "ack",
           onclick: (ev) => { ev.stopPropagation(); this.acknowledge(e); } }, "Acknowledge"));
@@ -264,7 +280,7 @@ export class Dashboard {
     banner.classList.toggle("pre", top.kind === "pass_prealarm");
     banner.dataset.event = top.id;
     banner.replaceChildren(
-      el("span", {}, `${ALARM_TEXT[top.kind] || top.kind}: ${a?.name || top.agent}` +
+      el("span", {}, `${EVENT_TEXT[top.kind] || top.kind}: ${a?.name || top.agent}` +
         `${Number.isFinite(top.floor) ? ` on floor ${top.floor}` : ""}` +
         `${open.length > 1 ? ` (+${open.length - 1} more)` : ""}`),
       el("button", { type: "button", onclick: () => this.focusEvent(top) }, "Show"),
@@ -274,12 +290,16 @@ export class Dashboard {
 
   renderOrders() {
     const list = document.getElementById("orders");
-    const orders = [...this.orders.values()].sort((a, b) => (b.created_at ?? 0) - (a.created_at ?? 0));
-    list.replaceChildren(...orders.slice(0, 20).map((o) => el("li", {
-      dataset: { order: o.id, status: o.status || "" } },
-    `${o.kind} → ${o.target_text || o.agent || o.floor_text || "all"}: `,
-    el("strong", {}, o.status || "sent"),
-    o.receipt_text ? el("span", { class: "muted" }, ` ${o.receipt_text}`) : "")));
+    const orders = [...this.orders.values()].sort((a, b) => Number(b.id) - Number(a.id));
+    list.replaceChildren(...orders.slice(0, 30).map((o) => {
+      const when = o.answered_at ?? o.delivered_at;
+      return el("li", { dataset: { order: o.id, status: o.status, agent: o.agent } },
+        `${formatClock(o.created_at)} ${ORDER_TEXT[o.kind] || o.kind}`,
+        o.waypoint ? ` (${o.waypoint.x.toFixed(1)}, ${o.waypoint.y.toFixed(1)})` : "",
+        ` → ${this.agents.get(o.agent)?.name || o.agent}: `, el("strong", {}, o.status),
+        when !== null ? el("span", { class: "muted" }, ` at ${formatClock(when)}`) : "",
+        o.answer_text ? el("span", { class: "muted" }, ` "${o.answer_text}"`) : "");
+    }));
   }
 
   renderInfrastructure() {
@@ -314,9 +334,9 @@ export class Dashboard {
     const actions = [];
     if (this.commander) {
       actions.push(el("button", { type: "button", class: "danger",
-        onclick: () => this.order({ kind: "evacuate", agent: a.id }) }, "Evacuate"));
+        onclick: () => this.order({ kind: "evacuate", agents: [a.id] }) }, "Evacuate"));
       actions.push(el("button", { type: "button",
-        onclick: () => this.order({ kind: "check_in", agent: a.id }) }, "Check-in request"));
+        onclick: () => this.order({ kind: "checkin", agents: [a.id] }) }, "Check-in request"));
       if (a.kind === "robot") {
         actions.push(el("button", { type: "button", id: "goto-start",
           onclick: () => this.startGoto(a.id) }, "Send to point…"));
@@ -327,7 +347,7 @@ export class Dashboard {
       el("table", {}, ...rows.map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", {}, v)))),
       el("h4", {}, "last events"),
       el("ol", { class: "alarms" }, ...(recent.length ? recent.map((ev) => el("li", {},
-        `${formatClock(ev.t)} ${ALARM_TEXT[ev.kind] || ev.kind}`)) : [el("li", { class: "muted" }, "none")])),
+        `${formatClock(ev.t)} ${EVENT_TEXT[ev.kind] || ev.kind}`)) : [el("li", { class: "muted" }, "none")])),
       el("div", { class: "actions" }, ...actions,
         el("button", { type: "button", onclick: () => this.select(null) }, "Close")));
   }
@@ -368,8 +388,10 @@ export class Dashboard {
 
   async order(body) {
     try {
-      const created = await this.api.order(this.missionId, body);
-      this.orders.set(created.id, created);
+      for (const created of await this.api.order(this.missionId, body)) {
+        this.orders.set(created.id, created);
+      }
+      if (body.kind === "goto") this.refreshInfrastructure();
     } catch (err) {
       this.flash(`order refused: ${err.message}`);
     }
@@ -389,7 +411,7 @@ export class Dashboard {
     this.pendingGoto = null;
     document.getElementById("map-hint").hidden = true;
     this.map.pendingTarget(p);
-    this.order({ kind: "goto", agent: robot, x: p.x, y: p.y, floor: this.floor });
+    this.order({ kind: "goto", agents: [robot], waypoint: { x: p.x, y: p.y, floor: this.floor } });
   }
 
   flash(text) {
@@ -412,9 +434,9 @@ export class Dashboard {
       document.getElementById(id).onchange = (ev) => this.map.setLayerVisible(name, ev.target.checked);
     }
     document.getElementById("mission-select").onchange = (ev) => this.openMission(ev.target.value);
-    document.getElementById("order-evacuate-all").onclick = () => this.order({ kind: "evacuate", scope: "all" });
+    document.getElementById("order-evacuate-all").onclick = () => this.order({ kind: "evacuate" });
     document.getElementById("order-evacuate-floor").onclick = () => this.order({ kind: "evacuate", floor: this.floor });
-    document.getElementById("order-checkin-all").onclick = () => this.order({ kind: "check_in", scope: "all" });
+    document.getElementById("order-checkin-all").onclick = () => this.order({ kind: "checkin" });
     document.addEventListener("keydown", (ev) => {
       if (ev.key === "Escape" && this.pendingGoto) {
         this.pendingGoto = null;
@@ -436,7 +458,7 @@ export class Dashboard {
 
   renderReplayBar() {
     const slider = document.getElementById("replay-time");
-    const end = Math.max(this.missionTime ?? 0, this.replay.end);
+    const end = this.replay.active ? this.replay.end : Math.max(this.missionTime ?? 0, 0);
     slider.max = String(end);
     if (!this.replay.active) slider.value = String(end);
     document.getElementById("replay-label").textContent = this.replay.active
@@ -444,29 +466,29 @@ export class Dashboard {
     document.getElementById("replay-toggle").textContent = this.replay.playing ? "⏸" : "▶";
     const select = document.getElementById("replay-events");
     const events = [...this.events.values()].sort((a, b) => a.t - b.t);
-    if (select.options.length !== events.length + 1) {
+    if (!this.replay.active && select.options.length !== events.length + 1) {
       select.replaceChildren(el("option", { value: "" }, "jump to event…"), ...events.map((e) =>
-        el("option", { value: String(e.t) }, `${formatClock(e.t)} ${ALARM_TEXT[e.kind] || e.kind} ${this.agents.get(e.agent)?.name || ""}`)));
+        el("option", { value: String(e.t) }, `${formatClock(e.t)} ${EVENT_TEXT[e.kind] || e.kind} ${this.agents.get(e.agent)?.name || ""}`)));
     }
   }
 
   async seek(t) {
     if (!this.replay.active) {
       this.replay.active = true;
-      this.replay.end = this.missionTime ?? t;
-      if (this.live) this.live.pause();
+      this.replay.end = this.missionNow();
       this.setConnection("replay", "replay");
     }
     this.replay.t = t;
-    const frame = await this.api.replayAt(this.missionId, t);
-    if (!this.replay.active || this.replay.t !== t) return;
-    for (const a of this.agents.values()) { a.est = null; a.trail = []; }
-    for (const e of frame.estimates) {
-      const a = this.agent(e.agent);
-      a.est = e;
+    this.replay.pending = (this.replay.pending || 0) + 1;
+    try {
+      const picture = await this.api.replayAt(this.missionId, t);
+      if (!this.replay.active || this.replay.t !== t) return;
+      this.applySnapshot(picture, { replay: true });
+      this.replay.shownT = t;
+      this.scheduleRender();
+    } finally {
+      this.replay.pending -= 1;
     }
-    for (const [id, trail] of Object.entries(frame.trails || {})) this.agent(id).trail = trail;
-    this.scheduleRender();
   }
 
   togglePlay() {
@@ -476,6 +498,7 @@ export class Dashboard {
     let last = performance.now();
     const stepMs = 250;
     this.replay.timer = setInterval(() => {
+      if (this.replay.pending) return;
       const now = performance.now();
       const t = Math.min(this.replay.t + ((now - last) / 1000) * this.replay.speed, this.replay.end);
       last = now;
@@ -494,10 +517,7 @@ export class Dashboard {
   async goLive() {
     this.stopReplayTimer();
     this.replay.active = false;
-    const snap = await this.api.snapshot(this.missionId);
-    for (const a of this.agents.values()) { a.est = null; a.trail = []; }
-    this.applySnapshot(snap);
-    if (this.live) this.live.resume();
+    this.applySnapshot(await this.api.snapshot(this.missionId));
     this.setConnection("live");
     this.scheduleRender();
   }

@@ -1,9 +1,9 @@
-// Entry point: login, then the dashboard of one mission.
+// Entry point: login (session cookie), then the dashboard of one mission.
 
 import { Api, ApiError } from "./api.js";
 import { Dashboard } from "./dashboard.js";
 
-const api = new Api("");
+const api = new Api();
 const loginSection = document.getElementById("login");
 const loginForm = document.getElementById("login-form");
 const loginToken = document.getElementById("login-token");
@@ -14,6 +14,7 @@ let dashboard = null;
 function showLogin(message) {
   if (dashboard) dashboard.close();
   dashboard = null;
+  window.hrtlsDashboard = null;
   appSection.hidden = true;
   loginSection.hidden = false;
   loginError.hidden = !message;
@@ -21,39 +22,54 @@ function showLogin(message) {
   loginToken.focus();
 }
 
-async function enter() {
-  try {
-    const who = await api.whoami();
-    loginSection.hidden = true;
-    appSection.hidden = false;
-    dashboard = new Dashboard(api, who, { onUnauthorized: () => signOut("Session ended.") });
-    window.hrtlsDashboard = dashboard;
-    await dashboard.start();
-  } catch (err) {
-    api.setToken(null);
-    if (err instanceof ApiError && (err.status === 401 || err.status === 403)) {
-      showLogin(`Refused: ${err.detail || "token not accepted"}`);
-    } else {
-      showLogin(`Cannot reach the supervisor: ${err.message}`);
-    }
+function refusal(err) {
+  if (err instanceof ApiError && (err.status === 401 || err.status === 403)) {
+    return `Refused: ${err.detail || "token not accepted"}`;
   }
+  return `Cannot reach the supervisor: ${err.message}`;
 }
 
-function signOut(message) {
-  api.logout().catch(() => {});
-  api.setToken(null);
-  showLogin(message);
+async function enter(who) {
+  loginSection.hidden = true;
+  appSection.hidden = false;
+  dashboard = new Dashboard(api, who, { onUnauthorized: () => showLogin("Session ended: sign in again.") });
+  window.hrtlsDashboard = dashboard;
+  const current = dashboard;
+  const attempt = async () => {
+    if (dashboard !== current) return;
+    try {
+      await current.start();
+    } catch (err) {
+      if (err instanceof ApiError && err.status === 401) { showLogin("Session ended: sign in again."); return; }
+      current.setConnection("offline", `waiting for the supervisor (${err.message})`);
+      setTimeout(attempt, 2000);
+    }
+  };
+  await attempt();
 }
 
-loginForm.addEventListener("submit", (event) => {
+loginForm.addEventListener("submit", async (event) => {
   event.preventDefault();
   const token = loginToken.value.trim();
-  if (!token) { showLogin("Enter a token."); return; }
-  api.setToken(token);
   loginToken.value = "";
-  enter();
+  if (!token) { showLogin("Enter a token."); return; }
+  try {
+    await enter(await api.login(token));
+  } catch (err) {
+    showLogin(refusal(err));
+  }
 });
-document.getElementById("logout").addEventListener("click", () => signOut(""));
 
-if (api.token) enter(); else showLogin("");
-document.body.dataset.ready = "1";
+document.getElementById("logout").addEventListener("click", async () => {
+  await api.logout().catch(() => {});
+  showLogin("");
+});
+
+(async () => {
+  try {
+    await enter(await api.whoami());
+  } catch (err) {
+    showLogin(err instanceof ApiError && err.status === 401 ? "" : refusal(err));
+  }
+  document.body.dataset.ready = "1";
+})();
