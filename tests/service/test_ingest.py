@@ -12,11 +12,11 @@ import httpx
 import msgpack
 import numpy as np
 import pytest
+from tests.service.conftest import Live, new_agent, new_mission
+from tests.service.streams import API, mission_for, office, offline_rows, start_pose, stored
 from websockets.sync.client import connect
 
 from hrtls.service.client import AgentClient, session_batches
-from tests.service.conftest import Live, new_agent, new_mission
-from tests.service.streams import API, mission_for, office, offline_rows, start_pose, stored
 
 
 def wait_idle(live: Live, timeout_s: float = 120.0) -> None:
