@@ -27,6 +27,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from hrtls.data import Session
+from hrtls.data.clocks import check_session_clocks
 from hrtls.datasets import formats as dataset_formats
 from hrtls.errors import FormatError, InputError
 from hrtls.io.readers.android import read_android, sensor_from_name
@@ -35,7 +36,7 @@ from hrtls.io.readers.phyphox import looks_like_phyphox, read_phyphox
 from hrtls.io.readers.sensorlogger import SENSOR_LOGGER_FILES, read_sensorlogger
 from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 
-__all__ = ["FORMATS", "detect_format", "read_any"]
+__all__ = ["FORMATS", "detect_format", "read_any", "reader_options"]
 
 _HEAD_BYTES = 4096
 _MAX_SNIFFED = 200
@@ -142,6 +143,20 @@ def detect_format(path: Path | str, *, max_bytes: int = DEFAULT_MAX_BYTES) -> st
                       hint="pass fmt= to choose")
 
 
+def reader_options(fmt: str | None, *, trial: str | None = None) -> dict[str, Any]:
+    """Reader options from CLI flags: only those given, refused for formats without them."""
+    options: dict[str, Any] = {}
+    if trial is not None:
+        reader = FORMATS.get(fmt or "")
+        if reader is not None and "trial" not in inspect.signature(reader).parameters:
+            raise InputError(f"--trial given for a {fmt} recording", where="--trial",
+                             expected="a format with trials ("
+                             + ", ".join(n for n, r in FORMATS.items()
+                                         if "trial" in inspect.signature(r).parameters) + ")")
+        options["trial"] = trial
+    return options
+
+
 def read_any(path: Path | str, *, fmt: str | None = None, repair: bool = False,
              beacons: Path | str | None = None, **options: Any) -> Session:
     """Read any supported recording into a session.
@@ -153,7 +168,9 @@ def read_any(path: Path | str, *, fmt: str | None = None, repair: bool = False,
     fmt:
         The format (a key of :data:`FORMATS`); detected when None.
     repair:
-        Let the reader repair duplicates, backward times and non-finite rows (with warnings).
+        Let the reader repair duplicates, backward times and non-finite rows, and remove clock
+        jumps of single streams (:func:`hrtls.data.clocks.check_session_clocks`), all with
+        warnings. Without it such problems raise; gaps of every stream are kept (warned).
     beacons:
         Beacon landmark CSV (IPIN logfiles only).
     **options:
@@ -180,4 +197,6 @@ def read_any(path: Path | str, *, fmt: str | None = None, repair: bool = False,
     if unknown:
         raise InputError(f"unknown option(s) {', '.join(unknown)} for format {name}",
                          where="read_any", expected=f"options among {', '.join(accepted)}")
-    return reader(path, repair=repair, **options)
+    session = reader(path, repair=repair, **options)
+    session, _ = check_session_clocks(session, repair=repair)
+    return session

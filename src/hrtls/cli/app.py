@@ -2,20 +2,123 @@
 
 from __future__ import annotations
 
+import importlib
+import sys
 import warnings
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from typer.core import TyperCommand, TyperGroup
 
-from hrtls.cli.errors import Verbosity, reports_errors
-from hrtls.data import Session
+from hrtls.cli.errors import Verbosity, err_console, reports_errors
 from hrtls.errors import InputError, UnitError
 
-app = typer.Typer(no_args_is_help=True, add_completion=False,
+if TYPE_CHECKING:
+    from hrtls.data import Session
+
+_COMMANDS: dict[str, tuple[str, str, str]] = {
+    "track": ("hrtls.cli.track", "track", "command"),
+    "demo": ("hrtls.cli.track", "demo", "command"),
+    "ipin": ("hrtls.cli.ipin", "ipin", "command"),
+    "simulate": ("hrtls.cli.sim", "simulate", "command"),
+    "evaluate": ("hrtls.cli.sim", "evaluate", "command"),
+    "export": ("hrtls.cli.export", "export", "command"),
+    "warmup": ("hrtls.cli.warmup", "warmup", "command"),
+    "attitude": ("hrtls.cli.attitude", "attitude", "command"),
+    "calibrate": ("hrtls.cli.attitude", "calibrate_app", "group"),
+    "activity": ("hrtls.cli.gait", "activity_app", "group"),
+    "wsn": ("hrtls.cli.wsn", "app", "group"),
+    "bench": ("hrtls.cli.bench", "app", "group"),
+    "config": ("hrtls.cli.config", "app", "group"),
+    "serve": ("hrtls.cli.serve", "serve", "command"),
+}
+"""Commands in their own modules: name -> (module, attribute, command or group of commands).
+
+They are imported only when run (or when their own help is asked for), so that ``hrtls
+--help`` and the commands that need little start fast; :data:`SUMMARIES` lists them.
+"""
+
+SUMMARIES: dict[str, str] = {
+    "track": "Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.",
+    "demo": "Simulate the thesis' rescue missions and track them with and without infrastructure.",
+    "ipin": "Track from the first POSI (start, heading unknown); errors "
+            "at the later POSI landmarks.",
+    "simulate": "Simulate a paper scenario into a session folder with ground truth.",
+    "evaluate": "Score a result folder against ground truth; write evaluation.json and plots "
+                "beside it.",
+    "export": "Export a result as GPX, OGC Moving Features JSON, GeoJSON or CSV.",
+    "warmup": "Compile the numerical kernels now (once per install) so that later runs start "
+              "at once.",
+    "attitude": "Estimate the orientation (ENU) and write t,qw,qx,qy,qz,roll,pitch,yaw.",
+    "calibrate": "Sensor calibration files.",
+    "activity": "Activity recognition models.",
+    "wsn": "Sensor-network self-localization with mobile agents (Inderst Ch. 5-6).",
+    "bench": "Benchmarks against the papers' published figures.",
+    "config": "Tracker configurations.",
+    "serve": "Run the supervisor: live tracking of the team, REST + WebSocket API and "
+             "dashboard.",
+}
+"""One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
+
+
+_COMPILING = frozenset({"track", "demo", "ipin", "attitude", "bench", "wsn", "activity",
+                        "calibrate"})
+"""Commands that run numerical kernels (compiled on first use)."""
+
+
+def load_command(name: str) -> Any:
+    """The click command ``name`` of :data:`_COMMANDS`, imported now."""
+    from hrtls.jobs.warmup import NOTICE, configure_cache, first_run
+
+    configure_cache()
+    if name in _COMPILING and "--help" not in sys.argv and first_run():
+        err_console.print(f"[yellow]note:[/yellow] {NOTICE}")
+    module_name, attribute, kind = _COMMANDS[name]
+    module = importlib.import_module(module_name)
+    target = getattr(module, attribute)
+    if name == "calibrate":
+        from hrtls.cli import gait as gait_cli
+
+        if not any(c.name == "steps" for c in target.registered_commands):
+            target.command("steps")(gait_cli.calibrate_steps)
+    if kind == "group":
+        command = typer.main.get_command(target)
+    else:
+        single = typer.Typer(add_completion=False)
+        single.command(name)(target)
+        command = typer.main.get_command(single)
+    command.name = name
+    return command
+
+
+class _LazyGroup(TyperGroup):
+    """The root group: lists :data:`SUMMARIES` for help, imports a command when it runs."""
+
+    def __init__(self, **attrs: Any) -> None:
+        super().__init__(**attrs)
+        self._listing = False
+        for name in _COMMANDS:
+            self.commands.setdefault(name, TyperCommand(name, short_help=SUMMARIES[name],
+                                                        help=SUMMARIES[name]))
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        command = self.commands.get(cmd_name)
+        if cmd_name in _COMMANDS and not self._listing and command is not None \
+                and command.callback is None:
+            command = self.commands[cmd_name] = load_command(cmd_name)
+        return command
+
+    def format_help(self, ctx: Any, formatter: Any) -> None:
+        self._listing = True
+        try:
+            super().format_help(ctx, formatter)
+        finally:
+            self._listing = False
+
+
+app = typer.Typer(cls=_LazyGroup, no_args_is_help=True, add_completion=False, rich_markup_mode=None,
                   help="Hybrid Rescue Team Localization System.")
 console = Console(highlight=False)
 wide = Console(highlight=False, width=max(console.width, 120))
@@ -36,22 +139,27 @@ RepairOption = Annotated[bool, typer.Option(
     "--repair", help="Sort backward times, merge duplicates, drop NaN rows (with warnings).")]
 BeaconsOption = Annotated[Path | None, typer.Option(
     "--beacons", help="CSV of beacon positions for IPIN logfiles (id/lat/lon/floor).")]
+TrialOption = Annotated[str | None, typer.Option(
+    "--trial", help="Trial of a multi-trial recording (mobgap: e.g. Test5/Trial1).")]
 
 
 def _load(path: Path, fmt: str | None, *, repair: bool, check_units: bool,
-          beacons: Path | None) -> Session:
-    from hrtls.recordings import read_any
+          beacons: Path | None, trial: str | None = None) -> Session:
+    from hrtls.recordings import read_any, reader_options
 
     if not path.exists():
         raise InputError("no such file or folder", where=str(path),
                          expected="a recording (session folder, zip, logfile, ...)")
-    return read_any(path, fmt=fmt, repair=repair, check_units=check_units, beacons=beacons)
+    return read_any(path, fmt=fmt, repair=repair, check_units=check_units, beacons=beacons,
+                    **reader_options(fmt, trial=trial))
 
 
 @app.command()
 @reports_errors
 def formats() -> None:
     """List the input formats hrtls reads."""
+    from rich.table import Table
+
     from hrtls.recordings import FORMATS
 
     table = Table("format", "what")
@@ -67,15 +175,19 @@ def info(
     path: Annotated[Path, typer.Argument(help="Recording: session folder/zip or a user format.")],
     fmt: FormatOption = None,
     beacons: BeaconsOption = None,
+    trial: TrialOption = None,
 ) -> None:
     """Describe a recording: format, duration, rates, gaps, sensors, suspected unit problems."""
+    from rich.table import Table
+
     from hrtls.io.inspect import summarize
     from hrtls.recordings import detect_format
 
     detected = fmt or detect_format(path)
     with warnings.catch_warnings(record=True) as repairs:
         warnings.simplefilter("always")
-        session = _load(path, detected, repair=True, check_units=False, beacons=beacons)
+        session = _load(path, detected, repair=True, check_units=False, beacons=beacons,
+                        trial=trial)
     summary = summarize(session)
     console.print(f"[bold]{path}[/bold]  format [cyan]{detected}[/cyan]  "
                   f"duration {summary.duration_s:.1f} s  "
@@ -112,12 +224,25 @@ def convert(
     fmt: FormatOption = None,
     repair: RepairOption = False,
     beacons: BeaconsOption = None,
+    trial: TrialOption = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
 ) -> None:
     """Convert a recording into a session folder (SI units, ENU, checked)."""
-    from hrtls.io.session import write_session
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from hrtls.io.session import SESSION_FILES, write_session
     from hrtls.recordings import detect_format
 
+    if output.suffix.lower() == ".zip":
+        if output.exists() and not overwrite:
+            raise InputError("already exists", where=str(output), expected="a new path (or "
+                             "--overwrite)")
+    elif output.exists() and not output.is_dir():
+        raise InputError("exists and is not a folder", where=str(output),
+                         expected="a folder path or a .zip")
+    elif output.is_dir() and not overwrite and any((output / n).exists() for n in SESSION_FILES):
+        raise InputError("already holds a session", where=str(output),
+                         expected="a new or empty folder (or --overwrite)")
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:
@@ -125,7 +250,8 @@ def convert(
         detected = fmt or detect_format(path)
         progress.update(task, advance=1, description=f"reading {detected}")
         try:
-            session = _load(path, detected, repair=repair, check_units=True, beacons=beacons)
+            session = _load(path, detected, repair=repair, check_units=True, beacons=beacons,
+                            trial=trial)
         except UnitError as exc:
             raise UnitError(exc.problem, where=exc.where, expected=exc.expected,
                             hint="see `hrtls info` and the reader's unit options") from None
@@ -133,34 +259,6 @@ def convert(
         write_session(session, output, overwrite=overwrite)
         progress.update(task, advance=1)
     console.print(f"wrote {output}")
-
-
-def _register() -> None:
-    """Attach the commands that live in their own modules."""
-    from hrtls.cli import attitude as attitude_cli
-    from hrtls.cli import bench as bench_cli
-    from hrtls.cli import config as config_cli
-    from hrtls.cli import gait as gait_cli
-    from hrtls.cli import ipin as ipin_cli
-    from hrtls.cli import sim as sim_cli
-    from hrtls.cli import track as track_cli
-    from hrtls.cli import wsn as wsn_cli
-
-    app.command("track")(track_cli.track)
-    app.command("demo")(track_cli.demo)
-    app.command("ipin")(ipin_cli.ipin)
-    app.command("simulate")(sim_cli.simulate)
-    app.command("evaluate")(sim_cli.evaluate)
-    app.command("attitude")(attitude_cli.attitude)
-    attitude_cli.calibrate_app.command("steps")(gait_cli.calibrate_steps)
-    app.add_typer(attitude_cli.calibrate_app, name="calibrate")
-    app.add_typer(gait_cli.activity_app, name="activity")
-    app.add_typer(wsn_cli.app, name="wsn")
-    app.add_typer(bench_cli.app, name="bench")
-    app.add_typer(config_cli.app, name="config")
-
-
-_register()
 
 
 def main() -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import re
 import traceback
 import warnings
 from collections.abc import Callable
@@ -28,10 +29,29 @@ class Verbosity:
     verbose = False
 
 
+_PYTHON_TO_CLI = (
+    (re.compile(r" \(repair=True in Python\)"), ""),
+    (re.compile(r"\brepair=True\b"), "--repair"),
+    (re.compile(r"\bfmt=(?:\.\.\.)?"), "--format"),
+    (re.compile(r"\btrial=(?:\.\.\.)?"), "--trial"),
+    (re.compile(r"\bbeacons=(?:\.\.\.)?"), "--beacons"),
+    (re.compile(r"\boverwrite=True\b"), "--overwrite"),
+)
+"""Library hints name Python arguments; the CLI names its flags instead."""
+
+
+def cli_text(message: object) -> str:
+    """``message`` with Python argument names replaced by the CLI flags that set them."""
+    text = str(message)
+    for pattern, flag in _PYTHON_TO_CLI:
+        text = pattern.sub(flag, text)
+    return text
+
+
 def _show_warning(message: warnings.WarningMessage) -> None:
     labels: dict[type[Warning], str] = {RepairWarning: "repaired", DegradedInputWarning: "note"}
     kind = labels.get(message.category, "warning")
-    err_console.print(f"[yellow]{kind}:[/yellow] {message.message}", markup=True)
+    err_console.print(f"[yellow]{kind}:[/yellow] {cli_text(message.message)}", markup=True)
 
 
 def reports_errors(func: Callable[P, R]) -> Callable[P, R]:
@@ -47,7 +67,8 @@ def reports_errors(func: Callable[P, R]) -> Callable[P, R]:
                 _flush(caught)
                 if Verbosity.verbose:
                     err_console.print(traceback.format_exc(), markup=False)
-                err_console.print(f"[red]error:[/red] {exc}", markup=True, soft_wrap=True)
+                err_console.print(f"[red]error:[/red] {cli_text(exc)}", markup=True,
+                                  soft_wrap=True)
                 raise typer.Exit(EXIT_INPUT) from None
             except (OSError, MemoryError) as exc:
                 _flush(caught)

@@ -9,13 +9,13 @@ Register in :mod:`hrtls.cli.app` with::
 ``hrtls simulate SCENARIO -o DIR [--seed N] [-O key=value ...]`` writes a session with ground
 truth; ``hrtls simulate --list`` lists the scenarios. ``hrtls evaluate RESULT_DIR --truth
 SESSION_DIR`` scores ``RESULT_DIR/trajectory.csv`` (and ``steps.csv``) against the session's
-``truth.csv``, ``checkpoints.csv``, ``truth_steps.csv`` and ``activity.csv``, prints a table and
-writes ``report.json`` and PNG plots into the result folder (or ``--output``).
+``truth.csv``, ``checkpoints.csv``, ``truth_steps.csv`` and ``activity.csv`` (or any recording
+with ground truth), prints a table and writes ``evaluation.json`` and PNG plots into the result
+folder (or ``--output``); see :mod:`hrtls.jobs.evaluate`.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -25,7 +25,7 @@ from rich.console import Console
 from rich.table import Table
 
 from hrtls.cli.errors import reports_errors
-from hrtls.data import Checkpoints, GroundTruth, Landmark, StepEvents, activity_codes
+from hrtls.data import activity_codes
 from hrtls.errors import InputError
 from hrtls.io.intervals import read_intervals
 
@@ -103,99 +103,10 @@ def simulate(
 # --------------------------------------------------------------------------------------------
 # evaluate
 # --------------------------------------------------------------------------------------------
-def _read_truth(folder: Path) -> tuple[GroundTruth | None, Checkpoints | None]:
-    from hrtls.io.csvtable import read_table
-
-    truth = None
-    path = folder / "truth.csv"
-    if path.exists():
-        table = read_table(path.read_bytes(), name=str(path),
-                           kinds=dict.fromkeys(("t", "x", "y", "z", "heading"), "float"),
-                           required=("t", "x", "y", "z"))
-        xyz = np.column_stack([table.float(c) for c in ("x", "y", "z")])
-        heading = table.float("heading") if "heading" in table.present else None
-        truth = GroundTruth(table.float("t"), xyz, heading, name=str(path))
-    cps = None
-    path = folder / "checkpoints.csv"
-    if path.exists():
-        table = read_table(path.read_bytes(), name=str(path),
-                           kinds={"t": "float", "x": "float", "y": "float", "z": "float",
-                                  "label": "str"}, required=("t", "x", "y", "z"))
-        xyz = np.column_stack([table.float(c) for c in ("x", "y", "z")])
-        labels = (table.str("label") if "label" in table.present
-                  else np.full(table.n_rows, "", dtype=np.str_))
-        cps = Checkpoints(table.float("t"), xyz, labels, name=str(path))
-    return truth, cps
-
-
 def read_activity_intervals(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """``activity.csv`` (``t_start,t_end,activity``) as a step function (times, codes)."""
     iv = read_intervals(path, columns={"activity": "str"})
     return iv.t_start, activity_codes(iv.table.str("activity"), where=f"{path} activity")
-
-
-def _read_landmarks(folder: Path) -> dict[str, Landmark]:
-    path = folder / "landmarks.json"
-    if not path.exists():
-        return {}
-    items = json.loads(path.read_text())
-    out = {}
-    for item in items:
-        lm = Landmark.model_validate(item)
-        out[lm.id] = lm
-    return out
-
-
-def evaluate_result(result_dir: Path, truth_dir: Path, *, output: Path | None = None,
-                    plots: bool = True) -> dict[str, Any]:
-    """Score ``result_dir`` against ``truth_dir``; write ``report.json`` (+ plots); return it."""
-    from hrtls.evaluate.metrics import checkpoint_errors, position_errors
-    from hrtls.evaluate.report import EvaluationInputs, build_report
-    from hrtls.io.tables import read_steps, read_trajectory
-
-    traj_path = result_dir / "trajectory.csv"
-    if not traj_path.exists():
-        raise InputError("no trajectory.csv", where=str(result_dir),
-                         expected="a result folder written by `hrtls track`")
-    if not truth_dir.is_dir():
-        raise InputError("not a folder", where=str(truth_dir), expected="a session folder")
-    estimate = read_trajectory(traj_path)
-    steps = read_steps(result_dir / "steps.csv") if (result_dir / "steps.csv").exists() else None
-    truth, cps = _read_truth(truth_dir)
-    if truth is None and cps is None:
-        raise InputError("no truth.csv or checkpoints.csv", where=str(truth_dir),
-                         expected="a session with ground truth")
-    true_steps: StepEvents | None = None
-    if (truth_dir / "truth_steps.csv").exists():
-        true_steps = read_steps(truth_dir / "truth_steps.csv")
-    activity = None
-    if (truth_dir / "activity.csv").exists():
-        activity = read_activity_intervals(truth_dir / "activity.csv")
-    reference: dict[str, Any] = {}
-    if (truth_dir / "scenario.json").exists():
-        reference = json.loads((truth_dir / "scenario.json").read_text()).get("reference", {})
-    report = build_report(EvaluationInputs(estimate=estimate, estimated_steps=steps,
-                                           truth=truth, checkpoints=cps, true_steps=true_steps,
-                                           true_activity=activity, reference=reference))
-    out = output or result_dir
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
-    if plots:
-        from hrtls.evaluate.plots import plot_cdf, plot_error_over_time, plot_trajectory
-
-        plot_trajectory(out / "trajectory.png", estimate, truth, checkpoints=cps,
-                        landmarks=_read_landmarks(truth_dir), title=result_dir.name)
-        t_e, e = position_errors(estimate, truth) if truth is not None else (np.zeros(0),
-                                                                              np.zeros(0))
-        t_c, e_c = (checkpoint_errors(estimate, cps)[:2] if cps is not None
-                    else (None, None))
-        plot_error_over_time(out / "error.png", t_e, e, checkpoint_t=t_c,
-                             checkpoint_error_m=e_c)
-        sets = {"continuous truth": e} if e.size else {}
-        if e_c is not None and len(e_c):
-            sets["checkpoints"] = e_c
-        plot_cdf(out / "cdf.png", sets)
-    return report
 
 
 def report_table(report: dict[str, Any]) -> Table:
@@ -238,15 +149,22 @@ def report_table(report: dict[str, Any]) -> Table:
 
 @reports_errors
 def evaluate(
-    result_dir: Annotated[Path, typer.Argument(help="Folder with trajectory.csv [steps.csv].")],
-    truth: Annotated[Path, typer.Option("--truth", help="Session folder with ground truth "
+    result_dir: Annotated[Path, typer.Argument(help="Result folder of `hrtls track`.")],
+    truth: Annotated[Path, typer.Option("--truth", help="Any recording with ground truth "
                                         "(or a reference orientation).")],
     output: Annotated[Path | None, typer.Option(
-        "--output", "-o", help="Where to write report.json and plots (default RESULT_DIR).")
+        "--output", "-o", help="Where to write evaluation.json and plots (default RESULT_DIR).")
     ] = None,
     plots: Annotated[bool, typer.Option(help="Write PNG plots.")] = True,
+    fmt: Annotated[str | None, typer.Option(
+        "--format", "-f", help="Format of --truth (default: detected).")] = None,
+    trial: Annotated[str | None, typer.Option(
+        "--trial", help="Trial of a multi-trial truth recording (mobgap).")] = None,
 ) -> None:
-    """Score an estimated trajectory against ground truth; write report.json and plots.
+    """Score a result folder against ground truth; write evaluation.json and plots beside it.
+
+    The track's own files (report.json, tables, GeoJSON) are left as they are. The truth may be
+    any supported recording; its time span must overlap the result's.
 
     RESULT_DIR may instead be the CSV of ``hrtls attitude``: it is scored against the reference
     orientation ``--truth`` (CSV or BROAD trial) and ``<stem>_orientation.json`` is written.
@@ -256,6 +174,9 @@ def evaluate(
 
         console.print(orientation_table(evaluate_orientation(result_dir, truth, output)))
         return
-    report = evaluate_result(result_dir, truth, output=output, plots=plots)
+    from hrtls.jobs.evaluate import EVALUATION_FILE, evaluate_result
+
+    report = evaluate_result(result_dir, truth, output=output, plots=plots, fmt=fmt,
+                             trial=trial)
     console.print(report_table(report))
-    console.print(f"wrote {(output or result_dir) / 'report.json'}")
+    console.print(f"wrote {(output or result_dir) / EVALUATION_FILE}")

@@ -114,11 +114,19 @@ def repair_time_order(t: FloatArray, columns: Sequence[FloatArray], *, where: st
                       strict: bool = True) -> tuple[FloatArray, list[FloatArray]]:
     """Sort by time (stable) and, when ``strict``, merge rows with equal time by averaging.
 
+    When ``strict`` (sensor streams), a backward jump longer than jitter is a clock reset: the
+    samples after it are shifted to continue the clock instead of being sorted in between
+    (:func:`hrtls.data.clocks.repair_backward_jumps`).
+
     Numeric columns of merged rows are averaged, so no sample is dropped without trace. A
     :class:`RepairWarning` reports how many rows were moved and merged.
     """
     if len(t) < 2:
         return t, list(columns)
+    if strict:
+        from hrtls.data.clocks import repair_backward_jumps
+
+        t = repair_backward_jumps(t, where=where)
     messages = []
     order = np.argsort(t, kind="stable")
     n_moved = int(np.count_nonzero(order != np.arange(len(t))))

@@ -143,6 +143,17 @@ class SessionStream:
     _chunk_rows: int = field(repr=False)
     _check_units: bool = field(repr=False)
     _max_bytes: int = field(repr=False)
+    imu_t: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+    def sensor_times(self) -> list[tuple[str, str, np.ndarray]]:
+        """``(key, name, t)`` of every sensor stream with its own clock, accelerometer first."""
+        out = [("accel", f"{self._imu.name} accelerometer", self.imu_t)]
+        for key, series in (("gyro", self._gyro), ("mag", self._mag),
+                            ("pressure", self.parts.get("pressure")),
+                            ("orientation", self.parts.get("orientation"))):
+            if series is not None:
+                out.append((key, series.name, series.t))
+        return out
 
     def session(self, imu: ImuStream) -> Session:
         """The whole session but for its IMU, which is ``imu`` (e.g. one chunk)."""
@@ -287,7 +298,8 @@ def open_stream(path: Path | str, *, chunk_rows: int = DEFAULT_CHUNK_ROWS,
         rate_hz=float(1.0 / np.median(np.diff(t))), t0=min([float(t[0]), *starts]),
         n_rows=len(t), has_gyro=gyro is not None or "gx" in header,
         has_mag=mag is not None or "mx" in header, _imu=imu, _truth=truth, _gyro=gyro,
-        _mag=mag, _chunk_rows=chunk_rows, _check_units=check_units, _max_bytes=max_bytes)
+        _mag=mag, _chunk_rows=chunk_rows, _check_units=check_units, _max_bytes=max_bytes,
+        imu_t=t)
 
 
 def _table_file(source: Source, src: _SessionFiles, name: str) -> _TableFile | None:

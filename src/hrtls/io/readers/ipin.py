@@ -51,6 +51,7 @@ keep their MAC as id and are listed in the notes.
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
@@ -74,7 +75,7 @@ from hrtls.data import (
     Wgs84,
 )
 from hrtls.data.validation import FloatArray
-from hrtls.errors import FormatError, InputError
+from hrtls.errors import FormatError, InputError, RepairWarning
 from hrtls.frames import Georeference, quat_conjugate
 from hrtls.io.readers._orientation import choose_orientation
 from hrtls.io.readers._text import (
@@ -135,6 +136,35 @@ class _Log:
 
     def get(self, kind: str) -> tuple[list[str], IntArray]:
         return self.rows.get(kind, []), self.lines.get(kind, np.zeros(0, dtype=np.int64))
+
+
+def _without_cut_last_line(text: str, label: str, *, repair: bool) -> str:
+    """``text`` without a last line cut short (no newline, fewer fields than its type's lines).
+
+    A cut line of a record type that is not read is dropped with a warning; one of a type that
+    is read is dropped with ``repair`` and refused without.
+    """
+    if not text or text.endswith(("\n", "\r")):
+        return text
+    head, _, last = text.rpartition("\n")
+    kind = last[:5]
+    previous = head.rfind("\n" + kind)
+    if previous < 0 and not head.startswith(kind):
+        return text
+    start = previous + 1 if previous >= 0 else 0
+    end = head.find("\n", start)
+    fields = head[start:end if end >= 0 else None].rstrip().rstrip(";").count(";")
+    have = last.rstrip().rstrip(";").count(";")
+    if have >= fields:
+        return text
+    line = head.count("\n") + 2
+    where = f"{label} line {line}"
+    problem = f"last line cut short ({have + 1} of {fields + 1} fields, no newline at the end)"
+    if kind[:4] in _USED_TYPES and not repair:
+        raise FormatError(problem, where=where, expected="complete records",
+                          hint="pass --repair (repair=True in Python) to drop the cut line")
+    warnings.warn(f"{where}: {problem}; dropped it", RepairWarning, stacklevel=3)
+    return head + "\n"
 
 
 def _split_log(text: str, label: str) -> _Log:
@@ -597,7 +627,8 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
     if not looks_like_ipin(data[:65536]):
         raise FormatError("no IPIN records (ACCE;, GYRO;, POSI; ...) in the first 64 KiB",
                           where=label, expected="an IPIN/EvAAL logfile")
-    log = _split_log(decode_text(data, where=label, lenient=True), label)
+    log = _split_log(_without_cut_last_line(decode_text(data, where=label, lenient=True), label,
+                                            repair=repair), label)
     meta = SessionMeta() if floor_height_m is None else SessionMeta(floor_height_m=floor_height_m)
     fh = meta.floor_height_m
     notes: list[str] = []

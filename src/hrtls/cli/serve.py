@@ -1,0 +1,81 @@
+"""``hrtls serve``: the supervisor service (FastAPI and uvicorn are imported only here)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from hrtls.cli.errors import reports_errors
+from hrtls.service.settings import Settings
+
+_FLAGS = {"cors_origins": "--cors-origin", "rate_per_agent_hz": "--rate-per-agent",
+          "rate_burst": "--rate-per-agent"}
+_D = {name: f.default for name, f in Settings.model_fields.items()}
+
+
+@reports_errors
+def serve(
+    db: Annotated[str, typer.Option(
+        "--db", help="SQLite file (WAL mode) or postgresql://user:pass@host/dbname.")
+    ] = _D["db"],
+    host: Annotated[str, typer.Option("--host", help="Interface to listen on.")] = _D["host"],
+    port: Annotated[int, typer.Option("--port", help="TCP port.")] = _D["port"],
+    publish_hz: Annotated[float, typer.Option(
+        "--publish-hz", help="Estimates published per agent and second.")] = _D["publish_hz"],
+    max_body_kib: Annotated[int, typer.Option(
+        "--max-body-kib", help="Largest request body, KiB.")] = _D["max_body_kib"],
+    rate_per_agent: Annotated[float, typer.Option(
+        "--rate-per-agent", help="Ingest requests per second and agent (burst 2x).")
+    ] = _D["rate_per_agent_hz"],
+    queue_batches: Annotated[int, typer.Option(
+        "--queue-batches", help="Batches queued per agent before 429.")] = _D["queue_batches"],
+    session_hours: Annotated[float, typer.Option(
+        "--session-hours", help="Lifetime of a browser session.")] = _D["session_hours"],
+    cors_origin: Annotated[list[str] | None, typer.Option(
+        "--cors-origin", help="Allow this origin cross-site (repeatable; closed by default).")
+    ] = None,
+    ssl_certfile: Annotated[Path | None, typer.Option(
+        "--ssl-certfile", help="TLS certificate (PEM) for https/wss.")] = None,
+    ssl_keyfile: Annotated[Path | None, typer.Option(
+        "--ssl-keyfile", help="TLS private key (PEM).")] = None,
+    new_commander_token: Annotated[bool, typer.Option(
+        "--new-commander-token", help="Create and print another commander token.")] = False,
+) -> None:
+    """Run the supervisor: live tracking of the team, REST + WebSocket API and dashboard."""
+    from pydantic import ValidationError
+
+    from hrtls.errors import InputError
+
+    if (ssl_certfile is None) != (ssl_keyfile is None):
+        raise InputError("only one of --ssl-certfile / --ssl-keyfile", where="hrtls serve",
+                         expected="both (TLS) or neither (plain HTTP on loopback)")
+    try:
+        settings = Settings(db=db, host=host, port=port, publish_hz=publish_hz,
+                            max_body_kib=max_body_kib, rate_per_agent_hz=rate_per_agent,
+                            rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
+                            session_hours=session_hours,
+                            cors_origins=tuple(cors_origin or ()),
+                            tls=ssl_certfile is not None)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        name = str(first["loc"][0]) if first["loc"] else "option"
+        flag = _FLAGS.get(name, "--" + name.replace("_", "-"))
+        raise InputError(str(first["msg"]), where=flag, expected="see hrtls serve --help"
+                         ) from None
+    import uvicorn
+
+    from hrtls.service.app import bootstrap, create_app
+
+    secret = bootstrap(settings, new_commander=new_commander_token)
+    scheme = "https" if settings.tls else "http"
+    typer.echo(f"hrtls supervisor: dashboard {scheme}://{host}:{port}/  "
+               f"(API {scheme}://{host}:{port}/api/v1, database {settings.backend})")
+    if secret is not None:
+        typer.echo(f"commander token (shown once, keep it): {secret}")
+    app = create_app(settings)
+    uvicorn.run(app, host=host, port=port, log_level="warning",
+                ssl_certfile=None if ssl_certfile is None else str(ssl_certfile),
+                ssl_keyfile=None if ssl_keyfile is None else str(ssl_keyfile),
+                ws_max_size=settings.max_body_bytes)

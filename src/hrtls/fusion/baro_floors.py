@@ -1,0 +1,205 @@
+"""Floors from a barometer: relative altitude, a slow drift follower, sustained floor changes.
+
+Altitude relative to the first reading follows the hypsometric equation,
+``a = (R_d T / g) ln(p_0 / p)`` (R_d = 287.05 J/(kg K), g = 9.80665 m/s^2) with the
+standard-atmosphere temperature at the first pressure, ``T = 288.15 K (p_0 / 101325 Pa)^0.190263``
+(8434.6 m of scale height at sea level), smoothed by a causal moving mean of ``smooth_s``.
+The floor is a state machine run sample by sample (causal, compiled):
+
+* ``level`` is the altitude of the current floor as the barometer sees it. While the altitude
+  stays within ``freeze_fraction`` of a floor height of it, ``level`` follows it with time
+  constant ``drift_tau_s``: weather drift (about 1 hPa an hour, 8 m) is absorbed;
+* a change faster than people climb (``max_climb_m_s`` over 1 s of the altitude smoothed over
+  ``step_smooth_s``) is a pressure step of a door or the ventilation: while it lasts (until
+  the change is below half that speed) the altitude is held, and the step is removed from
+  then on (fast elevators are taken for pressure steps too);
+* the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
+  height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
+  ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
+  is left to the follower).
+
+``z`` is the height relative to the start, ``floor * floor_height + (a - level)``: on a floor
+it is the floor's height, on stairs it follows the climb, so ``round(z / floor_height)``
+switches at half the climb as the true floor does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.errors import InputError
+
+FloatArray = NDArray[np.float64]
+R_DRY_J_KG_K = 287.05
+G0_M_S2 = 9.80665
+
+
+def scale_height_m(p0_pa: float) -> float:
+    """``R_d T / g`` with the standard-atmosphere temperature at pressure ``p0_pa``, m."""
+    return R_DRY_J_KG_K * 288.15 * (p0_pa / 101325.0) ** 0.190263 / G0_M_S2
+
+
+@dataclass(frozen=True, slots=True)
+class BaroFloorParams:
+    """Parameters of :func:`baro_floors` (times in s, lengths in m, fractions of a floor)."""
+
+    floor_height_m: float = 3.0
+    smooth_s: float = 2.0
+    hold_s: float = 2.0
+    change_fraction: float = 0.6
+    freeze_fraction: float = 0.25
+    drift_tau_s: float = 60.0
+    max_climb_m_s: float = 1.0
+    step_smooth_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("floor_height_m", "smooth_s", "hold_s", "change_fraction",
+                     "freeze_fraction", "drift_tau_s", "max_climb_m_s", "step_smooth_s"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise InputError(f"{name} = {value}", where="BaroFloorParams",
+                                 expected="a positive finite number")
+        if self.step_smooth_s >= self.smooth_s:
+            raise InputError(f"step_smooth_s {self.step_smooth_s} >= smooth_s {self.smooth_s}",
+                             where="BaroFloorParams", expected="step_smooth_s < smooth_s")
+        if self.freeze_fraction >= self.change_fraction or self.change_fraction >= 1.0:
+            raise InputError(f"freeze_fraction {self.freeze_fraction}, change_fraction "
+                             f"{self.change_fraction}", where="BaroFloorParams",
+                             expected="0 < freeze_fraction < change_fraction < 1")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class BaroFloors:
+    """Per pressure sample: time, smoothed relative altitude, floor level, floor and height.
+
+    ``pressure_steps`` counts the pressure steps (doors, ventilation) that were absorbed.
+    """
+
+    t: FloatArray
+    altitude_m: FloatArray
+    level_m: FloatArray
+    floor: NDArray[np.int64]
+    z_m: FloatArray
+    pressure_steps: int = 0
+
+    @property
+    def changes(self) -> int:
+        """Number of floor changes."""
+        return int(np.count_nonzero(np.diff(self.floor))) if len(self.floor) > 1 else 0
+
+    def at(self, t_query: FloatArray) -> tuple[NDArray[np.int64], FloatArray]:
+        """Floor and height at ``t_query`` from the last sample at or before it (causal)."""
+        idx = np.searchsorted(self.t, np.asarray(t_query, dtype=np.float64), side="right") - 1
+        idx = np.clip(idx, 0, len(self.t) - 1)
+        before = np.asarray(t_query) < self.t[0]
+        floor = np.where(before, self.floor[0], self.floor[idx])
+        z = np.where(before, self.z_m[0], self.z_m[idx])
+        return floor.astype(np.int64), z
+
+
+def relative_altitude(t: FloatArray, pressure_pa: FloatArray, *, smooth_s: float) -> FloatArray:
+    """Causally smoothed altitude above the first reading, m (hypsometric equation)."""
+    p = np.asarray(pressure_pa, dtype=np.float64)
+    return _causal_mean(t, scale_height_m(float(p[0])) * np.log(p[0] / p), smooth_s)
+
+
+@numba.njit(cache=True)
+def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float
+                           ) -> tuple[FloatArray, int]:  # pragma: no cover - compiled
+    """``fast`` altitude without the changes faster than ``max_climb`` (pressure steps).
+
+    While the change over the last second is faster (and until it falls below half of that),
+    the altitude is held where it was 1 s before the step was seen; when the change is slower
+    again, the step is subtracted from then on. A climb during a step is lost (a pressure
+    transient before it is not taken for a climb); the floor machine rounds the rest.
+    """
+    n = len(t)
+    out = np.empty(n)
+    offset = 0.0
+    in_step = False
+    f_start = 0.0
+    steps = 0
+    j = 0
+    for i in range(n):
+        while t[j] < t[i] - 1.0:
+            j += 1
+        limit = 0.5 * max_climb if in_step else max_climb
+        fast_change = (t[i] - t[j] > 0.5
+                       and abs(fast[i] - fast[j]) > limit * (t[i] - t[j]))
+        if fast_change and not in_step:
+            in_step = True
+            steps += 1
+            f_start = fast[j]
+        if in_step and not fast_change:
+            offset += fast[i] - f_start
+            in_step = False
+        out[i] = f_start - offset if in_step else fast[i] - offset
+    return out, steps
+
+
+@numba.njit(cache=True)
+def _floor_machine(t: FloatArray, a: FloatArray, height: float, hold_s: float, change: float,
+                   freeze: float, tau_s: float
+                   ) -> tuple[FloatArray, NDArray[np.int64]]:  # pragma: no cover - compiled
+    n = len(t)
+    level = np.empty(n)
+    floor = np.zeros(n, dtype=np.int64)
+    lv = a[0]
+    fl = 0
+    pending = -1.0
+    for i in range(n):
+        if i > 0:
+            d = a[i] - lv
+            if abs(d) < freeze * height:
+                lv += d * min(1.0, (t[i] - t[i - 1]) / tau_s)
+            if abs(d) > change * height:
+                if pending < 0.0:
+                    pending = t[i]
+                if t[i] - pending >= hold_s:
+                    k = int(np.rint(d / height))
+                    fl += k
+                    lv += k * height
+                    pending = -1.0
+            else:
+                pending = -1.0
+        level[i] = lv
+        floor[i] = fl
+    return level, floor
+
+
+def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    start = np.searchsorted(t, t - window_s, side="left")
+    n = np.arange(1, len(t) + 1) - start
+    return np.asarray((c[1:] - c[start]) / n)
+
+
+def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None
+                ) -> BaroFloors:
+    """Floors (relative to the first sample's floor) and heights from a pressure series.
+
+    Raises
+    ------
+    InputError
+        Fewer than two samples, times not increasing, or pressures not positive.
+    """
+    p = params or BaroFloorParams()
+    t = np.asarray(t, dtype=np.float64)
+    pa = np.asarray(pressure_pa, dtype=np.float64)
+    if t.ndim != 1 or pa.shape != t.shape or len(t) < 2:
+        raise InputError(f"shapes {t.shape} and {pa.shape}", where="baro_floors",
+                         expected="two 1-D arrays of the same length >= 2")
+    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(pa)) or np.any(pa <= 0):
+        raise InputError("times not increasing or pressures not positive",
+                         where="baro_floors", expected="increasing times, pressures in Pa > 0")
+    fast = relative_altitude(t, pa, smooth_s=p.step_smooth_s)
+    steady, steps = _remove_pressure_steps(t, fast, p.max_climb_m_s)
+    a = _causal_mean(t, steady, p.smooth_s - p.step_smooth_s)
+    level, floor = _floor_machine(t, a, p.floor_height_m, p.hold_s, p.change_fraction,
+                                  p.freeze_fraction, p.drift_tau_s)
+    z = floor * p.floor_height_m + (a - level)
+    return BaroFloors(t, a, level, floor, z, steps)

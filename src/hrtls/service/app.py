@@ -1,0 +1,155 @@
+"""The application factory: :func:`create_app` builds one service from its settings."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Any
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from hrtls import __version__
+from hrtls.service import schemas
+from hrtls.service.clock import Clock, wall_clock
+from hrtls.service.db import make_engine, migrate, session_factory, transaction
+from hrtls.service.deps import Services
+from hrtls.service.host import HostParams, TrackerHost
+from hrtls.service.limits import BodyLimit, RateLimiter
+from hrtls.service.runner import InProcessRunner, TrackerRunner
+from hrtls.service.security import has_commander, issue
+from hrtls.service.settings import Settings
+
+API_PREFIX = "/api/v1"
+log = logging.getLogger(__name__)
+
+
+def bootstrap(settings: Settings, *, clock: Clock = wall_clock,
+              new_commander: bool = False) -> str | None:
+    """Migrate the database; create a commander token when there is none (or when asked).
+
+    Returns the new token's secret (to print once) or None.
+    """
+    engine = make_engine(settings.db_url)
+    try:
+        migrate(engine)
+        with transaction(session_factory(engine)) as db:
+            if has_commander(db) and not new_commander:
+                return None
+            label = "first commander" if not has_commander(db) else "commander"
+            _, secret = issue(db, role="commander", label=label, now_unix=clock())
+            return secret
+    finally:
+        engine.dispose()
+
+
+def _error_text(exc: RequestValidationError) -> tuple[str, list[dict[str, Any]]]:
+    errors = [{"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))}
+              for e in exc.errors()]
+    text = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in errors)
+    return text or "invalid request", errors
+
+
+async def _publish_loop(services: Services) -> None:
+    """Every ``1 / publish_hz`` s: push the changes of each mission to its sockets."""
+    period = 1.0 / services.settings.publish_hz
+    while True:
+        await asyncio.sleep(period)
+        try:
+            deltas = await run_in_threadpool(services.publish_once)
+        except Exception:
+            log.exception("publishing failed")
+            continue
+        for mission_id, delta in deltas:
+            services.hub.publish(mission_id, delta)
+
+
+def create_app(settings: Settings, *, clock: Clock = wall_clock,
+               runner: TrackerRunner | None = None) -> FastAPI:
+    """The FastAPI application of one deployment (database migrated on start-up)."""
+    engine = make_engine(settings.db_url)
+    migrate(engine)
+    sessions = session_factory(engine)
+    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or InProcessRunner(),
+                       params=HostParams(queue_batches=settings.queue_batches,
+                                         snapshot_every_s=settings.snapshot_every_s,
+                                         workers=settings.tracker_threads))
+    services = Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
+                        agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
+                                               burst=settings.rate_burst, clock=clock),
+                        host=host)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        await run_in_threadpool(host.start)
+        publisher = asyncio.create_task(_publish_loop(services))
+        try:
+            yield
+        finally:
+            publisher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await publisher
+            await run_in_threadpool(host.stop)
+            engine.dispose()
+
+    app = FastAPI(title="hrtls supervisor", version=__version__, lifespan=lifespan,
+                  docs_url=f"{API_PREFIX}/docs", openapi_url=f"{API_PREFIX}/openapi.json",
+                  redoc_url=None)
+    app.state.services = services
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
+        text, errors = _error_text(exc)
+        return JSONResponse({"detail": text, "errors": errors}, status_code=422)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
+                            headers=getattr(exc, "headers", None))
+
+    from hrtls.service.routes import agents, auth, ingest, live, missions, planned
+
+    for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
+                   planned.router):
+        app.include_router(router, prefix=API_PREFIX)
+
+    @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])
+    def health() -> schemas.HealthOut:
+        return schemas.HealthOut(status="ok", version=__version__, db=settings.backend)
+
+    @app.api_route(f"{API_PREFIX}/{{rest:path}}", methods=["GET", "POST", "PUT", "PATCH",
+                                                           "DELETE"], include_in_schema=False)
+    def _unknown(rest: str) -> None:
+        raise HTTPException(404, f"no route {API_PREFIX}/{rest}")
+
+    _mount_dashboard(app, settings.web_root)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    if settings.cors_origins:
+        from fastapi.middleware.cors import CORSMiddleware
+
+        app.add_middleware(CORSMiddleware, allow_origins=list(settings.cors_origins),
+                           allow_credentials=True, allow_methods=["*"],
+                           allow_headers=["Authorization", "Content-Type"])
+    return app
+
+
+def _mount_dashboard(app: FastAPI, web_root: Path | None) -> None:
+    """Serve the dashboard's static files at ``/`` when they are installed."""
+    if web_root is None:
+        try:
+            from hrtls.web import asset_root
+        except ImportError:
+            return
+        web_root = asset_root()
+    if not (web_root / "index.html").is_file():
+        return
+    from fastapi.staticfiles import StaticFiles
+
+    app.mount("/", StaticFiles(directory=web_root, html=True), name="dashboard")

@@ -1,0 +1,169 @@
+"""Missions, floors, landmarks and the infrastructure view."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, HTTPException
+from sqlalchemy import select
+
+from hrtls.service import schemas
+from hrtls.service.deps import Commander, DbDep, Reader, ServicesDep, mission_or_404
+from hrtls.service.models import Floor, LandmarkRow, Mission, OrderRow
+from hrtls.service.views import floor_out, mission_out, mission_summaries
+
+router = APIRouter(tags=["missions"])
+
+
+@router.post("/missions", status_code=201, response_model=schemas.MissionOut)
+def create_mission(body: schemas.MissionIn, who: Commander, db: DbDep,
+                   services: ServicesDep) -> schemas.MissionOut:
+    """A new mission; its clock (``t0_unix``) starts now."""
+    now = services.clock()
+    mission = Mission(name=body.name, status="active", t0_unix=now, created_at=now,
+                      georeference=None if body.georeference is None
+                      else body.georeference.model_dump(),
+                      channel=None if body.channel is None else body.channel.model_dump(),
+                      floor_height_m=body.floor_height_m, stale_after_s=body.stale_after_s,
+                      alarm_profile=body.alarm_profile.model_dump())
+    db.add(mission)
+    db.flush()
+    for f in body.floors:
+        db.add(Floor(mission_id=mission.id, index=f.index, name=f.name, height_m=f.height_m,
+                     plan=f.plan))
+    db.commit()
+    return mission_out(db, mission, now_unix=now)
+
+
+@router.get("/missions", response_model=list[schemas.MissionSummaryOut])
+def list_missions(who: Reader, db: DbDep) -> list[schemas.MissionSummaryOut]:
+    """Every mission, oldest first."""
+    return mission_summaries(db)
+
+
+@router.get("/missions/{mission_id}", response_model=schemas.MissionOut)
+def get_mission(mission_id: int, who: Reader, db: DbDep,
+                services: ServicesDep) -> schemas.MissionOut:
+    """One mission with its floors and plans."""
+    return mission_out(db, mission_or_404(db, mission_id), now_unix=services.clock())
+
+
+@router.patch("/missions/{mission_id}", response_model=schemas.MissionOut)
+def patch_mission(mission_id: int, body: schemas.MissionPatch, who: Commander, db: DbDep,
+                  services: ServicesDep) -> schemas.MissionOut:
+    """Change the given fields of a mission."""
+    mission = mission_or_404(db, mission_id)
+    for name, value in body.model_dump(exclude_unset=True).items():
+        if value is None and name not in ("georeference", "channel"):
+            raise HTTPException(422, f"{name} may not be null")
+        setattr(mission, name, value)
+    db.commit()
+    services.host.mission_changed(mission_id)
+    return mission_out(db, mission, now_unix=services.clock())
+
+
+@router.put("/missions/{mission_id}/floors/{index}", response_model=schemas.FloorOut)
+def put_floor(mission_id: int, index: int, body: schemas.FloorIn, who: Commander,
+              db: DbDep) -> schemas.FloorOut:
+    """Create or replace floor ``index``."""
+    mission_or_404(db, mission_id)
+    if not -20 <= index <= 300:
+        raise HTTPException(422, f"floor index {index} outside -20..300")
+    row = db.scalars(select(Floor).where(Floor.mission_id == mission_id,
+                                         Floor.index == index)).first()
+    if row is None:
+        row = Floor(mission_id=mission_id, index=index)
+        db.add(row)
+    row.name, row.height_m, row.plan = body.name, body.height_m, body.plan
+    db.commit()
+    return floor_out(row)
+
+
+@router.delete("/missions/{mission_id}/floors/{index}", status_code=204)
+def delete_floor(mission_id: int, index: int, who: Commander, db: DbDep) -> None:
+    """Remove floor ``index``."""
+    mission_or_404(db, mission_id)
+    row = db.scalars(select(Floor).where(Floor.mission_id == mission_id,
+                                         Floor.index == index)).first()
+    if row is None:
+        raise HTTPException(404, f"floor {index} not found in mission {mission_id}")
+    db.delete(row)
+    db.commit()
+
+
+def _landmark_json(body: schemas.LandmarkIn) -> dict[str, Any]:
+    return body.model_dump(mode="json")
+
+
+def landmarks_of(db: DbDep, mission_id: int) -> list[dict[str, Any]]:
+    """The landmarks of a mission as JSON objects, by id."""
+    rows = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id)
+                      .order_by(LandmarkRow.key))
+    return [r.data for r in rows]
+
+
+@router.post("/missions/{mission_id}/landmarks", status_code=201)
+def create_landmark(mission_id: int, body: schemas.LandmarkIn, who: Commander,
+                    db: DbDep) -> dict[str, Any]:
+    """Add a landmark; 409 when its id exists."""
+    mission_or_404(db, mission_id)
+    exists = db.scalars(select(LandmarkRow.id).where(LandmarkRow.mission_id == mission_id,
+                                                     LandmarkRow.key == body.id)).first()
+    if exists is not None:
+        raise HTTPException(409, f"landmark {body.id!r} exists in mission {mission_id} "
+                                 "(PUT replaces it)")
+    data = _landmark_json(body)
+    db.add(LandmarkRow(mission_id=mission_id, key=body.id, data=data))
+    db.commit()
+    return data
+
+
+@router.get("/missions/{mission_id}/landmarks")
+def list_landmarks(mission_id: int, who: Reader, db: DbDep) -> list[dict[str, Any]]:
+    """The landmarks of a mission."""
+    mission_or_404(db, mission_id)
+    return landmarks_of(db, mission_id)
+
+
+@router.put("/missions/{mission_id}/landmarks/{landmark_id}")
+def put_landmark(mission_id: int, landmark_id: str, body: schemas.LandmarkIn, who: Commander,
+                 db: DbDep) -> dict[str, Any]:
+    """Create or replace a landmark (the path id must equal the body id)."""
+    mission_or_404(db, mission_id)
+    if body.id != landmark_id:
+        raise HTTPException(422, f"body id {body.id!r} differs from the path id "
+                                 f"{landmark_id!r}")
+    row = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id,
+                                               LandmarkRow.key == landmark_id)).first()
+    data = _landmark_json(body)
+    if row is None:
+        db.add(LandmarkRow(mission_id=mission_id, key=landmark_id, data=data))
+    else:
+        row.data = data
+    db.commit()
+    return data
+
+
+@router.delete("/missions/{mission_id}/landmarks/{landmark_id}", status_code=204)
+def delete_landmark(mission_id: int, landmark_id: str, who: Commander, db: DbDep) -> None:
+    """Remove a landmark."""
+    mission_or_404(db, mission_id)
+    row = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id,
+                                               LandmarkRow.key == landmark_id)).first()
+    if row is None:
+        raise HTTPException(404, f"landmark {landmark_id!r} not found in mission {mission_id}")
+    db.delete(row)
+    db.commit()
+
+
+@router.get("/missions/{mission_id}/infrastructure", response_model=schemas.InfrastructureOut)
+def infrastructure(mission_id: int, who: Reader, db: DbDep) -> schemas.InfrastructureOut:
+    """Landmarks, sensor nodes and the way points of open go-to orders."""
+    mission_or_404(db, mission_id)
+    orders = db.scalars(select(OrderRow).where(
+        OrderRow.mission_id == mission_id, OrderRow.kind == "goto",
+        OrderRow.status.in_(("pending", "delivered", "accepted"))).order_by(OrderRow.id))
+    waypoints = [schemas.WaypointOut(agent=o.agent_id, order=o.id, status=o.status,
+                                     **(o.waypoint or {})) for o in orders if o.waypoint]
+    return schemas.InfrastructureOut(landmarks=landmarks_of(db, mission_id), nodes=[],
+                                     waypoints=waypoints)

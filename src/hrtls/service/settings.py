@@ -1,0 +1,63 @@
+"""Settings of one service deployment (the flags of ``hrtls serve``), validated once."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+DEFAULT_DB = "hrtls-service.db"
+
+
+class Settings(BaseModel):
+    """Everything a running service needs to know; immutable after start.
+
+    ``db`` is a file path (SQLite, WAL mode) or an SQLAlchemy/psycopg URL
+    (``postgresql://user:pass@host/db``).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    db: str = DEFAULT_DB
+    host: str = "127.0.0.1"
+    port: int = Field(default=8600, ge=0, le=65535)
+    max_body_kib: int = Field(default=1024, ge=1, le=65536)
+    rate_per_agent_hz: float = Field(default=50.0, gt=0.0)
+    rate_burst: float = Field(default=100.0, ge=1.0)
+    queue_batches: int = Field(default=64, ge=1, le=100_000)
+    publish_hz: float = Field(default=2.0, gt=0.0, le=50.0)
+    snapshot_every_s: float = Field(default=30.0, gt=0.0)
+    tracker_threads: int = Field(default=2, ge=1, le=64)
+    session_hours: float = Field(default=12.0, gt=0.0)
+    cors_origins: tuple[str, ...] = ()
+    tls: bool = False
+    ws_auth_timeout_s: float = Field(default=5.0, gt=0.0)
+    web_root: Path | None = None
+
+    @field_validator("cors_origins")
+    @classmethod
+    def _origins(cls, value: tuple[str, ...]) -> tuple[str, ...]:
+        for origin in value:
+            if origin == "*" or not origin.startswith(("http://", "https://")):
+                raise ValueError(f"CORS origin {origin!r}: give a full origin like "
+                                 "https://ops.example.org ('*' is not allowed)")
+        return value
+
+    @property
+    def db_url(self) -> str:
+        """The SQLAlchemy URL of :attr:`db` (a path becomes ``sqlite:///PATH``)."""
+        if "://" in self.db:
+            if self.db.startswith(("postgresql://", "postgres://")):
+                return "postgresql+psycopg://" + self.db.split("://", 1)[1]
+            return self.db
+        return f"sqlite:///{Path(self.db).expanduser()}"
+
+    @property
+    def backend(self) -> str:
+        """``sqlite`` or ``postgresql``."""
+        return "sqlite" if self.db_url.startswith("sqlite") else "postgresql"
+
+    @property
+    def max_body_bytes(self) -> int:
+        """Largest accepted request body, bytes."""
+        return self.max_body_kib * 1024

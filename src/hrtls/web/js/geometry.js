@@ -1,0 +1,64 @@
+// Pure geometry and formatting helpers of the dashboard (no DOM, no Leaflet).
+// Local mission frame: x east, y north, metres (hrtls/frames.py); Leaflet CRS.Simple takes
+// [lat, lng] = [y, x].
+
+// Thresholds of the quality indicator on the 2-sigma radius of the worst axis, metres.
+export const QUALITY_GOOD_M = 2.0;
+export const QUALITY_FAIR_M = 5.0;
+
+// Semi-axes (m) and orientation (rad from +x, counter-clockwise) of the k-sigma ellipse of the
+// 2x2 covariance [[varX, covXY], [covXY, varY]] (m^2).
+export function ellipseAxes(varX, covXY, varY, k = 2) {
+  const mean = (varX + varY) / 2;
+  const diff = (varX - varY) / 2;
+  const root = Math.sqrt(diff * diff + covXY * covXY);
+  const major = Math.max(mean + root, 0);
+  const minor = Math.max(mean - root, 0);
+  const angle = 0.5 * Math.atan2(2 * covXY, varX - varY);
+  return { a: k * Math.sqrt(major), b: k * Math.sqrt(minor), angle };
+}
+
+// Outline of the k-sigma ellipse centred on (x, y) as n [y, x] vertices for Leaflet.
+export function ellipseLatLngs(x, y, varX, covXY, varY, k = 2, n = 40) {
+  const { a, b, angle } = ellipseAxes(varX, covXY, varY, k);
+  const c = Math.cos(angle);
+  const s = Math.sin(angle);
+  const out = [];
+  for (let i = 0; i < n; i += 1) {
+    const t = (2 * Math.PI * i) / n;
+    const u = a * Math.cos(t);
+    const v = b * Math.sin(t);
+    out.push([y + s * u + c * v, x + c * u - s * v]);
+  }
+  return out;
+}
+
+// Quality of an estimate from its covariance: the 2-sigma radius of the worst axis and a level.
+export function quality(varX, covXY, varY) {
+  const { a } = ellipseAxes(varX, covXY, varY, 2);
+  let level = "poor";
+  if (a <= QUALITY_GOOD_M) level = "good";
+  else if (a <= QUALITY_FAIR_M) level = "fair";
+  return { radius_m: a, level };
+}
+
+// End point of a heading arrow of length_m from (x, y); heading from +x, counter-clockwise.
+export function headingTip(x, y, headingRad, lengthM) {
+  return [y + lengthM * Math.sin(headingRad), x + lengthM * Math.cos(headingRad)];
+}
+
+// "12 s", "3 min 05 s", "1 h 02 min" for an age in seconds; "-" when unknown.
+export function formatAge(seconds) {
+  if (seconds === null || seconds === undefined || !Number.isFinite(seconds)) return "-";
+  const s = Math.max(0, Math.round(seconds));
+  if (s < 60) return `${s} s`;
+  if (s < 3600) return `${Math.floor(s / 60)} min ${String(s % 60).padStart(2, "0")} s`;
+  return `${Math.floor(s / 3600)} h ${String(Math.floor((s % 3600) / 60)).padStart(2, "0")} min`;
+}
+
+// Mission time (s) as m:ss.
+export function formatClock(seconds) {
+  if (!Number.isFinite(seconds)) return "-";
+  const s = Math.max(0, Math.floor(seconds));
+  return `${Math.floor(s / 60)}:${String(s % 60).padStart(2, "0")}`;
+}
