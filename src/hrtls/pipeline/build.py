@@ -16,7 +16,7 @@ from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import make_filter
 from hrtls.data import SessionMeta
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.fusion.channel import ChannelEstimator
+from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams
 from hrtls.fusion.fixes import FixCorrector, FixParams
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams
@@ -35,12 +35,7 @@ from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
-from hrtls.pipeline.config import GaitConfig, TrackerConfig
-
-FLOOR_SIGMA_M = 0.1
-"""1-sigma of the floor-level pseudo-measurement after a flat step (m)."""
-RSS_MIN_DISTANCE_M = 0.5
-"""Tight RSS readings are not used when the estimate is nearer than this to the anchor (m)."""
+from hrtls.pipeline.config import GaitConfig, TrackerConfig, params_of
 
 
 class Notes:
@@ -90,13 +85,14 @@ def attitude_method(config: TrackerConfig, sensors: Sensors, notes: Notes) -> st
     return method if s.has_imu else "none"
 
 
-def attitude_filter(method: str) -> AttitudeFilter | DeviceOrientation | None:
-    """The attitude stage of a method (None: no attitude)."""
+def attitude_filter(config: TrackerConfig, method: str
+                    ) -> AttitudeFilter | DeviceOrientation | None:
+    """The attitude stage of a method (None: no attitude), ``[attitude.<method>]`` parameters."""
     if method == "device":
         return DeviceOrientation()
     if method == "none":
         return None
-    return make_filter(method)
+    return make_filter(method, config.attitude.filter_params(method))
 
 
 def step_model(config: GaitConfig, meta: SessionMeta) -> tuple[StepModel, float]:
@@ -209,7 +205,7 @@ def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
             sigma_heading_increment_rad=cfg.prediction.sigma_heading_increment_rad)),
         velocity_predictor=VelocityPredictor(VelocityPredictionParams(
             heading_mode=cfg.prediction.heading_mode)),
-        random_walk=RandomWalkParams(),
+        random_walk=params_of(RandomWalkParams, cfg.prediction.random_walk),
         fix_corrector=FixCorrector(FixParams(
             period_s=cfg.fixes.period_s, require_motion=cfg.fixes.require_motion,
             gate_probability=cfg.gate_probability if cfg.fixes.gate else None,
@@ -219,8 +215,8 @@ def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
                       if cfg.tags.strategy == "kalman" else None),
         range_params=RangeParams(gate_probability=cfg.gate_probability),
         path_loss=path_loss,
-        channel_estimator=(ChannelEstimator() if cfg.rss.estimate_channel and has_imu
-                           else None),
+        channel_estimator=(ChannelEstimator(params_of(ChannelEstimatorParams, cfg.rss.channel))
+                           if cfg.rss.estimate_channel and has_imu else None),
     )
 
 
@@ -233,8 +229,8 @@ def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: 
         range_params=parts.range_params,
         channel=None if parts.channel_estimator is None else parts.channel_estimator.params,
         random_walk=parts.random_walk, floor_snap=cfg.floor_snap,
-        floor_height_m=floor_height_m, floor_sigma_m=FLOOR_SIGMA_M,
+        floor_height_m=floor_height_m, floor_sigma_m=cfg.floor_sigma_m,
         gate_probability=cfg.gate_probability, heading_known=heading_known,
-        has_imu=has_imu, rss_min_distance_m=RSS_MIN_DISTANCE_M,
+        has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
         scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,
         scan_sigma_position_m=cfg.rss.sigma_position_m)

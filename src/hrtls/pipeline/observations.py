@@ -32,7 +32,6 @@ from hrtls.fusion.rss_scans import scan_position
 from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.tags import bearing_heading_correction
 from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
-from hrtls.pipeline.build import RSS_MIN_DISTANCE_M
 from hrtls.pipeline.schedule import BEARING, FIX, RANGE, RSS, TAGS
 
 if TYPE_CHECKING:
@@ -257,7 +256,7 @@ def apply_rss(eng: FusionEngine, t: float, payload: Any) -> None:
                 eng.channel_state, rss_dbm=[value], distance_m=[d_est],
                 distance_var_m2=float(np.trace(eng.state.P[:2, :2])))
             model = eng.channel_state.model()
-        upd = rss_update(eng.state, lm.xyz(), value, model, min_distance_m=RSS_MIN_DISTANCE_M,
+        upd = rss_update(eng.state, lm.xyz(), value, model, min_distance_m=cfg.rss.min_distance_m,
                          gate_probability=cfg.gate_probability, t=t, source=anchor)
         eng.state = upd.state
         eng.diagnostics.append(upd.diagnostics)

@@ -10,9 +10,12 @@ running steps get their own scale (by their share of the stretch).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from hrtls.errors import InputError
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,6 +33,17 @@ class StepScaleParams:
     gain: float = 0.25
     min_scale: float = 0.8
     max_scale: float = 1.25
+
+    def __post_init__(self) -> None:
+        for name in ("min_baseline_m", "gain", "min_scale", "max_scale"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0.0):
+                raise InputError(f"{v!r}", where=f"StepScaleParams.{name}",
+                                 expected="a finite value >= 0")
+        if not 0.0 < self.min_scale <= 1.0 <= self.max_scale:
+            raise InputError(f"[{self.min_scale}, {self.max_scale}]",
+                             where="StepScaleParams.min_scale/max_scale",
+                             expected="0 < min_scale <= 1 <= max_scale")
 
 
 class StepScaleLearner:

@@ -76,12 +76,12 @@ from hrtls.pipeline import report as rep
 from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.build import Notes, Sensors
 from hrtls.pipeline.compass import CompassParams, CompassYaw
-from hrtls.pipeline.config import TrackerConfig, preset
+from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
 from hrtls.pipeline.imu_stage import AttitudeStage, HeldImu, note_session_mounting, resolve_mounting
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.schedule import EventSchedule, PoseGate, chunk_end
-from hrtls.pipeline.step_scale import StepScaleLearner
+from hrtls.pipeline.step_scale import StepScaleLearner, StepScaleParams
 
 LIVE_LATENCY_S = 4.0
 """Events are held until the IMU stream is this far past them (late step detections), s."""
@@ -121,7 +121,7 @@ class Tracker:
     Parameters
     ----------
     config:
-        What to run; the ``default`` preset when None.
+        What to run; ``TrackerConfig()`` (the ``default`` preset) when None.
     keep_attitude:
         Keep the per-sample attitude for :attr:`TrackResult.attitude` (None without it): about
         64 bytes per IMU sample, which long recordings streamed in chunks may not want to hold.
@@ -132,7 +132,7 @@ class Tracker:
 
     def __init__(self, config: TrackerConfig | None = None, *, keep_attitude: bool = True
                  ) -> None:
-        self.config = config if config is not None else preset("default")
+        self.config = config if config is not None else TrackerConfig()
         self.keep_attitude = keep_attitude
         self._started = False
 
@@ -192,7 +192,7 @@ class Tracker:
         state = FilterState.from_start_pose(pose, t=self._pose.t_pose)
         # --- attitude
         self.attitude_method = build.attitude_method(cfg, s, notes)
-        filt = build.attitude_filter(self.attitude_method)
+        filt = build.attitude_filter(cfg, self.attitude_method)
         # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
         # filters already fuse the magnetometer with their own disturbance gates; with the
         # hard iron already removed, the compass needs no warm-up of its own
@@ -221,7 +221,8 @@ class Tracker:
         self.history = GaitHistory()
         self.engine = FusionEngine(
             cfg, parts, state=state, landmarks=self.landmarks, schedule=self.schedule,
-            pose=self._pose, scale=StepScaleLearner(), gait=self.history,
+            pose=self._pose, scale=StepScaleLearner(params_of(
+                StepScaleParams, cfg.prediction.step_scale)), gait=self.history,
             params=build.kernel_params(cfg, parts, floor_height_m=meta.floor_height_m,
                                        heading_known=pose.heading is not None,
                                        has_imu=s.has_imu),
