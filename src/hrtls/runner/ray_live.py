@@ -17,6 +17,7 @@ and snapshots, which survive the service itself).
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -75,6 +76,7 @@ class RayShardRunner:
         self._ray = ray
         self._actor_class = ray.remote(num_cpus=0, max_restarts=0)(_Shard)
         self._shards = [self._actor_class.remote() for _ in range(n_shards)]
+        self._locks = [threading.Lock() for _ in range(n_shards)]
         self._agents: dict[int, _Recovery] = {}
         self.recoveries = 0
 
@@ -97,6 +99,7 @@ class RayShardRunner:
 
     @property
     def n_shards(self) -> int:
+        """Number of shard actors."""
         return len(self._shards)
 
     def shard_of(self, agent_id: int) -> int:
@@ -127,9 +130,16 @@ class RayShardRunner:
         if self._agents.pop(agent_id, None) is not None:
             self._call(agent_id, "close", agent_id, recover=False)
 
-    def kill_shard(self, shard: int) -> None:
-        """Kill a shard actor (fault tests and drills); the next call on it recovers."""
-        self._ray.kill(self._shards[shard], no_restart=True)
+    def kill_shard(self, shard: int) -> int:
+        """Kill a shard actor (fault tests and drills); the next call on it recovers.
+
+        Returns the killed actor's process id.
+        """
+        with self._locks[shard]:
+            actor = self._shards[shard]
+            pid = int(self._ray.get(actor.pid.remote()))
+            self._ray.kill(actor, no_restart=True)
+        return pid
 
     def shutdown(self) -> None:
         """Kill every shard actor."""
@@ -138,14 +148,20 @@ class RayShardRunner:
         self._shards = []
 
     def _call(self, agent_id: int, method: str, *args: Any, recover: bool = True) -> Any:
+        """One call on the agent's shard, recovering the shard once if its actor died.
+
+        Calls on one shard are serialised (its lock), so a recovery never races a feed;
+        different shards work in parallel.
+        """
         shard = self.shard_of(agent_id)
-        try:
-            return self._ray.get(getattr(self._shards[shard], method).remote(*args))
-        except self._ray.exceptions.RayActorError:
-            if not recover:
-                return None
-            self._recover(shard)
-            return self._ray.get(getattr(self._shards[shard], method).remote(*args))
+        with self._locks[shard]:
+            try:
+                return self._ray.get(getattr(self._shards[shard], method).remote(*args))
+            except self._ray.exceptions.RayActorError:
+                if not recover:
+                    return None
+                self._recover(shard)
+                return self._ray.get(getattr(self._shards[shard], method).remote(*args))
 
     def _recover(self, shard: int) -> None:
         """A new actor for ``shard``; its agents from their last snapshot plus later feeds."""

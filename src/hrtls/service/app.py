@@ -23,7 +23,7 @@ from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.host import HostParams, TrackerHost
 from hrtls.service.limits import BodyLimit, RateLimiter
-from hrtls.service.runner import InProcessRunner, TrackerRunner
+from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 
@@ -77,7 +77,7 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     engine = make_engine(settings.db_url)
     migrate(engine)
     sessions = session_factory(engine)
-    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or InProcessRunner(),
+    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or make_runner(settings),
                        params=HostParams(queue_batches=settings.queue_batches,
                                          snapshot_every_s=settings.snapshot_every_s,
                                          workers=settings.tracker_threads))
