@@ -119,7 +119,7 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
             acc -= m[r, c] * x[c]
         x[r] = acc / m[r, r]
     centre = np.empty(dim)
-    r2 = x[dim]
+    r2 = float(x[dim])
     for a in range(dim):
         r2 += x[a] * x[a]
         centre[a] = mean[a] + x[a]
