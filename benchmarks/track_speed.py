@@ -101,7 +101,7 @@ def main() -> None:
     args = ap.parse_args()
     clock = time.perf_counter if args.wall_time else time.process_time
     warnings.simplefilter("ignore")
-    console = Console()
+    console = Console(width=150)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         with console.status("simulating"):
