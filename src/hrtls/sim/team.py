@@ -2,9 +2,11 @@
 
 The building is the one of Inderst Sec. 6.3.1 (``inderst_multifloor``): a ground-floor corridor
 (0, 0)-(40, 0)-(40, 20), two flights of stairs at x = 40..43, and a loop on the first floor
-(40, 21.2)-(0, 21.2)-(0, 36.2)-(40, 36.2). Ours on top of it (the thesis ran one person at a time):
+(40, 21.2)-(0, 21.2)-(0, 36.2)-(40, 36.2). Ours on top of it (the thesis ran one
+person at a time):
 
-- five RFID tags on the corridor walls (two on the ground floor, three on the first), read by the rescuers' waist readers;
+- five RFID tags on the corridor walls (two on the ground floor, three on the first floor),
+  read by the rescuers' readers;
 - rescuer A walks the thesis' route (ground floor, stairs up, the first-floor loop, back down);
 - rescuer B goes up to the far corner of the first floor and stops there for ``stop_s`` (long
   enough for a PASS alarm: pre-alarm after 20 s, alarm after 30 s), then walks back out;
