@@ -8,7 +8,7 @@ person at a time):
 - five RFID tags on the corridor walls (two on the ground floor, three on the first floor),
   read by the rescuers' readers;
 - rescuer A walks the thesis' route (ground floor, stairs up, the first-floor loop, back down);
-- rescuer B goes up to the far corner of the first floor and stops there for ``stop_s`` (long
+- rescuer B goes up to the far corridor of the first floor and stops halfway for ``stop_s`` (long
   enough for a PASS alarm: pre-alarm after 20 s, alarm after 30 s), then walks back out;
 - a robot patrols the ground-floor corridor at 0.5 m/s; its wheel odometry is reported as poses
   with a growing sigma (drift 1 % of the distance, heading drift as a random walk).

@@ -124,7 +124,12 @@ export class Dashboard {
     if (!replay) this.clockOffsetS = p.t - (Date.now() / 1000 - this.mission.t0Unix);
     for (const a of this.agents.values()) { a.est = null; a.trail = []; }
     for (const a of p.agents) this.agent(a.id, a);
-    for (const e of p.estimates) this.agent(e.agent).est = e;
+    const wall = Date.now() / 1000;
+    for (const e of p.estimates) {
+      const a = this.agent(e.agent);
+      a.est = e;
+      if (!replay) a.seenWall = wall - Math.max(0, p.t - e.received_t);
+    }
     for (const [id, trail] of Object.entries(p.trails)) this.agent(id).trail = trail.slice();
     this.events.clear();
     for (const ev of p.events) this.events.set(ev.id, ev);
@@ -145,6 +150,7 @@ export class Dashboard {
   applyEstimate(e) {
     const a = this.agent(e.agent);
     if (a.est && e.t < a.est.t) return;
+    if (!a.est || e.t > a.est.t) a.seenWall = Date.now() / 1000;
     a.est = e;
     const last = a.trail[a.trail.length - 1];
     if (!last || e.t > last.t) a.trail.push({ t: e.t, x: e.x, y: e.y, floor: e.floor });
@@ -162,12 +168,12 @@ export class Dashboard {
   // Mission time now, on the service's clock.
   missionNow() { return Date.now() / 1000 - this.mission.t0Unix + (this.clockOffsetS || 0); }
 
-  // Age of an agent's last data: mission time now minus its last sample (or estimate) time.
+  // Age of an agent's last data, s: since its estimate last advanced (wall clock; a replayed
+  // agent at 10x has mission times ahead of the clock), or before the replay time.
   ageOf(a) {
     if (!a.est) return Infinity;
     if (this.replay.active) return Math.max(0, this.replay.t - a.est.t);
-    const last = Math.max(a.lastDataT ?? -Infinity, a.est.t);
-    return Math.max(0, this.missionNow() - last);
+    return Math.max(0, Date.now() / 1000 - (a.seenWall ?? Date.now() / 1000));
   }
 
   isStale(a) {
