@@ -61,8 +61,9 @@ def main() -> None:
                      rate_hz=s.imu.accel.rate_hz, t0=s.time_span()[0])
             t_stage = clock()
             _, acc, gyr, mag = s.imu.aligned()
-            q = tr._attitude_update(s, t_imu, acc, gyr, mag)
-            assert tr.gait is not None
+            assert tr.attitude is not None and tr.gait is not None
+            q = tr.attitude.update(t_imu, acc, gyr, mag, s.orientation,
+                                   mounting_q_bd=tr.meta.mounting_q_bd, state_t=tr.state.t)
             tr.gait.update(t_imu, acc, q)
             stage = min(stage, clock() - t_stage)
             total_t0 = clock()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from hrtls.data import Checkpoints, GroundTruth, StepEvents, Trajectory
 from hrtls.errors import InputError
 from hrtls.evaluate.metrics import (
     activity_confusion,
+    axis_errors,
     checkpoint_errors,
     compare_steps,
     cumulative_distance,
@@ -22,6 +24,7 @@ from hrtls.evaluate.metrics import (
     hold_previous,
     integral_mean_error,
     match_events,
+    moving_speed_rmse,
     position_errors,
     velocity_rmse,
 )
@@ -65,12 +68,45 @@ def test_position_errors_constant_offset():
     np.testing.assert_allclose(e3, 13.0)
 
 
-def test_position_errors_only_inside_estimate_span():
-    truth = _line_truth()
+def test_position_errors_hold_the_ends_of_a_short_estimate():
+    truth = _line_truth()  # x = t on [0, 10]
     est = Trajectory.build(t=[2.0, 4.0], xyz=[[2.0, 1.0, 0.0], [4.0, 1.0, 0.0]])
     t, e = position_errors(est, truth)
-    assert t[0] == pytest.approx(2.0) and t[-1] == pytest.approx(4.0)
-    np.testing.assert_allclose(e, 1.0)
+    np.testing.assert_array_equal(t, truth.t)  # no truth sample dropped
+    inside = (t >= 2.0) & (t <= 4.0)
+    np.testing.assert_allclose(e[inside], 1.0)
+    # before the start the first estimate (2, 1) is held, after the end the last (4, 1)
+    np.testing.assert_allclose(e[t < 2.0], np.hypot(2.0 - t[t < 2.0], 1.0))
+    np.testing.assert_allclose(e[t > 4.0], np.hypot(t[t > 4.0] - 4.0, 1.0))
+
+
+def test_track_that_stops_early_scores_worse_than_one_that_continues():
+    truth = _line_truth()
+    full = Trajectory.build(t=truth.t, xyz=truth.xyz + np.array([0.5, 0.0, 0.0]))
+    early = Trajectory.build(t=truth.t[:30], xyz=full.xyz[:30])
+    assert position_errors(early, truth)[1].mean() > position_errors(full, truth)[1].mean()
+    cps = Checkpoints(np.array([1.0, 9.0]), np.array([[1.0, 0.0, 0.0], [9.0, 0.0, 0.0]]),
+                      np.array(["a", "b"]))
+    _, e_c, lab = checkpoint_errors(early, cps)
+    assert list(lab) == ["a", "b"]  # the checkpoint after the end is scored, not dropped
+    assert e_c[1] > 5.0
+
+
+def test_axis_errors_hand_computed():
+    truth = _line_truth()
+    est = Trajectory.build(t=truth.t, xyz=truth.xyz + np.array([-0.3, 0.4, 2.0]))
+    np.testing.assert_allclose(axis_errors(est, truth), np.broadcast_to([0.3, 0.4],
+                                                                         (len(truth.t), 2)))
+
+
+def test_moving_speed_rmse_of_a_constant_speed_error():
+    t = np.linspace(0.0, 20.0, 2001)
+    truth = GroundTruth(t, np.column_stack([t, np.zeros_like(t), np.zeros_like(t)]),
+                        np.zeros_like(t))
+    est = Trajectory.build(t=t, xyz=np.column_stack([1.2 * t, np.zeros_like(t),
+                                                     np.zeros_like(t)]))
+    assert moving_speed_rmse(est, truth, moving_m_s=0.2) == pytest.approx(0.2, abs=1e-6)
+    assert math.isnan(moving_speed_rmse(est, truth, moving_m_s=5.0))
 
 
 def test_checkpoint_errors():

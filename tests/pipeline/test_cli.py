@@ -84,11 +84,12 @@ def test_track_bad_preset_and_config(office: SimulationResult, tmp_path: Path) -
 def test_bench_runs_rows() -> None:
     from hrtls.jobs.bench import run_bench
 
-    rows = run_bench(seeds=1, only=["colombo_circle Tp=16"])
+    rows = run_bench(seeds=[100], only=["colombo_circle Tp=16"])
     assert rows and rows[0].paper_preset == "colombo2014"
     assert rows[0].paper.startswith("0.50")
     d = rows[0].to_dict()
-    assert set(d) >= {"scenario", "metric", "paper", "default_mean", "met"}
+    assert set(d) >= {"scenario", "metric", "paper", "default_mean", "default_p90",
+                      "default_worst", "met", "n_seeds"}
 
 
 def test_bench_cli_help() -> None:

@@ -73,17 +73,18 @@ def test_step_length_kinds(tmp_path: Path, kind: str) -> None:
 def test_pendulum_step_model_from_profile(office: SimulationResult) -> None:
     from hrtls.gait.step_length_pendulum import PendulumModel
     from hrtls.pipeline import Tracker
+    from hrtls.pipeline.build import step_model
 
     s = office.session
     cfg = preset("default").model_copy(update={
         "gait": preset("default").gait.model_copy(update={"step_length": "pendulum"})})
     meta = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
         "step_model": {"kind": "pendulum", "k": 1.1, "leg_length_m": 0.9}})})
-    model = Tracker(cfg)._step_model(meta)
+    model, _ = step_model(cfg.gait, meta)
     assert isinstance(model, PendulumModel) and model.k == 1.1 and model.leg_length_m == 0.9
     plain = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
         "step_model": {"kind": "weinberg", "k": 0.5}})})
-    assert Tracker(cfg)._step_model(plain) == PendulumModel()
+    assert step_model(cfg.gait, plain)[0] == PendulumModel()
     res = Tracker(cfg).run(s.with_parts(meta=meta, fixes=None, rss=None, tags=None,
                                         ranges=None))
     assert len(res.steps) > 50 and np.all(np.isfinite(res.steps.length_m))
@@ -155,3 +156,65 @@ def test_default_tracker_is_the_default_preset() -> None:
     from hrtls.pipeline import Tracker
 
     assert Tracker().config == preset("default")
+
+
+def test_tracker_config_defaults_are_the_default_preset() -> None:
+    from hrtls.pipeline import Tracker, TrackerConfig
+
+    assert TrackerConfig() == preset("default")
+    assert Tracker().config == Tracker(TrackerConfig()).config == preset("default")
+
+
+def test_every_component_knob_reaches_its_component(tmp_path: Path,
+                                                    office: SimulationResult) -> None:
+    """Sub-tables map 1:1 onto the components' parameter dataclasses (and the constants)."""
+    from hrtls.pipeline import Tracker
+
+    p = tmp_path / "knobs.toml"
+    p.write_text(
+        "floor_sigma_m = 0.3\n"
+        "[attitude]\nmethod = \"quat-ekf\"\n"
+        "[attitude.quat_ekf]\nacc_gate_m_s2 = 0.7\ngyro_bias_rad_s = [0.001, 0.0, 0.0]\n"
+        "[prediction.step_scale]\ngain = 0.5\nmin_scale = 0.9\nmax_scale = 1.1\n"
+        "min_baseline_m = 5.0\n"
+        "[prediction.random_walk]\nsigma_speed_m_s = 2.0\n"
+        "[rss]\nmin_distance_m = 1.5\n"
+        "[rss.channel]\nforgetting = 0.99\neta_bounds = [1.5, 5.0]\n", encoding="utf-8")
+    cfg = load_config(p)
+    s = office.session
+    tr = Tracker(cfg)
+    tr.start_session(s)
+    assert tr.attitude is not None
+    att = tr.attitude.filter.params
+    assert att.acc_gate_m_s2 == 0.7 and tuple(att.gyro_bias_rad_s) == (0.001, 0.0, 0.0)
+    sc = tr.engine.scale.params
+    assert (sc.gain, sc.min_scale, sc.max_scale, sc.min_baseline_m) == (0.5, 0.9, 1.1, 5.0)
+    parts = tr.engine.parts
+    assert parts.random_walk.sigma_speed_m_s == 2.0
+    assert parts.channel_estimator is not None
+    assert parts.channel_estimator.params.forgetting == 0.99
+    assert tuple(parts.channel_estimator.params.eta_bounds) == (1.5, 5.0)
+    rec = tr.engine.params[0]
+    assert rec["floor_sigma_m"] == 0.3 and rec["rss_min_distance_m"] == 1.5
+    # the defaults are the dataclasses' own
+    from hrtls.attitude.quat_ekf import QuatEkfParams
+    from hrtls.pipeline.step_scale import StepScaleParams
+
+    d = preset("default")
+    assert d.attitude.filter_params("quat-ekf") == QuatEkfParams()
+    assert d.prediction.step_scale == {"min_baseline_m": 8.0, "gain": 0.25, "min_scale": 0.8,
+                                       "max_scale": 1.25}
+    assert StepScaleParams() == StepScaleParams(**d.prediction.step_scale)
+
+
+@pytest.mark.parametrize(("text", "key"), [
+    ("[rss.channel]\nforgeting = 0.9\n", "forgeting"),
+    ("[attitude.quat_ekf]\nacc_gate = 1.0\n", "acc_gate"),
+    ("[prediction.step_scale]\ngain = \"high\"\n", "gain"),
+    ("[rss.channel]\nforgetting = 1.5\n", "forgetting"),
+])
+def test_bad_sub_table_key_is_named(tmp_path: Path, text: str, key: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(text, encoding="utf-8")
+    with pytest.raises(FormatError, match=key):
+        load_config(p)

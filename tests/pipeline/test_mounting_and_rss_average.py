@@ -14,12 +14,13 @@ from hrtls.data import RssReadings
 from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.errors import InputError
 from hrtls.frames import quat_rotate
+from hrtls.fusion.rss_scans import average_rss_per_anchor
 from hrtls.jobs import ipin_eval
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.config import PRESETS, TrackerConfig
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
-from hrtls.pipeline.tracker import TrackResult, average_rss_per_anchor
+from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
 from .test_chunked import assert_same

@@ -11,6 +11,8 @@ from hrtls.gait.pll import StepDetection
 from hrtls.gait.step_length_fit import CalibrationWalk
 from hrtls.jobs.bench import fit_weinberg_running
 from hrtls.pipeline import Tracker, preset
+from hrtls.pipeline.build import step_model
+from hrtls.pipeline.step_scale import StepScaleLearner
 from hrtls.sim.scenarios import SimulationResult
 
 
@@ -41,15 +43,14 @@ def test_fit_weinberg_running_recovers_two_constants() -> None:
 
 def test_running_steps_scaled(office: SimulationResult) -> None:
     s = office.session.with_parts(fixes=None, rss=None, tags=None, ranges=None)
-    tr = Tracker(preset("default"))
+    cfg = preset("default")
     meta = s.meta.model_copy(update={"user": s.meta.user.model_copy(update={
         "step_model": {"kind": "weinberg", "k": 0.45, "k_running": 0.36}})})
-    tr._step_model(meta)
-    assert tr.running_factor == pytest.approx(0.8)
+    assert step_model(cfg.gait, meta)[1] == pytest.approx(0.8)
     bad = meta.model_copy(update={"user": meta.user.model_copy(update={
         "step_model": {"kind": "weinberg", "k": 0.45, "k_running": 0.1}})})
     with pytest.raises(InputError, match="running step factor"):
-        tr._step_model(bad)
+        step_model(cfg.gait, bad)
     res = Tracker(preset("default")).run(s.with_parts(meta=meta))
     assert res.report["running_step_factor"] == pytest.approx(0.8)
     # the simulated office walk has no running: the track equals the plain profile's
@@ -61,25 +62,26 @@ def test_running_steps_scaled(office: SimulationResult) -> None:
         np.testing.assert_allclose(res.trajectory.xyz, ref.trajectory.xyz, atol=1e-9)
 
 
-def _started(sim: SimulationResult) -> Tracker:
-    s = sim.session
-    tr = Tracker(preset("default"))
-    tr.start(s.meta, s.landmarks, has_imu=True, has_gyro=True, has_mag=True,
-             has_orientation=False, rate_hz=100.0, t0=0.0)
-    return tr
-
-
 @pytest.mark.parametrize(("run_m", "walk_learns", "run_learns"),
                          [(0.0, True, False), (10.0, False, True), (5.0, True, True)])
-def test_scale_learned_per_activity(office: SimulationResult, run_m: float, walk_learns: bool,
-                                    run_learns: bool) -> None:
-    tr = _started(office)
-    tr._anchor_xy = np.zeros(2)
-    tr._path_since_anchor = 10.0
-    tr._run_since_anchor = run_m
+def test_scale_learned_per_activity(run_m: float, walk_learns: bool, run_learns: bool) -> None:
+    sc = StepScaleLearner()
+    sc.anchor_xy = np.zeros(2)
+    sc.walked(10.0, run_m)
     # dead reckoning says 10 m east, the correction says 11 m: steps were 10 % short
-    tr._learn_scale(np.array([10.0, 0.0]), np.array([11.0, 0.0]))
+    sc.correct(np.array([10.0, 0.0]), np.array([11.0, 0.0]), learn=True)
     learned = pytest.approx(1.1**0.25)
-    assert tr.step_scale == (learned if walk_learns else 1.0)
-    assert tr.run_scale == (learned if run_learns else 1.0)
-    assert tr._run_since_anchor == 0.0 and tr._path_since_anchor == 0.0
+    assert sc.step_scale == (learned if walk_learns else 1.0)
+    assert sc.run_scale == (learned if run_learns else 1.0)
+    assert sc.run_since_anchor == 0.0 and sc.path_since_anchor == 0.0
+    np.testing.assert_array_equal(sc.anchor_xy, [11.0, 0.0])
+
+
+def test_scale_not_learned_when_off_or_after_soft_corrections() -> None:
+    for learn, soft in ((False, False), (True, True)):
+        sc = StepScaleLearner()
+        sc.anchor_xy = np.zeros(2)
+        sc.walked(10.0)
+        sc.soft_since_anchor = soft
+        sc.correct(np.array([10.0, 0.0]), np.array([11.0, 0.0]), learn=learn)
+        assert sc.step_scale == 1.0 and sc.run_scale == 1.0

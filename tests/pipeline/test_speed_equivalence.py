@@ -17,21 +17,28 @@ import pytest
 from hrtls.fusion.rss_scans import group_scans
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.tracker import _RSS, TrackResult
+from hrtls.pipeline.schedule import RSS, EventSchedule
+from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
 
-class PythonScanTracker(Tracker):
-    """Scans through the heap and ``_apply_rss`` (the Python reference path)."""
+class PythonScanSchedule(EventSchedule):
+    """Scans through the heap and ``apply_rss`` (the Python reference path)."""
 
-    def _flush_scans(self, t_seen: float) -> None:
+    def flush_scans(self, t_seen: float) -> None:
         readings = self._take_closed_scans(t_seen)
         if readings is None:
             return
         for scan in group_scans(readings, self.landmarks, window_s=self.config.rss.window_s,
                                 sensitivity_dbm=self.config.rss.sensitivity_dbm,
-                                t_origin=self._t0):
-            self._push(scan.t, _RSS, i_payload=("scan", scan))
+                                t_origin=self.t0):
+            self.push(scan.t, RSS, ("scan", scan))
+
+
+class PythonScanTracker(Tracker):
+    """A tracker with the Python reference path for scans."""
+
+    schedule_class = PythonScanSchedule
 
 
 def with_rss(cfg: TrackerConfig, **changes: object) -> TrackerConfig:
@@ -95,18 +102,18 @@ def test_scans_with_few_anchors_equal_python_path(office: SimulationResult) -> N
 def test_scan_store_trimmed_in_chunked_run(office: SimulationResult,
                                            monkeypatch: pytest.MonkeyPatch) -> None:
     """Live chunks with the scan store trimmed after every run = the offline run."""
-    from hrtls.pipeline import tracker as tracker_module
+    from hrtls.pipeline import schedule as schedule_module
     from hrtls.pipeline.chunks import split_session
 
     cfg = preset("tarrio2011")
     offline = Tracker(cfg).run(office.session)
-    monkeypatch.setattr(tracker_module, "SCAN_ROWS_TRIM", 1)
+    monkeypatch.setattr(schedule_module, "SCAN_ROWS_TRIM", 1)
     s = office.session
     tr = Tracker(cfg)
     tr.start_session(s)
     for part in split_session(s, 7.0):
         tr.update(part)
-        assert len(tr._scan_rows) < 200        # trimmed: only the queued scans' anchors
+        assert len(tr.schedule.scan_rows) < 200        # trimmed: only the queued scans' anchors
     live = tr.finish()
     assert_same(offline, live)
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hrtls.data import ImuStream
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
@@ -155,3 +156,24 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
     resid = float(np.sqrt(np.mean((np.linalg.norm(p - c, axis=1) - r) ** 2)))
     return HardIronFit(hard_iron_ut=np.asarray(c @ basis, dtype=np.float64), field_ut=r,
                        residual_ut=resid, arc_deg=arc, n_used=len(p))
+
+
+def hard_iron_samples(imu: ImuStream, window_s: float = 0.0
+                      ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Magnetometer samples and mean up direction for the hard-iron fit of ``[offline] two_pass``.
+
+    The first ``window_s`` of the magnetometer (0: all of it) and the mean accelerometer
+    reading over the same time; ``(None, None)`` without a magnetometer.
+    """
+    if imu.mag is None or not len(imu.mag.t):
+        return None, None
+    tm = imu.mag.t
+    n_mag = int(np.searchsorted(tm, tm[0] + window_s)) if window_s > 0 else len(tm)
+    n_mag = max(n_mag, 1)
+    ta = imu.accel.t
+    a0, a1 = np.searchsorted(ta, [tm[0], tm[n_mag - 1]], side="left")
+    acc = imu.accel.values[a0:a1 + 1] if a1 >= a0 else imu.accel.values
+    up = acc.mean(axis=0)
+    if not np.all(np.isfinite(up)):
+        up = np.nanmean(acc, axis=0)
+    return imu.mag.values[:n_mag], up

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import math
+import json
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -21,37 +22,63 @@ def _bench() -> None:
     """Benchmarks against the papers' published figures."""
 
 
-def _num(value: float) -> str:
-    return "-" if not math.isfinite(value) else f"{value:.2f}"
-
-
 @app.command("papers")
 @reports_errors
 def papers(
-    seeds: Annotated[int, typer.Option("--seeds", "-n", min=1,
-                                       help="Simulation seeds per scenario.")] = 10,
+    seeds: Annotated[str, typer.Option(
+        "--seeds", "-n", help="held-out (100-129, published), dev (0-9, for tuning), A-B or "
+                              "a,b,c.")] = "held-out",
     quick: Annotated[bool, typer.Option("--quick", help="A subset of the cases, one seed.")
                      ] = False,
     only: Annotated[list[str] | None, typer.Option(
         "--only", help="Keep the cases whose label contains this text (repeatable), "
                        "e.g. --only colombo.")] = None,
+    engine_name: Annotated[str, typer.Option(
+        "--engine", help="Where the case-seeds run: local | ray (same numbers either way).")]
+    = "local",
+    workers: Annotated[int | None, typer.Option(
+        help="Case-seeds run at once (default: all cores).")] = None,
+    ray_address: Annotated[str | None, typer.Option(
+        help="With --engine ray: cluster address (default: a local Ray).")] = None,
+    json_out: Annotated[Path | None, typer.Option(
+        "--json", help="Write the rows as JSON to this file.")] = None,
+    markdown_out: Annotated[Path | None, typer.Option(
+        "--markdown", help="Write the README's Markdown table to this file.")] = None,
 ) -> None:
     """Run each paper's scenario with its preset and with default; print one table."""
-    from hrtls.jobs.bench import DEFINITIONS, run_bench
+    from hrtls.jobs.bench import (
+        DEFINITIONS,
+        describe_seeds,
+        markdown_table,
+        parse_seeds,
+        run_bench,
+        stats_text,
+    )
+    from hrtls.runner import make_engine
 
+    seed_list = parse_seeds(seeds)
+    engine = make_engine(engine_name, workers=workers, ray_address=ray_address)
     with console.status("running") as status:
-        rows = run_bench(seeds=seeds, quick=quick, progress=lambda msg: status.update(msg),
-                         only=only or None)
-    n = 1 if quick else seeds
+        rows = run_bench(seeds=seed_list, quick=quick, progress=lambda msg: status.update(msg),
+                         only=only or None, engine=engine)
+    used = seed_list[:1] if quick else seed_list
     table = Table("scenario", "metric", "paper figure", "paper preset (ours)",
-                  "default preset", "target", "met?",
-                  title=f"hrtls bench papers (simulated, {n} seed{'s' if n > 1 else ''}: "
-                        "mean (worst))")
+                  "default preset", "target (on p90)", "met?",
+                  title=f"hrtls bench papers (simulated, {describe_seeds(used)}: "
+                        "mean / p90 / worst over seeds)")
     for r in rows:
         met = "-" if r.met is None else ("[green]yes[/green]" if r.met else "[red]no[/red]")
         table.add_row(r.scenario, r.metric, r.paper,
-                      f"{r.paper_preset}: {_num(r.paper_mean)} ({_num(r.paper_worst)})",
-                      f"{_num(r.default_mean)} ({_num(r.default_worst)})", r.target, met)
+                      f"{r.paper_preset}: {stats_text(r.paper_stats)}",
+                      stats_text(r.default_stats), r.target, met)
     Console(highlight=False, width=max(console.width, 160)).print(table)
+    for r in rows:
+        if r.note.startswith("with - without"):
+            console.print(f"[dim]{r.scenario}: {r.note}[/dim]")
     for key, text in DEFINITIONS.items():
         console.print(f"[dim]{key}: {text}[/dim]")
+    if json_out is not None:
+        json_out.write_text(json.dumps({"seeds": list(used), "rows": [r.to_dict() for r in rows]},
+                                       indent=2) + "\n")
+    if markdown_out is not None:
+        markdown_out.write_text(markdown_table(rows))

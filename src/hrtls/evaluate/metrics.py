@@ -1,5 +1,11 @@
 """Accuracy metrics of an estimated trajectory against ground truth, as the papers scored.
 
+This module is the only scorer: every job, benchmark and CLI that reports an error computes it
+here. Every truth sample and every checkpoint is scored. Where the estimate does not span a truth
+time (it starts late or stops early) its first / last position is held there
+(:func:`estimate_at`), so a track that ends early is charged for standing still, never
+flattered by dropping the truth it did not reach.
+
 * position error against continuous truth (estimate interpolated at truth times) and at
   checkpoints (how Inderst Sec. 6.3 and Basso Sec. IV-A measured): mean, RMSE, median,
   75th / 90th / 95th percentile, maximum, and the empirical CDF (Tarrio Fig. 1);
@@ -63,33 +69,35 @@ def error_cdf(errors: ArrayLike) -> tuple[FloatArray, FloatArray]:
     return e, np.arange(1, e.size + 1, dtype=np.float64) / max(e.size, 1)
 
 
-def _overlap(estimate: Trajectory, t: FloatArray) -> NDArray[np.bool_]:
+def estimate_at(estimate: Trajectory, t: ArrayLike) -> FloatArray:
+    """Positions (M, 3) of the estimate at ``t``: linear in between, ends held outside its span."""
     if len(estimate) == 0:
         raise InputError("empty trajectory", where="estimate", expected="at least one sample")
-    return (t >= estimate.t[0]) & (t <= estimate.t[-1])
+    return estimate.position_at(np.asarray(t, dtype=np.float64))
 
 
 def position_errors(estimate: Trajectory, truth: GroundTruth, *, horizontal: bool = True
                     ) -> tuple[FloatArray, FloatArray]:
-    """Times and Euclidean errors of the estimate (interpolated) at the truth samples it spans."""
-    keep = _overlap(estimate, truth.t)
-    t = truth.t[keep]
-    est = estimate.position_at(t)
-    d = est - truth.xyz[keep]
+    """Times and Euclidean errors of the estimate at every truth sample (ends held)."""
+    d = estimate_at(estimate, truth.t) - truth.xyz
     if horizontal:
         d = d[:, :2]
-    return t, np.sqrt(np.sum(d * d, axis=1))
+    return truth.t, np.sqrt(np.sum(d * d, axis=1))
+
+
+def axis_errors(estimate: Trajectory, truth: GroundTruth) -> FloatArray:
+    """Absolute east / north errors (N, 2) at every truth sample (ends held)."""
+    return np.asarray(np.abs(estimate_at(estimate, truth.t)[:, :2] - truth.xyz[:, :2]),
+                      dtype=np.float64)
 
 
 def checkpoint_errors(estimate: Trajectory, checkpoints: Checkpoints, *,
                       horizontal: bool = True) -> tuple[FloatArray, FloatArray, NDArray[np.str_]]:
-    """Times, errors and labels at the checkpoints the estimate spans (Inderst eq. 6.1)."""
-    keep = _overlap(estimate, checkpoints.t)
-    t = checkpoints.t[keep]
-    d = estimate.position_at(t) - checkpoints.xyz[keep]
+    """Times, errors and labels at every checkpoint (Inderst eq. 6.1; ends held)."""
+    d = estimate_at(estimate, checkpoints.t) - checkpoints.xyz
     if horizontal:
         d = d[:, :2]
-    return t, np.sqrt(np.sum(d * d, axis=1)), checkpoints.label[keep]
+    return checkpoints.t, np.sqrt(np.sum(d * d, axis=1)), checkpoints.label
 
 
 def cumulative_distance(xyz: ArrayLike) -> FloatArray:
@@ -213,48 +221,71 @@ def compare_steps(estimated: StepEvents, true: StepEvents, *, tolerance_s: float
 
 
 def heading_errors(estimate: Trajectory, truth: GroundTruth) -> tuple[FloatArray, FloatArray]:
-    """Times and absolute wrapped heading errors (rad) where both headings are known."""
+    """Times and absolute wrapped heading errors (rad) at every truth sample (ends held)."""
     if truth.heading_rad is None:
         raise InputError("truth has no heading", where="truth", expected="a heading column")
-    keep = _overlap(estimate, truth.t)
-    t = truth.t[keep]
+    if len(estimate) == 0:
+        raise InputError("empty trajectory", where="estimate", expected="at least one sample")
     h = estimate.heading_rad
     ok = np.isfinite(h)
     if ok.sum() < 2:
         return np.zeros(0), np.zeros(0)
     unwrapped = np.unwrap(h[ok])
-    est = np.interp(t, estimate.t[ok], unwrapped)
-    return t, np.abs(wrap_angle(est - truth.heading_rad[keep]))
+    est = np.interp(truth.t, estimate.t[ok], unwrapped)
+    return truth.t, np.abs(wrap_angle(est - truth.heading_rad))
 
 
-def velocity_rmse(estimate: Trajectory, truth: GroundTruth, *, rate_hz: float = 10.0,
-                  window_s: float = 1.0) -> tuple[float, float]:
-    """RMSE of the horizontal velocity vector and of the speed, m/s.
+def _smoothed_velocities(estimate: Trajectory, truth: GroundTruth, rate_hz: float,
+                         window_s: float) -> tuple[FloatArray, FloatArray] | None:
+    """Horizontal velocities (M, 2) of estimate and truth on a common grid over the truth span.
 
-    Both tracks are resampled on a common ``rate_hz`` grid over their overlap, smoothed by a
+    Both tracks are resampled at ``rate_hz`` (the estimate's ends held), smoothed by a
     ``window_s`` moving average and differentiated by central differences (Colombo computed
-    the true velocity from camera positions by backward differences).
+    the true velocity from camera positions by backward differences). None when too short.
     """
-    t0 = max(estimate.t[0], truth.t[0])
-    t1 = min(estimate.t[-1], truth.t[-1])
-    if t1 - t0 < 3.0 / rate_hz:
-        return float("nan"), float("nan")
-    t = np.arange(t0, t1, 1.0 / rate_hz)
+    if len(estimate) == 0:
+        raise InputError("empty trajectory", where="estimate", expected="at least one sample")
+    t0, t1 = truth.t[0], truth.t[-1]
     n = max(1, round(window_s * rate_hz))
-    if len(t) < n + 2:
-        return float("nan"), float("nan")
+    t = np.arange(t0, t1, 1.0 / rate_hz)
+    if t1 - t0 < 3.0 / rate_hz or len(t) < n + 2:
+        return None
     kernel = np.ones(n) / n
     tm = np.convolve(t, kernel, mode="valid")  # no padding: ends are dropped, not distorted
 
     def vel(xy: FloatArray) -> FloatArray:
         sm = np.column_stack([np.convolve(c, kernel, mode="valid") for c in xy.T])
-        return np.gradient(sm, tm, axis=0)
+        return np.asarray(np.gradient(sm, tm, axis=0), dtype=np.float64)
 
-    ve = vel(estimate.position_at(t)[:, :2])
-    vt = vel(truth.position_at(t)[:, :2])
+    return vel(estimate_at(estimate, t)[:, :2]), vel(truth.position_at(t)[:, :2])
+
+
+def velocity_rmse(estimate: Trajectory, truth: GroundTruth, *, rate_hz: float = 10.0,
+                  window_s: float = 1.0) -> tuple[float, float]:
+    """RMSE of the horizontal velocity vector and of the speed over the truth span, m/s."""
+    v = _smoothed_velocities(estimate, truth, rate_hz, window_s)
+    if v is None:
+        return float("nan"), float("nan")
+    ve, vt = v
     dv = ve - vt
     ds = np.linalg.norm(ve, axis=1) - np.linalg.norm(vt, axis=1)
     return float(np.sqrt(np.mean(np.sum(dv * dv, axis=1)))), float(np.sqrt(np.mean(ds * ds)))
+
+
+def moving_speed_rmse(estimate: Trajectory, truth: GroundTruth, *, moving_m_s: float,
+                      rate_hz: float = 10.0, window_s: float = 1.0) -> float:
+    """Speed RMSE (m/s) where the smoothed true speed exceeds ``moving_m_s`` (Colombo Fig. 7).
+
+    NaN when the truth never moves that fast.
+    """
+    v = _smoothed_velocities(estimate, truth, rate_hz, window_s)
+    if v is None:
+        return float("nan")
+    s_est, s_true = (np.linalg.norm(x, axis=1) for x in v)
+    moving = s_true > moving_m_s
+    if not np.any(moving):
+        return float("nan")
+    return float(np.sqrt(np.mean((s_est[moving] - s_true[moving]) ** 2)))
 
 
 ACTIVITY_CLASSES = (Activity.STANDING, Activity.WALKING, Activity.RUNNING, Activity.UPSTAIRS,

@@ -12,6 +12,7 @@
   smallest). The position covariance is ``4 sigma_ln^2 (H^T S^-1 H)^-1`` (first order,
   ``var(d^2) ~ 4 d^4 sigma_ln^2``).
 * :func:`scan_position` -- eq. 1 distances of a scan, then eq. 2.
+* :func:`average_rss_per_anchor` -- one mean reading per anchor and window (tight updates).
 
 The maths is compiled once (:func:`hyperbolic_wls_kernel`, :func:`scan_fix`, on plain arrays);
 the Python functions validate and call it, and so does the tracker's event loop.
@@ -298,3 +299,34 @@ def scan_position(scan: RssScan, model: PathLossModel) -> WlsFix:
         raise InputError("anchors are collinear", where="hyperbolic_wls",
                          expected="anchors spanning the plane")
     return WlsFix(out[:2].copy(), np.array([[out[2], out[3]], [out[3], out[4]]]), ref)
+
+
+def average_rss_per_anchor(rss: RssReadings, window_s: float, *,
+                           t_origin: float | None = None) -> RssReadings:
+    """One reading per anchor and window: the mean (dBm) of its readings in that window.
+
+    Windows are ``[t_origin + i w, t_origin + (i + 1) w)`` (``t_origin``: the first reading
+    when None); each mean is stamped with the time of the last reading it contains (it is
+    known by then). Consecutive readings of one beacon share their shadowing error; averaging
+    keeps them from entering the filter as independent measurements. Output in time order
+    (ties: anchor name).
+    """
+    if not (math.isfinite(window_s) and window_s > 0):
+        raise InputError(f"{window_s}", where="window_s", expected="a positive window (s)")
+    if len(rss) == 0:
+        return rss
+    origin = float(rss.t[0]) if t_origin is None else float(t_origin)
+    if not math.isfinite(origin) or origin > float(rss.t.min()):
+        raise InputError(f"{t_origin}", where="t_origin",
+                         expected="a finite time at or before the first reading")
+    anchors, a_idx = np.unique(rss.anchor, return_inverse=True)
+    bins = np.floor((rss.t - origin) / window_s).astype(np.int64)
+    n_bins = int(bins.max()) + 1
+    keys = a_idx.astype(np.int64) * n_bins + bins
+    uniq, inv = np.unique(keys, return_inverse=True)
+    mean = np.bincount(inv, weights=rss.rss_dbm) / np.bincount(inv)
+    t_last = np.full(uniq.shape[0], -np.inf)
+    np.maximum.at(t_last, inv, rss.t)
+    anchor = anchors[uniq // n_bins]
+    order = np.lexsort((anchor, t_last))
+    return RssReadings(t_last[order], anchor[order], mean[order], rss.name)

@@ -36,6 +36,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.calibration.channel import fit_path_loss
 from hrtls.data import (
     ChannelModel,
     Checkpoints,
@@ -45,13 +46,14 @@ from hrtls.data import (
     Trajectory,
 )
 from hrtls.errors import InputError
-from hrtls.evaluate.metrics import ErrorStats, error_stats
+from hrtls.evaluate.metrics import ErrorStats, checkpoint_errors, error_stats, estimate_at
 from hrtls.frames import quat_multiply
+from hrtls.fusion.rss_scans import average_rss_per_anchor
 from hrtls.gait.step_length import WeinbergModel
 from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
-from hrtls.pipeline.tracker import Tracker, TrackResult, average_rss_per_anchor
+from hrtls.pipeline.tracker import Tracker, TrackResult
 
 FloatArray = NDArray[np.float64]
 
@@ -113,17 +115,8 @@ def calibrate_channel(session: Session, *, rss_window_s: float = 0.0,
                          where="calibration session", expected="at least 3")
     xy = np.column_stack([np.interp(rss.t[keep], t_ref, xy_ref[:, i]) for i in range(2)])
     beacon = np.array([session.landmarks[a].xyz()[:2] for a in rss.anchor[keep].tolist()])
-    d = np.maximum(np.linalg.norm(xy - beacon, axis=1), 1.0)
-    z = rss.rss_dbm[keep]
-    g = -10.0 * np.log10(d)
-    a_mat = np.column_stack([np.ones_like(g), g])
-    (a_dbm, eta), *_ = np.linalg.lstsq(a_mat, z, rcond=None)
-    if not (eta_bounds[0] <= eta <= eta_bounds[1]):
-        eta = float(np.clip(eta, *eta_bounds))
-        a_dbm = float(np.mean(z - eta * g))
-    resid = z - (a_dbm + eta * g)
-    sigma = float(np.sqrt(np.sum(resid**2) / max(len(z) - 2, 1)))
-    return ChannelModel(a_dbm=float(a_dbm), eta=float(eta), sigma_db=max(sigma, 0.5))
+    return fit_path_loss(distance_m=np.linalg.norm(xy - beacon, axis=1),
+                         rss_dbm=rss.rss_dbm[keep], eta_bounds=eta_bounds)
 
 
 def prepare_session(session: Session, *, mounting: Mounting = "handheld",
@@ -235,13 +228,11 @@ def landmark_errors(trajectory: Trajectory, checkpoints: Checkpoints, *,
         raise InputError("empty trajectory", where="trajectory", expected="at least one row")
     if not (math.isfinite(floor_height_m) and floor_height_m > 0):
         raise InputError(f"{floor_height_m}", where="floor_height_m", expected="> 0 (m)")
-    est = np.column_stack([np.interp(checkpoints.t, trajectory.t, c)
-                           for c in trajectory.xyz.T])
-    d = est[:, :2] - checkpoints.xyz[:, :2]
+    est = estimate_at(trajectory, checkpoints.t)
+    t, horizontal_m, label = checkpoint_errors(trajectory, checkpoints)
     return LandmarkErrors(
-        t=np.asarray(checkpoints.t, dtype=np.float64),
-        label=np.asarray(checkpoints.label, dtype=np.str_),
-        horizontal_m=np.sqrt(np.sum(d * d, axis=1)),
+        t=np.asarray(t, dtype=np.float64), label=np.asarray(label, dtype=np.str_),
+        horizontal_m=horizontal_m,
         floor_estimated=np.rint(est[:, 2] / floor_height_m).astype(np.int64),
         floor_true=np.rint(checkpoints.xyz[:, 2] / floor_height_m).astype(np.int64))
 

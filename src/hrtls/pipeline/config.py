@@ -1,35 +1,77 @@
 """Tracker configuration: which attitude filter, gait methods, prediction and corrections.
 
-A configuration is a TOML file (see ``presets/*.toml`` for complete, commented examples) or one of
-the named presets. Every section and key is optional; unknown keys are an error, so a typo never
-silently falls back to a default.
+A configuration is a TOML file or one of the named presets (``presets/*.toml``). Every section
+and key is optional; unknown keys are an error, so a typo never silently falls back to a default.
+
+Defaults live in one place each: the fields below, or -- for the sub-tables that configure one
+component (``[attitude.quat_ekf]``, ``[rss.channel]``, ``[prediction.random_walk]``,
+``[prediction.step_scale]``, ...) -- the component's parameter dataclass, whose fields the
+sub-table holds 1:1. ``TrackerConfig()`` is the ``default`` preset; ``hrtls config show`` prints
+the complete effective configuration (every key with its value).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, field_validator
 
+from hrtls.attitude.complementary import ComplementaryParams
+from hrtls.attitude.euler_ekf import EulerEkfParams
+from hrtls.attitude.inertial_lowpass import InertialLowpassParams
+from hrtls.attitude.quat_ekf import QuatEkfParams
 from hrtls.errors import FormatError, InputError
+from hrtls.fusion.channel import ChannelEstimatorParams
+from hrtls.fusion.random_walk import RandomWalkParams
+from hrtls.pipeline.step_scale import StepScaleParams
 
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+def _complete(params_type: type, value: object) -> dict[str, Any]:
+    """Every field of ``params_type`` (defaults filled in), validated by the dataclass."""
+    if not isinstance(value, dict):
+        raise ValueError(f"a table of {params_type.__name__} keys expected")
+    names = [f.name for f in dataclasses.fields(params_type) if f.init]
+    unknown = sorted(set(value) - set(names))
+    if unknown:
+        raise ValueError(f"unknown key {unknown[0]!r} (keys: {', '.join(names)})")
+    try:
+        params: Any = TypeAdapter(params_type).validate_python(value)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        raise ValueError(f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}") from None
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
+    return {n: getattr(params, n) for n in names}
+
+
+def params_of(params_type: type[Any], table: dict[str, Any]) -> Any:
+    """The parameter dataclass of a completed sub-table."""
+    return params_type(**table)
+
+
+def _table(params_type: type) -> Any:
+    """A sub-table field holding the keys of ``params_type`` (defaults from the dataclass)."""
+    return Field(default_factory=lambda: _complete(params_type, {}),
+                 description=f"the fields of {params_type.__module__}.{params_type.__name__}")
+
+
 class AttitudeConfig(_Section):
     """Orientation source."""
 
-    method: Literal["auto", "euler-ekf", "quat-ekf", "complementary", "device", "none"] = \
-        "quat-ekf"
+    method: Literal["auto", "euler-ekf", "quat-ekf", "complementary", "inertial-lp", "device",
+                    "none"] = "auto"
     """``auto``: the device's own orientation when the session has one, else ``quat-ekf``."""
     use_magnetometer: bool = True
     compass_yaw: bool = Field(
-        default=False, description="remove the device orientation's slow yaw wander with the "
+        default=True, description="remove the device orientation's slow yaw wander with the "
         "magnetometer (self-calibrated hard iron; our addition, see pipeline.compass); only "
         "with method device (our filters fuse the magnetometer themselves)")
     mounting: Literal["session", "handheld"] = "session"
@@ -40,11 +82,33 @@ class AttitudeConfig(_Section):
         default=10.0, gt=0.0, description="handheld mounting: seconds of accelerometer from "
         "the start pose over which the mean specific force gives the mounting; the gait stage "
         "starts once they have arrived (its steps are released then)")
-    mag_hard_iron: Literal["off", "fit"] = "off"
+    mag_hard_iron: Literal["off", "fit"] = "fit"
     """``fit``: estimate the magnetometer's hard-iron offset from the walk's own turns as the
     samples arrive (:mod:`hrtls.calibration.hard_iron_running`, our addition) and subtract it
     before the attitude stage from the time a fit is accepted (the field is used raw before);
     for devices never calibrated with a figure of eight (Inderst App. B)."""
+    quat_ekf: dict[str, Any] = _table(QuatEkfParams)
+    euler_ekf: dict[str, Any] = _table(EulerEkfParams)
+    complementary: dict[str, Any] = _table(ComplementaryParams)
+    inertial_lp: dict[str, Any] = _table(InertialLowpassParams)
+
+    _complete_quat_ekf = field_validator("quat_ekf")(
+        lambda v: _complete(QuatEkfParams, v))
+    _complete_euler_ekf = field_validator("euler_ekf")(
+        lambda v: _complete(EulerEkfParams, v))
+    _complete_complementary = field_validator("complementary")(
+        lambda v: _complete(ComplementaryParams, v))
+    _complete_inertial_lp = field_validator("inertial_lp")(
+        lambda v: _complete(InertialLowpassParams, v))
+
+    def filter_params(self, method: str) -> Any:
+        """The parameter dataclass of a sensor-fusion filter (``[attitude.<method>]``)."""
+        kinds = {"quat-ekf": (QuatEkfParams, self.quat_ekf),
+                 "euler-ekf": (EulerEkfParams, self.euler_ekf),
+                 "complementary": (ComplementaryParams, self.complementary),
+                 "inertial-lp": (InertialLowpassParams, self.inertial_lp)}
+        params_type, table = kinds[method]
+        return params_of(params_type, table)
 
 
 class GaitConfig(_Section):
@@ -57,10 +121,10 @@ class GaitConfig(_Section):
     weinberg_k: float | None = Field(default=None, gt=0.0,
                                      description="overrides the user's profile")
     heading: Literal["yaw", "fourier"] = "yaw"
-    step_yaw: Literal["endpoints", "mean", "turns"] = "endpoints"
+    step_yaw: Literal["endpoints", "mean", "turns"] = "turns"
     """with heading = "yaw": circular mean of the yaw at step start and end, its time average
     over the step (follows a turn made during the step), or the average for turning steps only"""
-    activity: Literal["lda", "tree", "motion"] = "lda"
+    activity: Literal["lda", "tree", "motion"] = "motion"
     velocity_automaton: bool = False
     gate_steps_with_motion: bool = False
     walking_bouts: bool = False
@@ -81,7 +145,16 @@ class PredictionConfig(_Section):
     sigma_heading_increment_rad: float = Field(default=0.01, ge=0.0)
     stairs_from_model: bool = True
     learn_step_scale: bool = Field(
-        default=False, description="learn a step-length scale from absolute corrections")
+        default=True, description="learn a step-length scale from absolute corrections")
+    step_scale: dict[str, Any] = _table(StepScaleParams)
+    """How the step-length scale is learned (:class:`hrtls.pipeline.step_scale.StepScaleParams`)."""
+    random_walk: dict[str, Any] = _table(RandomWalkParams)
+    """Prediction without an IMU (:class:`hrtls.fusion.random_walk.RandomWalkParams`)."""
+
+    _complete_step_scale = field_validator("step_scale")(
+        lambda v: _complete(StepScaleParams, v))
+    _complete_random_walk = field_validator("random_walk")(
+        lambda v: _complete(RandomWalkParams, v))
 
 
 class FixesConfig(_Section):
@@ -89,7 +162,7 @@ class FixesConfig(_Section):
 
     enabled: bool = True
     period_s: float = Field(default=1.0, gt=0.0, description="update period Tp")
-    require_motion: bool = True
+    require_motion: bool = False
     yaw_stretch: bool = True
     max_consecutive_rejections: int = Field(
         default=1, ge=0, description="after this many gated fixes in a row, apply the next one")
@@ -99,17 +172,17 @@ class FixesConfig(_Section):
     gate: bool = Field(
         default=True, description="chi-square gate on fixes (the paper's eq. 20-22 have none)")
     drift_fraction: float = Field(
-        default=0.0, ge=0.0, le=1.0,
+        default=0.1, ge=0.0, le=1.0,
         description="dead-reckoning drift per metre walked since the last fix, added as "
                     "position variance (f L)^2 before a fix's gate and update, and as shape "
                     "uncertainty to the stretching yaw's variance (our addition)")
     yaw_feedback: Literal["gain", "kalman"] = Field(
-        default="gain",
+        default="kalman",
         description="gain: add yaw_feedback_gain x the stretching correction; kalman: weigh "
                     "it by the state heading variance against the pseudo-measurement's "
                     "(a scalar Kalman update of the heading, like eq. 8-9 with eta_z)")
     partial_step: bool = Field(
-        default=False,
+        default=True,
         description="step model: compare a fix with the state plus the part of the step in "
                     "progress at the fix time (our addition)")
 
@@ -128,25 +201,33 @@ class RssConfig(_Section):
     use_wls_covariance: bool = True
     sigma_position_m: float = Field(default=2.0, gt=0.0,
                                     description="Tarrio's sigma_p when not using the WLS cov.")
+    min_distance_m: float = Field(
+        default=0.5, ge=0.0, description="tight mode: no update when the estimate is nearer "
+        "than this to the beacon")
+    channel: dict[str, Any] = _table(ChannelEstimatorParams)
+    """Online channel estimation (:class:`hrtls.fusion.channel.ChannelEstimatorParams`)."""
+
+    _complete_channel = field_validator("channel")(
+        lambda v: _complete(ChannelEstimatorParams, v))
 
 
 class TagsConfig(_Section):
     """Passive tags (Inderst Sec. 4.3.2) and heading from their bearings (Sec. 4.2.3)."""
 
     enabled: bool = True
-    strategy: Literal["paper", "kalman"] = "paper"
+    strategy: Literal["paper", "kalman"] = "kalman"
     bearing_correction: bool = True
     sigma_per_accuracy: float = Field(default=0.5, gt=0.0,
                                       description="kappa: lobe 1-sigma per accuracy radius")
     repeat_interval_s: float = Field(default=2.0, ge=0.0)
     bearing_gate_deg: float = Field(default=45.0, gt=0.0, le=180.0)
     bearing_deadband_deg: float = Field(default=5.0, ge=0.0)
-    bearing_mode: Literal["replace", "kalman"] = "replace"
+    bearing_mode: Literal["replace", "kalman"] = "kalman"
     bearing_confirm_s: float = Field(
-        default=0.0, ge=0.0,
+        default=1.0, ge=0.0,
         description="wait this long after a read and skip its bearing if the user turned")
     bearing_max_turn_deg: float = Field(
-        default=15.0, gt=0.0, description="no bearing correction while turning more than this")
+        default=10.0, gt=0.0, description="no bearing correction while turning more than this")
     bearing_sigma_deg: float = Field(default=5.0, gt=0.0)
 
 
@@ -167,8 +248,10 @@ class OfflineConfig(_Section):
 class TrackerConfig(_Section):
     """The whole tracker."""
 
-    name: str = "custom"
-    description: str = ""
+    name: str = "default"
+    description: str = ("device orientation when recorded else quaternion EKF with gates, peak "
+                        "steps, Weinberg length, motion-gated activity, heading in the filter "
+                        "state, every correction")
     attitude: AttitudeConfig = AttitudeConfig()
     gait: GaitConfig = GaitConfig()
     prediction: PredictionConfig = PredictionConfig()
@@ -179,6 +262,8 @@ class TrackerConfig(_Section):
     offline: OfflineConfig = OfflineConfig()
     gate_probability: float = Field(default=0.997, gt=0.5, lt=1.0)
     floor_snap: bool = True
+    floor_sigma_m: float = Field(default=0.1, gt=0.0, description="1-sigma of the floor-level "
+                                 "pseudo-measurement after a flat step")
     barometer: bool = Field(default=True, description="heights and floors from the "
                             "recording's barometer when it has one (hrtls.pipeline.barometric)")
 
@@ -235,16 +320,20 @@ def to_toml(config: TrackerConfig) -> str:
     """The complete effective configuration as TOML (``load_config`` reads it back).
 
     Every key is written with its value (unset optional keys, e.g. ``weinberg_k``, are written
-    as comments: TOML has no null).
+    as comments: TOML has no null); sub-tables follow their table.
     """
-    data = config.model_dump(mode="json")
-    top = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    out = [*top, ""]
-    for section, values in data.items():
-        if not isinstance(values, dict):
-            continue
-        out.append(f"[{section}]")
+    out: list[str] = []
+
+    def table(path: str, values: dict[str, Any]) -> None:
+        if path:
+            out.append(f"[{path}]")
         for k, v in values.items():
-            out.append(f"# {k} = (not set)" if v is None else f"{k} = {_toml_value(v)}")
+            if not isinstance(v, dict):
+                out.append(f"# {k} = (not set)" if v is None else f"{k} = {_toml_value(v)}")
         out.append("")
+        for k, v in values.items():
+            if isinstance(v, dict):
+                table(f"{path}.{k}" if path else k, v)
+
+    table("", config.model_dump(mode="json"))
     return "\n".join(out)

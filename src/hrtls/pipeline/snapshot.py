@@ -28,7 +28,7 @@ from hrtls.fusion.tags import TagMemory
 
 MAGIC = b"HRTLSNAP"
 """First bytes of every snapshot."""
-VERSION = 1
+VERSION = 2
 """Layout version (the byte after the magic); restore refuses others."""
 
 _CLASSES: dict[str, type] = {c.__name__: c for c in (

@@ -12,6 +12,7 @@ scenarios ``wsn.json`` (positions of anchors only) and ``wsn_truth.json`` (all p
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -34,9 +35,9 @@ from hrtls.data import (
     StepEvents,
     activity_labels,
 )
-from hrtls.data.session import ChannelModel, StartPose, UserProfile
+from hrtls.data.session import StartPose, UserProfile
 from hrtls.errors import InputError
-from hrtls.frames import quat_from_rotation
+from hrtls.frames import quat_from_rotation, quat_from_rotvec, quat_multiply
 from hrtls.sim.barometer import with_barometer
 from hrtls.sim.devices import DeviceModel, get_device
 from hrtls.sim.gait_model import GaitParams, fill_step_extremes, simulate_gait
@@ -156,7 +157,6 @@ class Infrastructure:
     camera: CameraSystem | None = None
     anchors: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     channel: RssChannel | None = None
-    channel_meta: ChannelModel | None = None
     tags: list[RfidTag] = field(default_factory=list)
     reader: RfidReader = field(default_factory=RfidReader)
     nodes: dict[str, tuple[float, float, float]] = field(default_factory=dict)
@@ -177,15 +177,34 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                     notes: Sequence[str] = (), start_pause_s: float = 3.0,
                     end_pause_s: float = 2.0, rngs: list[np.random.Generator] | None = None
                     ) -> SimulationResult:
-    """Walk ``waypoints`` with a device and an infrastructure; assemble the session."""
+    """Walk ``waypoints`` with a device and an infrastructure; assemble the session.
+
+    With ``options["calibration"]`` the same person (same gait, device, placement, magnetic
+    surroundings, anchors) walks the calibration course of :func:`calibration_waypoints`
+    instead, with checkpoints at the leg ends and no other infrastructure.
+
+    The session holds only what a user would know: the declared placement and, for a belt
+    clip, its nominal mounting (the true one is off by a few degrees,
+    :data:`BELT_TILT_SIGMA_RAD`), the user's height, no step-length model and no channel. The
+    truth (gait law, mounting, channel, sensor errors) is in ``hidden_truth``.
+    """
     r = rngs or _rngs(seed)
     gp = gait or GaitParams()
     infra = infra or Infrastructure()
+    if options.get("calibration"):
+        waypoints, legs = calibration_waypoints(waypoints)
+        infra = Infrastructure(anchors=infra.anchors, channel=infra.channel,
+                               checkpoints=legs, checkpoint_radius_m=1.0)
+        reference = {"calibration_of": name}
+        description = f"calibration walk of the {name} person: {calibration_summary(waypoints)}"
+        notes = ["checkpoints: the ends of the calibration legs (walks of known length)"]
     motion = simulate_motion(waypoints, rate_hz=device.rate_hz, params=motion_params,
                              start_pause_s=start_pause_s, end_pause_s=end_pause_s)
     gres = simulate_gait(motion, gp, r[1])
     kin = body_kinematics(motion, gres)
-    q_bd = mounting_quaternion(placement, r[7])
+    q_declared = None if placement == "random" else mounting_quaternion(placement, r[7])
+    q_bd = mounting_quaternion(placement, r[7]) if q_declared is None else quat_multiply(
+        q_declared, quat_from_rotvec(r[7].normal(0.0, 1.0, 3) * BELT_TILT_SIGMA_RAD))
     sim = simulate_imu(kin, device, r[2], q_bd=q_bd, lever_arm_b=lever_arm_b,
                        magnetic=magnetic or MagneticEnvironment(), with_gyro=with_gyro,
                        with_mag=with_mag, with_orientation=with_orientation,
@@ -214,16 +233,13 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                              z=float(motion.xyz[0, 2]), heading=float(motion.heading[0]),
                              sigma_xy_m=0.1, sigma_heading_rad=0.05),
         placement=placement,
-        # a phone put anywhere has an unknown mounting: only fixed placements declare it
-        mounting_q_bd=None if placement == "random" else (
-            float(q_bd[0]), float(q_bd[1]), float(q_bd[2]), float(q_bd[3])),
-        user=UserProfile.model_validate({
-            "height_m": user_height_m,
-            "step_model": {"kind": "weinberg", "k": gp.weinberg_k_walk},
-            "sim_gait": {"step_length": "a + b v", "a_m": gp.step_a_m, "b_s": gp.step_b_s,
-                         "run_a_m": gp.run_a_m, "run_b_s": gp.run_b_s,
-                         "weinberg_k_run": gp.weinberg_k_run}}),
-        floor_height_m=floor_height_m, channel=infra.channel_meta,
+        # a phone put anywhere has an unknown mounting: only fixed placements declare one,
+        # their nominal mounting
+        mounting_q_bd=None if q_declared is None else (
+            float(q_declared[0]), float(q_declared[1]), float(q_declared[2]),
+            float(q_declared[3])),
+        user=UserProfile(height_m=user_height_m),
+        floor_height_m=floor_height_m,
         source={"format": "hrtls-sim", "scenario": name, "seed": seed, "device": device.name,
                 "options": options},
         notes=[description, f"device: {device.description}", *notes],
@@ -236,13 +252,57 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                             motion=motion, kinematics=kin, imu=sim, reference=reference or {},
                             description=description, hidden_truth={
                                 "mounting_q_bd": q_bd.tolist(),
+                                "gait": dataclasses.asdict(gp),
+                                "channel": None if infra.channel is None
+                                else dataclasses.asdict(infra.channel),
                                 "lever_arm_b_m": [float(v) for v in lever_arm_b],
                                 "device": device.name,
                                 "sensor_errors": {k: v.to_dict()
                                                   for k, v in sim.realizations.items()}})
 
 
+BELT_TILT_SIGMA_RAD = float(np.deg2rad(2.0))
+"""Per-axis standard deviation of a belt clip's true mounting about its nominal one, rad."""
+
+CALIBRATION_LEG_M = 30.0
+"""Length of each walking leg of a calibration course, m (running legs: 1.5 times)."""
+
+
+def calibration_waypoints(waypoints: Sequence[Waypoint]
+                          ) -> tuple[list[Waypoint], dict[str, tuple[float, float, float]]]:
+    """A calibration course for the person who walks ``waypoints``, and its leg ends.
+
+    Straight legs of :data:`CALIBRATION_LEG_M`, back and forth from the first waypoint with a
+    3 m offset between legs and a 3 s stop at each end (where the user marks the time), at four
+    walking speeds spread over the scenario's walking speeds (10 % below the slowest to 10 %
+    above the fastest) and, when the scenario runs, two running legs at its running speeds.
+    """
+    walk = [w.speed_m_s for w in waypoints[1:] if not w.run] or [1.2]
+    run = [w.speed_m_s for w in waypoints[1:] if w.run]
+    legs = [(float(v), False) for v in np.linspace(0.9 * min(walk), 1.1 * max(walk), 4)]
+    if run:
+        legs += [(float(min(run)), True), (float(max(run)), True)]
+    x0, y0, z0 = waypoints[0].x, waypoints[0].y, waypoints[0].z
+    wps = [Waypoint(x=x0, y=y0, z=z0)]
+    ends: dict[str, tuple[float, float, float]] = {}
+    for i, (v, running) in enumerate(legs):
+        length = CALIBRATION_LEG_M * (1.5 if running else 1.0)
+        x = x0 + (length if i % 2 == 0 else 0.0)
+        y = y0 + 3.0 * (i + 1)
+        wps.append(Waypoint(x=x, y=y, z=z0, speed_m_s=v, run=running, stop_s=3.0,
+                            corner_radius_m=0.0))
+        ends[f"L{i + 1}"] = (x, y, z0)
+    return wps, ends
+
+
+def calibration_summary(waypoints: Sequence[Waypoint]) -> str:
+    """One line on a calibration course: its legs' speeds."""
+    speeds = ", ".join(f"{w.speed_m_s:.2f}{' run' if w.run else ''}" for w in waypoints[1:])
+    return f"{len(waypoints) - 1} straight legs with stops, speeds {speeds} m/s"
+
+
 def _opt(options: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str, Any]:
+    defaults = {**defaults, "calibration": False}
     unknown = set(options) - set(defaults)
     if unknown:
         raise InputError(f"unknown option(s) {sorted(unknown)}", where="scenario options",
@@ -417,8 +477,7 @@ def tarrio_circle(seed: int, **options: Any) -> SimulationResult:
                          beacon_rate_hz=o["readings_per_period"] / o["rss_period_s"])
     wps = circle_waypoints(center=(10.0, 10.0), radius_m=8.0, laps=o["laps"],
                            speed_m_s=o["speed_m_s"])
-    infra = Infrastructure(anchors=anchors, channel=channel,
-                           channel_meta=ChannelModel(a_dbm=-60.0, eta=2.5, sigma_db=5.0))
+    infra = Infrastructure(anchors=anchors, channel=channel)
     ref = {"paper": "Tarrio et al., Sec. IV", "p90_error_m": 2.4,
            "kalman_improvement_over_rss_m": 1.5, "rss_period_s": o["rss_period_s"]}
     return simulate_person(
@@ -465,14 +524,13 @@ def tarrio_office(seed: int, **options: Any) -> SimulationResult:
     return simulate_person(
         "tarrio_office", seed, o, wps, device=get_device("mpu6150_phone").with_rate(50.0),
         gait=GaitParams(weinberg_k_walk=0.45),
-        infra=Infrastructure(anchors=anchors, channel=channel,
-                             channel_meta=ChannelModel(a_dbm=-60.0, eta=2.5, sigma_db=5.0)),
+        infra=Infrastructure(anchors=anchors, channel=channel),
         reference=ref, with_mag=False,
         description=f"Tarrio Sec. V: 12.5x8 m office, 9 anchors, user {user} walks up, turns "
                     "right to the end of the room, stops, turns back; 50 Hz, RSS every 2 s",
-        notes=["true channel eta=2.8, sigma=6 dB, per-anchor offsets 3 dB (NLOS); session "
-               "channel is the nominal model of Sec. IV", "device: MPU-6150 class at 50 Hz "
-               "stands in for the Shimmer mote"], rngs=r)
+        notes=["channel eta=2.8, sigma=6 dB, per-anchor offsets 3 dB (NLOS), in scenario.json "
+               "only", "device: MPU-6150 class at 50 Hz stands in for the Shimmer mote"],
+        rngs=r)
 
 
 # --------------------------------------------------------------------------------------------
@@ -752,7 +810,7 @@ def office_random_walk(seed: int, **options: Any) -> SimulationResult:
         camera=CameraSystem(period_s=1.0, sigma_m=0.05, coverage=box(5, 5, 25, 12)),
         anchors=anchors, channel=RssChannel(a_dbm=-60.0, eta=2.5, sigma_db=5.0,
                                             beacon_rate_hz=2.0),
-        channel_meta=ChannelModel(a_dbm=-60.0, eta=2.5, sigma_db=5.0), tags=tags, nodes=nodes,
+        tags=tags, nodes=nodes,
         range_model=RangeModel(rate_hz=1.0, sigma_m=0.3, max_range_m=10.0))
     return simulate_person(
         "office_random_walk", seed, o, wps, device=get_device(o["device"]),

@@ -1,0 +1,236 @@
+"""Components of the tracker built from its configuration and the session's sensors.
+
+Nothing here looks at samples: what is built depends only on the configuration, the session
+metadata (user profile, channel, mounting) and which sensors the session has.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from hrtls.attitude.base import AttitudeFilter
+from hrtls.attitude.device import DeviceOrientation
+from hrtls.attitude.registry import make_filter
+from hrtls.data import SessionMeta
+from hrtls.errors import DegradedInputWarning, InputError
+from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams
+from hrtls.fusion.fixes import FixCorrector, FixParams
+from hrtls.fusion.path_loss import PathLossModel
+from hrtls.fusion.random_walk import RandomWalkParams
+from hrtls.fusion.ranges import RangeParams
+from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
+from hrtls.fusion.tags import TagCorrector, TagParams
+from hrtls.fusion.velocity_prediction import VelocityPredictionParams, VelocityPredictor
+from hrtls.gait.activity_lda import LdaModel
+from hrtls.gait.activity_tree import TreeThresholds
+from hrtls.gait.analyzer import GaitAnalyzer
+from hrtls.gait.missed_steps import MissedStepParams
+from hrtls.gait.peak_steps import PeakStepDetector
+from hrtls.gait.pll import PllStepDetector
+from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
+from hrtls.gait.step_length_pendulum import PendulumModel
+from hrtls.gait.velocity_automaton import VelocityAutomaton
+from hrtls.gait.walking_bouts import WalkingBoutParams
+from hrtls.pipeline import _events as ev
+from hrtls.pipeline.config import GaitConfig, TrackerConfig, params_of
+
+
+class Notes:
+    """The report's notes; ``degrade`` also warns (:class:`~hrtls.errors.DegradedInputWarning`)."""
+
+    def __init__(self, items: list[str] | None = None) -> None:
+        self.items: list[str] = [] if items is None else items
+
+    def add(self, message: str) -> None:
+        """A note."""
+        self.items.append(message)
+
+    def degrade(self, message: str) -> None:
+        """A note on a degraded mode, also warned."""
+        self.items.append(message)
+        warnings.warn(message, DegradedInputWarning, stacklevel=3)
+
+
+@dataclass(frozen=True, slots=True)
+class Sensors:
+    """Which sensors a recording has, its nominal IMU rate and start time."""
+
+    has_imu: bool
+    has_gyro: bool
+    has_mag: bool
+    has_orientation: bool
+    rate_hz: float
+    t0: float
+
+
+def attitude_method(config: TrackerConfig, sensors: Sensors, notes: Notes) -> str:
+    """The attitude method to run with these sensors (degraded modes noted)."""
+    method = config.attitude.method
+    s = sensors
+    if method == "auto":
+        method = "device" if s.has_orientation else "quat-ekf"
+    if s.has_imu and method == "device" and not s.has_orientation:
+        notes.degrade("attitude 'device' asked but the session has no device orientation; "
+                      "using 'quat-ekf'")
+        method = "quat-ekf"
+    if s.has_imu and method not in ("device", "none") and not s.has_gyro and not s.has_mag:
+        notes.degrade("no gyroscope and no magnetometer: heading is unobservable, "
+                      "using accelerometer-only levelling and relative walking directions")
+        method = "none"
+    if s.has_imu and method not in ("device", "none") and not s.has_gyro:
+        notes.degrade("no gyroscope: attitude from accelerometer and magnetometer only")
+    return method if s.has_imu else "none"
+
+
+def attitude_filter(config: TrackerConfig, method: str
+                    ) -> AttitudeFilter | DeviceOrientation | None:
+    """The attitude stage of a method (None: no attitude), ``[attitude.<method>]`` parameters."""
+    if method == "device":
+        return DeviceOrientation()
+    if method == "none":
+        return None
+    return make_filter(method, config.attitude.filter_params(method))
+
+
+def step_model(config: GaitConfig, meta: SessionMeta) -> tuple[StepModel, float]:
+    """The step-length model and the running steps' factor from the user's profile.
+
+    A profile may carry the running steps' own factor (our addition: calibration walks at
+    walking and running pace): ``k_running`` with a Weinberg K, ``running_factor`` else.
+    """
+    profile = dict(meta.user.step_model)
+    k_run = profile.pop("k_running", None)
+    run_factor = profile.pop("running_factor", None)
+    running_factor = 1.0
+    if profile.get("kind") == config.step_length:
+        if k_run is not None and profile.get("k"):
+            running_factor = float(k_run) / float(profile["k"])
+        elif run_factor is not None:
+            running_factor = float(run_factor)
+        if not (0.5 <= running_factor <= 2.0):
+            raise InputError(f"running step factor {running_factor:.3g}",
+                             where="user.step_model", expected="between 0.5 and 2")
+    model: StepModel
+    if config.step_length == "weinberg":
+        if config.weinberg_k is not None:
+            model = WeinbergModel(k=config.weinberg_k)
+        elif profile and profile.get("kind") == "weinberg":
+            model = step_model_from_dict(profile)
+        else:
+            model = WeinbergModel()
+    elif config.step_length == "pendulum":
+        model = (step_model_from_dict(profile) if profile and profile.get("kind") == "pendulum"
+                 else PendulumModel())
+    elif profile and profile.get("kind") == "frequency":
+        model = step_model_from_dict(profile)
+    else:
+        model = FrequencyLawModel()
+    return model, running_factor
+
+
+def activity_model(kind: str) -> LdaModel | TreeThresholds | None:
+    """The activity classifier (None: from the motion level alone)."""
+    if kind == "lda":
+        return LdaModel.default()
+    if kind == "tree":
+        return TreeThresholds()
+    return None
+
+
+def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
+                  attitude: str, meta: SessionMeta, notes: Notes) -> GaitAnalyzer:
+    """The gait stage for the mounting now known (``meta.mounting_q_bd``)."""
+    g = config.gait
+    gait = GaitAnalyzer(
+        rate_hz=rate_hz,
+        step_detector=PllStepDetector() if g.step_detector == "pll" else PeakStepDetector(),
+        step_model=model,
+        activity=activity_model(g.activity),
+        heading=g.heading if attitude != "none" else "fourier",
+        velocity=VelocityAutomaton() if (g.velocity_automaton
+                                         or config.prediction.model == "velocity") else None,
+        mounting_q_bd=None if meta.mounting_q_bd is None
+        else np.asarray(meta.mounting_q_bd, dtype=np.float64),
+        gate_steps_with_motion=g.gate_steps_with_motion,
+        walking_bouts=WalkingBoutParams() if g.walking_bouts else None,
+        missed_steps=MissedStepParams() if g.fill_missed_steps else None,
+        step_yaw=g.step_yaw,
+        window_features=g.activity != "motion",
+    )
+    if meta.mounting_q_bd is None and g.heading == "yaw":
+        notes.add("device mounting unknown: step headings follow the device x axis; only "
+                  "their changes are used (heading in the state)")
+    return gait
+
+
+@dataclass(slots=True)
+class Corrections:
+    """The position filter's prediction and correction parts."""
+
+    step_predictor: StepPredictor
+    velocity_predictor: VelocityPredictor
+    random_walk: RandomWalkParams
+    fix_corrector: FixCorrector
+    tag_corrector: TagCorrector
+    tag_fallback: TagCorrector | None
+    range_params: RangeParams
+    path_loss: PathLossModel
+    channel_estimator: ChannelEstimator | None
+
+
+def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
+                notes: Notes) -> Corrections:
+    """The position filter's parts for this configuration and session."""
+    cfg = config
+    tags = TagCorrector(TagParams(
+        strategy=cfg.tags.strategy, gate_probability=cfg.gate_probability,
+        sigma_per_accuracy=cfg.tags.sigma_per_accuracy,
+        repeat_interval_s=cfg.tags.repeat_interval_s))
+    channel = meta.channel
+    path_loss = (PathLossModel.from_channel(channel) if channel is not None
+                 else PathLossModel(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
+    # without an IMU the position comes from the RSS itself: estimating A and eta from the
+    # same readings is circular (they drift together with the position), so keep the prior
+    if cfg.rss.estimate_channel and not has_imu:
+        notes.add("no IMU: the RSS channel (A, eta) is not re-estimated online "
+                  "(positions and channel would come from the same readings)")
+    return Corrections(
+        step_predictor=StepPredictor(StepPredictionParams(
+            q_along=cfg.prediction.q_along, q_across=cfg.prediction.q_across,
+            heading_mode=cfg.prediction.heading_mode,
+            stairs_from_model=cfg.prediction.stairs_from_model,
+            sigma_heading_increment_rad=cfg.prediction.sigma_heading_increment_rad)),
+        velocity_predictor=VelocityPredictor(VelocityPredictionParams(
+            heading_mode=cfg.prediction.heading_mode)),
+        random_walk=params_of(RandomWalkParams, cfg.prediction.random_walk),
+        fix_corrector=FixCorrector(FixParams(
+            period_s=cfg.fixes.period_s, require_motion=cfg.fixes.require_motion,
+            gate_probability=cfg.gate_probability if cfg.fixes.gate else None,
+            max_consecutive_rejections=cfg.fixes.max_consecutive_rejections)),
+        tag_corrector=tags,
+        tag_fallback=(TagCorrector(replace(tags.params, strategy="paper"))
+                      if cfg.tags.strategy == "kalman" else None),
+        range_params=RangeParams(gate_probability=cfg.gate_probability),
+        path_loss=path_loss,
+        channel_estimator=(ChannelEstimator(params_of(ChannelEstimatorParams, cfg.rss.channel))
+                           if cfg.rss.estimate_channel and has_imu else None),
+    )
+
+
+def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: float,
+                  heading_known: bool, has_imu: bool) -> np.ndarray:
+    """Parameter record of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
+    cfg = config
+    return ev.loop_params(
+        step=parts.step_predictor.params, path_loss=parts.path_loss,
+        range_params=parts.range_params,
+        channel=None if parts.channel_estimator is None else parts.channel_estimator.params,
+        random_walk=parts.random_walk, floor_snap=cfg.floor_snap,
+        floor_height_m=floor_height_m, floor_sigma_m=cfg.floor_sigma_m,
+        gate_probability=cfg.gate_probability, heading_known=heading_known,
+        has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
+        scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,
+        scan_sigma_position_m=cfg.rss.sigma_position_m)

@@ -1,0 +1,352 @@
+"""The tracker's fusion engine: the position filter state driven by the scheduled events.
+
+Runs of fast rows (steps, tight RSS readings or scans, ranges) go through the compiled loop of
+:mod:`hrtls.pipeline._events`; slow events (fixes, tag groups, bearings, and with the
+velocity-driven prediction every observation) are applied one at a time by
+:mod:`hrtls.pipeline.observations`. With ``prediction.model = "velocity"`` the buffered speed
+and yaw samples (Colombo eq. 16-17) are integrated up to each event.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from hrtls.data import Activity, Landmark, StepEvents
+from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
+from hrtls.fusion.channel import ChannelState
+from hrtls.fusion.fixes import FixCorrector, FixSchedule, StretchMemory, YawPseudoMeasurement
+from hrtls.fusion.random_walk import predict_random_walk
+from hrtls.fusion.state import IH, FilterState
+from hrtls.fusion.tags import TagMemory
+from hrtls.gait.analyzer import GaitResult
+from hrtls.pipeline import _events as ev
+from hrtls.pipeline.build import Corrections
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
+from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
+from hrtls.pipeline.observations import apply_observation
+from hrtls.pipeline.output import TrackRows
+from hrtls.pipeline.schedule import EventSchedule, PoseGate
+from hrtls.pipeline.step_scale import StepScaleLearner
+
+MOVING_SIGMA_M_S2 = 0.2
+"""Colombo's sigma_min: the user moves when the 2 s std of vertical acceleration exceeds it."""
+VELOCITY_ROW_PERIOD_S = 0.04
+"""Output period of the trajectory rows of the velocity-driven prediction (s)."""
+
+
+class GaitHistory:
+    """Steps and motion levels released by the gait stage (what later events look back on)."""
+
+    def __init__(self) -> None:
+        self.steps: list[StepEvents] = []
+        self.motion_t: list[np.ndarray] = []
+        self.motion_sigma: list[np.ndarray] = []
+        self.hidden = 0
+        """Leading step blocks restored from a snapshot (not in the result)."""
+
+    def moving(self, t: float) -> bool | None:
+        """The motion level at ``t`` exceeds ``MOVING_SIGMA_M_S2`` (None: no motion yet)."""
+        if not self.motion_t:
+            return None
+        mt = self.motion_t[-1]
+        ms = self.motion_sigma[-1]
+        for tt, ss in zip(reversed(self.motion_t), reversed(self.motion_sigma), strict=True):
+            if len(tt) and tt[0] <= t:
+                mt, ms = tt, ss
+                break
+        return bool(np.interp(t, mt, ms) > MOVING_SIGMA_M_S2)
+
+    def state(self, t: float) -> dict[str, Any]:
+        """What the future still needs from ``t`` on (snapshot).
+
+        The step block in progress at ``t`` and the motion blocks from the latest one before.
+        """
+        j = max([k for k, b in enumerate(self.steps) if len(b) and b.t_start[0] <= t],
+                default=0)
+        m = max([k for k, b in enumerate(self.motion_t) if len(b) and b[0] <= t], default=0)
+        return {"steps": self.steps[j:], "motion_t": self.motion_t[m:],
+                "motion_sigma": self.motion_sigma[m:]}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`state` (the restored steps are not reported again)."""
+        self.steps = list(state["steps"])
+        self.hidden = len(self.steps)
+        self.motion_t = list(state["motion_t"])
+        self.motion_sigma = list(state["motion_sigma"])
+
+
+class FusionEngine:
+    """Filter state, output rows and diagnostics of one tracker, advanced event by event."""
+
+    STATE = ("state", "last_activity", "last_step_end", "yaw_offset", "vel_t", "vel_v",
+             "vel_yaw", "vel_var", "vel_bin", "stretch", "corrected_since_fix", "last_speed",
+             "recent_heading", "fix_schedule", "fix_phase_set", "tag_memory", "channel_state")
+    """Plain attributes of the engine's state (snapshot)."""
+
+    def __init__(self, config: TrackerConfig, parts: Corrections, *, state: FilterState,
+                 landmarks: dict[str, Landmark], schedule: EventSchedule, pose: PoseGate,
+                 scale: StepScaleLearner, gait: GaitHistory, params: np.ndarray,
+                 has_imu: bool, velocity_mode: bool, running_factor: float, t0: float) -> None:
+        self.config = config
+        self.parts = parts
+        self.landmarks = landmarks
+        self.schedule = schedule
+        self.pose = pose
+        self.scale = scale
+        self.gait = gait
+        self.params = params
+        self.has_imu = has_imu
+        self.velocity_mode = velocity_mode
+        self.running_factor = running_factor
+        self.t0 = t0
+        self.attitude: AttitudeStage | None = None
+        self.state = state
+        self.diagnostics = DiagnosticsLog()
+        self.track = TrackRows()
+        self.track.add(state, int(Activity.UNKNOWN))
+        self.last_activity = int(Activity.UNKNOWN)
+        self.last_step_end = -math.inf
+        self.yaw_offset = 0.0
+        self.vel_t = np.zeros(0)
+        self.vel_v = np.zeros(0)
+        self.vel_yaw = np.zeros(0)
+        self.vel_var = np.zeros(0)
+        self.vel_bin = -math.inf
+        self.stretch: StretchMemory | None = None
+        self.corrected_since_fix = False
+        self.last_speed = 0.0
+        self.recent_heading: deque[tuple[float, float]] = deque(maxlen=16)
+        self.fix_schedule = FixSchedule()
+        self.fix_phase_set = False
+        self.tag_memory = TagMemory()
+        self.channel_state: ChannelState | None = (
+            None if parts.channel_estimator is None
+            else parts.channel_estimator.start(parts.path_loss))
+        self.fix_jumps: list[tuple[float, float, float]] = []
+        """Accepted fixes: time of the output row holding the corrected state, position change
+        (east, north) made by the fix, m."""
+        self.yaw_pseudo: list[YawPseudoMeasurement] = []
+
+    # ------------------------------------------------------------------ event loop
+    def drain(self, horizon: float) -> None:
+        """Apply every queued event up to ``horizon`` in order (time, kind, arrival)."""
+        sched = self.schedule
+        while True:
+            slow = sched.next_slow(horizon)
+            if slow is not None:
+                t, kind, _, payload = slow
+                self.advance_without_steps(t)
+                apply_observation(self, t, kind, payload)
+                self.track.add(self.state, self.last_activity)
+                continue
+            if not sched.has_fast(horizon):
+                break
+            self._run_kernel(*sched.fast_run(horizon))
+        if self.velocity_mode:
+            self.velocity_to(horizon)
+
+    def _run_kernel(self, b0: int, b1: int) -> None:
+        """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges) in the compiled loop.
+
+        The step scale, running factor, yaw offset and the yaw variance at each step are
+        applied inside the kernel (``step_scale``, ``running_multiplier``, ``yaw_offset_rad`` of
+        the loop state).
+        """
+        sched = self.schedule
+        n = b1 - b0
+        tt = sched.bulk_t[b0:b1]
+        kind = sched.bulk_ev[b0:b1]
+        data = sched.bulk_data[b0:b1]
+        st = self.state
+        x = st.x.copy()
+        p = st.P.copy()
+        cstate = self.channel_state if self.parts.channel_estimator is not None else None
+        sc_ = self.scale
+        rec, chan_cov = ev.loop_state(
+            st, path_loss=self.parts.path_loss, channel=cstate, last_activity=self.last_activity,
+            last_step_end_s=self.last_step_end, step_scale=sc_.step_scale,
+            running_multiplier=self.running_factor * sc_.run_scale / sc_.step_scale,
+            yaw_offset_rad=self.yaw_offset, scan_base=sched.scan_base)
+        out = _KernelOut(n)
+        recent = np.empty((ev.N_RECENT, 2))
+        att = self.attitude
+        var_t = att.var_t if att is not None else np.zeros(0)
+        var_v = att.var_v if att is not None else np.zeros(0)
+        ev.event_kernel(kind, tt, data, self.params, rec, chan_cov, x, p, out.t, out.x, out.p,
+                        out.act, out.status, out.nis, out.s, out.nu, sched.scan_rows, out.aux,
+                        var_t, var_v, recent)
+        sc = rec[0]
+        self.state = FilterState.from_kernel(float(sc["t"]), x, p, float(sc["input_heading_rad"]),
+                                             bool(sc["has_input_heading"]),
+                                             bool(sc["reference_pending"]))
+        self.last_activity = int(sc["last_activity"])
+        self.last_step_end = float(sc["last_step_end_s"])
+        sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
+        if cstate is not None:
+            self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
+        self.track.add_block(out.t, out.x, out.p[:, :2, :2], out.p[:, IH, IH], out.act)
+        n_steps = int(sc["n_steps"])
+        n_head = int(sc["n_headings"])
+        if n_head:
+            # the last raw step headings (before the yaw offset), for the turn test of bearings
+            last = recent.tolist()
+            if n_head > ev.N_RECENT:      # ring: oldest first
+                cut = n_head % ev.N_RECENT
+                last = last[cut:] + last[:cut]
+            self.recent_heading.extend(
+                (float(ts), float(hd)) for ts, hd in last[:min(n_head, ev.N_RECENT)])
+        if n_steps < n:
+            n_soft, n_scan_ok = int(sc["n_soft"]), int(sc["n_scan_accepted"])
+            # an accepted scan (Kalman mode) counts as a correction since the last fix; the
+            # WLS jump does not, and scans do not stop the step-scale learning
+            self.corrected_since_fix = self.corrected_since_fix or n_soft + n_scan_ok > 0
+            sc_.soft_since_anchor = sc_.soft_since_anchor or n_soft > 0
+            obs = np.flatnonzero(kind != ev.EV_STEP) if n_steps else np.arange(n)
+            self._kernel_diagnostics(b0, obs, out, sc["n_scans"] > 0)
+            sched.trim_scan_rows()
+
+    def _kernel_diagnostics(self, b0: int, obs: np.ndarray, out: _KernelOut,
+                            has_scans: bool) -> None:
+        """One diagnostics block for the observation rows ``obs`` (relative to ``b0``)."""
+        sched = self.schedule
+        rows = obs + b0
+        labels = sched.bulk_label[rows]
+        reasons = sched.label_reason[labels]
+        code = out.status[obs]
+        dof = nu2 = s2 = None
+        if has_scans:
+            is_scan = sched.bulk_ev[rows] == ev.EV_SCAN
+            dof = np.where(is_scan, 2, 1)
+            # a scan with < 3 anchors is "skipped" (its reason was set when it was queued)
+            code = np.where(code == ev.ST_FEW, ev.ST_SKIPPED, code)
+            reasons = np.where(code == ev.ST_COLLINEAR, "anchors are collinear",
+                               np.where(code == ev.ST_WLS, "WLS position (RSS alone)",
+                                        reasons))
+            nu2 = out.aux[obs, :2]
+            s2 = out.aux[obs, 2:5]
+        self.diagnostics.add_block(DiagnosticsBlock(
+            sched.label_kind[labels], sched.bulk_t[rows], code, out.nis[obs], out.s[obs],
+            out.nu[obs], sched.bulk_src[rows], reasons, float(self.params["gate_1d"][0]),
+            dof=dof, nu2=nu2, s2=s2, threshold2=float(self.params["gate_2d"][0])))
+
+    def advance_without_steps(self, t: float) -> None:
+        """Bring the state to ``t`` before a correction when no step or velocity drives it."""
+        if self.velocity_mode:
+            self.velocity_to(t)
+        if t <= self.state.t:
+            return
+        st = self.state
+        if not self.has_imu:
+            self.state = predict_random_walk(st, t, self.parts.random_walk)
+        else:   # only the time changes: no need to validate the state again
+            self.state = FilterState.from_kernel(t, st.x, st.P, st.input_heading_rad,
+                                                 st.has_input_heading, st.reference_pending)
+
+    def moving(self, t: float) -> bool:
+        """Whether the user moves at ``t`` (the fixes' motion condition, Colombo eq. 19)."""
+        if self.velocity_mode:
+            # eq. 19 literally: sigma(a_xu) > sigma_min, i.e. the automaton is in a motion
+            # state (non-zero speed) at the last sample up to t
+            return self.last_speed > 0.0
+        m = self.gait.moving(t)
+        return t - self.last_step_end < 1.5 if m is None else m
+
+    # ------------------------------------------------------------------ velocity model
+    def buffer_velocity(self, result: GaitResult, t: np.ndarray, q_nd: np.ndarray,
+                        mounting_q_bd: tuple[float, ...] | None) -> None:
+        """Keep the velocity samples (Colombo eq. 16-17 inputs) until events reach them."""
+        vt = result.velocity_t
+        q_bd = (np.array([1.0, 0, 0, 0]) if mounting_q_bd is None
+                else np.asarray(mounting_q_bd, dtype=np.float64))
+        idx = np.clip(np.searchsorted(t, vt), 0, len(t) - 1)
+        # yaw of the body x axis (first column of the rotation matrix of q_nb)
+        w, x, y, z = quat_multiply(q_nd[idx], quat_conjugate(q_bd)).T
+        yaw = np.arctan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+        assert self.attitude is not None
+        var = self.attitude.var_yaw_at(vt)
+        var = np.where(np.isfinite(var), var, DEFAULT_VAR_YAW_RAD2)
+        self.vel_t = np.concatenate([self.vel_t, vt])
+        self.vel_v = np.concatenate([self.vel_v, np.maximum(result.velocity_m_s, 0.0)])
+        self.vel_yaw = np.concatenate([self.vel_yaw, yaw])
+        self.vel_var = np.concatenate([self.vel_var, var])
+
+    def velocity_to(self, t_end: float) -> None:
+        """Colombo eq. 16-17 through the buffered samples up to ``t_end`` (rows at <= 25 Hz)."""
+        n = int(np.searchsorted(self.vel_t, t_end, side="right"))
+        if n == 0:
+            return
+        vt, vv = self.vel_t[:n], self.vel_v[:n]
+        yaw = np.asarray(wrap_angle(self.vel_yaw[:n] + self.yaw_offset))
+        var = self.vel_var[:n]
+        self.vel_t, self.vel_v = self.vel_t[n:], self.vel_v[n:]
+        self.vel_yaw, self.vel_var = self.vel_yaw[n:], self.vel_var[n:]
+        keep = vt > self.state.t
+        if self.pose.t_pose > self.t0:
+            self.pose.keep("velocity samples", vt)
+        if not np.any(keep):
+            return
+        vt, vv, yaw, var = vt[keep], vv[keep], yaw[keep], var[keep]
+        self.scale.walked(float(np.sum(np.diff(vt, prepend=self.state.t) * vv)))
+        self.last_speed = float(vv[-1])
+        res = self.parts.velocity_predictor.run(self.state, vt, vv, yaw, var)
+        self.state = res.state
+        if self.stretch is not None:
+            self.stretch = self.stretch.extended(vt, vv, yaw)
+        # output rows: the first sample of every 40 ms bin (the same in chunked runs)
+        bins = np.floor(vt / VELOCITY_ROW_PERIOD_S)
+        sel = np.flatnonzero(np.diff(np.concatenate([[self.vel_bin], bins])) != 0)
+        self.vel_bin = float(bins[-1])
+        if len(sel) == 0:
+            return
+        x = np.column_stack([res.xyz[sel], res.heading_rad[sel]])
+        act = np.where(vv[sel] > 0.05, int(Activity.WALKING), int(Activity.STANDING))
+        self.last_activity = int(act[-1])
+        self.track.add_block(vt[sel], x, res.cov_xy[sel], res.var_heading[sel], act)
+
+    # ------------------------------------------------------------------ snapshot
+    def state_dict(self) -> dict[str, Any]:
+        """Plain state for a snapshot (the last output row, not the rows before)."""
+        rows = self.track
+        last_row = None
+        if rows.last_time() is not None:
+            last_row = (float(rows.t[-1][-1]), rows.x[-1][-1], rows.cov[-1][-1],
+                        float(rows.var_h[-1][-1]), int(rows.activity[-1][-1]))
+        out = {name: getattr(self, name) for name in self.STATE}
+        out["last_row"] = last_row
+        out["fix_phase_s"] = self.parts.fix_corrector.params.phase_s
+        return out
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`state_dict`."""
+        for name in self.STATE:
+            setattr(self, name, state[name])
+        self.track = TrackRows()
+        if state["last_row"] is not None:
+            t_r, x_r, cov_r, var_r, act_r = state["last_row"]
+            self.track.add_block(np.array([t_r]), x_r[None, :], cov_r[None], np.array([var_r]),
+                                 np.array([act_r]))
+            self.track.hidden = 1
+        if self.fix_phase_set:
+            self.parts.fix_corrector = FixCorrector(replace(self.parts.fix_corrector.params,
+                                                            phase_s=state["fix_phase_s"]))
+
+
+class _KernelOut:
+    """Output arrays of one run of the compiled loop (n rows)."""
+
+    def __init__(self, n: int) -> None:
+        self.t = np.empty(n)
+        self.x = np.empty((n, 4))
+        self.p = np.empty((n, 4, 4))
+        self.act = np.empty(n, dtype=np.int64)
+        self.status = np.empty(n, dtype=np.int64)
+        self.nis = np.empty(n)
+        self.s = np.empty(n)
+        self.nu = np.empty(n)
+        self.aux = np.empty((n, 5))

@@ -1,0 +1,195 @@
+"""The tracker's per-sample front end: held samples, mounting, hard iron, attitude, compass.
+
+Samples are held until the hand-held mounting window has elapsed (``[attitude] mounting =
+"handheld"``); the hard iron in force at each sample (running fit, or the whole-recording fit
+of ``[offline] two_pass``) is removed before the attitude filter; the compass correction of a
+device orientation's yaw wander follows. The yaw variance of the recent samples is kept for
+the events that still need it.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from hrtls.attitude.base import AttitudeFilter, AttitudeResult
+from hrtls.attitude.device import DeviceOrientation
+from hrtls.calibration.hard_iron_running import RunningHardIron
+from hrtls.data import OrientationSeries, SessionMeta
+from hrtls.errors import DegradedInputWarning, InputError
+from hrtls.frames import quat_multiply
+from hrtls.pipeline.build import Notes
+from hrtls.pipeline.compass import CompassYaw
+from hrtls.pipeline.mounting import handheld_mounting_q_bd
+
+DEFAULT_VAR_YAW_RAD2 = 0.01
+"""Yaw variance when the attitude filter gives none (rad^2)."""
+YAW_VARIANCE_KEEP_S = 5.0
+"""Yaw variances of samples this long before the filter state's time are dropped, s."""
+
+
+class HeldImu:
+    """IMU samples held until the hand-held mounting window has elapsed (aligned arrays)."""
+
+    STATE = ("t", "acc", "gyr", "mag", "ot", "oq", "has_orientation")
+
+    def __init__(self) -> None:
+        self.t = np.zeros(0)
+        self.acc = np.zeros((0, 3))
+        self.gyr: np.ndarray | None = None
+        self.mag: np.ndarray | None = None
+        self.ot = np.zeros(0)
+        self.oq = np.zeros((0, 4))
+        self.has_orientation = False
+
+    def add(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+            mag: np.ndarray | None, orientation: OrientationSeries | None) -> None:
+        """Hold these samples (after those already held)."""
+        first = not len(self.t)
+        self.t = np.concatenate([self.t, t])
+        self.acc = np.concatenate([self.acc, acc])
+        if gyr is not None:
+            self.gyr = gyr.copy() if first or self.gyr is None else np.concatenate([self.gyr, gyr])
+        if mag is not None:
+            self.mag = mag.copy() if first or self.mag is None else np.concatenate([self.mag, mag])
+        if orientation is not None:
+            self.has_orientation = True
+            self.ot = np.concatenate([self.ot, orientation.t])
+            self.oq = np.concatenate([self.oq, orientation.q])
+
+    def orientation(self) -> OrientationSeries | None:
+        """The held device orientation, or None."""
+        return OrientationSeries(self.ot, self.oq) if self.has_orientation else None
+
+
+def note_session_mounting(meta: SessionMeta, notes: Notes) -> None:
+    """Report line of the session's own mounting (when it has one)."""
+    if meta.mounting_q_bd is not None:
+        notes.add("mounting: from the session (meta.mounting_q_bd = "
+                  f"[{', '.join(f'{v:.4f}' for v in meta.mounting_q_bd)}])")
+
+
+def resolve_mounting(meta: SessionMeta, acc_d: np.ndarray, notes: Notes) -> SessionMeta:
+    """The session metadata with the hand-held mounting from these samples (noted)."""
+    if len(acc_d):
+        try:
+            q_bd = handheld_mounting_q_bd(acc_d)
+        except InputError as exc:  # e.g. a phone held upright: top edge vertical
+            notes.degrade(f"hand-held mounting not estimable ({exc}); using the session's "
+                          "mounting")
+            note_session_mounting(meta, notes)
+            return meta
+        notes.add("mounting: hand-held in front (device +y forward), tilt from the mean "
+                  f"specific force of {len(acc_d)} samples: q_bd = "
+                  f"[{', '.join(f'{v:.4f}' for v in q_bd)}]")
+        return meta.model_copy(update={"mounting_q_bd": tuple(float(v) for v in q_bd)})
+    notes.add("mounting 'handheld' asked but no accelerometer samples from the start pose on; "
+              "using the session's mounting")
+    note_session_mounting(meta, notes)
+    return meta
+
+
+class AttitudeStage:
+    """Attitude of each sample with the hard iron removed and the compass applied.
+
+    Parameters
+    ----------
+    filt: the attitude filter (or the device's own orientation).
+    hard_iron: running hard-iron fit (None: none, or ``hard_iron_fixed_ut``).
+    hard_iron_fixed_ut: whole-recording hard iron (``[offline] two_pass``), uT.
+    compass: yaw correction of the device orientation, or None.
+    use_mag: feed the magnetometer to the filter.
+    keep_attitude: keep every per-sample result (for the track result).
+    """
+
+    COMPASS = ("n_tot", "y_tot", "n_cur", "y_cur", "cur_block", "c", "radius", "history",
+               "s1", "s2", "n_ref", "t_first", "smooth", "last_error")
+
+    def __init__(self, filt: AttitudeFilter | DeviceOrientation, *,
+                 hard_iron: RunningHardIron | None, hard_iron_fixed_ut: np.ndarray | None,
+                 compass: CompassYaw | None, use_mag: bool, keep_attitude: bool) -> None:
+        self.filter = filt
+        self.hard_iron = hard_iron
+        self.hard_iron_fixed_ut = hard_iron_fixed_ut
+        self.compass = compass
+        self.use_mag = use_mag
+        self.keep_attitude = keep_attitude
+        self.results: list[AttitudeResult] = []
+        self.var_t = np.zeros(0)
+        self.var_v = np.zeros(0)
+
+    def _hard_iron_at(self, t: np.ndarray, acc: np.ndarray, mag: np.ndarray
+                      ) -> np.ndarray | None:
+        """Hard iron in force at each sample (N, 3; NaN rows: not known yet), or None."""
+        if self.hard_iron_fixed_ut is not None:
+            return np.broadcast_to(self.hard_iron_fixed_ut, mag.shape)
+        if self.hard_iron is None:
+            return None
+        return self.hard_iron.update(t, mag, acc)
+
+    def update(self, t: np.ndarray, acc: np.ndarray, gyr: np.ndarray | None,
+               mag: np.ndarray | None, orientation: OrientationSeries | None, *,
+               mounting_q_bd: tuple[float, ...] | None, state_t: float) -> np.ndarray:
+        """Device->navigation quaternions of the samples (N, 4).
+
+        ``state_t``: time of the position filter's state (older yaw variances are dropped).
+        """
+        filt = self.filter
+        c_of = None if mag is None else self._hard_iron_at(t, acc, mag)
+        if mag is not None and c_of is not None:
+            mag = mag - np.nan_to_num(c_of, nan=0.0)
+        if isinstance(filt, DeviceOrientation):
+            assert orientation is not None
+            res = filt.run(orientation, t)
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DegradedInputWarning)
+                res = filt.update(t, acc, gyr, mag if self.use_mag else None)
+        if self.keep_attitude:
+            self.results.append(res)
+        q = res.q
+        if res.frame == "nb" and mounting_q_bd is not None:
+            q = quat_multiply(q, np.asarray(mounting_q_bd, dtype=np.float64))
+        if self.compass is not None and mag is not None and len(mag) == len(res.t):
+            q = self.compass.correct(res.t, np.asarray(q), mag, c_of)
+        var = (res.var_rpy[:, 2] if res.var_rpy is not None
+               else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
+        # keep the yaw variance of the samples later events may still need
+        keep = self.var_t >= state_t - YAW_VARIANCE_KEEP_S
+        self.var_t = np.concatenate([self.var_t[keep], res.t])
+        self.var_v = np.concatenate([self.var_v[keep], var])
+        return np.asarray(q)
+
+    def var_yaw_at(self, t: np.ndarray) -> np.ndarray:
+        """Yaw variance interpolated at ``t`` (NaN before any sample), rad^2."""
+        if len(self.var_t) == 0:
+            return np.full(np.shape(t), np.nan)
+        return np.interp(t, self.var_t, self.var_v)
+
+    def attitude(self) -> AttitudeResult | None:
+        """The kept per-sample attitude (None when not kept)."""
+        # one chunk (offline run): its result as is, no copy of the per-sample arrays
+        r = self.results
+        return None if not r else r[0] if len(r) == 1 else AttitudeResult.concatenate(r)
+
+    def state(self) -> dict[str, Any]:
+        """Plain state for a snapshot."""
+        return {"var_t": self.var_t, "var_v": self.var_v,
+                "filter": (self.filter.state if isinstance(self.filter, AttitudeFilter)
+                           else None),
+                "compass": None if self.compass is None else {
+                    k: getattr(self.compass, k) for k in self.COMPASS},
+                "hard_iron": None if self.hard_iron is None else self.hard_iron.state}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`state`."""
+        self.var_t, self.var_v = state["var_t"], state["var_v"]
+        if isinstance(self.filter, AttitudeFilter):
+            self.filter.restore(state["filter"])
+        if self.compass is not None:
+            for k, v in state["compass"].items():
+                setattr(self.compass, k, v)
+        if self.hard_iron is not None:
+            self.hard_iron.state = state["hard_iron"]
