@@ -174,7 +174,8 @@ def team_mission(seed: int = 0, *, stop_s: float = 45.0, speed_m_s: float = 1.1,
              f"stops {stop_s:.0f} s at the far end of the first floor (PASS)")):
         sim = simulate_person(f"team {name}", seed * 10 + offset, {"stop_s": stop_s}, route,
                               device=device, motion_params=params, infra=infra,
-                              floor_height_m=fh, description=f"{name}: {note}")
+                              with_pressure=True, floor_height_m=fh,
+                              description=f"{name}: {note}")
         members.append(TeamMember(name, "rescuer", "default", sim.session, note))
     members.append(_robot(seed, speed_m_s=0.5, laps=robot_laps))
     plan = route_floorplan([m.session.truth.xyz for m in members if m.session.truth is not None],
