@@ -84,6 +84,13 @@ def board(browser, live):
     assert not errors, errors
 
 
+def require_route(live: Live, path: str) -> None:
+    """Skip while the service answers 501 for a route its contract marks planned."""
+    status, body = live.service.api("GET", f"/missions/{live.stream.mission_id}{path}")
+    if status == 501:
+        pytest.skip(f"the service does not implement {path} yet: {body}")
+
+
 def dot(page, agent_id: int) -> dict[str, float] | None:
     return page.evaluate("""(id) => {
         const el = document.querySelector(`path.agent-dot.agent-${id}`);
@@ -101,7 +108,9 @@ def record_radius(page, agent_id: int) -> None:
             const el = document.querySelector(`path.agent-dot.agent-${id}`);
             if (a && a.est && el && el.dataset.radius) {
                 const last = window.radiusLog[window.radiusLog.length - 1];
-                if (!last || last[0] !== a.est.t) window.radiusLog.push([a.est.t, Number(el.dataset.radius)]);
+                if (!last || last[0] !== a.est.t) {
+                    window.radiusLog.push([a.est.t, Number(el.dataset.radius)]);
+                }
             }
         }, 100);
     }""", agent_id)
@@ -135,13 +144,18 @@ def test_ellipse_shrinks_after_a_tag_read(board, live):
     a = live.agent_id("Rescuer A")
     tags = live.mission.members[0].session.tags
     assert tags is not None
-    first_read = float(tags.t[0]) + live.stream.t_offset_s
-    # wait until the estimates are well past the first tag read
+    reads = np.asarray(tags.t) + live.stream.t_offset_s
+    passes = reads[np.concatenate([[True], np.diff(reads) > 5.0])]  # first read of each pass
+    page.wait_for_function("() => window.radiusLog.length > 0")
+    log_start = page.evaluate("window.radiusLog[0][0]")
+    later = passes[passes > log_start + 4.0]
+    assert len(later), (log_start, passes)
+    first_read = float(later[0])
+    # wait until the estimates are well past that tag pass
     page.wait_for_function(
         "([id, t]) => { const a = window.hrtlsDashboard.agents.get(String(id));"
-        " return a && a.est && a.est.t > t; }", arg=[a, first_read + 12.0], timeout=60_000)
+        " return a && a.est && a.est.t > t; }", arg=[a, first_read + 12.0], timeout=90_000)
     log = np.array(page.evaluate("window.radiusLog"))
-    assert len(log) > 5
     before = log[log[:, 0] < first_read]
     after = log[(log[:, 0] > first_read) & (log[:, 0] < first_read + 6.0)]
     assert len(before) and len(after), (first_read, log[:, 0])
@@ -151,42 +165,38 @@ def test_ellipse_shrinks_after_a_tag_read(board, live):
 
 def test_floor_switch_shows_the_agents_of_that_floor(board, live, screenshot):
     page = board
-    b = live.agent_id("Rescuer B")
-    path = f"/missions/{live.stream.mission_id}/snapshot"
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        _, snap = live.service.api("GET", path)
-        est = {e["agent"]: e for e in snap["estimates"]}
-        if b in est and est[b]["floor"] == 1:
-            break
-        time.sleep(0.3)
-    else:
-        pytest.fail("rescuer B never reached the first floor in the service's estimates")
-    page.click("#floors button[data-floor='1']")
-    page.wait_for_function(f"() => document.querySelector('path.agent-dot.agent-{b}')")
-    _, snap = live.service.api("GET", path)
-    on_first = {e["agent"] for e in snap["estimates"] if e["floor"] == 1}
-    shown = set(page.evaluate(
-        "() => [...document.querySelectorAll('path.agent-dot')].map(e => Number(e.dataset.agent))"))
-    assert b in shown
-    assert shown <= on_first | {b}
-    count = int(page.get_attribute("#floors button[data-floor='1']", "data-count"))
-    assert count >= 1
-    screenshot(page, "floor_first")
-    page.click("#floors button[data-floor='0']")
-    page.wait_for_function(f"() => !document.querySelector('path.agent-dot.agent-{b}')")
+    path = f"/missions/{live.stream.mission_id}"
+    _, mission = live.service.api("GET", path)
+    for floor in (1, 0):
+        page.click(f"#floors button[data-floor='{floor}']")
+        page.wait_for_selector(f"#floors button[data-floor='{floor}'][aria-pressed='true']")
+        page.wait_for_timeout(600)  # one render after the next delta
+        _, snap = live.service.api("GET", path + "/snapshot")
+        want = {e["agent"] for e in snap["estimates"] if e["floor"] == floor}
+        shown = set(page.evaluate("() => [...document.querySelectorAll('path.agent-dot')]"
+                                  ".map(e => Number(e.dataset.agent))"))
+        assert shown == want
+        count = int(page.get_attribute(f"#floors button[data-floor='{floor}']", "data-count"))
+        assert count == len(want)
+        plan = next(f["plan"] for f in mission["floors"] if f["index"] == floor)
+        drawn = page.locator("path.plan").count()
+        assert drawn == len(plan["features"])
+        screenshot(page, f"floor_{floor}")
 
 
 def test_pass_alarm_appears_within_a_second_and_is_acknowledged(board, live, screenshot):
+    require_route(live, "/events")
     page = board
     b = live.agent_id("Rescuer B")
     page.evaluate("""() => {
         window.alarmSeen = {};
         const mark = () => document.querySelectorAll('#alarms li[data-event]').forEach(li => {
-            if (!(li.dataset.event in window.alarmSeen)) window.alarmSeen[li.dataset.event] = Date.now() / 1000;
+            const id = li.dataset.event;
+            if (!(id in window.alarmSeen)) window.alarmSeen[id] = Date.now() / 1000;
         });
         mark();
-        new MutationObserver(mark).observe(document.getElementById('alarms'), {childList: true, subtree: true});
+        new MutationObserver(mark).observe(document.getElementById('alarms'),
+                                           {childList: true, subtree: true});
     }""")
     page.wait_for_selector("#alarms li[data-kind='pass_alarm']", timeout=90_000)
     page.wait_for_selector("#alarm-banner:not([hidden])")
@@ -212,6 +222,7 @@ def test_pass_alarm_appears_within_a_second_and_is_acknowledged(board, live, scr
 
 
 def test_evacuate_order_reaches_the_agent_client(board, live, screenshot):
+    require_route(live, "/orders")
     page = board
     a = live.agent_id("Rescuer A")
     page.click(f"#agents li[data-agent='{a}']")
@@ -224,8 +235,9 @@ def test_evacuate_order_reaches_the_agent_client(board, live, screenshot):
         assert len(evacuate) == 1 and evacuate[0]["agent"] == a
         client.request("POST", f"/agent/orders/{evacuate[0]['id']}/receipt",
                        json={"status": "accepted", "text": "leaving by the stairs"})
-    page.wait_for_selector(f"#orders li[data-order='{evacuate[0]['id']}'][data-status='accepted']")
-    assert "leaving by the stairs" in page.text_content(f"#orders li[data-order='{evacuate[0]['id']}']")
+    item = f"#orders li[data-order='{evacuate[0]['id']}']"
+    page.wait_for_selector(f"{item}[data-status='accepted']")
+    assert "leaving by the stairs" in page.text_content(item)
     screenshot(page, "evacuate_receipt")
 
 
