@@ -7,12 +7,12 @@ import time
 
 import httpx
 import numpy as np
+from tests.service.conftest import Live, new_agent, new_mission
+from tests.service.streams import API
 from websockets.sync.client import connect
 
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
 from hrtls.service.batches import Batch
-from tests.service.conftest import Live, new_agent, new_mission
-from tests.service.streams import API
 
 
 def imu_batch(seq: int, t0: float, n: int, *, moving: bool, rate_hz: float = 100.0,
