@@ -33,6 +33,8 @@ _COMMANDS: dict[str, tuple[str, str, str]] = {
     "bench": ("hrtls.cli.bench", "app", "group"),
     "config": ("hrtls.cli.config", "app", "group"),
     "serve": ("hrtls.cli.serve", "serve", "command"),
+    "agent": ("hrtls.cli.service_cli", "agent_app", "group"),
+    "mission": ("hrtls.cli.service_cli", "mission_app", "group"),
 }
 """Commands in their own modules: name -> (module, attribute, command or group of commands).
 
@@ -59,6 +61,8 @@ SUMMARIES: dict[str, str] = {
     "config": "Tracker configurations.",
     "serve": "Run the supervisor: live tracking of the team, REST + WebSocket API and "
              "dashboard.",
+    "agent": "Live agents: stream a recording to a running service.",
+    "mission": "Missions of a running service: simulate a team, export.",
 }
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 
