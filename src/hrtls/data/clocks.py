@@ -5,8 +5,8 @@ in time larger than jitter (backward, e.g. a clock reset). What is done with it:
 
 * a forward jump seen at the same time in every sensor stream is a real gap (the recording
   paused), and one in a stream that ends with the others is a dropout: it is kept and announced
-  with a :class:`~hrtls.errors.RepairWarning` (the step-driven tracker continues from where it
-  was; the warning says that its uncertainty is not grown over the gap);
+  with a :class:`~hrtls.errors.RepairWarning`; the track's position uncertainty is grown over
+  it (:mod:`hrtls.pipeline.gap_uncertainty`);
 * a forward jump in one stream while the others keep sampling, after which that stream ends
   later than the others by the jump, is that stream's clock: with ``repair`` the samples after
   it are shifted so the step becomes the nominal one (warned, with the size); without,
@@ -31,6 +31,8 @@ from hrtls.errors import InputError, RepairWarning
 
 FloatArray = NDArray[np.float64]
 
+MIN_RESET_SAMPLES = 10
+"""Samples needed before and after a backward jump to call it a clock reset."""
 REPAIR_FLAG = "--repair (repair=True in Python)"
 """How to allow repairs, named in every refusal."""
 
@@ -132,6 +134,8 @@ def _resets(t: FloatArray, jump: ClockJump, end: int) -> bool:
     A clock reset records the same times twice; rows written out of order fill a hole.
     ``end`` is the index where the segment after the jump ends.
     """
+    if jump.index < MIN_RESET_SAMPLES or end - jump.index < MIN_RESET_SAMPLES:
+        return False  # too few samples on either side to tell a clock from disorder
     lo = jump.t_before_s + jump.step_s
     hi = min(jump.t_before_s, float(np.max(t[jump.index:end])))
     if hi <= lo:
@@ -265,8 +269,8 @@ def check_clocks(streams: list[ClockStream], *, repair: bool = False,
         new_t[stream.key] = remove_jumps(stream.t, own)
     if gaps:
         warnings.warn("; ".join(gaps) + ": kept as gaps (no motion is known inside them: the "
-                      "track continues from where it was, its uncertainty is not grown over "
-                      "them)", RepairWarning, stacklevel=2)
+                      "track continues from where it was, with its uncertainty grown by what "
+                      "a walker covers in the gap)", RepairWarning, stacklevel=2)
     reference = streams[0] if streams else None
     if reference is not None:
         ref_t = new_t.get(reference.key, reference.t)
