@@ -44,17 +44,6 @@ class Table:
     present: tuple[str, ...]
     n_rows: int
 
-    def float(self, name: str) -> NDArray[np.float64]:
-        """A numeric column (unknown values as NaN)."""
-        col = self.columns[name]
-        if isinstance(col, pa.ChunkedArray):
-            return self.matrix((name,))[:, 0]
-        return np.asarray(col, dtype=np.float64)
-
-    def str(self, name: str) -> NDArray[np.str_]:
-        """A text column."""
-        return np.asarray(self.columns[name], dtype=np.str_)
-
     def column(self, name: str) -> Column:
         """A column as numpy: text, or float64 numbers."""
         col = self.columns[name]
@@ -73,6 +62,17 @@ class Table:
                 out[k:k + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
                 k += len(chunk)
         return out
+
+    def float(self, name: str) -> NDArray[np.float64]:
+        """A numeric column (unknown values as NaN)."""
+        col = self.columns[name]
+        if isinstance(col, pa.ChunkedArray):
+            return self.matrix((name,))[:, 0]
+        return np.asarray(col, dtype=np.float64)
+
+    def str(self, name: str) -> NDArray[np.str_]:
+        """A text column."""
+        return np.asarray(self.columns[name], dtype=np.str_)
 
 
 @dataclass(frozen=True, slots=True)
