@@ -98,3 +98,19 @@ def test_clean_log_reads_without_clock_warnings(log_text: str, tmp_path: Path) -
     with warnings.catch_warnings():
         warnings.simplefilter("error", RepairWarning)
         read_any(path)
+
+
+def test_phone_log_with_a_body_worn_preset_gets_the_hint(shared_data: Path, tmp_path: Path
+                                                         ) -> None:
+    log = shared_data / LOG
+    if not log.exists():
+        pytest.skip("ipin2023 recordings not available")
+    out = tmp_path / "default"
+    result = runner.invoke(app, ["track", str(log), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "--preset handheld-phone" in result.output
+    report = json.loads((out / "report.json").read_text())
+    assert any("hand-held phone recording" in n for n in report["notes"])
+    out2 = tmp_path / "handheld"
+    result = runner.invoke(app, ["track", str(log), "-o", str(out2), "-p", "handheld-phone"])
+    assert result.exit_code == 0 and "--preset handheld-phone" not in result.output

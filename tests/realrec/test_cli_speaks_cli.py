@@ -95,3 +95,40 @@ def test_summaries_are_the_commands_own_first_lines() -> None:
     for name in _COMMANDS:
         command = load_command(name)
         assert SUMMARIES[name] == (command.help or "").strip().splitlines()[0], name
+
+
+def test_export_refuses_what_the_result_cannot_give_and_writes_the_rest(tmp_path: Path) -> None:
+    import json
+
+    from hrtls.io.geojson import LOCAL_TYPE, read_geojson
+
+    session = _session(tmp_path)
+    out = tmp_path / "out"
+    assert runner.invoke(app, ["track", str(session), "-o", str(out)]).exit_code == 0
+    assert not (out / "trajectory.geojson").exists()
+    local = out / "trajectory.local.json"
+    assert json.loads(local.read_text())["type"] == LOCAL_TYPE
+    assert read_geojson(local).is_wgs84 is False
+    gpx = runner.invoke(app, ["export", str(out), "--to", "gpx"])
+    assert gpx.exit_code == 2 and "no georeference" in gpx.output
+    mf = runner.invoke(app, ["export", str(out), "--to", "mf-json"])
+    assert mf.exit_code == 2 and "no Unix time origin" in mf.output
+    again = runner.invoke(app, ["export", str(out), "--to", "geojson"])
+    assert again.exit_code == 2 and "--overwrite" in again.output
+    csv = runner.invoke(app, ["export", str(out), "--to", "csv", "-o", str(tmp_path / "t.csv")])
+    assert csv.exit_code == 0, csv.output
+    assert (tmp_path / "t.csv").read_text() == (out / "trajectory.csv").read_text()
+    bad = runner.invoke(app, ["export", str(out), "--to", "kml"])
+    assert bad.exit_code == 2 and "gpx | mf-json | geojson | csv" in bad.output
+
+
+def test_convert_checks_its_output_before_reading(tmp_path: Path) -> None:
+    session = _session(tmp_path)
+    target = tmp_path / "taken"
+    target.write_text("x")
+    res = runner.invoke(app, ["convert", str(session), "-o", str(target)])
+    assert res.exit_code == 2 and "exists and is not a folder" in res.output
+    ok = runner.invoke(app, ["convert", str(session), "-o", str(tmp_path / "copy")])
+    assert ok.exit_code == 0, ok.output
+    again = runner.invoke(app, ["convert", str(session), "-o", str(tmp_path / "copy")])
+    assert again.exit_code == 2 and "--overwrite" in again.output

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import sys
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -11,7 +12,7 @@ import typer
 from rich.console import Console
 from typer.core import TyperCommand, TyperGroup
 
-from hrtls.cli.errors import Verbosity, reports_errors
+from hrtls.cli.errors import Verbosity, err_console, reports_errors
 from hrtls.errors import InputError, UnitError
 
 if TYPE_CHECKING:
@@ -23,6 +24,8 @@ _COMMANDS: dict[str, tuple[str, str, str]] = {
     "ipin": ("hrtls.cli.ipin", "ipin", "command"),
     "simulate": ("hrtls.cli.sim", "simulate", "command"),
     "evaluate": ("hrtls.cli.sim", "evaluate", "command"),
+    "export": ("hrtls.cli.export", "export", "command"),
+    "warmup": ("hrtls.cli.warmup", "warmup", "command"),
     "attitude": ("hrtls.cli.attitude", "attitude", "command"),
     "calibrate": ("hrtls.cli.attitude", "calibrate_app", "group"),
     "activity": ("hrtls.cli.gait", "activity_app", "group"),
@@ -45,6 +48,9 @@ SUMMARIES: dict[str, str] = {
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",
     "evaluate": "Score a result folder against ground truth; write evaluation.json and plots "
                 "beside it.",
+    "export": "Export a result as GPX, OGC Moving Features JSON, GeoJSON or CSV.",
+    "warmup": "Compile the numerical kernels now (once per install) so that later runs start "
+              "at once.",
     "attitude": "Estimate the orientation (ENU) and write t,qw,qx,qy,qz,roll,pitch,yaw.",
     "calibrate": "Sensor calibration files.",
     "activity": "Activity recognition models.",
@@ -57,8 +63,18 @@ SUMMARIES: dict[str, str] = {
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 
 
+_COMPILING = frozenset({"track", "demo", "ipin", "attitude", "bench", "wsn", "activity",
+                        "calibrate"})
+"""Commands that run numerical kernels (compiled on first use)."""
+
+
 def load_command(name: str) -> Any:
     """The click command ``name`` of :data:`_COMMANDS`, imported now."""
+    from hrtls.jobs.warmup import NOTICE, configure_cache, first_run
+
+    configure_cache()
+    if name in _COMPILING and "--help" not in sys.argv and first_run():
+        err_console.print(f"[yellow]note:[/yellow] {NOTICE}")
     module_name, attribute, kind = _COMMANDS[name]
     module = importlib.import_module(module_name)
     target = getattr(module, attribute)
@@ -214,9 +230,19 @@ def convert(
     """Convert a recording into a session folder (SI units, ENU, checked)."""
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from hrtls.io.session import write_session
+    from hrtls.io.session import SESSION_FILES, write_session
     from hrtls.recordings import detect_format
 
+    if output.suffix.lower() == ".zip":
+        if output.exists() and not overwrite:
+            raise InputError("already exists", where=str(output), expected="a new path (or "
+                             "--overwrite)")
+    elif output.exists() and not output.is_dir():
+        raise InputError("exists and is not a folder", where=str(output),
+                         expected="a folder path or a .zip")
+    elif output.is_dir() and not overwrite and any((output / n).exists() for n in SESSION_FILES):
+        raise InputError("already holds a session", where=str(output),
+                         expected="a new or empty folder (or --overwrite)")
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:

@@ -2,16 +2,51 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from hrtls.cli.errors import reports_errors
+from hrtls.jobs.warmup import mark_compiled
+
+if TYPE_CHECKING:
+    from hrtls.jobs.track import Progress
 
 console = Console(highlight=False)
+
+
+@contextlib.contextmanager
+def progress_bars(show: bool | None) -> Iterator[Progress | None]:
+    """A rich progress bar with ETA fed by :data:`hrtls.jobs.track.Progress` calls.
+
+    ``show`` None: only when the console is a terminal. Reading has no total (a pulsing bar).
+    """
+    if not (console.is_terminal if show is None else show):
+        yield None
+        return
+    from rich.progress import (
+        BarColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.progress import Progress as Bars
+
+    with Bars(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+              TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console,
+              transient=True) as bars:
+        task = bars.add_task("starting", total=None)
+
+        def update(what: str, done: float, total: float | None) -> None:
+            bars.update(task, description=what, completed=done, total=total)
+
+        yield update
 
 
 def _fmt(value: float | None, unit: str = " m") -> str:
@@ -46,6 +81,9 @@ def track(
         "--format", "-f", help="Input format (default: detected). See `hrtls formats`.")] = None,
     trial: Annotated[str | None, typer.Option(
         "--trial", help="Trial of a multi-trial recording (mobgap: e.g. Test5/Trial1).")] = None,
+    show_progress: Annotated[bool | None, typer.Option(
+        "--progress/--no-progress", help="Progress bars (default: only on a terminal).")]
+    = None,
 ) -> None:
     """Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.
 
@@ -74,6 +112,7 @@ def track(
     from hrtls.jobs.track import (
         check_output_dir,
         evaluate_track,
+        reference_steps,
         track_recording,
         write_track_outputs,
     )
@@ -89,11 +128,14 @@ def track(
                          expected="a recording (session folder, zip, logfile, ...)")
     check_output_dir(output, overwrite=overwrite)
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
-    with console.status(f"tracking {session} with {cfg.name}"):
+    with progress_bars(show_progress) as progress:
         run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
-                              trial=trial)
+                              trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     evaluation = evaluate_track(result, data)
+    reference = reference_steps(result, data)
+    if reference is not None:
+        result.report["reference_steps"] = reference
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
                         evaluation=evaluation, table_format="parquet"
                         if format_out == "parquet" else "csv")
@@ -102,6 +144,13 @@ def track(
                   f"{summary['distance_walked_m']:.1f} m walked, "
                   f"{n:,} IMU samples in {seconds:.2f} s"
                   f"{f' ({n / seconds:,.0f} samples/s)' if n and seconds > 0 else ''}")
+    if reference is not None:
+        inside = reference.get("ours_in_reference_bouts")
+        error = reference["error_fraction"]
+        bouts = "" if inside is None else f", {inside} inside the reference walking bouts"
+        off = "" if error is None else f", {100 * error:+.1f} %"
+        console.print(f"steps: {reference['ours']} ours{bouts}; reference "
+                      f"{reference['reference']} ({reference['source']}){off}")
     counts = result.report["corrections"]
     if counts:
         console.print("corrections: " + "; ".join(
@@ -112,6 +161,7 @@ def track(
     if evaluation is not None:
         console.print(report_table(evaluation))
     console.print(f"wrote {output}")
+    mark_compiled()
 
 
 @reports_errors
@@ -135,5 +185,6 @@ def demo(
                       _fmt(row.checkpoint_mean_m, ""), _fmt(row.checkpoint_max_m, ""),
                       _fmt(row.error_p90_m, ""), f"{row.seconds:.2f}")
     Console(highlight=False, width=max(console.width, 120)).print(table)
-    console.print(f"sessions, results (trajectory.csv, steps.csv, trajectory.geojson, "
+    console.print(f"sessions, results (trajectory.csv, steps.csv, trajectory GeoJSON, "
                   f"report.json) and plots (track.png) are in {output}/")
+    mark_compiled()

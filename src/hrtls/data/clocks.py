@@ -31,6 +31,8 @@ from hrtls.errors import InputError, RepairWarning
 
 FloatArray = NDArray[np.float64]
 
+MIN_RESET_SAMPLES = 10
+"""Samples needed before and after a backward jump to call it a clock reset."""
 REPAIR_FLAG = "--repair (repair=True in Python)"
 """How to allow repairs, named in every refusal."""
 
@@ -132,6 +134,8 @@ def _resets(t: FloatArray, jump: ClockJump, end: int) -> bool:
     A clock reset records the same times twice; rows written out of order fill a hole.
     ``end`` is the index where the segment after the jump ends.
     """
+    if jump.index < MIN_RESET_SAMPLES or end - jump.index < MIN_RESET_SAMPLES:
+        return False  # too few samples on either side to tell a clock from disorder
     lo = jump.t_before_s + jump.step_s
     hi = min(jump.t_before_s, float(np.max(t[jump.index:end])))
     if hi <= lo:

@@ -80,7 +80,15 @@ def read_mobgap(path: Path | str, *, repair: bool = False, check_units: bool = T
         raise InputError(f"trial {chosen!r}", where=str(p),
                          expected=f"one of {', '.join(names)}")
     test, trial_name = chosen.split("/", 1)
-    session = load_trial(root, participant, test, trial_name).session
+    loaded = load_trial(root, participant, test, trial_name)
+    session = loaded.session
+    ref = loaded.reference.indip or loaded.reference.stereophoto
+    if ref is not None:
+        session.meta.source["reference_steps"] = {
+            "count": len(ref.initial_contacts_s),
+            "source": f"{ref.system} initial contacts (walking bouts only)",
+            "intervals_s": [[float(a), float(b)]
+                            for a, b in zip(ref.bout_start_s, ref.bout_end_s, strict=True)]}
     others = [n for n in names if n != chosen]
     if others:
         session.meta.notes.append(f"trial {chosen} of {participant}; others: "
@@ -92,7 +100,11 @@ def read_oxford(path: Path | str, *, repair: bool = False, check_units: bool = T
     """Oxford step-counter validation file (phone accelerometer, step ground truth)."""
     from hrtls.datasets.oxford import load_recording
 
-    return load_recording(path, repair=repair).session
+    recording = load_recording(path, repair=repair)
+    session = recording.session
+    session.meta.source["reference_steps"] = {
+        "count": recording.total_steps, "source": "ground-truth step counter (column 6)"}
+    return session
 
 
 def read_broad(path: Path | str, *, repair: bool = False, check_units: bool = True) -> Session:

@@ -45,6 +45,9 @@ LOCAL_CRS_NOTE = ("coordinates are local ENU metres [x east, y north, z up], not
                   "longitude/latitude as RFC 7946 requires; write with a georeference for "
                   "a standard file")
 
+LOCAL_TYPE = "hrtls:LocalFeatureCollection"
+"""Top-level type of the local variant (:func:`write_local_geojson`): not GeoJSON on purpose."""
+
 LandmarkInput = Mapping[str, Landmark] | Iterable[Landmark] | None
 
 
@@ -273,6 +276,24 @@ def write_geojson(trajectory: Trajectory, path: str | Path, *, steps: StepEvents
     return target
 
 
+def write_local_geojson(trajectory: Trajectory, path: str | Path, *,
+                        steps: StepEvents | None = None, landmarks: LandmarkInput = None,
+                        time_origin_unix_s: float | None = None, name: str | None = None,
+                        overwrite: bool = False) -> Path:
+    """The track in local ENU metres, for a recording without a georeference.
+
+    The document is the one :func:`write_geojson` writes without a georeference, but its
+    top-level ``type`` is :data:`LOCAL_TYPE`: map tools refuse it instead of drawing metres as
+    degrees near lon 0, lat 0. :func:`read_geojson` reads it.
+    """
+    target = prepare_target(path, overwrite)
+    doc = geojson_document(trajectory, steps=steps, landmarks=landmarks, georeference=None,
+                           time_origin_unix_s=time_origin_unix_s, name=name)
+    doc["type"] = LOCAL_TYPE
+    write_text_atomic(target, json.dumps(doc, allow_nan=False) + "\n")
+    return target
+
+
 # --------------------------------------------------------------------------------------------
 # reader
 # --------------------------------------------------------------------------------------------
@@ -375,7 +396,8 @@ def read_geojson(path: str | Path) -> GeoJsonTrack:
         raise FormatError("top level is not an object", where=str(file), expected="GeoJSON")
     if doc.get("type") == "Feature":
         features: list[Any] = [doc]
-    elif doc.get("type") == "FeatureCollection" and isinstance(doc.get("features"), list):
+    elif doc.get("type") in ("FeatureCollection", LOCAL_TYPE) and isinstance(
+            doc.get("features"), list):
         features = doc["features"]
     else:
         raise FormatError(f"type {doc.get('type')!r}", where=str(file),

@@ -128,14 +128,14 @@ def track_one(task: TrackTask) -> TrackSummary:
     """Read, track and write one recording (runs on any worker)."""
     from hrtls.jobs.track import evaluate_track, write_track_outputs
     from hrtls.pipeline import Tracker, load_config, preset
-    from hrtls.pipeline.barometric import with_baro_floors
+    from hrtls.pipeline.finish import finish_track
     from hrtls.recordings import read_any
 
     cfg = (load_config(Path(task.config_path)) if task.config_path is not None
            else preset(task.preset or "default"))
     data = read_any(task.recording, repair=task.repair)
     start = time.perf_counter()
-    result = with_baro_floors(Tracker(cfg).run(data), data, cfg)
+    result = finish_track(Tracker(cfg).run(data), data, cfg)
     seconds = time.perf_counter() - start
     evaluation = evaluate_track(result, data)
     write_track_outputs(result, data, Path(task.output), overwrite=task.overwrite,

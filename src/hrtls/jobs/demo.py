@@ -10,8 +10,8 @@ from typing import Any
 
 from hrtls.jobs.track import evaluate_track, write_track_outputs
 from hrtls.pipeline import Tracker, TrackerConfig, preset
-from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import FixesConfig, RangesConfig, RssConfig, TagsConfig
+from hrtls.pipeline.finish import finish_track
 from hrtls.sim.scenarios import run_scenario, write_result
 
 MISSIONS: tuple[tuple[str, dict[str, Any], str], ...] = (
@@ -63,7 +63,7 @@ def run_demo(out_dir: Path, *, seed: int = 0, overwrite: bool = False,
             if progress:
                 progress(f"tracking {mission}: {label}")
             start = time.perf_counter()
-            result = with_baro_floors(Tracker(cfg).run(sim.session), sim.session, cfg)
+            result = finish_track(Tracker(cfg).run(sim.session), sim.session, cfg)
             seconds = time.perf_counter() - start
             evaluation = evaluate_track(result, sim.session, sim.reference)
             folder = out_dir / mission / label.replace(" ", "_")

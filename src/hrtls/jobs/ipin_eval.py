@@ -50,8 +50,8 @@ from hrtls.evaluate.metrics import ErrorStats, checkpoint_errors, error_stats, e
 from hrtls.frames import quat_multiply
 from hrtls.fusion.rss_scans import average_rss_per_anchor
 from hrtls.gait.step_length import WeinbergModel
-from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.mounting import handheld_mounting_q_bd
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
@@ -366,7 +366,7 @@ def run_case(session: Session, case: IpinCase, *, file: str = "",
                                declination_rad=case.declination_rad,
                                rss_window_s=window, channel=channel)
     try:
-        result = with_baro_floors(Tracker(case.config).run(prepared), prepared, case.config)
+        result = finish_track(Tracker(case.config).run(prepared), prepared, case.config)
     except (InputError, ArithmeticError, ValueError) as exc:
         return CaseResult(file, case.name, None, None, f"{type(exc).__name__}: {exc}")
     errors = landmark_errors(result.trajectory, session.checkpoints,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,16 +16,20 @@ from hrtls.data import ImuStream, Session
 from hrtls.data.clocks import ClockStream, check_clocks
 from hrtls.errors import InputError, RepairWarning
 from hrtls.evaluate.report import EvaluationInputs, build_report
-from hrtls.io.geojson import write_geojson
+from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
-from hrtls.pipeline.barometric import apply_baro_floors, with_baro_floors
+from hrtls.pipeline.barometric import apply_baro_floors
 from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.tracker import Tracker, TrackResult
+from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
+LOCAL_GEOJSON = "trajectory.local.json"
+"""The track of a recording without a georeference (local metres, not RFC 7946)."""
 OUTPUT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parquet",
-                "trajectory.geojson", "report.json")
+                "trajectory.geojson", LOCAL_GEOJSON, "report.json")
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,9 +68,16 @@ def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
                          expected="an empty or new folder (or --overwrite)")
 
 
+Progress = Callable[[str, float, float | None], None]
+"""``(what, done, total)``: called while reading (total None) and tracking (IMU rows or s)."""
+PROGRESS_CHUNK_S = 60.0
+"""Window fed to the tracker at a time when progress is reported (whole-session formats)."""
+
+
 def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
                     beacons: Path | None = None, chunk_rows: int = DEFAULT_CHUNK_ROWS,
-                    fmt: str | None = None, trial: str | None = None) -> TrackRun:
+                    fmt: str | None = None, trial: str | None = None,
+                    progress: Progress | None = None) -> TrackRun:
     """Track a recording; a session folder or zip is streamed in chunks when it can be.
 
     Streaming (bounded memory) feeds ``chunk_rows`` IMU rows at a time to
@@ -74,11 +86,18 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     ``trial`` are passed to :func:`hrtls.recordings.read_any`. ``result.report["input"]``
     lists the format, every repair warned while reading and the reader's notes (unit
     conversions, clock offsets).
+
+    ``progress`` is told what is being done: reading (no total), then tracking (IMU rows of a
+    stream, or seconds of a whole session, which is then fed in windows of
+    :data:`PROGRESS_CHUNK_S` as the live service would; the result equals the one-call run to
+    rounding).
     """
     from hrtls.recordings import detect_format, read_any, reader_options
 
     fmt = fmt or detect_format(path)
     options = reader_options(fmt, trial=trial)
+    if progress:
+        progress(f"reading {path.name} ({fmt})", 0.0, None)
     stream = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -91,21 +110,30 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     meta = stream.meta if stream is not None else session.meta if session is not None else None
     input_report = _input_report(fmt, caught, [] if meta is None else meta.notes)
     input_report["path"] = str(path)
+    if meta is not None:
+        input_report["time_origin_unix_s"] = meta.time_origin_unix_s
+        input_report["georeference"] = (None if meta.georeference is None
+                                        else meta.georeference.model_dump())
     t_imu = stream.imu_t if stream is not None else (
         None if session is None or session.imu is None else session.imu.accel.t)
     if t_imu is not None and len(t_imu):
         input_report["imu"] = imu_fingerprint(t_imu)
     if stream is not None:
         try:
-            return _with_input(_track_stream(stream, config), input_report)
+            return _with_input(_track_stream(stream, config, progress), input_report, config)
         except NotStreamable:
             session = read_any(path, fmt=fmt, repair=repair, beacons=beacons, **options)
     assert session is not None
     start = time.perf_counter()
-    result = with_baro_floors(Tracker(config).run(session), session, config)
+    tracker = Tracker(config)
+    if progress is None or config.offline.two_pass:
+        raw = tracker.run(session)
+    else:
+        raw = _run_in_windows(tracker, session, progress)
+    result = finish_track(raw, session, config)
     n = 0 if session.imu is None else len(session.imu.accel)
     run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
-    return _with_input(run, input_report)
+    return _with_input(run, input_report, config)
 
 
 def imu_fingerprint(t: np.ndarray) -> dict[str, float | int]:
@@ -125,12 +153,39 @@ def _input_report(fmt: str, caught: list[warnings.WarningMessage], notes: list[s
     return {"format": fmt, "repairs": repairs, "notes": list(notes)}
 
 
-def _with_input(run: TrackRun, input_report: dict[str, Any]) -> TrackRun:
-    run.result.report["input"] = input_report
+HANDHELD_FORMATS = frozenset({"ipin"})
+"""Formats recorded with a phone held in the hand (IPIN: in front of the face or chest)."""
+
+
+def _with_input(run: TrackRun, input_report: dict[str, Any], config: TrackerConfig
+                ) -> TrackRun:
+    report = run.result.report
+    report["input"] = input_report
+    placement = (run.session.meta.placement or "").lower()
+    handheld = input_report["format"] in HANDHELD_FORMATS or placement in ("hand", "handheld")
+    if handheld and config.attitude.mounting != "handheld":
+        note = (f"this is a hand-held phone recording ({input_report['format']}) but the "
+                f"configuration {config.name!r} expects a body-worn device: use --preset "
+                "handheld-phone (or [attitude] mounting = \"handheld\")")
+        report.setdefault("notes", []).append(note)
     return run
 
 
-def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
+def _run_in_windows(tracker: Tracker, session: Session, progress: Progress) -> TrackResult:
+    from hrtls.pipeline.chunks import split_session
+
+    t0, t1 = session.time_span()
+    tracker.start_session(session)
+    for part in split_session(session, PROGRESS_CHUNK_S):
+        tracker.update(part)
+        done = min(t1, part.time_span()[1]) - t0
+        progress("tracking", done, t1 - t0)
+    progress("tracking", t1 - t0, t1 - t0)
+    return tracker.finish()
+
+
+def _track_stream(stream: SessionStream, config: TrackerConfig,
+                  progress: Progress | None = None) -> TrackRun:
     tracker = Tracker(config, keep_attitude=False)
     if streams(config):
         tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
@@ -143,11 +198,15 @@ def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
         tracker.start_session(stream.session(stream.start_imu()))
     first: ImuStream | None = None
     seconds = 0.0
+    rows = 0
     for chunk in stream.chunks():
         first = first or chunk.imu
         start = time.perf_counter()
         tracker.update(chunk)
         seconds += time.perf_counter() - start
+        rows += 0 if chunk.imu is None else len(chunk.imu.accel)
+        if progress:
+            progress("reading and tracking", rows, stream.n_rows)
     start = time.perf_counter()
     result = tracker.finish()
     result = apply_baro_floors(result, stream.parts.get("pressure"),
@@ -158,6 +217,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig) -> TrackRun:
     assert first is not None
     # the ground truth is read only now, for the evaluation: it is not held while tracking
     session = stream.session(first).with_parts(truth=stream.truth())
+    result = widen_unobservable_heading(result, session)
     return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
 
 
@@ -165,7 +225,11 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                         overwrite: bool = False, plot: bool = False,
                         evaluation: dict[str, Any] | None = None,
                         table_format: TableFormat = "csv") -> list[Path]:
-    """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png)."""
+    """Write trajectory, steps (``.csv`` or ``.parquet``), geojson, report (and track.png).
+
+    The GeoJSON is ``trajectory.geojson`` (RFC 7946, WGS-84) when the recording has a
+    georeference, else :data:`LOCAL_GEOJSON` (local metres, a type map tools refuse).
+    """
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     check_output_dir(out_dir, overwrite=overwrite)
@@ -176,9 +240,13 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                          georeference=geo),
         write_steps(result.steps, out_dir / f"steps.{table_format}"),
         write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                      landmarks=session.resolved_landmarks() if geo else session.landmarks,
-                      georeference=geo, time_origin_unix_s=session.meta.time_origin_unix_s,
-                      overwrite=True),
+                      landmarks=session.resolved_landmarks(), georeference=geo,
+                      time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
+        if geo is not None else
+        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                            landmarks=session.landmarks,
+                            time_origin_unix_s=session.meta.time_origin_unix_s,
+                            overwrite=True),
     ]
     report = dict(result.report)
     if evaluation is not None:
@@ -194,7 +262,9 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
             floor_height_m=session.meta.floor_height_m,
             checkpoints=session.checkpoints, landmarks=_positioned(session),
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
-            title=f"hrtls track ({result.report['config']['name']})", ellipses=25))
+            title=f"hrtls track ({result.report['config']['name']})"
+            + ("" if result.report.get("heading", {}).get("observable", True)
+               else ", heading unobservable: shape only"), ellipses=25))
     return written
 
 
@@ -212,3 +282,28 @@ def evaluate_track(result: TrackResult, session: Session,
     return build_report(EvaluationInputs(estimate=result.trajectory, estimated_steps=result.steps,
                                          truth=session.truth, checkpoints=session.checkpoints,
                                          reference=reference or {}))
+
+
+def reference_steps(result: TrackResult, session: Session) -> dict[str, Any] | None:
+    """Our step count beside the recording's reference (mobgap, Oxford), or None.
+
+    With reference walking bouts (``intervals_s``) our steps ending inside them (with 0.5 s
+    of margin) are counted too, since the reference counts only those.
+    """
+    ref = session.meta.source.get("reference_steps")
+    if not isinstance(ref, dict) or "count" not in ref:
+        return None
+    ours = len(result.steps)
+    out: dict[str, Any] = {"reference": int(ref["count"]), "source": str(ref.get("source", "")),
+                           "ours": ours}
+    intervals = ref.get("intervals_s")
+    if intervals:
+        ends = result.steps.t_end
+        inside = np.zeros(len(ends), dtype=bool)
+        for start, end in intervals:
+            inside |= (ends >= float(start) - 0.5) & (ends <= float(end) + 0.5)
+        out["ours_in_reference_bouts"] = int(np.count_nonzero(inside))
+    counted = out.get("ours_in_reference_bouts", ours)
+    out["error_fraction"] = (counted - out["reference"]) / out["reference"] \
+        if out["reference"] else None
+    return out

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, HTTPException, Request
+from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -17,11 +21,14 @@ from hrtls.service import schemas
 from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
+from hrtls.service.host import HostParams, TrackerHost
 from hrtls.service.limits import BodyLimit, RateLimiter
+from hrtls.service.runner import InProcessRunner, TrackerRunner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 
 API_PREFIX = "/api/v1"
+log = logging.getLogger(__name__)
 
 
 def bootstrap(settings: Settings, *, clock: Clock = wall_clock,
@@ -50,19 +57,47 @@ def _error_text(exc: RequestValidationError) -> tuple[str, list[dict[str, Any]]]
     return text or "invalid request", errors
 
 
-def create_app(settings: Settings, *, clock: Clock = wall_clock) -> FastAPI:
+async def _publish_loop(services: Services) -> None:
+    """Every ``1 / publish_hz`` s: push the changes of each mission to its sockets."""
+    period = 1.0 / services.settings.publish_hz
+    while True:
+        await asyncio.sleep(period)
+        try:
+            deltas = await run_in_threadpool(services.publish_once)
+        except Exception:
+            log.exception("publishing failed")
+            continue
+        for mission_id, delta in deltas:
+            services.hub.publish(mission_id, delta)
+
+
+def create_app(settings: Settings, *, clock: Clock = wall_clock,
+               runner: TrackerRunner | None = None) -> FastAPI:
     """The FastAPI application of one deployment (database migrated on start-up)."""
     engine = make_engine(settings.db_url)
     migrate(engine)
-    services = Services(settings=settings, engine=engine, sessions=session_factory(engine),
-                        clock=clock,
+    sessions = session_factory(engine)
+    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or InProcessRunner(),
+                       params=HostParams(queue_batches=settings.queue_batches,
+                                         snapshot_every_s=settings.snapshot_every_s,
+                                         workers=settings.tracker_threads))
+    services = Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
                         agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
-                                               burst=settings.rate_burst, clock=clock))
+                                               burst=settings.rate_burst, clock=clock),
+                        host=host)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        yield
-        engine.dispose()
+        await run_in_threadpool(host.start)
+        publisher = asyncio.create_task(_publish_loop(services))
+        try:
+            yield
+        finally:
+            publisher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await publisher
+            await run_in_threadpool(host.stop)
+            engine.dispose()
 
     app = FastAPI(title="hrtls supervisor", version=__version__, lifespan=lifespan,
                   docs_url=f"{API_PREFIX}/docs", openapi_url=f"{API_PREFIX}/openapi.json",
@@ -79,9 +114,10 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock) -> FastAPI:
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, missions, planned
+    from hrtls.service.routes import agents, auth, ingest, live, missions, planned
 
-    for router in (auth.router, missions.router, agents.router, planned.router):
+    for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
+                   planned.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])

@@ -7,10 +7,12 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 from fastapi import Depends, HTTPException, Request
-from sqlalchemy import Engine
+from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session, sessionmaker
 
 from hrtls.service.clock import Clock
+from hrtls.service.host import TrackerHost
+from hrtls.service.hub import Hub
 from hrtls.service.limits import RateLimiter
 from hrtls.service.models import Agent, Mission
 from hrtls.service.security import COOKIE_NAME, Principal, Role, lookup
@@ -26,7 +28,56 @@ class Services:
     sessions: sessionmaker[Session]
     clock: Clock
     agent_rate: RateLimiter
-    extras: dict[str, Any] = field(default_factory=dict)
+    host: TrackerHost
+    hub: Hub = field(default_factory=Hub)
+    _t0: dict[int, float] = field(default_factory=dict)
+
+    def mission_time(self, mission_id: int) -> float:
+        """Mission time now, s."""
+        if mission_id not in self._t0:
+            with self.sessions() as db:
+                mission = db.get(Mission, mission_id)
+                self._t0[mission_id] = 0.0 if mission is None else mission.t0_unix
+        return self.clock() - self._t0[mission_id]
+
+    def picture(self, db: Session, mission: Mission, *, t: float | None, floor: int | None,
+                trail_s: float) -> dict[str, Any]:
+        """Live snapshot (``t`` None) or replay at ``t``."""
+        from hrtls.service.picture import picture
+
+        return picture(db, mission, host=self.host, now_unix=self.clock(), t=t, floor=floor,
+                       trail_s=trail_s)
+
+    def publish_once(self) -> list[tuple[int, dict[str, Any]]]:
+        """The deltas of every mission with changes since the last call (worker thread)."""
+        from hrtls.service.picture import agent_json
+
+        now = self.clock()
+        per: dict[int, dict[str, dict[Any, dict[str, Any]]]] = {}
+
+        def slot(mission_id: int) -> dict[str, dict[Any, dict[str, Any]]]:
+            return per.setdefault(mission_id, {"agents": {}, "estimates": {}, "events": {},
+                                               "orders": {}})
+
+        changed: dict[int, int] = {}
+        for live, est in self.host.take_changes():
+            if self.hub.subscribers(live.mission_id) == 0:
+                continue
+            changed[live.agent_id] = live.mission_id
+            if est is not None:
+                slot(live.mission_id)["estimates"][live.agent_id] = est
+        if changed:
+            with self.sessions() as db:
+                for row in db.scalars(select(Agent).where(Agent.id.in_(list(changed)))):
+                    slot(row.mission_id)["agents"][row.id] = agent_json(row, self.host, now)
+        for mission_id, kinds in self.hub.take().items():
+            for kind, items in kinds.items():
+                for item in items:
+                    key = item.get("agent") if kind == "estimates" else item.get("id")
+                    slot(mission_id)[kind][key] = item
+        return [(m, {"type": "delta", "t": self.mission_time(m),
+                     **{k: list(v.values()) for k, v in kinds.items()}})
+                for m, kinds in per.items()]
 
 
 def get_services(request: Request) -> Services:

@@ -39,6 +39,7 @@ class Mission(Base):
     created_at: Mapped[float] = mapped_column(Float)
     georeference: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
     floor_height_m: Mapped[float] = mapped_column(Float, default=3.0)
+    channel: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
     stale_after_s: Mapped[float] = mapped_column(Float, default=10.0)
     alarm_profile: Mapped[dict[str, Any]] = mapped_column(JSON)
 
@@ -81,6 +82,7 @@ class Agent(Base):
     kind: Mapped[str] = mapped_column(String(16))
     preset: Mapped[str] = mapped_column(String(64))
     placement: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    mounting_q_bd: Mapped[list[float] | None] = mapped_column(JSON, nullable=True)
     device: Mapped[dict[str, Any]] = mapped_column(JSON)
     user: Mapped[dict[str, Any]] = mapped_column(JSON)
     start_pose: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
@@ -134,6 +136,7 @@ class TrackerSnapshot(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     agent_id: Mapped[int] = mapped_column(ForeignKey("agents.id", ondelete="CASCADE"))
     t_data: Mapped[float] = mapped_column(Float)
+    t_final: Mapped[float] = mapped_column(Float)
     created_unix: Mapped[float] = mapped_column(Float)
     state: Mapped[bytes] = mapped_column(LargeBinary)
 

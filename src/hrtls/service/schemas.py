@@ -12,7 +12,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from hrtls.data import Landmark
-from hrtls.data.session import GeoreferenceModel, StartPose
+from hrtls.data.session import ChannelModel, GeoreferenceModel, StartPose
 
 Name = Field(min_length=1, max_length=200)
 
@@ -93,6 +93,12 @@ class Georeference(GeoreferenceModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+class Channel(ChannelModel):
+    """Path-loss model of the mission's beacons (strict)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
 _PLAN_KINDS = ("wall", "door", "room", "corridor", "stairs", "exit", "zone")
 
 
@@ -155,6 +161,7 @@ class MissionIn(Strict):
 
     name: str = Name
     georeference: Georeference | None = None
+    channel: Channel | None = None
     floor_height_m: float = Field(default=3.0, gt=0.5, le=20.0)
     stale_after_s: float = Field(default=10.0, gt=0.0, le=3600.0)
     alarm_profile: AlarmProfile = Field(default_factory=AlarmProfile)
@@ -174,6 +181,7 @@ class MissionPatch(Strict):
 
     name: str | None = Field(default=None, min_length=1, max_length=200)
     georeference: Georeference | None = None
+    channel: Channel | None = None
     floor_height_m: float | None = Field(default=None, gt=0.5, le=20.0)
     stale_after_s: float | None = Field(default=None, gt=0.0, le=3600.0)
     alarm_profile: AlarmProfile | None = None
@@ -201,6 +209,7 @@ class MissionOut(Out):
     now_t: float
     created_at: float
     georeference: dict[str, Any] | None
+    channel: dict[str, Any] | None
     floor_height_m: float
     stale_after_s: float
     alarm_profile: dict[str, Any]
@@ -257,7 +266,7 @@ class UserIn(Strict):
     """The person carrying the device."""
 
     height_m: float | None = Field(default=None, gt=0.5, lt=2.8)
-    step_model: dict[str, float] = Field(default_factory=dict, max_length=20)
+    step_model: dict[str, float | str] = Field(default_factory=dict, max_length=20)
 
 
 class AgentIn(Strict):
@@ -267,6 +276,7 @@ class AgentIn(Strict):
     kind: Literal["rescuer", "robot"] = "rescuer"
     preset: str = Field(default="default", min_length=1, max_length=64)
     placement: str | None = Field(default=None, max_length=64)
+    mounting_q_bd: tuple[float, float, float, float] | None = None
     device: dict[str, str | float | int | bool | None] = Field(default_factory=dict,
                                                                 max_length=50)
     user: UserIn = Field(default_factory=UserIn)
@@ -279,6 +289,7 @@ class AgentPatch(Strict):
     name: str | None = Field(default=None, min_length=1, max_length=200)
     preset: str | None = Field(default=None, min_length=1, max_length=64)
     placement: str | None = Field(default=None, max_length=64)
+    mounting_q_bd: tuple[float, float, float, float] | None = None
     device: dict[str, str | float | int | bool | None] | None = Field(default=None,
                                                                        max_length=50)
     user: UserIn | None = None
@@ -293,6 +304,7 @@ class AgentOut(Out):
     kind: str
     preset: str
     placement: str | None
+    mounting_q_bd: list[float] | None
     device: dict[str, Any]
     user: dict[str, Any]
     start_pose: dict[str, Any] | None

@@ -27,6 +27,7 @@ class Settings(BaseModel):
     queue_batches: int = Field(default=64, ge=1, le=100_000)
     publish_hz: float = Field(default=2.0, gt=0.0, le=50.0)
     snapshot_every_s: float = Field(default=30.0, gt=0.0)
+    tracker_threads: int = Field(default=2, ge=1, le=64)
     session_hours: float = Field(default=12.0, gt=0.0)
     cors_origins: tuple[str, ...] = ()
     tls: bool = False

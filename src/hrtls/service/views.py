@@ -33,7 +33,7 @@ def mission_out(db: Session, row: Mission, *, now_unix: float) -> schemas.Missio
     return schemas.MissionOut(
         id=row.id, name=row.name, status=row.status, t0_unix=row.t0_unix,
         now_t=now_unix - row.t0_unix, created_at=row.created_at,
-        georeference=row.georeference, floor_height_m=row.floor_height_m,
+        georeference=row.georeference, channel=row.channel, floor_height_m=row.floor_height_m,
         stale_after_s=row.stale_after_s, alarm_profile=row.alarm_profile,
         floors=[floor_out(f) for f in floors_of(db, row.id)])
 
@@ -51,7 +51,8 @@ def mission_summaries(db: Session) -> list[schemas.MissionSummaryOut]:
 def agent_out(row: Agent) -> schemas.AgentOut:
     """An agent with its status."""
     return schemas.AgentOut(id=row.id, mission=row.mission_id, name=row.name, kind=row.kind,
-                            preset=row.preset, placement=row.placement, device=row.device,
+                            preset=row.preset, placement=row.placement,
+                            mounting_q_bd=row.mounting_q_bd, device=row.device,
                             user=row.user, start_pose=row.start_pose,
                             checked_in=row.start_pose is not None, created_at=row.created_at,
                             status=row.status)

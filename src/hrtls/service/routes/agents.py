@@ -21,6 +21,7 @@ from hrtls.service.deps import (
     own_agent_or_reader,
 )
 from hrtls.service.models import Agent
+from hrtls.service.picture import agent_json
 from hrtls.service.security import issue
 from hrtls.service.views import agent_out, token_out
 
@@ -45,6 +46,7 @@ def create_agent(mission_id: int, body: schemas.AgentIn, who: Commander, db: DbD
     now = services.clock()
     agent = Agent(mission_id=mission_id, name=body.name, kind=body.kind, preset=body.preset,
                   placement=body.placement, device=dict(body.device),
+                  mounting_q_bd=None if body.mounting_q_bd is None else list(body.mounting_q_bd),
                   user=body.user.model_dump(), created_at=now, status=dict(EMPTY_STATUS),
                   start_pose=None if body.start_pose is None else body.start_pose.model_dump())
     db.add(agent)
@@ -56,18 +58,20 @@ def create_agent(mission_id: int, body: schemas.AgentIn, who: Commander, db: DbD
 
 
 @router.get("/missions/{mission_id}/agents", response_model=list[schemas.AgentOut])
-def list_agents(mission_id: int, who: Reader, db: DbDep) -> list[schemas.AgentOut]:
-    """The agents of a mission."""
+def list_agents(mission_id: int, who: Reader, db: DbDep,
+                services: ServicesDep) -> list[dict[str, Any]]:
+    """The agents of a mission with their live status."""
     mission_or_404(db, mission_id)
     rows = db.scalars(select(Agent).where(Agent.mission_id == mission_id).order_by(Agent.id))
-    return [agent_out(a) for a in rows]
+    return [agent_json(a, services.host, services.clock()) for a in rows]
 
 
 @router.get("/missions/{mission_id}/agents/{agent_id}", response_model=schemas.AgentOut)
-def get_agent(mission_id: int, agent_id: int, who: AnyCaller, db: DbDep) -> schemas.AgentOut:
-    """One agent (an agent token: only its own)."""
+def get_agent(mission_id: int, agent_id: int, who: AnyCaller, db: DbDep,
+              services: ServicesDep) -> dict[str, Any]:
+    """One agent with its live status (an agent token: only its own)."""
     own_agent_or_reader(who, mission_id, agent_id)
-    return agent_out(agent_or_404(db, mission_id, agent_id))
+    return agent_json(agent_or_404(db, mission_id, agent_id), services.host, services.clock())
 
 
 @router.patch("/missions/{mission_id}/agents/{agent_id}", response_model=schemas.AgentOut)
@@ -77,7 +81,7 @@ def patch_agent(mission_id: int, agent_id: int, body: schemas.AgentPatch, who: C
     agent = agent_or_404(db, mission_id, agent_id)
     changes = body.model_dump(exclude_unset=True)
     for name, value in changes.items():
-        if value is None and name != "placement":
+        if value is None and name not in ("placement", "mounting_q_bd"):
             raise HTTPException(422, f"{name} may not be null")
         if name == "preset":
             _check_preset(value)
@@ -89,7 +93,7 @@ def patch_agent(mission_id: int, agent_id: int, body: schemas.AgentPatch, who: C
 @router.post("/missions/{mission_id}/agents/{agent_id}/checkin",
              response_model=schemas.AgentOut)
 def checkin(mission_id: int, agent_id: int, body: schemas.StartPoseIn,
-            who: CommanderOrAgent, db: DbDep) -> schemas.AgentOut:
+            who: CommanderOrAgent, db: DbDep, services: ServicesDep) -> schemas.AgentOut:
     """Set the agent's known start pose (mission time); the tracker starts from it."""
     own_agent_or_reader(who, mission_id, agent_id)
     agent = agent_or_404(db, mission_id, agent_id)
@@ -97,6 +101,7 @@ def checkin(mission_id: int, agent_id: int, body: schemas.StartPoseIn,
         raise HTTPException(409, f"agent {agent_id} has checked in already")
     agent.start_pose = body.model_dump()
     db.commit()
+    services.host.checked_in(agent_id)
     return agent_out(agent)
 
 

@@ -23,6 +23,7 @@ def create_mission(body: schemas.MissionIn, who: Commander, db: DbDep,
     mission = Mission(name=body.name, status="active", t0_unix=now, created_at=now,
                       georeference=None if body.georeference is None
                       else body.georeference.model_dump(),
+                      channel=None if body.channel is None else body.channel.model_dump(),
                       floor_height_m=body.floor_height_m, stale_after_s=body.stale_after_s,
                       alarm_profile=body.alarm_profile.model_dump())
     db.add(mission)
@@ -53,10 +54,11 @@ def patch_mission(mission_id: int, body: schemas.MissionPatch, who: Commander, d
     """Change the given fields of a mission."""
     mission = mission_or_404(db, mission_id)
     for name, value in body.model_dump(exclude_unset=True).items():
-        if value is None and name != "georeference":
+        if value is None and name not in ("georeference", "channel"):
             raise HTTPException(422, f"{name} may not be null")
         setattr(mission, name, value)
     db.commit()
+    services.host.mission_changed(mission_id)
     return mission_out(db, mission, now_unix=services.clock())
 
 

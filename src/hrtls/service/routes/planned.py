@@ -14,30 +14,6 @@ def _planned(what: str) -> HTTPException:
                               "implemented yet")
 
 
-@router.get("/missions/{mission_id}/snapshot")
-def snapshot(mission_id: int, who: Reader) -> None:
-    """Live picture (planned)."""
-    raise _planned("the mission snapshot")
-
-
-@router.get("/missions/{mission_id}/estimates")
-def estimates(mission_id: int, who: Reader) -> None:
-    """Published estimates (planned)."""
-    raise _planned("estimates")
-
-
-@router.get("/missions/{mission_id}/agents/{agent_id}/trail")
-def trail(mission_id: int, agent_id: int, who: Reader) -> None:
-    """Trail of one agent (planned)."""
-    raise _planned("trails")
-
-
-@router.get("/missions/{mission_id}/replay")
-def replay(mission_id: int, who: Reader) -> None:
-    """Picture at a past time (planned)."""
-    raise _planned("replay")
-
-
 @router.get("/missions/{mission_id}/events")
 def events(mission_id: int, who: Reader) -> None:
     """Events (planned)."""
@@ -72,9 +48,3 @@ def agent_orders(who: AgentCaller) -> None:
 def receipt(order_id: int, who: AgentCaller) -> None:
     """Delivery receipt (planned)."""
     raise _planned("receipts")
-
-
-@router.post("/ingest")
-def ingest(who: AgentCaller) -> None:
-    """Batch ingest (planned)."""
-    raise _planned("ingest")

@@ -1,0 +1,93 @@
+"""Compile the numerical kernels once, where a pip install can keep them.
+
+The kernels are numba functions with ``cache=True``: compiled on first use and cached beside
+the package's sources, or under ``NUMBA_CACHE_DIR``. :func:`configure_cache` points
+``NUMBA_CACHE_DIR`` at a user folder (``$XDG_CACHE_HOME/hrtls/numba``, else
+``~/.cache/hrtls/numba``) when the package folder is not writable (a system-wide install), and
+must run before numba is imported. :func:`warm_up` tracks the simulated two-floor walk with
+every preset, which compiles what ``hrtls track`` and ``hrtls demo`` use, and leaves a marker
+so that the first-run notice (:func:`first_run`) is not shown again.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import zlib
+from collections.abc import Callable
+from pathlib import Path
+
+import hrtls
+
+NOTICE = ("first run after install: compiling the numerical kernels once (a minute or two); "
+          "later runs start at once. `hrtls warmup` does it ahead.")
+
+
+def cache_root() -> Path:
+    """User cache folder of hrtls."""
+    base = os.environ.get("XDG_CACHE_HOME")
+    return (Path(base) if base else Path.home() / ".cache") / "hrtls"
+
+
+def configure_cache() -> Path | None:
+    """Set ``NUMBA_CACHE_DIR`` to the user cache when the package folder is read-only.
+
+    Returns the folder set, or None when the kernels are cached beside the sources (or
+    ``NUMBA_CACHE_DIR`` was already set).
+    """
+    if "NUMBA_CACHE_DIR" in os.environ:
+        return None
+    package = Path(hrtls.__file__).resolve().parent
+    if os.access(package, os.W_OK):
+        return None
+    folder = cache_root() / "numba"
+    folder.mkdir(parents=True, exist_ok=True)
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)
+    return folder
+
+
+def _marker() -> Path:
+    import numba
+
+    where = os.environ.get("NUMBA_CACHE_DIR", str(Path(hrtls.__file__).resolve().parent))
+    tag = f"{hrtls.__version__}-numba{numba.__version__}-{zlib.crc32(where.encode()):08x}"
+    return cache_root() / f"compiled-{tag}"
+
+
+def first_run() -> bool:
+    """True when the kernels have not been compiled for this install yet."""
+    return not _marker().exists()
+
+
+def mark_compiled() -> None:
+    """Remember that the kernels are compiled (after a run that compiled them)."""
+    marker = _marker()
+    try:
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.write_text(f"{time.time():.0f}\n", encoding="utf-8")
+    except OSError:
+        pass  # an unwritable home: the notice shows again, nothing else changes
+
+
+def warm_up(progress: Callable[[str], None] | None = None) -> float:
+    """Compile the kernels by tracking a simulated walk with every preset; seconds taken."""
+    import warnings
+
+    from hrtls.pipeline import Tracker, preset
+    from hrtls.pipeline.config import PRESETS
+    from hrtls.pipeline.finish import finish_track
+    from hrtls.sim.scenarios import run_scenario
+
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if progress:
+            progress("simulating a short walk")
+        session = run_scenario("inderst_multifloor", 0).session
+        for name in PRESETS:
+            if progress:
+                progress(f"compiling for preset {name}")
+            cfg = preset(name)
+            finish_track(Tracker(cfg).run(session), session, cfg)
+    mark_compiled()
+    return time.perf_counter() - start

@@ -1,0 +1,468 @@
+"""The tracker host: accepts an agent's batches, feeds its tracker in time order, stores rows.
+
+Every accepted batch is first committed to the raw log (so an ack is never lost), then queued.
+Worker threads feed each agent's queue to its tracker through a :class:`TrackerRunner`. A batch
+older than what the tracker has consumed (back-fill after a radio gap) triggers a re-run: the
+newest snapshot before it is restored and the raw log is replayed from there in time order; the
+re-run waits while a sequence gap is still open (up to ``backfill_wait_s``). After a restart the
+same re-run restores every agent from its newest snapshot.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import queue
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import delete, insert, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session as DbSession
+from sqlalchemy.orm import sessionmaker
+
+from hrtls.data.session import SessionMeta
+from hrtls.pipeline.output import Estimates
+from hrtls.service.batches import Batch, decode_body, parse_batch
+from hrtls.service.clock import Clock
+from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
+from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
+from hrtls.service.seqbook import SeqBook
+
+log = logging.getLogger(__name__)
+
+Decoder = Callable[[bytes, str], Batch]
+
+
+def decode_batch(body: bytes, content_type: str) -> Batch:
+    """The hrtls batch in a JSON or msgpack body."""
+    return parse_batch(decode_body(body, content_type))
+
+
+DECODERS: dict[str, Decoder] = {"batch": decode_batch}
+"""Raw-log ``source`` -> how its stored bodies become batches (adapters add theirs)."""
+
+REPLAY_PAGE = 200
+KEEP_SNAPSHOTS = 20
+
+
+class Busy(Exception):
+    """The agent's queue is full: answer 429 with ``retry_after_s``."""
+
+    def __init__(self, retry_after_s: float) -> None:
+        super().__init__(f"queue full, retry after {retry_after_s} s")
+        self.retry_after_s = retry_after_s
+
+
+@dataclass
+class HostParams:
+    """Tuning of the host (from :class:`hrtls.service.settings.Settings`)."""
+
+    queue_batches: int = 64
+    snapshot_every_s: float = 30.0
+    backfill_wait_s: float = 2.0
+    workers: int = 2
+
+
+@dataclass
+class AgentLive:
+    """In-memory state of one agent."""
+
+    agent_id: int
+    mission_id: int
+    t0_unix: float
+    stale_after_s: float
+    book: SeqBook
+    tracked: bool
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    pending: list[Batch] = field(default_factory=list)
+    opened: bool = False
+    t_fed: float = -math.inf
+    t_final: float = -math.inf
+    t_snap: float = -math.inf
+    backfill_from: float = math.inf
+    backfill_since: float = 0.0
+    latest: dict[str, Any] | None = None
+    sent_stale: bool | None = None
+    dirty: bool = True
+    last_receive_unix: float | None = None
+    battery: float | None = None
+    sockets: int = 0
+    scheduled: bool = False
+    busy: bool = False
+    error: str | None = None
+    sos: bool = False
+
+    def stale(self, now_unix: float) -> bool:
+        """Stale while a gap is open or nothing arrived for ``stale_after_s``."""
+        silent = (self.last_receive_unix is None
+                  or now_unix - self.last_receive_unix > self.stale_after_s)
+        return self.book.gap_open or self.backfill_from < math.inf or silent
+
+    def status(self, now_unix: float) -> dict[str, Any]:
+        """The ``Agent.status`` object of the contract."""
+        recent = (self.last_receive_unix is not None
+                  and now_unix - self.last_receive_unix <= self.stale_after_s)
+        return {"last_data_t": None if not math.isfinite(self.t_fed) else self.t_fed,
+                "last_seq": None if self.book.highest < 0 else self.book.highest,
+                "acked_through": None if self.book.through < 0 else self.book.through,
+                "missing": self.book.missing(), "battery": self.battery,
+                "connected": self.sockets > 0 or recent, "error": self.error}
+
+
+def estimate_dict(agent_id: int, e: Estimates, i: int, *, stale: bool,
+                  received_t: float) -> dict[str, Any]:
+    """Row ``i`` of ``e`` as the contract's Estimate."""
+    c = e.cov_xy[i]
+    return {"agent": agent_id, "t": float(e.t[i]), "x": float(e.xyz[i, 0]),
+            "y": float(e.xyz[i, 1]), "z": float(e.xyz[i, 2]), "floor": int(e.floor[i]),
+            "cov_xy": [[float(c[0, 0]), float(c[0, 1])], [float(c[1, 0]), float(c[1, 1])]],
+            "heading_rad": float(e.heading_rad[i]), "var_heading": float(e.var_heading[i]),
+            "activity": activity_label(int(e.activity[i])),
+            "since_correction_s": finite_or_none(float(e.since_correction_s[i])),
+            "stale": stale, "received_t": received_t}
+
+
+def row_dict(r: EstimateRow) -> dict[str, Any]:
+    """A stored estimate as the contract's Estimate."""
+    return {"agent": r.agent_id, "t": r.t, "x": r.x, "y": r.y, "z": r.z, "floor": r.floor,
+            "cov_xy": [[r.cxx, r.cxy], [r.cxy, r.cyy]], "heading_rad": r.heading_rad,
+            "var_heading": r.var_heading, "activity": r.activity,
+            "since_correction_s": r.since_correction_s, "stale": r.stale,
+            "received_t": r.received_t}
+
+
+def _rows_to_db(mission_id: int, agent_id: int, e: Estimates, *, stale: bool,
+                received_t: float) -> list[dict[str, Any]]:
+    out = []
+    for i in range(len(e)):
+        d = estimate_dict(agent_id, e, i, stale=stale, received_t=received_t)
+        c = d.pop("cov_xy")
+        d.pop("agent")
+        out.append({**d, "mission_id": mission_id, "agent_id": agent_id, "cxx": c[0][0],
+                    "cxy": c[0][1], "cyy": c[1][1]})
+    return out
+
+
+class TrackerHost:
+    """Per-agent queues, worker threads and the runner that holds the trackers."""
+
+    def __init__(self, *, sessions: sessionmaker[DbSession], clock: Clock,
+                 runner: TrackerRunner, params: HostParams) -> None:
+        self.sessions = sessions
+        self.clock = clock
+        self.runner = runner
+        self.params = params
+        self._agents: dict[int, AgentLive] = {}
+        self._lock = threading.Lock()
+        self._work: queue.Queue[int | None] = queue.Queue()
+        self._threads: list[threading.Thread] = []
+        self.listeners: list[Callable[[AgentLive, list[dict[str, Any]]], None]] = []
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> None:
+        """Start the workers and schedule every agent with stored data (restore)."""
+        for i in range(self.params.workers):
+            th = threading.Thread(target=self._worker, name=f"hrtls-tracker-{i}", daemon=True)
+            th.start()
+            self._threads.append(th)
+        with self.sessions() as db:
+            ids = list(db.scalars(select(RawBatch.agent_id).distinct()))
+        for agent_id in ids:
+            live = self.agent(agent_id)
+            if live is not None:
+                self._schedule(live)
+
+    def stop(self) -> None:
+        """Stop the workers (queued work is dropped; it is in the raw log)."""
+        for _ in self._threads:
+            self._work.put(None)
+        for th in self._threads:
+            th.join(timeout=30)
+        self._threads.clear()
+
+    def idle(self) -> bool:
+        """Whether no agent has queued or running work (for tests and benchmarks)."""
+        with self._lock:
+            agents = list(self._agents.values())
+        return all(not a.pending and not a.busy and not a.scheduled
+                   and a.backfill_from == math.inf for a in agents)
+
+    # ------------------------------------------------------------------ agents
+    def agent(self, agent_id: int) -> AgentLive | None:
+        """The live state of an agent (loaded from the database the first time)."""
+        with self._lock:
+            live = self._agents.get(agent_id)
+        if live is not None:
+            return live
+        with self.sessions() as db:
+            row = db.get(Agent, agent_id)
+            if row is None:
+                return None
+            mission = db.get(Mission, row.mission_id)
+            assert mission is not None
+            book = SeqBook()
+            for seq in db.scalars(select(RawBatch.seq).where(RawBatch.agent_id == agent_id)):
+                book.add(seq)
+            last = db.scalars(select(RawBatch.received_unix).where(
+                RawBatch.agent_id == agent_id).order_by(RawBatch.id.desc())).first()
+            live = AgentLive(agent_id, row.mission_id, mission.t0_unix, mission.stale_after_s,
+                             book, row.start_pose is not None, last_receive_unix=last)
+        with self._lock:
+            return self._agents.setdefault(agent_id, live)
+
+    def agents_of(self, mission_id: int) -> list[AgentLive]:
+        """The loaded agents of a mission."""
+        with self._lock:
+            return [a for a in self._agents.values() if a.mission_id == mission_id]
+
+    def checked_in(self, agent_id: int) -> None:
+        """The agent's start pose is set: track everything stored so far."""
+        live = self.agent(agent_id)
+        if live is None:
+            return
+        with live.lock:
+            live.tracked = True
+            live.opened = False
+        self._schedule(live)
+
+    def mission_changed(self, mission_id: int) -> None:
+        """Stale-time or floor height changed: reload the agents' settings lazily."""
+        with self.sessions() as db:
+            mission = db.get(Mission, mission_id)
+        if mission is None:
+            return
+        for live in self.agents_of(mission_id):
+            live.stale_after_s = mission.stale_after_s
+
+    # ------------------------------------------------------------------ ingest
+    def accept(self, agent_id: int, batch: Batch, *, body: bytes, content_type: str,
+               source: str) -> dict[str, Any]:
+        """Store ``batch`` in the raw log and queue it; the ack (idempotent)."""
+        live = self.agent(agent_id)
+        if live is None:
+            raise KeyError(agent_id)
+        with live.lock:
+            if batch.seq in live.book:
+                return self._ack(live, batch.seq, "duplicate")
+            if len(live.pending) >= self.params.queue_batches:
+                raise Busy(1.0)
+        now = self.clock()
+        span = batch.time_span()
+        try:
+            with self.sessions() as db, db.begin():
+                db.add(RawBatch(agent_id=agent_id, seq=batch.seq, received_unix=now,
+                                t_first=None if span is None else span[0],
+                                t_last=None if span is None else span[1], source=source,
+                                content_type=content_type, body=body))
+        except IntegrityError:
+            with live.lock:
+                live.book.add(batch.seq)
+                return self._ack(live, batch.seq, "duplicate")
+        with live.lock:
+            live.book.add(batch.seq)
+            live.last_receive_unix = now
+            if batch.status is not None and batch.status.battery is not None:
+                live.battery = batch.status.battery
+            if batch.sos:
+                live.sos = True
+            live.pending.append(batch)
+            live.dirty = True
+            ack = self._ack(live, batch.seq, "accepted")
+        self._schedule(live)
+        return ack
+
+    @staticmethod
+    def _ack(live: AgentLive, seq: int, status: str) -> dict[str, Any]:
+        return {"seq": seq, "status": status, "acked_through": live.book.through,
+                "missing": live.book.missing()}
+
+    # ------------------------------------------------------------------ publishing
+    def take_changes(self) -> list[tuple[AgentLive, dict[str, Any] | None]]:
+        """Agents whose estimate or status changed since the last call, with the estimate."""
+        now = self.clock()
+        with self._lock:
+            agents = list(self._agents.values())
+        out = []
+        for live in agents:
+            with live.lock:
+                stale = live.stale(now)
+                if live.backfill_from < math.inf and not live.busy and not live.scheduled \
+                        and now - live.backfill_since >= self.params.backfill_wait_s:
+                    self._schedule_locked(live)
+                if not live.dirty and stale == live.sent_stale:
+                    continue
+                live.dirty = False
+                live.sent_stale = stale
+                est = None if live.latest is None else {**live.latest, "stale": stale}
+                out.append((live, est))
+        return out
+
+    # ------------------------------------------------------------------ work
+    def _schedule(self, live: AgentLive) -> None:
+        with live.lock:
+            self._schedule_locked(live)
+
+    def _schedule_locked(self, live: AgentLive) -> None:
+        if not live.scheduled:
+            live.scheduled = True
+            self._work.put(live.agent_id)
+
+    def _worker(self) -> None:
+        while True:
+            agent_id = self._work.get()
+            if agent_id is None:
+                return
+            live = self._agents.get(agent_id)
+            if live is None:
+                continue
+            with live.lock:
+                if live.busy:   # another worker has it; it re-schedules when done
+                    live.scheduled = False
+                    continue
+                live.busy = True
+                live.scheduled = False
+                items, live.pending = live.pending, []
+            try:
+                self._process(live, items)
+            except Exception as exc:
+                log.exception("tracker of agent %s failed", agent_id)
+                live.error = f"{type(exc).__name__}: {exc}"
+                live.dirty = True
+            finally:
+                with live.lock:
+                    live.busy = False
+                    if live.pending:
+                        self._schedule_locked(live)
+
+    def _process(self, live: AgentLive, items: list[Batch]) -> None:
+        if not live.tracked:
+            with self.sessions() as db:
+                row = db.get(Agent, live.agent_id)
+                live.tracked = row is not None and row.start_pose is not None
+            if not live.tracked:
+                return
+        if not live.opened:
+            self._rebuild(live, math.inf)
+            return
+        timed = sorted((b for b in items if b.time_span() is not None),
+                       key=lambda b: (b.time_span() or (0.0, 0.0))[0])
+        fresh = []
+        for b in timed:
+            t_first = (b.time_span() or (0.0, 0.0))[0]
+            if t_first <= live.t_fed:
+                live.backfill_from = min(live.backfill_from, t_first)
+                live.backfill_since = self.clock()
+            else:
+                fresh.append(b)
+        if live.backfill_from < math.inf:
+            waited = self.clock() - live.backfill_since >= self.params.backfill_wait_s
+            if not live.book.gap_open or waited:
+                t_from = live.backfill_from
+                live.backfill_from = math.inf
+                self._rebuild(live, t_from)
+                return
+        if fresh:
+            self._feed(live, fresh)
+
+    def _spec(self, db: DbSession, agent_id: int) -> AgentSpec:
+        agent = db.get(Agent, agent_id)
+        assert agent is not None
+        mission = db.get(Mission, agent.mission_id)
+        assert mission is not None
+        meta = SessionMeta.model_validate({
+            "start_pose": agent.start_pose, "placement": agent.placement,
+            "mounting_q_bd": agent.mounting_q_bd, "user": agent.user,
+            "floor_height_m": mission.floor_height_m, "channel": mission.channel,
+            "georeference": mission.georeference})
+        landmarks = tuple(r.data for r in db.scalars(
+            select(LandmarkRow).where(LandmarkRow.mission_id == mission.id)))
+        return AgentSpec(agent_id, agent.preset, meta.model_dump(mode="json"), landmarks)
+
+    def _rebuild(self, live: AgentLive, t_from: float) -> None:
+        """Restore the newest snapshot before ``t_from`` and replay the raw log after it."""
+        aid = live.agent_id
+        with self.sessions() as db, db.begin():
+            if math.isfinite(t_from):
+                db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid,
+                                                         TrackerSnapshot.t_data >= t_from))
+            snap = db.scalars(select(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid)
+                              .order_by(TrackerSnapshot.t_data.desc())).first()
+            state = None if snap is None else snap.state
+            t_data = -math.inf if snap is None else snap.t_data
+            t_final = -math.inf if snap is None else snap.t_final
+            cut = delete(EstimateRow).where(EstimateRow.agent_id == aid)
+            if snap is not None:
+                cut = cut.where(EstimateRow.t > t_final)
+            db.execute(cut)
+            spec = self._spec(db, aid)
+        self.runner.close(aid)
+        self.runner.open(spec, state, t_final)
+        live.opened = True
+        live.t_fed = live.t_snap = t_data
+        live.t_final = t_final
+        done = 0
+        replayed: set[int] = set()
+        while True:
+            with self.sessions() as db:
+                q = select(RawBatch.seq, RawBatch.source, RawBatch.content_type,
+                           RawBatch.body).where(RawBatch.agent_id == aid,
+                                                RawBatch.t_first.is_not(None))
+                if snap is not None:
+                    q = q.where(RawBatch.t_first > t_data)
+                page = db.execute(q.order_by(RawBatch.t_first, RawBatch.seq)
+                                  .offset(done).limit(REPLAY_PAGE)).all()
+            if not page:
+                break
+            done += len(page)
+            replayed.update(r.seq for r in page)
+            batches = [DECODERS[r.source](r.body, r.content_type) for r in page]
+            for i in range(0, len(batches), 20):
+                self._feed(live, batches[i:i + 20])
+        with live.lock:   # batches stored while replaying were replayed already
+            live.pending = [b for b in live.pending if b.seq not in replayed]
+
+    def _feed(self, live: AgentLive, batches: list[Batch]) -> None:
+        rows = self.runner.feed(live.agent_id, batches)
+        spans = [b.time_span() for b in batches]
+        live.t_fed = max([live.t_fed, *(s[1] for s in spans if s is not None)])
+        self._store(live, rows)
+        if live.t_fed - live.t_snap >= self.params.snapshot_every_s:
+            self._snapshot(live)
+
+    def _store(self, live: AgentLive, rows: Rows) -> None:
+        now = self.clock()
+        received_t = now - live.t0_unix
+        stale = live.stale(now)
+        if rows.final is not None and len(rows.final):
+            with self.sessions() as db, db.begin():
+                db.execute(insert(EstimateRow), _rows_to_db(
+                    live.mission_id, live.agent_id, rows.final, stale=stale,
+                    received_t=received_t))
+        live.t_final = rows.t_final
+        latest_rows = rows.provisional if rows.provisional is not None else rows.final
+        if latest_rows is not None and len(latest_rows):
+            est = estimate_dict(live.agent_id, latest_rows, len(latest_rows) - 1, stale=stale,
+                                received_t=received_t)
+            with live.lock:
+                live.latest = est
+                live.dirty = True
+            for listener in self.listeners:
+                listener(live, [est])
+
+    def _snapshot(self, live: AgentLive) -> None:
+        state = self.runner.snapshot(live.agent_id)
+        if state is None:
+            return
+        aid = live.agent_id
+        with self.sessions() as db, db.begin():
+            db.add(TrackerSnapshot(agent_id=aid, t_data=live.t_fed, t_final=live.t_final,
+                                   created_unix=self.clock(), state=state))
+            old = list(db.scalars(select(TrackerSnapshot.id).where(
+                TrackerSnapshot.agent_id == aid).order_by(TrackerSnapshot.t_data.desc())
+                .offset(KEEP_SNAPSHOTS)))
+            if old:
+                db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.id.in_(old)))
+        live.t_snap = live.t_fed

@@ -1,0 +1,127 @@
+"""Ingest: numbered batches of an agent over HTTP POST and WebSocket (JSON or msgpack)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import MutableMapping
+from typing import Any
+
+import msgpack
+from fastapi import APIRouter, HTTPException, Request, WebSocket, WebSocketDisconnect
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse
+
+from hrtls.service.batches import BatchError, decode_body, parse_batch
+from hrtls.service.deps import AgentCaller, Services, ServicesDep
+from hrtls.service.host import Busy
+from hrtls.service.limits import retry_after_header
+from hrtls.service.routes.live import authenticate, decode_ws
+from hrtls.service.security import Principal
+
+router = APIRouter(tags=["ingest"])
+
+
+def check_rate(services: Services, who: Principal) -> None:
+    """429 when the agent exceeds its request rate."""
+    wait = services.agent_rate.take(who.agent_id)
+    if wait > 0:
+        raise HTTPException(429, f"agent {who.agent_id} exceeds "
+                                 f"{services.settings.rate_per_agent_hz:g} requests/s",
+                            headers=retry_after_header(wait))
+
+
+def store(services: Services, who: Principal, value: dict[str, Any], *, body: bytes,
+          content_type: str, source: str) -> dict[str, Any]:
+    """Validate and accept one batch of the calling agent; the ack."""
+    assert who.agent_id is not None
+    batch = parse_batch(value)
+    try:
+        return services.host.accept(who.agent_id, batch, body=body, content_type=content_type,
+                                    source=source)
+    except KeyError:
+        raise HTTPException(404, f"agent {who.agent_id} no longer exists") from None
+
+
+@router.post("/ingest")
+async def ingest(request: Request, who: AgentCaller, services: ServicesDep) -> JSONResponse:
+    """Accept one batch of the calling agent (idempotent per ``seq``)."""
+    check_rate(services, who)
+    content_type = request.headers.get("content-type", "")
+    body = await request.body()
+    try:
+        value = decode_body(body, content_type)
+        ack = await run_in_threadpool(store, services, who, value, body=body,
+                                      content_type=content_type.split(";")[0].strip(),
+                                      source="batch")
+    except BatchError as exc:
+        return JSONResponse({"detail": exc.detail}, status_code=exc.status)
+    except Busy as exc:
+        return JSONResponse({"detail": f"agent {who.agent_id}: {exc}"}, status_code=429,
+                            headers=retry_after_header(exc.retry_after_s))
+    return JSONResponse(ack)
+
+
+@router.websocket("/ingest/ws")
+async def ingest_socket(ws: WebSocket) -> None:
+    """An agent's socket: batches in, acks (and orders) out."""
+    services: Services = ws.app.state.services
+    who = await authenticate(ws, services, ("agent",))
+    if who is None or who.agent_id is None:
+        return
+    live = await run_in_threadpool(services.host.agent, who.agent_id)
+    if live is None:
+        await ws.close(4404, "agent not found")
+        return
+    live.sockets += 1
+    try:
+        while True:
+            message = await ws.receive()
+            if message.get("type") == "websocket.disconnect":
+                break
+            msg = decode_ws(message)
+            if msg is None:
+                await ws.send_json({"type": "error", "status": 400,
+                                    "detail": "frame is neither a JSON nor a msgpack object"})
+                continue
+            kind = msg.get("type")
+            if kind == "ping":
+                await ws.send_json({"type": "pong", "t": services.mission_time(live.mission_id)})
+                continue
+            if kind != "batch" or not isinstance(msg.get("batch"), dict):
+                await ws.send_json({"type": "error", "status": 422,
+                                    "detail": "expected {type: batch, batch: {...}} or ping"})
+                continue
+            await _ws_batch(ws, services, who, msg["batch"], message)
+    except WebSocketDisconnect:
+        pass
+    finally:
+        live.sockets -= 1
+
+
+async def _ws_batch(ws: WebSocket, services: Services, who: Principal, value: dict[str, Any],
+                    message: MutableMapping[str, Any]) -> None:
+    seq = value.get("seq")
+    wait = services.agent_rate.take(who.agent_id)
+    if wait > 0:
+        await ws.send_json({"type": "error", "seq": seq, "status": 429, "retry_after_s": wait,
+                            "detail": "rate limit"})
+        return
+    binary = message.get("bytes") is not None
+    body = msgpack.packb(value) if binary else json.dumps(value).encode()
+    try:
+        ack = await run_in_threadpool(store, services, who, value, body=body,
+                                      content_type="application/msgpack" if binary
+                                      else "application/json", source="batch")
+    except BatchError as exc:
+        await ws.send_json({"type": "error", "seq": seq, "status": exc.status,
+                            "detail": exc.detail})
+        return
+    except Busy as exc:
+        await ws.send_json({"type": "error", "seq": seq, "status": 429,
+                            "retry_after_s": exc.retry_after_s, "detail": str(exc)})
+        return
+    except HTTPException as exc:
+        await ws.send_json({"type": "error", "seq": seq, "status": exc.status_code,
+                            "detail": exc.detail})
+        return
+    await ws.send_json({"type": "ack", **ack})

@@ -1,0 +1,63 @@
+"""Simulated sessions and missions for the service tests."""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import httpx
+import numpy as np
+
+from hrtls.data import Session
+from hrtls.pipeline import Tracker, preset
+from hrtls.sim.scenarios import run_scenario
+
+API = "/api/v1"
+
+
+@functools.cache
+def office(duration_s: float = 40.0, seed: int = 3) -> Session:
+    """A short office walk with beacons, tags and radio nodes (ground truth included)."""
+    return run_scenario("office_random_walk", seed=seed, duration_s=duration_s).session
+
+
+@functools.cache
+def offline_rows(duration_s: float = 40.0, seed: int = 3) -> Any:
+    """The offline trajectory of :func:`office` with the default preset."""
+    return Tracker(preset("default")).run(office(duration_s, seed)).trajectory
+
+
+def mission_for(commander: httpx.Client, session: Session, *,
+                name: str = "Rescuer A") -> tuple[int, int, str]:
+    """A mission with the session's channel and landmarks and one agent; (mission, agent, token)."""
+    meta = session.meta
+    body: dict[str, Any] = {"name": "sim", "floor_height_m": meta.floor_height_m}
+    if meta.channel is not None:
+        body["channel"] = meta.channel.model_dump()
+    r = commander.post(f"{API}/missions", json=body)
+    assert r.status_code == 201, r.text
+    mid = r.json()["id"]
+    for lm in session.landmarks.values():
+        data = lm.model_dump(mode="json", exclude_none=True)
+        r = commander.post(f"{API}/missions/{mid}/landmarks", json=data)
+        assert r.status_code == 201, r.text
+    user = {"height_m": meta.user.height_m, "step_model": meta.user.step_model}
+    r = commander.post(f"{API}/missions/{mid}/agents", json={
+        "name": name, "placement": meta.placement,
+        "mounting_q_bd": None if meta.mounting_q_bd is None else list(meta.mounting_q_bd),
+        "user": user})
+    assert r.status_code == 201, r.text
+    agent = r.json()
+    return mid, agent["agent"]["id"], agent["token"]
+
+
+def start_pose(session: Session) -> dict[str, Any]:
+    assert session.meta.start_pose is not None
+    return session.meta.start_pose.model_dump()
+
+
+def stored(commander: httpx.Client, mission: int, agent: int) -> dict[str, np.ndarray]:
+    rows = commander.get(f"{API}/missions/{mission}/estimates", params={"agent": agent}).json()
+    return {"t": np.array([r["t"] for r in rows]),
+            "xy": np.array([[r["x"], r["y"]] for r in rows]).reshape(-1, 2),
+            "cov": np.array([r["cov_xy"] for r in rows]).reshape(-1, 2, 2)}
