@@ -69,20 +69,6 @@ def test_markdown_escapes_cell_bars_and_compares_the_mean_with_the_paper() -> No
                     SeedStats(1, 1, 1), "-", None, 3).beats_paper is None
 
 
-def test_published_table_is_the_benchmark_output() -> None:
-    """README's simulated table = docs/results/bench_papers.md = the rows of the JSON run."""
-    import json
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
-    data = json.loads((root / "docs/results/bench_papers.json").read_text())
-    assert data["seeds"] == list(HELD_OUT_SEEDS)
-    rows = [BenchRow.from_dict(d) for d in data["rows"]]
-    md = (root / "docs/results/bench_papers.md").read_text()
-    assert md == markdown_table(rows)
-    assert md in (root / "README.md").read_text()
-
-
 def test_pool_of_two_workers_gives_the_rows_of_one_process() -> None:
     kw = {"seeds": [100, 101], "only": ["colombo_circle Tp=16"]}
     one = run_bench(**kw)
