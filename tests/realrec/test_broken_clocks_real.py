@@ -114,3 +114,40 @@ def test_phone_log_with_a_body_worn_preset_gets_the_hint(shared_data: Path, tmp_
     out2 = tmp_path / "handheld"
     result = runner.invoke(app, ["track", str(log), "-o", str(out2), "-p", "handheld-phone"])
     assert result.exit_code == 0 and "--preset handheld-phone" not in result.output
+
+
+def test_gap_in_every_stream_grows_the_uncertainty(log_text: str, tmp_path: Path) -> None:
+    from hrtls.io.tables import read_trajectory
+
+    path = tmp_path / "gap.txt"
+    # a 60 s pause: POSI landmarks and BLE after it move with the data
+    path.write_text(shifted(log_text, ALL_TYPES - {"BLE4", "WIFI"}, 100.0, 60.0),
+                    encoding="utf-8")
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["track", str(path), "-o", str(out), "-p", "handheld-phone"])
+    assert res.exit_code == 0, res.output
+    report = json.loads((out / "report.json").read_text())
+    assert [round(g["duration_s"]) for g in report["gaps"]] == [60]
+    # the log's BLE beacons re-anchor the track after the pause: left to the filter
+    assert "re-anchor" in report["gaps_note"]
+    assert len(read_trajectory(out / "trajectory.csv")) > 100
+
+
+def test_gap_of_a_dead_reckoning_track_hand_computed() -> None:
+    import numpy as np
+
+    from hrtls.data import ImuStream, SensorSeries, Session, StepEvents, Trajectory
+    from hrtls.pipeline.gap_uncertainty import widen_over_gaps
+    from hrtls.pipeline.tracker import TrackResult
+
+    t = np.concatenate([np.arange(0.0, 10.0, 0.01), 40.0 + np.arange(0.0, 10.0, 0.01)])
+    session = Session(imu=ImuStream(SensorSeries(t, np.tile([0.0, 0.0, 9.81], (len(t), 1)),
+                                                 "acc")))
+    rows = np.array([1.0, 5.0, 9.99, 40.0, 45.0])
+    tr = Trajectory.build(t=rows, xyz=np.zeros((5, 3)), cov_xy=np.tile(np.eye(2), (5, 1, 1)))
+    out = widen_over_gaps(TrackResult(tr, StepEvents.empty(), None, [], {}), session)
+    gap = 40.0 - 9.99
+    np.testing.assert_allclose(out.trajectory.cov_xy[:, 0, 0],
+                               [1.0, 1.0, 1.0, 1.0 + (1.5 * gap) ** 2 / 4,
+                                1.0 + (1.5 * gap) ** 2 / 4])
+    assert out.report["gaps"][0]["duration_s"] == pytest.approx(gap)

@@ -5,8 +5,8 @@ in time larger than jitter (backward, e.g. a clock reset). What is done with it:
 
 * a forward jump seen at the same time in every sensor stream is a real gap (the recording
   paused), and one in a stream that ends with the others is a dropout: it is kept and announced
-  with a :class:`~hrtls.errors.RepairWarning` (the step-driven tracker continues from where it
-  was; the warning says that its uncertainty is not grown over the gap);
+  with a :class:`~hrtls.errors.RepairWarning`; the track's position uncertainty is grown over
+  it (:mod:`hrtls.pipeline.gap_uncertainty`);
 * a forward jump in one stream while the others keep sampling, after which that stream ends
   later than the others by the jump, is that stream's clock: with ``repair`` the samples after
   it are shifted so the step becomes the nominal one (warned, with the size); without,
@@ -269,8 +269,8 @@ def check_clocks(streams: list[ClockStream], *, repair: bool = False,
         new_t[stream.key] = remove_jumps(stream.t, own)
     if gaps:
         warnings.warn("; ".join(gaps) + ": kept as gaps (no motion is known inside them: the "
-                      "track continues from where it was, its uncertainty is not grown over "
-                      "them)", RepairWarning, stacklevel=2)
+                      "track continues from where it was, with its uncertainty grown by what "
+                      "a walker covers in the gap)", RepairWarning, stacklevel=2)
     reference = streams[0] if streams else None
     if reference is not None:
         ref_t = new_t.get(reference.key, reference.t)

@@ -11,8 +11,9 @@ The floor is a state machine run sample by sample (causal, compiled):
   constant ``drift_tau_s``: weather drift (about 1 hPa an hour, 8 m) is absorbed;
 * a change faster than people climb (``max_climb_m_s`` over 1 s of the altitude smoothed over
   ``step_smooth_s``) is a pressure step of a door or the ventilation: while it lasts (until
-  the change is below half that speed) the altitude is held, and the step is removed from
-  then on (fast elevators are taken for pressure steps too);
+  the change is below half that speed) the altitude is held, or continued at the climb rate of
+  the 3 s before when steps were detected then (stairs), and the step is removed from then on
+  (fast elevators are taken for pressure steps too);
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -108,20 +109,23 @@ def relative_altitude(t: FloatArray, pressure_pa: FloatArray, *, smooth_s: float
 
 
 @numba.njit(cache=True)
-def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float
-                           ) -> tuple[FloatArray, int]:  # pragma: no cover - compiled
+def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float,
+                           walking: NDArray[np.bool_]) -> tuple[FloatArray, int
+                                                                ]:  # pragma: no cover
     """``fast`` altitude without the changes faster than ``max_climb`` (pressure steps).
 
     While the change over the last second is faster (and until it falls below half of that),
-    the altitude is held where it was 1 s before the step was seen; when the change is slower
-    again, the step is subtracted from then on. A climb during a step is lost (a pressure
-    transient before it is not taken for a climb); the floor machine rounds the rest.
+    the altitude continues at the climb rate of the 3 s before when the person was walking
+    then (``walking``), else it is held; when the change is slower again, the step (what went
+    beyond that) is subtracted from then on.
     """
     n = len(t)
     out = np.empty(n)
     offset = 0.0
     in_step = False
+    t_start = 0.0
     f_start = 0.0
+    climb = 0.0
     steps = 0
     j = 0
     for i in range(n):
@@ -133,11 +137,22 @@ def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float
         if fast_change and not in_step:
             in_step = True
             steps += 1
+            t_start = t[j]
             f_start = fast[j]
+            climb = 0.0
+            k = j
+            while k > 0 and t[k - 1] >= t_start - 3.0:
+                k -= 1
+            if walking[j] and t[j] - t[k] > 1.0:
+                climb = (fast[j] - fast[k]) / (t[j] - t[k])
+                climb = max(-0.5 * max_climb, min(0.5 * max_climb, climb))
         if in_step and not fast_change:
-            offset += fast[i] - f_start
+            offset += (fast[i] - f_start) - climb * (t[i] - t_start)
             in_step = False
-        out[i] = f_start - offset if in_step else fast[i] - offset
+        if in_step:
+            out[i] = f_start - offset + climb * (t[i] - t_start)
+        else:
+            out[i] = fast[i] - offset
     return out, steps
 
 
@@ -178,9 +193,13 @@ def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
     return np.asarray((c[1:] - c[start]) / n)
 
 
-def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None
-                ) -> BaroFloors:
+def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None,
+                step_times_s: FloatArray | None = None) -> BaroFloors:
     """Floors (relative to the first sample's floor) and heights from a pressure series.
+
+    ``step_times_s`` (the detected steps' end times) tells when the person walked: a pressure
+    step met while walking keeps the climb rate of before it (stairs), otherwise the height is
+    held through it.
 
     Raises
     ------
@@ -197,7 +216,12 @@ def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorPara
         raise InputError("times not increasing or pressures not positive",
                          where="baro_floors", expected="increasing times, pressures in Pa > 0")
     fast = relative_altitude(t, pa, smooth_s=p.step_smooth_s)
-    steady, steps = _remove_pressure_steps(t, fast, p.max_climb_m_s)
+    walking = np.zeros(len(t), dtype=np.bool_)
+    if step_times_s is not None and len(step_times_s):
+        ends = np.sort(np.asarray(step_times_s, dtype=np.float64))
+        last = np.searchsorted(ends, t, side="right") - 1
+        walking = (last >= 0) & (t - ends[np.clip(last, 0, None)] <= 2.0)
+    steady, steps = _remove_pressure_steps(t, fast, p.max_climb_m_s, walking)
     a = _causal_mean(t, steady, p.smooth_s - p.step_smooth_s)
     level, floor = _floor_machine(t, a, p.floor_height_m, p.hold_s, p.change_fraction,
                                   p.freeze_fraction, p.drift_tau_s)

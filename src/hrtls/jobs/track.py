@@ -23,6 +23,7 @@ from hrtls.io.tables import write_steps, write_trajectory
 from hrtls.pipeline.barometric import apply_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
+from hrtls.pipeline.gap_uncertainty import widen_over_gaps
 from hrtls.pipeline.tracker import Tracker, TrackResult
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
@@ -217,7 +218,8 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     assert first is not None
     # the ground truth is read only now, for the evaluation: it is not held while tracking
     session = stream.session(first).with_parts(truth=stream.truth())
-    result = widen_unobservable_heading(result, session)
+    result = widen_over_gaps(widen_unobservable_heading(result, session), session,
+                             imu_t=stream.imu_t)
     return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
 
 

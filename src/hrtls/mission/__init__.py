@@ -1,0 +1,1 @@
+"""Mission level: several agents and the dropped sensor network as one estimate."""

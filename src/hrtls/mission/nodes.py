@@ -1,0 +1,387 @@
+"""Localization of a dropped node from moving agents' ranges (Inderst thesis Sec. 3.2, 5.3).
+
+Agents with an estimated position act as temporary nodes (loose cooperation): every range an agent
+measures to an unlocalized node, taken at the agent's estimated position ``a_k``, is a
+trilateration constraint. Unlike a fixed anchor, the agent's estimate is wrong by an error that is
+strongly correlated over one pass (dead-reckoning drift changes slowly): treating the ranges of a
+pass as independent would count the same agent error many times and make the node's covariance
+far too small. Each pass ``g`` of an agent therefore carries its own position offset ``b_g``
+(the agent's error during that pass, prior ``N(0, P_g)`` from the agent's own covariance), and the
+node position ``p`` is estimated jointly with the offsets by weighted Gauss-Newton (the
+least-squares refinement of Sec. 3.5, step 3, with the agent's uncertainty):
+
+    minimize  sum_k ((r_k - ||p - a_k + b_g(k)||) / s_k)^2 + sum_g b_g^T P_g^-1 b_g
+
+The node's covariance is the ``p`` block of the inverse normal matrix, i.e. the range information
+with every pass's offset marginalized out (the sandwich form of the correlated errors).
+
+Checks before a node counts as localized:
+
+* enough ranges and passes, and agent positions that are not collinear;
+* NLOS gate: the reading with the largest normalized residual is dropped while it fails the
+  chi-square gate (walls lengthen ranges), at most ``max_outlier_passes`` times;
+* leave-one-pass-out consistency: a pass whose removal moves the estimate by more than the
+  chi-square gate on the covariance of that difference (``C_without - C_with``) is dropped;
+* mirror ambiguity: when the reflection of the estimate across the agents' best-fit line converges
+  to a second solution that explains the ranges about as well, the node is left unlocalized;
+* the position sigma must be below ``max_sigma_m``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from hrtls.errors import InputError
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True, kw_only=True)
+class NodeEstimatorParams:
+    """Parameters of :class:`NodeEstimator`.
+
+    Attributes
+    ----------
+    min_ranges:
+        Fewest accepted readings of a localized node.
+    min_spread_m:
+        RMS distance of the agents' positions from their best-fit line, at least, m.
+    max_sigma_m:
+        Largest accepted 1-sigma of the node position along its worst axis, m.
+    outlier_gate_probability:
+        Chi-square (1 dof) gate of one normalized range residual (NLOS gate).
+    consistency_gate_probability:
+        Chi-square (2 dof) gate of the leave-one-pass-out shift.
+    ambiguity_margin:
+        A mirror solution whose cost is within this of the best one makes the node ambiguous.
+    max_outlier_passes:
+        Readings dropped by the NLOS gate at most.
+    max_consistency_passes:
+        Passes dropped by the leave-one-pass-out check at most.
+    max_iterations:
+        Gauss-Newton iterations per solve.
+    """
+
+    min_ranges: int = 4
+    min_spread_m: float = 0.5
+    max_sigma_m: float = 3.0
+    outlier_gate_probability: float = 0.999
+    consistency_gate_probability: float = 0.999
+    ambiguity_margin: float = 9.0
+    max_outlier_passes: int = 10
+    max_consistency_passes: int = 2
+    max_iterations: int = 30
+
+    def __post_init__(self) -> None:
+        for name in ("outlier_gate_probability", "consistency_gate_probability"):
+            v = getattr(self, name)
+            if not 0.0 < v < 1.0:
+                raise InputError(f"{name} = {v}", where="NodeEstimatorParams",
+                                 expected="a probability in (0, 1)")
+        if self.min_ranges < 3:
+            raise InputError(f"min_ranges = {self.min_ranges}", where="NodeEstimatorParams",
+                             expected=">= 3 (a planar position needs three ranges)")
+        for name in ("min_spread_m", "max_sigma_m", "ambiguity_margin"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"{name} = {getattr(self, name)}",
+                                 where="NodeEstimatorParams", expected="> 0")
+
+
+@dataclass(frozen=True, eq=False)
+class NodeRanges:
+    """Ranges from agents to one node.
+
+    Attributes
+    ----------
+    agent_xy_m:
+        ``(k, 2)`` agent's estimated position at each reading, m.
+    agent_cov_m2:
+        ``(k, 2, 2)`` covariance of that estimate, m^2.
+    range_m:
+        ``(k,)`` measured distance, m.
+    range_sigma_m:
+        ``(k,)`` 1-sigma of the distance (LOS), m.
+    group:
+        ``(k,)`` pass of each reading: readings of one group share one agent error.
+    """
+
+    agent_xy_m: FloatArray
+    agent_cov_m2: FloatArray
+    range_m: FloatArray
+    range_sigma_m: FloatArray
+    group: IntArray
+
+    def __post_init__(self) -> None:
+        k = self.range_m.shape[0] if self.range_m.ndim == 1 else -1
+        shapes = {"agent_xy_m": (k, 2), "agent_cov_m2": (k, 2, 2), "range_m": (k,),
+                  "range_sigma_m": (k,), "group": (k,)}
+        for name, shape in shapes.items():
+            if getattr(self, name).shape != shape:
+                raise InputError(f"{name} has shape {getattr(self, name).shape}",
+                                 where="NodeRanges", expected=f"shape {shape}")
+        for name in ("agent_xy_m", "agent_cov_m2", "range_m", "range_sigma_m"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise InputError(f"non-finite {name}", where="NodeRanges", expected="finite")
+        if np.any(self.range_m < 0) or np.any(self.range_sigma_m <= 0):
+            raise InputError("negative range or non-positive sigma", where="NodeRanges",
+                             expected="range_m >= 0, range_sigma_m > 0")
+
+    @classmethod
+    def build(cls, *, agent_xy_m: object, agent_cov_m2: object, range_m: object,
+              range_sigma_m: object, group: object) -> NodeRanges:
+        """Arrays converted to float64 / int64."""
+        return cls(np.asarray(agent_xy_m, np.float64).reshape(-1, 2),
+                   np.asarray(agent_cov_m2, np.float64).reshape(-1, 2, 2),
+                   np.asarray(range_m, np.float64).reshape(-1),
+                   np.asarray(range_sigma_m, np.float64).reshape(-1),
+                   np.asarray(group, np.int64).reshape(-1))
+
+    def __len__(self) -> int:
+        return int(self.range_m.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class NodeEstimate:
+    """Result of :meth:`NodeEstimator.estimate`.
+
+    Attributes
+    ----------
+    position_m:
+        ``(2,)`` estimated position (NaN when no solution was computed).
+    covariance_m2:
+        ``(2, 2)`` its covariance with every pass's agent error marginalized (NaN likewise).
+    localized:
+        All checks passed.
+    reason:
+        Why not localized (empty when localized).
+    used:
+        ``(k,)`` readings kept by the NLOS and consistency checks.
+    normalized_rms:
+        RMS of the whitened residuals of the kept readings (about 1 when the model fits).
+    iterations:
+        Gauss-Newton iterations of the last solve.
+    """
+
+    position_m: FloatArray
+    covariance_m2: FloatArray
+    localized: bool
+    reason: str
+    used: BoolArray
+    normalized_rms: float
+    iterations: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Solve:
+    p: FloatArray
+    cov: FloatArray
+    cost: float
+    whitened: FloatArray
+    iterations: int
+    ok: bool
+
+
+def _offset_priors(obs: NodeRanges, use: BoolArray) -> tuple[IntArray, FloatArray]:
+    """Group index per kept reading (0..J-1) and the ``(J, 2, 2)`` inverse offset priors."""
+    groups, inv = np.unique(obs.group[use], return_inverse=True)
+    cov = obs.agent_cov_m2[use]
+    pg = np.zeros((groups.size, 2, 2))
+    np.add.at(pg, inv, cov)
+    pg /= np.bincount(inv, minlength=groups.size)[:, None, None]
+    pg = 0.5 * (pg + np.transpose(pg, (0, 2, 1))) + 1e-9 * np.eye(2)
+    return inv.astype(np.int64), np.asarray(np.linalg.inv(pg), dtype=np.float64)
+
+
+def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, max_iterations: int) -> _Solve:
+    """Joint Gauss-Newton over the node and the pass offsets (Levenberg damping)."""
+    a = obs.agent_xy_m[use]
+    r = obs.range_m[use]
+    s = obs.range_sigma_m[use]
+    g, pinv = _offset_priors(obs, use)
+    n_g = pinv.shape[0]
+    n = 2 + 2 * n_g
+    k = a.shape[0]
+    theta = np.zeros(n)
+    theta[:2] = p0
+
+    def parts(th: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+        b = th[2:].reshape(n_g, 2)
+        diff = th[:2] - a + b[g]
+        h = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
+        u = diff / h[:, None]
+        res = (r - h) / s
+        cost = float(res @ res + np.einsum("gi,gij,gj->", b, pinv, b))
+        return res, u, cost
+
+    def normal(th: FloatArray, res: FloatArray, u: FloatArray) -> tuple[FloatArray, FloatArray]:
+        jac = np.zeros((k, n))
+        jw = u / s[:, None]                      # d h / d p = d h / d b_g = u
+        jac[:, :2] = jw
+        cols = 2 + 2 * g
+        rows = np.arange(k)
+        jac[rows, cols] = jw[:, 0]
+        jac[rows, cols + 1] = jw[:, 1]
+        hess = jac.T @ jac
+        grad = -(jac.T @ res)                    # gradient of 0.5 * cost w.r.t. theta
+        b = th[2:].reshape(n_g, 2)
+        for j in range(n_g):
+            sl = slice(2 + 2 * j, 4 + 2 * j)
+            hess[sl, sl] += pinv[j]
+            grad[sl] += pinv[j] @ b[j]
+        return hess, grad
+
+    res, u, cost = parts(theta)
+    lam = 1e-6
+    it = 0
+    for it in range(1, max_iterations + 1):  # noqa: B007
+        hess, grad = normal(theta, res, u)
+        damped = hess + lam * np.diag(np.maximum(np.diag(hess), 1e-12))
+        try:
+            step = np.linalg.solve(damped, -grad)
+        except np.linalg.LinAlgError:
+            break
+        cand = theta + step
+        res_c, u_c, cost_c = parts(cand)
+        if cost_c <= cost:
+            theta, res, u, cost = cand, res_c, u_c, cost_c
+            lam = max(lam / 10.0, 1e-12)
+            if np.max(np.abs(step)) < 1e-6:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e8:
+                break
+    hess, _ = normal(theta, res, u)
+    try:
+        cov_full = np.linalg.inv(hess)
+        ok = bool(np.all(np.isfinite(cov_full)))
+    except np.linalg.LinAlgError:
+        cov_full = np.full((n, n), np.nan)
+        ok = False
+    cov = cov_full[:2, :2]
+    cov = 0.5 * (cov + cov.T)
+    # per-reading residual whitened by its prior spread (range noise + the pass's agent error)
+    pg = np.linalg.inv(pinv)[g]
+    var = s ** 2 + np.einsum("ki,kij,kj->k", u, pg, u)
+    whitened = (r - (np.linalg.norm(theta[:2] - a, axis=1))) / np.sqrt(var)
+    return _Solve(p=theta[:2].copy(), cov=cov, cost=cost, whitened=whitened, iterations=it, ok=ok)
+
+
+def _initial(a: FloatArray, r: FloatArray) -> FloatArray | None:
+    """Linear least squares of ``||p - a_k||^2 = r_k^2`` relative to the centroid."""
+    c = a.mean(axis=0)
+    d = a - c
+    lhs = 2.0 * d
+    rhs = np.sum(d ** 2, axis=1) - r ** 2
+    rhs = rhs - rhs.mean()
+    lhs = lhs - lhs.mean(axis=0)
+    sol, _, rank, _ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    if rank < 2:
+        return None
+    return np.asarray(c + sol, dtype=np.float64)
+
+
+def _spread(a: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+    """RMS distance from the best-fit line, the line's centre and unit normal."""
+    c = a.mean(axis=0)
+    w, v = np.linalg.eigh(np.cov((a - c).T, bias=True).reshape(2, 2))
+    return float(np.sqrt(max(w[0], 0.0))), c, v[:, 0]
+
+
+class NodeEstimator:
+    """Weighted Gauss-Newton localization of one node from agents' ranges (see module doc)."""
+
+    def __init__(self, params: NodeEstimatorParams | None = None) -> None:
+        self.params = params or NodeEstimatorParams()
+        self._gate1 = float(chi2.ppf(self.params.outlier_gate_probability, 1))
+        self._gate2 = float(chi2.ppf(self.params.consistency_gate_probability, 2))
+
+    def estimate(self, obs: NodeRanges, *, initial_m: FloatArray | None = None) -> NodeEstimate:
+        """Localize one node; ``initial_m`` (e.g. the previous estimate) seeds Gauss-Newton."""
+        prm = self.params
+        k = len(obs)
+        use = np.ones(k, dtype=bool)
+        nan2 = np.full(2, np.nan)
+        nan22 = np.full((2, 2), np.nan)
+
+        def fail(reason: str, sol: _Solve | None = None) -> NodeEstimate:
+            if sol is None:
+                return NodeEstimate(nan2, nan22, False, reason, use, float("nan"), 0)
+            return NodeEstimate(sol.p, sol.cov, False, reason, use.copy(),
+                                _rms(sol.whitened), sol.iterations)
+
+        if k < prm.min_ranges:
+            return fail(f"{k} ranges (needs {prm.min_ranges})")
+        if _spread(obs.agent_xy_m)[0] < prm.min_spread_m:
+            return fail("agents' positions are collinear")
+        p0 = initial_m if initial_m is not None else _initial(obs.agent_xy_m, obs.range_m)
+        if p0 is None or not np.all(np.isfinite(p0)):
+            return fail("no initial position")
+        sol = _solve(obs, use, np.asarray(p0, np.float64), prm.max_iterations)
+        for _ in range(prm.max_outlier_passes):          # NLOS gate, worst reading first
+            idx = np.flatnonzero(use)
+            worst = int(np.argmax(sol.whitened ** 2))
+            if sol.whitened[worst] ** 2 <= self._gate1 or idx.size <= prm.min_ranges:
+                break
+            use[idx[worst]] = False
+            sol = _solve(obs, use, sol.p, prm.max_iterations)
+        for _ in range(prm.max_consistency_passes):      # leave one pass out
+            bad = self._worst_pass(obs, use, sol)
+            if bad is None:
+                break
+            use[(obs.group == bad) & use] = False
+            if np.count_nonzero(use) < prm.min_ranges:
+                return fail("ranges of the passes disagree")
+            sol = _solve(obs, use, sol.p, prm.max_iterations)
+        if not sol.ok:
+            return fail("singular geometry", sol)
+        if np.count_nonzero(use) < prm.min_ranges:
+            return fail("too few ranges left after the NLOS gate", sol)
+        spread, centre, normal = _spread(obs.agent_xy_m[use])
+        if spread < prm.min_spread_m:
+            return fail("agents' positions are collinear", sol)
+        mirror = sol.p - 2.0 * float((sol.p - centre) @ normal) * normal
+        if np.linalg.norm(mirror - sol.p) > 1e-3:
+            alt = _solve(obs, use, mirror, prm.max_iterations)
+            if (np.linalg.norm(alt.p - sol.p) > 3.0 * np.sqrt(np.trace(sol.cov))
+                    and alt.cost - sol.cost < prm.ambiguity_margin):
+                return fail("mirror ambiguity across the agents' path", sol)
+        sigma_max = float(np.sqrt(max(np.linalg.eigvalsh(sol.cov)[-1], 0.0)))
+        if sigma_max > prm.max_sigma_m:
+            return fail(f"sigma {sigma_max:.1f} m above {prm.max_sigma_m:g} m", sol)
+        return NodeEstimate(sol.p, sol.cov, True, "", use.copy(), _rms(sol.whitened),
+                            sol.iterations)
+
+    def _worst_pass(self, obs: NodeRanges, use: BoolArray, sol: _Solve) -> int | None:
+        """The pass whose removal shifts the node beyond the gate, the largest such shift."""
+        groups = np.unique(obs.group[use])
+        if groups.size < 3:
+            return None
+        worst, worst_d2 = None, self._gate2
+        for grp in groups.tolist():
+            keep = use & (obs.group != grp)
+            if np.count_nonzero(keep) < self.params.min_ranges:
+                continue
+            if _spread(obs.agent_xy_m[keep])[0] < self.params.min_spread_m:
+                continue
+            other = _solve(obs, keep, sol.p, self.params.max_iterations)
+            if not other.ok:
+                continue
+            diff = other.p - sol.p
+            dcov = other.cov - sol.cov
+            w, v = np.linalg.eigh(dcov)
+            w = np.maximum(w, 1e-6 * max(float(w[-1]), 1e-12))
+            d2 = float(np.sum((v.T @ diff) ** 2 / w))
+            if d2 > worst_d2:
+                worst, worst_d2 = int(grp), d2
+        return worst
+
+
+def _rms(x: FloatArray) -> float:
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")

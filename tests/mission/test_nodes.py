@@ -1,0 +1,190 @@
+"""NodeEstimator: hand cases, scipy reference, NEES, NLOS gate, ambiguity, properties."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import least_squares
+from scipy.stats import chi2
+
+from hrtls.errors import InputError
+from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
+
+
+def _passes(rng: np.random.Generator, node: np.ndarray, *, n_pass: int, per_pass: int,
+            agent_sigma_m: float, range_sigma_m: float, radius_m: float = 8.0
+            ) -> tuple[NodeRanges, np.ndarray]:
+    """Passes along chords around ``node``; each pass's agent error is one offset draw."""
+    xy, cov, rr, sg, grp = [], [], [], [], []
+    offsets = []
+    for g in range(n_pass):
+        ang = rng.uniform(0, 2 * np.pi)
+        d = rng.uniform(1.0, 0.7 * radius_m)
+        c = node + d * np.array([np.cos(ang), np.sin(ang)])
+        along = np.array([-np.sin(ang), np.cos(ang)])
+        s = np.linspace(-4.0, 4.0, per_pass)
+        true = c + s[:, None] * along
+        off = rng.normal(0.0, agent_sigma_m, 2)
+        offsets.append(off)
+        est = true + off
+        dist = np.linalg.norm(true - node, axis=1)
+        xy.append(est)
+        cov.append(np.broadcast_to(agent_sigma_m ** 2 * np.eye(2), (per_pass, 2, 2)))
+        rr.append(dist + rng.normal(0.0, range_sigma_m, per_pass))
+        sg.append(np.full(per_pass, range_sigma_m))
+        grp.append(np.full(per_pass, g))
+    obs = NodeRanges.build(agent_xy_m=np.concatenate(xy), agent_cov_m2=np.concatenate(cov),
+                           range_m=np.concatenate(rr), range_sigma_m=np.concatenate(sg),
+                           group=np.concatenate(grp))
+    return obs, np.array(offsets)
+
+
+def test_exact_ranges_from_known_positions_give_the_node() -> None:
+    node = np.array([3.0, -2.0])
+    a = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0], [5.0, -6.0]])
+    r = np.linalg.norm(a - node, axis=1)
+    obs = NodeRanges.build(agent_xy_m=a, agent_cov_m2=np.zeros((5, 2, 2)), range_m=r,
+                           range_sigma_m=np.full(5, 0.01), group=np.arange(5))
+    est = NodeEstimator().estimate(obs)
+    assert est.localized, est.reason
+    np.testing.assert_allclose(est.position_m, node, atol=1e-6)
+    assert est.used.all()
+
+
+def test_matches_scipy_least_squares_on_the_same_cost() -> None:
+    rng = np.random.default_rng(3)
+    node = np.array([1.0, 2.0])
+    obs, _ = _passes(rng, node, n_pass=4, per_pass=6, agent_sigma_m=0.5, range_sigma_m=0.2)
+    est = NodeEstimator().estimate(obs)
+    groups = np.unique(obs.group)
+    pg = np.array([obs.agent_cov_m2[obs.group == g].mean(axis=0) for g in groups])
+    chol_inv = np.linalg.cholesky(np.linalg.inv(pg + 1e-9 * np.eye(2)))
+
+    def residual(th: np.ndarray) -> np.ndarray:
+        b = th[2:].reshape(-1, 2)
+        h = np.linalg.norm(th[:2] - obs.agent_xy_m + b[obs.group], axis=1)
+        prior = np.einsum("gji,gj->gi", chol_inv, b).ravel()   # L^T b, L L^T = P^-1
+        return np.concatenate([(obs.range_m - h) / obs.range_sigma_m, prior])
+
+    ref = least_squares(residual, np.concatenate([node + 1.0, np.zeros(2 * groups.size)]),
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    np.testing.assert_allclose(est.position_m, ref.x[:2], atol=1e-6)
+    cov_ref = np.linalg.inv(ref.jac.T @ ref.jac)[:2, :2]
+    np.testing.assert_allclose(est.covariance_m2, cov_ref, rtol=1e-4, atol=1e-9)
+
+
+def test_nees_is_consistent_with_correlated_agent_errors() -> None:
+    rng = np.random.default_rng(11)
+    est = NodeEstimator()
+    nees = []
+    for _ in range(300):
+        node = rng.uniform(-20, 20, 2)
+        obs, _ = _passes(rng, node, n_pass=4, per_pass=8, agent_sigma_m=0.6, range_sigma_m=0.15)
+        e = est.estimate(obs)
+        if not e.localized:
+            continue
+        d = e.position_m - node
+        nees.append(float(d @ np.linalg.solve(e.covariance_m2, d)))
+    n = len(nees)
+    assert n >= 270
+    lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
+    assert lo <= float(np.mean(nees)) <= hi, (np.mean(nees), lo, hi)
+
+
+def test_ignoring_the_agent_error_would_be_overconfident() -> None:
+    """The same data with zero agent covariance: the covariance misses the offsets (NEES >> 2)."""
+    rng = np.random.default_rng(12)
+    est = NodeEstimator(NodeEstimatorParams(max_consistency_passes=0))
+    nees = []
+    for _ in range(100):
+        node = rng.uniform(-20, 20, 2)
+        obs, _ = _passes(rng, node, n_pass=4, per_pass=8, agent_sigma_m=0.6, range_sigma_m=0.15)
+        naive = NodeRanges.build(agent_xy_m=obs.agent_xy_m,
+                                 agent_cov_m2=np.zeros_like(obs.agent_cov_m2),
+                                 range_m=obs.range_m, range_sigma_m=obs.range_sigma_m,
+                                 group=obs.group)
+        e = est.estimate(naive)
+        if e.covariance_m2 is not None and np.all(np.isfinite(e.covariance_m2)):
+            d = e.position_m - node
+            nees.append(float(d @ np.linalg.solve(e.covariance_m2, d)))
+    assert np.mean(nees) > 5.0
+
+
+def test_nlos_reading_is_dropped() -> None:
+    rng = np.random.default_rng(5)
+    node = np.array([0.0, 0.0])
+    obs, _ = _passes(rng, node, n_pass=4, per_pass=6, agent_sigma_m=0.05, range_sigma_m=0.05)
+    r = obs.range_m.copy()
+    r[7] += 3.0                                            # a wall on one reading's path
+    bad = NodeRanges.build(agent_xy_m=obs.agent_xy_m, agent_cov_m2=obs.agent_cov_m2, range_m=r,
+                           range_sigma_m=obs.range_sigma_m, group=obs.group)
+    e = NodeEstimator().estimate(bad)
+    assert e.localized
+    assert not e.used[7] and e.used.sum() >= len(r) - 2
+    assert np.linalg.norm(e.position_m - node) < 0.2
+
+
+def test_a_pass_with_a_wrong_agent_position_is_dropped() -> None:
+    rng = np.random.default_rng(8)
+    node = np.array([0.0, 0.0])
+    obs, _ = _passes(rng, node, n_pass=5, per_pass=8, agent_sigma_m=0.1, range_sigma_m=0.05)
+    xy = obs.agent_xy_m.copy()
+    xy[obs.group == 2] += np.array([2.5, -2.0])           # agent lost, its covariance says 0.1 m
+    bad = NodeRanges.build(agent_xy_m=xy, agent_cov_m2=obs.agent_cov_m2, range_m=obs.range_m,
+                           range_sigma_m=obs.range_sigma_m, group=obs.group)
+    e = NodeEstimator().estimate(bad)
+    assert e.localized
+    assert e.used[bad.group == 2].sum() <= 1           # by the NLOS gate or the pass check
+    assert e.used[bad.group != 2].sum() >= 30
+    assert np.linalg.norm(e.position_m - node) < 0.4
+
+
+def test_straight_path_past_the_node_is_ambiguous() -> None:
+    node = np.array([0.0, 3.0])
+    s = np.linspace(-6, 6, 13)
+    a = np.column_stack([s, 0.02 * np.sin(s)])            # nearly straight corridor walk
+    r = np.linalg.norm(a - node, axis=1)
+    obs = NodeRanges.build(agent_xy_m=a, agent_cov_m2=np.broadcast_to(0.01 * np.eye(2), (13, 2, 2)),
+                           range_m=r, range_sigma_m=np.full(13, 0.1), group=np.zeros(13))
+    e = NodeEstimator(NodeEstimatorParams(min_spread_m=0.001)).estimate(obs)
+    assert not e.localized
+    assert "mirror" in e.reason
+    e2 = NodeEstimator().estimate(obs)
+    assert not e2.localized and "collinear" in e2.reason
+
+
+def test_too_few_ranges_say_so() -> None:
+    obs = NodeRanges.build(agent_xy_m=[[0, 0], [1, 0], [0, 1]], agent_cov_m2=np.zeros((3, 2, 2)),
+                           range_m=[1, 1, 1], range_sigma_m=[0.1] * 3, group=[0, 0, 0])
+    e = NodeEstimator().estimate(obs)
+    assert not e.localized and "3 ranges" in e.reason
+
+
+def test_bad_input_names_the_field() -> None:
+    with pytest.raises(InputError, match="range_sigma_m"):
+        NodeRanges.build(agent_xy_m=[[0, 0]], agent_cov_m2=np.zeros((1, 2, 2)), range_m=[1.0],
+                         range_sigma_m=[np.nan], group=[0])
+    with pytest.raises(InputError, match="agent_cov_m2"):
+        NodeRanges.build(agent_xy_m=[[0, 0], [1, 1]], agent_cov_m2=np.zeros((1, 2, 2)),
+                         range_m=[1.0, 1.0], range_sigma_m=[0.1, 0.1], group=[0, 0])
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shift=st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3)))
+def test_translation_equivariant_with_psd_covariance(seed: int, shift: tuple[float, float]) -> None:
+    rng = np.random.default_rng(seed)
+    node = rng.uniform(-5, 5, 2)
+    obs, _ = _passes(rng, node, n_pass=3, per_pass=5, agent_sigma_m=0.3, range_sigma_m=0.1)
+    moved = NodeRanges.build(agent_xy_m=obs.agent_xy_m + np.array(shift),
+                             agent_cov_m2=obs.agent_cov_m2, range_m=obs.range_m,
+                             range_sigma_m=obs.range_sigma_m, group=obs.group)
+    e0 = NodeEstimator().estimate(obs)
+    e1 = NodeEstimator().estimate(moved)
+    assert e0.localized == e1.localized
+    if e0.localized:
+        np.testing.assert_allclose(e1.position_m, e0.position_m + np.array(shift), atol=1e-5)
+        np.testing.assert_allclose(e1.covariance_m2, e0.covariance_m2, rtol=1e-4, atol=1e-9)
+        np.testing.assert_allclose(e0.covariance_m2, e0.covariance_m2.T)
+        assert np.linalg.eigvalsh(e0.covariance_m2)[0] > 0
