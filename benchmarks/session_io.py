@@ -37,7 +37,6 @@ from rich.table import Table
 from hrtls.data import ImuStream, SensorSeries, Session
 from hrtls.io.session import read_session, write_session
 
-
 HRTLS = [sys.executable, "-c", "from hrtls.cli.app import main; main()"]
 """The ``hrtls`` command in a child process of this interpreter."""
 
