@@ -37,6 +37,9 @@ from rich.table import Table
 from hrtls.data import ImuStream, SensorSeries, Session
 from hrtls.io.session import read_session, write_session
 
+HRTLS = [sys.executable, "-c", "from hrtls.cli.app import main; main()"]
+"""The ``hrtls`` command in a child process of this interpreter."""
+
 
 def timed(fn: Callable[[], object]) -> tuple[float, float]:
     """(CPU s of all threads, wall s) of one call."""
@@ -48,7 +51,7 @@ def timed(fn: Callable[[], object]) -> tuple[float, float]:
 def simulated(work: Path, hours: float) -> Path:
     path = work / f"walk_{hours:g}h"
     if not (path / "session.json").exists():
-        subprocess.run([sys.executable, "-m", "hrtls.cli.app", "simulate", "office_random_walk",
+        subprocess.run([*HRTLS, "simulate", "office_random_walk",
                         "-o", str(path), "-O", f"duration_s={hours * 3600:g}", "--overwrite"],
                        check=True, capture_output=True)
     return path
@@ -58,9 +61,9 @@ def track_child(session: Path, out: Path) -> tuple[float, float, float, float]:
     """(wall s, CPU s, tracker s, peak MB) of ``hrtls track`` in a child process."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     w0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "hrtls.cli.app", "track", str(session), "-o",
+    done = subprocess.run([*HRTLS, "track", str(session), "-o",
                            str(out), "--overwrite"], check=True, capture_output=True, text=True,
-                          env={"COLUMNS": "200", "PATH": ""})
+                          env={"COLUMNS": "200", "PATH": "", "MPLBACKEND": "Agg"})
     wall = time.perf_counter() - w0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
