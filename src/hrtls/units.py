@@ -28,6 +28,14 @@ TIME_SCALES_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 """Seconds per unit of the time units readers understand."""
 
 _MIN_SAMPLES_FOR_UNIT_CHECK = 20
+_MAX_SAMPLES_FOR_UNIT_CHECK = 1 << 16
+
+
+def _norms(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Row norms of at most ``_MAX_SAMPLES_FOR_UNIT_CHECK`` evenly spaced samples."""
+    step = -(-len(values) // _MAX_SAMPLES_FOR_UNIT_CHECK)
+    v = values[::step]
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
 def suspect_accelerometer_unit(values: NDArray[np.float64]) -> str | None:
@@ -38,7 +46,7 @@ def suspect_accelerometer_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    median = float(np.median(np.linalg.norm(values, axis=1)))
+    median = float(np.median(_norms(values)))
     if 0.4 <= median <= 2.5:
         return (f"median |a| = {median:.3g}, which is gravity in g, not m/s^2; "
                 f"multiply by {G_TO_M_S2} (readers: accel_unit='g')")
@@ -57,7 +65,7 @@ def suspect_gyroscope_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    p99 = float(np.percentile(np.linalg.norm(values, axis=1), 99))
+    p99 = float(np.percentile(_norms(values), 99))
     if p99 > 25.0:
         return (f"99th percentile of |w| = {p99:.4g}, which only makes sense in deg/s; "
                 f"multiply by pi/180 (readers: gyro_unit='deg/s')")
@@ -72,7 +80,7 @@ def suspect_magnetometer_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    median = float(np.median(np.linalg.norm(values, axis=1)))
+    median = float(np.median(_norms(values)))
     if 0.05 <= median <= 3.0:
         return (f"median |m| = {median:.3g}, which is gauss, not uT; multiply by 100 "
                 f"(readers: mag_unit='gauss')")

@@ -283,7 +283,7 @@ def test_browser_session_cookie(live: Live, commander: httpx.Client) -> None:
         assert viewer["token"] not in cookie
         who = browser.get(f"{API}/auth/whoami").json()
         assert who == {"role": "viewer", "token_id": viewer["id"], "label": "wall",
-                       "mission": None, "agent": None}
+                       "mission": None, "agent": None, "mission_t": None}
         assert browser.get(f"{API}/missions").status_code == 200
         assert browser.post(f"{API}/missions", json={"name": "x"}).status_code == 403
         assert browser.post(f"{API}/auth/logout").status_code == 204

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -64,26 +65,136 @@ class HardIronFit:
     n_used: int
 
 
-def _solve(p: FloatArray) -> tuple[FloatArray, float]:
-    """Least-squares circle (2 columns) or sphere (3 columns) fit; returns ``(centre, r)``."""
-    mean = p.mean(axis=0)
-    u = p - mean
-    a = np.column_stack([2.0 * u, np.ones(len(u))])
-    x, *_ = np.linalg.lstsq(a, np.sum(u * u, axis=1), rcond=None)
-    k = p.shape[1]
-    c_local = x[:k]
-    r2 = float(x[k] + c_local @ c_local)
+@numba.njit(cache=True)
+def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
+    """Least-squares circle (sphere) through the rows ``keep`` of ``p``: ``(centre, r^2)``.
+
+    ``|u|^2 = 2 c.u + k`` for ``u = p - mean``, by the normal equations of its (k+1) unknowns
+    (Gaussian elimination with partial pivoting); ``r^2 = k + |c|^2``.
+    """
+    dim = p.shape[1]
+    n = 0
+    mean = np.zeros(dim)
+    for i in range(p.shape[0]):
+        if keep[i]:
+            n += 1
+            for a in range(dim):
+                mean[a] += p[i, a]
+    for a in range(dim):
+        mean[a] /= n
+    m = np.zeros((dim + 1, dim + 2))      # [A^T A | A^T b], A = [2u, 1], b = |u|^2
+    for i in range(p.shape[0]):
+        if not keep[i]:
+            continue
+        row = np.empty(dim + 1)
+        bb = 0.0
+        for a in range(dim):
+            u = p[i, a] - mean[a]
+            row[a] = 2.0 * u
+            bb += u * u
+        row[dim] = 1.0
+        for a in range(dim + 1):
+            for b in range(dim + 1):
+                m[a, b] += row[a] * row[b]
+            m[a, dim + 1] += row[a] * bb
+    k = dim + 1
+    for col in range(k):
+        piv = col
+        for r in range(col + 1, k):
+            if abs(m[r, col]) > abs(m[piv, col]):
+                piv = r
+        if piv != col:
+            for c in range(k + 1):
+                tmp = m[col, c]
+                m[col, c] = m[piv, c]
+                m[piv, c] = tmp
+        for r in range(col + 1, k):
+            f = m[r, col] / m[col, col]
+            for c in range(col, k + 1):
+                m[r, c] -= f * m[col, c]
+    x = np.zeros(k)
+    for r in range(k - 1, -1, -1):
+        acc = m[r, k]
+        for c in range(r + 1, k):
+            acc -= m[r, c] * x[c]
+        x[r] = acc / m[r, r]
+    centre = np.empty(dim)
+    r2 = float(x[dim])
+    for a in range(dim):
+        r2 += x[a] * x[a]
+        centre[a] = mean[a] + x[a]
+    return centre, r2
+
+
+@numba.njit(cache=True)
+def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, passes: int
+                      ) -> tuple[FloatArray, float, np.ndarray, bool]:
+    """The fit, then up to ``passes`` refits on the samples within the gate of the latest.
+
+    Each pass judges all samples (inliers a biased first fit dropped come back); it stops when
+    fewer than ``min_samples`` would be kept or the kept set no longer changes in size. Returns
+    ``(centre, r, kept rows, ok)``; ``ok`` false: a fit gave ``r^2 <= 0``.
+    """
+    n = p.shape[0]
+    keep = np.ones(n, dtype=np.bool_)
+    c, r2 = _solve_kernel(p, keep)
     if not r2 > 0.0:
-        raise InputError("circle fit failed", where="hard-iron fit",
-                         expected="field samples from a device that turned")
-    return mean + c_local, math.sqrt(r2)
+        return c, 0.0, keep, False
+    r = math.sqrt(r2)
+    n_used = n
+    first = True
+    for _ in range(passes):
+        new = np.empty(n, dtype=np.bool_)
+        n_new = 0
+        for i in range(n):
+            d2 = 0.0
+            for a in range(p.shape[1]):
+                d = p[i, a] - c[a]
+                d2 += d * d
+            new[i] = abs(math.sqrt(d2) - r) <= gate_fraction * r
+            n_new += new[i]
+        if n_new < min_samples or (n_used == n_new and not first):
+            break
+        keep = new
+        n_used = n_new
+        first = False
+        c, r2 = _solve_kernel(p, keep)
+        if not r2 > 0.0:
+            return c, 0.0, keep, False
+        r = math.sqrt(r2)
+    return c, r, keep, True
 
 
-def _arc_deg(p: FloatArray) -> float:
-    """Angle covered by the 2-D vectors ``p`` (N, 2) around the origin, deg."""
-    ang = np.sort(np.arctan2(p[:, 1], p[:, 0]))
-    gaps = np.diff(np.r_[ang, ang[0] + 2.0 * math.pi])
-    return float(360.0 - math.degrees(float(gaps.max())))
+@numba.njit(cache=True)
+def _spread_kernel(d: FloatArray) -> tuple[float, float]:
+    """Angle covered by the 2-D vectors ``d`` (N, 2) around the origin, deg; their extent.
+
+    The extent is the largest range of one coordinate.
+    """
+    n = d.shape[0]
+    ang = np.empty(n)
+    for i in range(n):
+        ang[i] = math.atan2(d[i, 1], d[i, 0])
+    ang.sort()
+    gap = ang[0] + 2.0 * math.pi - ang[n - 1]
+    for i in range(1, n):
+        gap = max(gap, ang[i] - ang[i - 1])
+    extent = 0.0
+    for a in range(d.shape[1]):
+        extent = max(extent, d[:, a].max() - d[:, a].min())
+    return 360.0 - math.degrees(gap), extent
+
+
+@numba.njit(cache=True)
+def _residual_kernel(p: FloatArray, c: FloatArray, r: float) -> float:
+    """RMS distance of the points ``p`` from the circle (sphere) ``(c, r)``."""
+    acc = 0.0
+    for i in range(p.shape[0]):
+        d2 = 0.0
+        for a in range(p.shape[1]):
+            d2 += (p[i, a] - c[a]) ** 2
+        acc += (math.sqrt(d2) - r) ** 2
+    return math.sqrt(acc / p.shape[0])
 
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
@@ -127,22 +238,18 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         e1 = np.cross(up, np.eye(3)[int(np.argmin(np.abs(up)))])
         e1 /= np.linalg.norm(e1)
         basis = np.vstack([e1, np.cross(up, e1)])
-    p_all = m @ basis.T
-    p = p_all
-    c, r = _solve(p)
-    for _ in range(_GATE_PASSES):
-        # judged on all samples, so that inliers a biased first fit dropped come back
-        keep = np.abs(np.linalg.norm(p_all - c, axis=1) - r) <= gate_fraction * r
-        if keep.sum() < min_samples or (len(p) == int(keep.sum()) and p is not p_all):
-            break
-        p = p_all[keep]
-        c, r = _solve(p)
+    p_all = np.ascontiguousarray(m @ basis.T)
+    c, r, keep, ok = _gated_fit_kernel(p_all, float(gate_fraction), int(min_samples),
+                                       _GATE_PASSES)
+    if not ok:
+        raise InputError("circle fit failed", where="hard-iron fit",
+                         expected="field samples from a device that turned")
+    p = p_all[keep]
     d = p - c
     if d.shape[1] == 3:  # directions in the plane of their two main axes
         _, _, vt = np.linalg.svd(d - d.mean(axis=0), full_matrices=False)
         d = d @ vt[:2].T
-    arc = _arc_deg(d)
-    extent = float(np.max(np.ptp(d, axis=0)))
+    arc, extent = _spread_kernel(np.ascontiguousarray(d))
     if r < min_field_ut or extent < r:
         # samples that hardly move (no turning) fit a small circle around their own noise
         raise InputError(f"the field samples span {extent:.1f} uT around a fitted "
@@ -153,7 +260,7 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         raise InputError(f"the field turned through {arc:.0f} deg", where="hard-iron fit",
                          expected=f"at least {min_arc_deg:.0f} deg of turning",
                          hint="walk a loop or turn around; or calibrate with a figure of eight")
-    resid = float(np.sqrt(np.mean((np.linalg.norm(p - c, axis=1) - r) ** 2)))
+    resid = _residual_kernel(p, c, r)
     return HardIronFit(hard_iron_ut=np.asarray(c @ basis, dtype=np.float64), field_ut=r,
                        residual_ut=resid, arc_deg=arc, n_used=len(p))
 

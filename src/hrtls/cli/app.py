@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 _COMMANDS: dict[str, tuple[str, str, str]] = {
     "track": ("hrtls.cli.track", "track", "command"),
-    "demo": ("hrtls.cli.track", "demo", "command"),
+    "demo": ("hrtls.cli.demo", "demo", "command"),
     "ipin": ("hrtls.cli.ipin", "ipin", "command"),
     "simulate": ("hrtls.cli.sim", "simulate", "command"),
     "evaluate": ("hrtls.cli.sim", "evaluate", "command"),
@@ -33,6 +33,8 @@ _COMMANDS: dict[str, tuple[str, str, str]] = {
     "bench": ("hrtls.cli.bench", "app", "group"),
     "config": ("hrtls.cli.config", "app", "group"),
     "serve": ("hrtls.cli.serve", "serve", "command"),
+    "agent": ("hrtls.cli.service_cli", "agent_app", "group"),
+    "mission": ("hrtls.cli.service_cli", "mission_app", "group"),
 }
 """Commands in their own modules: name -> (module, attribute, command or group of commands).
 
@@ -42,7 +44,7 @@ They are imported only when run (or when their own help is asked for), so that `
 
 SUMMARIES: dict[str, str] = {
     "track": "Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.",
-    "demo": "Simulate the thesis' rescue missions and track them with and without infrastructure.",
+    "demo": "Live supervisor and dashboard with a simulated team (--no-serve: batch comparison).",
     "ipin": "Track from the first POSI (start, heading unknown); errors "
             "at the later POSI landmarks.",
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",
@@ -59,6 +61,8 @@ SUMMARIES: dict[str, str] = {
     "config": "Tracker configurations.",
     "serve": "Run the supervisor: live tracking of the team, REST + WebSocket API and "
              "dashboard.",
+    "agent": "Live agents: stream a recording to a running service.",
+    "mission": "Missions of a running service: simulate a team, export.",
 }
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 

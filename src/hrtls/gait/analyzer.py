@@ -492,22 +492,10 @@ class GaitAnalyzer:
             vel_t, vel_v = np.zeros(0), np.zeros(0)
 
         # --- activity windows
-        # AP/ML axes: the mounting when known, else the levelled horizontal acceleration turned
-        # into the held walking direction (raw levelled axes until a heading exists)
-        if self.mounting_known:
-            body = acc @ quat_to_matrix(self.q_bd).T
-            ap, ml = body[:, 0], body[:, 1]
-        else:
-            known = np.isfinite(psi_held)
-            c = np.where(known, np.cos(psi_held), 1.0)
-            sn = np.where(known, np.sin(psi_held), 0.0)
-            hx, hy = lev.horizontal_m_s2[:, 0], lev.horizontal_m_s2[:, 1]
-            ap, ml = c * hx + sn * hy, -sn * hx + c * hy
-        feat_in = np.column_stack([ap, ml, lev.vertical_m_s2 + GRAVITY_M_S2])
-        lp = self._act_filter.update(feat_in)
         pend = self._pending
         pend.t = np.concatenate([pend.t, tt])
-        pend.acc = np.concatenate([pend.acc, lp])
+        if self.activity is not None or self.window_features:
+            pend.acc = np.concatenate([pend.acc, self._activity_input(acc, lev, psi_held)])
         pend.ms = np.concatenate([pend.ms, motion.state])
         pend.sg = np.concatenate([pend.sg, motion.sigma_m_s2])
         act_t, act, feats = self._windows(final=False)
@@ -521,6 +509,25 @@ class GaitAnalyzer:
             self.bouts.trim(float(held.min()) if held.size else math.inf)
         return GaitResult(steps, act_t, act.astype(np.int64), vel_t, vel_v, motion.sigma_m_s2,
                           lev.frame, feats, h)
+
+    def _activity_input(self, acc: FloatArray, lev: LevelledAcceleration,
+                        psi_held: FloatArray) -> FloatArray:
+        """Low-passed AP, ML and vertical acceleration of the samples (window features).
+
+        AP/ML axes: the mounting when known, else the levelled horizontal acceleration turned
+        into the held walking direction (raw levelled axes until a heading exists).
+        """
+        if self.mounting_known:
+            body = acc @ quat_to_matrix(self.q_bd).T
+            ap, ml = body[:, 0], body[:, 1]
+        else:
+            known = np.isfinite(psi_held)
+            c = np.where(known, np.cos(psi_held), 1.0)
+            sn = np.where(known, np.sin(psi_held), 0.0)
+            hx, hy = lev.horizontal_m_s2[:, 0], lev.horizontal_m_s2[:, 1]
+            ap, ml = c * hx + sn * hy, -sn * hx + c * hy
+        feat_in = np.column_stack([ap, ml, lev.vertical_m_s2 + GRAVITY_M_S2])
+        return self._act_filter.update(feat_in)
 
     def _features(self, act_t: FloatArray, acc: FloatArray, j: int) -> WindowFeatures:
         """Activity features of whole windows (Inderst Sec. 4.1) with the classifier's settings."""

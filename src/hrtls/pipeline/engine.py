@@ -60,7 +60,10 @@ class GaitHistory:
             if len(tt) and tt[0] <= t:
                 mt, ms = tt, ss
                 break
-        return bool(np.interp(t, mt, ms) > MOVING_SIGMA_M_S2)
+        # np.interp on the two samples around t (the same value, without a pass over the block)
+        j = int(np.searchsorted(mt, t, side="right"))
+        lo, hi = max(j - 1, 0), min(j + 1, len(mt))
+        return bool(np.interp(t, mt[lo:hi], ms[lo:hi]) > MOVING_SIGMA_M_S2)
 
     def state(self, t: float) -> dict[str, Any]:
         """What the future still needs from ``t`` on (snapshot).

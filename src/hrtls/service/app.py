@@ -21,7 +21,9 @@ from hrtls.service import schemas
 from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
+from hrtls.service.events import EventLog
 from hrtls.service.host import HostParams, TrackerHost
+from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
 from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
@@ -77,14 +79,17 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     engine = make_engine(settings.db_url)
     migrate(engine)
     sessions = session_factory(engine)
+    hub = Hub()
+    events = EventLog(sessions, hub, clock)
     host = TrackerHost(sessions=sessions, clock=clock, runner=runner or make_runner(settings),
                        params=HostParams(queue_batches=settings.queue_batches,
                                          snapshot_every_s=settings.snapshot_every_s,
-                                         workers=settings.tracker_threads))
+                                         workers=settings.tracker_threads),
+                       events=events)
     services = Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
                         agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
                                                burst=settings.rate_burst, clock=clock),
-                        host=host)
+                        host=host, hub=hub, events=events)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -114,10 +119,11 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, ingest, live, missions, planned
+    from hrtls.service.routes import agents, auth, ingest, live, missions, orders
+    from hrtls.service.routes import events as event_routes
 
     for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
-                   planned.router):
+                   event_routes.router, orders.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])

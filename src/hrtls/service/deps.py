@@ -11,6 +11,7 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session, sessionmaker
 
 from hrtls.service.clock import Clock
+from hrtls.service.events import EventLog
 from hrtls.service.host import TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import RateLimiter
@@ -29,7 +30,9 @@ class Services:
     clock: Clock
     agent_rate: RateLimiter
     host: TrackerHost
-    hub: Hub = field(default_factory=Hub)
+    hub: Hub
+    events: EventLog
+    order_versions: dict[int, int] = field(default_factory=dict)
     _t0: dict[int, float] = field(default_factory=dict)
 
     def mission_time(self, mission_id: int) -> float:

@@ -25,8 +25,10 @@ from sqlalchemy.orm import sessionmaker
 
 from hrtls.data.session import SessionMeta
 from hrtls.pipeline.output import Estimates
+from hrtls.service.alarms import AgentAlarms, AlarmProfile
 from hrtls.service.batches import Batch, decode_body, parse_batch
 from hrtls.service.clock import Clock
+from hrtls.service.events import EventLog
 from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
 from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
 from hrtls.service.seqbook import SeqBook
@@ -94,6 +96,8 @@ class AgentLive:
     busy: bool = False
     error: str | None = None
     sos: bool = False
+    alarms: AgentAlarms | None = None
+    replaying: bool = False
 
     def stale(self, now_unix: float) -> bool:
         """Stale while a gap is open or nothing arrived for ``stale_after_s``."""
@@ -150,8 +154,9 @@ class TrackerHost:
     """Per-agent queues, worker threads and the runner that holds the trackers."""
 
     def __init__(self, *, sessions: sessionmaker[DbSession], clock: Clock,
-                 runner: TrackerRunner, params: HostParams) -> None:
+                 runner: TrackerRunner, params: HostParams, events: EventLog) -> None:
         self.sessions = sessions
+        self.events = events
         self.clock = clock
         self.runner = runner
         self.params = params
@@ -159,7 +164,6 @@ class TrackerHost:
         self._lock = threading.Lock()
         self._work: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
-        self.listeners: list[Callable[[AgentLive, list[dict[str, Any]]], None]] = []
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
@@ -209,7 +213,8 @@ class TrackerHost:
             last = db.scalars(select(RawBatch.received_unix).where(
                 RawBatch.agent_id == agent_id).order_by(RawBatch.id.desc())).first()
             live = AgentLive(agent_id, row.mission_id, mission.t0_unix, mission.stale_after_s,
-                             book, row.start_pose is not None, last_receive_unix=last)
+                             book, row.start_pose is not None, last_receive_unix=last,
+                             alarms=AgentAlarms(AlarmProfile(**mission.alarm_profile)))
         with self._lock:
             return self._agents.setdefault(agent_id, live)
 
@@ -236,6 +241,8 @@ class TrackerHost:
             return
         for live in self.agents_of(mission_id):
             live.stale_after_s = mission.stale_after_s
+            if live.alarms is not None:
+                live.alarms.profile = AlarmProfile(**mission.alarm_profile)
 
     # ------------------------------------------------------------------ ingest
     def accept(self, agent_id: int, batch: Batch, *, body: bytes, content_type: str,
@@ -287,6 +294,7 @@ class TrackerHost:
             agents = list(self._agents.values())
         out = []
         for live in agents:
+            self._judge_silence(live, now)
             with live.lock:
                 stale = live.stale(now)
                 if live.backfill_from < math.inf and not live.busy and not live.scheduled \
@@ -299,6 +307,14 @@ class TrackerHost:
                 est = None if live.latest is None else {**live.latest, "stale": stale}
                 out.append((live, est))
         return out
+
+    def _judge_silence(self, live: AgentLive, now: float) -> None:
+        if live.alarms is None or live.last_receive_unix is None:
+            return
+        silent = now - live.last_receive_unix
+        quiet = silent if silent >= live.alarms.profile.silent_s else None
+        raised = live.alarms.on_silence(now - live.t0_unix, quiet)
+        self.events.emit(live.mission_id, live.agent_id, raised, live.latest)
 
     # ------------------------------------------------------------------ work
     def _schedule(self, live: AgentLive) -> None:
@@ -338,6 +354,11 @@ class TrackerHost:
                         self._schedule_locked(live)
 
     def _process(self, live: AgentLive, items: list[Batch]) -> None:
+        if live.alarms is not None:
+            raised = []
+            for b in sorted(items, key=lambda b: (b.time_span() or (math.inf, 0.0))[0]):
+                raised += live.alarms.on_batch(b)
+            self.events.emit(live.mission_id, live.agent_id, raised, live.latest)
         if not live.tracked:
             with self.sessions() as db:
                 row = db.get(Agent, live.agent_id)
@@ -400,6 +421,7 @@ class TrackerHost:
             spec = self._spec(db, aid)
         self.runner.close(aid)
         self.runner.open(spec, state, t_final)
+        live.replaying = True
         live.opened = True
         live.t_fed = live.t_snap = t_data
         live.t_final = t_final
@@ -423,6 +445,7 @@ class TrackerHost:
                 self._feed(live, batches[i:i + 20])
         with live.lock:   # batches stored while replaying were replayed already
             live.pending = [b for b in live.pending if b.seq not in replayed]
+            live.replaying = False
 
     def _feed(self, live: AgentLive, batches: list[Batch]) -> None:
         rows = self.runner.feed(live.agent_id, batches)
@@ -449,8 +472,9 @@ class TrackerHost:
             with live.lock:
                 live.latest = est
                 live.dirty = True
-            for listener in self.listeners:
-                listener(live, [est])
+            if live.alarms is not None and not live.replaying:
+                raised = live.alarms.on_estimate(est, self.events.zones(live.mission_id))
+                self.events.emit(live.mission_id, live.agent_id, raised, est)
 
     def _snapshot(self, live: AgentLive) -> None:
         state = self.runner.snapshot(live.agent_id)

@@ -8,9 +8,10 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from hrtls.service.events import event_dict, order_dict
 from hrtls.service.host import TrackerHost, row_dict
 from hrtls.service.hub import for_floor
-from hrtls.service.models import Agent, EstimateRow, Mission
+from hrtls.service.models import Agent, EstimateRow, EventRow, Mission, OrderRow
 from hrtls.service.views import agent_out
 
 TRAIL_SPACING_S = 0.5
@@ -70,6 +71,35 @@ def latest_row(db: Session, agent_id: int, t_max: float) -> EstimateRow | None:
                       .order_by(EstimateRow.t.desc()).limit(1)).first()
 
 
+def events_at(db: Session, mission_id: int, t: float | None) -> list[dict[str, Any]]:
+    """Open (unacknowledged or uncleared) events plus the last 100; as they were at ``t``."""
+    q = select(EventRow).where(EventRow.mission_id == mission_id)
+    if t is not None:
+        q = q.where(EventRow.t <= t)
+    rows = list(db.scalars(q.order_by(EventRow.id)))
+    last = {r.id for r in rows[-100:]}
+    out = []
+    for r in rows:
+        e = event_dict(r)
+        if t is not None:
+            if e["acknowledged_at"] is not None and e["acknowledged_at"] > t:
+                e["acknowledged_at"] = e["acknowledged_by"] = None
+            if e["cleared_t"] is not None and e["cleared_t"] > t:
+                e["cleared_t"] = None
+        if r.id in last or e["acknowledged_at"] is None or e["cleared_t"] is None:
+            out.append(e)
+    return out
+
+
+def orders_at(db: Session, mission_id: int, t: float | None) -> list[dict[str, Any]]:
+    """The last 200 orders (created at or before ``t``)."""
+    q = select(OrderRow).where(OrderRow.mission_id == mission_id)
+    if t is not None:
+        q = q.where(OrderRow.created_at <= t)
+    rows = list(db.scalars(q.order_by(OrderRow.id.desc()).limit(200)))
+    return [order_dict(r) for r in reversed(rows)]
+
+
 def picture(db: Session, mission: Mission, *, host: TrackerHost | None, now_unix: float,
             t: float | None, floor: int | None, trail_s: float) -> dict[str, Any]:
     """``snapshot`` (``t`` None: live, host estimates) or ``replay`` (stored rows up to ``t``)."""
@@ -97,5 +127,6 @@ def picture(db: Session, mission: Mission, *, host: TrackerHost | None, now_unix
         trails[str(a.id)] = thin(trail(db, a.id, t_pic - trail_s, end), TRAIL_SPACING_S)
     out = {"mission": mission.id, "t": t_pic,
            "agents": [agent_json(a, host if t is None else None, now_unix) for a in agents],
-           "estimates": estimates, "events": [], "orders": [], "trails": trails}
+           "estimates": estimates, "events": events_at(db, mission.id, t),
+           "orders": orders_at(db, mission.id, t), "trails": trails}
     return for_floor(out, floor)

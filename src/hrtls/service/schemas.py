@@ -44,6 +44,7 @@ class WhoamiOut(Out):
     label: str
     mission: int | None
     agent: int | None
+    mission_t: float | None = None
 
 
 class TokenIn(Strict):

@@ -9,6 +9,7 @@ from sqlalchemy import select
 
 from hrtls.pipeline import PRESETS
 from hrtls.service import schemas
+from hrtls.service.alarms import Raised
 from hrtls.service.deps import (
     AnyCaller,
     Commander,
@@ -102,6 +103,11 @@ def checkin(mission_id: int, agent_id: int, body: schemas.StartPoseIn,
     agent.start_pose = body.model_dump()
     db.commit()
     services.host.checked_in(agent_id)
+    mission = mission_or_404(db, mission_id)
+    t = body.t if body.t is not None else services.clock() - mission.t0_unix
+    services.events.emit(mission_id, agent_id, [Raised("checkin", "info", t, {})],
+                         {"x": body.x, "y": body.y,
+                          "floor": round(body.z / mission.floor_height_m)})
     return agent_out(agent)
 
 

@@ -55,13 +55,16 @@ def logout(request: Request, response: Response, db: DbDep, services: ServicesDe
 
 
 @router.get("/auth/whoami", response_model=schemas.WhoamiOut)
-def whoami(who: AnyCaller, db: DbDep) -> schemas.WhoamiOut:
-    """The caller (for a session: the token it was opened with)."""
+def whoami(who: AnyCaller, db: DbDep, services: ServicesDep) -> schemas.WhoamiOut:
+    """The caller (for a session: the token it was opened with; for an agent: mission time)."""
     token_id = who.token_id
     if who.is_session:
         row = db.get(Token, who.token_id)
         token_id = row.parent_id if row is not None and row.parent_id is not None else token_id
-    return _whoami(token_id, who.role, who.label, who.mission_id, who.agent_id)
+    out = _whoami(token_id, who.role, who.label, who.mission_id, who.agent_id)
+    if who.mission_id is not None:
+        out.mission_t = services.mission_time(who.mission_id)
+    return out
 
 
 @router.post("/tokens", status_code=201, response_model=schemas.NewTokenOut)

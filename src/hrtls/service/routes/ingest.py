@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import json
 from collections.abc import MutableMapping
 from typing import Any
@@ -10,12 +12,14 @@ import msgpack
 from fastapi import APIRouter, HTTPException, Request, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
+from pydantic import ValidationError
 
-from hrtls.service.batches import BatchError, decode_body, parse_batch
+from hrtls.service.batches import BatchError, decode_body, parse_batch, validation_errors
 from hrtls.service.deps import AgentCaller, Services, ServicesDep
 from hrtls.service.host import Busy
 from hrtls.service.limits import retry_after_header
 from hrtls.service.routes.live import authenticate, decode_ws
+from hrtls.service.routes.orders import ReceiptIn, answer, deliver
 from hrtls.service.security import Principal
 
 router = APIRouter(tags=["ingest"])
@@ -73,6 +77,13 @@ async def ingest_socket(ws: WebSocket) -> None:
         await ws.close(4404, "agent not found")
         return
     live.sockets += 1
+    send_lock = asyncio.Lock()
+
+    async def send(obj: dict[str, Any]) -> None:
+        async with send_lock:
+            await ws.send_json(obj)
+
+    pusher = asyncio.create_task(_push_orders(send, services, who.agent_id))
     try:
         while True:
             message = await ws.receive()
@@ -80,32 +91,37 @@ async def ingest_socket(ws: WebSocket) -> None:
                 break
             msg = decode_ws(message)
             if msg is None:
-                await ws.send_json({"type": "error", "status": 400,
+                await send({"type": "error", "status": 400,
                                     "detail": "frame is neither a JSON nor a msgpack object"})
                 continue
             kind = msg.get("type")
             if kind == "ping":
-                await ws.send_json({"type": "pong", "t": services.mission_time(live.mission_id)})
+                await send({"type": "pong", "t": services.mission_time(live.mission_id)})
+                continue
+            if kind == "receipt":
+                await send(await _receipt(services, who, msg))
                 continue
             if kind != "batch" or not isinstance(msg.get("batch"), dict):
-                await ws.send_json({"type": "error", "status": 422,
-                                    "detail": "expected {type: batch, batch: {...}} or ping"})
+                await send({"type": "error", "status": 422,
+                            "detail": "expected {type: batch, batch: {...}}, receipt or ping"})
                 continue
-            await _ws_batch(ws, services, who, msg["batch"], message)
+            await send(await _ws_batch(services, who, msg["batch"], message))
     except WebSocketDisconnect:
         pass
     finally:
         live.sockets -= 1
+        pusher.cancel()
+        with contextlib.suppress(asyncio.CancelledError, Exception):
+            await pusher
 
 
-async def _ws_batch(ws: WebSocket, services: Services, who: Principal, value: dict[str, Any],
-                    message: MutableMapping[str, Any]) -> None:
+async def _ws_batch(services: Services, who: Principal, value: dict[str, Any],
+                    message: MutableMapping[str, Any]) -> dict[str, Any]:
     seq = value.get("seq")
     wait = services.agent_rate.take(who.agent_id)
     if wait > 0:
-        await ws.send_json({"type": "error", "seq": seq, "status": 429, "retry_after_s": wait,
-                            "detail": "rate limit"})
-        return
+        return {"type": "error", "seq": seq, "status": 429, "retry_after_s": wait,
+                "detail": "rate limit"}
     binary = message.get("bytes") is not None
     body = msgpack.packb(value) if binary else json.dumps(value).encode()
     try:
@@ -113,15 +129,46 @@ async def _ws_batch(ws: WebSocket, services: Services, who: Principal, value: di
                                       content_type="application/msgpack" if binary
                                       else "application/json", source="batch")
     except BatchError as exc:
-        await ws.send_json({"type": "error", "seq": seq, "status": exc.status,
-                            "detail": exc.detail})
-        return
+        return {"type": "error", "seq": seq, "status": exc.status, "detail": exc.detail}
     except Busy as exc:
-        await ws.send_json({"type": "error", "seq": seq, "status": 429,
-                            "retry_after_s": exc.retry_after_s, "detail": str(exc)})
-        return
+        return {"type": "error", "seq": seq, "status": 429, "retry_after_s": exc.retry_after_s,
+                "detail": str(exc)}
     except HTTPException as exc:
-        await ws.send_json({"type": "error", "seq": seq, "status": exc.status_code,
-                            "detail": exc.detail})
-        return
-    await ws.send_json({"type": "ack", **ack})
+        return {"type": "error", "seq": seq, "status": exc.status_code, "detail": exc.detail}
+    return {"type": "ack", **ack}
+
+
+async def _receipt(services: Services, who: Principal, msg: dict[str, Any]) -> dict[str, Any]:
+    assert who.agent_id is not None
+    order_id = msg.get("order")
+    try:
+        body = ReceiptIn.model_validate({k: v for k, v in msg.items()
+                                         if k not in ("type", "order")})
+        if not isinstance(order_id, int):
+            raise HTTPException(422, "receipt needs an integer 'order'")
+        await run_in_threadpool(answer, services, who.agent_id, order_id, body)
+    except ValidationError as exc:
+        return {"type": "error", "order": order_id, "status": 422,
+                "detail": validation_errors(exc)}
+    except HTTPException as exc:
+        return {"type": "error", "order": order_id, "status": exc.status_code,
+                "detail": exc.detail}
+    return {"type": "receipt_ack", "order": order_id}
+
+
+ORDER_POLL_S = 0.25
+
+
+async def _push_orders(send: Any, services: Services, agent_id: int) -> None:
+    """Send the agent's open orders on connect, then each new one (marked delivered)."""
+    last_id, seen = 0, None
+    while True:
+        version = services.order_versions.get(agent_id, 0)
+        if version != seen:
+            seen = version
+            orders = await run_in_threadpool(deliver, services, agent_id, last_id)
+            for o in orders:
+                last_id = max(last_id, o["id"])
+                if o["answered_at"] is None:
+                    await send({"type": "order", "order": o})
+        await asyncio.sleep(ORDER_POLL_S)

@@ -64,7 +64,7 @@ def patch_mission(mission_id: int, body: schemas.MissionPatch, who: Commander, d
 
 @router.put("/missions/{mission_id}/floors/{index}", response_model=schemas.FloorOut)
 def put_floor(mission_id: int, index: int, body: schemas.FloorIn, who: Commander,
-              db: DbDep) -> schemas.FloorOut:
+              db: DbDep, services: ServicesDep) -> schemas.FloorOut:
     """Create or replace floor ``index``."""
     mission_or_404(db, mission_id)
     if not -20 <= index <= 300:
@@ -76,11 +76,13 @@ def put_floor(mission_id: int, index: int, body: schemas.FloorIn, who: Commander
         db.add(row)
     row.name, row.height_m, row.plan = body.name, body.height_m, body.plan
     db.commit()
+    services.events.plans_changed(mission_id)
     return floor_out(row)
 
 
 @router.delete("/missions/{mission_id}/floors/{index}", status_code=204)
-def delete_floor(mission_id: int, index: int, who: Commander, db: DbDep) -> None:
+def delete_floor(mission_id: int, index: int, who: Commander, db: DbDep,
+                 services: ServicesDep) -> None:
     """Remove floor ``index``."""
     mission_or_404(db, mission_id)
     row = db.scalars(select(Floor).where(Floor.mission_id == mission_id,
@@ -89,6 +91,7 @@ def delete_floor(mission_id: int, index: int, who: Commander, db: DbDep) -> None
         raise HTTPException(404, f"floor {index} not found in mission {mission_id}")
     db.delete(row)
     db.commit()
+    services.events.plans_changed(mission_id)
 
 
 def _landmark_json(body: schemas.LandmarkIn) -> dict[str, Any]:

@@ -1,0 +1,108 @@
+"""``hrtls agent replay`` and ``hrtls mission simulate|export``: clients of ``hrtls serve``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from hrtls.cli.errors import reports_errors
+from hrtls.service.settings import DEFAULT_DB
+
+agent_app = typer.Typer(no_args_is_help=True, add_completion=False,
+                        help="Live agents: stream a recording to a running service.")
+mission_app = typer.Typer(no_args_is_help=True, add_completion=False,
+                          help="Missions of a running service: simulate a team, export.")
+
+ServerOption = Annotated[str, typer.Option("--server", help="Service URL, e.g. "
+                                           "http://127.0.0.1:8600")]
+SpeedOption = Annotated[float, typer.Option(
+    "--speed", help="Replay factor: 1 = real time, 10 = ten times faster, 0 = as fast as "
+                    "the service acknowledges.")]
+
+
+@agent_app.callback()
+def _agent() -> None:
+    """Live agents: stream a recording to a running service."""
+
+
+@mission_app.callback()
+def _mission() -> None:
+    """Missions of a running service: simulate a team, export."""
+
+
+def _speed(speed: float) -> float:
+    from hrtls.errors import InputError
+
+    if not math.isfinite(speed) or speed < 0:
+        raise InputError(f"{speed}", where="--speed", expected="a factor >= 0 (0: no pacing)")
+    return math.inf if speed == 0 else speed
+
+
+@agent_app.command("replay")
+@reports_errors
+def agent_replay(
+    session: Annotated[Path, typer.Argument(help="Recording (any format hrtls reads).")],
+    server: ServerOption,
+    token: Annotated[str, typer.Option("--token", help="The agent's ingest token.")],
+    speed: SpeedOption = 1.0,
+    fmt: Annotated[str | None, typer.Option("--format", "-f", help="Input format.")] = None,
+) -> None:
+    """Stream a recorded or simulated session as a live agent (its start = now)."""
+    from hrtls.recordings import read_any
+    from hrtls.service.missions import stream_agent
+
+    pace = _speed(speed)
+    recording = read_any(session, fmt=fmt)
+    client = stream_agent(server, token, recording, speed=pace)
+    typer.echo(f"sent {client.stats.acked} batches ({client.stats.duplicates} duplicates, "
+               f"{client.stats.retries_429} retries after 429, {client.stats.gaps} gaps); "
+               f"unacknowledged: {len(client.outbox)}")
+    client.close()
+
+
+@mission_app.command("simulate")
+@reports_errors
+def mission_simulate(
+    name: Annotated[str, typer.Argument(help="inderst_two_users, inderst_multifloor or office.")],
+    server: ServerOption,
+    token: Annotated[str, typer.Option("--token", help="A commander token.")],
+    speed: SpeedOption = 1.0,
+) -> None:
+    """Create a simulated mission with its agents and stream them all live."""
+    from hrtls.service.client import AgentClient
+    from hrtls.service.missions import create_mission, stream_team, team
+
+    pace = _speed(speed)
+    members = team(name)
+    with AgentClient(server, token) as commander:
+        mid, agents = create_mission(commander, name, members)
+    typer.echo(f"mission {mid} '{name}': " + ", ".join(
+        f"{m.name} (agent {aid}, {m.kind})" for m, aid, _ in agents))
+    typer.echo(f"dashboard: {server.rstrip('/')}/?mission={mid}")
+    clients = stream_team(server, agents, speed=pace)
+    total = sum(c.stats.acked for c in clients)
+    left = sum(len(c.outbox) for c in clients)
+    typer.echo(f"streamed {total} batches of {len(clients)} agents; unacknowledged: {left}")
+    for c in clients:
+        c.close()
+
+
+@mission_app.command("export")
+@reports_errors
+def mission_export(
+    mission: Annotated[int, typer.Argument(help="Mission id.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Folder to write.")],
+    db: Annotated[str, typer.Option("--db", help="The service's database (as for serve).")
+                  ] = DEFAULT_DB,
+) -> None:
+    """Write one session folder per agent (readable by `hrtls track`) plus mission.json."""
+    from hrtls.service.missions import export_mission
+    from hrtls.service.settings import Settings
+
+    written = export_mission(Settings(db=db).db_url, mission, output)
+    for folder in written:
+        typer.echo(f"wrote {folder}")
+    typer.echo(f"wrote {output / 'mission.json'}")
