@@ -115,7 +115,7 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
                 ("ref", IL._M_REF_TAU))}
         for r in range(3):
             if P[r, r] < sig0 ** 2:
-                P[r, r] += (0.1 * sig0) ** 2 / prm[IL._B_FORGET] * dt
+                P[r, r] += math.radians(0.1) ** 2 / prm[IL._B_FORGET] * dt
         use_a = acc_fin
         k_tilt = 0.0
         if acc_fin:
@@ -143,14 +143,14 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
             H = lp_r.step(R6.ravel()).reshape(3, 3)
             lrb = lp_rb.step(R6 @ b)
             if prm[IL._BIAS_EST] > 0.5 and used_gyr:
-                scale = 0.01 / dt
+                v = math.radians(0.1) ** 2 / prm[IL._B_FORGET] * dt
                 if rest:
                     Hm, y = np.eye(3), aux[K.AUX_LP:K.AUX_LP + 3] - b
-                    W = np.eye(3) * prm[IL._B_SIG_REST] ** 2 * scale
+                    W = np.eye(3) * (prm[IL._B_SIG_REST] ** 4 / v + prm[IL._B_SIG_REST] ** 2)
                 elif use_a:
                     Hm = H
                     y = np.r_[-wc[:2], 0.0] + lrb - H @ b
-                    wm = prm[IL._B_SIG_MOT] ** 2 * scale
+                    wm = prm[IL._B_SIG_MOT] ** 4 / v + prm[IL._B_SIG_MOT] ** 2
                     W = np.diag([wm, wm, wm / prm[IL._B_VERT]])
                 else:
                     Hm = None

@@ -28,9 +28,10 @@ corrected frame (vertical right, heading free), ``n`` ENU.
    divided by ``bias_vertical_forgetting``. At rest (the shared detector,
    :func:`hrtls.attitude._kernels.rest_and_bias` without its own bias update) the low-passed
    rate measures ``b`` with variance ``bias_sigma_rest^2``. The variance grows by
-   ``(0.1 bias_sigma_init)^2 dt / bias_forgetting_s`` per sample up to ``bias_sigma_init^2``;
-   ``|b|`` is clipped per axis to ``bias_clip_rad_s``. Measurement variances are per sample at
-   100 Hz and scale with ``0.01 s / dt``.
+   ``v = (0.1 deg/s)^2 dt / bias_forgetting_s`` per sample up to ``bias_sigma_init^2``;
+   ``|b|`` is clipped per axis to ``bias_clip_rad_s``. A measurement of nominal standard
+   deviation ``sigma`` gets the variance ``w = sigma^4 / v + sigma^2``, for which the
+   steady-state variance of a bias measured every sample is ``sigma^2`` at any sample rate.
 5. Magnetic disturbances [3.5]: the norm and dip of the field, low-passed with
    ``mag_current_tau_s``, are compared with a reference (first field seen, or given); outside
    ``mag_norm_gate_uT`` / ``mag_dip_gate_rad`` the field is disturbed and the heading correction
@@ -92,6 +93,8 @@ _TILT_SIG = K.PRM_SPECIFIC + 16
 _HEAD_SIG = K.PRM_SPECIFIC + 17
 _WALK = K.PRM_SPECIFIC + 18
 
+_BIAS_GROWTH_RAD2_S2 = float(np.deg2rad(0.1)) ** 2  # bias variance growth per bias_forgetting_s
+
 # ---- state layout
 _QG = 0  # 0..3 q_gyr (d -> I)
 _QA = 4  # 4..7 q_acc (I -> E')
@@ -134,7 +137,7 @@ class InertialLowpassParams(CommonParams):
     bias_sigma_init_rad_s:
         Initial standard deviation (and upper bound) of the gyro bias estimate, rad/s.
     bias_forgetting_s:
-        Time over which the bias variance regrows by ``(0.1 bias_sigma_init)^2``, s.
+        Time over which the bias variance regrows by ``(0.1 deg/s)^2``, s.
     bias_clip_rad_s:
         Bound on each bias component, rad/s.
     bias_sigma_motion_rad_s:
@@ -293,6 +296,17 @@ def _restart_lowpass(x: FloatArray, aux: FloatArray, a_i: tuple[float, float, fl
 
 
 @numba.njit(inline="always", **K.JIT)
+def _steady_noise(var: float, growth: float) -> float:
+    """Measurement variance ``w = var^2 / v + var`` whose steady-state estimate variance is ``var``.
+
+    For a scalar random walk with per-sample growth ``v`` measured every sample with variance
+    ``w``, the a-priori variance ``p`` solves ``p^2 = v (p + w)``; the a-posteriori one,
+    ``p w / (p + w)``, equals ``var`` for this ``w`` [3.4].
+    """
+    return var * var / max(growth, 1e-300) + var
+
+
+@numba.njit(inline="always", **K.JIT)
 def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y: FloatArray,
                  wv: FloatArray, clip: float, M: FloatArray, k: FloatArray) -> None:
     """Kalman update of the bias, ``b`` clipped.
@@ -348,7 +362,7 @@ def inertial_lowpass_kernel(
     eye = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
     sig0 = prm[_B_SIG0]
     p_max = sig0 * sig0
-    p_grow = (0.1 * sig0) ** 2 / prm[_B_FORGET]
+    p_grow = _BIAS_GROWTH_RAD2_S2 / prm[_B_FORGET]
     clip = prm[_B_CLIP]
     walk2 = prm[_WALK] ** 2
     r_tilt = prm[_TILT_SIG] ** 2
@@ -465,12 +479,11 @@ def inertial_lowpass_kernel(
             lrb1 = _biquad(x, _RBLP + 2, rr[3] * bx0 + rr[4] * bx1 + rr[5] * bx2, b0, a1, a2)
             lrb2 = _biquad(x, _RBLP + 4, rr[6] * bx0 + rr[7] * bx1 + rr[8] * bx2, b0, a1, a2)
             if bias_on and (gflags & K.FLAG_GYR):
-                scale = 0.01 / dt
                 if gflags & K.FLAG_REST:
                     yv[0] = aux[K.AUX_LP] - bx0
                     yv[1] = aux[K.AUX_LP + 1] - bx1
                     yv[2] = aux[K.AUX_LP + 2] - bx2
-                    wr = prm[_B_SIG_REST] ** 2 * scale
+                    wr = _steady_noise(prm[_B_SIG_REST] ** 2, p_grow * dt)
                     wv[0] = wr
                     wv[1] = wr
                     wv[2] = wr
@@ -479,7 +492,7 @@ def inertial_lowpass_kernel(
                     yv[0] = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
                     yv[1] = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
                     yv[2] = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
-                    wm = prm[_B_SIG_MOT] ** 2 * scale
+                    wm = _steady_noise(prm[_B_SIG_MOT] ** 2, p_grow * dt)
                     wv[0] = wm
                     wv[1] = wm
                     wv[2] = wm / prm[_B_VERT]

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 _COMMANDS: dict[str, tuple[str, str, str]] = {
     "track": ("hrtls.cli.track", "track", "command"),
-    "demo": ("hrtls.cli.track", "demo", "command"),
+    "demo": ("hrtls.cli.demo", "demo", "command"),
     "ipin": ("hrtls.cli.ipin", "ipin", "command"),
     "simulate": ("hrtls.cli.sim", "simulate", "command"),
     "evaluate": ("hrtls.cli.sim", "evaluate", "command"),
@@ -44,7 +44,7 @@ They are imported only when run (or when their own help is asked for), so that `
 
 SUMMARIES: dict[str, str] = {
     "track": "Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.",
-    "demo": "Simulate the thesis' rescue missions and track them with and without infrastructure.",
+    "demo": "Live supervisor and dashboard with a simulated team (--no-serve: batch comparison).",
     "ipin": "Track from the first POSI (start, heading unknown); errors "
             "at the later POSI landmarks.",
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",

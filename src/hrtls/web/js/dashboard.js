@@ -25,6 +25,13 @@ function el(tag, attrs = {}, ...children) {
   return node;
 }
 
+// Replace the children of node only when key changed (keeps buttons stable between renders).
+function replaceIf(node, key, build) {
+  if (node.dataset.renderKey === key) return;
+  node.dataset.renderKey = key;
+  node.replaceChildren(...build());
+}
+
 function compass(headingRad) {
   if (!Number.isFinite(headingRad)) return "-";
   const bearing = ((90 - (headingRad * 180) / Math.PI) % 360 + 360) % 360;
@@ -124,7 +131,12 @@ export class Dashboard {
     if (!replay) this.clockOffsetS = p.t - (Date.now() / 1000 - this.mission.t0Unix);
     for (const a of this.agents.values()) { a.est = null; a.trail = []; }
     for (const a of p.agents) this.agent(a.id, a);
-    for (const e of p.estimates) this.agent(e.agent).est = e;
+    const wall = Date.now() / 1000;
+    for (const e of p.estimates) {
+      const a = this.agent(e.agent);
+      a.est = e;
+      if (!replay) a.seenWall = wall - Math.max(0, p.t - e.received_t);
+    }
     for (const [id, trail] of Object.entries(p.trails)) this.agent(id).trail = trail.slice();
     this.events.clear();
     for (const ev of p.events) this.events.set(ev.id, ev);
@@ -145,6 +157,7 @@ export class Dashboard {
   applyEstimate(e) {
     const a = this.agent(e.agent);
     if (a.est && e.t < a.est.t) return;
+    if (!a.est || e.t > a.est.t) a.seenWall = Date.now() / 1000;
     a.est = e;
     const last = a.trail[a.trail.length - 1];
     if (!last || e.t > last.t) a.trail.push({ t: e.t, x: e.x, y: e.y, floor: e.floor });
@@ -162,12 +175,12 @@ export class Dashboard {
   // Mission time now, on the service's clock.
   missionNow() { return Date.now() / 1000 - this.mission.t0Unix + (this.clockOffsetS || 0); }
 
-  // Age of an agent's last data: mission time now minus its last sample (or estimate) time.
+  // Age of an agent's last data, s: since its estimate last advanced (wall clock; a replayed
+  // agent at 10x has mission times ahead of the clock), or before the replay time.
   ageOf(a) {
     if (!a.est) return Infinity;
     if (this.replay.active) return Math.max(0, this.replay.t - a.est.t);
-    const last = Math.max(a.lastDataT ?? -Infinity, a.est.t);
-    return Math.max(0, this.missionNow() - last);
+    return Math.max(0, Date.now() / 1000 - (a.seenWall ?? Date.now() / 1000));
   }
 
   isStale(a) {
@@ -211,7 +224,8 @@ export class Dashboard {
     for (const a of shown) counts.set(a.est.floor, (counts.get(a.est.floor) || 0) + 1);
     const floors = this.mission.floors.length ? this.mission.floors
       : [...new Set([0, ...counts.keys()])].sort().map((i) => ({ index: i, name: `Floor ${i}` }));
-    box.replaceChildren(...floors.map((f) => el("button", {
+    const key = JSON.stringify([this.floor, floors.map((f) => [f.index, f.name, counts.get(f.index) || 0])]);
+    replaceIf(box, key, () => floors.map((f) => el("button", {
       type: "button", "aria-pressed": String(f.index === this.floor),
       dataset: { floor: f.index, count: counts.get(f.index) || 0 },
       onclick: () => this.setFloor(f.index),
@@ -226,7 +240,13 @@ export class Dashboard {
 
   renderAgentList(shown) {
     const list = document.getElementById("agents");
-    const rows = [...this.agents.values()].sort((a, b) => a.name.localeCompare(b.name)).map((a) => {
+    const sorted = [...this.agents.values()].sort((a, b) => a.name.localeCompare(b.name));
+    const key = JSON.stringify(sorted.map((a) => [a.id, a.name, a.est?.floor, a.est?.activity,
+      this.isStale(a), this.isStale(a) ? Math.round(this.ageOf(a)) : 0,
+      a.est ? quality(a.est.var_x, a.est.cov_xy, a.est.var_y).level : null]));
+    if (list.dataset.renderKey === key) return;
+    list.dataset.renderKey = key;
+    const rows = sorted.map((a) => {
       const stale = this.isStale(a);
       const q = a.est ? quality(a.est.var_x, a.est.cov_xy, a.est.var_y) : null;
       const level = stale ? "stale" : q?.level || "stale";
@@ -253,7 +273,8 @@ export class Dashboard {
     const count = document.getElementById("alarm-count");
     count.textContent = String(open.length);
     count.classList.toggle("active", open.length > 0);
-    document.getElementById("alarms").replaceChildren(...alarms.map((e) => {
+    const alarmKey = JSON.stringify([this.commander, alarms.map((e) => [e.id, e.acknowledged_at, e.cleared_t, e.floor])]);
+    replaceIf(document.getElementById("alarms"), alarmKey, () => alarms.map((e) => {
       const a = this.agents.get(e.agent);
       const acked = e.acknowledged_at !== null;
       const cls = `${e.severity}${acked ? " acknowledged" : ""}${e.cleared_t !== null ? " cleared" : ""}`;
@@ -279,19 +300,20 @@ export class Dashboard {
     banner.hidden = false;
     banner.classList.toggle("pre", top.kind === "pass_prealarm");
     banner.dataset.event = top.id;
-    banner.replaceChildren(
+    replaceIf(banner, JSON.stringify([top.id, open.length, top.floor]), () => [
       el("span", {}, `${EVENT_TEXT[top.kind] || top.kind}: ${a?.name || top.agent}` +
         `${Number.isFinite(top.floor) ? ` on floor ${top.floor}` : ""}` +
         `${open.length > 1 ? ` (+${open.length - 1} more)` : ""}`),
       el("button", { type: "button", onclick: () => this.focusEvent(top) }, "Show"),
       ...(this.commander ? [el("button", { type: "button", class: "ack",
-        onclick: () => this.acknowledge(top) }, "Acknowledge")] : []));
+        onclick: () => this.acknowledge(top) }, "Acknowledge")] : [])]);
   }
 
   renderOrders() {
     const list = document.getElementById("orders");
     const orders = [...this.orders.values()].sort((a, b) => Number(b.id) - Number(a.id));
-    list.replaceChildren(...orders.slice(0, 30).map((o) => {
+    const orderKey = JSON.stringify(orders.slice(0, 30).map((o) => [o.id, o.status, o.answer_text]));
+    replaceIf(list, orderKey, () => orders.slice(0, 30).map((o) => {
       const when = o.answered_at ?? o.delivered_at;
       return el("li", { dataset: { order: o.id, status: o.status, agent: o.agent } },
         `${formatClock(o.created_at)} ${ORDER_TEXT[o.kind] || o.kind}`,
@@ -314,7 +336,7 @@ export class Dashboard {
   renderDetails() {
     const box = document.getElementById("details");
     const a = this.selected ? this.agents.get(this.selected) : null;
-    if (!a) { box.hidden = true; return; }
+    if (!a) { box.hidden = true; box.dataset.agent = ""; return; }
     box.hidden = false;
     const e = a.est;
     const q = e ? quality(e.var_x, e.cov_xy, e.var_y) : null;
@@ -342,14 +364,18 @@ export class Dashboard {
           onclick: () => this.startGoto(a.id) }, "Send to point…"));
       }
     }
-    box.replaceChildren(
-      el("h3", {}, a.name),
-      el("table", {}, ...rows.map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", {}, v)))),
-      el("h4", {}, "last events"),
-      el("ol", { class: "alarms" }, ...(recent.length ? recent.map((ev) => el("li", {},
-        `${formatClock(ev.t)} ${EVENT_TEXT[ev.kind] || ev.kind}`)) : [el("li", { class: "muted" }, "none")])),
-      el("div", { class: "actions" }, ...actions,
-        el("button", { type: "button", onclick: () => this.select(null) }, "Close")));
+    if (box.dataset.agent !== a.id) {
+      box.dataset.agent = a.id;
+      box.replaceChildren(el("h3", {}, a.name), el("table", { class: "facts" }),
+        el("h4", {}, "last events"), el("ol", { class: "alarms recent" }),
+        el("div", { class: "actions" }, ...actions,
+          el("button", { type: "button", onclick: () => this.select(null) }, "Close")));
+    }
+    replaceIf(box.querySelector("table.facts"), JSON.stringify(rows),
+      () => rows.map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", {}, v))));
+    replaceIf(box.querySelector("ol.recent"), JSON.stringify(recent.map((ev) => ev.id)),
+      () => (recent.length ? recent.map((ev) => el("li", {},
+        `${formatClock(ev.t)} ${EVENT_TEXT[ev.kind] || ev.kind}`)) : [el("li", { class: "muted" }, "none")]));
   }
 
   // ---- interaction ----------------------------------------------------------------------------

@@ -155,16 +155,18 @@ export class MapView {
     this.nodeLayer.clearLayers();
     this.waypointLayer.clearLayers();
     for (const lm of landmarks) {
-      const isTag = lm.kind === "rfid" || lm.kind === "tag";
-      const m = L.circleMarker([lm.y, lm.x], {
-        radius: 4, weight: 2, color: isTag ? "#f0883e" : "#db61a2", fillOpacity: 0.8,
+      const isTag = lm.kind === "rfid";
+      const color = isTag ? "#f0883e" : "#db61a2";
+      if (lm.accuracy_m) {
+        L.circle([lm.y, lm.x], { radius: lm.accuracy_m, weight: 1, color, opacity: 0.5,
+          dashArray: "2 4", fill: false, interactive: false }).addTo(this.infraLayer);
+      }
+      const h = 0.35;
+      const m = L.polygon([[lm.y + h, lm.x], [lm.y, lm.x + h], [lm.y - h, lm.x], [lm.y, lm.x - h]], {
+        weight: 2, color, fillColor: color, fillOpacity: 0.9,
         className: `landmark landmark-${cssId(lm.id)}`,
       });
-      if (lm.accuracy_m) {
-        L.circle([lm.y, lm.x], { radius: lm.accuracy_m, weight: 1, color: "#f0883e",
-          fillOpacity: 0.05, interactive: false }).addTo(this.infraLayer);
-      }
-      m.bindTooltip(`${isTag ? "tag" : lm.kind} ${lm.id}${lm.message ? `: ${lm.message}` : ""}`);
+      m.bindTooltip(`${isTag ? "RFID tag" : lm.kind} ${lm.id}${lm.message ? `: ${lm.message}` : ""}`);
       m.addTo(this.infraLayer);
     }
     for (const n of nodes) {
