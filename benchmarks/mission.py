@@ -5,6 +5,7 @@ off and on (the estimator never sees the simulator's truth; the truth is read he
 only) and prints, over the seeds, mean / p90 / worst of:
 
 * the rescuers' horizontal position error (sampled at 1 Hz while walking, all rescuers),
+* the rescuers' NEES (2 dof, expected 2 when their covariance is consistent),
 * the fraction of nodes localized at the end, their RMSE and mean NEES (2 dof, with the
   chi-square 95 % bounds of that mean over the localized nodes).
 
@@ -33,9 +34,9 @@ def _seeds(text: str) -> list[int]:
     return out
 
 
-def agent_errors(mission: Mission, result: MissionResult) -> np.ndarray:
-    """Horizontal errors at 1 Hz over every rescuer's walk."""
-    errs = []
+def agent_errors(mission: Mission, result: MissionResult) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal errors and their NEES (2 dof) at 1 Hz over every rescuer's walk."""
+    errs, nees = [], []
     for name, res in result.agents.items():
         truth = mission.simulations[name].session.truth
         assert truth is not None
@@ -44,7 +45,10 @@ def agent_errors(mission: Mission, result: MissionResult) -> np.ndarray:
         ex = np.interp(tq, tr.t, tr.xyz[:, 0]) - np.interp(tq, truth.t, truth.xyz[:, 0])
         ey = np.interp(tq, tr.t, tr.xyz[:, 1]) - np.interp(tq, truth.t, truth.xyz[:, 1])
         errs.append(np.hypot(ex, ey))
-    return np.concatenate(errs)
+        j = np.clip(np.searchsorted(tr.t, tq), 0, len(tr.t) - 1)
+        d = np.column_stack([ex, ey])
+        nees.append(np.einsum("ki,kij,kj->k", d, np.linalg.inv(tr.cov_xy[j]), d))
+    return np.concatenate(errs), np.concatenate(nees)
 
 
 def node_scores(mission: Mission, result: MissionResult) -> tuple[float, float, list[float]]:
@@ -78,7 +82,8 @@ def main() -> None:
                           range_sigma_m=args.range_sigma_m,
                           node_failure_fraction=args.node_failure)
     rows: dict[str, dict[str, list[float]]] = {
-        m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": []} for m in ("off", "on")}
+        m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": []}
+        for m in ("off", "on")}
     nees_all: dict[str, list[float]] = {"off": [], "on": []}
     t0 = time.perf_counter()
     for seed in _seeds(args.seeds):
@@ -86,32 +91,34 @@ def main() -> None:
         for mode in ("off", "on"):
             res = MissionTracker(mission.agents,
                                  params=MissionParams(cooperate=mode == "on")).run()
-            e = agent_errors(mission, res)
+            e, e_nees = agent_errors(mission, res)
             frac, rmse, nees = node_scores(mission, res)
             r = rows[mode]
             r["mean"].append(float(np.mean(e)))
             r["p90"].append(float(np.percentile(e, 90)))
             r["max"].append(float(np.max(e)))
             r["frac"].append(frac)
+            r["anees"].append(float(np.mean(e_nees)))
             r["rmse"].append(rmse)
             nees_all[mode].extend(nees)
             print(f"seed {seed} {mode:>3}: err mean {np.mean(e):.2f} p90 "
                   f"{np.percentile(e, 90):.2f} max {np.max(e):.2f} m; nodes {frac:.2f} "
-                  f"rmse {rmse:.2f} m mean NEES {np.mean(nees) if nees else float('nan'):.2f}",
+                  f"rmse {rmse:.2f} m; agent NEES {np.mean(e_nees):.1f}; "
+                  f"node NEES {np.mean(nees) if nees else float('nan'):.2f}",
                   flush=True)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m, node failure {args.node_failure}; values are mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     print("| cooperation | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
-          "| nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) |")
-    print("|---|---|---|---|---|---|---|")
+          "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) |")
+    print("|---|---|---|---|---|---|---|---|")
     for mode in ("off", "on"):
         r = rows[mode]
         n = len(nees_all[mode])
         lo, hi = (chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n) if n else (0, 0)
         nees = f"{np.mean(nees_all[mode]):.2f} ({lo:.2f}-{hi:.2f}, n={n})" if n else "-"
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
-              f"| {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} |")
+              f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} |")
 
 
 if __name__ == "__main__":
