@@ -262,6 +262,17 @@ def main() -> None:
             else:
                 cells.append(f"{'-':>13s}")
         print(f"{label:14s} {rates[label] / 1e6:11.3f} | " + " | ".join(cells))
+    broad = [n for n in names if n.startswith("broad-")]
+    if broad:
+        print()
+        print(f"BROAD trials ({len(broad)}): inclination / heading RMS in degrees over trials")
+        print(f"{'method':14s} | {'mean':>13s} | {'median':>13s} | {'worst':>13s}")
+        for label in methods:
+            r = np.array([results[label][n] for n in broad if n in results[label]])
+            if len(r) == 0:
+                continue
+            stats = (r.mean(axis=0), np.median(r, axis=0), r.max(axis=0))
+            print(f"{label:14s} | " + " | ".join(f"{a:5.2f} / {b:5.2f}" for a, b in stats))
 
 
 if __name__ == "__main__":

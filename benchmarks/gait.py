@@ -1016,8 +1016,8 @@ def hrtls_sim_person_walk(seed: int) -> object:
     rng = np.random.default_rng(seed)
     gp = GaitParams(step_a_m=rng.uniform(0.25, 0.38), step_b_s=rng.uniform(0.20, 0.32),
                     run_a_m=rng.uniform(0.45, 0.65), run_b_s=rng.uniform(0.15, 0.25),
-                    weinberg_k_walk=rng.uniform(0.37, 0.48),
-                    weinberg_k_run=rng.uniform(0.45, 0.55),
+                    vertical_pp_1ms_m_s2=rng.uniform(3.9, 5.1),
+                    vertical_pp_exponent=rng.uniform(0.83, 1.07),
                     # one draw sets both stairs amplitudes (down / up = 6.5 / 4.0, the
                     # GaitParams defaults at 5.0), so the rest of the draws are unchanged
                     stairs_up_acc_pp_m_s2=0.8 * (stairs_pp := rng.uniform(4.0, 6.0)),

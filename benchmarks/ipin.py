@@ -16,6 +16,7 @@ on the *other* logfile with the same configuration (two-fold cross-validation).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import warnings
 from dataclasses import replace
@@ -60,6 +61,49 @@ def _line(file: str, case: str, st_n: int, mean: float, median: float, p75: floa
             f"{mx:6.2f} | {floors:>6s} | {k}")
 
 
+def _pooled(results: list[CaseResult], sessions: dict[str, Session]) -> np.ndarray:
+    """Landmark errors of all files; a failed file counts each of its landmarks as inf."""
+    out = []
+    for cr in results:
+        if cr.errors is not None:
+            out.append(cr.errors.horizontal_m)
+        else:
+            cps = sessions[cr.file].checkpoints
+            out.append(np.full(0 if cps is None else len(cps), np.inf))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _p75(cr: CaseResult | None) -> float:
+    return math.inf if cr is None or cr.errors is None else float(cr.errors.stats.p75)
+
+
+def leave_one_file_out(by_case: dict[str, dict[str, CaseResult]],
+                       sessions: dict[str, Session]) -> None:
+    """Configuration chosen on the other files (lowest mean p75), scored on the held file.
+
+    The headline figure: no file scores the configuration that was chosen on it.
+    """
+    print("\nleave one file out: configuration chosen on the other file(s), scored on this one")
+    held: list[CaseResult] = []
+    for name in sessions:
+        def score(case: str, held_name: str = name) -> float:
+            return float(np.mean([_p75(r) for f, r in by_case[case].items() if f != held_name]))
+
+        choice = min(by_case, key=score)
+        cr = by_case[choice][name]
+        held.append(cr)
+        text = "failed" if cr.errors is None else f"p75 {cr.errors.stats.p75:.2f} m"
+        print(f"  {_short(name):7s}: {choice} (p75 on the other file(s) {score(choice):.2f} m) "
+              f"-> {text}")
+    all_e = _pooled(held, sessions)
+    st = error_stats(np.where(np.isfinite(all_e), all_e, 1e9)) if all_e.size else None
+    if st is not None:
+        n_failed = sum(cr.errors is None for cr in held)
+        p75 = "inf" if not np.isfinite(np.percentile(all_e, 75)) else f"{st.p75:.2f}"
+        print(f"  pooled {st.n} landmarks: mean {st.mean:.2f}, median {st.median:.2f}, "
+              f"p75 {p75} m; {n_failed} failed file(s), counted with infinite errors")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print the table."""
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -85,27 +129,31 @@ def main(argv: list[str] | None = None) -> int:
             f"{'p75':>6s} | {'max':>6s} | {'floors':>6s} | k")
     print(head)
     print("-" * len(head))
+    by_case: dict[str, dict[str, CaseResult]] = {}
     for case in cases:
         results: list[CaseResult] = (
             [run_case(s, case, file=n) for n, s in sessions.items()] if args.default_k
             else run_cross_validated(sessions, case))
-        pooled, hits = [], 0
+        by_case[case.name] = {cr.file: cr for cr in results}
+        hits = 0
         for cr in results:
             if cr.errors is None:
                 print(f"{_short(cr.file):7s} | {case.name:50s} | failed: {cr.error}")
                 continue
             e, st = cr.errors, cr.errors.stats
-            pooled.append(e.horizontal_m)
             hits += e.floor_hits
             k = "-" if cr.weinberg_k is None else f"{cr.weinberg_k:.3f}"
             print(_line(_short(cr.file), case.name, st.n, st.mean, st.median, st.p75, st.max,
                         f"{e.floor_hits}/{st.n}", k))
-        if len(pooled) > 1:
-            all_e = np.concatenate(pooled)
-            st = error_stats(all_e)
+        if len(results) > 1:
+            st = error_stats(_pooled(results, sessions))
+            n_failed = sum(cr.errors is None for cr in results)
             print(_line("both", case.name, st.n, st.mean, st.median, st.p75, st.max,
-                        f"{hits}/{st.n}", ""))
+                        f"{hits}/{st.n}", f"{n_failed} failed file(s) counted as inf"
+                        if n_failed else ""))
         print("-" * len(head))
+    if len(sessions) > 1:
+        leave_one_file_out(by_case, sessions)
     print(f"{'IPIN21':7s} | {'best smartphone entry (reference)':50s} | {'':3s} | {'':6s} | "
           f"{'':6s} | {REFERENCE_P75_M:6.2f} |")
     print(f"target: p75 < {TARGET_P75_M:.2f} m; k = Weinberg constant used "

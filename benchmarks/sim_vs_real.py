@@ -8,18 +8,20 @@ identity mounting), measures both with the same code (:func:`levelled_gait_signa
 correlation and RMS difference of the mean stride waveforms, the amplitude ratio and phase
 difference of the main harmonic, and the AP extremes relative to the heel strikes.
 
-The person's Weinberg ``K`` (``--k``): ``step`` (default) measures it on the real strides of the
-group (step length from the reference stride length, peak-to-peak of the raw levelled vertical
-acceleration within each step, median), ``wave`` takes it from the peak-to-peak of the mean real
-waveform (amplitudes then agree by construction and the RMS difference is the shape error),
-``default`` uses :class:`GaitParams`' default. ``--model FILE`` compares another version of
-``gait_model.py`` instead, e.g. the model before the waveforms were measured:
-``git show cf9c77b:src/hrtls/sim/gait_model.py > /tmp/old.py``.
+The simulated person's vertical amplitude (``--k``): ``step`` (default) is the median per-step
+peak-to-peak of the raw levelled vertical acceleration of the group's real strides, ``wave`` the
+peak-to-peak of the mean real waveform (amplitudes then agree by construction and the RMS
+difference is the shape error), ``default`` the model's own law. The amplitude-vs-speed table
+compares that law (``GaitParams.vertical_pp`` and the spread of :meth:`GaitParams.drawn`) with
+the real per-stride peak-to-peak binned by stride speed, per participant. ``--model FILE``
+compares another version of ``gait_model.py`` instead, e.g. the model before the waveforms
+were measured: ``git show cf9c77b:src/hrtls/sim/gait_model.py > /tmp/old.py``.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -55,6 +57,7 @@ class Group:
     duration_s: list[float]
     speed_m_s: list[float]
     k: list[float]
+    pp: list[float]
 
     def mean(self) -> np.ndarray:
         return np.mean(self.waves, axis=0)
@@ -65,8 +68,8 @@ def real_groups(root: Path) -> list[Group]:
     from hrtls.datasets.mobgap import list_trials, load_trial
 
     lo, hi = SPEED_EDGES_M_S
-    groups = [Group(f"v < {lo}", [], [], [], []), Group(f"{lo} <= v < {hi}", [], [], [], []),
-              Group(f"v >= {hi}", [], [], [], [])]
+    groups = [Group(name, [], [], [], [], [])
+              for name in (f"v < {lo}", f"{lo} <= v < {hi}", f"v >= {hi}")]
     for tid in list_trials(root):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -91,7 +94,7 @@ def real_groups(root: Path) -> list[Group]:
             if not np.isfinite(v):
                 continue
             # Weinberg K of this stride: reference stride length / 2 over the step pp^(1/4)
-            k_stride = np.nan
+            k_stride = pp_stride = np.nan
             near = np.flatnonzero((ref.stride_bout == bout)
                                   & (np.abs(ref.stride_start_s - sw.start_s[s]) < 0.03))
             if len(near) and np.isfinite(ref.stride_length_m[near[0]]):
@@ -100,22 +103,33 @@ def real_groups(root: Path) -> list[Group]:
                     seg = sig[(t >= a) & (t <= b), 2]
                     pp.append(np.ptp(seg))
                 k_stride = 0.5 * ref.stride_length_m[near[0]] / np.mean(pp) ** 0.25
+                pp_stride = float(np.mean(pp))
             g = groups[int(np.searchsorted(SPEED_EDGES_M_S, v, side="right"))]
             g.waves.append(sw.waveforms[s])
             g.duration_s.append(float(sw.duration_s[s]))
             g.speed_m_s.append(v)
             g.k.append(float(k_stride))
+            g.pp.append(pp_stride)
     return [g for g in groups if g.waves]
 
 
-def simulated_mean(speed_m_s: float, stride_s: float, k: float | None,
+def simulated_mean(speed_m_s: float, stride_s: float, pp: float | None,
                    simulate: Callable[..., Any] = simulate_gait, base: Any = None,
                    seed: int = 0) -> tuple[np.ndarray, int]:
-    """Mean stride waveform of a simulated straight walk at ``speed_m_s`` and cadence."""
+    """Mean stride waveform of a simulated straight walk at ``speed_m_s`` and cadence.
+
+    ``pp``: the vertical peak-to-peak (m/s^2) to give the simulated person at this speed (None:
+    the model's own); a model file with a Weinberg ``K`` gets the ``K`` that produces it.
+    """
     step_len = speed_m_s * stride_s / 2.0
     base = base if base is not None else GaitParams()
-    p = replace(base, step_a_m=step_len - base.step_b_s * speed_m_s,
-                **({} if k is None else {"weinberg_k_walk": k}))
+    amp: dict[str, float] = {}
+    if pp is not None and hasattr(base, "vertical_pp_1ms_m_s2"):
+        amp = {"vertical_pp_1ms_m_s2": pp / max(speed_m_s, base.envelope_speed_m_s)
+               ** base.vertical_pp_exponent}
+    elif pp is not None:
+        amp = {"weinberg_k_walk": step_len / pp ** 0.25}
+    p = replace(base, step_a_m=step_len - base.step_b_s * speed_m_s, **amp)
     wps = [Waypoint(x=0.0, y=0.0), Waypoint(x=max(40.0, 60.0 * speed_m_s), y=0.0,
                                             speed_m_s=speed_m_s)]
     motion = simulate_motion(wps, rate_hz=100.0)
@@ -173,12 +187,13 @@ def run(simulate: Callable[..., Any] = simulate_gait, k_mode: str = "step",
         v = float(np.mean(g.speed_m_s))
         stride = float(np.mean(g.duration_s))
         real = g.mean()
-        k_real = {"step": float(np.nanmedian(g.k)),
-                  "wave": v * stride / 2.0 / float(np.ptp(real[:, 2])) ** 0.25}.get(k_mode)
-        sim, n_sim = simulated_mean(v, stride, k_real, simulate, base)
-        k_sim = k_real if k_real is not None else (base or GaitParams()).weinberg_k_walk
+        pp_real = {"step": float(np.nanmedian(g.pp)),
+                   "wave": float(np.ptp(real[:, 2]))}.get(k_mode)
+        sim, n_sim = simulated_mean(v, stride, pp_real, simulate, base)
         print(f"\nreal strides with {g.name} m/s: {len(g.waves)} strides, v {v:.2f} m/s, cadence "
-              f"{120.0 / stride:.1f} steps/min, sim Weinberg K {k_sim:.3f} ({k_mode}), "
+              f"{120.0 / stride:.1f} steps/min, real Weinberg K (median) "
+              f"{float(np.nanmedian(g.k)):.3f}, sim vertical pp "
+              f"{'model' if pp_real is None else f'{pp_real:.2f} m/s^2'} ({k_mode}), "
               f"{n_sim} simulated strides")
         print(f"  {'column':<18}{'corr':>7}{'rms diff':>10}{'real rms':>10}{'harm n':>8}"
               f"{'amp ratio':>11}{'dphase deg':>12}")
@@ -241,11 +256,55 @@ def heading_errors(names: tuple[str, ...] = ("basso_test1", "basso_test2"),
                   f"90th pct {np.percentile(err, 90):.1f} deg")
 
 
+def amplitude_vs_speed(root: Path = DATA / "mobgap_lab") -> None:
+    """Real per-stride vertical peak-to-peak by speed bin (median, per participant) vs model."""
+    from hrtls.datasets.mobgap import list_trials, load_trial
+    from hrtls.sim.motion_truth import GAIT_WALK
+
+    edges = np.array([0.3, 0.6, 0.8, 1.0, 1.2, 1.5])
+    real: dict[str, list[tuple[float, float]]] = {}
+    for tid in list_trials(root):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            trial = load_trial(root, tid.participant, tid.test, tid.trial)
+        ref = trial.reference.indip
+        if ref is None or ref.is_empty:
+            ref = trial.reference.stereophoto
+        t, acc, gyr, _ = trial.session.imu.aligned()
+        if ref is None or ref.is_empty or gyr is None:
+            continue
+        q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
+        up = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))[:, 2]
+        for a, b, _, v in ref.strides:
+            if np.isfinite(v) and 0.7 <= b - a <= 2.0:
+                m = 0.5 * (a + b)
+                pp = 0.5 * (np.ptp(up[(t >= a) & (t <= m)]) + np.ptp(up[(t >= m) & (t <= b)]))
+                real.setdefault(tid.participant, []).append((float(v), float(pp)))
+    base = GaitParams()
+    lo, hi = replace(base, vertical_pp_1ms_m_s2=base.vertical_pp_1ms_m_s2 * 0.87,
+                     vertical_pp_exponent=base.vertical_pp_exponent + 0.12), \
+        replace(base, vertical_pp_1ms_m_s2=base.vertical_pp_1ms_m_s2 * 1.13,
+                vertical_pp_exponent=base.vertical_pp_exponent - 0.12)
+    print("\nvertical peak-to-peak (m/s^2) vs stride speed: real median per participant (n) / "
+          "model default [spread of drawn persons]")
+    print(f"  {'speed m/s':<12}" + "".join(f"{p:>16}" for p in real) + f"{'model':>22}")
+    for a, b in itertools.pairwise(edges):
+        mid = np.array([0.5 * (a + b)])
+        walk = np.array([GAIT_WALK])
+        cells = []
+        for rows in real.values():
+            x = np.array([pp for v, pp in rows if a <= v < b])
+            cells.append(f"{np.median(x):.2f} ({x.size})" if x.size else "-")
+        vals = sorted(float(g.vertical_pp(mid, walk)[0]) for g in (lo, hi))
+        model = f"{float(base.vertical_pp(mid, walk)[0]):.2f} [{vals[0]:.2f}-{vals[1]:.2f}]"
+        print(f"  {f'{a:.1f}-{b:.1f}':<12}" + "".join(f"{c:>16}" for c in cells) + f"{model:>22}")
+
+
 def main() -> None:
     """Command line entry."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--k", choices=("step", "wave", "default"), default="step",
-                    help="Weinberg K of the simulated person (see the module notes)")
+                    help="vertical amplitude of the simulated person (see the module notes)")
     ap.add_argument("--model", type=Path, default=None,
                     help="another gait_model.py to compare instead of the installed one")
     ap.add_argument("--heading", action="store_true", help="also score the Fourier heading")
@@ -269,6 +328,8 @@ def main() -> None:
             simulate, base = module.simulate_gait, module.GaitParams()
             print(f"model: {args.model}")
         run(simulate=simulate, k_mode=args.k, base=base)
+        if args.model is None:
+            amplitude_vs_speed()
         if args.table:
             measured_table()
     if args.heading:

@@ -55,12 +55,18 @@ def test_bearing_gain_is_a_paired_difference() -> None:
     assert worst == pytest.approx(1.0)
 
 
-def test_markdown_escapes_cell_bars() -> None:
-    row = BenchRow("s", "max(|ex|)", "1.0", "p", SeedStats(1.0, 2.0, 3.0),
+def test_markdown_escapes_cell_bars_and_compares_the_mean_with_the_paper() -> None:
+    row = BenchRow("s", "max(|ex|)", "1.0 (Table 2)", "p", SeedStats(1.0, 2.0, 3.0),
                    SeedStats(0.5, 0.75, 1.25), "<= 1", True, 30)
     text = markdown_table([row])
-    assert text.splitlines()[2] == ("| s | max(\\|ex\\|) | 1.0 | p: 1.00 / 2.00 / 3.00 "
-                                    "| 0.50 / 0.75 / 1.25 | <= 1 | yes |")
+    assert text.splitlines()[2] == ("| s | max(\\|ex\\|) | 1.0 (Table 2) | p: 1.00 / 2.00 / 3.00 "
+                                    "| 0.50 / 0.75 / 1.25 | yes | <= 1 | yes |")
+    assert BenchRow.from_dict(row.to_dict()) == row
+    gain = BenchRow("s", "gain", "~1.5 (Sec. IV)", "p", SeedStats(1.0, 1.0, 1.0),
+                    SeedStats(1.2, 1.1, 1.0), ">= 1.5", False, 30, higher_is_better=True)
+    assert gain.paper_value == 1.5 and gain.beats_paper is False
+    assert BenchRow("s", "m", "lower than without", "p", SeedStats(1, 1, 1),
+                    SeedStats(1, 1, 1), "-", None, 3).beats_paper is None
 
 
 def test_pool_of_two_workers_gives_the_rows_of_one_process() -> None:

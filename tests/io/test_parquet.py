@@ -109,3 +109,72 @@ def test_steps_parquet_output(tmp_path):
     back = read_steps(tmp_path / "steps.parquet")
     assert np.allclose(back.heading_rad, steps.heading_rad, equal_nan=True)
     assert list(back.activity) == list(steps.activity)
+
+
+@pytest.mark.filterwarnings("ignore::hrtls.errors.DegradedInputWarning")
+def test_parquet_numbers_are_byte_stream_split_and_text_dictionary(tmp_path):
+    rng = np.random.default_rng(3)
+    n = 500
+    t = np.arange(n) / 100.0
+    session = Session(imu=ImuStream(SensorSeries(t, rng.normal([0, 0, 9.81], 1.0, (n, 3)))),
+                      tags=TagDetections(np.array([1.0, 2.0]), np.array(["a", "b"])))
+    write_session(session, tmp_path / "s", table_format="parquet")
+    imu = pq.ParquetFile(tmp_path / "s" / "imu.parquet").metadata.row_group(0)
+    encodings = {imu.column(i).path_in_schema: imu.column(i).encodings
+                 for i in range(imu.num_columns)}
+    assert all("BYTE_STREAM_SPLIT" in e for e in encodings.values())
+    tags = pq.ParquetFile(tmp_path / "s" / "tags.parquet").metadata.row_group(0)
+    assert any("DICTIONARY" in e for e in tags.column(1).encodings)
+    back = read_session(tmp_path / "s")
+    np.testing.assert_array_equal(back.imu.accel.values, session.imu.accel.values)
+    np.testing.assert_array_equal(back.tags.tag, ["a", "b"])
+
+
+def test_many_chunk_columns_are_joined_in_order(tmp_path):
+    # 1 MiB Arrow blocks: a 40k-row file parses in several chunks, joined into one array
+    n = 40_000
+    rng = np.random.default_rng(5)
+    t = np.arange(n) / 100.0
+    acc = rng.normal([0, 0, 9.81], 1.0, (n, 3))
+    write_session(Session(imu=ImuStream(SensorSeries(t, acc))), tmp_path / "s")
+    assert (tmp_path / "s" / "imu.csv").stat().st_size > 2 << 20
+    back = read_session(tmp_path / "s")
+    np.testing.assert_array_equal(back.imu.accel.t, t)
+    np.testing.assert_array_equal(back.imu.accel.values, acc)
+    assert back.imu.accel.values.flags.c_contiguous and back.imu.accel.values.flags.writeable
+
+
+def test_bad_value_deep_in_a_memory_mapped_file_names_its_line(tmp_path):
+    n = 40_000
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1))
+    write_session(Session(imu=ImuStream(SensorSeries(t, acc))), tmp_path / "s")
+    path = tmp_path / "s" / "imu.csv"
+    lines = path.read_text().splitlines()
+    fields = lines[30_001].split(",")
+    fields[2] = "oops"
+    lines[30_001] = ",".join(fields)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(FormatError, match=r"imu\.csv line 30002.*'ay' is 'oops'"):
+        read_session(tmp_path / "s")
+
+
+def test_integer_parquet_columns_with_nulls_read_as_nan(tmp_path):
+    arrow = pa.table({"t": pa.array([0, 1, 2], pa.int64()), "x": [0.0, 1.0, 2.0],
+                      "y": [0.0, 0.0, 0.0], "z": [0.0, 0.0, 0.0],
+                      "heading": pa.array([1, None, 3], pa.int32())})
+    table = from_arrow(arrow, table="trajectory")
+    np.testing.assert_array_equal(table.float("t"), [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(table.float("heading"), [1.0, np.nan, 3.0])
+    assert table.matrix(("x", "heading")).shape == (3, 2)
+
+
+def test_unit_check_on_a_long_recording_still_catches_g(tmp_path):
+    # the unit guess looks at evenly spaced samples of long signals
+    n = 300_000
+    t = np.arange(n) / 100.0
+    acc_g = np.random.default_rng(2).normal([0, 0, 1.0], 0.1, (n, 3))
+    write_session(Session(imu=ImuStream(SensorSeries(t, acc_g), check_units=False)),
+                  tmp_path / "s", table_format="parquet")
+    with pytest.raises(UnitError, match="gravity in g"):
+        read_session(tmp_path / "s")

@@ -64,5 +64,6 @@ def test_tarrio_circle_regression(tarrio: SimulationResult) -> None:
     # measured p90 1.26 m (seed 0) when written; Tarrio's figure is 2.4 m, our target 1.8 m
     assert float(np.percentile(err, 90)) < 1.8
     kal = Tracker(preset("tarrio2011")).run(tarrio.session)
-    # Tarrio's Kalman fusion as we run it: p90 1.40 m (seed 0) when written
-    assert float(np.percentile(position_errors(kal.trajectory, truth)[1], 90)) < 2.4
+    # Tarrio's Kalman fusion as we run it, channel surveyed on the calibration course: p90
+    # 2.43 m (seed 0; 1.40 m with the true channel in the session); the paper's figure is 2.4 m
+    assert float(np.percentile(position_errors(kal.trajectory, truth)[1], 90)) < 2.6

@@ -115,15 +115,18 @@ def test_pelvis_rates_and_levelled_signals_agree_with_truth(cruise):
     assert yaw[0] - yaw.mean() < 0
 
 
-def test_weinberg_amplitude_holds_at_slow_speed():
-    motion, gait, imu = _straight(0.6)
+def test_vertical_amplitude_follows_the_fitted_speed_law():
     from hrtls.sim.gait_model import fill_step_extremes
 
-    steps = fill_step_extremes(gait.steps, motion.t, imu.accel_n[:, 2])
-    v = np.interp(0.5 * (steps.t_start + steps.t_end), motion.t, motion.speed)
-    ok = v > 0.59
-    k_fit = steps.length_m[ok] / (steps.acc_max[ok] - steps.acc_min[ok]) ** 0.25
-    assert np.median(k_fit) == pytest.approx(GaitParams().weinberg_k_walk, rel=0.06)
+    p = GaitParams()
+    for speed in (0.6, 1.2):
+        motion, gait, imu = _straight(speed)
+        steps = fill_step_extremes(gait.steps, motion.t, imu.accel_n[:, 2])
+        v = np.interp(0.5 * (steps.t_start + steps.t_end), motion.t, motion.speed)
+        ok = v > speed - 0.01
+        pp = np.median(steps.acc_max[ok] - steps.acc_min[ok])
+        assert pp == pytest.approx(p.vertical_pp_1ms_m_s2 * speed ** p.vertical_pp_exponent,
+                                   rel=0.1)
 
 
 def test_amplitude_parameters_scale_their_channel():
@@ -378,10 +381,11 @@ def test_waveforms_correlate_with_mobgap_lower_back(shared_data: Path):
         real = w[sel].mean(axis=0)
         speed, stride = float(v[sel].mean()), float(d[sel].mean())
         base = GaitParams()
-        # same cadence; Weinberg K of the mean real stride (its vertical peak-to-peak)
+        # same cadence; the vertical peak-to-peak of the mean real stride
         step_m = speed * stride / 2
         params = replace(base, step_a_m=step_m - base.step_b_s * speed,
-                         weinberg_k_walk=step_m / np.ptp(real[:, 2]) ** 0.25)
+                         vertical_pp_1ms_m_s2=np.ptp(real[:, 2])
+                         / speed ** base.vertical_pp_exponent)
         motion, gait, imu = _straight(speed, params)
         sim_sig = levelled_gait_signals(motion.t, imu.specific_force, imu.angular_rate)
         sim = _cruise_waves(motion, gait, sim_sig, speed).mean(axis=0)

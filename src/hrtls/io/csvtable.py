@@ -33,15 +33,41 @@ Column = NDArray[np.float64] | NDArray[np.str_]
 
 @dataclass(frozen=True, slots=True)
 class Table:
-    """Columns of a parsed table by name; ``present`` lists the columns the file had."""
+    """Checked columns of a parsed table by name; ``present`` lists the columns the file had.
 
-    columns: dict[str, Column]
+    Numeric columns may be held as the parser's float64 Arrow arrays (nulls for unknown
+    values) and become numpy arrays only when asked for, so a group of columns is copied once,
+    straight into its ``(n, k)`` array (:meth:`matrix`).
+    """
+
+    columns: Mapping[str, Column | pa.ChunkedArray]
     present: tuple[str, ...]
     n_rows: int
 
-    def float(self, name: str) -> NDArray[np.float64]:
-        """A numeric column."""
+    def column(self, name: str) -> Column:
+        """A column as numpy: text, or float64 numbers."""
         col = self.columns[name]
+        return self.float(name) if isinstance(col, pa.ChunkedArray) else col
+
+    def matrix(self, names: Sequence[str]) -> NDArray[np.float64]:
+        """Numeric columns side by side, ``(n_rows, len(names))`` (unknown values as NaN)."""
+        out = np.empty((self.n_rows, len(names)), dtype=np.float64)
+        for j, name in enumerate(names):
+            col = self.columns[name]
+            if not isinstance(col, pa.ChunkedArray):
+                out[:, j] = col
+                continue
+            k = 0
+            for chunk in col.chunks:
+                out[k:k + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
+                k += len(chunk)
+        return out
+
+    def float(self, name: str) -> NDArray[np.float64]:
+        """A numeric column (unknown values as NaN)."""
+        col = self.columns[name]
+        if isinstance(col, pa.ChunkedArray):
+            return self.matrix((name,))[:, 0]
         return np.asarray(col, dtype=np.float64)
 
     def str(self, name: str) -> NDArray[np.str_]:
@@ -66,30 +92,20 @@ def _first(mask: pa.ChunkedArray | pa.Array) -> int:
     return int(np.flatnonzero(np.asarray(mask, dtype=bool))[0])
 
 
-def _float64(col: pa.ChunkedArray) -> NDArray[np.float64]:
-    """A numeric column as one float64 array (nulls as NaN), copying only to join chunks."""
-    if col.type != pa.float64():
-        col = col.cast(pa.float64())
-    if col.null_count:
-        col = pc.fill_null(col, np.nan)
-    if col.num_chunks == 1:
-        return np.asarray(col.chunk(0).to_numpy(zero_copy_only=False), dtype=np.float64)
-    out = np.empty(len(col), dtype=np.float64)
-    k = 0
-    for chunk in col.chunks:
-        out[k:k + len(chunk)] = chunk.to_numpy(zero_copy_only=False)
-        k += len(chunk)
-    return out
+def _as_float64(col: pa.ChunkedArray) -> pa.ChunkedArray:
+    """Numbers as float64 with nulls kept (no copy when they already are)."""
+    return col if col.type == pa.float64() else col.cast(pa.float64())
 
 
 def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
-                  ) -> tuple[dict[str, Column], ValueProblem | None]:
-    """Numpy columns of ``table`` (numbers as float64), or the first value that does not fit.
+                  ) -> tuple[dict[str, Column | pa.ChunkedArray], ValueProblem | None]:
+    """Checked columns of ``table``, or the first value that does not fit.
 
-    ``float`` columns must hold finite numbers; ``float_or_empty`` numbers or nulls (NaN, not
-    infinite); ``str`` columns non-empty text (leading and trailing spaces are dropped).
+    Numbers stay float64 Arrow arrays (see :class:`Table`); text becomes numpy. ``float``
+    columns must hold finite numbers; ``float_or_empty`` numbers or nulls (NaN, not infinite);
+    ``str`` columns non-empty text (leading and trailing spaces are dropped).
     """
-    out: dict[str, Column] = {}
+    out: dict[str, Column | pa.ChunkedArray] = {}
     for name in table.column_names:
         col = table.column(name)
         kind = kinds[name]
@@ -107,11 +123,12 @@ def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
         if col.null_count and kind == "float":
             return out, ValueProblem(_first(col.is_null()), name, f"{name!r} is missing",
                                      "a number")
-        values = _float64(col)
-        bad = np.isinf(values) if kind == "float_or_empty" else ~np.isfinite(values)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            return out, ValueProblem(k, name, f"{name!r} is {values[k]}", "a finite number")
+        values = _as_float64(col)
+        bad = pc.is_inf(values) if kind == "float_or_empty" else pc.invert(pc.is_finite(values))
+        if pc.any(bad).as_py():
+            k = _first(pc.fill_null(bad, False))
+            return out, ValueProblem(k, name, f"{name!r} is {values[k].as_py()}",
+                                     "a finite number")
         out[name] = values
     return out, None
 
@@ -138,6 +155,7 @@ def check_columns(header: Sequence[str], kinds: Mapping[str, ColumnKind],
 # Reading CSV
 # --------------------------------------------------------------------------------------------
 _NON_SPACE = re.compile(rb"\S")
+_HEAD_BYTES = 1 << 16
 _BLOCK_BYTES = 1 << 20
 """Arrow CSV block size: blocks that stay in cache parse faster than large ones."""
 
@@ -230,14 +248,22 @@ def _fast(body: pa.Buffer, header: list[str], kinds: Mapping[str, ColumnKind]) -
     return Table(columns, tuple(header), parsed.num_rows)
 
 
-def read_table(data: bytes, *, name: str, kinds: Mapping[str, ColumnKind],
+def _head(buf: pa.Buffer) -> bytes:
+    """The start of the file, up to the end of its header line."""
+    head = buf[:_HEAD_BYTES].to_pybytes()
+    if len(buf) > len(head) and re.search(rb"\S[^\n]*\n", head) is None:
+        return buf.to_pybytes()
+    return head
+
+
+def read_table(data: bytes | pa.Buffer, *, name: str, kinds: Mapping[str, ColumnKind],
                required: Sequence[str]) -> Table:
     """Parse a CSV table with a header line.
 
     Parameters
     ----------
     data:
-        File contents.
+        File contents (a memory-mapped file's Arrow buffer is read without a copy).
     name:
         File name for error messages.
     kinds:
@@ -250,17 +276,18 @@ def read_table(data: bytes, *, name: str, kinds: Mapping[str, ColumnKind],
     FormatError
         Naming the line, column and value that do not fit.
     """
-    header, body_start = _header(data, name=name)
+    buf = data if isinstance(data, pa.Buffer) else pa.py_buffer(data)
+    header, body_start = _header(_head(buf), name=name)
     check_columns(header, kinds, required, where=f"{name} line 1")
-    body = pa.py_buffer(data)[body_start:]
-    if _NON_SPACE.search(data, body_start) is None:
-        empty: dict[str, Column] = {
+    if _NON_SPACE.search(memoryview(buf), body_start) is None:
+        empty: dict[str, Column | pa.ChunkedArray] = {
             c: (np.zeros(0, dtype=np.str_) if kinds[c] == "str" else np.zeros(0)) for c in header}
         return Table(empty, tuple(header), 0)
-    table = _fast(body, header, kinds)
+    table = _fast(buf[body_start:], header, kinds)
     if table is not None:
         return table
-    return _careful(_decode(data, name=name), header, kinds, name=name)
+    raw = buf.to_pybytes()
+    return _careful(_decode(raw, name=name), header, kinds, name=name)
 
 
 # --------------------------------------------------------------------------------------------

@@ -121,7 +121,8 @@ class _SessionFiles:
             raise FormatError(f"both {' and '.join(found)}", where=self.label,
                               expected=f"one {stem} table")
         name = found[0]
-        return decode_table(self.read(name), table=stem, name=name), name
+        return decode_table(self._source.buffer(self._members[name]), table=stem,
+                            name=name), name
 
 
 class _ArrowTables:
@@ -149,7 +150,7 @@ def _group(table: Table, cols: tuple[str, ...], *, name: str) -> FloatArray | No
         missing = [c for c, p in zip(cols, present, strict=True) if not p]
         raise FormatError(f"incomplete column group, missing {', '.join(missing)}",
                           where=f"{name} line 1", expected=f"all of {','.join(cols)} or none")
-    return np.column_stack([table.float(c) for c in cols])
+    return table.matrix(cols)
 
 
 def _repaired(t: FloatArray, groups: list[FloatArray], *, name: str, repair: bool,
@@ -396,7 +397,7 @@ def _read_obs(src: _Tables, stem: str, *, repair: bool) -> dict[str, Any] | None
     if found is None:
         return None
     table, name = found
-    cols: dict[str, Any] = {c: table.columns[c] for c in table.present}
+    cols: dict[str, Any] = {c: table.column(c) for c in table.present}
     t = table.float("t")
     if repair and len(t) > 1 and np.any(np.diff(t) < 0):
         others = [c for c in table.present if c != "t"]

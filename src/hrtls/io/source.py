@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import IO, Literal
 
+import pyarrow as pa
+
 from hrtls.errors import FormatError, InputError
 
 DEFAULT_MAX_BYTES = 2 * 1024**3
@@ -62,6 +64,21 @@ class Source:
     def read(self, name: str) -> bytes:
         """Contents of member ``name``."""
         return self.head(name, -1)
+
+    def buffer(self, name: str) -> pa.Buffer:
+        """Contents of member ``name`` as an Arrow buffer; a file is memory-mapped, not copied."""
+        if name not in self.names:
+            raise InputError(f"no member {name!r}", where=str(self.path),
+                             expected=f"one of {', '.join(self.names[:10])}")
+        if self.kind == "zip":
+            return pa.py_buffer(self.read(name))
+        path = self.path if self.kind == "file" else self.path / name
+        try:
+            with pa.memory_map(str(path)) as mapped:
+                return mapped.read_buffer()
+        except OSError as exc:
+            raise InputError(f"cannot be read ({exc})", where=str(path),
+                             expected="a readable file") from None
 
     def head(self, name: str, n_bytes: int) -> bytes:
         """The first ``n_bytes`` of member ``name`` (all of it for ``-1``)."""

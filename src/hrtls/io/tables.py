@@ -39,7 +39,8 @@ from hrtls.io.csvtable import (
 from hrtls.io.schema import TABLE_KEY, TABLES, UNIT_KEY, TableSpec
 
 PARQUET_COMPRESSION = "zstd"
-"""Codec of the Parquet files hrtls writes."""
+"""Codec of the Parquet files hrtls writes; numbers are byte-stream-split first (they
+compress better and decode about twice as fast as with dictionaries)."""
 
 
 def _spec(table: str) -> TableSpec:
@@ -103,12 +104,15 @@ def from_arrow(arrow: pa.Table, *, table: str, name: str | None = None) -> Table
 
 def parquet_bytes(arrow: pa.Table) -> bytes:
     """``arrow`` as a compressed Parquet file."""
+    floats = [f.name for f in arrow.schema if pa.types.is_floating(f.type)]
     out = pa.BufferOutputStream()
-    pq.write_table(arrow, out, compression=PARQUET_COMPRESSION)
+    pq.write_table(arrow, out, compression=PARQUET_COMPRESSION,
+                   use_dictionary=[c for c in arrow.column_names if c not in floats],
+                   column_encoding=dict.fromkeys(floats, "BYTE_STREAM_SPLIT"))
     return bytes(out.getvalue())
 
 
-def read_parquet(data: bytes, *, table: str, name: str) -> Table:
+def read_parquet(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
     """Parse a Parquet file of ``table`` and check it like :func:`from_arrow`.
 
     Raises
@@ -135,7 +139,7 @@ def encode_table(columns: Mapping[str, NDArray[np.generic]], *, table: str, suff
     raise FormatError(f"suffix {suffix!r}", where=table, expected=".csv or .parquet")
 
 
-def decode_table(data: bytes, *, table: str, name: str) -> Table:
+def decode_table(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
     """Parse a ``.csv`` or ``.parquet`` file (by the suffix of ``name``) of ``table``."""
     if name.lower().endswith(".parquet"):
         return read_parquet(data, table=table, name=name)

@@ -251,7 +251,7 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, max_iterations: int)
         if cost_c <= cost:
             theta, res, u, cost = cand, res_c, u_c, cost_c
             lam = max(lam / 10.0, 1e-12)
-            if np.max(np.abs(step)) < 1e-9:
+            if np.max(np.abs(step)) < 1e-6:
                 break
         else:
             lam *= 10.0

@@ -232,6 +232,20 @@ class Tracker:
         self._t_last_sample = s.t0
         self._started = True
 
+    def set_landmarks(self, landmarks: dict[str, Landmark]) -> None:
+        """Add or replace landmarks from now on (e.g. nodes localized during a mission).
+
+        Observations queued before the call keep the position they were queued with; a
+        snapshot taken afterwards restores the current versions.
+        """
+        if not self._started:
+            raise InputError("set_landmarks() before start()", where="Tracker",
+                             expected="start() first")
+        geo = None if self.meta.georeference is None else self.meta.georeference.to_georeference()
+        self._start_landmarks = {**self._start_landmarks, **landmarks}
+        self.landmarks.update({k: lm.resolved(geo) if (lm.position is not None or geo is not None)
+                               else lm for k, lm in landmarks.items()})
+
     def _build_gait(self) -> None:
         """The gait stage, for the mounting now known (``self.meta``)."""
         assert self._step_model is not None

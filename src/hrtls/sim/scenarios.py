@@ -189,7 +189,8 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
     truth (gait law, mounting, channel, sensor errors) is in ``hidden_truth``.
     """
     r = rngs or _rngs(seed)
-    gp = gait or GaitParams()
+    # the person of this seed (also on its calibration course): its own generator
+    gp = (gait or GaitParams()).drawn(np.random.default_rng([seed, PERSON_STREAM]))
     infra = infra or Infrastructure()
     if options.get("calibration"):
         waypoints, legs = calibration_waypoints(waypoints)
@@ -260,6 +261,9 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                                 "sensor_errors": {k: v.to_dict()
                                                   for k, v in sim.realizations.items()}})
 
+
+PERSON_STREAM = 16
+"""Generator key of the simulated person (``default_rng([seed, PERSON_STREAM])``)."""
 
 BELT_TILT_SIGMA_RAD = float(np.deg2rad(2.0))
 """Per-axis standard deviation of a belt clip's true mounting about its nominal one, rad."""
@@ -410,10 +414,9 @@ def colombo_natural(seed: int, **options: Any) -> SimulationResult:
 _BASSO_TABLE = {1: ("A", "W", 433.0, 0.005, 0.01), 2: ("B", "W", 399.0, 0.01, 0.021),
                 3: ("B", "W", 551.0, 0.009, 0.009), 4: ("A", "W", 578.0, 0.015, 0.016),
                 5: ("B", "W+R", 1124.0, 0.005, 0.016), 6: ("A", "W+R", 3262.0, 0.003, 0.014)}
-_BASSO_USERS = {"A": GaitParams(step_a_m=0.36, step_b_s=0.26, run_a_m=0.60, run_b_s=0.20,
-                                weinberg_k_walk=0.44),
+_BASSO_USERS = {"A": GaitParams(step_a_m=0.36, step_b_s=0.26, run_a_m=0.60, run_b_s=0.20),
                 "B": GaitParams(step_a_m=0.30, step_b_s=0.25, run_a_m=0.52, run_b_s=0.19,
-                                weinberg_k_walk=0.40, pelvis_yaw_rad=0.09)}
+                                pelvis_yaw_rad=0.09)}
 
 
 def _basso(test: int, seed: int, options: Mapping[str, Any]) -> SimulationResult:
@@ -482,7 +485,7 @@ def tarrio_circle(seed: int, **options: Any) -> SimulationResult:
            "kalman_improvement_over_rss_m": 1.5, "rss_period_s": o["rss_period_s"]}
     return simulate_person(
         "tarrio_circle", seed, o, wps, device=get_device("tarrio_sim"),
-        gait=GaitParams(step_a_m=0.32, step_b_s=0.26, weinberg_k_walk=0.45), infra=infra,
+        gait=GaitParams(step_a_m=0.32, step_b_s=0.26), infra=infra,
         reference=ref, with_mag=False,
         description="Tarrio Sec. IV: 9 anchors on a 3x3 grid over 20x20 m, circle r = 8 m at "
                     f"{o['speed_m_s']} m/s, 50 Hz, A=-60 dBm, eta=2.5, sigma=5 dB, S=-95 dBm",
@@ -523,7 +526,7 @@ def tarrio_office(seed: int, **options: Any) -> SimulationResult:
            "max_error_m": {"rss": row[3], "rss_pdr": row[4], "kf": row[5]}}
     return simulate_person(
         "tarrio_office", seed, o, wps, device=get_device("mpu6150_phone").with_rate(50.0),
-        gait=GaitParams(weinberg_k_walk=0.45),
+        gait=GaitParams(),
         infra=Infrastructure(anchors=anchors, channel=channel),
         reference=ref, with_mag=False,
         description=f"Tarrio Sec. V: 12.5x8 m office, 9 anchors, user {user} walks up, turns "

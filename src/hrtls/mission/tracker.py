@@ -1,0 +1,275 @@
+"""Mission tracker: every agent's causal tracker plus the dropped network, in one loop.
+
+Each agent runs its own :class:`hrtls.pipeline.Tracker` (causal, chunk by chunk). Time advances in
+common windows of ``chunk_s``; within a window each agent's ranges go one of two ways:
+
+* to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
+  landmarks, the range sigma widened by the node's position uncertainty,
+  ``sqrt(sigma^2 + lambda_max(P_node))``);
+* otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
+  as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator`.
+
+Double counting: an agent never uses a node whose estimate contains its own ranges (its error
+is inside that estimate, and using it would count the agent's own position twice); an agent
+that contributed to a node keeps contributing, an agent that uses it never contributes. So the
+direct correlation between an agent and the nodes it localized never enters its filter. The
+second-order loop (agent A localizes n, agent B corrected by n localizes m, A uses m) is not
+modelled.
+
+After every window the nodes with new readings are re-estimated from all their readings, and
+each localized node is given to every agent allowed to use it (``Tracker.set_landmarks``).
+With ``cooperate=False`` no node is ever given to an agent (each agent alone).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.data import Session
+from hrtls.data.landmarks import Landmark
+from hrtls.data.observations import RangeMeasurements
+from hrtls.errors import InputError
+from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.pipeline.chunks import aligned_imu, session_window
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.tracker import Tracker, TrackResult
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MissionParams:
+    """Parameters of :class:`MissionTracker`.
+
+    Attributes
+    ----------
+    chunk_s:
+        Length of the common time window, s.
+    pass_gap_s:
+        Readings of one agent to one node more than this apart belong to different passes
+        (each pass has its own agent error in the node estimator), s.
+    refresh_fraction:
+        A node is estimated again once its readings grew by this fraction (at least 3 new).
+    cooperate:
+        Give localized nodes to the agents (False: every agent alone).
+    nodes:
+        Node estimator parameters.
+    """
+
+    chunk_s: float = 5.0
+    pass_gap_s: float = 15.0
+    refresh_fraction: float = 0.2
+    cooperate: bool = True
+    nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
+
+    def __post_init__(self) -> None:
+        for name in ("chunk_s", "pass_gap_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InputError(f"{name} = {v}", where="MissionParams", expected="> 0 s")
+
+
+@dataclass
+class _NodeReadings:
+    """Readings of one node: agent index, time, agent xy and covariance, range, sigma."""
+
+    agent: list[int] = field(default_factory=list)
+    t: list[float] = field(default_factory=list)
+    xy: list[FloatArray] = field(default_factory=list)
+    cov: list[FloatArray] = field(default_factory=list)
+    r: list[float] = field(default_factory=list)
+    s: list[float] = field(default_factory=list)
+
+    def ranges(self, pass_gap_s: float) -> NodeRanges:
+        a = np.asarray(self.agent, dtype=np.int64)
+        t = np.asarray(self.t)
+        order = np.lexsort((t, a))
+        a, t = a[order], t[order]
+        new_pass = np.ones(len(t), dtype=bool)
+        new_pass[1:] = (a[1:] != a[:-1]) | (np.diff(t) > pass_gap_s)
+        group = np.empty(len(t), dtype=np.int64)
+        group[order] = np.cumsum(new_pass) - 1
+        return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
+                                range_m=self.r, range_sigma_m=self.s, group=group)
+
+
+@dataclass(frozen=True, eq=False)
+class NodeTrack:
+    """A node's estimate over the mission."""
+
+    t: FloatArray
+    position_m: FloatArray
+    covariance_m2: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class MissionResult:
+    """Per-agent results, the final node estimates and each node's history (localized rows)."""
+
+    agents: dict[str, TrackResult]
+    nodes: dict[str, NodeEstimate]
+    node_history: dict[str, NodeTrack]
+    contributors: dict[str, list[str]]
+
+
+class MissionTracker:
+    """All agents of a mission and the dropped nodes as one causal loop (see module doc)."""
+
+    def __init__(self, agents: dict[str, Session], *, config: TrackerConfig | None = None,
+                 params: MissionParams | None = None) -> None:
+        if not agents:
+            raise InputError("no agents", where="mission", expected="at least one session")
+        self.params = params or MissionParams()
+        self.names = list(agents)
+        self.sessions = {k: (s.with_parts(imu=aligned_imu(s.imu)) if s.imu is not None else s)
+                         for k, s in agents.items()}
+        self.trackers = {k: Tracker(config) for k in self.names}
+        for k, tr in self.trackers.items():
+            tr.start_session(self.sessions[k])
+        self.estimator = NodeEstimator(self.params.nodes)
+        self.readings: dict[str, _NodeReadings] = {}
+        self.estimates: dict[str, NodeEstimate] = {}
+        self.contrib: dict[str, set[int]] = {}
+        self.users: dict[str, set[int]] = {}
+        self.given: dict[int, dict[str, int]] = {i: {} for i in range(len(self.names))}
+        self.history: dict[str, list[tuple[float, FloatArray, FloatArray]]] = {}
+        self._last_t = dict.fromkeys(self.names, -math.inf)
+        self._rows: dict[str, list[tuple[FloatArray, FloatArray, FloatArray]]] = {
+            k: [] for k in self.names}
+        self._version: dict[str, int] = {}
+        self._estimated_at: dict[str, int] = {}
+
+    def run(self) -> MissionResult:
+        """Process every agent's session to its end."""
+        spans = [s.time_span() for s in self.sessions.values()]
+        t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
+        k = 0
+        while t0 + k * self.params.chunk_s <= t1:
+            self.step(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
+            k += 1
+        results = {name: tr.finish() for name, tr in self.trackers.items()}
+        hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
+                             np.array([h[2] for h in rows])) for n, rows in self.history.items()}
+        contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
+        return MissionResult(results, dict(self.estimates), hist, contributors)
+
+    def step(self, t_start: float, t_end: float) -> None:
+        """One common window: feed every agent, then update the nodes and share them."""
+        touched: set[str] = set()
+        for i, name in enumerate(self.names):
+            part = session_window(self.sessions[name], t_start, t_end)
+            if part is None:
+                continue
+            use, keep = self._split_ranges(i, part.ranges)
+            self.trackers[name].update(part.with_parts(ranges=use))
+            if keep is not None:
+                touched |= self._collect(i, name, keep)
+        for node in sorted(touched):
+            n_now = len(self.readings[node].r)
+            n_then = self._estimated_at.get(node, 0)
+            if n_now - n_then < max(3, self.params.refresh_fraction * n_then):
+                continue
+            self._estimated_at[node] = n_now
+            obs = self.readings[node].ranges(self.params.pass_gap_s)
+            prev = self.estimates.get(node)
+            init = prev.position_m if prev is not None and prev.localized else None
+            est = self.estimator.estimate(obs, initial_m=init)
+            if not est.localized and init is not None:
+                est = self.estimator.estimate(obs)
+            self.estimates[node] = est
+            if est.localized:
+                self._version[node] = self._version.get(node, 0) + 1
+                self.history.setdefault(node, []).append(
+                    (t_end, est.position_m.copy(), est.covariance_m2.copy()))
+        if self.params.cooperate:
+            self._share(t_end)
+
+    def _split_ranges(self, i: int, ranges: RangeMeasurements | None
+                      ) -> tuple[RangeMeasurements | None, RangeMeasurements | None]:
+        """Ranges for the agent's own tracker (usable nodes) and readings kept for the nodes."""
+        if ranges is None:
+            return None, None
+        usable = np.array([self._usable(i, str(n)) for n in ranges.node], dtype=bool)
+        use = None
+        if usable.any():
+            sig = ranges.sigma_m[usable].copy()
+            extra = np.array([self._node_var(str(n)) for n in ranges.node[usable]])
+            sig = np.sqrt(sig ** 2 + extra)
+            use = RangeMeasurements(ranges.t[usable], ranges.node[usable],
+                                    ranges.range_m[usable], sig)
+            for n in set(ranges.node[usable].tolist()):
+                self.users.setdefault(str(n), set()).add(i)
+        keep = None
+        if (~usable).any():
+            m = ~usable
+            keep = RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m],
+                                     ranges.sigma_m[m])
+        return use, keep
+
+    def _usable(self, i: int, node: str) -> bool:
+        return (self.params.cooperate and node in self.given[i]
+                and i not in self.contrib.get(node, set()))
+
+    def _node_var(self, node: str) -> float:
+        return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
+
+    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
+        """Store the readings with the agent's estimate at their times; the nodes touched."""
+        est = self.trackers[name].estimates_since(-math.inf if not self._rows[name]
+                                                  else self._last_t[name])
+        if len(est):
+            self._rows[name].append((est.t, est.xyz[:, :2], est.cov_xy))
+            self._last_t[name] = float(est.t[-2]) if len(est) > 1 else self._last_t[name]
+        if not self._rows[name]:
+            return set()
+        t = np.concatenate([r[0] for r in self._rows[name]])
+        xy = np.concatenate([r[1] for r in self._rows[name]])
+        cov = np.concatenate([r[2] for r in self._rows[name]])
+        t, idx = np.unique(t[::-1], return_index=True)          # the newest version of a row
+        xy = xy[::-1][idx]
+        cov = cov[::-1][idx]
+        self._rows[name] = [(t, xy, cov)]
+        touched: set[str] = set()
+        for n in np.unique(ranges.node).tolist():
+            node = str(n)
+            if i in self.users.get(node, set()):
+                continue
+            m = ranges.node == n
+            tq = ranges.t[m]
+            ok = tq <= t[-1]
+            if not ok.any():
+                continue
+            tq = tq[ok]
+            ax = np.interp(tq, t, xy[:, 0])
+            ay = np.interp(tq, t, xy[:, 1])
+            j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
+            rd = self.readings.setdefault(node, _NodeReadings())
+            rd.agent.extend([i] * len(tq))
+            rd.t.extend(tq.tolist())
+            rd.xy.extend(np.column_stack([ax, ay]))
+            rd.cov.extend(cov[j])
+            rd.r.extend(ranges.range_m[m][ok].tolist())
+            rd.s.extend(ranges.sigma_m[m][ok].tolist())
+            self.contrib.setdefault(node, set()).add(i)
+            touched.add(node)
+        return touched
+
+    def _share(self, t: float) -> None:
+        """Give each localized node (current version) to the agents allowed to use it."""
+        for node, est in self.estimates.items():
+            if not est.localized:
+                continue
+            v = self._version[node]
+            sigma = float(np.sqrt(self._node_var(node)))
+            lm = Landmark(id=node, kind="node", floor=0, accuracy_m=max(sigma, 1e-6),
+                          position=(float(est.position_m[0]), float(est.position_m[1]), 0.0),
+                          updated=t)
+            for i, name in enumerate(self.names):
+                if i in self.contrib.get(node, set()) or self.given[i].get(node) == v:
+                    continue
+                self.trackers[name].set_landmarks({node: lm})
+                self.given[i][node] = v

@@ -1,0 +1,121 @@
+"""Simulated hybrid mission: rescuers entering a floor with dropped range nodes (Inderst Ch. 3, 5).
+
+``inderst_hybrid_mission``: a 60x30 m office floor (corridors around rooms whose walls block the
+radio line of sight), RFID tags at the entrance doors with known positions, and ``n_nodes`` range
+nodes dropped at random in the corridors without positions. ``n_rescuers`` rescuers with a waist
+IMU enter one after the other (``stagger_s`` apart) from the entrance and walk random routes
+through the corridors, ranging to every node within ``max_range_m`` (Gaussian noise
+``range_sigma_m``, exponential NLOS bias behind walls, dropouts, failed nodes never answer).
+
+The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
+location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
+for scoring only. One floor only (the issue's two floors and the robot are not simulated here).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from shapely.geometry import Point, box
+from shapely.ops import unary_union
+
+from hrtls.data import Session
+from hrtls.errors import InputError
+from hrtls.sim.devices import get_device
+from hrtls.sim.infrastructure import RangeModel, RfidTag
+from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
+from hrtls.sim.motion_truth import random_floorplan_walk
+from hrtls.sim.scenarios import Infrastructure, SimulationResult, _rngs, simulate_person
+
+FloatArray = NDArray[np.float64]
+
+FREE_SPACE = unary_union([box(0, 0, 60, 3), box(0, 27, 60, 30), box(0, 0, 3, 30),
+                          box(57, 0, 60, 30), box(28.5, 0, 31.5, 30)])
+"""Corridors of the floor (the rescuers walk here; nodes are dropped here)."""
+ROOMS = unary_union([box(3, 3, 28.5, 27), box(31.5, 3, 57, 27)]).boundary
+"""Room walls (radio line of sight through them is NLOS)."""
+ENTRANCE_XY = (1.5, 1.5)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MissionOptions:
+    """Options of :func:`inderst_hybrid_mission` (lengths m, times s)."""
+
+    n_rescuers: int = 3
+    n_nodes: int = 40
+    walk_s: float = 300.0
+    stagger_s: float = 60.0
+    range_sigma_m: float = 0.1
+    max_range_m: float = 10.0
+    nlos_bias_mean_m: float = 1.0
+    node_failure_fraction: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.n_rescuers < 1 or self.n_nodes < 1:
+            raise InputError(f"{self.n_rescuers} rescuers, {self.n_nodes} nodes",
+                             where="MissionOptions", expected=">= 1 each")
+        if not 0.0 <= self.node_failure_fraction < 1.0:
+            raise InputError(f"node_failure_fraction = {self.node_failure_fraction}",
+                             where="MissionOptions", expected="in [0, 1)")
+
+
+@dataclass(frozen=True, eq=False)
+class Mission:
+    """Agents' sessions (what they know) and the truth kept apart for scoring."""
+
+    agents: dict[str, Session]
+    simulations: dict[str, SimulationResult]
+    node_truth_m: dict[str, FloatArray]
+    options: MissionOptions
+
+
+def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, float, float]]:
+    x0, y0, x1, y1 = FREE_SPACE.bounds
+    out: dict[str, tuple[float, float, float]] = {}
+    while len(out) < n:
+        x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
+        if FREE_SPACE.contains(Point(x, y)):
+            out[f"N{len(out) + 1}"] = (float(x), float(y), 0.5)
+    return out
+
+
+def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> Mission:
+    """The mission of seed ``seed`` (see module doc)."""
+    o = options or MissionOptions()
+    r = _rngs(seed)
+    nodes = _drop_nodes(r[7], o.n_nodes)
+    alive = {k: v for k, v in nodes.items() if r[7].random() >= o.node_failure_fraction}
+    tags = [RfidTag(id="T1", position=(1.5, 0.2, 2.2), lobe_orientation_rad=np.pi / 2, floor=0),
+            RfidTag(id="T2", position=(0.2, 1.5, 2.2), lobe_orientation_rad=0.0, floor=0)]
+    sites = np.column_stack([r[7].uniform(0, 60, 15), r[7].uniform(0, 30, 15), np.full(15, 0.8)])
+    model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m, max_range_m=o.max_range_m,
+                       nlos_bias_mean_m=o.nlos_bias_mean_m, walls=ROOMS)
+    agents: dict[str, Session] = {}
+    sims: dict[str, SimulationResult] = {}
+    for i in range(o.n_rescuers):
+        rr = _rngs(seed * 1000 + 17 * (i + 1))
+        wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 1.15,
+                                    start=ENTRANCE_XY, stop_probability=0.1,
+                                    stop_range_s=(2.0, 8.0), min_leg_m=3.0)
+        sim = simulate_person(
+            "inderst_hybrid_mission", seed, {"rescuer": i}, wps, device=get_device("inemo"),
+            magnetic=MagneticEnvironment(anomalies=random_anomalies(r[7], sites)),
+            infra=Infrastructure(tags=tags, nodes=alive, range_model=model),
+            description=f"hybrid mission, rescuer {i + 1} of {o.n_rescuers}",
+            start_pause_s=3.0 + i * o.stagger_s, rngs=rr)
+        known = {k: lm for k, lm in sim.session.landmarks.items() if lm.kind != "node"}
+        agents[f"R{i + 1}"] = dataclasses.replace(sim.session, landmarks=known)
+        sims[f"R{i + 1}"] = sim
+    truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
+    return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o)
+
+
+def mission_summary(mission: Mission) -> dict[str, Any]:
+    """Counts of the mission (for tables)."""
+    return {"agents": len(mission.agents), "nodes": len(mission.node_truth_m),
+            "ranges": {k: 0 if s.ranges is None else len(s.ranges.t)
+                       for k, s in mission.agents.items()}}

@@ -1,0 +1,72 @@
+"""MissionTracker on a short simulated mission; Tracker.set_landmarks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hrtls.data.landmarks import Landmark
+from hrtls.mission.tracker import MissionParams, MissionTracker
+from hrtls.pipeline.tracker import Tracker
+from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
+
+
+@pytest.fixture(scope="module")
+def mission():  # type: ignore[no-untyped-def]
+    return inderst_hybrid_mission(3, MissionOptions(walk_s=90.0, stagger_s=20.0, n_nodes=15))
+
+
+def test_sessions_hold_no_node_positions(mission) -> None:  # type: ignore[no-untyped-def]
+    for s in mission.agents.values():
+        assert all(lm.kind != "node" for lm in s.landmarks.values())
+        assert s.ranges is not None and len(s.ranges.t) > 0
+
+
+def test_nodes_localized_near_truth_and_shared_only_with_non_contributors(
+        mission) -> None:  # type: ignore[no-untyped-def]
+    res = MissionTracker(mission.agents, params=MissionParams(cooperate=True)).run()
+    loc = [n for n, e in res.nodes.items() if e.localized]
+    assert len(loc) >= 3
+    err = [np.linalg.norm(res.nodes[n].position_m - mission.node_truth_m[n]) for n in loc]
+    assert np.median(err) < 3.0
+    for n in loc:
+        c = np.asarray(res.nodes[n].covariance_m2)
+        np.testing.assert_allclose(c, c.T)
+        assert np.linalg.eigvalsh(c)[0] > 0
+        assert len(res.node_history[n].t) >= 1
+    # a contributor never used the node: its accepted range diagnostics never name it
+    for n, names in res.contributors.items():
+        for name in names:
+            used = [d for d in res.agents[name].diagnostics
+                    if getattr(d, "kind", "") == "range" and getattr(d, "source", "") == n
+                    and getattr(d, "accepted", False)]
+            assert not used, (n, name)
+
+
+def test_without_cooperation_no_range_corrects_an_agent(mission) -> None:  # type: ignore[no-untyped-def]
+    res = MissionTracker(mission.agents, params=MissionParams(cooperate=False)).run()
+    for r in res.agents.values():
+        assert not [d for d in r.diagnostics if getattr(d, "kind", "") == "range"
+                    and getattr(d, "accepted", False)]
+
+
+def test_set_landmarks_makes_a_node_usable_from_then_on(mission) -> None:  # type: ignore[no-untyped-def]
+    from hrtls.pipeline.chunks import split_session
+    s = mission.simulations["R1"].session
+    late = s.ranges.node[s.ranges.t >= 40.0]
+    names, counts = np.unique(late, return_counts=True)
+    node = str(names[np.argmax(counts)])
+    true_xyz = tuple(float(v) for v in s.landmarks[node].xyz())
+    agent = mission.agents["R1"]
+    tr = Tracker()
+    tr.start_session(agent)
+    chunks = list(split_session(agent, 30.0))
+    tr.update(chunks[0])
+    tr.set_landmarks({node: Landmark(id=node, kind="node", position=true_xyz)})
+    for c in chunks[1:]:
+        tr.update(c)
+    diag = [d for d in tr.finish().diagnostics if d.kind == "range" and d.source == node]
+    t_acc = [d.t for d in diag if d.accepted]
+    assert t_acc and min(t_acc) >= 30.0 - 1e-9
+    restored = Tracker.restore(tr.snapshot())
+    assert restored.landmarks[node].position == true_xyz
