@@ -24,7 +24,6 @@ import argparse
 import asyncio
 import json
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -206,11 +205,16 @@ def main() -> None:
             proc, token = start_server(str(Path(tmp) / f"load{n}.db"), port, 2)
             try:
                 rss0 = rss_kib(proc.pid)
-                res = asyncio.run(run_level(f"http://127.0.0.1:{port}", token, n, streams,
-                                            args.duration_s))
+                try:
+                    res = asyncio.run(run_level(f"http://127.0.0.1:{port}", token, n, streams,
+                                                args.duration_s))
+                except (httpx.HTTPError, OSError, TimeoutError) as exc:
+                    print(f"| {n} | failed: {type(exc).__name__} (server overloaded) |",
+                          flush=True)
+                    break
                 rss1 = rss_kib(proc.pid)
             finally:
-                proc.send_signal(signal.SIGTERM)
+                proc.kill()
                 proc.wait(timeout=60)
             db = __import__("sqlite3").connect(str(Path(tmp) / f"load{n}.db"))
             stored = db.execute("SELECT count(*), count(DISTINCT agent_id || '-' || seq) "
@@ -224,7 +228,10 @@ def main() -> None:
             rows.append((n, p(lat, 50), p(lat, 99), float(lat.max()) if len(lat) else 0.0,
                          p(lag, 50), p(lag, 99), lost, dup, res["r429"],
                          res["samples"] / args.duration_s, (rss1 - rss0) / n / 1024.0, ok))
-            print(f"N={n} done in {res['wall_s']:.0f} s", flush=True)
+            r = rows[-1]
+            print(f"| {r[0]} | {r[1]:.3f} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.2f} | {r[5]:.2f} | "
+                  f"{r[6]} | {r[7]} | {r[8]} | {r[9]:.0f} | {r[10]:.1f} | "
+                  f"{'yes' if r[11] else 'no'} |  ({res['wall_s']:.0f} s)", flush=True)
     print()
     print("| agents | latency p50 s | p99 s | max s | estimate lag p50 s | p99 s | lost | dup |"
           " 429 retries | IMU samples/s | MiB/agent | sustained |")

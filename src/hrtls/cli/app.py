@@ -44,7 +44,8 @@ They are imported only when run (or when their own help is asked for), so that `
 
 SUMMARIES: dict[str, str] = {
     "track": "Track a recording: trajectory.csv, steps.csv, trajectory.geojson, report.json.",
-    "demo": "Live supervisor and dashboard with a simulated team (--no-serve: batch comparison).",
+    "demo": "Live supervisor and dashboard with a simulated team; --no-serve: the batch "
+            "comparison.",
     "ipin": "Track from the first POSI (start, heading unknown); errors "
             "at the later POSI landmarks.",
     "simulate": "Simulate a paper scenario into a session folder with ground truth.",

@@ -18,11 +18,12 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from hrtls import __version__
 from hrtls.service import schemas
+from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.events import EventLog
-from hrtls.service.host import HostParams, TrackerHost
+from hrtls.service.host import DECODERS, HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
 from hrtls.service.runner import TrackerRunner, make_runner
@@ -78,6 +79,7 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     """The FastAPI application of one deployment (database migrated on start-up)."""
     engine = make_engine(settings.db_url)
     migrate(engine)
+    DECODERS.setdefault("sensorlogger", decode_sensorlogger)
     sessions = session_factory(engine)
     hub = Hub()
     events = EventLog(sessions, hub, clock)

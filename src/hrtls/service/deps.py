@@ -35,13 +35,17 @@ class Services:
     order_versions: dict[int, int] = field(default_factory=dict)
     _t0: dict[int, float] = field(default_factory=dict)
 
-    def mission_time(self, mission_id: int) -> float:
-        """Mission time now, s."""
+    def mission_t0(self, mission_id: int) -> float:
+        """Unix time of the mission's t = 0, s."""
         if mission_id not in self._t0:
             with self.sessions() as db:
                 mission = db.get(Mission, mission_id)
                 self._t0[mission_id] = 0.0 if mission is None else mission.t0_unix
-        return self.clock() - self._t0[mission_id]
+        return self._t0[mission_id]
+
+    def mission_time(self, mission_id: int) -> float:
+        """Mission time now, s."""
+        return self.clock() - self.mission_t0(mission_id)
 
     def picture(self, db: Session, mission: Mission, *, t: float | None, floor: int | None,
                 trail_s: float) -> dict[str, Any]:

@@ -6,19 +6,20 @@ import asyncio
 import contextlib
 import json
 from collections.abc import MutableMapping
-from typing import Any
+from typing import Annotated, Any
 
 import msgpack
-from fastapi import APIRouter, HTTPException, Request, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, HTTPException, Query, Request, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
+from hrtls.service.adapters import sensorlogger_batch
 from hrtls.service.batches import BatchError, decode_body, parse_batch, validation_errors
-from hrtls.service.deps import AgentCaller, Services, ServicesDep
+from hrtls.service.deps import UNAUTHORIZED, AgentCaller, Services, ServicesDep, bearer_secret
 from hrtls.service.host import Busy
 from hrtls.service.limits import retry_after_header
-from hrtls.service.routes.live import authenticate, decode_ws
+from hrtls.service.routes.live import _lookup, authenticate, decode_ws
 from hrtls.service.routes.orders import ReceiptIn, answer, deliver
 from hrtls.service.security import Principal
 
@@ -172,3 +173,33 @@ async def _push_orders(send: Any, services: Services, agent_id: int) -> None:
                 if o["answered_at"] is None:
                     await send({"type": "order", "order": o})
         await asyncio.sleep(ORDER_POLL_S)
+
+
+@router.post("/ingest/sensorlogger")
+async def sensorlogger(request: Request, services: ServicesDep,
+                       token: Annotated[str | None, Query(max_length=200)] = None
+                       ) -> JSONResponse:
+    """Sensor Logger's HTTP push (the app cannot set headers: the token may be a query)."""
+    secret = bearer_secret(request.headers.get("authorization")) or token
+    who = None if secret is None else await run_in_threadpool(_lookup, services, secret)
+    if who is None:
+        return JSONResponse({"detail": "token unknown, revoked or expired (Bearer or ?token=)"},
+                            status_code=401, headers=UNAUTHORIZED)
+    if who.role != "agent" or who.agent_id is None or who.mission_id is None:
+        return JSONResponse({"detail": f"role {who.role!r} may not do this (needs agent)"},
+                            status_code=403)
+    check_rate(services, who)
+    body = await request.body()
+    t0 = services.mission_t0(who.mission_id)
+    try:
+        value = decode_body(body, "application/json")
+        batch = await run_in_threadpool(sensorlogger_batch, value, t0_unix=t0)
+        ack = await run_in_threadpool(
+            services.host.accept, who.agent_id, batch, body=body,
+            content_type=f"application/json; t0_unix={t0!r}", source="sensorlogger")
+    except BatchError as exc:
+        return JSONResponse({"detail": exc.detail}, status_code=exc.status)
+    except Busy as exc:
+        return JSONResponse({"detail": f"agent {who.agent_id}: {exc}"}, status_code=429,
+                            headers=retry_after_header(exc.retry_after_s))
+    return JSONResponse(ack)

@@ -246,19 +246,29 @@ export class Dashboard {
       a.est ? quality(a.est.var_x, a.est.cov_xy, a.est.var_y).level : null]));
     if (list.dataset.renderKey === key) return;
     list.dataset.renderKey = key;
+    // one stable <li> per agent: only its content changes (keeps it clickable)
+    this.agentItems = this.agentItems || new Map();
     const rows = sorted.map((a) => {
       const stale = this.isStale(a);
       const q = a.est ? quality(a.est.var_x, a.est.cov_xy, a.est.var_y) : null;
       const level = stale ? "stale" : q?.level || "stale";
-      return el("li", { class: stale ? "stale" : "", dataset: { agent: a.id },
-        onclick: () => this.select(a.id) },
-      el("span", { class: `quality ${level}`, title: q ? `±${q.radius_m.toFixed(1)} m (2σ)` : "" }),
-      `${a.name} `,
-      el("span", { class: "muted" }, a.est
-        ? `F${a.est.floor} · ${a.est.activity || "-"}${stale ? ` · ${formatAge(this.ageOf(a))} old` : ""}`
-        : "no data"));
+      let li = this.agentItems.get(a.id);
+      if (!li) {
+        li = el("li", { dataset: { agent: a.id }, onclick: () => this.select(a.id) });
+        this.agentItems.set(a.id, li);
+      }
+      li.className = stale ? "stale" : "";
+      li.replaceChildren(
+        el("span", { class: `quality ${level}`, title: q ? `±${q.radius_m.toFixed(1)} m (2σ)` : "" }),
+        `${a.name} `,
+        el("span", { class: "muted" }, a.est
+          ? `F${a.est.floor} · ${a.est.activity || "-"}${stale ? ` · ${formatAge(this.ageOf(a))} old` : ""}`
+          : "no data"));
+      return li;
     });
-    list.replaceChildren(...rows);
+    if (rows.length !== list.children.length || rows.some((li, i) => list.children[i] !== li)) {
+      list.replaceChildren(...rows);
+    }
     void shown;
   }
 
