@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal, cast
 
 import typer
 
@@ -40,6 +40,15 @@ def serve(
         "--ssl-certfile", help="TLS certificate (PEM) for https/wss.")] = None,
     ssl_keyfile: Annotated[Path | None, typer.Option(
         "--ssl-keyfile", help="TLS private key (PEM).")] = None,
+    engine: Annotated[str, typer.Option(
+        "--engine", help="Where the agents' trackers run: local (this process) or ray "
+        "(shard actors; pip install 'hrtls[ray]').")] = _D["engine"],
+    ray_address: Annotated[str | None, typer.Option(
+        "--ray-address", help="Join this Ray cluster (auto, ray://head:10001); "
+        "default: start a local Ray.")] = None,
+    ray_shards: Annotated[int, typer.Option(
+        "--ray-shards", help="Shard actors the agents are hashed onto (--engine ray).")
+    ] = _D["ray_shards"],
     new_commander_token: Annotated[bool, typer.Option(
         "--new-commander-token", help="Create and print another commander token.")] = False,
 ) -> None:
@@ -57,7 +66,9 @@ def serve(
                             rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
                             session_hours=session_hours,
                             cors_origins=tuple(cors_origin or ()),
-                            tls=ssl_certfile is not None)
+                            tls=ssl_certfile is not None,
+                            engine=cast("Literal['local', 'ray']", engine),
+                            ray_address=ray_address, ray_shards=ray_shards)
     except ValidationError as exc:
         first = exc.errors()[0]
         name = str(first["loc"][0]) if first["loc"] else "option"

@@ -26,7 +26,7 @@ from hrtls.service.events import EventLog
 from hrtls.service.host import DECODERS, HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
-from hrtls.service.runner import InProcessRunner, TrackerRunner
+from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 
@@ -83,7 +83,7 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     sessions = session_factory(engine)
     hub = Hub()
     events = EventLog(sessions, hub, clock)
-    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or InProcessRunner(),
+    host = TrackerHost(sessions=sessions, clock=clock, runner=runner or make_runner(settings),
                        params=HostParams(queue_batches=settings.queue_batches,
                                          snapshot_every_s=settings.snapshot_every_s,
                                          workers=settings.tracker_threads),

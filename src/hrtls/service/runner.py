@@ -23,6 +23,7 @@ from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.tracker import RATE_SAMPLES
 from hrtls.service.batches import Batch, to_chunk
+from hrtls.service.settings import Settings
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,15 @@ class TrackerRunner(Protocol):
 
     def close(self, agent_id: int) -> None:
         """Forget the agent."""
+
+
+def make_runner(settings: Settings) -> TrackerRunner:
+    """The runner ``settings.engine`` names: in-process, or Ray shard actors (``hrtls[ray]``)."""
+    if settings.engine == "local":
+        return InProcessRunner()
+    from hrtls.runner.ray_live import RayShardRunner
+
+    return RayShardRunner.connect(n_shards=settings.ray_shards, address=settings.ray_address)
 
 
 def _slice(e: Estimates, sl: slice) -> Estimates:

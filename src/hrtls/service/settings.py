@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -33,6 +34,9 @@ class Settings(BaseModel):
     tls: bool = False
     ws_auth_timeout_s: float = Field(default=5.0, gt=0.0)
     web_root: Path | None = None
+    engine: Literal["local", "ray"] = "local"
+    ray_address: str | None = None
+    ray_shards: int = Field(default=2, ge=1, le=4096)
 
     @field_validator("cors_origins")
     @classmethod
