@@ -2,6 +2,8 @@
 # Start Debian's PostgreSQL (installing it when missing) and create the service tests' database.
 # Prints the URL for HRTLS_TEST_PG. Idempotent; run as root or a user with sudo.
 set -euo pipefail
+# Everything but the URL goes to stderr (pg_ctlcluster prints notices such as "Removed stale pid file.").
+exec 3>&1 1>&2
 if [ "$(id -u)" -eq 0 ]; then as_root=(); else as_root=(sudo); fi
 if ! command -v pg_lsclusters >/dev/null 2>&1; then
   "${as_root[@]}" apt-get update -q
@@ -23,4 +25,4 @@ fi
 if [ "$(psql_pg "SELECT 1 FROM pg_database WHERE datname='hrtls_test'")" != "1" ]; then
   psql_pg "CREATE DATABASE hrtls_test OWNER hrtls"
 fi
-echo "postgresql://hrtls:hrtls@127.0.0.1:${port}/hrtls_test"
+echo "postgresql://hrtls:hrtls@127.0.0.1:${port}/hrtls_test" >&3
