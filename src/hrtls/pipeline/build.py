@@ -68,7 +68,7 @@ class Sensors:
 
 def attitude_method(config: TrackerConfig, sensors: Sensors, notes: Notes) -> str:
     """The attitude method to run with these sensors (degraded modes noted)."""
-    method = config.attitude.method
+    method: str = config.attitude.method
     s = sensors
     if method == "auto":
         method = "device" if s.has_orientation else DEFAULT_FILTER
