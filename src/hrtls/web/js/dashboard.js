@@ -5,6 +5,8 @@ import { MapView } from "./mapview.js";
 
 const TRAIL_WINDOW_S = 300;
 const ALARM_KINDS = new Set(["pass_prealarm", "pass_alarm", "fall", "silent", "uncertainty", "sos"]);
+// The banner shows the most urgent open alarm: a rescuer down before a silent link or doubt.
+const BANNER_RANK = { sos: 0, pass_alarm: 0, fall: 0, silent: 1, uncertainty: 2, pass_prealarm: 3 };
 const EVENT_TEXT = {
   pass_prealarm: "PASS pre-alarm", pass_alarm: "PASS ALARM", fall: "FALL", silent: "silent agent",
   uncertainty: "lost confidence", sos: "SOS", floor_change: "floor change", zone_enter: "entered",
@@ -305,7 +307,7 @@ export class Dashboard {
     }));
     const banner = document.getElementById("alarm-banner");
     if (!open.length) { banner.hidden = true; return; }
-    const top = open.find((e) => e.kind !== "pass_prealarm") || open[0];
+    const top = open.reduce((best, e) => (BANNER_RANK[e.kind] < BANNER_RANK[best.kind] ? e : best));
     const a = this.agents.get(top.agent);
     banner.hidden = false;
     banner.classList.toggle("pre", top.kind === "pass_prealarm");
