@@ -28,7 +28,8 @@ def test_nodes_localized_near_truth_and_shared_only_with_non_contributors(
     loc = [n for n, e in res.nodes.items() if e.localized]
     assert len(loc) >= 3
     err = [np.linalg.norm(res.nodes[n].position_m - mission.node_truth_m[n]) for n in loc]
-    assert np.median(err) < 3.0
+    # a 90 s walk past 15 nodes; benchmarks/mission.py has the figures over seeds
+    assert np.median(err) < 4.0
     for n in loc:
         c = np.asarray(res.nodes[n].covariance_m2)
         np.testing.assert_allclose(c, c.T)

@@ -13,7 +13,7 @@ from hrtls.attitude.inertial_lowpass import InertialLowpass
 from hrtls.attitude.quat_ekf import QuatEkf
 from hrtls.errors import InputError
 
-__all__ = ["FILTERS", "METHODS", "make_filter"]
+__all__ = ["DEFAULT_FILTER", "FILTERS", "METHODS", "make_filter"]
 
 FILTERS: dict[str, type[AttitudeFilter]] = {
     EulerEkf.name: EulerEkf,
@@ -22,6 +22,11 @@ FILTERS: dict[str, type[AttitudeFilter]] = {
     InertialLowpass.name: InertialLowpass,
 }
 """Sensor-fusion filters (they consume an IMU stream)."""
+
+DEFAULT_FILTER = InertialLowpass.name
+"""The filter of the tracker's ``auto`` attitude and of ``hrtls attitude``: the best end to end
+on the real IPIN files and the papers' development seeds (``benchmarks/attitude_end_to_end.py``,
+``docs/attitude.md``)."""
 
 METHODS: dict[str, type[AttitudeFilter] | type[DeviceOrientation]] = {
     **FILTERS,

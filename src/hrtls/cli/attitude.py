@@ -35,7 +35,7 @@ from rich.table import Table
 
 from hrtls.attitude.base import AttitudeResult
 from hrtls.attitude.device import DeviceOrientation, DeviceParams
-from hrtls.attitude.registry import FILTERS, METHODS, make_filter
+from hrtls.attitude.registry import DEFAULT_FILTER, FILTERS, METHODS, make_filter
 from hrtls.calibration.imu import (
     AXIS_POSITIONS,
     Calibration,
@@ -127,7 +127,7 @@ def write_attitude_csv(result: AttitudeResult, output: Path) -> Path:
     return output
 
 
-def attitude_command(session: Path, output: Path, method: str = "quat-ekf", *,
+def attitude_command(session: Path, output: Path, method: str = DEFAULT_FILTER, *,
                      calibration: Path | None = None, repair: bool = False) -> AttitudeResult:
     """Read a session, estimate its attitude and write the CSV (the body of ``hrtls attitude``)."""
     data = read_any_session(Path(session), repair=repair)
@@ -186,7 +186,7 @@ def attitude(
         "attitude.csv"),
     method: Annotated[str, typer.Option(
         "--method", "-m",
-        help="euler-ekf | quat-ekf | complementary | inertial-lp | device")] = "quat-ekf",
+        help="euler-ekf | quat-ekf | complementary | inertial-lp | device")] = DEFAULT_FILTER,
     calibration: Annotated[Path | None, typer.Option(
         "--calibration", "-c", help="IMU calibration JSON (from `hrtls calibrate`).")] = None,
     repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows (warns).")] = False,

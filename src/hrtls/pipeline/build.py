@@ -13,7 +13,7 @@ import numpy as np
 
 from hrtls.attitude.base import AttitudeFilter
 from hrtls.attitude.device import DeviceOrientation
-from hrtls.attitude.registry import make_filter
+from hrtls.attitude.registry import DEFAULT_FILTER, make_filter
 from hrtls.data import SessionMeta
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams
@@ -68,14 +68,14 @@ class Sensors:
 
 def attitude_method(config: TrackerConfig, sensors: Sensors, notes: Notes) -> str:
     """The attitude method to run with these sensors (degraded modes noted)."""
-    method = config.attitude.method
+    method: str = config.attitude.method
     s = sensors
     if method == "auto":
-        method = "device" if s.has_orientation else "quat-ekf"
+        method = "device" if s.has_orientation else DEFAULT_FILTER
     if s.has_imu and method == "device" and not s.has_orientation:
         notes.degrade("attitude 'device' asked but the session has no device orientation; "
-                      "using 'quat-ekf'")
-        method = "quat-ekf"
+                      f"using {DEFAULT_FILTER!r}")
+        method = DEFAULT_FILTER
     if s.has_imu and method not in ("device", "none") and not s.has_gyro and not s.has_mag:
         notes.degrade("no gyroscope and no magnetometer: heading is unobservable, "
                       "using accelerometer-only levelling and relative walking directions")

@@ -68,7 +68,8 @@ class AttitudeConfig(_Section):
 
     method: Literal["auto", "euler-ekf", "quat-ekf", "complementary", "inertial-lp", "device",
                     "none"] = "auto"
-    """``auto``: the device's own orientation when the session has one, else ``quat-ekf``."""
+    """``auto``: the device's own orientation when the session has one, else
+    :data:`hrtls.attitude.registry.DEFAULT_FILTER` (``inertial-lp``)."""
     use_magnetometer: bool = True
     compass_yaw: bool = Field(
         default=True, description="remove the device orientation's slow yaw wander with the "
