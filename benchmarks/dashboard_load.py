@@ -162,19 +162,21 @@ def main() -> None:
                          max(f), _pct(r["renders"], 50), _pct(r["renders"], 95),
                          _pct(r["latency"], 50), _pct(r["latency"], 95),
                          max(r["latency"], default=float("nan")), len(r["latency"]),
+                         sum(v > 1000.0 for v in r["latency"]),
                          (r["heap"] or 0) / 2**20, r["nodes"], sent[0]))
         browser.close()
     print(f"dashboard load, {args.seconds:g} s measured per row, one batch per agent every "
           f"{args.batch_s:g} s (chromium {chromium_executable()}, this machine)")
     head = ("agents", "dots shown", "estimates", "wait s", "frame p50 ms", "frame p95 ms",
             "frame max ms", "render p50 ms", "render p95 ms", "update p50 ms", "update p95 ms",
-            "update max ms", "updates", "JS heap MiB", "DOM nodes", "batches sent")
+            "update max ms", "updates", "updates > 1 s", "JS heap MiB", "DOM nodes",
+            "batches sent")
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for r in rows:
         print(f"| {r[0]} | {r[1]} | {r[2]} | {r[3]:.0f} | {r[4]:.1f} | {r[5]:.1f} | {r[6]:.1f} "
               f"| {r[7]:.1f} | {r[8]:.1f} | {r[9]:.0f} | {r[10]:.0f} | {r[11]:.0f} | {r[12]} "
-              f"| {r[13]:.1f} | {r[14]} | {r[15]} |")
+              f"| {r[13]} | {r[14]:.1f} | {r[15]} | {r[16]} |")
 
 
 if __name__ == "__main__":
