@@ -105,13 +105,6 @@ document.addEventListener("DOMContentLoaded", () => {
 """
 
 
-def require_route(live: Live, path: str) -> None:
-    """Skip while the service answers 501 for a route its contract marks planned."""
-    status, body = live.service.api("GET", f"/missions/{live.stream.mission_id}{path}")
-    if status == 501:
-        pytest.skip(f"the service does not implement {path} yet: {body}")
-
-
 def dot(page, agent_id: int) -> dict[str, float] | None:
     return page.evaluate("""(id) => {
         const el = document.querySelector(`path.agent-dot.agent-${id}`);
@@ -214,7 +207,6 @@ def test_floor_switch_shows_the_agents_of_that_floor(board, live, screenshot):
 
 
 def test_pass_alarm_appears_within_a_second_and_is_acknowledged(board, live, screenshot):
-    require_route(live, "/events")
     page = board
     b = live.agent_id("Rescuer B")
     page.wait_for_selector("#alarms li[data-kind='pass_alarm']", timeout=90_000)
@@ -243,7 +235,6 @@ def test_pass_alarm_appears_within_a_second_and_is_acknowledged(board, live, scr
 
 
 def test_evacuate_order_reaches_the_agent_client(board, live, screenshot):
-    require_route(live, "/orders")
     page = board
     a = live.agent_id("Rescuer A")
     page.click(f"#agents li[data-agent='{a}']")
