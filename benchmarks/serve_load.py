@@ -60,13 +60,14 @@ def rss_kib(pid: int) -> int:
     return 0
 
 
-def start_server(db: str, port: int, engine: str, ray_shards: int
+def start_server(db: str, port: int, engine: str, ray_shards: int, log: Path | None
                  ) -> tuple[subprocess.Popen[str], str]:
     env = {**os.environ}
     runner = ["--engine", engine] + (["--ray-shards", str(ray_shards)] if engine == "ray" else [])
     proc = subprocess.Popen([*HRTLS, "serve", "--db", db, "--port", str(port),
                              "--rate-per-agent", "20", "--queue-batches", "256", *runner],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            stdout=subprocess.PIPE, text=True,
+                            stderr=subprocess.DEVNULL if log is None else log.open("a"),
                             env=env)
     assert proc.stdout is not None
     proc.stdout.readline()
@@ -200,6 +201,7 @@ def main() -> None:
     ap.add_argument("--engine", choices=("local", "ray"), default="local",
                     help="where the server's trackers run (ray: shard actors, local Ray)")
     ap.add_argument("--ray-shards", type=int, default=2, help="shard actors with --engine ray")
+    ap.add_argument("--server-log", type=Path, default=None, help="append the server's stderr here")
     args = ap.parse_args()
     levels = [int(x) for x in args.agents.split(",")]
     streams = prepare(args.duration_s + 5.0, args.distinct)
@@ -212,7 +214,7 @@ def main() -> None:
                 break
             port = free_port()
             proc, token = start_server(str(Path(tmp) / f"load{n}.db"), port, args.engine,
-                                       args.ray_shards)
+                                       args.ray_shards, args.server_log)
             try:
                 rss0 = rss_kib(proc.pid)
                 try:

@@ -195,8 +195,14 @@ def test_websockets_agent_in_dashboard_out(live: Live, commander: httpx.Client) 
         for seq, (_, b) in enumerate(session_batches(session, chunk_s=0.5)):
             binary = seq % 2 == 0
             frame = {"type": "batch", "batch": {**b, "seq": seq}}
-            agent_ws.send(msgpack.packb(frame) if binary else json.dumps(frame))
-            acks.append(_ws_json(agent_ws))
+            while True:  # back-pressure (429 with retry_after_s) when tracking lags: resend
+                agent_ws.send(msgpack.packb(frame) if binary else json.dumps(frame))
+                reply = _ws_json(agent_ws)
+                if reply.get("status") != 429:
+                    break
+                assert reply["retry_after_s"] > 0
+                time.sleep(reply["retry_after_s"])
+            acks.append(reply)
         assert all(a["type"] == "ack" and a["status"] == "accepted" for a in acks)
         assert acks[-1]["acked_through"] == len(acks) - 1
         agent_ws.send(json.dumps({"type": "batch", "batch": {"seq": 0, "bogus": 1}}))

@@ -108,27 +108,70 @@ def relative_altitude(t: FloatArray, pressure_pa: FloatArray, *, smooth_s: float
     return _causal_mean(t, scale_height_m(float(p[0])) * np.log(p[0] / p), smooth_s)
 
 
-@numba.njit(cache=True)
-def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float,
-                           walking: NDArray[np.bool_]) -> tuple[FloatArray, int
-                                                                ]:  # pragma: no cover
-    """``fast`` altitude without the changes faster than ``max_climb`` (pressure steps).
+def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    start = np.searchsorted(t, t - window_s, side="left")
+    n = np.arange(1, len(t) + 1) - start
+    return np.asarray((c[1:] - c[start]) / n)
 
-    While the change over the last second is faster (and until it falls below half of that),
-    the altitude continues at the climb rate of the 3 s before when the person was walking
-    then (``walking``), else it is held; when the change is slower again, the step (what went
-    beyond that) is subtracted from then on.
+
+N_SCALARS = 11
+"""Scalars of :class:`BaroFloorState`: offset, in_step, t_start, f_start, climb, steps,
+level, floor, pending, started, floor changes."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class BaroFloorState:
+    """What :func:`baro_floors_update` carries from one block of pressure samples to the next.
+
+    ``p0_pa``: the first pressure (the altitude reference); ``scalars``: the machine's state
+    (:data:`N_SCALARS`); the other arrays are the last samples the windows still reach
+    (time, raw altitude, walking, fast and steady altitude, smoothed altitude).
     """
-    n = len(t)
-    out = np.empty(n)
-    offset = 0.0
-    in_step = False
-    t_start = 0.0
-    f_start = 0.0
-    climb = 0.0
-    steps = 0
+
+    p0_pa: float
+    scalars: FloatArray
+    t: FloatArray
+    raw_m: FloatArray
+    walking: NDArray[np.bool_]
+    fast_m: FloatArray
+    steady_m: FloatArray
+    a_m: FloatArray
+
+
+@numba.njit(cache=True)
+def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
+                 ) -> float:  # pragma: no cover - compiled
+    """Mean of ``x`` over the samples with ``t[i] - window_s <= t <= t[i]``."""
+    s = 0.0
+    j = i
+    while j >= 0 and t[j] >= t[i] - window_s:
+        s += x[j]
+        j -= 1
+    return s / (i - j)
+
+
+@numba.njit(cache=True)
+def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], i0: int,
+                fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
+                level: FloatArray, floor: NDArray[np.int64], fast_s: float, slow_s: float,
+                max_climb: float, height: float, hold_s: float, change: float,
+                freeze: float, tau_s: float) -> None:  # pragma: no cover - compiled
+    """Samples ``i0..`` of history + new block: smoothing, pressure steps, floor machine.
+
+    ``fast``, ``steady`` and ``a`` hold the history before ``i0`` and are filled from it on;
+    ``st`` (the scalars of :class:`BaroFloorState`) is updated in place.
+
+    Pressure steps: while the change of ``fast`` over the last second is faster than
+    ``max_climb`` (and until it falls below half of that) the altitude continues at the
+    climb rate of the 3 s before when the person was walking then, else it is held; when the
+    change is slower again, the step (what went beyond that) is subtracted from then on.
+    """
+    offset, in_step, t_start, f_start, climb = st[0], st[1] > 0.5, st[2], st[3], st[4]
+    steps, lv, fl, pending, started, changes = st[5], st[6], int(st[7]), st[8], st[9], st[10]
     j = 0
-    for i in range(n):
+    for i in range(i0, len(t)):
+        fast[i] = _window_mean(t, raw, i, fast_s)
         while t[j] < t[i] - 1.0:
             j += 1
         limit = 0.5 * max_climb if in_step else max_climb
@@ -136,7 +179,7 @@ def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float,
                        and abs(fast[i] - fast[j]) > limit * (t[i] - t[j]))
         if fast_change and not in_step:
             in_step = True
-            steps += 1
+            steps += 1.0
             t_start = t[j]
             f_start = fast[j]
             climb = 0.0
@@ -150,24 +193,15 @@ def _remove_pressure_steps(t: FloatArray, fast: FloatArray, max_climb: float,
             offset += (fast[i] - f_start) - climb * (t[i] - t_start)
             in_step = False
         if in_step:
-            out[i] = f_start - offset + climb * (t[i] - t_start)
+            steady[i] = f_start - offset + climb * (t[i] - t_start)
         else:
-            out[i] = fast[i] - offset
-    return out, steps
-
-
-@numba.njit(cache=True)
-def _floor_machine(t: FloatArray, a: FloatArray, height: float, hold_s: float, change: float,
-                   freeze: float, tau_s: float
-                   ) -> tuple[FloatArray, NDArray[np.int64]]:  # pragma: no cover - compiled
-    n = len(t)
-    level = np.empty(n)
-    floor = np.zeros(n, dtype=np.int64)
-    lv = a[0]
-    fl = 0
-    pending = -1.0
-    for i in range(n):
-        if i > 0:
+            steady[i] = fast[i] - offset
+        a[i] = _window_mean(t, steady, i, slow_s)
+        # floor machine
+        if started < 0.5:
+            lv = a[i]
+            started = 1.0
+        else:
             d = a[i] - lv
             if abs(d) < freeze * height:
                 lv += d * min(1.0, (t[i] - t[i - 1]) / tau_s)
@@ -175,22 +209,88 @@ def _floor_machine(t: FloatArray, a: FloatArray, height: float, hold_s: float, c
                 if pending < 0.0:
                     pending = t[i]
                 if t[i] - pending >= hold_s:
-                    k = int(np.rint(d / height))
-                    fl += k
-                    lv += k * height
+                    kf = int(np.rint(d / height))
+                    fl += kf
+                    lv += kf * height
                     pending = -1.0
+                    if kf != 0:
+                        changes += 1.0
             else:
                 pending = -1.0
         level[i] = lv
         floor[i] = fl
-    return level, floor
+    st[0], st[1], st[2], st[3], st[4] = offset, 1.0 if in_step else 0.0, t_start, f_start, climb
+    st[5], st[6], st[7], st[8], st[9], st[10] = steps, lv, float(fl), pending, started, changes
 
 
-def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    start = np.searchsorted(t, t - window_s, side="left")
-    n = np.arange(1, len(t) + 1) - start
-    return np.asarray((c[1:] - c[start]) / n)
+def _check_samples(t: FloatArray, pa: FloatArray) -> None:
+    if t.ndim != 1 or pa.shape != t.shape:
+        raise InputError(f"shapes {t.shape} and {pa.shape}", where="baro_floors",
+                         expected="two 1-D arrays of the same length")
+    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(pa)) or np.any(pa <= 0):
+        raise InputError("times not increasing or pressures not positive",
+                         where="baro_floors", expected="increasing times, pressures in Pa > 0")
+
+
+def walking_flags(t: FloatArray, step_ends_s: FloatArray | None) -> NDArray[np.bool_]:
+    """True where a detected step ended within the 2 s before (or at) ``t``."""
+    if step_ends_s is None or not len(step_ends_s):
+        return np.zeros(len(t), dtype=np.bool_)
+    ends = np.sort(np.asarray(step_ends_s, dtype=np.float64))
+    last = np.searchsorted(ends, t, side="right") - 1
+    return np.asarray((last >= 0) & (t - ends[np.clip(last, 0, None)] <= 2.0))
+
+
+def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa: FloatArray,
+                       walking: NDArray[np.bool_], *, params: BaroFloorParams
+                       ) -> tuple[BaroFloorState | None, BaroFloors]:
+    """The next block of pressure samples (causal: the same result in any split).
+
+    ``state`` is None for the first block; ``walking`` from :func:`walking_flags` with the
+    steps known up to the block's end. Returns the new state and the block's floors
+    (``pressure_steps``: the count since the first block).
+
+    Raises
+    ------
+    InputError
+        Times not increasing (also across blocks) or pressures not positive.
+    """
+    p = params
+    t = np.asarray(t, dtype=np.float64)
+    pa = np.asarray(pressure_pa, dtype=np.float64)
+    _check_samples(t, pa)
+    if state is not None and len(t) and len(state.t) and t[0] <= state.t[-1]:
+        raise InputError(f"pressure at t = {t[0]} after t = {state.t[-1]}",
+                         where="baro_floors", expected="increasing times across blocks")
+    if not len(t):
+        z = np.zeros(0)
+        return state, BaroFloors(z, z, z, np.zeros(0, dtype=np.int64), z,
+                                 0 if state is None else int(state.scalars[5]))
+    if state is None:
+        state = BaroFloorState(float(pa[0]), np.zeros(N_SCALARS), np.zeros(0), np.zeros(0),
+                               np.zeros(0, dtype=np.bool_), np.zeros(0), np.zeros(0),
+                               np.zeros(0))
+        state.scalars[8] = -1.0
+    i0 = len(state.t)
+    tt = np.concatenate([state.t, t])
+    raw = np.concatenate([state.raw_m, scale_height_m(state.p0_pa) * np.log(state.p0_pa / pa)])
+    walk = np.concatenate([state.walking, np.asarray(walking, dtype=np.bool_)])
+    n = len(tt)
+    fast = np.concatenate([state.fast_m, np.empty(n - i0)])
+    steady = np.concatenate([state.steady_m, np.empty(n - i0)])
+    a = np.concatenate([state.a_m, np.empty(n - i0)])
+    st = state.scalars.copy()
+    level = np.empty(n)
+    floor = np.zeros(n, dtype=np.int64)
+    _baro_block(tt, raw, walk, i0, fast, steady, a, st, level, floor, p.step_smooth_s,
+                p.smooth_s - p.step_smooth_s, p.max_climb_m_s, p.floor_height_m, p.hold_s,
+                p.change_fraction, p.freeze_fraction, p.drift_tau_s)
+    keep = tt >= tt[-1] - (max(p.smooth_s, 4.0) + 1.0)
+    keep[max(0, n - 2):] = True
+    new = BaroFloorState(state.p0_pa, st, tt[keep], raw[keep], walk[keep], fast[keep],
+                         steady[keep], a[keep])
+    lv, fl, av = level[i0:], floor[i0:], a[i0:]
+    return new, BaroFloors(t, av, lv, fl, fl * p.floor_height_m + (av - lv), int(st[5]))
 
 
 def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None,
@@ -212,18 +312,5 @@ def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorPara
     if t.ndim != 1 or pa.shape != t.shape or len(t) < 2:
         raise InputError(f"shapes {t.shape} and {pa.shape}", where="baro_floors",
                          expected="two 1-D arrays of the same length >= 2")
-    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(pa)) or np.any(pa <= 0):
-        raise InputError("times not increasing or pressures not positive",
-                         where="baro_floors", expected="increasing times, pressures in Pa > 0")
-    fast = relative_altitude(t, pa, smooth_s=p.step_smooth_s)
-    walking = np.zeros(len(t), dtype=np.bool_)
-    if step_times_s is not None and len(step_times_s):
-        ends = np.sort(np.asarray(step_times_s, dtype=np.float64))
-        last = np.searchsorted(ends, t, side="right") - 1
-        walking = (last >= 0) & (t - ends[np.clip(last, 0, None)] <= 2.0)
-    steady, steps = _remove_pressure_steps(t, fast, p.max_climb_m_s, walking)
-    a = _causal_mean(t, steady, p.smooth_s - p.step_smooth_s)
-    level, floor = _floor_machine(t, a, p.floor_height_m, p.hold_s, p.change_fraction,
-                                  p.freeze_fraction, p.drift_tau_s)
-    z = floor * p.floor_height_m + (a - level)
-    return BaroFloors(t, a, level, floor, z, steps)
+    _, floors = baro_floors_update(None, t, pa, walking_flags(t, step_times_s), params=p)
+    return floors

@@ -20,7 +20,6 @@ from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
-from hrtls.pipeline.barometric import apply_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
@@ -210,9 +209,6 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
             progress("reading and tracking", rows, stream.n_rows)
     start = time.perf_counter()
     result = tracker.finish()
-    result = apply_baro_floors(result, stream.parts.get("pressure"),
-                               floor_height_m=stream.meta.floor_height_m,
-                               enabled=config.barometer)
     seconds += time.perf_counter() - start
     del tracker
     assert first is not None

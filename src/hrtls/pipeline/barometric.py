@@ -1,8 +1,11 @@
-"""The barometric floor stage: heights and floors of a track from the recording's barometer.
+"""The barometric floor stage run after a tracker (the tracker itself runs it causally now).
 
-:func:`apply_baro_floors` runs :func:`hrtls.fusion.baro_floors.baro_floors` on the pressure of
-the recording and replaces the track's heights (the step model's stairs heights drift: a
-fraction of a riser per step) with the barometer's, taken at each row from the last pressure
+:class:`~hrtls.pipeline.tracker.Tracker` runs the same filter live
+(:mod:`hrtls.pipeline.baro_stage`); a result that has ``report["floors"]`` from it is returned
+unchanged here. For a result from elsewhere, :func:`apply_baro_floors` runs
+:func:`hrtls.fusion.baro_floors.baro_floors` on the pressure of the recording and replaces
+the track's heights (the step model's stairs heights drift: a fraction of a riser per step)
+with the barometer's, taken at each row from the last pressure
 sample at or before it (causal). Steps and rows labelled stairs while the barometer shows no
 climb (less than ``flat_m`` over the ``flat_window_s`` before the step's end) become walking
 with no height change. Without a barometer the track is returned as it is.
@@ -42,6 +45,8 @@ def apply_baro_floors(result: TrackResult, pressure: SensorSeries | None, *,
                       params: BaroStageParams | None = None,
                       floor_params: BaroFloorParams | None = None) -> TrackResult:
     """``result`` with heights and floors from ``pressure`` (unchanged without one)."""
+    if "floors" in result.report:   # the tracker's own barometric stage ran
+        return result
     report = dict(result.report)
     if not enabled or pressure is None or len(pressure) < 2 or len(result.trajectory) == 0:
         report["floors"] = {"source": "step model" if pressure is None or len(pressure) < 2

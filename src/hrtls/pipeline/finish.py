@@ -1,9 +1,8 @@
-"""What follows the tracker for a recorded session: floors, unobservable heading, IMU gaps."""
+"""What follows the tracker for a recorded session: unobservable heading, IMU gaps."""
 
 from __future__ import annotations
 
 from hrtls.data import Session
-from hrtls.pipeline.barometric import with_baro_floors
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
 from hrtls.pipeline.tracker import TrackResult
@@ -11,11 +10,10 @@ from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
 
 def finish_track(result: TrackResult, session: Session, config: TrackerConfig) -> TrackResult:
-    """Barometric floors, then the uncertainty of an unobservable heading and of IMU gaps.
+    """The uncertainty of an unobservable heading and of IMU gaps (floors: in the tracker).
 
-    See :func:`~hrtls.pipeline.barometric.with_baro_floors`,
-    :func:`~hrtls.pipeline.unobservable_heading.widen_unobservable_heading` and
+    See :func:`~hrtls.pipeline.unobservable_heading.widen_unobservable_heading` and
     :func:`~hrtls.pipeline.gap_uncertainty.widen_over_gaps`.
     """
-    floors = with_baro_floors(result, session, config)
-    return widen_over_gaps(widen_unobservable_heading(floors, session), session)
+    del config   # the tracker's configuration already shaped the result
+    return widen_over_gaps(widen_unobservable_heading(result, session), session)

@@ -20,6 +20,7 @@ from hrtls.attitude.base import AttitudeState
 from hrtls.calibration.hard_iron_running import RunningHardIronState
 from hrtls.data import StepEvents
 from hrtls.errors import FormatError
+from hrtls.fusion.baro_floors import BaroFloorState
 from hrtls.fusion.channel import ChannelState
 from hrtls.fusion.fixes import FixSchedule, StretchMemory
 from hrtls.fusion.rss_scans import RssScan
@@ -33,7 +34,7 @@ VERSION = 2
 
 _CLASSES: dict[str, type] = {c.__name__: c for c in (
     FilterState, ChannelState, StretchMemory, TagMemory, FixSchedule, RssScan, StepEvents,
-    AttitudeState, RunningHardIronState)}
+    AttitudeState, RunningHardIronState, BaroFloorState)}
 """The dataclasses a snapshot may hold (rebuilt field by field)."""
 
 

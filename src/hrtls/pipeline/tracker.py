@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -74,6 +74,7 @@ from hrtls.gait.step_length import StepModel
 from hrtls.pipeline import build
 from hrtls.pipeline import report as rep
 from hrtls.pipeline import snapshot as snap
+from hrtls.pipeline.baro_stage import BaroStage
 from hrtls.pipeline.build import Notes, Sensors
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
@@ -229,6 +230,9 @@ class Tracker:
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
             t0=s.t0)
         self.engine.attitude = self.attitude
+        # --- heights and floors from the barometer (when the chunks bring pressure)
+        self.baro = (BaroStage(floor_height_m=meta.floor_height_m, t_pose=self._pose.t_pose,
+                               z_pose_m=float(state.x[2])) if cfg.barometer else None)
         self._t_last_sample = s.t0
         self._started = True
 
@@ -343,6 +347,10 @@ class Tracker:
                 self._process_imu(t, acc, gyr, mag, chunk.orientation)
         elif not self.has_imu:
             sched.horizon = max(sched.horizon, chunk_end(chunk))
+        if self.baro is not None:
+            if chunk.pressure is not None:
+                self.baro.add_pressure(chunk.pressure.t, chunk.pressure.values[:, 0])
+            self.baro.advance(sched.horizon)
         # tag reads / RSS readings still being grouped hold back everything after them
         self.engine.drain(sched.release_limit())
 
@@ -361,6 +369,13 @@ class Tracker:
         trajectory = eng.track.trajectory()
         shown = self.history.steps[self.history.hidden:]
         steps = StepEvents.empty() if not shown else _concat_steps(shown)
+        floors: dict[str, Any] = {"source": "step model (barometer off)",
+                                  "floor_height_m": self.meta.floor_height_m}
+        if self.baro is not None:
+            self.baro.finish()
+            trajectory, rows_flat = self.baro.trajectory(trajectory)
+            steps, steps_flat = self.baro.steps(steps)
+            floors = self.baro.report(rows_relabelled=rows_flat, steps_relabelled=steps_flat)
         attitude = None if self.attitude is None else self.attitude.attitude()
         rep.final_notes(self.notes, self._pose, t0=self.sensors.t0, has_imu=self.has_imu,
                         seen_obs=self.schedule.seen_obs)
@@ -368,6 +383,7 @@ class Tracker:
             self.config, eng, self._base, trajectory=trajectory, steps=steps, notes=self.notes,
             attitude_method=self.attitude_method, two_pass=self._two_pass,
             compass=None if self.attitude is None else self.attitude.compass)
+        report["floors"] = floors
         return TrackResult(trajectory, steps, attitude, eng.diagnostics, report)
 
     # ------------------------------------------------------------------ live reading
@@ -385,7 +401,12 @@ class Tracker:
         base = np.asarray(self._base["accepted_t"], dtype=np.float64)
         if len(base):
             acc = np.concatenate([base, acc])
-        return self.engine.track.since(t_after_s, acc, self.meta.floor_height_m)
+        est = self.engine.track.since(t_after_s, acc, self.meta.floor_height_m)
+        if self.baro is None or not self.baro.active or not len(est):
+            return est
+        xyz, activity = self.baro.rows(est.t, est.xyz, est.activity)
+        return replace(est, xyz=xyz, activity=activity,
+                       floor=np.rint(xyz[:, 2] / self.meta.floor_height_m).astype(np.int64))
 
     # ------------------------------------------------------------------ snapshot / restore
     def snapshot(self) -> bytes:
@@ -421,6 +442,7 @@ class Tracker:
             "gait": None if self.gait is None else self.gait.state(),
             "attitude": None if self.attitude is None else self.attitude.state(),
             "held": {k: getattr(self._held, k) for k in HeldImu.STATE},
+            "baro": None if self.baro is None else self.baro.state(),
             "diag": rep.carried(eng, self._base),
         }
         return snap.pack(out)
@@ -458,6 +480,8 @@ class Tracker:
                 tr.attitude.restore(d["attitude"])
             for k, v in d["held"].items():
                 setattr(tr._held, k, v)
+            if tr.baro is not None:
+                tr.baro.restore(d["baro"])
             tr._base = d["diag"]
         except (KeyError, TypeError, ValueError) as exc:
             raise FormatError(f"incomplete or foreign snapshot ({exc!r})", where="snapshot",
@@ -500,6 +524,8 @@ class Tracker:
     def _consume_gait(self, result: GaitResult, t: np.ndarray | None,
                       q_nd: np.ndarray | None) -> None:
         hist = self.history
+        if self.baro is not None:
+            self.baro.add_steps(result.steps.t_end)
         if len(result.motion_sigma_m_s2) and t is not None:
             hist.motion_t.append(t)
             hist.motion_sigma.append(result.motion_sigma_m_s2)

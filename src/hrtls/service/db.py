@@ -13,6 +13,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from hrtls.errors import InputError
 
+POOL_SIZE = 48
+"""Connections kept open: at least the request thread pool (40 threads) plus the tracker and
+publisher threads, so that a busy service reuses connections instead of opening new ones."""
+
 
 def make_engine(url: str) -> Engine:
     """An engine for ``url``; SQLite files get WAL mode, foreign keys and a busy timeout."""
@@ -22,7 +26,7 @@ def make_engine(url: str) -> Engine:
                              expected="a database file path (an in-memory SQLite database "
                                       "is lost when the service stops)")
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30},
-                               pool_size=8, max_overflow=16)
+                               pool_size=POOL_SIZE, max_overflow=16)
 
         @event.listens_for(engine, "connect")
         def _pragmas(dbapi_connection: Any, _record: Any) -> None:
@@ -35,7 +39,7 @@ def make_engine(url: str) -> Engine:
 
         return engine
     if url.startswith("postgresql"):
-        return create_engine(url, pool_size=8, max_overflow=16, pool_pre_ping=True)
+        return create_engine(url, pool_size=POOL_SIZE, max_overflow=16, pool_pre_ping=True)
     raise InputError(url, where="--db",
                      expected="a SQLite file path or postgresql://user:pass@host/dbname")
 

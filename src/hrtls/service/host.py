@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sqlalchemy import delete, insert, select
-from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DbSession
 from sqlalchemy.orm import sessionmaker
 
@@ -30,6 +29,7 @@ from hrtls.service.batches import Batch, decode_body, parse_batch
 from hrtls.service.clock import Clock
 from hrtls.service.events import EventLog
 from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
+from hrtls.service.rawlog import RawLogWriter, RawRow
 from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
 from hrtls.service.seqbook import SeqBook
 
@@ -164,10 +164,12 @@ class TrackerHost:
         self._lock = threading.Lock()
         self._work: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
+        self.raw_log = RawLogWriter(sessions)
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
         """Start the workers and schedule every agent with stored data (restore)."""
+        self.raw_log.start()
         for i in range(self.params.workers):
             th = threading.Thread(target=self._worker, name=f"hrtls-tracker-{i}", daemon=True)
             th.start()
@@ -186,6 +188,7 @@ class TrackerHost:
         for th in self._threads:
             th.join(timeout=30)
         self._threads.clear()
+        self.raw_log.stop()
 
     def idle(self) -> bool:
         """Whether no agent has queued or running work (for tests and benchmarks)."""
@@ -258,13 +261,11 @@ class TrackerHost:
                 raise Busy(1.0)
         now = self.clock()
         span = batch.time_span()
-        try:
-            with self.sessions() as db, db.begin():
-                db.add(RawBatch(agent_id=agent_id, seq=batch.seq, received_unix=now,
-                                t_first=None if span is None else span[0],
-                                t_last=None if span is None else span[1], source=source,
-                                content_type=content_type, body=body))
-        except IntegrityError:
+        stored = self.raw_log.append(RawRow(
+            agent_id=agent_id, seq=batch.seq, received_unix=now,
+            t_first=None if span is None else span[0], t_last=None if span is None else span[1],
+            source=source, content_type=content_type, body=body))
+        if not stored:
             with live.lock:
                 live.book.add(batch.seq)
                 return self._ack(live, batch.seq, "duplicate")

@@ -5,6 +5,8 @@ import { MapView } from "./mapview.js";
 
 const TRAIL_WINDOW_S = 300;
 const ALARM_KINDS = new Set(["pass_prealarm", "pass_alarm", "fall", "silent", "uncertainty", "sos"]);
+// The banner shows the most urgent open alarm: a rescuer down before a silent link or doubt.
+const BANNER_RANK = { sos: 0, pass_alarm: 0, fall: 0, silent: 1, uncertainty: 2, pass_prealarm: 3 };
 const EVENT_TEXT = {
   pass_prealarm: "PASS pre-alarm", pass_alarm: "PASS ALARM", fall: "FALL", silent: "silent agent",
   uncertainty: "lost confidence", sos: "SOS", floor_change: "floor change", zone_enter: "entered",
@@ -241,12 +243,7 @@ export class Dashboard {
   renderAgentList(shown) {
     const list = document.getElementById("agents");
     const sorted = [...this.agents.values()].sort((a, b) => a.name.localeCompare(b.name));
-    const key = JSON.stringify(sorted.map((a) => [a.id, a.name, a.est?.floor, a.est?.activity,
-      this.isStale(a), this.isStale(a) ? Math.round(this.ageOf(a)) : 0,
-      a.est ? quality(a.est.var_x, a.est.cov_xy, a.est.var_y).level : null]));
-    if (list.dataset.renderKey === key) return;
-    list.dataset.renderKey = key;
-    // one stable <li> per agent: only its content changes (keeps it clickable)
+    // one stable <li> per agent: only the content of a changed one is rebuilt (keeps it clickable)
     this.agentItems = this.agentItems || new Map();
     const rows = sorted.map((a) => {
       const stale = this.isStale(a);
@@ -257,13 +254,17 @@ export class Dashboard {
         li = el("li", { dataset: { agent: a.id }, onclick: () => this.select(a.id) });
         this.agentItems.set(a.id, li);
       }
-      li.className = stale ? "stale" : "";
-      li.replaceChildren(
-        el("span", { class: `quality ${level}`, title: q ? `±${q.radius_m.toFixed(1)} m (2σ)` : "" }),
-        `${a.name} `,
-        el("span", { class: "muted" }, a.est
-          ? `F${a.est.floor} · ${a.est.activity || "-"}${stale ? ` · ${formatAge(this.ageOf(a))} old` : ""}`
-          : "no data"));
+      const text = a.est
+        ? `F${a.est.floor} · ${a.est.activity || "-"}${stale ? ` · ${formatAge(this.ageOf(a))} old` : ""}`
+        : "no data";
+      const title = q ? `±${q.radius_m.toFixed(1)} m (2σ)` : "";
+      const key = [a.name, level, title, text].join("|");
+      if (li.dataset.renderKey !== key) {
+        li.dataset.renderKey = key;
+        li.className = stale ? "stale" : "";
+        li.replaceChildren(el("span", { class: `quality ${level}`, title }), `${a.name} `,
+          el("span", { class: "muted" }, text));
+      }
       return li;
     });
     if (rows.length !== list.children.length || rows.some((li, i) => list.children[i] !== li)) {
@@ -305,7 +306,7 @@ export class Dashboard {
     }));
     const banner = document.getElementById("alarm-banner");
     if (!open.length) { banner.hidden = true; return; }
-    const top = open.find((e) => e.kind !== "pass_prealarm") || open[0];
+    const top = open.reduce((best, e) => (BANNER_RANK[e.kind] < BANNER_RANK[best.kind] ? e : best));
     const a = this.agents.get(top.agent);
     banner.hidden = false;
     banner.classList.toggle("pre", top.kind === "pass_prealarm");

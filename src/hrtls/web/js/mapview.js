@@ -119,24 +119,39 @@ export class MapView {
     return g;
   }
 
+  // Redraws only what changed since the agent's last update (300 agents re-render every delta).
   updateAgent(g, v) {
     const e = v.est;
+    const trail = v.trail || [];
+    const lastTrail = trail[trail.length - 1];
+    const label = v.stale ? `${v.name} (${formatAge(v.ageS)} old)` : v.name;
+    const key = [e.t, e.x, e.y, e.var_x, e.cov_xy, e.var_y, e.heading, v.stale, v.selected,
+      trail.length, lastTrail?.t, trail[0]?.t, label].join("|");
+    if (g.key === key) return;
+    g.key = key;
     const q = quality(e.var_x, e.cov_xy, e.var_y);
     const color = v.stale ? QUALITY_COLOR.stale
       : (v.kind === "robot" ? ROBOT_COLOR : QUALITY_COLOR[q.level]);
+    const style = [color, v.stale, v.selected].join("|");
     g.ellipse.setLatLngs(ellipseLatLngs(e.x, e.y, e.var_x, e.cov_xy, e.var_y, 2));
-    g.ellipse.setStyle({ color, fillColor: color, dashArray: v.stale ? "4 4" : null });
     g.dot.setLatLng([e.y, e.x]);
-    g.dot.setStyle({ color: v.selected ? "#ffffff" : color, fillColor: color });
     const heading = Number.isFinite(e.heading) ? e.heading : 0;
     g.arrow.setLatLngs([[e.y, e.x], headingTip(e.x, e.y, heading, 1.5)]);
-    g.arrow.setStyle({ color, opacity: Number.isFinite(e.heading) ? 1 : 0 });
-    g.trail.setLatLngs((v.trail || []).map((p) => [p.y, p.x]));
-    g.trail.setStyle({ color });
-    const label = v.stale ? `${v.name} (${formatAge(v.ageS)} old)` : v.name;
-    g.dot.setTooltipContent(label);
-    const tip = g.dot.getTooltip()?.getElement();
-    if (tip) tip.classList.toggle("stale", Boolean(v.stale));
+    g.trail.setLatLngs(trail.map((p) => [p.y, p.x]));
+    if (g.style !== style || g.headingShown !== Number.isFinite(e.heading)) {
+      g.style = style;
+      g.headingShown = Number.isFinite(e.heading);
+      g.ellipse.setStyle({ color, fillColor: color, dashArray: v.stale ? "4 4" : null });
+      g.dot.setStyle({ color: v.selected ? "#ffffff" : color, fillColor: color });
+      g.arrow.setStyle({ color, opacity: g.headingShown ? 1 : 0 });
+      g.trail.setStyle({ color });
+    }
+    if (g.label !== label) {
+      g.label = label;
+      g.dot.setTooltipContent(label);
+      const tip = g.dot.getTooltip()?.getElement();
+      if (tip) tip.classList.toggle("stale", Boolean(v.stale));
+    }
     g.dotElement = g.dot.getElement();
     if (g.dotElement) {
       g.dotElement.dataset.agent = v.id;
@@ -151,6 +166,9 @@ export class MapView {
   // Landmarks [{id, kind, x, y, floor, message}], nodes [{id, role, x, y, sigma_m}],
   // way points [{robot, points: [{x, y}]}], all of the shown floor.
   renderInfrastructure({ landmarks, nodes, waypoints }) {
+    const key = JSON.stringify([landmarks, nodes, waypoints]);
+    if (key === this.infraKey) return;
+    this.infraKey = key;
     this.infraLayer.clearLayers();
     this.nodeLayer.clearLayers();
     this.waypointLayer.clearLayers();
