@@ -12,16 +12,13 @@ from hrtls.data.observations import RssReadings
 from hrtls.data.session import ChannelModel
 from hrtls.errors import InputError
 from hrtls.fusion.channel import ChannelEstimator, ChannelState
-from hrtls.fusion.gating import is_spd, summarize
+from hrtls.fusion.gating import is_spd
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss import (
-    TarrioFusion,
-    TarrioParams,
-    TarrioState,
     rss_update,
     update_rss_readings,
 )
-from hrtls.fusion.rss_scans import RssScan, group_scans, hyperbolic_wls, scan_position, scan_table
+from hrtls.fusion.rss_scans import RssScan, group_scans, hyperbolic_wls, scan_table
 from hrtls.fusion.state import FilterState
 
 GRID = np.array([[x, y] for x in (0.0, 10.0, 20.0) for y in (0.0, 10.0, 20.0)])
@@ -86,63 +83,6 @@ def test_group_scans_average_and_unknown() -> None:
     assert scans[0].anchor == ["a0"] and scans[0].rss_dbm[0] == pytest.approx(-71.0)
     assert scans[0].unknown == ["zz"] and scans[0].t == pytest.approx(0.3)
     assert scans[1].t == pytest.approx(2.5)
-
-
-def tarrio_scenario(seed: int = 0, duration: float = 120.0) -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    fs, r, v = 50.0, 8.0, 1.0
-    t = np.arange(1, int(duration * fs) + 1) / fs
-    w = v / r
-    truth = np.column_stack([10 + r * np.cos(w * t), 10 + r * np.sin(w * t)])
-    tr = np.arange(0.4, duration, 0.4)
-    pos = np.column_stack([10 + r * np.cos(w * tr), 10 + r * np.sin(w * tr)])
-    d = np.linalg.norm(pos[:, None, :] - GRID[None, :, :], axis=2)
-    rss_vals = TRUE.expected_rss(d) + rng.normal(0, 5.0, d.shape)
-    rss = RssReadings(np.repeat(tr, 9), np.tile([f"a{i}" for i in range(9)], tr.size),
-                      rss_vals.ravel())
-    scans = group_scans(rss, LANDMARKS, window_s=2.0, t_origin=0.0)
-    fx = np.array([scan_position(s, TRUE).xy for s in scans])
-    ft = np.array([s.t for s in scans])
-    speed = v + rng.normal(0, 0.05, t.size)
-    heading = w * t + np.pi / 2 + np.deg2rad(10 / 3600) * t + rng.normal(0, 0.02, t.size)
-    return {"t": t, "truth": truth, "fx": fx, "ft": ft, "speed": speed, "heading": heading}
-
-
-def test_tarrio_fusion_beats_rss_alone() -> None:
-    sc = tarrio_scenario()
-    fx, ft, t, truth = sc["fx"], sc["ft"], sc["t"], sc["truth"]
-    start = TarrioState.start(FilterState.initial(xyz=(fx[0, 0], fx[0, 1], 0.0),
-                                                  sigma_xy_m=2.0))
-    res = TarrioFusion().run(start, t=t, speed_m_s=sc["speed"], heading_rad=sc["heading"],
-                             fix_t=ft[1:], fix_xy=fx[1:])
-    err = np.linalg.norm(res.xy - truth, axis=1)
-    held = fx[np.maximum(np.searchsorted(ft, t, side="right") - 1, 0)]
-    err_rss = np.linalg.norm(held - truth, axis=1)
-    assert np.percentile(err[t > 10], 90) < 2.4            # the paper's 90 % figure
-    assert err_rss.mean() - err.mean() > 1.0
-    assert summarize(res.diagnostics)["rss_position"]["accepted"] == len(ft) - 1
-    # chunked run with save/restore equals the batch run
-    k = int(t.size * 0.4)
-    nf = int(np.searchsorted(ft[1:], t[k - 1], side="right"))
-    a = TarrioFusion().run(start, t=t[:k], speed_m_s=sc["speed"][:k],
-                           heading_rad=sc["heading"][:k], fix_t=ft[1:1 + nf],
-                           fix_xy=fx[1:1 + nf])
-    resumed = TarrioState.from_dict(json.loads(json.dumps(a.state.to_dict())))
-    b = TarrioFusion().run(resumed, t=t[k:], speed_m_s=sc["speed"][k:],
-                           heading_rad=sc["heading"][k:], fix_t=ft[1 + nf:], fix_xy=fx[1 + nf:])
-    np.testing.assert_allclose(np.concatenate([a.xy, b.xy]), res.xy, atol=1e-9)
-
-
-def test_tarrio_single_update_hand_computed() -> None:
-    start = TarrioState.start(FilterState.initial(sigma_xy_m=1.0))
-    t = np.arange(1, 11) * 0.1
-    res = TarrioFusion().run(start, t=t, speed_m_s=np.ones(10), heading_rad=np.zeros(10),
-                             fix_t=[1.0], fix_xy=[[2.0, 0.0]])
-    q = (0.5 * 0.1 * 1.0) ** 2 + (0.1 * 1.0) ** 2             # eq. 6 with dt = 1 s
-    k = (1.0 + q) / (1.0 + q + 4.0)                            # eq. 12 with R = 2^2
-    assert res.xy_fix[0, 0] == pytest.approx(1.0 + k * 1.0)
-    assert res.state.filter.P[0, 0] == pytest.approx((1 - k) * (1.0 + q))
-    np.testing.assert_allclose(res.xy[:, 0], t)                # eq. 13 before the fix
 
 
 def test_rss_update_db_jacobian_and_convergence() -> None:
@@ -289,19 +229,6 @@ def test_tight_variant_with_channel_reestimation() -> None:
     assert ch is not None
     assert ch.theta[0] == pytest.approx(-60.0, abs=1.5)
     assert ch.theta[1] == pytest.approx(2.5, abs=0.15)
-
-
-def test_hold_last_fix_and_reset_baseline() -> None:
-    from hrtls.fusion.rss import hold_last_fix
-
-    held = hold_last_fix([0.0, 1.0, 1.5, 3.0], [1.0, 2.0], [[1.0, 1.0], [2.0, 2.0]])
-    np.testing.assert_array_equal(held, [[1, 1], [1, 1], [1, 1], [2, 2]])
-    start = TarrioState.start(FilterState.initial())
-    t = np.arange(1, 21) * 0.1
-    reset = TarrioFusion(TarrioParams(sigma_p_m=1e-4, gate_probability=None)).run(
-        start, t=t, speed_m_s=np.ones(20), heading_rad=np.zeros(20), fix_t=[1.0],
-        fix_xy=[[5.0, 5.0]])
-    np.testing.assert_allclose(reset.xy[-1], [6.0, 5.0], atol=1e-6)   # DR restarted at the fix
 
 
 def test_wls_first_reference_as_in_the_paper() -> None:

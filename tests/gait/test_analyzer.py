@@ -14,8 +14,9 @@ from hrtls.frames import wrap_angle
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.motion_detector import MotionParams
-from hrtls.gait.pll import PllStepDetector
+from hrtls.gait.pll import PllStepDetector, StepDetection
 from hrtls.gait.step_length import WeinbergModel
+from hrtls.gait.step_length_fit import CalibrationWalk, fit_weinberg
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 from hrtls.gait.velocity_automaton import VelocityAutomaton
 
@@ -32,10 +33,19 @@ def walk():
                     heading0_rad=0.7, turn_rate_rad_s=0.03, seed=11)
 
 
+def calibrated_weinberg(walk) -> WeinbergModel:
+    """Weinberg's K fitted on another walk of the same person (distance known, as in a survey)."""
+    cal = simulate([(0, 3), (1, 30), (0, 3)], person=walk.person, q_bd=walk.q_bd, seed=12)
+    steps = GaitAnalyzer(rate_hz=100.0, mounting_q_bd=cal.q_bd,
+                         activity=LdaModel.default()).process(cal.t, cal.acc_d, cal.q_nd).steps
+    det = StepDetection(steps.t_start, steps.t_end, steps.frequency_hz, steps.acc_max,
+                        steps.acc_min)
+    return fit_weinberg([CalibrationWalk(det, float(np.sum(cal.step_length_m)))])
+
+
 def test_offline_steps_heading_activity(walk) -> None:
     ga = GaitAnalyzer(rate_hz=100.0, mounting_q_bd=walk.q_bd, activity=LdaModel.default(),
-                      velocity=VelocityAutomaton(), step_model=WeinbergModel(
-                          k=walk.person.weinberg_k))
+                      velocity=VelocityAutomaton(), step_model=calibrated_weinberg(walk))
     res = ga.process(walk.t, walk.acc_d, walk.q_nd)
     te = res.steps.t_end
     assert abs(len(te) - len(walk.step_t)) <= 0.03 * len(walk.step_t) + 2
@@ -53,7 +63,7 @@ def test_offline_steps_heading_activity(walk) -> None:
     # stairs steps carry a height change of one stair
     up = res.steps.activity == Activity.UPSTAIRS
     assert np.all(res.steps.dz_m[up] > 0)
-    # walking distance with the person's own K is close to the truth
+    # walking distance with K calibrated on another walk of the person is close to the truth
     walking = (te > 4.5) & (te < 44)
     true_len = np.sum(walk.step_length_m[(walk.step_t > 4.5) & (walk.step_t < 44)])
     assert abs(np.sum(res.steps.length_m[walking]) - true_len) < 0.1 * true_len

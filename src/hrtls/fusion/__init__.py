@@ -8,7 +8,7 @@
 * :mod:`~hrtls.fusion.yaw_stretch` -- Colombo eq. 24-28 (yaw pseudo-measurement).
 * :mod:`~hrtls.fusion.path_loss` -- Tarrio eq. 1 (log-normal path loss).
 * :mod:`~hrtls.fusion.rss_scans` -- RSS scans and their positions (Tarrio eq. 2, hyperbolic WLS).
-* :mod:`~hrtls.fusion.rss` -- Tarrio eq. 5-13 and the tight RSS EKF.
+* :mod:`~hrtls.fusion.rss` -- the tight RSS EKF (Tarrio eq. 5-13 are the tracker's WLS fixes).
 * :mod:`~hrtls.fusion.channel` -- online re-estimation of the channel ``A``, ``eta``.
 * :mod:`~hrtls.fusion.tags` -- Inderst eq. 4.26-4.33 (four tag strategies), 4.21-4.22 (bearings).
 * :mod:`~hrtls.fusion.ranges` -- Inderst eq. 4.34-4.35 (range EKF).
@@ -43,10 +43,6 @@ from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
 from hrtls.fusion.ranges import RangeParams, range_update, update_ranges
 from hrtls.fusion.rss import (
-    TarrioFusion,
-    TarrioParams,
-    TarrioState,
-    hold_last_fix,
     rss_update,
     update_rss_readings,
 )
@@ -83,9 +79,6 @@ __all__ = [
     "TagCorrector",
     "TagMemory",
     "TagParams",
-    "TarrioFusion",
-    "TarrioParams",
-    "TarrioState",
     "UpdateDiagnostics",
     "UpdateResult",
     "VelocityPredictionParams",
@@ -99,7 +92,6 @@ __all__ = [
     "floor_level_update",
     "group_detections",
     "group_scans",
-    "hold_last_fix",
     "hyperbolic_wls",
     "kalman_update",
     "lobe_centre",

@@ -3,13 +3,6 @@
 The path loss (eq. 1) is :mod:`hrtls.fusion.path_loss`, the scan positions (eq. 2) are
 :mod:`hrtls.fusion.rss_scans`, the channel re-estimation is :mod:`hrtls.fusion.channel`.
 
-* :class:`TarrioFusion` -- the linear Kalman filter of eq. 5-13 with the inertial velocity as
-  control input: between RSS fixes the position is dead-reckoned (eq. 13), at each fix it is
-  predicted (eq. 8) with ``Q`` of eq. 6 and corrected (eq. 10-12, Joseph form, gated).
-  Reading of eq. 8: ``Delta T v_k`` is the displacement over the interval; with
-  ``control="mean"`` (default) ``v_k`` is the mean inertial velocity over the interval (so the
-  prediction equals the dead-reckoned position of eq. 13), with ``control="last"`` it is the last
-  velocity sample, literally.
 * :func:`rss_update` -- the tighter variant: each RSS reading corrects the position filter
   directly by an EKF in the dB domain (``h(p) = A - 10 eta log10(|p - a|/d0)``, variance
   ``sigma^2``, compiled in :func:`rss_db_correction`), or, with ``domain="range"``, as a range
@@ -22,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import numba
 import numpy as np
@@ -35,15 +28,12 @@ from hrtls.fusion._checks import (
     FloatArray,
     finite_scalar,
     finite_vector,
-    non_decreasing_time,
-    probability,
 )
 from hrtls.fusion.channel import ChannelEstimator, ChannelState
 from hrtls.fusion.gating import (
     TOO_NEAR,
     UpdateDiagnostics,
     chi2_threshold,
-    kalman_update,
     rejected,
     scalar_diagnostics,
     scalar_update,
@@ -51,212 +41,7 @@ from hrtls.fusion.gating import (
 )
 from hrtls.fusion.path_loss import LN10, PathLossModel
 from hrtls.fusion.ranges import RangeParams, range_update
-from hrtls.fusion.state import IH, N_STATE, FilterState
-
-
-# ------------------------------------------------------------------------------------------
-# eq. 5-13: Kalman fusion with inertial velocity as control input
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class TarrioParams:
-    """Parameters of the Tarrio Kalman fusion (values of the paper as defaults).
-
-    Attributes
-    ----------
-    sigma_a_m_s2: acceleration noise of eq. 6, m/s^2.
-    sigma_v_m_s: velocity noise of eq. 6, m/s.
-    sigma_p_m: 1-sigma of an RSS position (``R = sigma_p^2 I``, eq. 7), m.
-    use_wls_covariance: use the covariance of :func:`hyperbolic_wls` instead of ``sigma_p``.
-    control: ``"mean"`` or ``"last"`` (reading of eq. 8, see the module docstring).
-    gate_probability: chi-square gate; None disables it.
-    """
-
-    sigma_a_m_s2: float = 0.1
-    sigma_v_m_s: float = 0.1
-    sigma_p_m: float = 2.0
-    use_wls_covariance: bool = False
-    control: Literal["mean", "last"] = "mean"
-    gate_probability: float | None = 0.999
-
-    def __post_init__(self) -> None:
-        for name in ("sigma_a_m_s2", "sigma_v_m_s", "sigma_p_m"):
-            finite_scalar(getattr(self, name), where=f"TarrioParams.{name}", positive=True)
-        if self.control not in ("mean", "last"):
-            raise InputError(f"control {self.control!r}", where="TarrioParams.control",
-                             expected="'mean' or 'last'")
-        if self.gate_probability is not None:
-            probability(self.gate_probability, where="TarrioParams.gate_probability")
-
-    def q(self, dt: float) -> FloatArray:
-        """Eq. 6: ``Q = I (sigma_a dt^2 / 2)^2 + I (sigma_v dt)^2``."""
-        return np.eye(2) * ((0.5 * self.sigma_a_m_s2 * dt * dt) ** 2
-                            + (self.sigma_v_m_s * dt) ** 2)
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class TarrioState:
-    """Causal state of :class:`TarrioFusion`.
-
-    Attributes
-    ----------
-    filter: dead-reckoned state now (``x`` eq. 13) with the covariance of the last update.
-    x_update: filtered position at the last update, m (2,).
-    t_update: time of the last update, s.
-    last_velocity: last inertial velocity sample, m/s (2,).
-    """
-
-    filter: FilterState
-    x_update: FloatArray
-    t_update: float
-    last_velocity: FloatArray
-
-    @classmethod
-    def start(cls, state: FilterState) -> TarrioState:
-        """Begin at ``state`` (e.g. the first RSS position, as in the paper)."""
-        return cls(state, state.x[:2].copy(), state.t, np.zeros(2))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able form."""
-        return {"filter": self.filter.to_dict(), "x_update": self.x_update.tolist(),
-                "t_update": self.t_update, "last_velocity": self.last_velocity.tolist()}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TarrioState:
-        """Inverse of :meth:`to_dict`."""
-        return cls(FilterState.from_dict(data["filter"]),
-                   finite_vector(data["x_update"], where="x_update", length=2),
-                   float(data["t_update"]),
-                   finite_vector(data["last_velocity"], where="last_velocity", length=2))
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class TarrioResult:
-    """Per-sample track (``t``, ``xy``, ``cov_xy``), the filtered fixes and the new state."""
-
-    t: FloatArray
-    xy: FloatArray
-    cov_xy: FloatArray
-    t_fix: FloatArray
-    xy_fix: FloatArray
-    diagnostics: list[UpdateDiagnostics]
-    state: TarrioState
-
-
-class TarrioFusion:
-    """Tarrio eq. 5-13: RSS positions fused with inertial velocity in a linear Kalman filter."""
-
-    def __init__(self, params: TarrioParams | None = None) -> None:
-        self.params = params or TarrioParams()
-
-    def run(self, state: TarrioState, *, t: ArrayLike, speed_m_s: ArrayLike,
-            heading_rad: ArrayLike, fix_t: ArrayLike, fix_xy: ArrayLike,
-            fix_cov: ArrayLike | None = None) -> TarrioResult:
-        """Dead-reckon through the velocity samples and fuse the RSS positions.
-
-        Parameters
-        ----------
-        state:
-            State before the chunk.
-        t, speed_m_s, heading_rad:
-            Inertial velocity samples (speed and direction, eq. 5), applied over
-            ``(t_{i-1}, t_i]`` (eq. 13).
-        fix_t, fix_xy:
-            RSS position times (non-decreasing, within the chunk) and positions (M, 2).
-        fix_cov:
-            Their covariances (M, 2, 2), used with ``use_wls_covariance``.
-        """
-        prm = self.params
-        tt = finite_vector(t, where="tarrio t")
-        n = tt.size
-        non_decreasing_time(tt, where="tarrio t", after=state.filter.t)
-        v = finite_vector(np.broadcast_to(np.asarray(speed_m_s, dtype=np.float64), (n,)),
-                          where="tarrio speed_m_s")
-        th = finite_vector(heading_rad, where="tarrio heading_rad", length=n)
-        ft = finite_vector(fix_t, where="tarrio fix_t")
-        non_decreasing_time(ft, where="tarrio fix_t", after=state.filter.t)
-        fxy = np.asarray(fix_xy, dtype=np.float64).reshape(-1, 2)
-        if fxy.shape[0] != ft.size or not np.all(np.isfinite(fxy)):
-            raise InputError(f"shape {fxy.shape}", where="tarrio fix_xy",
-                             expected=f"finite ({ft.size}, 2) positions")
-        fcov = None
-        if fix_cov is not None:
-            fcov = np.asarray(fix_cov, dtype=np.float64).reshape(-1, 2, 2)
-        vel = np.column_stack([v * np.cos(th), v * np.sin(th)])
-        dt = np.diff(np.concatenate(([state.filter.t], tt)))
-        step = vel * dt[:, None]
-        # eq. 13 between fixes: cumulative sums restarted after every fix
-        fix_pos = np.searchsorted(tt, ft, side="right")   # samples <= fix time come before it
-        xy_out = np.empty((n, 2))
-        cov_out = np.empty((n, 2, 2))
-        diags: list[UpdateDiagnostics] = []
-        t_fixes: list[float] = []
-        xy_fixes: list[FloatArray] = []
-        x_now = state.filter.x.copy()
-        p_upd = state.filter.P.copy()
-        x_upd = state.x_update.copy()
-        t_upd = state.t_update
-        last_v = state.last_velocity.copy()
-        start = 0
-        for k in range(ft.size + 1):
-            stop = n if k == ft.size else int(fix_pos[k])
-            if stop > start:
-                xy_out[start:stop] = x_now[:2] + np.cumsum(step[start:stop], axis=0)
-                el = tt[start:stop] - t_upd
-                qd = (0.5 * prm.sigma_a_m_s2 * el * el) ** 2 + (prm.sigma_v_m_s * el) ** 2
-                cov_out[start:stop] = p_upd[:2, :2] + qd[:, None, None] * np.eye(2)
-                x_now[:2] = xy_out[stop - 1]
-                last_v = vel[stop - 1]
-                x_now[IH] = th[stop - 1]
-                start = stop
-            if k == ft.size:
-                break
-            tf = float(ft[k])
-            d_t = tf - t_upd
-            # eq. 8: prediction from the last filtered position with the inertial control
-            x_pred = x_now.copy()
-            if prm.control == "last":
-                x_pred[:2] = x_upd + d_t * last_v
-            p_pred = p_upd.copy()
-            p_pred[:2, :2] += prm.q(d_t)                                      # eq. 9
-            r = (fcov[k] if (prm.use_wls_covariance and fcov is not None)
-                 else np.eye(2) * prm.sigma_p_m**2)                          # eq. 7
-            h = np.zeros((2, N_STATE))
-            h[0, 0] = h[1, 1] = 1.0
-            res = kalman_update(x_pred, p_pred, h, r, fxy[k] - x_pred[:2],
-                                gate_probability=prm.gate_probability, kind="rss_position",
-                                t=tf)                                         # eq. 10-12
-            diags.append(res.diagnostics)
-            x_now, p_upd = res.x, res.P
-            x_upd = x_now[:2].copy()
-            t_upd = tf
-            t_fixes.append(tf)
-            xy_fixes.append(x_upd.copy())
-        t_end = float(tt[-1]) if n else state.filter.t
-        t_end = max(t_end, t_upd)
-        new_filter = FilterState(t_end, x_now, p_upd, state.filter.input_heading_rad,
-                                 state.filter.has_input_heading,
-                                 state.filter.reference_pending)
-        new_state = TarrioState(new_filter, x_upd, t_upd, last_v)
-        return TarrioResult(tt, xy_out, cov_out, np.asarray(t_fixes),
-                            np.asarray(xy_fixes).reshape(-1, 2), diags, new_state)
-
-
-def hold_last_fix(t: ArrayLike, fix_t: ArrayLike, fix_xy: ArrayLike) -> FloatArray:
-    """Tarrio's "RSS alone" baseline: at each time the position of the last RSS fix (m, (N, 2)).
-
-    Times before the first fix take the first fix. (The "RSS + PDR without filtering" baseline
-    is :class:`TarrioFusion` with a tiny ``sigma_p_m`` and no gate: every fix resets the
-    dead reckoning.)
-    """
-    tt = finite_vector(t, where="hold t")
-    ft = finite_vector(fix_t, where="hold fix_t")
-    non_decreasing_time(ft, where="hold fix_t")
-    fxy = np.asarray(fix_xy, dtype=np.float64).reshape(-1, 2)
-    if fxy.shape[0] != ft.size or ft.size == 0:
-        raise InputError(f"{fxy.shape[0]} positions for {ft.size} times", where="hold fix_xy",
-                         expected="one position per fix time, at least one fix")
-    idx = np.maximum(np.searchsorted(ft, tt, side="right") - 1, 0)
-    return np.asarray(fxy[idx], dtype=np.float64)
+from hrtls.fusion.state import FilterState
 
 
 # ------------------------------------------------------------------------------------------

@@ -13,8 +13,11 @@ the vertical-acceleration peak just after heel strike, as measured on lower-back
 * medio-lateral ``A_ml sin(phi / 2 + p_ml)`` (stride frequency, alternating sides);
 * standing: sway and sensor noise only.
 
-The step length follows a per-person linear law in step frequency and the vertical amplitude is
-set so that Weinberg's law holds with the person's own ``K``.
+Step length and the vertical peak-to-peak are those of the scenario simulator's person model
+(:class:`hrtls.sim.gait_model.GaitParams`, one model for both generators): ``l = a + b v`` with
+``v = l f`` at the drawn step frequency ``f``, so ``l = a / (1 - b f)``; peak-to-peak
+``A_1 (v / 1 m/s)^alpha`` (walking, running at 3 m/s) or the fixed stairs values. No estimator's
+law (Weinberg, Kim, frequency-linear) is built in.
 """
 
 from __future__ import annotations
@@ -26,17 +29,15 @@ import numpy as np
 from hrtls.data import Activity
 from hrtls.frames import GRAVITY_M_S2, quat_from_euler, quat_multiply, quat_rotate
 from hrtls.gait._state import FloatArray
+from hrtls.sim.gait_model import GaitParams
+from hrtls.sim.motion_truth import GAIT_RUN, GAIT_WALK
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SimPerson:
-    """Gait characteristics of one simulated person."""
+    """Gait characteristics of one simulated person (``gait``: step length and amplitude laws)."""
 
-    walk_amp_m_s2: float = 2.2
-    walk_slope_m_s: float = 0.30
-    walk_intercept_m: float = 0.15
-    run_slope_m_s: float = 0.25
-    run_intercept_m: float = 0.35
+    gait: GaitParams = field(default_factory=GaitParams)
     walk_hz: float = 1.85
     run_hz: float = 2.8
     up_hz: float = 1.5
@@ -55,9 +56,7 @@ class SimPerson:
     @classmethod
     def random(cls, rng: np.random.Generator) -> SimPerson:
         """A person with randomly drawn characteristics."""
-        return cls(walk_amp_m_s2=rng.uniform(1.8, 2.6), walk_slope_m_s=rng.uniform(0.2, 0.4),
-                   walk_intercept_m=rng.uniform(0.05, 0.25), run_slope_m_s=rng.uniform(0.15, 0.3),
-                   run_intercept_m=rng.uniform(0.3, 0.5), walk_hz=rng.uniform(1.6, 2.1),
+        return cls(gait=GaitParams().drawn(rng), walk_hz=rng.uniform(1.6, 2.1),
                    run_hz=rng.uniform(2.6, 3.2), up_hz=rng.uniform(1.3, 1.7),
                    down_hz=rng.uniform(1.6, 2.0), ap_ratio=rng.uniform(0.5, 0.9),
                    ml_walk_m_s2=rng.uniform(0.8, 1.1), ml_up_ratio=rng.uniform(1.2, 1.5),
@@ -66,19 +65,29 @@ class SimPerson:
                    p3=rng.uniform(0, 2 * np.pi), noise_m_s2=rng.uniform(0.03, 0.12),
                    step_jitter=rng.uniform(0.02, 0.06))
 
-    @property
-    def weinberg_k(self) -> float:
-        """Weinberg ``K`` that makes the nominal walking step match ``walk_amp_m_s2``."""
-        length = self.step_length(int(Activity.WALKING), self.walk_hz)
-        return float(length / (2.0 * self.walk_amp_m_s2) ** 0.25)
-
     def step_length(self, activity: int, f_hz: float) -> float:
-        """True step length (m) of one step."""
-        if activity == Activity.RUNNING:
-            return self.run_slope_m_s * f_hz + self.run_intercept_m
+        """True step length (m) of one step at step frequency ``f_hz``."""
         if activity in (Activity.UPSTAIRS, Activity.DOWNSTAIRS):
             return 0.30
-        return self.walk_slope_m_s * f_hz + self.walk_intercept_m
+        g = self.gait
+        a, b = (g.run_a_m, g.run_b_s) if activity == Activity.RUNNING else (g.step_a_m, g.step_b_s)
+        return a / max(1.0 - b * f_hz, 0.2)
+
+    def vertical_pp(self, activity: int, speed_m_s: float) -> float:
+        """True vertical acceleration peak-to-peak (m/s^2) of one step."""
+        if activity == Activity.UPSTAIRS:
+            return self.gait.stairs_up_acc_pp_m_s2
+        if activity == Activity.DOWNSTAIRS:
+            return self.gait.stairs_down_acc_pp_m_s2
+        gait = GAIT_RUN if activity == Activity.RUNNING else GAIT_WALK
+        return float(self.gait.vertical_pp(np.array([speed_m_s]), np.array([gait]))[0])
+
+
+def _waveform_pp(h2: float, h3: float, p2: float, p3: float) -> float:
+    """Peak-to-peak of ``cos phi + h2 cos(2 phi + p2) + h3 cos(3 phi + p3)``."""
+    phi = np.linspace(0.0, 2.0 * np.pi, 256, endpoint=False)
+    w = np.cos(phi) + h2 * np.cos(2 * phi + p2) + h3 * np.cos(3 * phi + p3)
+    return float(w.max() - w.min())
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -146,7 +155,6 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     speed = np.zeros(n)  # forward speed, m/s
     i0 = 0
     cyc = 0.0
-    k_w = p.weinberg_k
     for a, dur in segments:
         i1 = min(n, i0 + round(dur * rate_hz))
         act[i0:i1] = a
@@ -165,21 +173,18 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
                 length = p.step_length(a, f)
                 len_s[k:kk] = length
                 speed[k:kk] = length * f
-                # Weinberg on level ground: range = (L/K)^4; on stairs a fixed share of the
-                # person's nominal walking amplitude
-                if a in (Activity.WALKING, Activity.RUNNING):
-                    amp = 0.5 * (length / k_w) ** 4
-                else:
-                    amp = p.walk_amp_m_s2 * (0.8 if a == Activity.UPSTAIRS else 1.3)
+                h2 = p.h2 * (1.8 if a == Activity.UPSTAIRS else 1.0)
+                h3 = p.h3 * (3.0 if a == Activity.DOWNSTAIRS else 1.0) + (
+                    0.15 if a == Activity.DOWNSTAIRS else 0.0)
+                amp = p.vertical_pp(a, length * f) / _waveform_pp(h2, h3, p.p2, p.p3)
                 amp_v[k:kk] = amp * (1.0 + 0.05 * rng.normal())
                 amp_ml[k:kk] = p.ml_walk_m_s2 * {
                     Activity.WALKING: 1.0, Activity.RUNNING: 1.5, Activity.UPSTAIRS: p.ml_up_ratio,
                     Activity.DOWNSTAIRS: p.ml_down_ratio}[Activity(a)]
                 ap_s[k:kk] = {Activity.WALKING: 1.0, Activity.RUNNING: 1.0,
                               Activity.UPSTAIRS: 0.5, Activity.DOWNSTAIRS: 0.6}[Activity(a)]
-                shape[k:kk, 0] = p.h2 * (1.8 if a == Activity.UPSTAIRS else 1.0)
-                shape[k:kk, 1] = p.h3 * (3.0 if a == Activity.DOWNSTAIRS else 1.0) + (
-                    0.15 if a == Activity.DOWNSTAIRS else 0.0)
+                shape[k:kk, 0] = h2
+                shape[k:kk, 1] = h3
                 cyc += (kk - k) / m
                 k = kk
             cyc = np.ceil(cyc - 1e-9)
