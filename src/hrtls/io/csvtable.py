@@ -192,6 +192,7 @@ def _careful(text: str, header: list[str], kinds: Mapping[str, ColumnKind], *,
              name: str) -> Table:
     """Row-by-row parse: the table, or the first malformed line (after the fast path failed)."""
     reader = csv.reader(io.StringIO(text))
+    raw_lines = text.split("\n")  # the lines csv.reader counts (StringIO splits at newlines)
     cells: list[list[str]] = [[] for _ in header]
     line_no = 0
     for row in reader:
@@ -199,8 +200,9 @@ def _careful(text: str, header: list[str], kinds: Mapping[str, ColumnKind], *,
         if line_no > first or any("\n" in c or "\r" in c for c in row):
             raise FormatError("a quoted value runs past the end of the line",
                               where=f"{name} line {first}", expected="quotes closed on their line")
-        if line_no == 1 or not row or (len(row) == 1 and not row[0].strip()):
-            continue  # a blank line; a line of bare commas is a row of empty fields
+        blank = not row or (len(row) == 1 and not raw_lines[line_no - 1].strip())
+        if line_no == 1 or blank:
+            continue  # a blank line (a line of bare commas or of "" is a row of empty fields)
         if len(row) != len(header):
             raise FormatError(f"{len(row)} fields", where=f"{name} line {line_no}",
                               expected=f"{len(header)} fields ({','.join(header)})")
