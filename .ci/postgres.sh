@@ -11,7 +11,8 @@ if ! command -v pg_lsclusters >/dev/null 2>&1; then
 fi
 read -r version cluster port status _ < <(pg_lsclusters --no-header | head -1)
 if [ "$status" != "online" ]; then
-  "${as_root[@]}" pg_ctlcluster "$version" "$cluster" start
+  # The server must not inherit fd 3 (the caller's stdout): a reader of that pipe would wait for ever.
+  "${as_root[@]}" pg_ctlcluster "$version" "$cluster" start 3>&- </dev/null
 fi
 as_pg() { if [ "$(id -u)" -eq 0 ]; then su postgres -c "$1"; else sudo -u postgres sh -c "$1"; fi; }
 for _ in $(seq 1 30); do
