@@ -11,7 +11,9 @@ gives:
 * lost (sent - acknowledged), duplicated (stored twice: the raw log's unique seq), 429 retries;
 * IMU samples per second stored, server memory per agent (RSS growth / N);
 * the machine's 1-minute load average at the end of the level (the machine is shared: a
-  load above its core count means the figures of that level are inflated by other jobs).
+  load above its core count means the figures of that level are inflated by other jobs);
+* the server process's CPU time over the level's wall time, % of one core (less sensitive
+  to other jobs than the latencies).
 
 N is *sustained* when p99 latency <= 1 s with zero loss and duplicates. Bounded: each N runs
 ``--duration-s`` (default 60 s; the issue's figure is 300 s) and the whole run stops adding N
@@ -60,6 +62,12 @@ def rss_kib(pid: int) -> int:
         if line.startswith("VmRSS:"):
             return int(line.split()[1])
     return 0
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time of process ``pid``, s."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def start_server(db: str, port: int, engine: str, ray_shards: int, log: Path | None
@@ -242,7 +250,7 @@ def main() -> None:
             proc, token = start_server(str(Path(tmp) / f"load{n}.db"), port, args.engine,
                                        args.ray_shards, args.server_log)
             try:
-                rss0 = rss_kib(proc.pid)
+                rss0, cpu0 = rss_kib(proc.pid), cpu_s(proc.pid)
                 try:
                     res = asyncio.run(run_level(f"http://127.0.0.1:{port}", token, n, streams,
                                                 args.duration_s))
@@ -250,7 +258,7 @@ def main() -> None:
                     print(f"| {n} | failed: {type(exc).__name__} (server overloaded) |",
                           flush=True)
                     break
-                rss1 = rss_kib(proc.pid)
+                rss1, cpu1 = rss_kib(proc.pid), cpu_s(proc.pid)
             finally:
                 proc.terminate()  # SIGTERM: the server also shuts its Ray runtime down
                 try:
@@ -270,22 +278,22 @@ def main() -> None:
             rows.append((n, p(lat, 50), p(lat, 99), float(lat.max()) if len(lat) else 0.0,
                          p(lag, 50), p(lag, 99), lost, dup, res["r429"],
                          res["samples"] / args.duration_s, (rss1 - rss0) / n / 1024.0, ok,
-                         os.getloadavg()[0]))
+                         os.getloadavg()[0], 100.0 * (cpu1 - cpu0) / res["wall_s"]))
             r = rows[-1]
             print(f"| {r[0]} | {r[1]:.3f} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.2f} | {r[5]:.2f} | "
                   f"{r[6]} | {r[7]} | {r[8]} | {r[9]:.0f} | {r[10]:.1f} | "
-                  f"{'yes' if r[11] else 'no'} | {r[12]:.1f} |  ({res['wall_s']:.0f} s)",
-                  flush=True)
+                  f"{'yes' if r[11] else 'no'} | {r[12]:.1f} | {r[13]:.0f} |  "
+                  f"({res['wall_s']:.0f} s)", flush=True)
     print()
     if args.engine == "ray":
         print("(MiB/agent is the server process only; with Ray the trackers live in the actors)")
     print("| agents | latency p50 s | p99 s | max s | estimate lag p50 s | p99 s | lost | dup |"
-          " 429 retries | IMU samples/s | MiB/agent | sustained | load 1 min |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          " 429 retries | IMU samples/s | MiB/agent | sustained | load 1 min | server CPU % |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r[0]} | {r[1]:.3f} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.2f} | {r[5]:.2f} | "
               f"{r[6]} | {r[7]} | {r[8]} | {r[9]:.0f} | {r[10]:.1f} | "
-              f"{'yes' if r[11] else 'no'} | {r[12]:.1f} |")
+              f"{'yes' if r[11] else 'no'} | {r[12]:.1f} | {r[13]:.0f} |")
     best = max((r[0] for r in rows if r[11]), default=0)
     print(f"\nengine {args.engine}"
           + (f" ({args.ray_shards} shard actors)" if args.engine == "ray" else "")
