@@ -301,17 +301,23 @@ def _needs_quotes(table: pa.Table) -> bool:
 
 
 def csv_bytes(table: pa.Table) -> bytes:
-    """``table`` as CSV: a plain header line, nulls as empty fields, text quoted only if needed.
-
-    Numbers are written with the fewest digits that read back to the same float64.
-    """
+    """``table`` as CSV (see :func:`write_csv`)."""
     out = pa.BufferOutputStream()
-    out.write((",".join(table.column_names) + "\n").encode("utf-8"))
+    write_csv(table, out)
+    return bytes(out.getvalue())
+
+
+def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
+    """``table`` as CSV into ``sink``, batch by batch.
+
+    A plain header line, nulls as empty fields, text quoted only if needed. Numbers are
+    written with the fewest digits that read back to the same float64.
+    """
+    sink.write((",".join(table.column_names) + "\n").encode("utf-8"))
     if table.num_rows:
         style = "needed" if _needs_quotes(table) else "none"
-        pacsv.write_csv(table, out, write_options=pacsv.WriteOptions(
+        pacsv.write_csv(table, sink, write_options=pacsv.WriteOptions(
             include_header=False, quoting_style=style, batch_size=1 << 16))
-    return bytes(out.getvalue())
 
 
 def arrow_from_columns(columns: Mapping[str, NDArray[np.generic]]) -> pa.Table:
