@@ -192,21 +192,33 @@ class SessionStream:
         return Session(meta=self.meta, imu=imu, landmarks=self.landmarks, **self.parts)
 
     def truth(self) -> GroundTruth | None:
-        """The ground truth, read now in pieces (it is not held while the IMU streams)."""
+        """The ground truth, read now in pieces (it is not held while the IMU streams).
+
+        The pieces are copied into arrays sized from the table's row count (grown if the CSV
+        estimate falls short), so the whole table is held once.
+        """
         if self._truth is None:
             return None
         name = self._truth.name
+        columns: list[np.ndarray] = []
+        n = 0
         try:
-            parts = [truth_from(_checked(piece, "truth"), name)
-                     for piece in self._truth.pieces(self._chunk_rows) if piece.num_rows]
-            heading = None if not parts or parts[0].heading_rad is None else \
-                np.concatenate([p.heading_rad for p in parts if p.heading_rad is not None])
-            truth = GroundTruth(np.concatenate([p.t for p in parts] or [np.zeros(0)]),
-                                np.concatenate([p.xyz for p in parts] or [np.zeros((0, 3))]),
-                                heading, name)
+            for piece in self._truth.pieces(self._chunk_rows):
+                if not piece.num_rows:
+                    continue
+                part = truth_from(_checked(piece, "truth"), name)
+                values = [part.t, part.xyz] + ([] if part.heading_rad is None
+                                               else [part.heading_rad])
+                if not columns:
+                    columns = [np.empty((max(self._truth.rows, len(part.t)), *v.shape[1:]))
+                               for v in values]
+                columns = [_placed(c, n, v) for c, v in zip(columns, values, strict=True)]
+                n += len(part.t)
+            columns = columns or [np.zeros(0), np.zeros((0, 3))]
+            truth = GroundTruth(columns[0][:n], columns[1][:n],
+                                columns[2][:n] if len(columns) > 2 else None, name)
         except (_Fallback, pa.ArrowException, FormatError, InputError):
             self._explain()
-        del parts
         pa.default_memory_pool().release_unused()
         return truth
 
@@ -301,6 +313,17 @@ class SessionStream:
                          None if gyr is None else SensorSeries(t, gyr, f"{name} gyroscope"),
                          None if mag is None else SensorSeries(t, mag, f"{name} magnetometer"),
                          check_units=self._check_units)
+
+
+def _placed(buffer: np.ndarray, n: int, values: np.ndarray) -> np.ndarray:
+    """``buffer`` (grown by half when too short) with ``values`` at rows ``n`` onwards."""
+    end = n + len(values)
+    if end > len(buffer):
+        grown = np.empty((max(end, len(buffer) * 3 // 2), *buffer.shape[1:]))
+        grown[:n] = buffer[:n]
+        buffer = grown
+    buffer[n:end] = values
+    return buffer
 
 
 def _check_time(t: np.ndarray, t_before: float, explain: Callable[[], NoReturn]) -> None:

@@ -353,6 +353,7 @@ class Tracker:
             self.baro.advance(sched.horizon)
         # tag reads / RSS readings still being grouped hold back everything after them
         self.engine.drain(sched.release_limit())
+        self.history.forget_motion_before(self.engine.state.t)
 
     def finish(self) -> TrackResult:
         """End of the recording: release held steps and observations, build the result."""
