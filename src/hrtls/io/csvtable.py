@@ -59,7 +59,7 @@ class Table:
                 continue
             k = 0
             for chunk in col.chunks:
-                out[k:k + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
+                out[k:k + len(chunk), j] = float_values(chunk)
                 k += len(chunk)
         return out
 
@@ -73,6 +73,20 @@ class Table:
     def str(self, name: str) -> NDArray[np.str_]:
         """A text column."""
         return np.asarray(self.columns[name], dtype=np.str_)
+
+
+def float_values(array: pa.Array) -> NDArray[np.float64]:
+    """A float64 Arrow array as numpy (nulls as NaN), viewed without a copy when it has none.
+
+    Read from its buffers: :meth:`pyarrow.Array.to_numpy` (and Arrow scalars made from Python
+    values) would import pandas.
+    """
+    validity, data = array.buffers()[:2]
+    values = np.frombuffer(data, dtype=np.float64, count=len(array), offset=array.offset * 8)
+    if not array.null_count:
+        return values
+    bits = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")
+    return np.where(bits[array.offset:array.offset + len(array)].astype(bool), values, np.nan)
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,11 +128,12 @@ def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
             if col.null_count:
                 return out, ValueProblem(_first(col.is_null()), name, f"empty {name!r}",
                                          "a non-empty text value")
-            empty = pc.equal(pc.utf8_length(text), 0)
+            # length 0 casts to False; comparing with a Python 0 would import pandas
+            empty = pc.invert(pc.cast(pc.utf8_length(text), pa.bool_()))
             if pc.any(empty).as_py():
                 return out, ValueProblem(_first(empty), name, f"empty {name!r}",
                                          "a non-empty text value")
-            out[name] = np.asarray(text.to_numpy(zero_copy_only=False), dtype=np.str_)
+            out[name] = np.array(text.to_pylist(), dtype=np.str_)
             continue
         if col.null_count and kind == "float":
             return out, ValueProblem(_first(col.is_null()), name, f"{name!r} is missing",
