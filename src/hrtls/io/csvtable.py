@@ -336,16 +336,31 @@ def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
 
 
 def arrow_from_columns(columns: Mapping[str, NDArray[np.generic]]) -> pa.Table:
-    """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text."""
-    arrays = {}
-    for name, values in columns.items():
+    """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text.
+
+    Built from buffers: :func:`pyarrow.array` and :func:`pyarrow.table` would import pandas.
+    """
+    arrays = []
+    for values in columns.values():
         arr = np.asarray(values)
-        if arr.dtype.kind in "fiub":
-            arrays[name] = pa.array(arr.astype(np.float64, copy=False), type=pa.float64(),
-                                    from_pandas=True)
-        else:
-            arrays[name] = pa.array(arr.astype(np.str_).tolist(), type=pa.string())
-    return pa.table(arrays)
+        arrays.append(_float_array(arr) if arr.dtype.kind in "fiub" else _text_array(arr))
+    return pa.Table.from_arrays(arrays, names=list(columns))
+
+
+def _float_array(values: NDArray[np.generic]) -> pa.Array:
+    data = np.ascontiguousarray(values, dtype=np.float64)
+    nan = np.isnan(data)
+    validity = pa.py_buffer(np.packbits(~nan, bitorder="little")) if nan.any() else None
+    return pa.Array.from_buffers(pa.float64(), len(data), [validity, pa.py_buffer(data)],
+                                 null_count=int(np.count_nonzero(nan)))
+
+
+def _text_array(values: NDArray[np.generic]) -> pa.Array:
+    encoded = [v.encode("utf-8") for v in values.astype(np.str_).tolist()]
+    offsets = np.zeros(len(encoded) + 1, dtype=np.int32)
+    np.cumsum([len(e) for e in encoded], out=offsets[1:])
+    return pa.Array.from_buffers(pa.string(), len(encoded),
+                                 [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))])
 
 
 def format_table(columns: Mapping[str, NDArray[np.generic]]) -> str:
