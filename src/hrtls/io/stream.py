@@ -165,7 +165,9 @@ class SessionStream:
     @property
     def imu_t(self) -> np.ndarray:
         """The accelerometer times read so far (all of them once :meth:`chunks` is done), s."""
-        return np.concatenate(self._times) if self._times else np.zeros(0)
+        if len(self._times) > 1:  # joined once, in place of the chunks' pieces
+            self._times[:] = [np.concatenate(self._times)]
+        return self._times[0] if self._times else np.zeros(0)
 
     def t0(self, imu_t0: float) -> float:
         """Earliest time over all streams, observations and ground truth, s.
