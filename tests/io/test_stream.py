@@ -3,7 +3,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hrtls.errors import FormatError
+from hrtls.errors import FormatError, InputError
 from hrtls.io.session import read_session, write_session
 from hrtls.io.stream import open_stream
 from hrtls.jobs.track import track_recording
@@ -83,3 +83,18 @@ def test_input_only_the_careful_reader_takes_is_tracked_whole(walk, tmp_path):
         warnings.simplefilter("ignore")
         run = track_recording(d, preset("default"), chunk_rows=1000)
     assert not run.streamed and run.samples == len(session.imu.accel)
+
+
+def test_stream_time_going_back_late_keeps_exact_message(walk, tmp_path):
+    # found by a late chunk, after earlier chunks were tracked: the whole-session reader's words
+    bad = tmp_path / "back"
+    write_session(read_session(walk / "csv"), bad)
+    lines = (bad / "imu.csv").read_text().splitlines()
+    lines[9000], lines[9001] = lines[9001], lines[9000]
+    (bad / "imu.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as whole:
+        read_session(bad)
+    assert "time goes backwards" in str(whole.value) and "index 9000" in str(whole.value)
+    with pytest.raises(InputError) as streamed:
+        track_recording(bad, preset("default"), chunk_rows=1000)
+    assert str(streamed.value) == str(whole.value)
