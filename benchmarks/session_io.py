@@ -5,7 +5,7 @@
   ratio to the CSV session read is shown too);
 * ``hrtls track`` end to end on a two-hour simulated recording vs the tracker's own time
   (target <= 2x), in a child process;
-* peak memory (``ru_maxrss`` of the child, from ``wait4``) of ``hrtls track`` on an eight-hour
+* peak memory (the child's own ``VmHWM``) of ``hrtls track`` on an eight-hour
   simulated recording (target < 1 GB); the start and exit of the command alone (its imports) are
   shown beside the two-hour run, a cost that does not grow with the recording.
 
@@ -45,6 +45,10 @@ SOURCES = str(Path(hrtls.__file__).resolve().parents[1])
 """Where this interpreter's hrtls is: the child runs the same code."""
 HRTLS_IMPORTS = [sys.executable, "-c", "import hrtls.cli.app, hrtls.jobs.track, hrtls.recordings"]
 """What ``hrtls track`` imports before any work, in a child process."""
+PEAK = ("import atexit, re; atexit.register(lambda: print('VmHWM', re.search("
+        "r'VmHWM:\\s*(\\d+)', open('/proc/self/status').read()).group(1)))\n")
+"""Prints the process's own peak RSS (kB) at exit: ``ru_maxrss`` of a child also counts the
+parent's memory at the fork, which ``execve`` keeps."""
 
 
 def timed(fn: Callable[[], object]) -> tuple[float, float]:
@@ -64,7 +68,11 @@ def simulated(work: Path, hours: float) -> Path:
 
 
 def _child(args: list[str]) -> tuple[str, float, float, float]:
-    """(output, wall s, CPU s, peak MB) of one child process, its own rusage (``wait4``)."""
+    """(output, wall s, CPU s, peak MB) of one ``python -c`` child process.
+
+    CPU: the child's own rusage (``wait4``); peak memory: its ``VmHWM`` (:data:`PEAK`).
+    """
+    args = [*args[:2], PEAK + args[2], *args[3:]]
     with tempfile.TemporaryFile("w+") as log:
         w0 = time.perf_counter()
         proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, text=True,
@@ -77,7 +85,9 @@ def _child(args: list[str]) -> tuple[str, float, float, float]:
         text = log.read()
     if proc.returncode:
         raise subprocess.CalledProcessError(proc.returncode, args, text)
-    return text, wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1e3
+    found = re.search(r"VmHWM (\d+)", text)
+    peak_mb = float(found.group(1)) / 1e3 if found else float("nan")
+    return text, wall, usage.ru_utime + usage.ru_stime, peak_mb
 
 
 def track_child(session: Path, out: Path) -> tuple[float, float, float, float]:
