@@ -52,8 +52,8 @@ DEFAULT_CHUNK_ROWS = 1 << 16
 """IMU rows per chunk (about 11 minutes at 100 Hz)."""
 
 _AXES = ("x", "y", "z")
-_CSV_BLOCK_BYTES = 1 << 20
-"""Block of the streaming CSV reader; larger blocks (and its threads) hold many in flight."""
+_BLOCK_BYTES = 1 << 20
+"""Read buffer of the streamed tables; larger blocks (and reader threads) hold many in flight."""
 
 
 class _Fallback(Exception):
@@ -94,17 +94,19 @@ class _TableFile:
     def pieces(self, rows: int) -> Generator[pa.Table, None, None]:
         """Consecutive pieces of the table of about ``rows`` rows, read one after the other.
 
-        CSV is parsed in small blocks on one thread (bounded memory) and cut into pieces of
-        ``rows`` rows (the last may be shorter).
+        Both are read on one thread through small buffers (bounded memory): Parquet one row
+        group at a time, CSV in blocks cut into pieces of ``rows`` rows (the last may be
+        shorter).
         """
         with self.open() as fh:
             if self.parquet:
-                for batch in pq.ParquetFile(fh).iter_batches(batch_size=rows):
+                parquet = pq.ParquetFile(fh, buffer_size=_BLOCK_BYTES, pre_buffer=False)
+                for batch in parquet.iter_batches(batch_size=rows, use_threads=False):
                     yield pa.Table.from_batches([batch])
                 return
             rest: pa.Table | None = None
             for batch in pacsv.open_csv(fh, read_options=self._read_options(
-                    _CSV_BLOCK_BYTES, threads=False), convert_options=self._convert(self.header)):
+                    _BLOCK_BYTES, threads=False), convert_options=self._convert(self.header)):
                 table = pa.Table.from_batches([batch])
                 if rest is not None:
                     table = pa.concat_tables([rest, table])
@@ -398,9 +400,10 @@ def _table_file(source: Source, src: _SessionFiles, name: str) -> _TableFile | N
             return None
         body = head[start:]
         size = source.size(member)
-        # a head holding the whole file counts its rows; else the size over the mean row
-        rows = body.count(b"\n") + (not body.endswith(b"\n")) if len(head) == size else \
-            round((size - start) * body.count(b"\n") / max(len(body), 1))
+        if len(head) == size:  # the whole file: its rows
+            rows = body.count(b"\n") + (bool(body) and not body.endswith(b"\n"))
+        else:  # the size over the mean row of the head
+            rows = round((size - start) * body.count(b"\n") / max(len(body), 1))
     return _TableFile(name, header, lambda: source.open(member), rows)
 
 
