@@ -6,6 +6,9 @@ process) or ``--engine ray``. Each benchmark maps a module-level function over i
 files, cases) and prints its tables from the results in item order, so the tables do not depend
 on the engine or the number of workers. A failed item is printed to stderr with its traceback
 and left out of the tables; the benchmark then exits with status 1 (:meth:`Batch.finish`).
+
+Each map starts its own pool, whose processes take seconds to import hrtls and load the
+compiled kernels: for short runs ``--workers 1`` is faster.
 """
 
 from __future__ import annotations
