@@ -30,7 +30,7 @@ from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 
-API_PREFIX = "/api/v1"
+API_PREFIX = schemas.API_PREFIX
 log = logging.getLogger(__name__)
 
 

@@ -97,7 +97,7 @@ export class Dashboard {
     this.missionId = id;
     this.agents.clear(); this.events.clear(); this.orders.clear();
     this.mission = await this.api.mission(id);
-    this.map.setFloorplan(this.mission.floorplan);
+    this.map.setFloorplan(this.mission.floorplan, this.mission.floors);
     const floors = this.mission.floors;
     this.floor = floors.length ? floors[0].index : 0;
     this.infra = await this.api.infrastructure(id).catch(() => this.infra);

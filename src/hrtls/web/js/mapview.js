@@ -44,14 +44,26 @@ export class MapView {
     if (visible) layer.addTo(this.map); else layer.remove();
   }
 
-  // GeoJSON FeatureCollection in local metres; properties.floor (int) and properties.kind.
-  setFloorplan(collection) {
+  // GeoJSON FeatureCollection in local metres (properties.floor, an int, and properties.kind)
+  // and the floors' plan images ({index, image: {url, bounds} | null}).
+  setFloorplan(collection, floors = []) {
     this.floorplan = collection;
+    this.floorImages = new Map(floors.filter((f) => f.image).map((f) => [f.index, f.image]));
     this.fitted = false;
   }
 
   drawFloor(floor) {
     this.planLayer.clearLayers();
+    const image = this.floorImages?.get(floor);
+    if (image) {
+      // the browser sends the session cookie with the image request (same origin)
+      L.imageOverlay(image.url, image.bounds, { className: "plan-image", opacity: 0.85 })
+        .addTo(this.planLayer);
+      if (!this.fitted) {
+        this.map.fitBounds(image.bounds, { padding: [20, 20] });
+        this.fitted = true;
+      }
+    }
     if (!this.floorplan) return;
     const features = (this.floorplan.features || []).filter(
       (f) => (f.properties?.floor ?? 0) === floor);
