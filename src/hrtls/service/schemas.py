@@ -345,3 +345,18 @@ class HealthOut(Out):
     status: str
     version: str
     db: str
+
+
+# ---------------------------------------------------------------------------- dashboard
+class BasemapOut(Out):
+    """A web-mercator tile source for georeferenced missions."""
+
+    url: str
+    max_zoom: int
+    attribution: str
+
+
+class DashboardConfigOut(Out):
+    """What the dashboard needs to know of this deployment."""
+
+    basemap: BasemapOut | None

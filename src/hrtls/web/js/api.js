@@ -112,6 +112,7 @@ export class Api {
   whoami() { return this.request("GET", "/auth/whoami"); }
 
   missions() { return this.request("GET", "/missions"); }
+  dashboardConfig() { return this.request("GET", "/dashboard/config"); }
 
   async mission(id) {
     const m = await this.request("GET", `/missions/${id}`);
@@ -122,7 +123,7 @@ export class Api {
       }
     }
     return { id: m.id, name: m.name, t0Unix: m.t0_unix, nowT: m.now_t,
-      staleAfterS: m.stale_after_s,
+      staleAfterS: m.stale_after_s, georeference: m.georeference,
       floors: (m.floors || []).map((f) => ({ index: f.index, name: f.name, image: imageOf(f.image) })),
       floorplan: { type: "FeatureCollection", features } };
   }

@@ -62,3 +62,29 @@ export function formatClock(seconds) {
   const s = Math.max(0, Math.floor(seconds));
   return `${Math.floor(s / 60)}:${String(s % 60).padStart(2, "0")}`;
 }
+
+// Web mercator (EPSG:3857): sphere radius, m.
+export const MERCATOR_R_M = 6378137;
+
+// Local mission metres on web-mercator tiles. The georeference anchors local (0, 0) at
+// (lat_deg, lon_deg), with local x rotated rotation_rad counter-clockwise from east
+// (hrtls/frames.py). Near the anchor, mercator metres are the anchor's plus k times the
+// east / north offset, k = 1 / cos(lat) (the projection's local scale). Returns the rotation
+// local (x, y) <-> (east, north) and the coefficients [a, b, c, d] of the pixel transformation
+// pixel = scale(zoom) * (a * east + b, c * north + d), equal to EPSG:3857's at the anchor.
+export function mercatorFrame({ lat_deg: lat, lon_deg: lon, rotation_rad: rot = 0 }) {
+  const phi = (lat * Math.PI) / 180;
+  const x0 = MERCATOR_R_M * ((lon * Math.PI) / 180);
+  const y0 = MERCATOR_R_M * Math.log(Math.tan(Math.PI / 4 + phi / 2));
+  const k = 1 / Math.cos(phi);
+  const u = 0.5 / (Math.PI * MERCATOR_R_M);
+  const c = Math.cos(rot);
+  const s = Math.sin(rot);
+  return {
+    toEastNorth: (x, y) => [c * x - s * y, s * x + c * y],
+    fromEastNorth: (e, n) => [c * e + s * n, -s * e + c * n],
+    transformation: [u * k, u * x0 + 0.5, -u * k, -u * y0 + 0.5],
+    // zoom levels between CRS.Simple (1 px per metre at zoom 0) and this frame
+    zoomOffset: -Math.log2(256 * u * k),
+  };
+}
