@@ -108,12 +108,16 @@ class NodeTrack:
 
 @dataclass(frozen=True, eq=False)
 class MissionResult:
-    """Per-agent results, the final node estimates and each node's history (localized rows)."""
+    """Per-agent results, the final node estimates and each node's history (localized rows).
+
+    ``readings``: the ranges kept for each node's estimate, all agents.
+    """
 
     agents: dict[str, TrackResult]
     nodes: dict[str, NodeEstimate]
     node_history: dict[str, NodeTrack]
     contributors: dict[str, list[str]]
+    readings: dict[str, int] = field(default_factory=dict)
 
 
 class MissionTracker:
@@ -155,7 +159,8 @@ class MissionTracker:
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
-        return MissionResult(results, dict(self.estimates), hist, contributors)
+        readings = {n: len(r.r) for n, r in self.readings.items()}
+        return MissionResult(results, dict(self.estimates), hist, contributors, readings)
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""

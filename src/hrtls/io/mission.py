@@ -1,0 +1,314 @@
+"""The mission folder: every agent's session plus the dropped network (docs/architecture.md).
+
+``MISSION_DIR/``
+
+* ``mission.json``: ``{"format": "hrtls-mission", "version": 1, "name": ..., "agents":
+  [{"name", "kind" (rescuer | robot), "session" (sub-folder or zip, relative), "format"
+  (optional, default detected)}]}``;
+* ``network.json`` (optional): ``{"nodes": [{"id": ...}]}``, the dropped range nodes, ids only;
+* ``landmarks.json`` (optional): the mission's known location messages (session format), given
+  to every agent (an agent's own landmark of the same id wins);
+* one session per agent, read by :func:`hrtls.recordings.read_any`;
+* ``network_truth.json`` (optional, scoring only): ``{"nodes": [{"id", "position": [x, y(, z)]}]}``.
+
+Ground truth (agents' ``truth.csv`` / ``checkpoints.csv``, ``network_truth.json``) is read into
+:class:`MissionFolder` apart from the sessions the estimator gets (:meth:`MissionFolder.sessions`).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from hrtls.data import Session
+from hrtls.data.landmarks import Landmark
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.io.session import landmarks_from_json, pydantic_problem
+
+FloatArray = NDArray[np.float64]
+
+MISSION_FORMAT: Literal["hrtls-mission"] = "hrtls-mission"
+MISSION_VERSION = 1
+"""Version of ``mission.json`` this module reads and writes."""
+MISSION_FILE = "mission.json"
+NETWORK_FILE = "network.json"
+LANDMARKS_FILE = "landmarks.json"
+NETWORK_TRUTH_FILE = "network_truth.json"
+AgentKind = Literal["rescuer", "robot"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class AgentEntry(_Strict):
+    """One agent of ``mission.json``."""
+
+    name: str = Field(min_length=1)
+    kind: AgentKind
+    session: str = Field(min_length=1, description="folder or zip, relative to the mission")
+    format: str | None = Field(default=None, description="recording format (default: detected)")
+
+    @field_validator("session")
+    @classmethod
+    def _inside(cls, value: str) -> str:
+        p = PurePosixPath(value.replace("\\", "/"))
+        if p.is_absolute() or ".." in p.parts or re.match(r"^[A-Za-z]:", value):
+            raise ValueError("must be a relative path inside the mission folder")
+        return value
+
+
+class MissionFileModel(_Strict):
+    """``mission.json``."""
+
+    format: Literal["hrtls-mission"]
+    version: int
+    name: str = ""
+    agents: list[AgentEntry] = Field(min_length=1)
+    notes: list[str] = Field(default_factory=list)
+    source: dict[str, Any] = Field(default_factory=dict)
+
+
+class NodeEntry(_Strict):
+    """A dropped node of ``network.json``: an id, no position."""
+
+    id: str = Field(min_length=1)
+
+
+class NetworkModel(_Strict):
+    """``network.json``."""
+
+    nodes: list[NodeEntry]
+
+
+class NodeTruthEntry(_Strict):
+    """A node of ``network_truth.json``."""
+
+    id: str = Field(min_length=1)
+    position: tuple[float, float] | tuple[float, float, float]
+
+
+class NetworkTruthModel(_Strict):
+    """``network_truth.json``."""
+
+    nodes: list[NodeTruthEntry]
+
+
+@dataclass(frozen=True, eq=False)
+class MissionAgent:
+    """An agent of a mission: its entry and its whole session (ground truth included)."""
+
+    name: str
+    kind: AgentKind
+    path: Path
+    session: Session
+
+
+@dataclass(frozen=True, eq=False)
+class MissionFolder:
+    """A read mission folder.
+
+    Attributes
+    ----------
+    path:
+        The folder.
+    name:
+        Mission name.
+    agents:
+        Agents by name, in the order of ``mission.json``.
+    nodes:
+        Ids of the dropped nodes (``network.json``).
+    landmarks:
+        The mission's known location messages (``landmarks.json``).
+    node_truth_m:
+        ``id -> (2,) or (3,)`` true node positions, m (``network_truth.json``; None without).
+    """
+
+    path: Path
+    name: str
+    agents: dict[str, MissionAgent]
+    nodes: tuple[str, ...]
+    landmarks: dict[str, Landmark]
+    node_truth_m: dict[str, FloatArray] | None
+
+    def sessions(self) -> dict[str, Session]:
+        """What the estimator gets: each agent's session without its ground truth."""
+        return {k: a.session.with_parts(truth=None, checkpoints=None)
+                for k, a in self.agents.items()}
+
+
+def _load_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError:
+        raise FormatError("not UTF-8 text", where=str(path), expected="a UTF-8 JSON file"
+                          ) from None
+    except json.JSONDecodeError as exc:
+        raise FormatError(exc.msg, where=f"{path} line {exc.lineno} column {exc.colno}",
+                          expected="valid JSON") from None
+
+
+def _model(cls: type[BaseModel], data: Any, *, where: Path, expected: str) -> Any:
+    if not isinstance(data, dict):
+        raise FormatError(f"top level is {type(data).__name__}", where=str(where),
+                          expected="a JSON object")
+    try:
+        return cls.model_validate(data)
+    except ValidationError as exc:
+        raise FormatError(pydantic_problem(exc), where=str(where), expected=expected) from None
+
+
+def _unique(values: Sequence[str], *, what: str, where: Path) -> None:
+    seen: set[str] = set()
+    for v in values:
+        if v in seen:
+            raise FormatError(f"duplicate {what} {v!r}", where=str(where),
+                              expected=f"unique {what}s")
+        seen.add(v)
+
+
+def read_mission(path: Path | str) -> MissionFolder:
+    """Read a mission folder (see the module doc); every problem names its file and field."""
+    from hrtls.recordings import read_any
+
+    root = Path(path)
+    if not root.is_dir():
+        raise InputError("no such folder", where=str(root),
+                         expected=f"a mission folder holding {MISSION_FILE}")
+    mfile = root / MISSION_FILE
+    if not mfile.is_file():
+        raise InputError(f"no {MISSION_FILE}", where=str(root),
+                         expected="a mission folder (docs/architecture.md, 'The mission folder')")
+    data = _load_json(mfile)
+    if isinstance(data, dict) and data.get("version") not in (None, MISSION_VERSION) \
+            and data.get("format") == MISSION_FORMAT:
+        raise FormatError(f"field 'version': {data['version']!r}", where=str(mfile),
+                          expected=f"version {MISSION_VERSION} (this hrtls reads only it)")
+    spec: MissionFileModel = _model(
+        MissionFileModel, data, where=mfile,
+        expected=f'{{"format": "{MISSION_FORMAT}", "version": {MISSION_VERSION}, "agents": '
+                 '[{"name", "kind": rescuer | robot, "session"}]}')
+    if spec.version != MISSION_VERSION:
+        raise FormatError(f"field 'version': {spec.version!r}", where=str(mfile),
+                          expected=f"version {MISSION_VERSION} (this hrtls reads only it)")
+    _unique([a.name for a in spec.agents], what="agent name", where=mfile)
+    _unique([a.session for a in spec.agents], what="agent session", where=mfile)
+    nodes: tuple[str, ...] = ()
+    if (root / NETWORK_FILE).is_file():
+        net: NetworkModel = _model(NetworkModel, _load_json(root / NETWORK_FILE),
+                                   where=root / NETWORK_FILE,
+                                   expected='{"nodes": [{"id": ...}]} (ids only: a node with a '
+                                            'known position is a landmark, landmarks.json)')
+        nodes = tuple(n.id for n in net.nodes)
+        _unique(nodes, what="node id", where=root / NETWORK_FILE)
+    landmarks: dict[str, Landmark] = {}
+    if (root / LANDMARKS_FILE).is_file():
+        landmarks = landmarks_from_json(_load_json(root / LANDMARKS_FILE),
+                                        where=str(root / LANDMARKS_FILE))
+    clash = sorted(set(nodes) & set(landmarks))
+    if clash:
+        raise FormatError(f"node(s) {', '.join(clash)} also in {LANDMARKS_FILE}",
+                          where=str(root / NETWORK_FILE),
+                          expected="a dropped node (no position) or a landmark, not both")
+    agents: dict[str, MissionAgent] = {}
+    for i, entry in enumerate(spec.agents):
+        folder = root / entry.session
+        if not folder.exists():
+            raise InputError(f"agent {entry.name!r}: no such session {str(folder)!r}",
+                             where=f"{mfile} agents[{i}].session",
+                             expected="a session folder or zip inside the mission folder")
+        session = _read_agent(read_any, folder, entry.format, landmarks)
+        _warn_unknown(session, nodes, folder)
+        agents[entry.name] = MissionAgent(entry.name, entry.kind, folder, session)
+    truth = None
+    if (root / NETWORK_TRUTH_FILE).is_file():
+        nt: NetworkTruthModel = _model(NetworkTruthModel, _load_json(root / NETWORK_TRUTH_FILE),
+                                       where=root / NETWORK_TRUTH_FILE,
+                                       expected='{"nodes": [{"id", "position": [x, y(, z)]}]}')
+        truth = {n.id: np.asarray(n.position, dtype=np.float64) for n in nt.nodes}
+    return MissionFolder(root, spec.name, agents, nodes, landmarks, truth)
+
+
+_UNPLACED = "id(s) not in landmarks.json"
+
+
+def _read_agent(read_any: Any, folder: Path, fmt: str | None,
+                landmarks: Mapping[str, Landmark]) -> Session:
+    """The agent's session with the mission's landmarks added (its own of the same id win)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        session: Session = read_any(folder, fmt=fmt)
+    for w in caught:
+        # ids the session alone cannot place are judged below, against the whole mission
+        if issubclass(w.category, DegradedInputWarning) and _UNPLACED in str(w.message):
+            continue
+        warnings.warn(w.message, w.category, stacklevel=4)
+    if landmarks:
+        session = session.with_parts(landmarks={**landmarks, **session.landmarks})
+    return session
+
+
+def _warn_unknown(session: Session, nodes: Sequence[str], folder: Path) -> None:
+    known = set(nodes)
+    for label, ids in session.unknown_ids().items():
+        left = [i for i in ids if label != "ranges" or i not in known]
+        if left:
+            shown = ", ".join(left[:5]) + (" ..." if len(left) > 5 else "")
+            where = "network.json nor landmarks.json" if label == "ranges" else "landmarks.json"
+            warnings.warn(f"{folder} {label}: {len(left)} id(s) in neither the mission's "
+                          f"{where} ({shown})", DegradedInputWarning, stacklevel=3)
+
+
+def write_mission(path: Path | str, *, agents: Sequence[tuple[str, AgentKind, Session]],
+                  nodes: Sequence[str] = (), landmarks: Mapping[str, Landmark] | None = None,
+                  name: str = "", notes: Sequence[str] = (),
+                  source: Mapping[str, Any] | None = None, overwrite: bool = False) -> Path:
+    """Write a mission folder: each agent's session under ``agents/<name>/``, the files above.
+
+    Node truth is not written here (see :func:`write_network_truth`).
+    """
+    from hrtls.io.session import write_session
+
+    root = Path(path)
+    if root.exists() and not root.is_dir():
+        raise InputError("exists and is not a folder", where=str(root), expected="a folder path")
+    if (root / MISSION_FILE).exists() and not overwrite:
+        raise InputError(f"already holds a mission ({MISSION_FILE})", where=str(root),
+                         expected="a new or empty folder (or overwrite=True)")
+    entries = [AgentEntry(name=n, kind=k, session=f"agents/{n}") for n, k, _ in agents]
+    spec = MissionFileModel(format=MISSION_FORMAT, version=MISSION_VERSION, name=name,
+                            agents=entries, notes=list(notes), source=dict(source or {}))
+    _unique([a.name for a in entries], what="agent name", where=root / MISSION_FILE)
+    _unique(list(nodes), what="node id", where=root / NETWORK_FILE)
+    root.mkdir(parents=True, exist_ok=True)
+    for (_, _, session), entry in zip(agents, entries, strict=True):
+        write_session(session, root / entry.session, overwrite=overwrite)
+    if nodes:
+        (root / NETWORK_FILE).write_text(
+            NetworkModel(nodes=[NodeEntry(id=n) for n in nodes]).model_dump_json(indent=2)
+            + "\n", encoding="utf-8")
+    if landmarks:
+        items = [lm.model_dump(mode="json", exclude_none=True) for lm in landmarks.values()]
+        (root / LANDMARKS_FILE).write_text(json.dumps(items, indent=2) + "\n", encoding="utf-8")
+    (root / MISSION_FILE).write_text(spec.model_dump_json(indent=2, exclude_none=True) + "\n",
+                                      encoding="utf-8")
+    return root
+
+
+def write_network_truth(path: Path | str, node_truth_m: Mapping[str, FloatArray]) -> Path:
+    """Write ``network_truth.json`` (true node positions ``[x, y(, z)]``, m) into a folder."""
+    out = Path(path) / NETWORK_TRUTH_FILE
+    model = NetworkTruthModel(nodes=[
+        NodeTruthEntry(id=k, position=tuple(float(x) for x in v))  # type: ignore[arg-type]
+        for k, v in node_truth_m.items()])
+    out.write_text(model.model_dump_json(indent=2) + "\n", encoding="utf-8")
+    return out
