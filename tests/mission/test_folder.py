@@ -118,6 +118,31 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
         assert score["rmse_m"] is None and "RMSE - m" in text
 
 
+def test_falsified_truth_changes_no_estimate(mission, saved: Path, tmp_path: Path
+                                             ) -> None:  # type: ignore[no-untyped-def]
+    fake = tmp_path / "fake"
+    shutil.copytree(saved, fake)
+    for name in mission.agents:
+        truth = fake / "agents" / name / "truth.csv"
+        lines = truth.read_text().splitlines()
+        rows = [line.split(",") for line in lines[1:]]
+        truth.write_text("\n".join([lines[0]] + [",".join([r[0], str(float(r[1]) + 50.0),
+                                                            *r[2:]]) for r in rows]) + "\n")
+    _edit(fake / "network_truth.json",
+          lambda d: [n.update(position=[0.0, 0.0]) for n in d["nodes"]])
+    a, b = tmp_path / "a", tmp_path / "b"
+    _track(saved, a)
+    _track(fake, b)
+    for name in mission.agents:
+        for table in ("trajectory.csv", "steps.csv"):
+            assert (a / "agents" / name / table).read_bytes() == \
+                (b / "agents" / name / table).read_bytes()
+        ev_a = json.loads((a / "agents" / name / "report.json").read_text())["evaluation"]
+        ev_b = json.loads((b / "agents" / name / "report.json").read_text())["evaluation"]
+        assert ev_b["position"]["mean"] > ev_a["position"]["mean"] + 40.0
+    assert (a / "nodes.csv").read_bytes() == (b / "nodes.csv").read_bytes()
+
+
 def test_existing_results_are_refused(saved: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
     out.mkdir()

@@ -19,7 +19,7 @@ agent_app = typer.Typer(no_args_is_help=True, add_completion=False,
                         help="Live agents: stream a recording to a running service.")
 mission_app = typer.Typer(no_args_is_help=True, add_completion=False,
                           help="Missions: track a mission folder offline; simulate a team "
-                               "live on a running service, export.")
+                               "live on a service, export.")
 
 ServerOption = Annotated[str, typer.Option("--server", help="Service URL, e.g. "
                                            "http://127.0.0.1:8600")]
