@@ -155,12 +155,16 @@ def test_existing_results_are_refused(saved: Path, tmp_path: Path) -> None:
 # --------------------------------------------------------------------------------------------
 # bad mission folders (tiny sessions: they fail before any tracking)
 # --------------------------------------------------------------------------------------------
-def _tiny(tmp_path: Path, nodes: tuple[str, ...] = ("N1",)) -> Path:
+def _tiny_session() -> Session:
     t = np.arange(300) * 0.01
     imu = ImuStream(SensorSeries(t, np.tile([0.0, 0.0, 9.81], (300, 1)), "acc"))
     ranges = RangeMeasurements(np.array([1.0, 2.0]), np.array(["N1", "N9"]),
                                np.array([3.0, 3.1]), np.array([0.1, 0.1]))
-    s = Session(imu=imu, ranges=ranges)
+    return Session(imu=imu, ranges=ranges)
+
+
+def _tiny(tmp_path: Path, nodes: tuple[str, ...] = ("N1",)) -> Path:
+    s = _tiny_session()
     return write_mission(tmp_path / "m", agents=[("A", "rescuer", s), ("B", "rescuer", s)],
                          nodes=nodes, name="tiny")
 
@@ -185,6 +189,24 @@ def test_missing_agent_folder_names_the_entry(tmp_path: Path) -> None:
     assert "mission.json agents[1].session" in text and "agent 'B'" in text
 
 
+def test_agent_folder_without_a_session_names_the_entry(tmp_path: Path) -> None:
+    m = _tiny(tmp_path)
+    shutil.rmtree(m / "agents" / "A")
+    (m / "agents" / "A").mkdir()
+    (m / "agents" / "A" / "notes.txt").write_text("not a recording\n")
+    text = _fails(m, tmp_path)
+    assert "mission.json agents[0].session" in text and "is not a session" in text
+
+
+def test_writer_refuses_bad_agents(tmp_path: Path) -> None:
+    from hrtls.errors import InputError
+
+    with pytest.raises(InputError, match="write_mission agents"):
+        write_mission(tmp_path / "w", agents=[("a/b", "rescuer", _tiny_session())])
+    with pytest.raises(InputError, match="write_mission agents"):
+        write_mission(tmp_path / "w", agents=[])
+
+
 def test_unknown_agent_kind_names_the_field(tmp_path: Path) -> None:
     m = _tiny(tmp_path)
     _edit(m / "mission.json", lambda d: d["agents"][0].update(kind="drone"))
@@ -205,6 +227,7 @@ def test_robot_agents_are_refused_until_the_tracker_has_a_robot_filter(tmp_path:
     ("mission.json", lambda d: d.update(agents=[]), "'agents'"),
     ("mission.json", lambda d: d["agents"][0].update(session="../elsewhere"), "'agents.0.session'"),
     ("mission.json", lambda d: d["agents"][1].update(name="A"), "duplicate agent name 'A'"),
+    ("mission.json", lambda d: d["agents"][1].update(name="../up"), "'agents.1.name'"),
     ("mission.json", lambda d: d["agents"][0].update(sesion="x"), "'agents.0.sesion'"),
     ("network.json", lambda d: d["nodes"][0].update(position=[1, 2, 0]), "'nodes.0.position'"),
 ])
@@ -221,6 +244,12 @@ def test_invalid_json_names_line_and_column(tmp_path: Path) -> None:
     (m / "mission.json").write_text('{"format": "hrtls-mission",\n "version": 1,,}')
     text = _fails(m, tmp_path)
     assert "mission.json line 2 column" in text
+
+
+def test_bad_chunk_is_refused(saved: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["mission", "track", str(saved), "-o", str(tmp_path / "o"),
+                              "--chunk-s", "0"])
+    assert res.exit_code == 2 and "--chunk-s" in res.output
 
 
 def test_no_mission_file(tmp_path: Path) -> None:

@@ -3,12 +3,12 @@
 ``MISSION_DIR/``
 
 * ``mission.json``: ``{"format": "hrtls-mission", "version": 1, "name": ..., "agents":
-  [{"name", "kind" (rescuer | robot), "session" (sub-folder or zip, relative), "format"
-  (optional, default detected)}]}``;
+  [{"name", "kind" (rescuer | robot), "session" (session folder or zip, relative)}]}``;
 * ``network.json`` (optional): ``{"nodes": [{"id": ...}]}``, the dropped range nodes, ids only;
 * ``landmarks.json`` (optional): the mission's known location messages (session format), given
   to every agent (an agent's own landmark of the same id wins);
-* one session per agent, read by :func:`hrtls.recordings.read_any`;
+* one session per agent (:func:`hrtls.io.session.read_session`; other recordings are converted
+  first, ``hrtls convert``);
 * ``network_truth.json`` (optional, scoring only): ``{"nodes": [{"id", "position": [x, y(, z)]}]}``.
 
 Ground truth (agents' ``truth.csv`` / ``checkpoints.csv``, ``network_truth.json``) is read into
@@ -30,9 +30,10 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from hrtls.data import Session
+from hrtls.data.clocks import check_session_clocks
 from hrtls.data.landmarks import Landmark
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
-from hrtls.io.session import landmarks_from_json, pydantic_problem
+from hrtls.io.session import is_session, landmarks_from_json, pydantic_problem, read_session
 
 FloatArray = NDArray[np.float64]
 
@@ -56,7 +57,15 @@ class AgentEntry(_Strict):
     name: str = Field(min_length=1)
     kind: AgentKind
     session: str = Field(min_length=1, description="folder or zip, relative to the mission")
-    format: str | None = Field(default=None, description="recording format (default: detected)")
+
+    @field_validator("name")
+    @classmethod
+    def _folder_name(cls, value: str) -> str:
+        # results go to OUT/agents/<name>
+        if "/" in value or "\\" in value or value in (".", "..") or value != value.strip():
+            raise ValueError("must be usable as a folder name (no '/', '\\', '.', '..', "
+                             "no surrounding spaces)")
+        return value
 
     @field_validator("session")
     @classmethod
@@ -178,8 +187,6 @@ def _unique(values: Sequence[str], *, what: str, where: Path) -> None:
 
 def read_mission(path: Path | str) -> MissionFolder:
     """Read a mission folder (see the module doc); every problem names its file and field."""
-    from hrtls.recordings import read_any
-
     root = Path(path)
     if not root.is_dir():
         raise InputError("no such folder", where=str(root),
@@ -226,7 +233,12 @@ def read_mission(path: Path | str) -> MissionFolder:
             raise InputError(f"agent {entry.name!r}: no such session {str(folder)!r}",
                              where=f"{mfile} agents[{i}].session",
                              expected="a session folder or zip inside the mission folder")
-        session = _read_agent(read_any, folder, entry.format, landmarks)
+        if not is_session(folder):
+            raise InputError(f"agent {entry.name!r}: {str(folder)!r} is not a session",
+                             where=f"{mfile} agents[{i}].session",
+                             expected="an hrtls session folder or zip (other recordings: "
+                                      "`hrtls convert` first)")
+        session = _read_agent(folder, landmarks)
         _warn_unknown(session, nodes, folder)
         agents[entry.name] = MissionAgent(entry.name, entry.kind, folder, session)
     truth = None
@@ -241,12 +253,11 @@ def read_mission(path: Path | str) -> MissionFolder:
 _UNPLACED = "id(s) not in landmarks.json"
 
 
-def _read_agent(read_any: Any, folder: Path, fmt: str | None,
-                landmarks: Mapping[str, Landmark]) -> Session:
+def _read_agent(folder: Path, landmarks: Mapping[str, Landmark]) -> Session:
     """The agent's session with the mission's landmarks added (its own of the same id win)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        session: Session = read_any(folder, fmt=fmt)
+        session, _ = check_session_clocks(read_session(folder))
     for w in caught:
         # ids the session alone cannot place are judged below, against the whole mission
         if issubclass(w.category, DegradedInputWarning) and _UNPLACED in str(w.message):
@@ -284,9 +295,14 @@ def write_mission(path: Path | str, *, agents: Sequence[tuple[str, AgentKind, Se
     if (root / MISSION_FILE).exists() and not overwrite:
         raise InputError(f"already holds a mission ({MISSION_FILE})", where=str(root),
                          expected="a new or empty folder (or overwrite=True)")
-    entries = [AgentEntry(name=n, kind=k, session=f"agents/{n}") for n, k, _ in agents]
-    spec = MissionFileModel(format=MISSION_FORMAT, version=MISSION_VERSION, name=name,
-                            agents=entries, notes=list(notes), source=dict(source or {}))
+    try:
+        entries = [AgentEntry(name=n, kind=k, session=f"agents/{n}") for n, k, _ in agents]
+        spec = MissionFileModel(format=MISSION_FORMAT, version=MISSION_VERSION, name=name,
+                                agents=entries, notes=list(notes), source=dict(source or {}))
+    except ValidationError as exc:
+        raise InputError(pydantic_problem(exc), where="write_mission agents",
+                         expected="at least one agent (name usable as a folder, kind "
+                                  "rescuer or robot)") from None
     _unique([a.name for a in entries], what="agent name", where=root / MISSION_FILE)
     _unique(list(nodes), what="node id", where=root / NETWORK_FILE)
     root.mkdir(parents=True, exist_ok=True)
