@@ -207,6 +207,19 @@ def test_writer_refuses_bad_agents(tmp_path: Path) -> None:
         write_mission(tmp_path / "w", agents=[])
 
 
+def test_a_bad_session_file_names_the_agent_folder(tmp_path: Path) -> None:
+    m = _tiny(tmp_path)
+    imu = m / "agents" / "B" / "imu.csv"
+    lines = imu.read_text().splitlines()
+    lines[5] = "0.0,0,0,9.81"
+    imu.write_text("\n".join(lines) + "\n")
+    text = _fails(m, tmp_path)
+    assert "agents/B/imu.csv" in text and "time goes backwards" in text and "--repair" in text
+    res = runner.invoke(app, ["mission", "track", str(m), "-o", str(tmp_path / "o"), "--repair"])
+    assert res.exit_code == 0, res.output
+    assert "repaired" in res.output
+
+
 def test_unknown_agent_kind_names_the_field(tmp_path: Path) -> None:
     m = _tiny(tmp_path)
     _edit(m / "mission.json", lambda d: d["agents"][0].update(kind="drone"))

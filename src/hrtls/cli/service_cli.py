@@ -130,6 +130,8 @@ def mission_track(
         "--preset", "-p", help="Tracker preset of every agent (default: default).")] = None,
     plot: Annotated[bool, typer.Option("--plot", help="Also write each agent's track.png."
                                        )] = False,
+    repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows of the agents' "
+                                         "sessions (warns).")] = False,
     overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
 ) -> None:
     """Track a mission folder offline: every agent's track, the dropped nodes, report.json."""
@@ -152,7 +154,7 @@ def mission_track(
                          expected="one of them")
     if not math.isfinite(chunk_s) or chunk_s <= 0:
         raise InputError(f"{chunk_s}", where="--chunk-s", expected="a window > 0 s")
-    folder = read_mission(mission_dir)
+    folder = read_mission(mission_dir, repair=repair)
     check_mission_output(list(folder.agents), output, overwrite=overwrite)
     cfg = load_config(config) if config is not None else preset(preset_name or "default")
     console = Console(highlight=False)

@@ -185,8 +185,12 @@ def _unique(values: Sequence[str], *, what: str, where: Path) -> None:
         seen.add(v)
 
 
-def read_mission(path: Path | str) -> MissionFolder:
-    """Read a mission folder (see the module doc); every problem names its file and field."""
+def read_mission(path: Path | str, *, repair: bool = False) -> MissionFolder:
+    """Read a mission folder (see the module doc); every problem names its file and field.
+
+    ``repair``: let the session reader repair the agents' sessions (with warnings), as
+    :func:`hrtls.io.session.read_session` does.
+    """
     root = Path(path)
     if not root.is_dir():
         raise InputError("no such folder", where=str(root),
@@ -196,17 +200,14 @@ def read_mission(path: Path | str) -> MissionFolder:
         raise InputError(f"no {MISSION_FILE}", where=str(root),
                          expected="a mission folder (docs/architecture.md, 'The mission folder')")
     data = _load_json(mfile)
-    if isinstance(data, dict) and data.get("version") not in (None, MISSION_VERSION) \
-            and data.get("format") == MISSION_FORMAT:
+    # the version first: another version may have other fields
+    if isinstance(data, dict) and "version" in data and data["version"] != MISSION_VERSION:
         raise FormatError(f"field 'version': {data['version']!r}", where=str(mfile),
                           expected=f"version {MISSION_VERSION} (this hrtls reads only it)")
     spec: MissionFileModel = _model(
         MissionFileModel, data, where=mfile,
         expected=f'{{"format": "{MISSION_FORMAT}", "version": {MISSION_VERSION}, "agents": '
                  '[{"name", "kind": rescuer | robot, "session"}]}')
-    if spec.version != MISSION_VERSION:
-        raise FormatError(f"field 'version': {spec.version!r}", where=str(mfile),
-                          expected=f"version {MISSION_VERSION} (this hrtls reads only it)")
     _unique([a.name for a in spec.agents], what="agent name", where=mfile)
     _unique([a.session for a in spec.agents], what="agent session", where=mfile)
     nodes: tuple[str, ...] = ()
@@ -226,21 +227,7 @@ def read_mission(path: Path | str) -> MissionFolder:
         raise FormatError(f"node(s) {', '.join(clash)} also in {LANDMARKS_FILE}",
                           where=str(root / NETWORK_FILE),
                           expected="a dropped node (no position) or a landmark, not both")
-    agents: dict[str, MissionAgent] = {}
-    for i, entry in enumerate(spec.agents):
-        folder = root / entry.session
-        if not folder.exists():
-            raise InputError(f"agent {entry.name!r}: no such session {str(folder)!r}",
-                             where=f"{mfile} agents[{i}].session",
-                             expected="a session folder or zip inside the mission folder")
-        if not is_session(folder):
-            raise InputError(f"agent {entry.name!r}: {str(folder)!r} is not a session",
-                             where=f"{mfile} agents[{i}].session",
-                             expected="an hrtls session folder or zip (other recordings: "
-                                      "`hrtls convert` first)")
-        session = _read_agent(folder, landmarks)
-        _warn_unknown(session, nodes, folder)
-        agents[entry.name] = MissionAgent(entry.name, entry.kind, folder, session)
+    agents = _read_agents(mfile, spec.agents, nodes, landmarks, repair=repair)
     truth = None
     if (root / NETWORK_TRUTH_FILE).is_file():
         nt: NetworkTruthModel = _model(NetworkTruthModel, _load_json(root / NETWORK_TRUTH_FILE),
@@ -250,14 +237,42 @@ def read_mission(path: Path | str) -> MissionFolder:
     return MissionFolder(root, spec.name, agents, nodes, landmarks, truth)
 
 
+def _read_agents(mfile: Path, entries: Sequence[AgentEntry], nodes: Sequence[str],
+                 landmarks: Mapping[str, Landmark], *, repair: bool
+                 ) -> dict[str, MissionAgent]:
+    agents: dict[str, MissionAgent] = {}
+    for i, entry in enumerate(entries):
+        folder = mfile.parent / entry.session
+        if not folder.exists():
+            raise InputError(f"agent {entry.name!r}: no such session {str(folder)!r}",
+                             where=f"{mfile} agents[{i}].session",
+                             expected="a session folder or zip inside the mission folder")
+        if not is_session(folder):
+            raise InputError(f"agent {entry.name!r}: {str(folder)!r} is not a session",
+                             where=f"{mfile} agents[{i}].session",
+                             expected="an hrtls session folder or zip (other recordings: "
+                                      "`hrtls convert` first)")
+        session = _read_agent(folder, landmarks, repair=repair)
+        _warn_unknown(session, nodes, folder)
+        agents[entry.name] = MissionAgent(entry.name, entry.kind, folder, session)
+    return agents
+
+
 _UNPLACED = "id(s) not in landmarks.json"
 
 
-def _read_agent(folder: Path, landmarks: Mapping[str, Landmark]) -> Session:
+def _read_agent(folder: Path, landmarks: Mapping[str, Landmark], *, repair: bool) -> Session:
     """The agent's session with the mission's landmarks added (its own of the same id win)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        session, _ = check_session_clocks(read_session(folder))
+        try:
+            session, _ = check_session_clocks(read_session(folder, repair=repair), repair=repair)
+        except InputError as exc:
+            # name the agent's folder: every agent has an imu.csv
+            if str(folder) in exc.where:
+                raise
+            raise type(exc)(exc.problem, where=f"{folder}: {exc.where}" if exc.where
+                            else str(folder), expected=exc.expected, hint=exc.hint) from None
     for w in caught:
         # ids the session alone cannot place are judged below, against the whole mission
         if issubclass(w.category, DegradedInputWarning) and _UNPLACED in str(w.message):
