@@ -92,7 +92,10 @@ def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, floa
 
 
 def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> Mission:
-    """Rescuers enter a floor with tags at the doors and dropped range nodes (module doc)."""
+    """Rescuers enter an office floor with tags at the doors and range nodes without positions.
+
+    See the module doc.
+    """
     o = options or MissionOptions()
     r = _rngs(seed)
     nodes = _drop_nodes(r[7], o.n_nodes)
