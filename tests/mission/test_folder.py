@@ -201,10 +201,13 @@ def test_agent_folder_without_a_session_names_the_entry(tmp_path: Path) -> None:
 def test_writer_refuses_bad_agents(tmp_path: Path) -> None:
     from hrtls.errors import InputError
 
-    with pytest.raises(InputError, match="write_mission agents"):
+    with pytest.raises(InputError, match=r"mission\.json agents"):
         write_mission(tmp_path / "w", agents=[("a/b", "rescuer", _tiny_session())])
-    with pytest.raises(InputError, match="write_mission agents"):
+    with pytest.raises(InputError, match=r"mission\.json agents"):
         write_mission(tmp_path / "w", agents=[])
+    with pytest.raises(InputError, match="duplicate agent name 'a'"):
+        write_mission(tmp_path / "w", agents=[("a", "rescuer", _tiny_session())] * 2)
+    assert not (tmp_path / "w").exists()
 
 
 def test_a_bad_session_file_names_the_agent_folder(tmp_path: Path) -> None:

@@ -47,6 +47,12 @@ NETWORK_TRUTH_FILE = "network_truth.json"
 AgentKind = Literal["rescuer", "robot"]
 
 
+def is_folder_name(name: str) -> bool:
+    """True when ``name`` can name an agent's result folder (``OUT/agents/<name>``)."""
+    return bool(name) and name == name.strip() and name not in (".", "..") \
+        and "/" not in name and "\\" not in name
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -61,8 +67,7 @@ class AgentEntry(_Strict):
     @field_validator("name")
     @classmethod
     def _folder_name(cls, value: str) -> str:
-        # results go to OUT/agents/<name>
-        if "/" in value or "\\" in value or value in (".", "..") or value != value.strip():
+        if not is_folder_name(value):
             raise ValueError("must be usable as a folder name (no '/', '\\', '.', '..', "
                              "no surrounding spaces)")
         return value
@@ -82,9 +87,11 @@ class MissionFileModel(_Strict):
     format: Literal["hrtls-mission"]
     version: int
     name: str = ""
-    agents: list[AgentEntry] = Field(min_length=1)
+    agents: list[AgentEntry]
     notes: list[str] = Field(default_factory=list)
     source: dict[str, Any] = Field(default_factory=dict)
+    service: dict[str, Any] = Field(default_factory=dict, description="what the supervisor "
+                                    "knew, when exported from it (``hrtls mission export``)")
 
 
 class NodeEntry(_Strict):
@@ -208,6 +215,9 @@ def read_mission(path: Path | str, *, repair: bool = False) -> MissionFolder:
         MissionFileModel, data, where=mfile,
         expected=f'{{"format": "{MISSION_FORMAT}", "version": {MISSION_VERSION}, "agents": '
                  '[{"name", "kind": rescuer | robot, "session"}]}')
+    if not spec.agents:
+        raise FormatError("field 'agents': no agents", where=str(mfile),
+                          expected="at least one agent with a session")
     _unique([a.name for a in spec.agents], what="agent name", where=mfile)
     _unique([a.session for a in spec.agents], what="agent session", where=mfile)
     nodes: tuple[str, ...] = ()
@@ -310,19 +320,14 @@ def write_mission(path: Path | str, *, agents: Sequence[tuple[str, AgentKind, Se
     if (root / MISSION_FILE).exists() and not overwrite:
         raise InputError(f"already holds a mission ({MISSION_FILE})", where=str(root),
                          expected="a new or empty folder (or overwrite=True)")
-    try:
-        entries = [AgentEntry(name=n, kind=k, session=f"agents/{n}") for n, k, _ in agents]
-        spec = MissionFileModel(format=MISSION_FORMAT, version=MISSION_VERSION, name=name,
-                                agents=entries, notes=list(notes), source=dict(source or {}))
-    except ValidationError as exc:
-        raise InputError(pydantic_problem(exc), where="write_mission agents",
-                         expected="at least one agent (name usable as a folder, kind "
-                                  "rescuer or robot)") from None
-    _unique([a.name for a in entries], what="agent name", where=root / MISSION_FILE)
+    if not agents:
+        raise InputError("no agents", where="mission.json agents", expected="at least one agent")
+    text = mission_json([(n, k, f"agents/{n}") for n, k, _ in agents], name=name, notes=notes,
+                        source=source)
     _unique(list(nodes), what="node id", where=root / NETWORK_FILE)
     root.mkdir(parents=True, exist_ok=True)
-    for (_, _, session), entry in zip(agents, entries, strict=True):
-        write_session(session, root / entry.session, overwrite=overwrite)
+    for n, _, session in agents:
+        write_session(session, root / "agents" / n, overwrite=overwrite)
     if nodes:
         (root / NETWORK_FILE).write_text(
             NetworkModel(nodes=[NodeEntry(id=n) for n in nodes]).model_dump_json(indent=2)
@@ -330,9 +335,27 @@ def write_mission(path: Path | str, *, agents: Sequence[tuple[str, AgentKind, Se
     if landmarks:
         items = [lm.model_dump(mode="json", exclude_none=True) for lm in landmarks.values()]
         (root / LANDMARKS_FILE).write_text(json.dumps(items, indent=2) + "\n", encoding="utf-8")
-    (root / MISSION_FILE).write_text(spec.model_dump_json(indent=2, exclude_none=True) + "\n",
-                                      encoding="utf-8")
+    (root / MISSION_FILE).write_text(text, encoding="utf-8")
     return root
+
+
+def mission_json(agents: Sequence[tuple[str, AgentKind, str]], *, name: str = "",
+                 notes: Sequence[str] = (), source: Mapping[str, Any] | None = None,
+                 service: Mapping[str, Any] | None = None) -> str:
+    """The text of ``mission.json``; ``agents``: (name, kind, session path in the folder)."""
+    where = "mission.json agents"
+    try:
+        entries = [AgentEntry(name=n, kind=k, session=p) for n, k, p in agents]
+        spec = MissionFileModel(format=MISSION_FORMAT, version=MISSION_VERSION, name=name,
+                                agents=entries, notes=list(notes), source=dict(source or {}),
+                                service=dict(service or {}))
+    except ValidationError as exc:
+        raise InputError(pydantic_problem(exc), where=where,
+                         expected="at least one agent (name usable as a folder, kind "
+                                  "rescuer or robot)") from None
+    _unique([a.name for a in entries], what="agent name", where=Path(where))
+    _unique([a.session for a in entries], what="agent session", where=Path(where))
+    return spec.model_dump_json(indent=2, exclude_none=True) + "\n"
 
 
 def write_network_truth(path: Path | str, node_truth_m: Mapping[str, FloatArray]) -> Path:
