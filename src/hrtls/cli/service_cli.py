@@ -17,9 +17,9 @@ from hrtls.service.settings import DEFAULT_DB
 
 agent_app = typer.Typer(no_args_is_help=True, add_completion=False,
                         help="Live agents: stream a recording to a running service.")
-mission_app = typer.Typer(no_args_is_help=True, add_completion=False,
-                          help="Missions: track a mission folder offline; simulate a team "
-                               "live on a service, export.")
+mission_app = typer.Typer(
+    no_args_is_help=True, add_completion=False,
+    help="Missions: track a folder offline; on a service: simulate, floor images, export.")
 
 ServerOption = Annotated[str, typer.Option("--server", help="Service URL, e.g. "
                                            "http://127.0.0.1:8600")]
@@ -35,7 +35,7 @@ def _agent() -> None:
 
 @mission_app.callback()
 def _mission() -> None:
-    """Missions: track a mission folder offline; simulate a team live on a service, export."""
+    """Missions: track a folder offline; on a service: simulate, floor images, export."""
 
 
 def _speed(speed: float) -> float:
@@ -93,6 +93,46 @@ def mission_simulate(
     typer.echo(f"streamed {total} batches of {len(clients)} agents; unacknowledged: {left}")
     for c in clients:
         c.close()
+
+
+@mission_app.command("floor-image")
+@reports_errors
+def mission_floor_image(
+    mission: Annotated[int, typer.Argument(help="Mission id.")],
+    floor: Annotated[int, typer.Argument(help="Floor index (the floor must exist).")],
+    image: Annotated[Path, typer.Argument(help="PNG or JPEG plan of the floor.")],
+    server: ServerOption,
+    token: Annotated[str, typer.Option("--token", help="A commander token.")],
+    origin_m: Annotated[tuple[float, float], typer.Option(
+        "--origin-m", help="x y of the image's lower-left corner in the mission frame, m.")],
+    m_per_px: Annotated[float, typer.Option("--m-per-px", help="Scale: metres per pixel.")],
+) -> None:
+    """Upload a floor's plan image; the dashboard draws it under the plan."""
+    from hrtls.errors import InputError
+    from hrtls.service.client import AgentClient, ServiceError
+
+    media = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
+    media_type = media.get(image.suffix.lower())
+    if media_type is None:
+        raise InputError(f"{image.name}", where="IMAGE", expected="a .png, .jpg or .jpeg file")
+    try:
+        data = image.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {image} ({exc.strerror})", where="IMAGE") from None
+    with AgentClient(server, token) as commander:
+        try:
+            out = commander.request(
+                "PUT", f"/missions/{mission}/floors/{floor}/image", content=data,
+                headers={"Content-Type": media_type},
+                params={"origin_x_m": origin_m[0], "origin_y_m": origin_m[1],
+                        "m_per_px": m_per_px})
+        except ServiceError as exc:
+            raise InputError(f"HTTP {exc.status}: {exc.detail}", where=f"{server} (upload of "
+                             f"{image.name})") from None
+    i = out["image"]
+    typer.echo(f"floor {floor} of mission {mission}: {i['width_px']} x {i['height_px']} px, "
+               f"{i['width_px'] * i['m_per_px']:.1f} x {i['height_px'] * i['m_per_px']:.1f} m "
+               f"from ({i['origin_x_m']:g}, {i['origin_y_m']:g}) m")
 
 
 @mission_app.command("export")
