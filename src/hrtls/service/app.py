@@ -30,7 +30,7 @@ from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 
-API_PREFIX = "/api/v1"
+API_PREFIX = schemas.API_PREFIX
 log = logging.getLogger(__name__)
 
 
@@ -121,11 +121,11 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, ingest, live, missions, orders
+    from hrtls.service.routes import agents, auth, dashboard, ingest, live, missions, orders
     from hrtls.service.routes import events as event_routes
 
     for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
-                   event_routes.router, orders.router):
+                   event_routes.router, orders.router, dashboard.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])
