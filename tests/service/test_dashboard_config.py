@@ -42,3 +42,19 @@ def test_serve_refuses_a_bad_tile_template(tmp_path: Path) -> None:
         r = CliRunner().invoke(app, ["serve", "--db", str(tmp_path / "x.db"),
                                      "--basemap-url", bad])
         assert r.exit_code == 2 and "--basemap-url" in r.output and "{z}" in r.output, r.output
+
+
+def test_security_headers_on_the_page_and_the_api(make_live: Callable[..., Live]) -> None:
+    live = make_live(basemap_url=TILES)
+    with live.client(live.commander) as commander:
+        for path in ("/", f"{API}/dashboard/config", f"{API}/missions/999"):
+            r = commander.get(path)
+            assert r.headers["x-content-type-options"] == "nosniff", path
+            assert r.headers["x-frame-options"] == "DENY"
+            assert r.headers["referrer-policy"] == "no-referrer"
+            csp = r.headers["content-security-policy"]
+            assert "script-src 'self';" in csp and "frame-ancestors 'none'" in csp
+            assert "img-src 'self' data: blob: http://127.0.0.1:9;" in csp
+        docs = commander.get(f"{API}/docs")
+        assert "content-security-policy" not in docs.headers
+        assert docs.headers["x-frame-options"] == "DENY"

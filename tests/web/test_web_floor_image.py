@@ -46,6 +46,16 @@ def test_floor_image_overlay_follows_floor_and_placement(page, page_log, service
     page.select_option("#mission-select", str(mid))
     page.wait_for_selector("img.plan-image")
     page.wait_for_function("() => document.querySelector('img.plan-image').naturalWidth > 0")
+    # the map animates its first fit: measure once the image and the map agree and are still
+    page.wait_for_function("""() => {
+      const img = document.querySelector('img.plan-image');
+      const m = window.hrtlsDashboard.map.map;
+      if (!img || m._animatingZoom || m._panAnim?._inProgress) return false;
+      const b = img.getBoundingClientRect();
+      const r = m.getContainer().getBoundingClientRect();
+      const p = m.latLngToContainerPoint([-2, -4]);
+      return Math.abs(p.x + r.left - b.left) < 1.5 && Math.abs(p.y + r.top - b.bottom) < 1.5;
+    }""", timeout=10_000)
     info = page.evaluate("""() => {
       const img = document.querySelector('img.plan-image');
       return {w: img.naturalWidth, h: img.naturalHeight, box: img.getBoundingClientRect().toJSON()};

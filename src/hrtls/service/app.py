@@ -23,6 +23,7 @@ from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.events import EventLog
+from hrtls.service.headers import SecurityHeaders, content_security_policy
 from hrtls.service.host import DECODERS, HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
@@ -139,6 +140,8 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
 
     _mount_dashboard(app, settings.web_root)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityHeaders, csp=content_security_policy(settings.basemap_url),
+                       docs_prefix=f"{API_PREFIX}/docs")
     if settings.cors_origins:
         from fastapi.middleware.cors import CORSMiddleware
 
