@@ -83,9 +83,18 @@ class GaitHistory:
         The step block in progress at ``t`` and the motion blocks from the latest one before.
         """
         j = _last_starting_by([b.t_start for b in self.steps], t)
-        m = _last_starting_by(self.motion_t, t)
+        m = self._first_motion(t)
         return {"steps": self.steps[j:], "motion_t": self.motion_t[m:],
                 "motion_sigma": self.motion_sigma[m:]}
+
+    def forget_motion_before(self, t: float) -> None:
+        """Drop the motion blocks no event from ``t`` on looks at (as :meth:`state` does)."""
+        m = self._first_motion(t)
+        del self.motion_t[:m], self.motion_sigma[:m]
+
+    def _first_motion(self, t: float) -> int:
+        """The latest motion block starting at or before ``t`` (0 when none does)."""
+        return _last_starting_by(self.motion_t, t)
 
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`state` (the restored steps are not reported again)."""
@@ -204,7 +213,9 @@ class FusionEngine:
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
-        self.track.add_block(out.t, out.x, out.p[:, :2, :2], out.p[:, IH, IH], out.act)
+        # copies: views would keep the whole (n, 4, 4) covariances alive with the track
+        self.track.add_block(out.t, out.x, out.p[:, :2, :2].copy(), out.p[:, IH, IH].copy(),
+                             out.act)
         n_steps = int(sc["n_steps"])
         n_head = int(sc["n_headings"])
         if n_head:
