@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/attitude.py            # full table (a few minutes)
     python benchmarks/attitude.py --quick    # shorter data, no ahrs on long runs
     python benchmarks/attitude.py --speed-only --methods quat-ekf,vqf   # speed column only
+    python benchmarks/attitude.py --quick --engine local --workers 2  # data sets on 2 cores
 
 Variants: ``euler-ekf eq5`` integrates the angles with Colombo eq. 5 itself, ``quat-ekf 4st``
 is the thesis' 4-state EKF (gyro bias only learnt at rest). ``euler-ekf dyn0`` switches off
@@ -22,7 +23,9 @@ constant heading offset removed; only ``movement`` samples; NaN references skipp
 Data: (1) ``hrtls.sim`` office walk (waist phone, magnetic anomalies), (2) the compact walking
 simulator ``benchmarks/_attitude_sim.py`` with magnetic anomaly patches and a large gyro bias
 (seeds 1-3),
-(3) the BROAD trials in ``../shared/data/broad`` (skipped when absent).
+(3) the BROAD trials in ``../shared/data/broad`` (skipped when absent). The data sets run
+through ``--engine`` (``benchmarks/_engine.py``); the speed runs stay in this process, one at a
+time.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _attitude_sim import simulate_walk
+from _engine import Batch, add_engine_options
 from hrtls.attitude import make_filter, orientation_errors
 from hrtls.frames import (
     GRAVITY_M_S2,
@@ -113,7 +118,8 @@ def ahrs_runner(kind: str) -> Runner:
     return run
 
 
-def available() -> dict[str, Runner]:
+def available() -> tuple[dict[str, Runner], list[str]]:
+    """The methods, and notes on the optional ones that are not installed."""
     methods: dict[str, Runner] = {
         "euler-ekf": ours("euler-ekf"),
         "euler-ekf eq5": ours("euler-ekf", exact_propagation=False),
@@ -125,6 +131,7 @@ def available() -> dict[str, Runner]:
         "complementary": ours("complementary"),
         "inertial-lp": ours("inertial-lp"),
     }
+    notes = []
     for label, module, runner in (("vqf", "vqf", vqf_runner),
                                   ("imufusion", "imufusion", imufusion_runner),
                                   ("ahrs-ekf", "ahrs", ahrs_runner("ekf")),
@@ -132,11 +139,11 @@ def available() -> dict[str, Runner]:
         try:
             __import__(module)
         except ImportError:
-            print(f"note: {module} is not installed; {label} skipped "
-                  "(pip install -e .[bench])")
+            notes.append(f"note: {module} is not installed; {label} skipped "
+                         "(pip install -e .[bench])")
             continue
         methods[label] = runner
-    return methods
+    return methods, notes
 
 
 def as_q_nb(q: np.ndarray, acc: np.ndarray) -> np.ndarray:
@@ -181,6 +188,44 @@ def dataset_broad(path: Path) -> tuple:
     return t, acc, gyr, mag, q_ref, movement, rate
 
 
+@dataclass(frozen=True)
+class DatasetItem:
+    """One data set (``kind`` sim-office, sim-walk or broad) and the methods to score on it."""
+
+    name: str
+    kind: str
+    methods: tuple[str, ...]
+    quick: bool
+    duration_s: float = 0.0
+    seed: int = 0
+    path: Path | None = None
+
+
+def load(item: DatasetItem) -> tuple:
+    """``(t, acc, gyr, mag, q_ref, movement, rate)`` of the data set."""
+    if item.kind == "sim-office":
+        return dataset_sim_office(item.duration_s)
+    if item.kind == "sim-walk":
+        return dataset_sim_walk(item.duration_s, item.seed)
+    assert item.path is not None
+    return dataset_broad(item.path)
+
+
+def accuracy(item: DatasetItem) -> tuple[int, dict[str, tuple[float, float]]]:
+    """Samples and inclination / heading RMS (deg) per method on one data set."""
+    runners, _ = available()
+    t, acc, gyr, mag, q_ref, mask, rate = load(item)
+    out: dict[str, tuple[float, float]] = {}
+    for label in item.methods:
+        if label.startswith("ahrs") and item.quick and len(t) > 50_000:
+            continue
+        q = as_q_nb(runners[label](t, acc, gyr, mag, rate), acc)
+        err = orientation_errors(q, q_ref, mask)
+        out[label] = (float(np.rad2deg(err.inclination_rms_rad)),
+                      float(np.rad2deg(err.heading_rms_rad)))
+    return len(t), out
+
+
 # ------------------------------------------------------------------------------ speed
 def speed(runner: Runner, n: int) -> float:
     rng = np.random.default_rng(0)
@@ -206,8 +251,12 @@ def main() -> None:
     ap.add_argument("--speed-only", action="store_true", help="only the speed column")
     ap.add_argument("--speed-samples", type=int, default=0,
                     help="samples of the speed runs (default 1 M, --quick 200 k)")
+    add_engine_options(ap)
     args = ap.parse_args()
-    methods = available()
+    batch = Batch.of(args)
+    methods, notes = available()
+    for note in notes:
+        print(note)
     if args.methods:
         methods = {k: v for k, v in methods.items() if k in args.methods.split(",")}
     n_fast = 200_000 if args.quick else 1_000_000
@@ -215,17 +264,18 @@ def main() -> None:
     if args.speed_samples > 0:
         n_fast = args.speed_samples
         n_slow = max(1, args.speed_samples // 10)
-    datasets: dict[str, Callable[[], tuple]] = {
-        "sim-office": lambda: dataset_sim_office(120.0 if args.quick else 600.0),
-    }
+    labels = tuple(methods)
+    datasets = [DatasetItem("sim-office", "sim-office", labels, args.quick,
+                            duration_s=120.0 if args.quick else 600.0)]
     for seed in (1, 2, 3):
-        datasets[f"sim-walk{seed}"] = lambda seed=seed: dataset_sim_walk(
-            120.0 if args.quick else 300.0, seed)
+        datasets.append(DatasetItem(f"sim-walk{seed}", "sim-walk", labels, args.quick,
+                                    duration_s=120.0 if args.quick else 300.0, seed=seed))
     if args.speed_only:
-        datasets = {}
+        datasets = []
     elif BROAD.is_dir():
         for p in sorted(BROAD.glob("*.hdf5")):
-            datasets["broad-" + p.stem.split("_")[0]] = lambda p=p: dataset_broad(p)
+            datasets.append(DatasetItem("broad-" + p.stem.split("_")[0], "broad", labels,
+                                        args.quick, path=p))
     else:
         print(f"note: {BROAD} not found; BROAD trials skipped")
 
@@ -235,18 +285,14 @@ def main() -> None:
         slow = label.startswith("ahrs")
         rates[label] = speed(runner, n_slow if slow else n_fast)
         print(f"speed {label}: {rates[label] / 1e6:.3f} M samples/s", flush=True)
-    for dname, load in datasets.items():
-        t, acc, gyr, mag, q_ref, mask, rate = load()
-        for label, runner in methods.items():
-            if label.startswith("ahrs") and args.quick and len(t) > 50_000:
-                continue
-            q = as_q_nb(runner(t, acc, gyr, mag, rate), acc)
-            err = orientation_errors(q, q_ref, mask)
-            results[label][dname] = (np.rad2deg(err.inclination_rms_rad),
-                                     np.rad2deg(err.heading_rms_rad))
-        print(f"done {dname} ({len(t)} samples)", flush=True)
+    names = []
+    for item, (n_samples, per_method) in batch.map(accuracy, datasets,
+                                                   label=lambda it: it.name):
+        names.append(item.name)
+        for label, value in per_method.items():
+            results[label][item.name] = value
+        print(f"done {item.name} ({n_samples} samples)", flush=True)
 
-    names = list(datasets)
     header = f"{'method':14s} {'M samples/s':>11s} | " + " | ".join(
         f"{n:>13s}" for n in names)
     print()
@@ -273,6 +319,7 @@ def main() -> None:
                 continue
             stats = (r.mean(axis=0), np.median(r, axis=0), r.max(axis=0))
             print(f"{label:14s} | " + " | ".join(f"{a:5.2f} / {b:5.2f}" for a, b in stats))
+    batch.finish()
 
 
 if __name__ == "__main__":

@@ -12,6 +12,9 @@ held-out figures, their mean / median / worst, and the chosen sets::
 
     python benchmarks/attitude_tune.py            # the full grid (a few minutes)
     python benchmarks/attitude_tune.py --quick    # a smaller grid
+
+The units run through ``--engine`` (``benchmarks/_engine.py``): each scores VQF and the whole
+grid on its own data.
 """
 
 from __future__ import annotations
@@ -19,13 +22,15 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from attitude import BROAD, as_q_nb, dataset_broad, dataset_sim_walk, vqf_runner
+from _engine import Batch, add_engine_options
+from attitude import BROAD, DatasetItem, as_q_nb, load, vqf_runner
 from hrtls.attitude import make_filter, orientation_errors
 from hrtls.attitude.inertial_lowpass import InertialLowpassParams
 
@@ -51,33 +56,52 @@ def rms_deg(q: np.ndarray, acc: np.ndarray, q_ref: np.ndarray, mask: np.ndarray
     return float(np.rad2deg(err.inclination_rms_rad)), float(np.rad2deg(err.heading_rms_rad))
 
 
+@dataclass(frozen=True)
+class UnitItem:
+    """One unit (its data set) and the grid points to score on it."""
+
+    data: DatasetItem
+    points: tuple[tuple[tuple[str, float], ...], ...]
+
+
+def score_unit(item: UnitItem) -> tuple[tuple[float, float], np.ndarray]:
+    """VQF's RMS and each grid point's ``(inc, head)`` RMS (deg) on one unit."""
+    t, acc, gyr, mag, q_ref, mask, rate = load(item.data)
+    vqf = rms_deg(vqf_runner(t, acc, gyr, mag, rate), acc, q_ref, mask)
+    figures = np.empty((len(item.points), 2))
+    for i, point in enumerate(item.points):
+        params = InertialLowpassParams(**dict(point))  # type: ignore[arg-type]
+        q = make_filter("inertial-lp", params).update(t, acc, gyr, mag).q
+        figures[i] = rms_deg(q, acc, q_ref, mask)
+    return vqf, figures
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a two-point grid")
     ap.add_argument("--score", choices=("worse", "mean"), default="worse",
                     help="per-unit score: the worse of the two ratios to VQF, or their mean")
+    add_engine_options(ap)
     args = ap.parse_args()
+    batch = Batch.of(args)
     grid = QUICK if args.quick else GRID
-    units: dict[str, tuple] = {}
+    units: list[DatasetItem] = []
     if BROAD.is_dir():
         for p in sorted(BROAD.glob("*.hdf5")):
-            units["broad-" + p.stem.split("_")[0]] = dataset_broad(p)
+            units.append(DatasetItem("broad-" + p.stem.split("_")[0], "broad", (), False,
+                                     path=p))
     else:
         print(f"note: {BROAD} not found; simulated walks only")
     for seed in (1, 2, 3):
-        units[f"sim-walk{seed}"] = dataset_sim_walk(300.0, seed)
-    names = list(units)
-    vqf = {u: rms_deg(vqf_runner(t, acc, gyr, mag, rate), acc, q_ref, mask)
-           for u, (t, acc, gyr, mag, q_ref, mask, rate) in units.items()}
+        units.append(DatasetItem(f"sim-walk{seed}", "sim-walk", (), False, duration_s=300.0,
+                                 seed=seed))
     keys = list(grid)
     points = [dict(zip(keys, v, strict=True)) for v in itertools.product(*grid.values())]
-    figures = np.empty((len(points), len(names), 2))
-    for i, point in enumerate(points):
-        params = InertialLowpassParams(**point)  # type: ignore[arg-type]
-        for j, u in enumerate(names):
-            t, acc, gyr, mag, q_ref, mask, _ = units[u]
-            q = make_filter("inertial-lp", params).update(t, acc, gyr, mag).q
-            figures[i, j] = rms_deg(q, acc, q_ref, mask)
+    items = [UnitItem(u, tuple(tuple(p.items()) for p in points)) for u in units]
+    scored = batch.map(score_unit, items, label=lambda it: it.data.name)
+    names = [it.data.name for it, _ in scored]
+    vqf = {it.data.name: v for it, (v, _) in scored}
+    figures = np.stack([f for _, (_, f) in scored], axis=1)
     ref = np.array([vqf[u] for u in names])
     ratios = figures / ref[None, :, :]
     score = ratios.max(axis=2) if args.score == "worse" else ratios.mean(axis=2)
@@ -113,6 +137,7 @@ def main() -> None:
     print("its per-unit figures: " + ", ".join(
         f"{u} {figures[best_all, j, 0]:.2f}/{figures[best_all, j, 1]:.2f}"
         for j, u in enumerate(names)))
+    batch.finish()
 
 
 if __name__ == "__main__":

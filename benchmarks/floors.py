@@ -10,19 +10,23 @@
 * IPIN 2023 logs (flat, real phone barometer): floor changes and landmarks on the right floor,
   with and without their start pose (``trim_to_start``). Needs ``../shared/data``.
 
-Run: ``python benchmarks/floors.py [--seeds 20] [--presets default,inderst-rfid]``.
+Run: ``python benchmarks/floors.py [--seeds 20] [--presets default,inderst-rfid]
+[--engine local|ray] [--workers N]`` (seeds and logs run through ``--engine``,
+``benchmarks/_engine.py``).
 """
 
 from __future__ import annotations
 
 import argparse
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from _engine import Batch, add_engine_options
 from hrtls.evaluate.floors import floor_detection
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.barometric import with_baro_floors
@@ -32,24 +36,40 @@ from hrtls.sim.scenarios import run_scenario
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ipin2023"
 
 
-def simulated(seeds: list[int], presets: list[str]) -> Table:
+@dataclass(frozen=True)
+class SeedItem:
+    """One simulated seed and the presets to track it with."""
+
+    seed: int
+    presets: tuple[str, ...]
+
+
+def simulated_seed(item: SeedItem) -> dict[tuple[str, str], tuple[float, float]]:
+    """Shares on floors and over all times, per (preset, heights from), of one seed."""
+    warnings.simplefilter("ignore")
+    session = run_scenario("inderst_multifloor", item.seed).session
+    out: dict[tuple[str, str], tuple[float, float]] = {}
+    for name in item.presets:
+        cfg = preset(name)
+        # the tracker runs the barometric stage itself; off: stairs from the step model
+        plain = Tracker(cfg.model_copy(update={"barometer": False})).run(session)
+        for label, result in (("step model", plain), ("barometer", Tracker(cfg).run(session))):
+            f = floor_detection(result.trajectory, session.truth, session.checkpoints,
+                                floor_height_m=session.meta.floor_height_m)
+            assert f is not None
+            out[(name, label)] = (f["time_share_correct_on_floors"], f["time_share_correct"])
+    return out
+
+
+def simulated(batch: Batch, seeds: list[int], presets: list[str]) -> Table:
     table = Table("preset", "heights from", "seeds", "on floors mean", "on floors worst",
                   "all times mean", "seeds >= target", "target",
                   title=f"inderst_multifloor, seeds {seeds[0]}..{seeds[-1]}")
     rows: dict[tuple[str, str], list[tuple[float, float]]] = {}
-    for seed in seeds:
-        session = run_scenario("inderst_multifloor", seed).session
-        for name in presets:
-            cfg = preset(name)
-            # the tracker runs the barometric stage itself; off: stairs from the step model
-            plain = Tracker(cfg.model_copy(update={"barometer": False})).run(session)
-            for label, result in (("step model", plain),
-                                  ("barometer", Tracker(cfg).run(session))):
-                f = floor_detection(result.trajectory, session.truth, session.checkpoints,
-                                    floor_height_m=session.meta.floor_height_m)
-                assert f is not None
-                rows.setdefault((name, label), []).append(
-                    (f["time_share_correct_on_floors"], f["time_share_correct"]))
+    items = [SeedItem(seed, tuple(presets)) for seed in seeds]
+    for per_seed in batch.values(simulated_seed, items, label=lambda it: f"seed {it.seed}"):
+        for key, value in per_seed.items():
+            rows.setdefault(key, []).append(value)
     for (name, label), values in rows.items():
         on = np.array([v[0] for v in values])
         every = np.array([v[1] for v in values])
@@ -59,25 +79,43 @@ def simulated(seeds: list[int], presets: list[str]) -> Table:
     return table
 
 
-def ipin(presets: list[str]) -> Table | None:
+@dataclass(frozen=True)
+class LogItem:
+    """One IPIN log and the presets to track it with."""
+
+    log: Path
+    presets: tuple[str, ...]
+
+
+def ipin_log(item: LogItem) -> list[tuple[str, str, str, str, str, str]]:
+    """Table rows of one IPIN log: whole and cut to its start pose, per preset."""
+    warnings.simplefilter("ignore")
+    rows = []
+    for trim in (False, True):
+        session = read_any(item.log, trim_to_start=trim)
+        for name in item.presets:
+            cfg = preset(name)
+            result = with_baro_floors(Tracker(cfg).run(session), session, cfg)
+            f = floor_detection(result.trajectory, None, session.checkpoints,
+                                floor_height_m=session.meta.floor_height_m)
+            assert f is not None
+            rows.append((item.log.name[10:27], "cut to it" if trim else "whole log", name,
+                         str(result.report["floors"].get("floor_changes", "-")),
+                         f"{f['checkpoints_correct']:.0%} of {f['checkpoints']}",
+                         f"{np.ptp(result.trajectory.xyz[:, 2]):.2f}"))
+    return rows
+
+
+def ipin(batch: Batch, presets: list[str]) -> Table | None:
     logs = sorted(DATA.glob("IPIN2023_*.txt"))
     if not logs:
         return None
     table = Table("log", "start pose", "preset", "floor changes", "landmarks on right floor",
                   "z range m", title="IPIN 2023 logs (flat), real phone barometer")
-    for log in logs:
-        for trim in (False, True):
-            session = read_any(log, trim_to_start=trim)
-            for name in presets:
-                cfg = preset(name)
-                result = with_baro_floors(Tracker(cfg).run(session), session, cfg)
-                f = floor_detection(result.trajectory, None, session.checkpoints,
-                                    floor_height_m=session.meta.floor_height_m)
-                assert f is not None
-                table.add_row(log.name[10:27], "cut to it" if trim else "whole log", name,
-                              str(result.report["floors"].get("floor_changes", "-")),
-                              f"{f['checkpoints_correct']:.0%} of {f['checkpoints']}",
-                              f"{np.ptp(result.trajectory.xyz[:, 2]):.2f}")
+    items = [LogItem(log, tuple(presets)) for log in logs]
+    for rows in batch.values(ipin_log, items, label=lambda it: it.log.name):
+        for r in rows:
+            table.add_row(*r)
     return table
 
 
@@ -88,17 +126,20 @@ def main() -> None:
                         help="first held-out seed (100-119 were looked at while developing)")
     parser.add_argument("--dev", action="store_true", help="the development seeds 0-9 instead")
     parser.add_argument("--presets", default="default,inderst-rfid")
+    add_engine_options(parser)
     args = parser.parse_args()
+    batch = Batch.of(args)
     presets = args.presets.split(",")
     seeds = list(range(10)) if args.dev else list(range(args.first_seed,
                                                          args.first_seed + args.seeds))
     console = Console(width=150)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        console.print(simulated(seeds, presets))
-        real = ipin(sorted({*presets, "handheld-phone"}))
+        console.print(simulated(batch, seeds, presets))
+        real = ipin(batch, sorted({*presets, "handheld-phone"}))
     if real is not None:
         console.print(real)
+    batch.finish()
 
 
 if __name__ == "__main__":

@@ -2,6 +2,10 @@
 
 Run ``python benchmarks/gait.py`` (add ``--quick`` to skip the slow parts, ``--train-default``
 to rebuild ``src/hrtls/gait/models/activity_lda_default.json``). Prints one table.
+
+The recordings (mobgap trials, Oxford files) and the simulated walks, persons and scenario-seeds
+run through ``--engine`` (``benchmarks/_engine.py``); the throughput rows are timed in this
+process.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from _engine import Batch, add_engine_options
 from hrtls.data import Activity, StepEvents
 from hrtls.datasets.mobgap import GaitReference
 from hrtls.frames import wrap_angle
@@ -24,7 +29,6 @@ from hrtls.gait.activity_tree import calibrate_tree, classify_tree
 from hrtls.gait.analyzer import GaitAnalyzer, activity_windows, session_inputs
 from hrtls.gait.features import window_labels
 from hrtls.gait.missed_steps import MissedStepParams
-from hrtls.gait.motion_detector import MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pll import PllStepDetector, StepDetection
 from hrtls.gait.step_length import FrequencyLawModel, WeinbergModel
@@ -104,47 +108,75 @@ class MobgapRunActivity(MobgapRun):
     activity: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
-_MOBGAP_INPUTS: list[tuple[object, object, np.ndarray, np.ndarray, np.ndarray, object,
-                           float]] = []
+@dataclass(frozen=True)
+class GaitVariant:
+    """A step detector and keyword arguments of :class:`GaitAnalyzer`."""
+
+    detector: str
+    options: tuple[tuple[str, Any], ...] = ()
+
+    def kwargs(self) -> dict[str, Any]:
+        """The analyzer's keyword arguments."""
+        return dict(self.options)
 
 
-def mobgap_inputs() -> list[tuple[object, object, np.ndarray, np.ndarray, np.ndarray, object,
-                                  float]]:
-    """Trials with an INDIP walking bout: (id, trial, t, acc, q_nd, mounting, rate), cached."""
-    if _MOBGAP_INPUTS:
-        return _MOBGAP_INPUTS
+@dataclass(frozen=True)
+class TrialItem:
+    """One mobgap lab trial and the variants to run on it."""
+
+    participant: str
+    test: str
+    trial: str
+    variants: tuple[GaitVariant, ...] = ()
+
+
+def trial_items(variants: tuple[GaitVariant, ...] = ()) -> list[TrialItem]:
+    """The mobgap lab trials."""
+    from hrtls.datasets import mobgap
+
+    return [TrialItem(t.participant, t.test, t.trial, variants)
+            for t in mobgap.list_trials(DATA / "mobgap_lab")]
+
+
+def _trial_label(item: TrialItem) -> str:
+    return f"{item.participant}/{item.test}/{item.trial}"
+
+
+def mobgap_input(item: TrialItem) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, Any,
+                                           float] | None:
+    """(trial, t, acc, q_nd, mounting, rate) of a trial with an INDIP walking bout, else None."""
     from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
     from hrtls.datasets import mobgap
 
-    for tid in mobgap.list_trials(DATA / "mobgap_lab"):
-        trial = mobgap.load_trial(DATA / "mobgap_lab", tid.participant, tid.test, tid.trial)
-        ref = trial.reference.indip
-        if ref is None or len(ref.bout_start_s) == 0:
-            continue
-        s = trial.session
-        t, acc, _, mount, rate = session_inputs(s)
-        att = ComplementaryFilter(ComplementaryParams(init_heading_from_mag=False))
-        q_nd = att.update(t, acc, s.imu.gyro.values if s.imu.gyro is not None else None).q
-        _MOBGAP_INPUTS.append((tid, trial, t, acc, q_nd, mount, rate))
-    return _MOBGAP_INPUTS
+    trial = mobgap.load_trial(DATA / "mobgap_lab", item.participant, item.test, item.trial)
+    ref = trial.reference.indip
+    if ref is None or len(ref.bout_start_s) == 0:
+        return None
+    s = trial.session
+    t, acc, _, mount, rate = session_inputs(s)
+    att = ComplementaryFilter(ComplementaryParams(init_heading_from_mag=False))
+    q_nd = att.update(t, acc, s.imu.gyro.values if s.imu.gyro is not None else None).q
+    return trial, t, acc, q_nd, mount, rate
 
 
-def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
-                **kwargs: object) -> list[MobgapRun]:
-    out: list[MobgapRun] = []
-    for tid_o, trial_o, t, acc, q_nd, mount, rate in mobgap_inputs():
-        tid: Any = tid_o
-        trial: Any = trial_o
-        ref = trial.reference.indip
-        s = trial.session
-        ga = GaitAnalyzer(rate_hz=rate, step_detector=make_detector(detector),
-                          mounting_q_bd=mount, motion=motion, **kwargs)  # type: ignore[arg-type]
+def mobgap_trial_runs(item: TrialItem) -> list[MobgapRunActivity]:
+    """One run per variant of a trial with an INDIP walking bout (none without one)."""
+    from hrtls.gait.cadence import CadenceDetector
+    from hrtls.gait.features import StreamingButterworth
+    from hrtls.gait.vertical import from_orientation
+
+    inp = mobgap_input(item)
+    if inp is None:
+        return []
+    trial, t, acc, q_nd, mount, rate = inp
+    ref = trial.reference.indip
+    s = trial.session
+    out = []
+    for variant in item.variants:
+        ga = GaitAnalyzer(rate_hz=rate, step_detector=make_detector(variant.detector),
+                          mounting_q_bd=mount, **variant.kwargs())
         res = ga.process(t, acc, q_nd)
         # combined motion state (Basso spread + periodicity) per sample, for the motion rows
-        from hrtls.gait.cadence import CadenceDetector
-        from hrtls.gait.features import StreamingButterworth
-        from hrtls.gait.vertical import from_orientation
-
         v = from_orientation(t, acc, q_nd).vertical_m_s2
         v_lp = StreamingButterworth(order=4, cutoff_hz=3.0, rate_hz=rate).update(v)
         state = CadenceDetector(rate_hz=rate).update(
@@ -152,11 +184,21 @@ def mobgap_runs(detector: str, *, motion: MotionParams | None = None,
         # pendulum length: the sensor height above the ground (infoForAlgo SensorHeight)
         info = s.meta.user.model_extra or {}
         leg = float(info.get("sensor_height_m", 0.0) or 0.0) or 0.95
-        out.append(MobgapRunActivity(tid.participant, tid.test, res.steps, ref,
+        out.append(MobgapRunActivity(item.participant, item.test, res.steps, ref,
                                      trial.reference.stereophoto, q_nd, t,
                                      res.step_excursion_m, state,
                                      (res.motion_sigma_m_s2 > 1.5).astype(np.int64), leg,
                                      res.activity))
+    return out
+
+
+def mobgap_runs(batch: Batch, variants: dict[str, GaitVariant]) -> dict[str, list[MobgapRun]]:
+    """The runs of every variant on the trials with an INDIP walking bout (one load each)."""
+    out: dict[str, list[MobgapRun]] = {name: [] for name in variants}
+    items = trial_items(tuple(variants.values()))
+    for runs in batch.values(mobgap_trial_runs, items, label=_trial_label):
+        for name, r in zip(variants, runs, strict=False):
+            out[name].append(r)
     return out
 
 
@@ -609,16 +651,16 @@ def mobgap_turns(runs: list[MobgapRun]) -> None:
         f"(n={dd.size})", "")
 
 
-def mobgap_activity(sim_data: list[tuple[np.ndarray, np.ndarray]]) -> None:
+def mobgap_activity(batch: Batch, sim_data: list[tuple[np.ndarray, np.ndarray]]) -> None:
     """Walking vs not walking on mobgap windows, leave-one-participant-out.
 
     Trained with the default recipe (simulated persons 100-109 instead of 900-911, hrtls.sim
     training seeds, the other participants); a window counts as walking when the model says
     walking, running or stairs.
     """
-    real = mobgap_windows()
+    real = mobgap_windows(batch)
     syn = [(x, y, np.zeros(0)) for x, y in sim_data]
-    other = hrtls_sim_windows()
+    other = hrtls_sim_windows(batch)
     hits = total = 0
     for p in real:
         model = train_default_model(syn, other, {q: v for q, v in real.items() if q != p})
@@ -631,49 +673,77 @@ def mobgap_activity(sim_data: list[tuple[np.ndarray, np.ndarray]]) -> None:
         f"{hits / total * 100:.1f}% ({total} windows)", ">= 97 %")
 
 
-def mobgap_windows() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def trial_windows(item: TrialItem) -> tuple[np.ndarray, np.ndarray]:
+    """Activity features and labels (INDIP walking bouts = walking) of one trial's 2 s windows."""
     from hrtls.datasets import mobgap
 
+    trial = mobgap.load_trial(DATA / "mobgap_lab", item.participant, item.test, item.trial)
+    t, acc, _, mount, rate = session_inputs(trial.session)
+    wf = activity_windows(t, acc, rate_hz=rate, mounting_q_bd=mount)
+    lab = np.full(t.shape[0], int(Activity.STANDING), dtype=np.int64)
+    ref = trial.reference.indip
+    if ref is not None:
+        for b0, b1 in zip(ref.bout_start_s, ref.bout_end_s, strict=True):
+            lab[(t >= b0) & (t < b1)] = int(Activity.WALKING)
+    return wf.lda, window_labels(lab, round(2.0 * rate))
+
+
+def mobgap_windows(batch: Batch) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for tid in mobgap.list_trials(DATA / "mobgap_lab"):
-        trial = mobgap.load_trial(DATA / "mobgap_lab", tid.participant, tid.test, tid.trial)
-        t, acc, _, mount, rate = session_inputs(trial.session)
-        wf = activity_windows(t, acc, rate_hz=rate, mounting_q_bd=mount)
-        lab = np.full(t.shape[0], int(Activity.STANDING), dtype=np.int64)
-        ref = trial.reference.indip
-        if ref is not None:
-            for b0, b1 in zip(ref.bout_start_s, ref.bout_end_s, strict=True):
-                lab[(t >= b0) & (t < b1)] = int(Activity.WALKING)
-        y = window_labels(lab, round(2.0 * rate))
-        out.setdefault(tid.participant, []).append((wf.lda, y))
+    for item, windows in batch.map(trial_windows, trial_items(), label=_trial_label):
+        out.setdefault(item.participant, []).append(windows)
     return {p: (np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v]))
             for p, v in out.items()}
 
 
 # ------------------------------------------------------------------------------ oxford
-def oxford_eval(detector: str, label: str | None = None, **kwargs: object) -> None:
+@dataclass(frozen=True)
+class OxfordItem:
+    """One Oxford recording and the variants to count its steps with."""
+
+    path: Path
+    variants: tuple[GaitVariant, ...]
+
+
+def oxford_counts(item: OxfordItem) -> tuple[str, int, list[int]]:
+    """Placement, true step count and the steps counted by each variant."""
     from hrtls.datasets import oxford
 
-    label = label or detector
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = oxford.load_recording(item.path, repair=True)
+        t, acc, _, _, _rate = session_inputs(rec.session)
+        # the phone clock jitters: resample to the nominal rate
+        tu = np.arange(t[0], t[-1], 0.01)
+        au = np.column_stack([np.interp(tu, t, acc[:, k]) for k in range(3)])
+        counts = [len(GaitAnalyzer(rate_hz=100.0, step_detector=make_detector(v.detector),
+                                   **v.kwargs()).process(tu, au).steps) for v in item.variants]
+    return str(rec.placement), int(rec.total_steps), counts
 
+
+def oxford_eval(batch: Batch, variants: dict[str, GaitVariant]
+                ) -> dict[str, list[tuple[str, int, int]]]:
+    """(placement, steps counted, true steps) per recording of every variant (one load each)."""
+    from hrtls.datasets import oxford
+
+    items = [OxfordItem(path, tuple(variants.values()))
+             for path in oxford.list_recordings(DATA / "oxford_step")]
+    out: dict[str, list[tuple[str, int, int]]] = {name: [] for name in variants}
+    for placement, total, counts in batch.values(oxford_counts, items,
+                                                 label=lambda it: it.path.name):
+        for name, n in zip(variants, counts, strict=True):
+            out[name].append((placement, n, total))
+    return out
+
+
+def oxford_rows(label: str, counts: list[tuple[str, int, int]]) -> None:
     errs = []
-    for path in oxford.list_recordings(DATA / "oxford_step"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            rec = oxford.load_recording(path, repair=True)
-            t, acc, _, _, _rate = session_inputs(rec.session)
-            # the phone clock jitters: resample to the nominal rate
-            tu = np.arange(t[0], t[-1], 0.01)
-            au = np.column_stack([np.interp(tu, t, acc[:, k]) for k in range(3)])
-            res = GaitAnalyzer(rate_hz=100.0, step_detector=make_detector(detector),
-                               **kwargs).process(tu, au)  # type: ignore[arg-type]
-        n = len(res.steps)
-        err = (n - rec.total_steps) / rec.total_steps * 100
+    for placement, n, total in counts:
+        err = (n - total) / total * 100
         errs.append(err)
-        waist = rec.placement in ("frontpocket", "backpocket")
-        row(f"oxford {label}", f"count error {rec.placement}" + (" (waist-like)" if waist
-                                                                 else ""),
-            f"{err:+.1f}% ({n}/{rec.total_steps})", "<= 1 %" if waist else "")
+        waist = placement in ("frontpocket", "backpocket")
+        row(f"oxford {label}", f"count error {placement}" + (" (waist-like)" if waist else ""),
+            f"{err:+.1f}% ({n}/{total})", "<= 1 %" if waist else "")
     row(f"oxford {label}", "mean |count error|, all placements",
         f"{np.mean(np.abs(errs)):.2f}%", "")
 
@@ -692,9 +762,20 @@ def sim_person_windows(i: int, seed0: int = 100) -> tuple[np.ndarray, np.ndarray
     return wf.lda, window_labels(w.activity, 200), wf.tree
 
 
-def sim_activity(n_persons: int = 10) -> list[tuple[np.ndarray, np.ndarray]]:
+def _person(item: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return sim_person_windows(item[0], seed0=item[1])
+
+
+def person_windows(batch: Batch, n_persons: int, seed0: int
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`sim_person_windows` of persons ``seed0 .. seed0 + n_persons - 1``."""
+    return batch.values(_person, [(i, seed0) for i in range(n_persons)],
+                        label=lambda it: f"simulated person {it[1] + it[0]}")
+
+
+def sim_activity(batch: Batch, n_persons: int = 10) -> list[tuple[np.ndarray, np.ndarray]]:
     """Leave-one-person-out on simulated persons 100-109 (Inderst Sec. 6.2, Tab. 6.7)."""
-    data = [sim_person_windows(i) for i in range(n_persons)]
+    data = person_windows(batch, n_persons, 100)
     conf = np.zeros((5, 5), dtype=int)
     conf_pooled = np.zeros((5, 5), dtype=int)
     conf_tree = np.zeros((5, 5), dtype=int)
@@ -724,43 +805,60 @@ def sim_activity(n_persons: int = 10) -> list[tuple[np.ndarray, np.ndarray]]:
     return [(d[0], d[1]) for d in data]
 
 
-def sim_heading_and_steps(n_walks: int = 12) -> None:
-    rms_all: list[float] = []
-    rms_lev: list[float] = []
-    tp = fp = fn = 0
-    n_det = n_true = 0
-    v_err: list[float] = []
-    for i in range(n_walks):
-        rng = np.random.default_rng(500 + i)
-        p = SimPerson.random(rng)
-        w = simulate([(0, 5), (1, 60), (0, 5)], person=p, q_bd=random_mounting(rng),
-                     heading0_rad=rng.uniform(-np.pi, np.pi),
-                     turn_rate_rad_s=rng.uniform(-0.05, 0.05), seed=500 + i)
-        ga = GaitAnalyzer(rate_hz=100.0, mounting_q_bd=w.q_bd, velocity=VelocityAutomaton())
-        res = ga.process(w.t, w.acc_d, w.q_nd)
-        te = res.steps.t_end
-        h = res.steps.heading_rad
-        true_h = np.interp(te, w.step_t, np.unwrap(w.step_heading_rad))
-        e = np.rad2deg(wrap_angle(h - true_h))
-        sel = np.isfinite(e) & (te > 7.0) & (te < 64.0)
-        rms_all.append(float(np.sqrt(np.mean(e[sel] ** 2))))
-        a, b, c, _ = match_events(te, w.step_t)
-        tp, fp, fn = tp + a, fp + b, fn + c
-        n_det += len(te)
-        n_true += len(w.step_t)
-        # velocity: true speed = step length x step frequency while walking
-        v = np.interp(w.t, res.velocity_t, res.velocity_m_s)
-        v_err.append(float(np.sqrt(np.mean((v - w.speed_m_s) ** 2))))
-        # accelerometer only: heading relative to the device; score its spread
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res2 = GaitAnalyzer(rate_hz=100.0).process(w.t, w.acc_d)
-        # the walking direction relative to the device is constant: score its spread
-        h2 = res2.steps.heading_rad
-        te2 = res2.steps.t_end
-        s2 = np.isfinite(h2) & (te2 > 7.0) & (te2 < 64.0)
-        off = np.arctan2(np.sin(h2[s2]).mean(), np.cos(h2[s2]).mean())
-        rms_lev.append(float(np.sqrt(np.mean(np.rad2deg(wrap_angle(h2[s2] - off)) ** 2))))
+@dataclass(frozen=True)
+class WalkScores:
+    """One simulated walk of :func:`sim_heading_and_steps`."""
+
+    rms_deg: float
+    rms_level_deg: float
+    tp: int
+    fp: int
+    fn: int
+    n_det: int
+    n_true: int
+    v_err_m_s: float
+
+
+def sim_walk(i: int) -> WalkScores:
+    """Heading, steps and velocity on simulated walk ``i`` (seed 500 + i)."""
+    rng = np.random.default_rng(500 + i)
+    p = SimPerson.random(rng)
+    w = simulate([(0, 5), (1, 60), (0, 5)], person=p, q_bd=random_mounting(rng),
+                 heading0_rad=rng.uniform(-np.pi, np.pi),
+                 turn_rate_rad_s=rng.uniform(-0.05, 0.05), seed=500 + i)
+    ga = GaitAnalyzer(rate_hz=100.0, mounting_q_bd=w.q_bd, velocity=VelocityAutomaton())
+    res = ga.process(w.t, w.acc_d, w.q_nd)
+    te = res.steps.t_end
+    h = res.steps.heading_rad
+    true_h = np.interp(te, w.step_t, np.unwrap(w.step_heading_rad))
+    e = np.rad2deg(wrap_angle(h - true_h))
+    sel = np.isfinite(e) & (te > 7.0) & (te < 64.0)
+    a, b, c, _ = match_events(te, w.step_t)
+    # velocity: true speed = step length x step frequency while walking
+    v = np.interp(w.t, res.velocity_t, res.velocity_m_s)
+    # accelerometer only: heading relative to the device; score its spread
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res2 = GaitAnalyzer(rate_hz=100.0).process(w.t, w.acc_d)
+    # the walking direction relative to the device is constant: score its spread
+    h2 = res2.steps.heading_rad
+    te2 = res2.steps.t_end
+    s2 = np.isfinite(h2) & (te2 > 7.0) & (te2 < 64.0)
+    off = np.arctan2(np.sin(h2[s2]).mean(), np.cos(h2[s2]).mean())
+    return WalkScores(float(np.sqrt(np.mean(e[sel] ** 2))),
+                      float(np.sqrt(np.mean(np.rad2deg(wrap_angle(h2[s2] - off)) ** 2))),
+                      a, b, c, len(te), len(w.step_t),
+                      float(np.sqrt(np.mean((v - w.speed_m_s) ** 2))))
+
+
+def sim_heading_and_steps(batch: Batch, n_walks: int = 12) -> None:
+    walks = batch.values(sim_walk, list(range(n_walks)), label=lambda i: f"sim walk {i}")
+    rms_all = [w.rms_deg for w in walks]
+    rms_lev = [w.rms_level_deg for w in walks]
+    v_err = [w.v_err_m_s for w in walks]
+    tp, fp, fn = (sum(getattr(w, k) for w in walks) for k in ("tp", "fp", "fn"))
+    n_det = sum(w.n_det for w in walks)
+    n_true = sum(w.n_true for w in walks)
     row("sim walks", f"Fourier heading RMS, random mounting, attitude known ({n_walks} walks)",
         f"{np.sqrt(np.mean(np.square(rms_all))):.2f} deg (worst walk {max(rms_all):.2f})",
         "<= 5 deg")
@@ -834,58 +932,78 @@ def sim_slow_walker_gate() -> None:
         f"(Basso motion only: {out[3]})", "steps kept for slow walkers")
 
 
-def hrtls_sim_eval(seeds: tuple[int, ...] = (0, 1)) -> None:
-    """Scenarios of :mod:`hrtls.sim` (another simulator than :mod:`hrtls.gait.synthetic`)."""
-    try:
-        from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
-        from hrtls.sim.scenarios import run_scenario
-    except ImportError as exc:  # pragma: no cover
-        row("hrtls.sim", "scenarios", f"skipped ({exc})", "")
-        return
+@dataclass(frozen=True)
+class ScenarioScores:
+    """One hrtls.sim scenario-seed of :func:`hrtls_sim_eval`."""
+
+    tp: int
+    fp: int
+    fn: int
+    n_det: int
+    n_true: int
+    heading_err_deg: list[float]
+    distance_err: float
+    activity_hits: int
+    activity_total: int
+    attitude_from: str
+
+
+def scenario_scores(item: tuple[str, int]) -> ScenarioScores:
+    """Steps, heading, distance and activity of the default analyzer on one scenario-seed."""
+    from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
+    from hrtls.sim.scenarios import run_scenario
+
+    name, seed = item
     model = LdaModel.default()
-    for name in ("basso_test1", "basso_test2", "basso_test3", "colombo_natural",
-                 "inderst_multifloor", "office_random_walk"):
-        tp = fp = fn = 0
-        n_det = n_true = 0
-        h_err: list[float] = []
-        d_err: list[float] = []
-        act_hit = act_tot = 0
-        src = ""
-        for seed in seeds:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                r = run_scenario(name, seed=seed)
-                s = r.session
-                t, acc, q_nd, mount, rate = session_inputs(s)
-                src = "device orientation"
-                if q_nd is None and s.imu is not None and s.imu.gyro is not None:
-                    _, _, gyr, _ = s.imu.aligned()
-                    att = ComplementaryFilter(ComplementaryParams(init_heading_from_mag=False))
-                    q_nd = att.update(t, acc, gyr).q
-                    src = "complementary filter, no mag (heading offset removed)"
-                res = GaitAnalyzer(rate_hz=rate, mounting_q_bd=mount, activity=model,
-                                   step_model=WeinbergModel(
-                                       k=float(s.meta.user.step_model.get("k", 0.45)))
-                                   ).process(t, acc, q_nd)
-            true = r.true_steps
-            a, b, c, _ = match_events(res.steps.t_end, true.t_end, tol=0.25)
-            tp, fp, fn = tp + a, fp + b, fn + c
-            n_det += len(res.steps)
-            n_true += len(true)
-            te = res.steps.t_end
-            walking = true.activity == int(Activity.WALKING)
-            th = np.interp(te, true.t_end[walking], np.unwrap(true.heading_rad[walking]))
-            e = wrap_angle(res.steps.heading_rad - th)
-            e = e[np.isfinite(e)]
-            if src.startswith("complementary") and e.size:
-                e = wrap_angle(e - np.arctan2(np.mean(np.sin(e)), np.mean(np.cos(e))))
-            h_err.extend(np.rad2deg(e).tolist())
-            d_err.append((res.steps.distance_m - true.distance_m) / true.distance_m)
-            lab = np.interp(res.activity_t, r.activity_t, r.activity).round().astype(int)
-            act_hit += int(np.sum(lab == res.activity))
-            act_tot += lab.size
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = run_scenario(name, seed=seed)
+        s = r.session
+        t, acc, q_nd, mount, rate = session_inputs(s)
+        src = "device orientation"
+        if q_nd is None and s.imu is not None and s.imu.gyro is not None:
+            _, _, gyr, _ = s.imu.aligned()
+            att = ComplementaryFilter(ComplementaryParams(init_heading_from_mag=False))
+            q_nd = att.update(t, acc, gyr).q
+            src = "complementary filter, no mag (heading offset removed)"
+        res = GaitAnalyzer(rate_hz=rate, mounting_q_bd=mount, activity=model,
+                           step_model=WeinbergModel(
+                               k=float(s.meta.user.step_model.get("k", 0.45)))
+                           ).process(t, acc, q_nd)
+    true = r.true_steps
+    a, b, c, _ = match_events(res.steps.t_end, true.t_end, tol=0.25)
+    te = res.steps.t_end
+    walking = true.activity == int(Activity.WALKING)
+    th = np.interp(te, true.t_end[walking], np.unwrap(true.heading_rad[walking]))
+    e = wrap_angle(res.steps.heading_rad - th)
+    e = e[np.isfinite(e)]
+    if src.startswith("complementary") and e.size:
+        e = wrap_angle(e - np.arctan2(np.mean(np.sin(e)), np.mean(np.cos(e))))
+    lab = np.interp(res.activity_t, r.activity_t, r.activity).round().astype(int)
+    return ScenarioScores(a, b, c, len(res.steps), len(true), np.rad2deg(e).tolist(),
+                          (res.steps.distance_m - true.distance_m) / true.distance_m,
+                          int(np.sum(lab == res.activity)), int(lab.size), src)
+
+
+def hrtls_sim_eval(batch: Batch, seeds: tuple[int, ...] = (0, 1)) -> None:
+    """Scenarios of :mod:`hrtls.sim` (another simulator than :mod:`hrtls.gait.synthetic`)."""
+    names = ("basso_test1", "basso_test2", "basso_test3", "colombo_natural",
+             "inderst_multifloor", "office_random_walk")
+    done = batch.map(scenario_scores, [(name, seed) for name in names for seed in seeds],
+                     label=lambda it: f"{it[0]} seed {it[1]}")
+    for name in names:
+        runs = [v for (n, _), v in done if n == name]
+        if not runs:
+            continue
+        tp, fp, fn = (sum(getattr(r, k) for r in runs) for k in ("tp", "fp", "fn"))
+        n_det = sum(r.n_det for r in runs)
+        n_true = sum(r.n_true for r in runs)
+        he = np.asarray([e for r in runs for e in r.heading_err_deg])
+        d_err = [r.distance_err for r in runs]
+        act_hit = sum(r.activity_hits for r in runs)
+        act_tot = sum(r.activity_total for r in runs)
+        src = runs[-1].attitude_from
         f1 = 2 * tp / max(2 * tp + fp + fn, 1)
-        he = np.asarray(h_err)
         row(f"hrtls.sim {name}", "step F1 (0.25 s) / count error",
             f"{f1:.3f} / {(n_det - n_true) / n_true * 100:+.1f}% ({len(seeds)} seeds)", "")
         row(f"hrtls.sim {name}", f"Fourier heading RMS ({src})",
@@ -893,7 +1011,7 @@ def hrtls_sim_eval(seeds: tuple[int, ...] = (0, 1)) -> None:
             f"(n={he.size})", "<= 5 deg")
         row(f"hrtls.sim {name}", "distance error (profile K) / activity accuracy (default LDA)",
             f"{np.mean(d_err) * 100:+.1f}% / {act_hit / max(act_tot, 1) * 100:.1f}%", "")
-    hrtls_sim_activity(seeds)
+    hrtls_sim_activity(batch, seeds)
 
 
 def sim_session_activity(name: str | object, seed: int, model: LdaModel
@@ -914,33 +1032,58 @@ def sim_session_activity(name: str | object, seed: int, model: LdaModel
     return lab, res.activity
 
 
-def hrtls_sim_activity(seeds: tuple[int, ...] = (0, 1)) -> None:
+@dataclass(frozen=True)
+class ActivityItem:
+    """A scenario-seed (or a random person walk, ``name`` ``"person"``) and the models to score."""
+
+    name: str
+    seed: int
+    models: tuple[LdaModel, ...]
+
+
+def activity_confusions(item: ActivityItem) -> list[np.ndarray]:
+    """Per-sample activity confusion (5 x 5, rows true) of each model on one run."""
+    r: object = item.name
+    seed = item.seed
+    if item.name == "person":
+        r, seed = hrtls_sim_person_walk(item.seed), 0
+    out = []
+    for model in item.models:
+        lab, pred = sim_session_activity(r, seed, model)
+        conf = np.zeros((5, 5), dtype=int)
+        np.add.at(conf, (lab, pred), 1)
+        out.append(conf)
+    return out
+
+
+def hrtls_sim_activity(batch: Batch, seeds: tuple[int, ...] = (0, 1)) -> None:
     """Per-sample activity accuracy of the default model on every hrtls.sim scenario.
 
     Seeds 0-1 were not used in training (the default uses seeds 10, 11, 20, 21); the second
     number retrains the default recipe without the scenario (leave-one-scenario-out).
     """
     model = LdaModel.default()
-    syn = [sim_person_windows(i, seed0=SYN_TRAIN_SEED0) for i in range(12)]
-    other = hrtls_sim_windows()
-    real = mobgap_windows() if DATA.is_dir() else {}
-    worst = (1.0, "")
+    syn = person_windows(batch, 12, SYN_TRAIN_SEED0)
+    other = hrtls_sim_windows(batch)
+    real = mobgap_windows(batch) if DATA.is_dir() else {}
+    items = []
     for name in ACTIVITY_SCENARIOS:
         loso = train_default_model(syn, {k: v for k, v in other.items() if k != name}, real)
-        hit = hit_loso = tot = 0
-        conf = np.zeros((5, 5), dtype=int)
-        for seed in seeds:
-            lab, pred = sim_session_activity(name, seed, model)
-            _, pred_loso = sim_session_activity(name, seed, loso)
-            hit += int(np.sum(lab == pred))
-            hit_loso += int(np.sum(lab == pred_loso))
-            tot += lab.size
-            np.add.at(conf, (lab, pred), 1)
-        acc = hit / max(tot, 1)
+        items += [ActivityItem(name, seed, (model, loso)) for seed in seeds]
+    done = batch.map(activity_confusions, items, label=lambda it: f"{it.name} seed {it.seed}")
+    worst = (1.0, "")
+    for name in ACTIVITY_SCENARIOS:
+        confs = [v for it, v in done if it.name == name]
+        if not confs:
+            continue
+        conf = sum((c[0] for c in confs), np.zeros((5, 5), dtype=int))
+        conf_loso = sum((c[1] for c in confs), np.zeros((5, 5), dtype=int))
+        tot = int(conf.sum())
+        acc = int(np.trace(conf)) / max(tot, 1)
         worst = min(worst, (acc, name))
         row(f"hrtls.sim {name}", "activity accuracy per sample: default / scenario left out",
-            f"{acc * 100:.1f}% / {hit_loso / max(tot, 1) * 100:.1f}% ({len(seeds)} held-out "
-            "seeds)", ">= 95 %")
+            f"{acc * 100:.1f}% / {int(np.trace(conf_loso)) / max(tot, 1) * 100:.1f}% "
+            f"({len(seeds)} held-out seeds)", ">= 95 %")
         if np.any(conf[3:].sum(axis=1) > 0):
             stairs = conf[3:] / np.maximum(conf[3:].sum(axis=1, keepdims=True), 1) * 100
             row(f"hrtls.sim {name}", "stairs samples -> stand/walk/run/up/down (up; down)",
@@ -949,10 +1092,10 @@ def hrtls_sim_activity(seeds: tuple[int, ...] = (0, 1)) -> None:
     row("hrtls.sim", "worst scenario activity accuracy (default model)",
         f"{worst[0] * 100:.1f}% ({worst[1]})", ">= 95 %")
     # held-out random persons (seeds 8000 + i; training used 7000 + i)
-    conf = np.zeros((5, 5), dtype=int)
-    for i in range(8):
-        lab, pred = sim_session_activity(hrtls_sim_person_walk(PERSON_TEST_SEED0 + i), 0, model)
-        np.add.at(conf, (lab, pred), 1)
+    persons = [ActivityItem("person", PERSON_TEST_SEED0 + i, (model,)) for i in range(8)]
+    conf = sum((c[0] for c in batch.values(activity_confusions, persons,
+                                           label=lambda it: f"person walk {it.seed}")),
+               np.zeros((5, 5), dtype=int))
     row("hrtls.sim persons", "activity accuracy per sample, 8 held-out random persons",
         f"{np.trace(conf) / conf.sum() * 100:.1f}%", ">= 95 %")
     share = conf / np.maximum(conf.sum(axis=1, keepdims=True), 1) * 100
@@ -1064,7 +1207,19 @@ def labelled_windows(r: object) -> tuple[np.ndarray, np.ndarray]:
     return wf.lda, window_labels(lab, round(2.0 * rate))
 
 
-def hrtls_sim_windows(seeds: tuple[int, ...] = TRAIN_SEEDS,
+def _sim_windows(item: tuple[str, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Labelled windows of scenario ``item[0]`` (``"person_walks"``: a random person) and seed."""
+    name, seed = item
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if name == "person_walks":
+            return labelled_windows(hrtls_sim_person_walk(seed))
+        from hrtls.sim.scenarios import run_scenario
+
+        return labelled_windows(run_scenario(name, seed=seed))
+
+
+def hrtls_sim_windows(batch: Batch, seeds: tuple[int, ...] = TRAIN_SEEDS,
                       scenarios: tuple[str, ...] = ACTIVITY_SCENARIOS,
                       person_walks: int = PERSON_WALKS
                       ) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
@@ -1072,22 +1227,12 @@ def hrtls_sim_windows(seeds: tuple[int, ...] = TRAIN_SEEDS,
 
     The key ``"person_walks"`` holds the random-person walks (seeds 7000 + i).
     """
-    try:
-        from hrtls.sim.scenarios import run_scenario
-    except ImportError:  # pragma: no cover
-        return {}
+    items = [(name, seed) for name in scenarios for seed in seeds]
+    items += [("person_walks", 7000 + i) for i in range(person_walks)]
     out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for name in scenarios:
-        for seed in seeds:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                r = run_scenario(name, seed=seed)
-            out.setdefault(name, []).append(labelled_windows(r))
-    for i in range(person_walks):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            out.setdefault("person_walks", []).append(
-                labelled_windows(hrtls_sim_person_walk(7000 + i)))
+    for (name, _), windows in batch.map(_sim_windows, items,
+                                        label=lambda it: f"{it[0]} seed {it[1]}"):
+        out.setdefault(name, []).append(windows)
     return out
 
 
@@ -1133,10 +1278,10 @@ def train_default_model(syn: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     return train_lda(x, y, groups=g, covariance="per_class", loss=loss, info=info)
 
 
-def train_default() -> None:
-    syn = [sim_person_windows(i, seed0=SYN_TRAIN_SEED0) for i in range(12)]
-    other = hrtls_sim_windows()
-    real = mobgap_windows() if DATA.is_dir() else {}
+def train_default(batch: Batch) -> None:
+    syn = person_windows(batch, 12, SYN_TRAIN_SEED0)
+    other = hrtls_sim_windows(batch)
+    real = mobgap_windows(batch) if DATA.is_dir() else {}
     _, y, _ = activity_training_set(syn, other, real)
     model = train_default_model(syn, other, real, info=(
         "default hrtls model: eq. 4.8 with per-class covariances, class likelihood = equal "
@@ -1176,14 +1321,31 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="skip activity LOPO and PLL runs")
     ap.add_argument("--train-default", action="store_true", help="rebuild the default model")
     ap.add_argument("--json", type=Path, help="also write the table as JSON")
+    add_engine_options(ap)
     args = ap.parse_args()
+    batch = Batch.of(args)
     if args.train_default:
-        train_default()
+        train_default(batch)
         return
     have_data = DATA.is_dir()
     if have_data:
-        for det in ("peak",) if args.quick else ("peak", "pll"):
-            runs = mobgap_runs(det)
+        dets = ("peak",) if args.quick else ("peak", "pll")
+        bouts = (("walking_bouts", WalkingBoutParams()),)
+        fill = (*bouts, ("missed_steps", MissedStepParams()))
+        variants = {det: GaitVariant(det) for det in dets}
+        variants |= {"peak+bouts": GaitVariant("peak", bouts),
+                     "peak+bouts+fill": GaitVariant("peak", fill)}
+        if not args.quick:
+            # the step gate (gate_steps_with_motion) with the combined motion state
+            variants["peak+gate"] = GaitVariant("peak", (("gate_steps_with_motion", True),))
+        ox_variants = dict(variants)
+        if not args.quick:
+            # the PLL as before this change: Basso's thresholds alone (std-only running switch)
+            ox_variants["pll, Basso thresholds only"] = GaitVariant("pll", (("cadence", None),))
+        mobgap = mobgap_runs(batch, variants)
+        ox = oxford_eval(batch, ox_variants)
+        for det in dets:
+            runs = mobgap[det]
             mobgap_detection(runs, det)
             mobgap_length(runs, det)
             if det == "peak":
@@ -1191,37 +1353,33 @@ def main() -> None:
                 mobgap_walking_windows(runs, "motion, default analyzer")
                 mobgap_reference_agreement(runs)
                 mobgap_turns(runs)
-            oxford_eval(det)
+            oxford_rows(det, ox[det])
         # walking bouts from step sequences (hrtls.gait.walking_bouts), and with single missed
         # steps filled from the step rhythm (hrtls.gait.missed_steps)
-        for label, kw in (("peak+bouts", {"walking_bouts": WalkingBoutParams()}),
-                          ("peak+bouts+fill", {"walking_bouts": WalkingBoutParams(),
-                                               "missed_steps": MissedStepParams()})):
-            runs_b = mobgap_runs("peak", **kw)
-            mobgap_detection(runs_b, label)
+        for label in ("peak+bouts", "peak+bouts+fill"):
+            mobgap_detection(mobgap[label], label)
             if label == "peak+bouts":
-                mobgap_walking_windows(runs_b, "motion, walking bouts")
-            oxford_eval("peak", label, **kw)
+                mobgap_walking_windows(mobgap[label], "motion, walking bouts")
+            oxford_rows(label, ox[label])
         if not args.quick:
-            # the step gate (gate_steps_with_motion) with the combined motion state
-            mobgap_detection(mobgap_runs("peak", gate_steps_with_motion=True), "peak+gate")
-            oxford_eval("peak", "peak+gate", gate_steps_with_motion=True)
-            # the PLL as before this change: Basso's thresholds alone (std-only running switch)
-            oxford_eval("pll", "pll, Basso thresholds only", cadence=None)
-    sim_heading_and_steps()
+            mobgap_detection(mobgap["peak+gate"], "peak+gate")
+            oxford_rows("peak+gate", ox["peak+gate"])
+            oxford_rows("pll, Basso thresholds only", ox["pll, Basso thresholds only"])
+    sim_heading_and_steps(batch)
     sim_placement_change()
     if not args.quick:
         sim_slow_walker_gate()
     if not args.quick:
-        hrtls_sim_eval()
+        hrtls_sim_eval(batch)
     if not args.quick:
-        sim_data = sim_activity()
+        sim_data = sim_activity(batch)
         if have_data:
-            mobgap_activity(sim_data)
+            mobgap_activity(batch, sim_data)
     throughput()
     print_table()
     if args.json:
         args.json.write_text(json.dumps(ROWS, indent=1))
+    batch.finish()
 
 
 if __name__ == "__main__":

@@ -11,17 +11,21 @@ only) and prints, over the seeds, mean / p90 / worst of:
 
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
-    python benchmarks/mission.py --seeds 100-129
+    python benchmarks/mission.py --seeds 100-129 [--engine local|ray] [--workers N]
+
+Seeds run through ``--engine`` (``benchmarks/_engine.py``); the figures do not depend on it.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import chi2
 
+from _engine import Batch, add_engine_options
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
 
@@ -70,6 +74,40 @@ def _stats(x: list[float]) -> str:
     return f"{np.mean(a):.2f} / {np.percentile(a, 90):.2f} / {np.max(a):.2f}"
 
 
+@dataclass(frozen=True)
+class SeedItem:
+    """One seed of the study."""
+
+    seed: int
+    options: MissionOptions
+
+
+@dataclass(frozen=True)
+class ModeScores:
+    """One seed tracked with cooperation off or on."""
+
+    mean: float
+    p90: float
+    max: float
+    frac: float
+    anees: float
+    rmse: float
+    node_nees: list[float]
+
+
+def run_seed(item: SeedItem) -> dict[str, ModeScores]:
+    """Scores of one seed with cooperation ``off`` and ``on``."""
+    mission = inderst_hybrid_mission(item.seed, item.options)
+    out: dict[str, ModeScores] = {}
+    for mode in ("off", "on"):
+        res = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on")).run()
+        e, e_nees = agent_errors(mission, res)
+        frac, rmse, nees = node_scores(mission, res)
+        out[mode] = ModeScores(float(np.mean(e)), float(np.percentile(e, 90)),
+                               float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 (dev) or 100-129 (held-out)")
@@ -77,7 +115,9 @@ def main() -> None:
     ap.add_argument("--rescuers", type=int, default=3)
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--node-failure", type=float, default=0.0)
+    add_engine_options(ap)
     args = ap.parse_args()
+    batch = Batch.of(args)
     opts = MissionOptions(n_rescuers=args.rescuers, n_nodes=args.nodes,
                           range_sigma_m=args.range_sigma_m,
                           node_failure_fraction=args.node_failure)
@@ -86,26 +126,22 @@ def main() -> None:
         for m in ("off", "on")}
     nees_all: dict[str, list[float]] = {"off": [], "on": []}
     t0 = time.perf_counter()
-    for seed in _seeds(args.seeds):
-        mission = inderst_hybrid_mission(seed, opts)
+    items = [SeedItem(seed, opts) for seed in _seeds(args.seeds)]
+    for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in ("off", "on"):
-            res = MissionTracker(mission.agents,
-                                 params=MissionParams(cooperate=mode == "on")).run()
-            e, e_nees = agent_errors(mission, res)
-            frac, rmse, nees = node_scores(mission, res)
+            m = scores[mode]
             r = rows[mode]
-            r["mean"].append(float(np.mean(e)))
-            r["p90"].append(float(np.percentile(e, 90)))
-            r["max"].append(float(np.max(e)))
-            r["frac"].append(frac)
-            r["anees"].append(float(np.mean(e_nees)))
-            r["rmse"].append(rmse)
-            nees_all[mode].extend(nees)
-            print(f"seed {seed} {mode:>3}: err mean {np.mean(e):.2f} p90 "
-                  f"{np.percentile(e, 90):.2f} max {np.max(e):.2f} m; nodes {frac:.2f} "
-                  f"rmse {rmse:.2f} m; agent NEES {np.mean(e_nees):.1f}; "
-                  f"node NEES {np.mean(nees) if nees else float('nan'):.2f}",
-                  flush=True)
+            r["mean"].append(m.mean)
+            r["p90"].append(m.p90)
+            r["max"].append(m.max)
+            r["frac"].append(m.frac)
+            r["anees"].append(m.anees)
+            r["rmse"].append(m.rmse)
+            nees_all[mode].extend(m.node_nees)
+            print(f"seed {item.seed} {mode:>3}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
+                  f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
+                  f"{m.anees:.1f}; node NEES "
+                  f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m, node failure {args.node_failure}; values are mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
@@ -119,6 +155,7 @@ def main() -> None:
         nees = f"{np.mean(nees_all[mode]):.2f} ({lo:.2f}-{hi:.2f}, n={n})" if n else "-"
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
               f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} |")
+    batch.finish()
 
 
 if __name__ == "__main__":

@@ -16,6 +16,9 @@ compares that law (``GaitParams.vertical_pp`` and the spread of :meth:`GaitParam
 the real per-stride peak-to-peak binned by stride speed, per participant. ``--model FILE``
 compares another version of ``gait_model.py`` instead, e.g. the model before the waveforms
 were measured: ``git show cf9c77b:src/hrtls/sim/gait_model.py > /tmp/old.py``.
+
+The recordings (and the ``--heading`` scenario-seeds) run through ``--engine``
+(``benchmarks/_engine.py``); the simulated walks of the groups run in this process.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from _engine import Batch, add_engine_options
 from hrtls.frames import quat_rotate
 from hrtls.sim.gait_model import (
     GAIT_SIGNAL_COLUMNS,
@@ -63,53 +67,87 @@ class Group:
         return np.mean(self.waves, axis=0)
 
 
-def real_groups(root: Path) -> list[Group]:
-    """Stride waveforms of the mobgap lab trials, split by reference bout speed."""
-    from hrtls.datasets.mobgap import list_trials, load_trial
+@dataclass(frozen=True)
+class TrialItem:
+    """One mobgap lab trial."""
 
+    root: Path
+    participant: str
+    test: str
+    trial: str
+
+
+def trial_items(root: Path) -> list[TrialItem]:
+    """The mobgap lab trials under ``root``."""
+    from hrtls.datasets.mobgap import list_trials
+
+    return [TrialItem(root, t.participant, t.test, t.trial) for t in list_trials(root)]
+
+
+def _trial_label(item: TrialItem) -> str:
+    return f"{item.participant}/{item.test}/{item.trial}"
+
+
+Stride = tuple[int, np.ndarray, float, float, float, float]
+"""Speed group index, waveform, duration s, speed m/s, Weinberg K, vertical peak-to-peak."""
+
+
+def trial_strides(item: TrialItem) -> list[Stride]:
+    """The stride waveforms of one trial with a reference (none without one)."""
+    from hrtls.datasets.mobgap import load_trial
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        trial = load_trial(item.root, item.participant, item.test, item.trial)
+    ref = trial.reference.indip
+    if ref is None or ref.is_empty:
+        ref = trial.reference.stereophoto
+    if ref is None or ref.is_empty:
+        return []
+    t, acc, gyr, _ = trial.session.imu.aligned()
+    if gyr is None:
+        return []
+    q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
+    sig = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))
+    sw = stride_waveforms(t, sig, ref.initial_contacts_s, ref.initial_contact_left,
+                          bout=ref.initial_contact_bout, points=POINTS)
+    ic = ref.initial_contacts_s
+    out: list[Stride] = []
+    for s in range(len(sw.start_s)):
+        i = int(np.flatnonzero(ic == sw.start_s[s])[0])
+        bout = int(ref.initial_contact_bout[i])
+        v = float(ref.bout_walking_speed_m_s[bout])
+        if not np.isfinite(v):
+            continue
+        # Weinberg K of this stride: reference stride length / 2 over the step pp^(1/4)
+        k_stride = pp_stride = np.nan
+        near = np.flatnonzero((ref.stride_bout == bout)
+                              & (np.abs(ref.stride_start_s - sw.start_s[s]) < 0.03))
+        if len(near) and np.isfinite(ref.stride_length_m[near[0]]):
+            pp = []
+            for a, b in ((ic[i], ic[i + 1]), (ic[i + 1], ic[i + 2])):
+                seg = sig[(t >= a) & (t <= b), 2]
+                pp.append(np.ptp(seg))
+            k_stride = 0.5 * ref.stride_length_m[near[0]] / np.mean(pp) ** 0.25
+            pp_stride = float(np.mean(pp))
+        out.append((int(np.searchsorted(SPEED_EDGES_M_S, v, side="right")), sw.waveforms[s],
+                    float(sw.duration_s[s]), v, float(k_stride), pp_stride))
+    return out
+
+
+def real_groups(batch: Batch, root: Path) -> list[Group]:
+    """Stride waveforms of the mobgap lab trials, split by reference bout speed."""
     lo, hi = SPEED_EDGES_M_S
     groups = [Group(name, [], [], [], [], [])
               for name in (f"v < {lo}", f"{lo} <= v < {hi}", f"v >= {hi}")]
-    for tid in list_trials(root):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            trial = load_trial(root, tid.participant, tid.test, tid.trial)
-        ref = trial.reference.indip
-        if ref is None or ref.is_empty:
-            ref = trial.reference.stereophoto
-        if ref is None or ref.is_empty:
-            continue
-        t, acc, gyr, _ = trial.session.imu.aligned()
-        if gyr is None:
-            continue
-        q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
-        sig = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))
-        sw = stride_waveforms(t, sig, ref.initial_contacts_s, ref.initial_contact_left,
-                              bout=ref.initial_contact_bout, points=POINTS)
-        ic = ref.initial_contacts_s
-        for s in range(len(sw.start_s)):
-            i = int(np.flatnonzero(ic == sw.start_s[s])[0])
-            bout = int(ref.initial_contact_bout[i])
-            v = float(ref.bout_walking_speed_m_s[bout])
-            if not np.isfinite(v):
-                continue
-            # Weinberg K of this stride: reference stride length / 2 over the step pp^(1/4)
-            k_stride = pp_stride = np.nan
-            near = np.flatnonzero((ref.stride_bout == bout)
-                                  & (np.abs(ref.stride_start_s - sw.start_s[s]) < 0.03))
-            if len(near) and np.isfinite(ref.stride_length_m[near[0]]):
-                pp = []
-                for a, b in ((ic[i], ic[i + 1]), (ic[i + 1], ic[i + 2])):
-                    seg = sig[(t >= a) & (t <= b), 2]
-                    pp.append(np.ptp(seg))
-                k_stride = 0.5 * ref.stride_length_m[near[0]] / np.mean(pp) ** 0.25
-                pp_stride = float(np.mean(pp))
-            g = groups[int(np.searchsorted(SPEED_EDGES_M_S, v, side="right"))]
-            g.waves.append(sw.waveforms[s])
-            g.duration_s.append(float(sw.duration_s[s]))
+    for strides in batch.values(trial_strides, trial_items(root), label=_trial_label):
+        for k, wave, duration_s, v, k_stride, pp in strides:
+            g = groups[k]
+            g.waves.append(wave)
+            g.duration_s.append(duration_s)
             g.speed_m_s.append(v)
-            g.k.append(float(k_stride))
-            g.pp.append(pp_stride)
+            g.k.append(k_stride)
+            g.pp.append(pp)
     return [g for g in groups if g.waves]
 
 
@@ -178,11 +216,10 @@ def compare(real: np.ndarray, sim: np.ndarray) -> list[tuple[str, float, float, 
     return out
 
 
-def run(simulate: Callable[..., Any] = simulate_gait, k_mode: str = "step",
-        root: Path = DATA / "mobgap_lab", base: Any = None) -> list[dict[str, float | str]]:
-    """Print the comparison table; return its rows."""
+def run(groups: list[Group], simulate: Callable[..., Any] = simulate_gait,
+        k_mode: str = "step", base: Any = None) -> list[dict[str, float | str]]:
+    """Print the comparison table of the real ``groups``; return its rows."""
     rows: list[dict[str, float | str]] = []
-    groups = real_groups(root)
     for g in groups:
         v = float(np.mean(g.speed_m_s))
         stride = float(np.mean(g.duration_s))
@@ -208,9 +245,8 @@ def run(simulate: Callable[..., Any] = simulate_gait, k_mode: str = "step",
     return rows
 
 
-def measured_table(root: Path = DATA / "mobgap_lab", split_m_s: float = 0.75) -> None:
+def measured_table(groups: list[Group], split_m_s: float = 0.75) -> None:
     """Print the harmonic tables of ``hrtls.sim.gait_model`` as measured on the real strides."""
-    groups = real_groups(root)
     waves = [w for g in groups for w in g.waves]
     dur = np.array([d for g in groups for d in g.duration_s])
     speed = np.array([v for g in groups for v in g.speed_m_s])
@@ -234,52 +270,75 @@ def measured_table(root: Path = DATA / "mobgap_lab", split_m_s: float = 0.75) ->
         print(f"  ML n=1 displacement {abs(h[0, 1]) / w_s**2:.4f} m")
 
 
-def heading_errors(names: tuple[str, ...] = ("basso_test1", "basso_test2"),
-                   seeds: tuple[int, ...] = (0, 1)) -> None:
-    """Median |error| of the Fourier tip-to-tail step heading on simulated Basso walks."""
+@dataclass(frozen=True)
+class HeadingItem:
+    """One simulated scenario and seed."""
+
+    name: str
+    seed: int
+
+
+def heading_error(item: HeadingItem) -> tuple[int, float, float]:
+    """Steps with a heading, median and 90th percentile |error| (deg) of one scenario-seed."""
     from hrtls.frames import wrap_angle
     from hrtls.gait.analyzer import analyze_session
     from hrtls.sim.scenarios import run_scenario
 
+    res = run_scenario(item.name, item.seed)
+    st = analyze_session(res.session, heading="fourier").steps
+    truth = res.session.truth
+    assert truth is not None and truth.heading_rad is not None
+    tm = 0.5 * (st.t_start + st.t_end)
+    true_h = np.interp(tm, truth.t, np.unwrap(truth.heading_rad))
+    ok = np.isfinite(st.heading_rad)
+    err = np.degrees(np.abs(wrap_angle(st.heading_rad[ok] - true_h[ok])))
+    return int(ok.sum()), float(np.median(err)), float(np.percentile(err, 90))
+
+
+def heading_errors(batch: Batch, names: tuple[str, ...] = ("basso_test1", "basso_test2"),
+                   seeds: tuple[int, ...] = (0, 1)) -> None:
+    """Median |error| of the Fourier tip-to-tail step heading on simulated Basso walks."""
     print("\nFourier tip-to-tail heading (GaitAnalyzer heading='fourier') vs truth")
-    for name in names:
-        for seed in seeds:
-            res = run_scenario(name, seed)
-            st = analyze_session(res.session, heading="fourier").steps
-            truth = res.session.truth
-            assert truth is not None and truth.heading_rad is not None
-            tm = 0.5 * (st.t_start + st.t_end)
-            true_h = np.interp(tm, truth.t, np.unwrap(truth.heading_rad))
-            ok = np.isfinite(st.heading_rad)
-            err = np.degrees(np.abs(wrap_angle(st.heading_rad[ok] - true_h[ok])))
-            print(f"  {name} seed {seed}: {ok.sum()} steps, median {np.median(err):.1f} deg, "
-                  f"90th pct {np.percentile(err, 90):.1f} deg")
+    items = [HeadingItem(name, seed) for name in names for seed in seeds]
+    for it, (n, median, p90) in batch.map(heading_error, items,
+                                          label=lambda it: f"{it.name} seed {it.seed}"):
+        print(f"  {it.name} seed {it.seed}: {n} steps, median {median:.1f} deg, "
+              f"90th pct {p90:.1f} deg")
 
 
-def amplitude_vs_speed(root: Path = DATA / "mobgap_lab") -> None:
+def trial_amplitudes(item: TrialItem) -> list[tuple[float, float]]:
+    """(stride speed m/s, vertical peak-to-peak m/s^2) of one trial's reference strides."""
+    from hrtls.datasets.mobgap import load_trial
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        trial = load_trial(item.root, item.participant, item.test, item.trial)
+    ref = trial.reference.indip
+    if ref is None or ref.is_empty:
+        ref = trial.reference.stereophoto
+    t, acc, gyr, _ = trial.session.imu.aligned()
+    if ref is None or ref.is_empty or gyr is None:
+        return []
+    q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
+    up = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))[:, 2]
+    out = []
+    for a, b, _, v in ref.strides:
+        if np.isfinite(v) and 0.7 <= b - a <= 2.0:
+            m = 0.5 * (a + b)
+            pp = 0.5 * (np.ptp(up[(t >= a) & (t <= m)]) + np.ptp(up[(t >= m) & (t <= b)]))
+            out.append((float(v), float(pp)))
+    return out
+
+
+def amplitude_vs_speed(batch: Batch, root: Path = DATA / "mobgap_lab") -> None:
     """Real per-stride vertical peak-to-peak by speed bin (median, per participant) vs model."""
-    from hrtls.datasets.mobgap import list_trials, load_trial
     from hrtls.sim.motion_truth import GAIT_WALK
 
     edges = np.array([0.3, 0.6, 0.8, 1.0, 1.2, 1.5])
     real: dict[str, list[tuple[float, float]]] = {}
-    for tid in list_trials(root):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            trial = load_trial(root, tid.participant, tid.test, tid.trial)
-        ref = trial.reference.indip
-        if ref is None or ref.is_empty:
-            ref = trial.reference.stereophoto
-        t, acc, gyr, _ = trial.session.imu.aligned()
-        if ref is None or ref.is_empty or gyr is None:
-            continue
-        q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
-        up = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))[:, 2]
-        for a, b, _, v in ref.strides:
-            if np.isfinite(v) and 0.7 <= b - a <= 2.0:
-                m = 0.5 * (a + b)
-                pp = 0.5 * (np.ptp(up[(t >= a) & (t <= m)]) + np.ptp(up[(t >= m) & (t <= b)]))
-                real.setdefault(tid.participant, []).append((float(v), float(pp)))
+    for it, strides in batch.map(trial_amplitudes, trial_items(root), label=_trial_label):
+        if strides:
+            real.setdefault(it.participant, []).extend(strides)
     base = GaitParams()
     lo, hi = replace(base, vertical_pp_1ms_m_s2=base.vertical_pp_1ms_m_s2 * 0.87,
                      vertical_pp_exponent=base.vertical_pp_exponent + 0.12), \
@@ -310,7 +369,9 @@ def main() -> None:
     ap.add_argument("--heading", action="store_true", help="also score the Fourier heading")
     ap.add_argument("--table", action="store_true",
                     help="also print the measured harmonic tables (the model's constants)")
+    add_engine_options(ap)
     args = ap.parse_args()
+    batch = Batch.of(args)
     if not (DATA / "mobgap_lab").is_dir():
         print(f"no real data at {DATA / 'mobgap_lab'}; nothing to compare")
     else:
@@ -327,13 +388,15 @@ def main() -> None:
             spec.loader.exec_module(module)
             simulate, base = module.simulate_gait, module.GaitParams()
             print(f"model: {args.model}")
-        run(simulate=simulate, k_mode=args.k, base=base)
+        groups = real_groups(batch, DATA / "mobgap_lab")
+        run(groups, simulate=simulate, k_mode=args.k, base=base)
         if args.model is None:
-            amplitude_vs_speed()
+            amplitude_vs_speed(batch)
         if args.table:
-            measured_table()
+            measured_table(groups)
     if args.heading:
-        heading_errors()
+        heading_errors(batch)
+    batch.finish()
 
 
 if __name__ == "__main__":

@@ -77,3 +77,21 @@ def test_pool_of_two_workers_gives_the_rows_of_one_process() -> None:
     assert one[0].n_seeds == 2
     # met judges the 90th percentile over the seeds
     assert one[0].met == (one[0].default_stats.p90 <= 0.5)
+
+
+def test_activity_correct_hand_computed() -> None:
+    """Samples take the activity of the last row at or before them; outside the track: none."""
+    from types import SimpleNamespace
+
+    from hrtls.data import Trajectory
+    from hrtls.jobs.bench import activity_correct
+
+    n = 3
+    track = Trajectory(np.array([0.0, 1.0, 2.0]), np.zeros((n, 3)), np.zeros(n),
+                       np.tile(np.eye(2), (n, 1, 1)), np.zeros(n), np.array([1, 1, 3]))
+    # samples at -1 (before the track), 0, 0.5, 1.5 (row 1: walking), 2.0 (row 2: upstairs), 3
+    # (after the track): 4 samples inside, of which 0.5 and 2.0 are labelled like the truth
+    sim = SimpleNamespace(activity_t=np.array([-1.0, 0.0, 0.5, 1.5, 2.0, 3.0]),
+                          activity=np.array([1, 0, 1, 3, 3, 1]))
+    got = activity_correct(SimpleNamespace(trajectory=track), sim)  # type: ignore[arg-type]
+    assert got == pytest.approx(50.0)

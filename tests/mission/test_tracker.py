@@ -71,3 +71,18 @@ def test_set_landmarks_makes_a_node_usable_from_then_on(mission) -> None:  # typ
     assert t_acc and min(t_acc) >= 30.0 - 1e-9
     restored = Tracker.restore(tr.snapshot())
     assert restored.landmarks[node].position == true_xyz
+
+
+def test_ranges_to_known_landmarks_correct_the_agent_as_hrtls_track_does() -> None:
+    from hrtls.pipeline import preset
+    from hrtls.sim.scenarios import run_scenario
+
+    s = run_scenario("office_random_walk", seed=3, duration_s=40.0).session
+    assert s.ranges is not None and set(s.ranges.node.tolist()) <= set(s.landmarks)
+    alone = Tracker(preset("default")).run(s)
+    res = MissionTracker({"A": s}, config=preset("default")).run()
+    assert res.readings == {} and res.nodes == {}
+    got = res.agents["A"]
+    assert got.report["corrections"]["range"] == alone.report["corrections"]["range"]
+    assert got.report["corrections"]["range"]["accepted"] > 0
+    np.testing.assert_allclose(got.trajectory.xyz, alone.trajectory.xyz, atol=1e-6)

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from hrtls.fusion.gating import skipped, summarize
+from hrtls.fusion.gating import rejected, skipped, summarize
 from hrtls.pipeline.chunks import session_window, split_session
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.sim.scenarios import SimulationResult
@@ -82,3 +84,28 @@ def test_first_rejected_across_blocks_and_records() -> None:
     rej = log.first_rejected(5)
     assert [d.t for d in rej] == [1.2, 3.2]
     assert log.counts() == summarize(list(log))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.lists(st.sampled_from([0, 1, 2, 4]), max_size=6),
+                          st.booleans(), st.integers(1, 8)), min_size=1, max_size=12))
+def test_incremental_counts_and_rejections_equal_a_fresh_read(
+        steps: list[tuple[list[int], bool, int]]) -> None:
+    """Reading counts and rejections between appends gives what a log read once gives."""
+    log = DiagnosticsLog()
+    t = 0.0
+    for codes, record_rejected, limit in steps:
+        n = len(codes)
+        log.add_block(DiagnosticsBlock(
+            ["rss"] * n, t + np.arange(n, dtype=np.float64), np.array(codes, dtype=np.int64),
+            np.full(n, 20.0), np.ones(n), np.ones(n), [f"A{i}" for i in range(n)], [""] * n,
+            10.8))
+        t += n
+        if record_rejected:
+            log.append(rejected("tag", t, "too far"))
+            t += 1.0
+        rows = list(log)
+        assert log.counts() == summarize(rows)
+        want = [d for d in rows if d.status == "rejected"][:limit]
+        assert [d.t for d in log.first_rejected(limit)] == [d.t for d in want]
+        assert log.first_rejected_dicts(limit) == [d.to_dict() for d in want]

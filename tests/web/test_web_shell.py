@@ -78,3 +78,35 @@ def test_ellipse_matches_numpy_eigendecomposition(geometry, covs):
         pts = np.array([[p[1] - 3, p[0] + 2] for p in outline])
         d2 = np.einsum("ni,ij,nj->n", pts, np.linalg.inv(cov), pts)
         np.testing.assert_allclose(d2, 4.0, rtol=1e-6)
+
+
+@settings(max_examples=20, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(lat=st.floats(-70, 70), lon=st.floats(-179, 179), rot=st.floats(-math.pi, math.pi),
+       xy=st.lists(st.tuples(st.floats(-300, 300), st.floats(-300, 300)), min_size=1,
+                   max_size=8))
+def test_mercator_frame_matches_the_exact_geodetic_placement(geometry, lat, lon, rot, xy):
+    """Local metres -> web-mercator pixel fraction against pymap3d + the EPSG:3857 formulas."""
+    from hrtls.frames import Georeference
+
+    out = geometry.evaluate("""async ([georef, pts]) => {
+        const g = await import('./js/geometry.js');
+        const f = g.mercatorFrame(georef);
+        const [a, b, c, d] = f.transformation;
+        return pts.map(([x, y]) => {
+          const [e, n] = f.toEastNorth(x, y);
+          const back = f.fromEastNorth(e, n);
+          return [a * e + b, c * n + d, back[0], back[1]];
+        });
+    }""", [{"lat_deg": lat, "lon_deg": lon, "rotation_rad": rot}, [list(p) for p in xy]])
+    geo = Georeference(lat, lon, 0.0, rot).to_wgs84(np.array(xy))
+    phi = np.radians(geo[:, 0])
+    want_u = (geo[:, 1] + 180.0) / 360.0
+    want_v = (1.0 - np.log(np.tan(phi) + 1.0 / np.cos(phi)) / math.pi) / 2.0
+    got = np.array(out)
+    # first-order exact: what is left grows with the distance squared (3 cm at 300 m); one pixel
+    # at zoom 22 is 2.4e-10 of the world
+    dist = np.hypot(*np.array(xy).T) / (2 * math.pi * 6378137 * np.cos(np.radians(lat)))
+    np.testing.assert_array_less(np.abs(got[:, 0] - want_u), 2e-4 * dist + 1e-12)
+    np.testing.assert_array_less(np.abs(got[:, 1] - want_v), 2e-4 * dist + 1e-12)
+    np.testing.assert_allclose(got[:, 2:], np.array(xy), atol=1e-9)

@@ -63,7 +63,7 @@ SUMMARIES: dict[str, str] = {
     "serve": "Run the supervisor: live tracking of the team, REST + WebSocket API and "
              "dashboard.",
     "agent": "Live agents: stream a recording to a running service.",
-    "mission": "Missions of a running service: simulate a team, export.",
+    "mission": "Missions: track a folder offline; on a service: simulate, floor images, export.",
 }
 """One line per lazily loaded command, shown by ``hrtls --help`` without importing it."""
 

@@ -53,6 +53,9 @@ def serve(
     ray_shards: Annotated[int, typer.Option(
         "--ray-shards", help="Shard actors the agents are hashed onto (--engine ray).")
     ] = _D["ray_shards"],
+    basemap_url: Annotated[str | None, typer.Option(
+        "--basemap-url", help="Tile URL template ({z}/{x}/{y}) of a web-mercator base map "
+        "under georeferenced missions, e.g. the command post's tile server.")] = None,
     new_commander_token: Annotated[bool, typer.Option(
         "--new-commander-token", help="Create and print another commander token.")] = False,
 ) -> None:
@@ -72,7 +75,8 @@ def serve(
                             cors_origins=tuple(cors_origin or ()),
                             tls=ssl_certfile is not None,
                             engine=cast("Literal['local', 'ray']", engine),
-                            ray_address=ray_address, ray_shards=ray_shards)
+                            ray_address=ray_address, ray_shards=ray_shards,
+                            basemap_url=basemap_url)
     except ValidationError as exc:
         first = exc.errors()[0]
         name = str(first["loc"][0]) if first["loc"] else "option"

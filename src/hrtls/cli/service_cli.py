@@ -1,10 +1,14 @@
-"""``hrtls agent replay`` and ``hrtls mission simulate|export``: clients of ``hrtls serve``."""
+"""``hrtls agent replay``, ``hrtls mission simulate|export``, ``hrtls mission track``.
+
+``agent replay``, ``mission simulate`` and ``mission export`` are clients of ``hrtls serve``;
+``mission track`` tracks a mission folder offline (:mod:`hrtls.jobs.mission`).
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -13,8 +17,9 @@ from hrtls.service.settings import DEFAULT_DB
 
 agent_app = typer.Typer(no_args_is_help=True, add_completion=False,
                         help="Live agents: stream a recording to a running service.")
-mission_app = typer.Typer(no_args_is_help=True, add_completion=False,
-                          help="Missions of a running service: simulate a team, export.")
+mission_app = typer.Typer(
+    no_args_is_help=True, add_completion=False,
+    help="Missions: track a folder offline; on a service: simulate, floor images, export.")
 
 ServerOption = Annotated[str, typer.Option("--server", help="Service URL, e.g. "
                                            "http://127.0.0.1:8600")]
@@ -30,7 +35,7 @@ def _agent() -> None:
 
 @mission_app.callback()
 def _mission() -> None:
-    """Missions of a running service: simulate a team, export."""
+    """Missions: track a folder offline; on a service: simulate, floor images, export."""
 
 
 def _speed(speed: float) -> float:
@@ -90,6 +95,46 @@ def mission_simulate(
         c.close()
 
 
+@mission_app.command("floor-image")
+@reports_errors
+def mission_floor_image(
+    mission: Annotated[int, typer.Argument(help="Mission id.")],
+    floor: Annotated[int, typer.Argument(help="Floor index (the floor must exist).")],
+    image: Annotated[Path, typer.Argument(help="PNG or JPEG plan of the floor.")],
+    server: ServerOption,
+    token: Annotated[str, typer.Option("--token", help="A commander token.")],
+    origin_m: Annotated[tuple[float, float], typer.Option(
+        "--origin-m", help="x y of the image's lower-left corner in the mission frame, m.")],
+    m_per_px: Annotated[float, typer.Option("--m-per-px", help="Scale: metres per pixel.")],
+) -> None:
+    """Upload a floor's plan image; the dashboard draws it under the plan."""
+    from hrtls.errors import InputError
+    from hrtls.service.client import AgentClient, ServiceError
+
+    media = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
+    media_type = media.get(image.suffix.lower())
+    if media_type is None:
+        raise InputError(f"{image.name}", where="IMAGE", expected="a .png, .jpg or .jpeg file")
+    try:
+        data = image.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {image} ({exc.strerror})", where="IMAGE") from None
+    with AgentClient(server, token) as commander:
+        try:
+            out = commander.request(
+                "PUT", f"/missions/{mission}/floors/{floor}/image", content=data,
+                headers={"Content-Type": media_type},
+                params={"origin_x_m": origin_m[0], "origin_y_m": origin_m[1],
+                        "m_per_px": m_per_px})
+        except ServiceError as exc:
+            raise InputError(f"HTTP {exc.status}: {exc.detail}", where=f"{server} (upload of "
+                             f"{image.name})") from None
+    i = out["image"]
+    typer.echo(f"floor {floor} of mission {mission}: {i['width_px']} x {i['height_px']} px, "
+               f"{i['width_px'] * i['m_per_px']:.1f} x {i['height_px'] * i['m_per_px']:.1f} m "
+               f"from ({i['origin_x_m']:g}, {i['origin_y_m']:g}) m")
+
+
 @mission_app.command("export")
 @reports_errors
 def mission_export(
@@ -106,3 +151,93 @@ def mission_export(
     for folder in written:
         typer.echo(f"wrote {folder}")
     typer.echo(f"wrote {output / 'mission.json'}")
+
+
+@mission_app.command("track")
+@reports_errors
+def mission_track(
+    mission_dir: Annotated[Path, typer.Argument(help="Mission folder (mission.json, the "
+                                                "agents' sessions, network.json).")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Result folder to write.")],
+    cooperate: Annotated[bool, typer.Option(
+        "--cooperate/--no-cooperate", help="Give localized nodes to the agents as range "
+        "anchors (--no-cooperate: every agent alone).")] = True,
+    chunk_s: Annotated[float, typer.Option("--chunk-s", help="Common time window of the "
+                                           "agents, s.")] = 5.0,
+    config: Annotated[Path | None, typer.Option("--config", "-c",
+                                                help="Tracker configuration (TOML).")] = None,
+    preset_name: Annotated[str | None, typer.Option(
+        "--preset", "-p", help="Tracker preset of every agent (default: default).")] = None,
+    plot: Annotated[bool, typer.Option("--plot", help="Also write each agent's track.png."
+                                       )] = False,
+    repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows of the agents' "
+                                         "sessions (warns).")] = False,
+    overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
+) -> None:
+    """Track a mission folder offline: every agent's track, the dropped nodes, report.json."""
+    from rich.console import Console
+
+    from hrtls.errors import InputError
+    from hrtls.io.mission import read_mission
+    from hrtls.jobs.mission import (
+        check_mission_output,
+        mission_summary,
+        track_mission,
+        write_mission_outputs,
+    )
+    from hrtls.jobs.warmup import mark_compiled
+    from hrtls.mission.tracker import MissionParams
+    from hrtls.pipeline import load_config, preset
+
+    if config is not None and preset_name is not None:
+        raise InputError("both --config and --preset", where="hrtls mission track",
+                         expected="one of them")
+    if not math.isfinite(chunk_s) or chunk_s <= 0:
+        raise InputError(f"{chunk_s}", where="--chunk-s", expected="a window > 0 s")
+    folder = read_mission(mission_dir, repair=repair)
+    check_mission_output(list(folder.agents), output, overwrite=overwrite)
+    cfg = load_config(config) if config is not None else preset(preset_name or "default")
+    console = Console(highlight=False)
+    with console.status("tracking the mission"):
+        run = track_mission(folder, config=cfg,
+                            params=MissionParams(cooperate=cooperate, chunk_s=chunk_s))
+    write_mission_outputs(run, output, overwrite=overwrite, plot=plot)
+    summary = mission_summary(run)
+    console.print(f"[bold]{run.folder.name or mission_dir}[/bold]: {len(run.agents)} agents, "
+                  f"cooperation {'on' if cooperate else 'off'}, {run.tracker_s:.2f} s")
+    Console(highlight=False, width=max(console.width, 120)).print(_agents_table(summary))
+    console.print(_nodes_line(summary))
+    console.print(f"wrote {output}")
+    mark_compiled()
+
+
+def _m(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+def _agents_table(summary: dict[str, Any]) -> Any:
+    """Per-agent figures of a mission summary (errors only for agents with ground truth)."""
+    from rich.table import Table
+
+    table = Table("agent", "kind", "steps", "walked m", "range fixes", "nodes ranged",
+                  "position mean m", "p90 m", "max m", "checkpoint mean m", "checkpoint max m")
+    for name, a in summary["agents"].items():
+        ev = a["evaluation"] or {}
+        pos, cp = ev.get("position") or {}, ev.get("checkpoints") or {}
+        table.add_row(name, a["kind"], str(a["steps"]), f"{a['distance_walked_m']:.1f}",
+                      str(a["range_corrections"].get("accepted", 0)),
+                      str(len(a["contributed_to"])), _m(pos.get("mean")), _m(pos.get("p90")),
+                      _m(pos.get("max")), _m(cp.get("mean")), _m(cp.get("max")))
+    return table
+
+
+def _nodes_line(summary: dict[str, Any]) -> str:
+    n = summary["nodes"]
+    text = (f"nodes: {n['localized']} localized of {summary['mission']['nodes_listed']} listed "
+            f"({n['heard']} heard)")
+    score = n["score"]
+    if score is not None:
+        text += (f"; against network_truth.json: {score['localized']} of {score['nodes']}, "
+                 f"RMSE {_m(score['rmse_m'])} m, max {_m(score['max_m'])} m, "
+                 f"mean NEES {_m(score['nees_mean'])} (2 expected)")
+    return text

@@ -7,7 +7,9 @@ Register in :mod:`hrtls.cli.app` with::
     app.command("evaluate")(sim_cli.evaluate)
 
 ``hrtls simulate SCENARIO -o DIR [--seed N] [-O key=value ...]`` writes a session with ground
-truth; ``hrtls simulate --list`` lists the scenarios. ``hrtls evaluate RESULT_DIR --truth
+truth, or for a simulated mission (``inderst_hybrid_mission``) a mission folder
+(:mod:`hrtls.io.mission`, tracked by ``hrtls mission track``); ``hrtls simulate --list`` lists
+the scenarios and missions. ``hrtls evaluate RESULT_DIR --truth
 SESSION_DIR`` scores ``RESULT_DIR/trajectory.csv`` (and ``steps.csv``) against the session's
 ``truth.csv``, ``checkpoints.csv``, ``truth_steps.csv`` and ``activity.csv`` (or any recording
 with ground truth), prints a table and writes ``evaluation.json`` and PNG plots into the result
@@ -59,20 +61,31 @@ def parse_options(items: list[str]) -> dict[str, Any]:
 
 def scenario_table() -> Table:
     """Rich table of the registered scenarios."""
+    import dataclasses
+
+    from hrtls.sim.mission import MISSIONS, MissionOptions
     from hrtls.sim.scenarios import SCENARIOS
 
     table = Table("scenario", "what", "options (-O key=value, defaults)")
     for name, spec in SCENARIOS.items():
         table.add_row(name, spec.summary,
                       ", ".join(f"{k}={v}" for k, v in spec.options.items()))
+    defaults = ", ".join(f"{k}={v}" for k, v in dataclasses.asdict(MissionOptions()).items())
+    for name, run in MISSIONS.items():
+        table.add_row(name, "mission folder: " + (run.__doc__ or "").strip().splitlines()[0],
+                      defaults)
     return table
 
 
 def run_simulation(scenario: str, output: Path, *, seed: int = 0,
                    options: dict[str, Any] | None = None, overwrite: bool = False) -> Path:
-    """Simulate ``scenario`` and write its session folder; returns the folder."""
+    """Simulate ``scenario`` and write its session (or mission) folder; returns the folder."""
+    from hrtls.sim.mission import MISSIONS, run_mission, write_mission_result
     from hrtls.sim.scenarios import run_scenario, write_result
 
+    if scenario in MISSIONS:
+        mission = run_mission(scenario, seed, **(options or {}))
+        return write_mission_result(mission, output, overwrite=overwrite)
     result = run_scenario(scenario, seed, **(options or {}))
     return write_result(result, output, overwrite=overwrite)
 
@@ -88,7 +101,11 @@ def simulate(
     list_scenarios: Annotated[bool, typer.Option("--list", help="List scenarios.")] = False,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
 ) -> None:
-    """Simulate a paper scenario into a session folder with ground truth."""
+    """Simulate a paper scenario into a session folder with ground truth.
+
+    A simulated mission (see --list) becomes a mission folder instead: one session per agent,
+    mission.json, network.json (node ids) and network_truth.json (for scoring only).
+    """
     if list_scenarios:
         console.print(scenario_table())
         return

@@ -132,8 +132,11 @@ def track(
         run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
                               trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
+    del run
     evaluation = evaluate_track(result, data)
     reference = reference_steps(result, data)
+    if not plot:  # the ground truth is not needed any more: not held while writing
+        data = data.with_parts(truth=None)
     if reference is not None:
         result.report["reference_steps"] = reference
     write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,

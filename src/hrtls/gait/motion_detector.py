@@ -16,13 +16,13 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.errors import InputError
 from hrtls.gait._state import (
     FloatArray,
     as_time,
     as_vector,
     check_positive,
     state_from_dict,
-    state_to_dict,
 )
 
 IntArray = NDArray[np.int64]
@@ -103,13 +103,39 @@ class RunningStdState:
                    np.zeros(3), -np.inf)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-able values."""
-        return state_to_dict(self)
+        """Plain JSON-able values: the samples in the window only (oldest first), not the ring."""
+        cap = self.buf_t.shape[0]
+        head, count = int(self.ints[0]), int(self.ints[1])
+        live = (head - count + np.arange(count)) % cap
+        return {"capacity": cap, "t": self.buf_t[live].tolist(), "x": self.buf_x[live].tolist(),
+                "sums": self.sums.tolist(), "t_last": self.t_last}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RunningStdState:
-        """Inverse of :meth:`to_dict`."""
-        return state_from_dict(cls, data)
+        """Inverse of :meth:`to_dict` (the window's samples at the start of a new ring)."""
+        if "buf_t" in data:  # the whole ring, as written before version 3 of the snapshot
+            return state_from_dict(cls, data)
+        try:
+            cap = int(data["capacity"])
+            t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
+            x = np.asarray(data["x"], dtype=np.float64).reshape(-1)
+            sums = np.asarray(data["sums"], dtype=np.float64).reshape(3)
+            t_last = float(data["t_last"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"malformed running-std state ({exc!r})", where="RunningStdState",
+                             expected="a dict written by to_dict()") from None
+        count = t.shape[0]
+        if x.shape[0] != count or not 0 <= count <= cap:
+            raise InputError(f"{count} times, {x.shape[0]} values, capacity {cap}",
+                             where="RunningStdState", expected="as many values as times, "
+                             "at most the capacity")
+        state = cls.initial(cap)
+        state.buf_t[:count] = t
+        state.buf_x[:count] = x
+        state.ints[:] = (count % cap, count)
+        state.sums[:] = sums
+        state.t_last = t_last
+        return state
 
 
 class RunningStd:
@@ -200,8 +226,6 @@ class MotionDetector:
         self.params = params or MotionParams()
         p = self.params
         if p.run_threshold_m_s2 <= p.still_threshold_m_s2 or p.still_threshold_m_s2 < 0:
-            from hrtls.errors import InputError
-
             raise InputError(
                 f"thresholds still={p.still_threshold_m_s2}, run={p.run_threshold_m_s2}",
                 where="MotionParams", expected="0 <= still_threshold_m_s2 < run_threshold_m_s2")

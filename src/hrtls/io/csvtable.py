@@ -59,7 +59,7 @@ class Table:
                 continue
             k = 0
             for chunk in col.chunks:
-                out[k:k + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
+                out[k:k + len(chunk), j] = float_values(chunk)
                 k += len(chunk)
         return out
 
@@ -73,6 +73,20 @@ class Table:
     def str(self, name: str) -> NDArray[np.str_]:
         """A text column."""
         return np.asarray(self.columns[name], dtype=np.str_)
+
+
+def float_values(array: pa.Array) -> NDArray[np.float64]:
+    """A float64 Arrow array as numpy (nulls as NaN), viewed without a copy when it has none.
+
+    Read from its buffers: :meth:`pyarrow.Array.to_numpy` (and Arrow scalars made from Python
+    values) would import pandas.
+    """
+    validity, data = array.buffers()[:2]
+    values = np.frombuffer(data, dtype=np.float64, count=len(array), offset=array.offset * 8)
+    if not array.null_count:
+        return values
+    bits = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")
+    return np.where(bits[array.offset:array.offset + len(array)].astype(bool), values, np.nan)
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,11 +128,12 @@ def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
             if col.null_count:
                 return out, ValueProblem(_first(col.is_null()), name, f"empty {name!r}",
                                          "a non-empty text value")
-            empty = pc.equal(pc.utf8_length(text), 0)
+            # length 0 casts to False; comparing with a Python 0 would import pandas
+            empty = pc.invert(pc.cast(pc.utf8_length(text), pa.bool_()))
             if pc.any(empty).as_py():
                 return out, ValueProblem(_first(empty), name, f"empty {name!r}",
                                          "a non-empty text value")
-            out[name] = np.asarray(text.to_numpy(zero_copy_only=False), dtype=np.str_)
+            out[name] = np.array(text.to_pylist(), dtype=np.str_)
             continue
         if col.null_count and kind == "float":
             return out, ValueProblem(_first(col.is_null()), name, f"{name!r} is missing",
@@ -301,30 +316,51 @@ def _needs_quotes(table: pa.Table) -> bool:
 
 
 def csv_bytes(table: pa.Table) -> bytes:
-    """``table`` as CSV: a plain header line, nulls as empty fields, text quoted only if needed.
-
-    Numbers are written with the fewest digits that read back to the same float64.
-    """
+    """``table`` as CSV (see :func:`write_csv`)."""
     out = pa.BufferOutputStream()
-    out.write((",".join(table.column_names) + "\n").encode("utf-8"))
-    if table.num_rows:
-        style = "needed" if _needs_quotes(table) else "none"
-        pacsv.write_csv(table, out, write_options=pacsv.WriteOptions(
-            include_header=False, quoting_style=style, batch_size=1 << 16))
+    write_csv(table, out)
     return bytes(out.getvalue())
 
 
+def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
+    """``table`` as CSV into ``sink``, batch by batch.
+
+    A plain header line, nulls as empty fields, text quoted only if needed. Numbers are
+    written with the fewest digits that read back to the same float64.
+    """
+    sink.write((",".join(table.column_names) + "\n").encode("utf-8"))
+    if table.num_rows:
+        style = "needed" if _needs_quotes(table) else "none"
+        pacsv.write_csv(table, sink, write_options=pacsv.WriteOptions(
+            include_header=False, quoting_style=style, batch_size=1 << 16))
+
+
 def arrow_from_columns(columns: Mapping[str, NDArray[np.generic]]) -> pa.Table:
-    """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text."""
-    arrays = {}
-    for name, values in columns.items():
+    """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text.
+
+    Built from buffers: :func:`pyarrow.array` and :func:`pyarrow.table` would import pandas.
+    """
+    arrays = []
+    for values in columns.values():
         arr = np.asarray(values)
-        if arr.dtype.kind in "fiub":
-            arrays[name] = pa.array(arr.astype(np.float64, copy=False), type=pa.float64(),
-                                    from_pandas=True)
-        else:
-            arrays[name] = pa.array(arr.astype(np.str_).tolist(), type=pa.string())
-    return pa.table(arrays)
+        arrays.append(_float_array(arr) if arr.dtype.kind in "fiub" else _text_array(arr))
+    return pa.Table.from_arrays(arrays, names=list(columns))
+
+
+def _float_array(values: NDArray[np.generic]) -> pa.Array:
+    data = np.ascontiguousarray(values, dtype=np.float64)
+    nan = np.isnan(data)
+    validity = pa.py_buffer(np.packbits(~nan, bitorder="little")) if nan.any() else None
+    return pa.Array.from_buffers(pa.float64(), len(data), [validity, pa.py_buffer(data)],
+                                 null_count=int(np.count_nonzero(nan)))
+
+
+def _text_array(values: NDArray[np.generic]) -> pa.Array:
+    encoded = [v.encode("utf-8") for v in values.astype(np.str_).tolist()]
+    offsets = np.zeros(len(encoded) + 1, dtype=np.int32)
+    np.cumsum([len(e) for e in encoded], out=offsets[1:])
+    return pa.Array.from_buffers(pa.string(), len(encoded),
+                                 [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))])
 
 
 def format_table(columns: Mapping[str, NDArray[np.generic]]) -> str:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes, activity_labels
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference
+from hrtls.io.jsonstream import Rows, materialized, write_json
 
 FloatArray = NDArray[np.float64]
 
@@ -185,7 +186,12 @@ def _geometry(coords: FloatArray) -> dict[str, Any] | None:
         return None
     if len(coords) == 1:
         return {"type": "Point", "coordinates": coords[0].tolist()}
-    return {"type": "LineString", "coordinates": coords.tolist()}
+    return {"type": "LineString", "coordinates": [_rows(coords)]}
+
+
+def _rows(values: np.ndarray, convert: Callable[[list[Any]], list[Any]] = list) -> Rows:
+    """The items of ``values`` (rows become lists), made a slice at a time."""
+    return Rows(len(values), lambda i, j: convert(values[i:j].tolist()))
 
 
 def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
@@ -193,37 +199,35 @@ def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
                      time_origin_unix_s: float | None = None, name: str | None = None
                      ) -> dict[str, Any]:
     """The GeoJSON FeatureCollection as a Python object (see the module docstring)."""
+    return materialized(_document(trajectory, steps=steps, landmarks=landmarks,
+                                  georeference=georeference,
+                                  time_origin_unix_s=time_origin_unix_s, name=name))
+
+
+def _document(trajectory: Trajectory, *, steps: StepEvents | None,
+              landmarks: LandmarkInput, georeference: Georeference | None,
+              time_origin_unix_s: float | None, name: str | None) -> dict[str, Any]:
+    """:func:`geojson_document` with its long arrays as :class:`~hrtls.io.jsonstream.Rows`."""
     check_time_origin(time_origin_unix_s)
     coords = to_output_coordinates(trajectory.xyz, georeference)
     track_props: dict[str, Any] = {
         "kind": "trajectory",
-        "t_s": trajectory.t.tolist(),
-        "heading_rad": nan_to_none(trajectory.heading_rad.tolist()),
-        "activity": activity_labels(trajectory.activity).tolist(),
+        "t_s": [_rows(trajectory.t)],
+        "heading_rad": [_rows(trajectory.heading_rad, nan_to_none)],
+        "activity": [_rows(activity_labels(trajectory.activity))],
     }
     if name is not None:
         track_props["name"] = name
-    features: list[dict[str, Any]] = [
+    features: list[Any] = [
         {"type": "Feature", "geometry": _geometry(coords), "properties": track_props}]
     if steps is not None and len(steps):
         if len(trajectory) == 0:
             raise InputError("steps given but the trajectory is empty", where="steps",
                              expected="a trajectory to place the steps on")
-        step_xyz = trajectory.position_at(steps.t_end)
-        step_coords = to_output_coordinates(step_xyz, georeference)
-        labels = activity_labels(steps.activity).tolist()
-        for i in range(len(steps)):
-            features.append({
-                "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": step_coords[i].tolist()},
-                "properties": {
-                    "kind": "step", "index": i,
-                    "t_start_s": float(steps.t_start[i]), "t_end_s": float(steps.t_end[i]),
-                    "length_m": float(steps.length_m[i]),
-                    "heading_rad": nan_to_none([steps.heading_rad[i]])[0],
-                    "dz_m": float(steps.dz_m[i]), "activity": labels[i],
-                },
-            })
+        step_coords = to_output_coordinates(trajectory.position_at(steps.t_end), georeference)
+        labels = activity_labels(steps.activity)
+        features.append(Rows(len(steps), lambda i, j: _step_features(
+            steps, step_coords, labels, i, j)))
     for landmark in landmark_list(landmarks):
         position = landmark_output_position(landmark, georeference)
         features.append({
@@ -239,6 +243,21 @@ def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
         doc[TIME_ORIGIN_MEMBER] = float(time_origin_unix_s)
     doc["features"] = features
     return doc
+
+
+def _step_features(steps: StepEvents, coords: FloatArray, labels: NDArray[np.str_], i: int,
+                   j: int) -> list[dict[str, Any]]:
+    """The Point features of steps ``i`` to ``j - 1``."""
+    where = coords[i:j].tolist()
+    columns = zip(steps.t_start[i:j].tolist(), steps.t_end[i:j].tolist(),
+                  steps.length_m[i:j].tolist(), nan_to_none(steps.heading_rad[i:j].tolist()),
+                  steps.dz_m[i:j].tolist(), labels[i:j].tolist(), strict=True)
+    return [{"type": "Feature", "geometry": {"type": "Point", "coordinates": xyz},
+             "properties": {"kind": "step", "index": k, "t_start_s": t_start, "t_end_s": t_end,
+                            "length_m": length, "heading_rad": heading, "dz_m": dz,
+                            "activity": label}}
+            for k, xyz, (t_start, t_end, length, heading, dz, label)
+            in zip(range(i, j), where, columns, strict=True)]
 
 
 def write_geojson(trajectory: Trajectory, path: str | Path, *, steps: StepEvents | None = None,
@@ -269,10 +288,9 @@ def write_geojson(trajectory: Trajectory, path: str | Path, *, steps: StepEvents
         Replace an existing file (else an existing file is an error).
     """
     target = prepare_target(path, overwrite)
-    doc = geojson_document(trajectory, steps=steps, landmarks=landmarks,
-                           georeference=georeference, time_origin_unix_s=time_origin_unix_s,
-                           name=name)
-    write_text_atomic(target, json.dumps(doc, allow_nan=False) + "\n")
+    write_json(target, _document(trajectory, steps=steps, landmarks=landmarks,
+                                 georeference=georeference,
+                                 time_origin_unix_s=time_origin_unix_s, name=name))
     return target
 
 
@@ -287,10 +305,10 @@ def write_local_geojson(trajectory: Trajectory, path: str | Path, *,
     degrees near lon 0, lat 0. :func:`read_geojson` reads it.
     """
     target = prepare_target(path, overwrite)
-    doc = geojson_document(trajectory, steps=steps, landmarks=landmarks, georeference=None,
-                           time_origin_unix_s=time_origin_unix_s, name=name)
+    doc = _document(trajectory, steps=steps, landmarks=landmarks, georeference=None,
+                    time_origin_unix_s=time_origin_unix_s, name=name)
     doc["type"] = LOCAL_TYPE
-    write_text_atomic(target, json.dumps(doc, allow_nan=False) + "\n")
+    write_json(target, doc)
     return target
 
 

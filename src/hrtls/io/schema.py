@@ -69,6 +69,12 @@ TABLES: dict[str, TableSpec] = {
                     ("frequency", "float_or_empty", "Hz"), ("acc_max", "float_or_empty", "m/s^2"),
                     ("acc_min", "float_or_empty", "m/s^2")),
                    ("t_start", "t_end", "length")),
+    "nodes": _spec((("id", "str", ""), ("x", "float_or_empty", "m"), ("y", "float_or_empty", "m"),
+                    ("z", "float_or_empty", "m"), ("var_x", "float_or_empty", "m^2"),
+                    ("cov_xy", "float_or_empty", "m^2"), ("var_y", "float_or_empty", "m^2"),
+                    ("localized", "str", ""), ("readings", "float", "1"),
+                    ("contributors", "str", ""), ("status", "str", "")),
+                   ("id", "localized", "readings")),
 }
 """Every table by name; a session's ``imu`` table is ``imu.csv`` or ``imu.parquet``."""
 

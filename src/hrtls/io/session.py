@@ -208,26 +208,31 @@ def _read_imu(src: _Tables, *, repair: bool, check_units: bool) -> ImuStream | N
 def _read_landmarks(src: _SessionFiles) -> dict[str, Landmark]:
     if "landmarks.json" not in src.names:
         return {}
-    items = _json(src, "landmarks.json")
+    return landmarks_from_json(_json(src, "landmarks.json"), where="landmarks.json")
+
+
+def landmarks_from_json(items: Any, *, where: str) -> dict[str, Landmark]:
+    """The location messages of a parsed ``landmarks.json`` (``where``: its name in errors)."""
     if not isinstance(items, list):
-        raise FormatError(f"top level is {type(items).__name__}", where="landmarks.json",
+        raise FormatError(f"top level is {type(items).__name__}", where=where,
                           expected="a JSON list of location messages")
     out: dict[str, Landmark] = {}
     for i, item in enumerate(items):
         try:
             landmark = Landmark.model_validate(item)
         except ValidationError as exc:
-            raise FormatError(_pydantic_problem(exc), where=f"landmarks.json item {i}",
+            raise FormatError(pydantic_problem(exc), where=f"{where} item {i}",
                               expected="a location message (id, kind, position or wgs84, ...)"
                               ) from None
         if landmark.id in out:
-            raise FormatError(f"duplicate id {landmark.id!r}", where=f"landmarks.json item {i}",
+            raise FormatError(f"duplicate id {landmark.id!r}", where=f"{where} item {i}",
                               expected="unique landmark ids")
         out[landmark.id] = landmark
     return out
 
 
-def _pydantic_problem(exc: ValidationError) -> str:
+def pydantic_problem(exc: ValidationError) -> str:
+    """The first problem of a pydantic validation error, naming its field."""
     err = exc.errors()[0]
     loc = ".".join(str(p) for p in err["loc"]) or "(object)"
     return f"field {loc!r}: {err['msg']}"
@@ -253,7 +258,7 @@ def _read_meta(src: _SessionFiles) -> SessionMeta:
     try:
         return SessionMeta.model_validate(data)
     except ValidationError as exc:
-        raise FormatError(_pydantic_problem(exc), where="session.json",
+        raise FormatError(pydantic_problem(exc), where="session.json",
                           expected="the session.json schema (docs/architecture.md)") from None
 
 

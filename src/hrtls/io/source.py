@@ -51,6 +51,7 @@ class Source:
     kind: Literal["folder", "zip", "file"]
     _reader: Callable[[str, int], bytes]
     _opener: Callable[[str], IO[bytes]] | None = None
+    _sizer: Callable[[str], int] | None = None
 
     def open(self, name: str) -> IO[bytes]:
         """Member ``name`` as a binary file (read in pieces, for files too large to hold)."""
@@ -86,6 +87,15 @@ class Source:
             raise InputError(f"no member {name!r}", where=str(self.path),
                              expected=f"one of {', '.join(self.names[:10])}")
         return self._reader(name, n_bytes)
+
+    def size(self, name: str) -> int:
+        """Bytes of member ``name`` (uncompressed)."""
+        if name not in self.names:
+            raise InputError(f"no member {name!r}", where=str(self.path),
+                             expected=f"one of {', '.join(self.names[:10])}")
+        if self._sizer is not None:
+            return self._sizer(name)
+        return (self.path if self.kind == "file" else self.path / name).stat().st_size
 
     def label(self, name: str) -> str:
         """How a member is named in messages: ``folder/name``, ``archive.zip:name`` or the file."""
@@ -205,4 +215,5 @@ def _zip_source(path: Path, max_bytes: int) -> Source:
                               expected="an intact zip")
         return data
 
-    return Source(path, sorted(members), "zip", read, lambda name: zf.open(members[name]))
+    return Source(path, sorted(members), "zip", read, lambda name: zf.open(members[name]),
+                  lambda name: members[name].file_size)

@@ -35,6 +35,7 @@ from hrtls.io.csvtable import (
     check_columns,
     csv_bytes,
     read_table,
+    write_csv,
 )
 from hrtls.io.schema import TABLE_KEY, TABLES, UNIT_KEY, TableSpec
 
@@ -104,12 +105,17 @@ def from_arrow(arrow: pa.Table, *, table: str, name: str | None = None) -> Table
 
 def parquet_bytes(arrow: pa.Table) -> bytes:
     """``arrow`` as a compressed Parquet file."""
-    floats = [f.name for f in arrow.schema if pa.types.is_floating(f.type)]
     out = pa.BufferOutputStream()
-    pq.write_table(arrow, out, compression=PARQUET_COMPRESSION,
+    write_parquet(arrow, out)
+    return bytes(out.getvalue())
+
+
+def write_parquet(arrow: pa.Table, sink: pa.NativeFile) -> None:
+    """``arrow`` as a compressed Parquet file into ``sink``."""
+    floats = [f.name for f in arrow.schema if pa.types.is_floating(f.type)]
+    pq.write_table(arrow, sink, compression=PARQUET_COMPRESSION,
                    use_dictionary=[c for c in arrow.column_names if c not in floats],
                    column_encoding=dict.fromkeys(floats, "BYTE_STREAM_SPLIT"))
-    return bytes(out.getvalue())
 
 
 def read_parquet(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
@@ -137,6 +143,21 @@ def encode_table(columns: Mapping[str, NDArray[np.generic]], *, table: str, suff
     if suffix == ".csv":
         return csv_bytes(arrow)
     raise FormatError(f"suffix {suffix!r}", where=table, expected=".csv or .parquet")
+
+
+def write_table_file(columns: Mapping[str, NDArray[np.generic]], *, table: str, path: Path
+                     ) -> Path:
+    """Write ``table`` as ``.csv`` or ``.parquet`` (by the suffix of ``path``).
+
+    The file is written as it is encoded (its whole contents are not held in memory).
+    """
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet"):
+        raise FormatError(f"suffix {suffix!r}", where=table, expected=".csv or .parquet")
+    arrow = to_arrow(columns, table=table)
+    with pa.OSFile(str(path), "wb") as sink:
+        (write_parquet if suffix == ".parquet" else write_csv)(arrow, sink)
+    return path
 
 
 def decode_table(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
@@ -177,9 +198,8 @@ def trajectory_table(trajectory: Trajectory, *, georeference: Georeference | Non
 def write_trajectory(trajectory: Trajectory, path: Path, *,
                      georeference: Georeference | None = None) -> Path:
     """Write ``trajectory.csv`` or ``trajectory.parquet`` (by the suffix of ``path``)."""
-    path.write_bytes(encode_table(trajectory_columns(trajectory, georeference=georeference),
-                                  table="trajectory", suffix=path.suffix.lower()))
-    return path
+    return write_table_file(trajectory_columns(trajectory, georeference=georeference),
+                            table="trajectory", path=path)
 
 
 def trajectory_from_table(table: Table, *, name: str) -> Trajectory:
@@ -225,9 +245,7 @@ def steps_table(steps: StepEvents) -> str:
 
 def write_steps(steps: StepEvents, path: Path) -> Path:
     """Write ``steps.csv`` or ``steps.parquet`` (by the suffix of ``path``)."""
-    path.write_bytes(encode_table(steps_columns(steps), table="steps",
-                                  suffix=path.suffix.lower()))
-    return path
+    return write_table_file(steps_columns(steps), table="steps", path=path)
 
 
 def steps_from_table(table: Table, *, name: str) -> StepEvents:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +23,7 @@ from hrtls.io.tables import write_steps, write_trajectory
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
-from hrtls.pipeline.tracker import Tracker, TrackResult
+from hrtls.pipeline.tracker import RATE_SAMPLES, Tracker, TrackResult, leading_rate_hz
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
 LOCAL_GEOJSON = "trajectory.local.json"
@@ -103,36 +103,35 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
         warnings.simplefilter("always")
         if not repair and beacons is None and fmt == "hrtls-session":
             stream = open_stream(path, chunk_rows=chunk_rows)
-            if stream is not None:
-                check_clocks([ClockStream(*s) for s in stream.sensor_times()])
         session = None if stream is not None else read_any(path, fmt=fmt, repair=repair,
                                                            beacons=beacons, **options)
-    meta = stream.meta if stream is not None else session.meta if session is not None else None
-    input_report = _input_report(fmt, caught, [] if meta is None else meta.notes)
-    input_report["path"] = str(path)
-    if meta is not None:
-        input_report["time_origin_unix_s"] = meta.time_origin_unix_s
-        input_report["georeference"] = (None if meta.georeference is None
-                                        else meta.georeference.model_dump())
-    t_imu = stream.imu_t if stream is not None else (
-        None if session is None or session.imu is None else session.imu.accel.t)
-    if t_imu is not None and len(t_imu):
-        input_report["imu"] = imu_fingerprint(t_imu)
+    run: TrackRun | None = None
     if stream is not None:
         try:
-            return _with_input(_track_stream(stream, config, progress), input_report, config)
+            run = _track_stream(stream, config, progress, caught)
         except NotStreamable:
             session = read_any(path, fmt=fmt, repair=repair, beacons=beacons, **options)
-    assert session is not None
-    start = time.perf_counter()
-    tracker = Tracker(config)
-    if progress is None or config.offline.two_pass:
-        raw = tracker.run(session)
-    else:
-        raw = _run_in_windows(tracker, session, progress)
-    result = finish_track(raw, session, config)
-    n = 0 if session.imu is None else len(session.imu.accel)
-    run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+    if run is None:
+        assert session is not None
+        start = time.perf_counter()
+        tracker = Tracker(config)
+        if progress is None or config.offline.two_pass:
+            raw = tracker.run(session)
+        else:
+            raw = _run_in_windows(tracker, session, progress)
+        result = finish_track(raw, session, config)
+        n = 0 if session.imu is None else len(session.imu.accel)
+        run = TrackRun(result, session, n, time.perf_counter() - start, streamed=False)
+    meta = run.session.meta
+    input_report = _input_report(fmt, caught, meta.notes)
+    input_report["path"] = str(path)
+    input_report["time_origin_unix_s"] = meta.time_origin_unix_s
+    input_report["georeference"] = (None if meta.georeference is None
+                                    else meta.georeference.model_dump())
+    t_imu = stream.imu_t if stream is not None and run.streamed else (
+        None if run.session.imu is None else run.session.imu.accel.t)
+    if t_imu is not None and len(t_imu):
+        input_report["imu"] = imu_fingerprint(t_imu)
     return _with_input(run, input_report, config)
 
 
@@ -185,13 +184,35 @@ def _run_in_windows(tracker: Tracker, session: Session, progress: Progress) -> T
 
 
 def _track_stream(stream: SessionStream, config: TrackerConfig,
-                  progress: Progress | None = None) -> TrackRun:
+                  progress: Progress | None, caught: list[warnings.WarningMessage]
+                  ) -> TrackRun:
+    """Read and track the IMU chunk by chunk; the clocks are checked once all are read.
+
+    Clock warnings are added to ``caught``.
+
+    Raises
+    ------
+    NotStreamable
+        When the whole-session reader must read it (see :mod:`hrtls.io.stream`), or the IMU
+        has fewer than two rows.
+    """
     tracker = Tracker(config, keep_attitude=False)
+    chunks = stream.chunks()
+    held: list[Session] = []
     if streams(config):
+        # the nominal rate is the median spacing of the leading samples, as in Tracker.run
+        for chunk in chunks:
+            held.append(chunk)
+            if sum(_rows(c) for c in held) >= RATE_SAMPLES:
+                break
+        t = np.concatenate([c.imu.accel.t for c in held if c.imu is not None] or
+                           [np.zeros(0)])[:RATE_SAMPLES]
+        if len(t) < 2:
+            raise NotStreamable(str(stream.path))
         tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
                       has_mag=stream.has_mag,
                       has_orientation=stream.parts["orientation"] is not None,
-                      rate_hz=stream.rate_hz, t0=stream.t0)
+                      rate_hz=leading_rate_hz(t), t0=stream.t0(float(t[0])))
     else:
         # the hand-held mounting and the hard-iron fit look at the whole accelerometer and
         # magnetometer: read those columns alone, once
@@ -199,24 +220,42 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     first: ImuStream | None = None
     seconds = 0.0
     rows = 0
-    for chunk in stream.chunks():
+    for chunk in _resumed(held, chunks):
         first = first or chunk.imu
         start = time.perf_counter()
         tracker.update(chunk)
         seconds += time.perf_counter() - start
-        rows += 0 if chunk.imu is None else len(chunk.imu.accel)
+        rows += _rows(chunk)
         if progress:
-            progress("reading and tracking", rows, stream.n_rows)
+            progress("reading and tracking", rows, max(rows, stream.rows_hint))
+    if first is None or rows < 2:
+        raise NotStreamable(str(stream.path))
+    if progress:
+        progress("reading and tracking", rows, rows)
+    with warnings.catch_warnings(record=True) as clocks:
+        warnings.simplefilter("always")
+        check_clocks([ClockStream(*s) for s in stream.sensor_times()])
+    caught.extend(clocks)
     start = time.perf_counter()
     result = tracker.finish()
     seconds += time.perf_counter() - start
     del tracker
-    assert first is not None
     # the ground truth is read only now, for the evaluation: it is not held while tracking
     session = stream.session(first).with_parts(truth=stream.truth())
     result = widen_over_gaps(widen_unobservable_heading(result, session), session,
                              imu_t=stream.imu_t)
-    return TrackRun(result, session, stream.n_rows, seconds, streamed=True)
+    return TrackRun(result, session, rows, seconds, streamed=True)
+
+
+def _rows(chunk: Session) -> int:
+    return 0 if chunk.imu is None else len(chunk.imu.accel)
+
+
+def _resumed(held: list[Session], rest: Iterator[Session]) -> Iterator[Session]:
+    """The held chunks (let go of as they are fed), then the rest."""
+    while held:
+        yield held.pop(0)
+    yield from rest
 
 
 def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,

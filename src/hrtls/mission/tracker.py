@@ -1,8 +1,10 @@
 """Mission tracker: every agent's causal tracker plus the dropped network, in one loop.
 
 Each agent runs its own :class:`hrtls.pipeline.Tracker` (causal, chunk by chunk). Time advances in
-common windows of ``chunk_s``; within a window each agent's ranges go one of two ways:
+common windows of ``chunk_s``; within a window each agent's ranges go one of three ways:
 
+* to a node whose position the agent's session knows (a landmark with a position): the range
+  corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
   landmarks, the range sigma widened by the node's position uncertainty,
   ``sqrt(sigma^2 + lambda_max(P_node))``);
@@ -108,12 +110,23 @@ class NodeTrack:
 
 @dataclass(frozen=True, eq=False)
 class MissionResult:
-    """Per-agent results, the final node estimates and each node's history (localized rows)."""
+    """Per-agent results, the final node estimates and each node's history (localized rows).
+
+    ``readings``: the ranges kept for each node's estimate, all agents.
+    """
 
     agents: dict[str, TrackResult]
     nodes: dict[str, NodeEstimate]
     node_history: dict[str, NodeTrack]
     contributors: dict[str, list[str]]
+    readings: dict[str, int] = field(default_factory=dict)
+
+
+def _known_ids(session: Session) -> list[str]:
+    """Ids of the session's landmarks with a position (local, or WGS-84 with a georeference)."""
+    geo = session.georeference is not None
+    return sorted(k for k, lm in session.landmarks.items()
+                  if lm.position is not None or (geo and lm.wgs84 is not None))
 
 
 class MissionTracker:
@@ -127,6 +140,7 @@ class MissionTracker:
         self.names = list(agents)
         self.sessions = {k: (s.with_parts(imu=aligned_imu(s.imu)) if s.imu is not None else s)
                          for k, s in agents.items()}
+        self.known = [_known_ids(self.sessions[k]) for k in self.names]
         self.trackers = {k: Tracker(config) for k in self.names}
         for k, tr in self.trackers.items():
             tr.start_session(self.sessions[k])
@@ -155,7 +169,8 @@ class MissionTracker:
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
-        return MissionResult(results, dict(self.estimates), hist, contributors)
+        readings = {n: len(r.r) for n, r in self.readings.items()}
+        return MissionResult(results, dict(self.estimates), hist, contributors, readings)
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -193,24 +208,27 @@ class MissionTracker:
         """Ranges for the agent's own tracker (usable nodes) and readings kept for the nodes."""
         if ranges is None:
             return None, None
-        usable = np.array([self._usable(i, str(n)) for n in ranges.node], dtype=bool)
+        known = np.isin(ranges.node, self.known[i])
+        usable = ~known & np.array([self._usable(i, str(n)) for n in ranges.node], dtype=bool)
         use = None
-        if usable.any():
-            sig = ranges.sigma_m[usable].copy()
-            extra = np.array([self._node_var(str(n)) for n in ranges.node[usable]])
-            sig = np.sqrt(sig ** 2 + extra)
-            use = RangeMeasurements(ranges.t[usable], ranges.node[usable],
-                                    ranges.range_m[usable], sig)
+        if (usable | known).any():
+            sig = ranges.sigma_m.copy()
+            if usable.any():
+                extra = np.array([self._node_var(str(n)) for n in ranges.node[usable]])
+                sig[usable] = np.sqrt(sig[usable] ** 2 + extra)
+            m = usable | known
+            use = RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m], sig[m])
             for n in set(ranges.node[usable].tolist()):
                 self.users.setdefault(str(n), set()).add(i)
         keep = None
-        if (~usable).any():
-            m = ~usable
+        if (~(usable | known)).any():
+            m = ~(usable | known)
             keep = RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m],
                                      ranges.sigma_m[m])
         return use, keep
 
     def _usable(self, i: int, node: str) -> bool:
+        """A node localized by the mission that agent ``i`` may use (see module doc)."""
         return (self.params.cooperate and node in self.given[i]
                 and i not in self.contrib.get(node, set()))
 

@@ -12,6 +12,7 @@ walking (with no height change for a step). Without pressure samples nothing is 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -79,6 +80,10 @@ class BaroStage:
 
     def advance(self, horizon_s: float) -> None:
         """Process the queued samples up to ``horizon_s``."""
+        # pressure samples still to come are after the queue's first or after the horizon
+        t_next = min(float(self.queue_t[0]), horizon_s) if len(self.queue_t) else horizon_s
+        if len(self.step_ends) and math.isfinite(t_next):
+            self.step_ends = self.step_ends[self.step_ends >= t_next - 2.5]
         n = int(np.searchsorted(self.queue_t, horizon_s, side="right"))
         if n == 0:
             return

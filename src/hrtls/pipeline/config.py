@@ -13,6 +13,7 @@ the complete effective configuration (every key with its value).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -34,6 +35,12 @@ class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+@functools.cache
+def _adapter(params_type: type) -> TypeAdapter[Any]:
+    """The validator of a parameter dataclass (built once: building one costs milliseconds)."""
+    return TypeAdapter(params_type)
+
+
 def _complete(params_type: type, value: object) -> dict[str, Any]:
     """Every field of ``params_type`` (defaults filled in), validated by the dataclass."""
     if not isinstance(value, dict):
@@ -43,7 +50,7 @@ def _complete(params_type: type, value: object) -> dict[str, Any]:
     if unknown:
         raise ValueError(f"unknown key {unknown[0]!r} (keys: {', '.join(names)})")
     try:
-        params: Any = TypeAdapter(params_type).validate_python(value)
+        params: Any = _adapter(params_type).validate_python(value)
     except ValidationError as exc:
         err = exc.errors()[0]
         raise ValueError(f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}") from None

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from itertools import chain
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 
@@ -100,6 +100,12 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
         self._n = 0
         self._accepted_t = np.zeros(0)
         self._accepted_parts = 0
+        self._counts: dict[str, dict[str, int]] = {}
+        self._counted_parts = 0
+        self._rejected: list[UpdateDiagnostics] = []
+        self._rejected_dicts: list[dict[str, Any]] = []
+        self._rejected_parts = 0
+        self._rejected_cut = False
 
     def accepted_times(self) -> np.ndarray:
         """Times of the accepted records, in order (kept up to date incrementally)."""
@@ -159,10 +165,15 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
         return iter(self._materialize())
 
     def counts(self) -> dict[str, dict[str, int]]:
-        """Counts per kind and status (as :func:`hrtls.fusion.gating.summarize`)."""
-        out: dict[str, dict[str, int]] = {}
-        blocks = [p for p in self._parts if isinstance(p, DiagnosticsBlock)]
-        for p in self._parts:
+        """Counts per kind and status (as :func:`hrtls.fusion.gating.summarize`).
+
+        Kept up to date incrementally: only the records added since the last call are read.
+        """
+        out = self._counts
+        new = self._parts[self._counted_parts:]
+        self._counted_parts = len(self._parts)
+        blocks = [p for p in new if isinstance(p, DiagnosticsBlock)]
+        for p in new:
             if not isinstance(p, DiagnosticsBlock):
                 d = out.setdefault(p.kind, {})
                 d[p.status] = d.get(p.status, 0) + 1
@@ -177,32 +188,50 @@ class DiagnosticsLog(Sequence[UpdateDiagnostics]):
                 for j in range(3):
                     if table[j]:
                         d[names[j]] = d.get(names[j], 0) + int(table[j])
-        return out
+        return {k: dict(v) for k, v in out.items()}
 
     def first_rejected(self, limit: int) -> list[UpdateDiagnostics]:
-        """The first ``limit`` rejected records, in order."""
-        out: list[UpdateDiagnostics] = []
-        blocks = [p for p in self._parts if isinstance(p, DiagnosticsBlock)]
-        if blocks:
-            # rejected rows of every block at once, then per block only where there are some
-            bad = _status_index(np.concatenate([b.code for b in blocks])) == 1
-            sizes = [len(b.code) for b in blocks]
-            offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-            cs = np.concatenate([[0], np.cumsum(bad)])
-            n_bad = cs[offsets[1:]] - cs[offsets[:-1]]
-        i_block = 0
-        for p in self._parts:
-            if len(out) >= limit:
-                break
-            if isinstance(p, DiagnosticsBlock):
-                if n_bad[i_block]:
-                    o = int(offsets[i_block])
-                    idx = np.flatnonzero(bad[o:o + len(p.code)])
-                    out.extend(p.row(int(i)) for i in idx[: limit - len(out)])
-                i_block += 1
-            elif p.status == "rejected":
-                out.append(p)
-        return out
+        """The first ``limit`` rejected records, in order.
+
+        The log only grows, so the records found are kept and only later records are read.
+        """
+        if limit > len(self._rejected) and self._rejected_cut:
+            self._rejected, self._rejected_dicts = [], []
+            self._rejected_parts, self._rejected_cut = 0, False
+        out = self._rejected
+        new = self._parts[self._rejected_parts:]
+        if len(out) < limit and new:
+            self._rejected_parts = len(self._parts)
+            blocks = [p for p in new if isinstance(p, DiagnosticsBlock)]
+            if blocks:
+                # rejected rows of every block at once, then per block only where there are some
+                bad = _status_index(np.concatenate([b.code for b in blocks])) == 1
+                sizes = [len(b.code) for b in blocks]
+                offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+                cs = np.concatenate([[0], np.cumsum(bad)])
+                n_bad = cs[offsets[1:]] - cs[offsets[:-1]]
+            i_block = 0
+            for p in new:
+                if len(out) >= limit:
+                    self._rejected_cut = True
+                    break
+                if isinstance(p, DiagnosticsBlock):
+                    if n_bad[i_block]:
+                        o = int(offsets[i_block])
+                        idx = np.flatnonzero(bad[o:o + len(p.code)])
+                        self._rejected_cut |= len(idx) > limit - len(out)
+                        out.extend(p.row(int(i)) for i in idx[: limit - len(out)])
+                    i_block += 1
+                elif p.status == "rejected":
+                    out.append(p)
+        return out[:limit]
+
+    def first_rejected_dicts(self, limit: int) -> list[dict[str, Any]]:
+        """:meth:`first_rejected` as ``to_dict`` forms (converted once per record)."""
+        rows = self.first_rejected(limit)
+        done = self._rejected_dicts
+        done.extend(d.to_dict() for d in rows[len(done):])
+        return done[:limit]
 
 
 def _status_index(code: np.ndarray) -> np.ndarray:

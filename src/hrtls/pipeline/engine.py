@@ -40,6 +40,18 @@ VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 
 
+def _last_starting_by(blocks: list[np.ndarray], t: float) -> int:
+    """Index of the last non-empty block whose first time is at or before ``t`` (0: none).
+
+    Searched from the end (blocks are in time order; a long mission has many).
+    """
+    for k in range(len(blocks) - 1, -1, -1):
+        b = blocks[k]
+        if len(b) and b[0] <= t:
+            return k
+    return 0
+
+
 class GaitHistory:
     """Steps and motion levels released by the gait stage (what later events look back on)."""
 
@@ -70,11 +82,19 @@ class GaitHistory:
 
         The step block in progress at ``t`` and the motion blocks from the latest one before.
         """
-        j = max([k for k, b in enumerate(self.steps) if len(b) and b.t_start[0] <= t],
-                default=0)
-        m = max([k for k, b in enumerate(self.motion_t) if len(b) and b[0] <= t], default=0)
+        j = _last_starting_by([b.t_start for b in self.steps], t)
+        m = self._first_motion(t)
         return {"steps": self.steps[j:], "motion_t": self.motion_t[m:],
                 "motion_sigma": self.motion_sigma[m:]}
+
+    def forget_motion_before(self, t: float) -> None:
+        """Drop the motion blocks no event from ``t`` on looks at (as :meth:`state` does)."""
+        m = self._first_motion(t)
+        del self.motion_t[:m], self.motion_sigma[:m]
+
+    def _first_motion(self, t: float) -> int:
+        """The latest motion block starting at or before ``t`` (0 when none does)."""
+        return _last_starting_by(self.motion_t, t)
 
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`state` (the restored steps are not reported again)."""
@@ -193,7 +213,9 @@ class FusionEngine:
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
-        self.track.add_block(out.t, out.x, out.p[:, :2, :2], out.p[:, IH, IH], out.act)
+        # copies: views would keep the whole (n, 4, 4) covariances alive with the track
+        self.track.add_block(out.t, out.x, out.p[:, :2, :2].copy(), out.p[:, IH, IH].copy(),
+                             out.act)
         n_steps = int(sc["n_steps"])
         n_head = int(sc["n_headings"])
         if n_head:

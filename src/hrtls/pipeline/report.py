@@ -59,7 +59,7 @@ def counts(diagnostics: DiagnosticsLog, base: dict[str, Any]) -> dict[str, dict[
 def rejected(diagnostics: DiagnosticsLog, base: dict[str, Any]) -> list[dict[str, Any]]:
     """The first ``MAX_REJECTED`` rejected observations, with those before a restore."""
     out = list(base["rejected"])
-    out += [d.to_dict() for d in diagnostics.first_rejected(MAX_REJECTED - len(out))]
+    out += diagnostics.first_rejected_dicts(MAX_REJECTED - len(out))
     return out[:MAX_REJECTED]
 
 

@@ -29,71 +29,113 @@ from hrtls.fusion.tags import TagMemory
 
 MAGIC = b"HRTLSNAP"
 """First bytes of every snapshot."""
-VERSION = 2
-"""Layout version (the byte after the magic); restore refuses others."""
+VERSION = 3
+"""Layout version (the byte after the magic) written by :func:`pack`."""
+READABLE = (2, 3)
+"""Versions :func:`unpack` reads (2: every value tagged in plain msgpack maps)."""
 
 _CLASSES: dict[str, type] = {c.__name__: c for c in (
     FilterState, ChannelState, StretchMemory, TagMemory, FixSchedule, RssScan, StepEvents,
     AttitudeState, RunningHardIronState, BaroFloorState)}
 """The dataclasses a snapshot may hold (rebuilt field by field)."""
 
+# Version 3: msgpack packs plain values natively; the rest are extension types whose payload
+# is itself msgpack (packed with the same hooks).
+_EXT_ARRAY, _EXT_TEXT_ARRAY, _EXT_TUPLE, _EXT_DEQUE, _EXT_CLASS = 1, 2, 3, 4, 5
 
-def _encode(obj: Any) -> Any:
-    if obj is None or isinstance(obj, bool | int | float | str | bytes):
-        return obj
+
+def _pack_ext(obj: Any) -> Any:
+    """What msgpack does not pack itself (its ``default`` hook, with ``strict_types``)."""
     if isinstance(obj, np.ndarray):
         if obj.dtype.kind in "fiub":
-            arr = np.ascontiguousarray(obj)
-            return {"~nd": arr.dtype.newbyteorder("<").str, "s": list(arr.shape),
-                    "d": arr.astype(arr.dtype.newbyteorder("<"), copy=False).tobytes()}
-        return {"~nl": [_encode(v) for v in obj.reshape(-1).tolist()], "s": list(obj.shape),
-                "k": obj.dtype.kind}
-    if isinstance(obj, np.generic):
+            dt = obj.dtype.newbyteorder("<")
+            body = [dt.str, list(obj.shape), np.ascontiguousarray(obj, dtype=dt).tobytes()]
+            return msgpack.ExtType(_EXT_ARRAY, _packb(body))
+        if obj.dtype.kind in "OU":
+            return msgpack.ExtType(_EXT_TEXT_ARRAY, _packb(
+                [obj.dtype.kind, list(obj.shape), obj.reshape(-1).tolist()]))
+    elif isinstance(obj, np.generic):
         return obj.item()
-    if isinstance(obj, tuple):
-        return {"~t": [_encode(v) for v in obj]}
-    if isinstance(obj, deque):
-        return {"~q": [_encode(v) for v in obj], "m": obj.maxlen}
-    if isinstance(obj, list):
-        return [_encode(v) for v in obj]
-    if isinstance(obj, dict):
-        return {"~d": [[_encode(k), _encode(v)] for k, v in obj.items()]}
-    if dataclasses.is_dataclass(obj) and type(obj).__name__ in _CLASSES:
-        return {"~c": type(obj).__name__,
-                "f": {f.name: _encode(getattr(obj, f.name)) for f in dataclasses.fields(obj)}}
+    elif isinstance(obj, tuple):
+        return msgpack.ExtType(_EXT_TUPLE, _packb(list(obj)))
+    elif isinstance(obj, deque):
+        return msgpack.ExtType(_EXT_DEQUE, _packb([list(obj), obj.maxlen]))
+    elif dataclasses.is_dataclass(obj) and type(obj).__name__ in _CLASSES:
+        return msgpack.ExtType(_EXT_CLASS, _packb(
+            [type(obj).__name__, {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}]))
+    else:  # a subclass of a plain type (e.g. an IntEnum): its plain value
+        plain: Any
+        for plain in (bool, int, float, str, bytes, list, dict):
+            if isinstance(obj, plain):
+                return plain(obj)
     raise TypeError(f"cannot snapshot a {type(obj).__name__}")
 
 
-def _decode(obj: Any) -> Any:
+def _packb(obj: Any) -> bytes:
+    out: bytes = msgpack.packb(obj, default=_pack_ext, use_bin_type=True, strict_types=True)
+    return out
+
+
+def _unpack_ext(code: int, payload: bytes) -> Any:
+    """Inverse of :func:`_pack_ext` (msgpack's ``ext_hook``)."""
+    if not _EXT_ARRAY <= code <= _EXT_CLASS:
+        raise FormatError(f"unknown extension type {code}", where="snapshot",
+                          expected="a snapshot written by Tracker.snapshot()")
+    body = _unpackb(payload)
+    if code == _EXT_ARRAY:
+        dtype, shape, raw = np.dtype(body[0]), body[1], body[2]
+        if dtype.kind not in "fiub":
+            raise FormatError(f"array of dtype {dtype.str}", where="snapshot",
+                              expected="numeric arrays")
+        return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
+    if code == _EXT_TEXT_ARRAY:
+        kind, shape, values = body
+        return np.array(values, dtype=object if kind == "O" else str).reshape(shape)
+    if code == _EXT_TUPLE:
+        return tuple(body)
+    if code == _EXT_DEQUE:
+        return deque(body[0], maxlen=body[1])
+    cls = _CLASSES.get(body[0])
+    if cls is None:
+        raise FormatError(f"unknown state class {body[0]!r}", where="snapshot",
+                          expected=", ".join(_CLASSES))
+    return cls(**body[1])
+
+
+def _unpackb(payload: bytes) -> Any:
+    return msgpack.unpackb(payload, ext_hook=_unpack_ext, raw=False, strict_map_key=False)
+
+
+def _decode_v2(obj: Any) -> Any:
+    """Values of a version-2 body (every non-plain value a tagged map)."""
     if isinstance(obj, list):
-        return [_decode(v) for v in obj]
+        return [_decode_v2(v) for v in obj]
     if not isinstance(obj, dict):
         return obj
     if "~nd" in obj:
         return np.frombuffer(obj["d"], dtype=np.dtype(obj["~nd"])).reshape(obj["s"]).copy()
     if "~nl" in obj:
         dtype = object if obj["k"] == "O" else str
-        return np.array([_decode(v) for v in obj["~nl"]], dtype=dtype).reshape(obj["s"])
+        return np.array([_decode_v2(v) for v in obj["~nl"]], dtype=dtype).reshape(obj["s"])
     if "~t" in obj:
-        return tuple(_decode(v) for v in obj["~t"])
+        return tuple(_decode_v2(v) for v in obj["~t"])
     if "~q" in obj:
-        return deque((_decode(v) for v in obj["~q"]), maxlen=obj["m"])
+        return deque((_decode_v2(v) for v in obj["~q"]), maxlen=obj["m"])
     if "~d" in obj:
-        return {_decode(k): _decode(v) for k, v in obj["~d"]}
+        return {_decode_v2(k): _decode_v2(v) for k, v in obj["~d"]}
     if "~c" in obj:
         cls = _CLASSES.get(obj["~c"])
         if cls is None:
             raise FormatError(f"unknown state class {obj['~c']!r}", where="snapshot",
                               expected=", ".join(_CLASSES))
-        return cls(**{k: _decode(v) for k, v in obj["f"].items()})
+        return cls(**{k: _decode_v2(v) for k, v in obj["f"].items()})
     raise FormatError(f"unknown entry {sorted(obj)}", where="snapshot",
                       expected="a snapshot written by Tracker.snapshot()")
 
 
 def pack(state: dict[str, Any]) -> bytes:
     """Header + zlib(msgpack(state)) with arrays as raw bytes."""
-    body = msgpack.packb(_encode(state), use_bin_type=True)
-    return MAGIC + bytes([VERSION]) + zlib.compress(body, 1)
+    return MAGIC + bytes([VERSION]) + zlib.compress(_packb(state), 1)
 
 
 def unpack(data: bytes) -> dict[str, Any]:
@@ -105,16 +147,18 @@ def unpack(data: bytes) -> dict[str, Any]:
         raise FormatError("no hrtls snapshot header", where="snapshot",
                           expected="bytes from Tracker.snapshot()")
     version = raw[len(MAGIC)]
-    if version != VERSION:
+    if version not in READABLE:
         raise FormatError(f"snapshot version {version}", where="snapshot",
-                          expected=f"version {VERSION}")
+                          expected=f"version {' or '.join(str(v) for v in READABLE)}")
     try:
-        body = msgpack.unpackb(zlib.decompress(raw[len(MAGIC) + 1:]), raw=False,
-                               strict_map_key=False)
-    except (zlib.error, ValueError, msgpack.UnpackException) as exc:
+        body = zlib.decompress(raw[len(MAGIC) + 1:])
+        if version == 2:
+            out = _decode_v2(msgpack.unpackb(body, raw=False, strict_map_key=False))
+        else:
+            out = _unpackb(body)
+    except (zlib.error, ValueError, TypeError, msgpack.UnpackException) as exc:
         raise FormatError(f"corrupt snapshot ({exc})", where="snapshot",
                           expected="bytes from Tracker.snapshot()") from None
-    out = _decode(body)
     if not isinstance(out, dict):
         raise FormatError("not a state mapping", where="snapshot", expected="a tracker state")
     return out

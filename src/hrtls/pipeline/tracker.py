@@ -353,6 +353,7 @@ class Tracker:
             self.baro.advance(sched.horizon)
         # tag reads / RSS readings still being grouped hold back everything after them
         self.engine.drain(sched.release_limit())
+        self.history.forget_motion_before(self.engine.state.t)
 
     def finish(self) -> TrackResult:
         """End of the recording: release held steps and observations, build the result."""
@@ -553,7 +554,7 @@ def _session_sensors(session: Session) -> Sensors:
     return Sensors(has_imu=imu is not None, has_gyro=imu is not None and imu.gyro is not None,
                    has_mag=imu is not None and imu.mag is not None,
                    has_orientation=session.orientation is not None,
-                   rate_hz=_leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
+                   rate_hz=leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
                    t0=session.time_span()[0])
 
 
@@ -579,7 +580,7 @@ def _fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.
     return fit.hard_iron_ut
 
 
-def _leading_rate_hz(t: np.ndarray) -> float:
+def leading_rate_hz(t: np.ndarray) -> float:
     """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
     head = t[:RATE_SAMPLES]
     return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0

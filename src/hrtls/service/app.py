@@ -23,6 +23,7 @@ from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.events import EventLog
+from hrtls.service.headers import SecurityHeaders, content_security_policy
 from hrtls.service.host import DECODERS, HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
@@ -31,7 +32,7 @@ from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
 from hrtls.service.tokencache import TokenCache
 
-API_PREFIX = "/api/v1"
+API_PREFIX = schemas.API_PREFIX
 log = logging.getLogger(__name__)
 
 
@@ -124,11 +125,11 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, ingest, live, missions, orders
+    from hrtls.service.routes import agents, auth, dashboard, ingest, live, missions, orders
     from hrtls.service.routes import events as event_routes
 
     for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
-                   event_routes.router, orders.router):
+                   event_routes.router, orders.router, dashboard.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])
@@ -142,6 +143,8 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
 
     _mount_dashboard(app, settings.web_root)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityHeaders, csp=content_security_policy(settings.basemap_url),
+                       docs_prefix=f"{API_PREFIX}/docs")
     if settings.cors_origins:
         from fastapi.middleware.cors import CORSMiddleware
 

@@ -147,9 +147,17 @@ def stream_team(server: str, agents: list[tuple[TeamMember, int, str]], *, speed
 
 
 def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
-    """One session folder per agent (readable by ``hrtls track``) plus the service's results."""
+    """One session folder per agent (readable by ``hrtls track``) plus the service's results.
+
+    ``mission.json`` makes the folder a mission folder (:mod:`hrtls.io.mission`, tracked offline
+    by ``hrtls mission track``): it lists the agents that sent data (named by their name when
+    that is unique and usable as a folder name, else ``agent-<id>``); what the service knew
+    (id, time origin, georeference, channel, floor height, events, orders) is under
+    ``"service"``.
+    """
     from sqlalchemy import select
 
+    from hrtls.io.mission import MISSION_FILE, mission_json
     from hrtls.io.session import write_session
     from hrtls.service.db import make_engine, session_factory
     from hrtls.service.events import event_dict, order_dict
@@ -168,11 +176,13 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
             out_dir.mkdir(parents=True, exist_ok=True)
             agents = list(db.scalars(select(Agent).where(Agent.mission_id == mission_id)
                                      .order_by(Agent.id)))
+            with_data: set[int] = set()
             for a in agents:
                 folder = out_dir / f"agent-{a.id}"
                 session = agent_session(db, mission, a)
                 if session is not None:
                     write_session(session, folder, overwrite=True)
+                    with_data.add(a.id)
                 else:
                     folder.mkdir(parents=True, exist_ok=True)
                 (folder / "service_estimates.csv").write_text(estimates_csv(db, a.id))
@@ -183,11 +193,28 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
                 select(EventRow).where(EventRow.mission_id == mission_id).order_by(EventRow.id))]
             orders = [order_dict(r) for r in db.scalars(
                 select(OrderRow).where(OrderRow.mission_id == mission_id).order_by(OrderRow.id))]
-            (out_dir / "mission.json").write_text(json.dumps({
-                "id": mission.id, "name": mission.name, "t0_unix": mission.t0_unix,
-                "georeference": mission.georeference, "channel": mission.channel,
-                "floor_height_m": mission.floor_height_m, "events": events, "orders": orders},
-                indent=2))
+            service = {"id": mission.id, "name": mission.name, "t0_unix": mission.t0_unix,
+                       "georeference": mission.georeference, "channel": mission.channel,
+                       "floor_height_m": mission.floor_height_m, "events": events,
+                       "orders": orders}
+            (out_dir / MISSION_FILE).write_text(mission_json(
+                _entries(agents, with_data), name=mission.name, service=service,
+                notes=[f"agent {a.name!r} (id {a.id}) sent no data" for a in agents
+                       if a.id not in with_data]))
     finally:
         engine.dispose()
     return written
+
+
+def _entries(agents: list[Any], with_data: set[int]) -> list[tuple[str, Any, str]]:
+    """``mission.json`` entries (name, kind, folder) of the agents that sent data."""
+    from hrtls.io.mission import is_folder_name
+
+    names = [a.name for a in agents if a.id in with_data]
+    out = []
+    for a in agents:
+        if a.id not in with_data:
+            continue
+        usable = names.count(a.name) == 1 and is_folder_name(a.name)
+        out.append((a.name if usable else f"agent-{a.id}", a.kind, f"agent-{a.id}"))
+    return out

@@ -56,6 +56,11 @@ class Floor(Base):
     name: Mapped[str] = mapped_column(String(200))
     height_m: Mapped[float] = mapped_column(Float)
     plan: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    image: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True, deferred=True)
+    """A scanned or drawn plan of the floor (PNG or JPEG bytes), placed by ``image_meta``."""
+    image_meta: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    """``media_type``, ``width_px``, ``height_px``, ``origin_x_m``, ``origin_y_m`` (local
+    metres of the image's lower-left corner) and ``m_per_px``."""
 
 
 class LandmarkRow(Base):

@@ -14,6 +14,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from hrtls.data import Landmark
 from hrtls.data.session import ChannelModel, GeoreferenceModel, StartPose
 
+API_PREFIX = "/api/v1"
+"""Path prefix of every API route."""
+
 Name = Field(min_length=1, max_length=200)
 
 
@@ -148,6 +151,19 @@ class FloorWithIndexIn(FloorIn):
     index: int = Field(ge=-20, le=300)
 
 
+class FloorImageOut(Out):
+    """Where a floor's plan image lies: lower-left corner and scale in the mission frame."""
+
+    media_type: str
+    width_px: int
+    height_px: int
+    origin_x_m: float
+    origin_y_m: float
+    m_per_px: float
+    url: str
+    """``GET`` it (as a reader) for the image bytes."""
+
+
 class FloorOut(Out):
     """A floor."""
 
@@ -155,6 +171,7 @@ class FloorOut(Out):
     name: str
     height_m: float
     plan: dict[str, Any] | None
+    image: FloorImageOut | None = None
 
 
 class MissionIn(Strict):
@@ -328,3 +345,18 @@ class HealthOut(Out):
     status: str
     version: str
     db: str
+
+
+# ---------------------------------------------------------------------------- dashboard
+class BasemapOut(Out):
+    """A web-mercator tile source for georeferenced missions."""
+
+    url: str
+    max_zoom: int
+    attribution: str
+
+
+class DashboardConfigOut(Out):
+    """What the dashboard needs to know of this deployment."""
+
+    basemap: BasemapOut | None

@@ -42,6 +42,22 @@ class Settings(BaseModel):
     engine: Literal["local", "ray"] = "local"
     ray_address: str | None = None
     ray_shards: int = Field(default=2, ge=1, le=4096)
+    basemap_url: str | None = None
+    """Tile URL template (``{z}``, ``{x}``, ``{y}``) of a web-mercator base map drawn under
+    georeferenced missions, e.g. a tile server of the command post; None: no base map."""
+    basemap_max_zoom: int = Field(default=19, ge=1, le=24)
+    basemap_attribution: str = Field(default="", max_length=300)
+
+    @field_validator("basemap_url")
+    @classmethod
+    def _tiles(cls, value: str | None) -> str | None:
+        if value is None:
+            return None
+        if not value.startswith(("http://", "https://")) or not all(
+                key in value for key in ("{z}", "{x}", "{y}")):
+            raise ValueError(f"base map URL {value!r}: give an http(s) tile template with "
+                             "{z}, {x} and {y}, e.g. http://tiles.local/{z}/{x}/{y}.png")
+        return value
 
     @field_validator("cors_origins")
     @classmethod

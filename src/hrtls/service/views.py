@@ -23,9 +23,11 @@ def floors_of(db: Session, mission_id: int) -> list[Floor]:
 
 
 def floor_out(row: Floor) -> schemas.FloorOut:
-    """A floor."""
+    """A floor (its image as where it lies and the URL of its bytes)."""
+    url = f"{schemas.API_PREFIX}/missions/{row.mission_id}/floors/{row.index}/image"
+    image = None if row.image_meta is None else schemas.FloorImageOut(**row.image_meta, url=url)
     return schemas.FloorOut(index=row.index, name=row.name, height_m=row.height_m,
-                            plan=row.plan)
+                            plan=row.plan, image=image)
 
 
 def mission_out(db: Session, row: Mission, *, now_unix: float) -> schemas.MissionOut:

@@ -10,12 +10,18 @@ through the corridors, ranging to every node within ``max_range_m`` (Gaussian no
 The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
 for scoring only. One floor only (the issue's two floors and the robot are not simulated here).
+
+:func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
+agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
+the tags in ``landmarks.json`` and the node positions in ``network_truth.json`` (scoring only).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -71,6 +77,8 @@ class Mission:
     simulations: dict[str, SimulationResult]
     node_truth_m: dict[str, FloatArray]
     options: MissionOptions
+    scenario: str = "inderst_hybrid_mission"
+    seed: int = 0
 
 
 def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, float, float]]:
@@ -84,7 +92,10 @@ def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, floa
 
 
 def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> Mission:
-    """The mission of seed ``seed`` (see module doc)."""
+    """Rescuers enter an office floor with tags at the doors and range nodes without positions.
+
+    See the module doc.
+    """
     o = options or MissionOptions()
     r = _rngs(seed)
     nodes = _drop_nodes(r[7], o.n_nodes)
@@ -111,7 +122,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         agents[f"R{i + 1}"] = dataclasses.replace(sim.session, landmarks=known)
         sims[f"R{i + 1}"] = sim
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
-    return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o)
+    return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed)
 
 
 def mission_summary(mission: Mission) -> dict[str, Any]:
@@ -119,3 +130,48 @@ def mission_summary(mission: Mission) -> dict[str, Any]:
     return {"agents": len(mission.agents), "nodes": len(mission.node_truth_m),
             "ranges": {k: 0 if s.ranges is None else len(s.ranges.t)
                        for k, s in mission.agents.items()}}
+
+
+MISSIONS: dict[str, Callable[[int, MissionOptions | None], Mission]] = {
+    "inderst_hybrid_mission": inderst_hybrid_mission}
+"""Simulated missions by name (``hrtls simulate NAME`` writes a mission folder for these)."""
+
+
+def run_mission(name: str, seed: int, **options: Any) -> Mission:
+    """The mission ``name`` of seed ``seed``; ``options`` are fields of :class:`MissionOptions`."""
+    if name not in MISSIONS:
+        raise InputError(f"unknown mission {name!r}", where="scenario",
+                         expected="one of " + ", ".join(MISSIONS))
+    fields = {f.name: f for f in dataclasses.fields(MissionOptions)}
+    for key, value in options.items():
+        if key not in fields:
+            raise InputError(f"unknown option {key!r}", where=f"{name} options",
+                             expected="one of " + ", ".join(fields))
+        default = fields[key].default
+        if isinstance(default, int | float) and (isinstance(value, bool)
+                                                 or not isinstance(value, int | float)):
+            raise InputError(f"{key} = {value!r}", where=f"{name} options",
+                             expected=f"a number (default {default})")
+        if isinstance(default, int) and not isinstance(value, int):
+            raise InputError(f"{key} = {value!r}", where=f"{name} options",
+                             expected=f"an integer (default {default})")
+    return MISSIONS[name](seed, MissionOptions(**options))
+
+
+def write_mission_result(mission: Mission, path: Path | str, *, overwrite: bool = False) -> Path:
+    """Save ``mission`` as a mission folder (see the module doc); returns the folder."""
+    from hrtls.io.mission import write_mission, write_network_truth
+    from hrtls.sim.scenarios import write_extras
+
+    landmarks = {k: lm for s in mission.agents.values() for k, lm in s.landmarks.items()}
+    root = write_mission(
+        path, agents=[(k, "rescuer", s) for k, s in mission.agents.items()],
+        nodes=list(mission.node_truth_m), landmarks=landmarks, name=mission.scenario,
+        source={"simulator": mission.scenario, "seed": mission.seed,
+                "options": dataclasses.asdict(mission.options)},
+        notes=["simulated: ground truth in each agent's truth.csv and in network_truth.json"],
+        overwrite=overwrite)
+    for k, sim in mission.simulations.items():
+        write_extras(sim, root / "agents" / k)
+    write_network_truth(root, mission.node_truth_m)
+    return root

@@ -898,9 +898,16 @@ def write_result(result: SimulationResult, path: Path | str, *, overwrite: bool 
                  ) -> Path:
     """Write the session folder plus the truth extras (see the module docstring)."""
     from hrtls.io.session import write_session
-    from hrtls.io.tables import steps_table
 
     out = write_session(result.session, Path(path), overwrite=overwrite)
+    write_extras(result, out)
+    return out
+
+
+def write_extras(result: SimulationResult, out: Path) -> None:
+    """Write the truth extras of :func:`write_result` into the session folder ``out``."""
+    from hrtls.io.tables import steps_table
+
     (out / "truth_steps.csv").write_text(steps_table(result.true_steps))
     (out / "activity.csv").write_text(activity_intervals_table(result.activity_t,
                                                                result.activity))
@@ -912,7 +919,6 @@ def write_result(result: SimulationResult, path: Path | str, *, overwrite: bool 
         (out / "wsn.json").write_text(json.dumps(result.wsn.to_json(), indent=2) + "\n")
         (out / "wsn_truth.json").write_text(json.dumps(result.wsn.to_json(truth=True),
                                                        indent=2) + "\n")
-    return out
 
 
 def activity_intervals_table(t: FloatArray, codes: IntArray) -> str:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, HTTPException
+from fastapi import APIRouter, HTTPException, Query, Request, Response
 from sqlalchemy import select
+from sqlalchemy.orm import Session, undefer
 
 from hrtls.service import schemas
 from hrtls.service.deps import Commander, DbDep, Reader, ServicesDep, mission_or_404
+from hrtls.service.floor_image import IMAGE_TYPES, check_floor_image
 from hrtls.service.models import Floor, LandmarkRow, Mission, OrderRow
 from hrtls.service.views import floor_out, mission_out, mission_summaries
 
@@ -92,6 +94,58 @@ def delete_floor(mission_id: int, index: int, who: Commander, db: DbDep,
     db.delete(row)
     db.commit()
     services.events.plans_changed(mission_id)
+
+
+def _floor_or_404(db: Session, mission_id: int, index: int, *, with_image: bool = False
+                  ) -> Floor:
+    mission_or_404(db, mission_id)
+    query = select(Floor).where(Floor.mission_id == mission_id, Floor.index == index)
+    if with_image:
+        query = query.options(undefer(Floor.image))
+    row = db.scalars(query).first()
+    if row is None:
+        raise HTTPException(404, f"floor {index} not found in mission {mission_id}")
+    return row
+
+
+@router.put("/missions/{mission_id}/floors/{index}/image", response_model=schemas.FloorOut,
+            openapi_extra={"requestBody": {"required": True, "content": {
+                t: {"schema": {"type": "string", "format": "binary"}} for t in IMAGE_TYPES}}})
+async def put_floor_image(
+        mission_id: int, index: int, request: Request, who: Commander, db: DbDep,
+        origin_x_m: float = Query(ge=-1e5, le=1e5, description="x of the lower-left corner, m"),
+        origin_y_m: float = Query(ge=-1e5, le=1e5, description="y of the lower-left corner, m"),
+        m_per_px: float = Query(gt=0.0, le=100.0, description="metres per pixel")
+) -> schemas.FloorOut:
+    """Set the plan image of an existing floor (body: the PNG or JPEG bytes)."""
+    media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    data = await request.body()
+    meta = check_floor_image(data, media_type)
+    row = _floor_or_404(db, mission_id, index)
+    row.image = data
+    row.image_meta = {**meta, "origin_x_m": origin_x_m, "origin_y_m": origin_y_m,
+                      "m_per_px": m_per_px}
+    db.commit()
+    return floor_out(row)
+
+
+@router.get("/missions/{mission_id}/floors/{index}/image", response_class=Response,
+            responses={200: {"content": {t: {} for t in IMAGE_TYPES}}})
+def get_floor_image(mission_id: int, index: int, who: Reader, db: DbDep) -> Response:
+    """The plan image of a floor (404 when it has none)."""
+    row = _floor_or_404(db, mission_id, index, with_image=True)
+    if row.image is None or row.image_meta is None:
+        raise HTTPException(404, f"floor {index} of mission {mission_id} has no image")
+    return Response(row.image, media_type=row.image_meta["media_type"],
+                    headers={"Cache-Control": "private, max-age=60"})
+
+
+@router.delete("/missions/{mission_id}/floors/{index}/image", status_code=204)
+def delete_floor_image(mission_id: int, index: int, who: Commander, db: DbDep) -> None:
+    """Remove the plan image of a floor."""
+    row = _floor_or_404(db, mission_id, index)
+    row.image, row.image_meta = None, None
+    db.commit()
 
 
 def _landmark_json(body: schemas.LandmarkIn) -> dict[str, Any]:

@@ -67,6 +67,15 @@ function nodeOf(n) {
   return { id: n.id, role, x, y, floor: n.floor ?? 0, sigma_m: n.sigma_m };
 }
 
+// A floor's plan image: its URL and its bounds [[south, west], [north, east]] in local metres
+// (CRS.Simple [y, x]) from the lower-left corner and the scale.
+function imageOf(i) {
+  if (!i) return null;
+  const w = i.width_px * i.m_per_px;
+  const h = i.height_px * i.m_per_px;
+  return { url: i.url, bounds: [[i.origin_y_m, i.origin_x_m], [i.origin_y_m + h, i.origin_x_m + w]] };
+}
+
 function waypointsOf(list) {
   const byRobot = new Map();
   for (const w of list) {
@@ -103,6 +112,7 @@ export class Api {
   whoami() { return this.request("GET", "/auth/whoami"); }
 
   missions() { return this.request("GET", "/missions"); }
+  dashboardConfig() { return this.request("GET", "/dashboard/config"); }
 
   async mission(id) {
     const m = await this.request("GET", `/missions/${id}`);
@@ -113,7 +123,8 @@ export class Api {
       }
     }
     return { id: m.id, name: m.name, t0Unix: m.t0_unix, nowT: m.now_t,
-      staleAfterS: m.stale_after_s, floors: (m.floors || []).map((f) => ({ index: f.index, name: f.name })),
+      staleAfterS: m.stale_after_s, georeference: m.georeference,
+      floors: (m.floors || []).map((f) => ({ index: f.index, name: f.name, image: imageOf(f.image) })),
       floorplan: { type: "FeatureCollection", features } };
   }
 

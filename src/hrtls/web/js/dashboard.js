@@ -70,6 +70,7 @@ export class Dashboard {
   // ---- lifecycle ------------------------------------------------------------------------------
 
   async start() {
+    this.config = await this.api.dashboardConfig();
     const missions = await this.api.missions();
     const select = document.getElementById("mission-select");
     select.replaceChildren(...missions.map((m) => el("option", { value: m.id }, m.name || m.id)));
@@ -97,7 +98,8 @@ export class Dashboard {
     this.missionId = id;
     this.agents.clear(); this.events.clear(); this.orders.clear();
     this.mission = await this.api.mission(id);
-    this.map.setFloorplan(this.mission.floorplan);
+    this.map.setFrame(this.mission.georeference, this.config.basemap);
+    this.map.setFloorplan(this.mission.floorplan, this.mission.floors);
     const floors = this.mission.floors;
     this.floor = floors.length ? floors[0].index : 0;
     this.infra = await this.api.infrastructure(id).catch(() => this.infra);

@@ -62,3 +62,35 @@ export function formatClock(seconds) {
   const s = Math.max(0, Math.floor(seconds));
   return `${Math.floor(s / 60)}:${String(s % 60).padStart(2, "0")}`;
 }
+
+// Web mercator (EPSG:3857): sphere radius (WGS-84's semi-major axis), m; WGS-84's e^2.
+export const MERCATOR_R_M = 6378137;
+const WGS84_E2 = 6.69437999014e-3;
+
+// Local mission metres on web-mercator tiles. The georeference anchors local (0, 0) at
+// (lat_deg, lon_deg), with local x rotated rotation_rad counter-clockwise from east
+// (hrtls/frames.py). Near the anchor, mercator metres are the anchor's plus kx * east and
+// ky * north, from the derivatives of EPSG:3857 on WGS-84 coordinates: kx = R / (N cos(lat)),
+// ky = R / (M cos(lat)), N and M the ellipsoid's radii of curvature. Returns the rotation
+// local (x, y) <-> (east, north) and the coefficients [a, b, c, d] of the pixel transformation
+// pixel = scale(zoom) * (a * east + b, c * north + d), equal to EPSG:3857's at the anchor.
+export function mercatorFrame({ lat_deg: lat, lon_deg: lon, rotation_rad: rot = 0 }) {
+  const phi = (lat * Math.PI) / 180;
+  const x0 = MERCATOR_R_M * ((lon * Math.PI) / 180);
+  const y0 = MERCATOR_R_M * Math.log(Math.tan(Math.PI / 4 + phi / 2));
+  const w = 1 - WGS84_E2 * Math.sin(phi) ** 2;
+  const primeVertical = MERCATOR_R_M / Math.sqrt(w);
+  const meridian = (MERCATOR_R_M * (1 - WGS84_E2)) / w ** 1.5;
+  const kx = MERCATOR_R_M / (primeVertical * Math.cos(phi));
+  const ky = MERCATOR_R_M / (meridian * Math.cos(phi));
+  const u = 0.5 / (Math.PI * MERCATOR_R_M);
+  const c = Math.cos(rot);
+  const s = Math.sin(rot);
+  return {
+    toEastNorth: (x, y) => [c * x - s * y, s * x + c * y],
+    fromEastNorth: (e, n) => [c * e + s * n, -s * e + c * n],
+    transformation: [u * kx, u * x0 + 0.5, -u * ky, -u * y0 + 0.5],
+    // zoom levels between CRS.Simple (1 px per metre at zoom 0) and this frame
+    zoomOffset: -Math.log2(256 * u * kx),
+  };
+}

@@ -1,7 +1,8 @@
-// The Leaflet map in local mission metres (CRS.Simple: [lat, lng] = [y, x]).
+// The Leaflet map in local mission metres ([lat, lng] = [y, x]): CRS.Simple, or on a
+// web-mercator base map for a georeferenced mission when the service names a tile source.
 
 import * as L from "../vendor/leaflet/leaflet-src.esm.js";
-import { ellipseLatLngs, formatAge, headingTip, quality } from "./geometry.js";
+import { ellipseLatLngs, formatAge, headingTip, mercatorFrame, quality } from "./geometry.js";
 
 const PLAN_STYLE = {
   wall: { color: "#c9d1d9", weight: 2, fill: false },
@@ -16,15 +17,51 @@ const ROBOT_COLOR = "#58a6ff";
 
 function cssId(id) { return String(id).replace(/[^A-Za-z0-9_-]/g, "_"); }
 
+// A CRS whose coordinates are local metres ([y, x]) and whose pixels are web-mercator pixels.
+function localMercatorCrs(georeference) {
+  const f = mercatorFrame(georeference);
+  return L.Util.extend({}, L.CRS, {
+    code: "hrtls:local-mercator",
+    projection: {
+      project: (ll) => L.point(...f.toEastNorth(ll.lng, ll.lat)),
+      unproject: (p) => { const [x, y] = f.fromEastNorth(p.x, p.y); return L.latLng(y, x); },
+      bounds: L.bounds([-2e7, -2e7], [2e7, 2e7]),
+    },
+    transformation: L.transformation(...f.transformation),
+    distance: (a, b) => Math.hypot(b.lng - a.lng, b.lat - a.lat),
+    infinite: true,
+    zoomOffset: f.zoomOffset,
+  });
+}
+
 export class MapView {
   constructor(element, { onMapClick, onAgentClick }) {
-    this.map = L.map(element, {
-      crs: L.CRS.Simple, minZoom: -4, maxZoom: 7, zoomSnap: 0.25, attributionControl: false,
-    });
-    this.map.setView([0, 0], 2);
-    L.control.scale({ imperial: false, metric: true }).addTo(this.map);
+    this.element = element;
+    this.onMapClick = onMapClick;
     this.onAgentClick = onAgentClick;
-    this.map.on("click", (e) => onMapClick({ x: e.latlng.lng, y: e.latlng.lat }));
+    this.frameKey = null;
+    this.build(L.CRS.Simple, null);
+  }
+
+  // (Re)create the map in a CRS; Leaflet cannot change the CRS of a map.
+  build(crs, basemap) {
+    if (this.map) this.map.remove();
+    this.zoomOffset = crs.zoomOffset || 0;
+    const z = this.zoomOffset;
+    this.map = L.map(this.element, {
+      crs, minZoom: -4 + z, maxZoom: 7 + z, zoomSnap: 0.25, attributionControl: Boolean(basemap),
+    });
+    this.map.setView([0, 0], 2 + z);
+    if (basemap) {
+      this.baseLayer = L.tileLayer(basemap.url, {
+        maxNativeZoom: basemap.max_zoom, maxZoom: 7 + z, attribution: basemap.attribution,
+        className: "basemap",
+      }).addTo(this.map);
+    } else {
+      this.baseLayer = null;
+    }
+    L.control.scale({ imperial: false, metric: true }).addTo(this.map);
+    this.map.on("click", (e) => this.onMapClick({ x: e.latlng.lng, y: e.latlng.lat }));
     this.planLayer = L.layerGroup().addTo(this.map);
     this.infraLayer = L.layerGroup().addTo(this.map);
     this.nodeLayer = L.layerGroup().addTo(this.map);
@@ -33,8 +70,18 @@ export class MapView {
     this.agentLayer = L.layerGroup().addTo(this.map);
     this.focusLayer = L.layerGroup().addTo(this.map);
     this.agents = new Map();
-    this.floorplan = null;
+    this.infraKey = null;
     this.fitted = false;
+  }
+
+  // The mission's frame: on the base map when the mission is georeferenced and the service
+  // has a tile source, else local metres alone.
+  setFrame(georeference, basemap) {
+    const onTiles = Boolean(georeference && basemap);
+    const key = onTiles ? JSON.stringify([georeference, basemap]) : "simple";
+    if (key === this.frameKey) return;
+    this.frameKey = key;
+    this.build(onTiles ? localMercatorCrs(georeference) : L.CRS.Simple, onTiles ? basemap : null);
   }
 
   setLayerVisible(name, visible) {
@@ -44,14 +91,26 @@ export class MapView {
     if (visible) layer.addTo(this.map); else layer.remove();
   }
 
-  // GeoJSON FeatureCollection in local metres; properties.floor (int) and properties.kind.
-  setFloorplan(collection) {
+  // GeoJSON FeatureCollection in local metres (properties.floor, an int, and properties.kind)
+  // and the floors' plan images ({index, image: {url, bounds} | null}).
+  setFloorplan(collection, floors = []) {
     this.floorplan = collection;
+    this.floorImages = new Map(floors.filter((f) => f.image).map((f) => [f.index, f.image]));
     this.fitted = false;
   }
 
   drawFloor(floor) {
     this.planLayer.clearLayers();
+    const image = this.floorImages?.get(floor);
+    if (image) {
+      // the browser sends the session cookie with the image request (same origin)
+      L.imageOverlay(image.url, image.bounds, { className: "plan-image", opacity: 0.85 })
+        .addTo(this.planLayer);
+      if (!this.fitted) {
+        this.map.fitBounds(image.bounds, { padding: [20, 20] });
+        this.fitted = true;
+      }
+    }
     if (!this.floorplan) return;
     const features = (this.floorplan.features || []).filter(
       (f) => (f.properties?.floor ?? 0) === floor);
@@ -73,7 +132,7 @@ export class MapView {
   fitToPoints(points) {
     if (this.fitted || !points.length) return;
     const bounds = L.latLngBounds(points.map((p) => [p.y, p.x]));
-    this.map.fitBounds(bounds.pad(0.5), { maxZoom: 3 });
+    this.map.fitBounds(bounds.pad(0.5), { maxZoom: 3 + this.zoomOffset });
     this.fitted = true;
   }
 
@@ -222,7 +281,7 @@ export class MapView {
     if (est) {
       L.polygon(ellipseLatLngs(est.x, est.y, est.var_x, est.cov_xy, est.var_y, 2), {
         color: "#ffffff", weight: 2, fill: false, className: "focus-ellipse" }).addTo(this.focusLayer);
-      this.map.setView([est.y, est.x], Math.max(this.map.getZoom(), 3));
+      this.map.setView([est.y, est.x], Math.max(this.map.getZoom(), 3 + this.zoomOffset));
     }
   }
 
