@@ -9,7 +9,11 @@ gives:
 * estimate lag: wall time from an estimate's own time to its delta (includes the step
   detection of the tracker: a step is known when it ends);
 * lost (sent - acknowledged), duplicated (stored twice: the raw log's unique seq), 429 retries;
-* IMU samples per second stored, server memory per agent (RSS growth / N).
+* IMU samples per second stored, server memory per agent (RSS growth / N);
+* the machine's 1-minute load average at the end of the level (the machine is shared: a
+  load above its core count means the figures of that level are inflated by other jobs);
+* the server process's CPU time over the level's wall time, % of one core (less sensitive
+  to other jobs than the latencies).
 
 N is *sustained* when p99 latency <= 1 s with zero loss and duplicates. Bounded: each N runs
 ``--duration-s`` (default 60 s; the issue's figure is 300 s) and the whole run stops adding N
@@ -58,6 +62,12 @@ def rss_kib(pid: int) -> int:
         if line.startswith("VmRSS:"):
             return int(line.split()[1])
     return 0
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time of process ``pid``, s."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def start_server(db: str, port: int, engine: str, ray_shards: int, log: Path | None
@@ -192,6 +202,29 @@ def p(a: np.ndarray, q: float) -> float:
     return float(np.percentile(a, q)) if len(a) else float("nan")
 
 
+WARM_UP_S = 15.0
+
+
+def warm_up(tmp: Path, streams: list, args: argparse.Namespace) -> float:
+    """A short unreported level: the server compiles its kernels into the cache the measured
+    servers load them from (a cold cache made the first level tens of seconds late); s."""
+    start = time.time()
+    short = [(meta, [(t, b) for t, b in batches if t <= WARM_UP_S]) for meta, batches in streams]
+    port = free_port()
+    proc, token = start_server(str(tmp / "warm-up.db"), port, args.engine, args.ray_shards,
+                               args.server_log)
+    try:
+        asyncio.run(run_level(f"http://127.0.0.1:{port}", token, 2, short, WARM_UP_S))
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=60)
+    return time.time() - start
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--agents", default="5,10,20,40")
@@ -208,6 +241,7 @@ def main() -> None:
     began = time.time()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        print(f"warm-up level: {warm_up(Path(tmp), streams, args):.0f} s", flush=True)
         for n in levels:
             if time.time() - began > args.time_limit_s:
                 print(f"time limit reached before N={n}")
@@ -216,7 +250,7 @@ def main() -> None:
             proc, token = start_server(str(Path(tmp) / f"load{n}.db"), port, args.engine,
                                        args.ray_shards, args.server_log)
             try:
-                rss0 = rss_kib(proc.pid)
+                rss0, cpu0 = rss_kib(proc.pid), cpu_s(proc.pid)
                 try:
                     res = asyncio.run(run_level(f"http://127.0.0.1:{port}", token, n, streams,
                                                 args.duration_s))
@@ -224,7 +258,7 @@ def main() -> None:
                     print(f"| {n} | failed: {type(exc).__name__} (server overloaded) |",
                           flush=True)
                     break
-                rss1 = rss_kib(proc.pid)
+                rss1, cpu1 = rss_kib(proc.pid), cpu_s(proc.pid)
             finally:
                 proc.terminate()  # SIGTERM: the server also shuts its Ray runtime down
                 try:
@@ -243,21 +277,23 @@ def main() -> None:
                 and stored[0] == res["expected"]
             rows.append((n, p(lat, 50), p(lat, 99), float(lat.max()) if len(lat) else 0.0,
                          p(lag, 50), p(lag, 99), lost, dup, res["r429"],
-                         res["samples"] / args.duration_s, (rss1 - rss0) / n / 1024.0, ok))
+                         res["samples"] / args.duration_s, (rss1 - rss0) / n / 1024.0, ok,
+                         os.getloadavg()[0], 100.0 * (cpu1 - cpu0) / res["wall_s"]))
             r = rows[-1]
             print(f"| {r[0]} | {r[1]:.3f} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.2f} | {r[5]:.2f} | "
                   f"{r[6]} | {r[7]} | {r[8]} | {r[9]:.0f} | {r[10]:.1f} | "
-                  f"{'yes' if r[11] else 'no'} |  ({res['wall_s']:.0f} s)", flush=True)
+                  f"{'yes' if r[11] else 'no'} | {r[12]:.1f} | {r[13]:.0f} |  "
+                  f"({res['wall_s']:.0f} s)", flush=True)
     print()
     if args.engine == "ray":
         print("(MiB/agent is the server process only; with Ray the trackers live in the actors)")
     print("| agents | latency p50 s | p99 s | max s | estimate lag p50 s | p99 s | lost | dup |"
-          " 429 retries | IMU samples/s | MiB/agent | sustained |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          " 429 retries | IMU samples/s | MiB/agent | sustained | load 1 min | server CPU % |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r[0]} | {r[1]:.3f} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.2f} | {r[5]:.2f} | "
               f"{r[6]} | {r[7]} | {r[8]} | {r[9]:.0f} | {r[10]:.1f} | "
-              f"{'yes' if r[11] else 'no'} |")
+              f"{'yes' if r[11] else 'no'} | {r[12]:.1f} | {r[13]:.0f} |")
     best = max((r[0] for r in rows if r[11]), default=0)
     print(f"\nengine {args.engine}"
           + (f" ({args.ray_shards} shard actors)" if args.engine == "ray" else "")

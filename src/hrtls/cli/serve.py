@@ -11,7 +11,7 @@ from hrtls.cli.errors import reports_errors
 from hrtls.service.settings import Settings
 
 _FLAGS = {"cors_origins": "--cors-origin", "rate_per_agent_hz": "--rate-per-agent",
-          "rate_burst": "--rate-per-agent"}
+          "rate_burst": "--rate-per-agent", "token_cache_ttl_s": "--token-cache-ttl"}
 _D = {name: f.default for name, f in Settings.model_fields.items()}
 
 
@@ -33,6 +33,10 @@ def serve(
         "--queue-batches", help="Batches queued per agent before 429.")] = _D["queue_batches"],
     session_hours: Annotated[float, typer.Option(
         "--session-hours", help="Lifetime of a browser session.")] = _D["session_hours"],
+    token_cache_ttl: Annotated[float, typer.Option(
+        "--token-cache-ttl", help="Seconds a verified token is trusted without reading the "
+        "database (0: every request reads it); revocations through this service act at once.")
+    ] = _D["token_cache_ttl_s"],
     cors_origin: Annotated[list[str] | None, typer.Option(
         "--cors-origin", help="Allow this origin cross-site (repeatable; closed by default).")
     ] = None,
@@ -67,7 +71,7 @@ def serve(
         settings = Settings(db=db, host=host, port=port, publish_hz=publish_hz,
                             max_body_kib=max_body_kib, rate_per_agent_hz=rate_per_agent,
                             rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
-                            session_hours=session_hours,
+                            session_hours=session_hours, token_cache_ttl_s=token_cache_ttl,
                             cors_origins=tuple(cors_origin or ()),
                             tls=ssl_certfile is not None,
                             engine=cast("Literal['local', 'ray']", engine),

@@ -30,6 +30,7 @@ from hrtls.service.limits import BodyLimit, RateLimiter
 from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
+from hrtls.service.tokencache import TokenCache
 
 API_PREFIX = schemas.API_PREFIX
 log = logging.getLogger(__name__)
@@ -92,7 +93,9 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     services = Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
                         agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
                                                burst=settings.rate_burst, clock=clock),
-                        host=host, hub=hub, events=events)
+                        host=host, hub=hub, events=events,
+                        tokens=TokenCache(ttl_s=settings.token_cache_ttl_s,
+                                          max_entries=settings.token_cache_entries))
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 from fastapi import Depends, HTTPException, Request
+from fastapi.concurrency import run_in_threadpool
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -16,8 +17,9 @@ from hrtls.service.host import TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import RateLimiter
 from hrtls.service.models import Agent, Mission
-from hrtls.service.security import COOKIE_NAME, Principal, Role, lookup
+from hrtls.service.security import COOKIE_NAME, Principal, Role
 from hrtls.service.settings import Settings
+from hrtls.service.tokencache import TokenCache
 
 
 @dataclass
@@ -32,6 +34,7 @@ class Services:
     host: TrackerHost
     hub: Hub
     events: EventLog
+    tokens: TokenCache
     order_versions: dict[int, int] = field(default_factory=dict)
     _t0: dict[int, float] = field(default_factory=dict)
 
@@ -42,6 +45,15 @@ class Services:
                 mission = db.get(Mission, mission_id)
                 self._t0[mission_id] = 0.0 if mission is None else mission.t0_unix
         return self._t0[mission_id]
+
+    async def authenticate(self, secret: str) -> Principal | None:
+        """The principal of a valid secret; the database is read only on a cache miss."""
+        now = self.clock()
+        who = self.tokens.cached(secret, now_unix=now)
+        if who is None:
+            who = await run_in_threadpool(self.tokens.principal, self.sessions, secret,
+                                          now_unix=now)
+        return who
 
     def mission_time(self, mission_id: int) -> float:
         """Mission time now, s."""
@@ -87,7 +99,7 @@ class Services:
                 for m, kinds in per.items()]
 
 
-def get_services(request: Request) -> Services:
+async def get_services(request: Request) -> Services:
     """The service context of the application handling ``request``."""
     services: Services = request.app.state.services
     return services
@@ -113,7 +125,7 @@ def bearer_secret(authorization: str | None) -> str | None:
     return value.strip() if scheme.lower() == "bearer" and value.strip() else None
 
 
-def caller(request: Request, db: DbDep, services: ServicesDep) -> Principal:
+async def caller(request: Request, services: ServicesDep) -> Principal:
     """The principal of the request's bearer token or session cookie; 401 without one."""
     header = request.headers.get("authorization")
     secret = bearer_secret(header)
@@ -125,7 +137,7 @@ def caller(request: Request, db: DbDep, services: ServicesDep) -> Principal:
     if secret is None:
         raise HTTPException(401, "no token: send 'Authorization: Bearer <token>' or log in",
                             headers=UNAUTHORIZED)
-    principal = lookup(db, secret, now_unix=services.clock())
+    principal = await services.authenticate(secret)
     if principal is None:
         raise HTTPException(401, "token unknown, revoked or expired", headers=UNAUTHORIZED)
     return principal
@@ -134,10 +146,10 @@ def caller(request: Request, db: DbDep, services: ServicesDep) -> Principal:
 CallerDep = Annotated[Principal, Depends(caller)]
 
 
-def require(*roles: Role) -> Callable[[Principal], Principal]:
+def require(*roles: Role) -> Callable[[Principal], Awaitable[Principal]]:
     """A dependency admitting only callers with one of ``roles`` (403 for others)."""
 
-    def check(who: CallerDep) -> Principal:
+    async def check(who: CallerDep) -> Principal:
         if who.role not in roles:
             raise HTTPException(403, f"role {who.role!r} may not do this (needs "
                                      f"{' or '.join(roles)})")

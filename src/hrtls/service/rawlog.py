@@ -3,7 +3,8 @@
 Every accepted batch is stored before it is acknowledged. With one transaction per request, N
 agents mean N threads queueing for the database's write lock (SQLite has one writer) and N
 commits per batch period. Here the request threads hand their rows to one writer thread, which
-inserts everything that arrived meanwhile in one transaction and then answers each request.
+inserts everything that arrived meanwhile in one transaction (one executemany, no ORM objects)
+and then answers each request.
 A duplicate ``(agent_id, seq)`` in a group makes the writer retry that group row by row, so
 one duplicate never fails its neighbours.
 """
@@ -15,6 +16,7 @@ import threading
 from concurrent.futures import Future
 from dataclasses import dataclass
 
+from sqlalchemy import insert
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DbSession
 from sqlalchemy.orm import sessionmaker
@@ -35,11 +37,11 @@ class RawRow:
     content_type: str
     body: bytes
 
-    def model(self) -> RawBatch:
-        """A new ORM row of this batch."""
-        return RawBatch(agent_id=self.agent_id, seq=self.seq, received_unix=self.received_unix,
-                        t_first=self.t_first, t_last=self.t_last, source=self.source,
-                        content_type=self.content_type, body=self.body)
+    def values(self) -> dict[str, object]:
+        """The column values of this batch."""
+        return {"agent_id": self.agent_id, "seq": self.seq, "received_unix": self.received_unix,
+                "t_first": self.t_first, "t_last": self.t_last, "source": self.source,
+                "content_type": self.content_type, "body": self.body}
 
 
 class RawLogWriter:
@@ -107,7 +109,7 @@ class RawLogWriter:
     def _write_group(self, group: list[tuple[RawRow, Future[bool]]]) -> None:
         try:
             with self._sessions() as db, db.begin():
-                db.add_all([row.model() for row, _ in group])
+                db.execute(insert(RawBatch), [row.values() for row, _ in group])
         except IntegrityError:
             for row, done in group:
                 try:
@@ -125,7 +127,7 @@ class RawLogWriter:
     def _write_one(self, row: RawRow) -> bool:
         try:
             with self._sessions() as db, db.begin():
-                db.add(row.model())
+                db.execute(insert(RawBatch), [row.values()])
         except IntegrityError:
             return False
         return True

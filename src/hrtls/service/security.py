@@ -29,7 +29,11 @@ def digest(secret: str) -> str:
 
 @dataclass(frozen=True, slots=True)
 class Principal:
-    """Who makes a request: the token (or session) and what it may touch."""
+    """Who makes a request: the token (or session) and what it may touch.
+
+    ``parent_id`` is the token a session was opened with; ``expires_at`` the Unix time the
+    token or session ends (None: until revoked).
+    """
 
     token_id: int
     role: Role
@@ -37,6 +41,8 @@ class Principal:
     mission_id: int | None
     agent_id: int | None
     is_session: bool
+    parent_id: int | None = None
+    expires_at: float | None = None
 
 
 def issue(db: Session, *, role: Role, label: str, now_unix: float,
@@ -68,7 +74,7 @@ def lookup(db: Session, secret: str, *, now_unix: float) -> Principal | None:
             return None
     role: Role = row.role  # type: ignore[assignment]
     return Principal(row.id, role, row.label, row.mission_id, row.agent_id,
-                     row.kind == "session")
+                     row.kind == "session", parent_id=row.parent_id, expires_at=row.expires_at)
 
 
 def has_commander(db: Session) -> bool:

@@ -14,7 +14,10 @@ class Settings(BaseModel):
     """Everything a running service needs to know; immutable after start.
 
     ``db`` is a file path (SQLite, WAL mode) or an SQLAlchemy/psycopg URL
-    (``postgresql://user:pass@host/db``).
+    (``postgresql://user:pass@host/db``). ``token_cache_ttl_s`` is how long a verified token
+    is trusted without reading the database (0: read it on every request); a revocation
+    through this process's API takes effect at once, one made by another process after at
+    most this time.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -30,6 +33,8 @@ class Settings(BaseModel):
     snapshot_every_s: float = Field(default=30.0, gt=0.0)
     tracker_threads: int = Field(default=2, ge=1, le=64)
     session_hours: float = Field(default=12.0, gt=0.0)
+    token_cache_ttl_s: float = Field(default=5.0, ge=0.0, le=300.0)
+    token_cache_entries: int = Field(default=10_000, ge=1, le=1_000_000)
     cors_origins: tuple[str, ...] = ()
     tls: bool = False
     ws_auth_timeout_s: float = Field(default=5.0, gt=0.0)

@@ -8,7 +8,7 @@ from sqlalchemy import select
 from hrtls.service import schemas
 from hrtls.service.deps import AnyCaller, Commander, DbDep, ServicesDep
 from hrtls.service.models import Token
-from hrtls.service.security import COOKIE_NAME, digest, issue, lookup
+from hrtls.service.security import COOKIE_NAME, digest, issue
 from hrtls.service.views import token_out
 
 router = APIRouter(tags=["auth"])
@@ -25,7 +25,7 @@ def login(body: schemas.LoginIn, response: Response, db: DbDep,
           services: ServicesDep) -> schemas.WhoamiOut:
     """Exchange a commander/viewer token for a browser session cookie."""
     now = services.clock()
-    who = lookup(db, body.token, now_unix=now)
+    who = services.tokens.principal(services.sessions, body.token, now_unix=now)
     if who is None:
         raise HTTPException(401, "token unknown, revoked or expired",
                             headers={"WWW-Authenticate": "Bearer"})
@@ -33,7 +33,7 @@ def login(body: schemas.LoginIn, response: Response, db: DbDep,
         raise HTTPException(403, "only commander and viewer tokens can open a browser session")
     hours = services.settings.session_hours
     _, secret = issue(db, role=who.role, label=who.label, now_unix=now, kind="session",
-                        parent_id=who.token_id, expires_at=now + hours * 3600.0)
+                      parent_id=who.token_id, expires_at=now + hours * 3600.0)
     db.commit()
     response.set_cookie(COOKIE_NAME, secret, max_age=int(hours * 3600), httponly=True,
                         samesite="strict", secure=services.settings.tls, path="/")
@@ -50,17 +50,16 @@ def logout(request: Request, response: Response, db: DbDep, services: ServicesDe
         if row is not None and row.revoked_at is None:
             row.revoked_at = services.clock()
             db.commit()
+        if row is not None:
+            services.tokens.forget(row.id)
     response.delete_cookie(COOKIE_NAME, path="/", httponly=True, samesite="strict",
                            secure=services.settings.tls)
 
 
 @router.get("/auth/whoami", response_model=schemas.WhoamiOut)
-def whoami(who: AnyCaller, db: DbDep, services: ServicesDep) -> schemas.WhoamiOut:
+def whoami(who: AnyCaller, services: ServicesDep) -> schemas.WhoamiOut:
     """The caller (for a session: the token it was opened with; for an agent: mission time)."""
-    token_id = who.token_id
-    if who.is_session:
-        row = db.get(Token, who.token_id)
-        token_id = row.parent_id if row is not None and row.parent_id is not None else token_id
+    token_id = who.parent_id if who.is_session and who.parent_id is not None else who.token_id
     out = _whoami(token_id, who.role, who.label, who.mission_id, who.agent_id)
     if who.mission_id is not None:
         out.mission_t = services.mission_time(who.mission_id)
@@ -92,3 +91,4 @@ def revoke_token(token_id: int, who: Commander, db: DbDep, services: ServicesDep
     if row.revoked_at is None:
         row.revoked_at = services.clock()
         db.commit()
+    services.tokens.forget(token_id)

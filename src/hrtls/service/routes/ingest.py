@@ -19,7 +19,7 @@ from hrtls.service.batches import BatchError, decode_body, parse_batch, validati
 from hrtls.service.deps import UNAUTHORIZED, AgentCaller, Services, ServicesDep, bearer_secret
 from hrtls.service.host import Busy
 from hrtls.service.limits import retry_after_header
-from hrtls.service.routes.live import _lookup, authenticate, decode_ws
+from hrtls.service.routes.live import authenticate, decode_ws
 from hrtls.service.routes.orders import ReceiptIn, answer, deliver
 from hrtls.service.security import Principal
 
@@ -181,7 +181,7 @@ async def sensorlogger(request: Request, services: ServicesDep,
                        ) -> JSONResponse:
     """Sensor Logger's HTTP push (the app cannot set headers: the token may be a query)."""
     secret = bearer_secret(request.headers.get("authorization")) or token
-    who = None if secret is None else await run_in_threadpool(_lookup, services, secret)
+    who = None if secret is None else await services.authenticate(secret)
     if who is None:
         return JSONResponse({"detail": "token unknown, revoked or expired (Bearer or ?token=)"},
                             status_code=401, headers=UNAUTHORIZED)

@@ -25,7 +25,7 @@ from hrtls.service.deps import (
 from hrtls.service.host import row_dict
 from hrtls.service.models import EstimateRow, Mission
 from hrtls.service.picture import evenly, trail
-from hrtls.service.security import COOKIE_NAME, Principal, Role, lookup
+from hrtls.service.security import COOKIE_NAME, Principal, Role
 
 router = APIRouter(tags=["live"])
 
@@ -131,7 +131,7 @@ async def authenticate(ws: WebSocket, services: Services,
             await ws.close(4401, "first message must be {type: auth, token}")
             return None
         secret = msg["token"]
-    who = await run_in_threadpool(_lookup, services, secret)
+    who = await services.authenticate(secret)
     if who is None:
         await ws.close(4401, "token unknown, revoked or expired")
         return None
@@ -139,11 +139,6 @@ async def authenticate(ws: WebSocket, services: Services,
         await ws.close(4403, f"role {who.role!r} may not open this socket")
         return None
     return who
-
-
-def _lookup(services: Services, secret: str) -> Principal | None:
-    with services.sessions() as db:
-        return lookup(db, secret, now_unix=services.clock())
 
 
 def _mission_picture(services: Services, mission_id: int,
