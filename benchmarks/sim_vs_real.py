@@ -92,8 +92,8 @@ Stride = tuple[int, np.ndarray, float, float, float, float]
 """Speed group index, waveform, duration s, speed m/s, Weinberg K, vertical peak-to-peak."""
 
 
-def trial_strides(item: TrialItem) -> list[Stride]:
-    """The stride waveforms of one trial with a reference (none without one)."""
+def _trial_with_reference(item: TrialItem) -> tuple[Any, Any]:
+    """A mobgap trial and its reference (INDIP, else stereophotogrammetry; None when empty)."""
     from hrtls.datasets.mobgap import load_trial
 
     with warnings.catch_warnings():
@@ -102,7 +102,13 @@ def trial_strides(item: TrialItem) -> list[Stride]:
     ref = trial.reference.indip
     if ref is None or ref.is_empty:
         ref = trial.reference.stereophoto
-    if ref is None or ref.is_empty:
+    return trial, None if ref is None or ref.is_empty else ref
+
+
+def trial_strides(item: TrialItem) -> list[Stride]:
+    """The stride waveforms of one trial with a reference (none without one)."""
+    trial, ref = _trial_with_reference(item)
+    if ref is None:
         return []
     t, acc, gyr, _ = trial.session.imu.aligned()
     if gyr is None:
@@ -308,16 +314,9 @@ def heading_errors(batch: Batch, names: tuple[str, ...] = ("basso_test1", "basso
 
 def trial_amplitudes(item: TrialItem) -> list[tuple[float, float]]:
     """(stride speed m/s, vertical peak-to-peak m/s^2) of one trial's reference strides."""
-    from hrtls.datasets.mobgap import load_trial
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        trial = load_trial(item.root, item.participant, item.test, item.trial)
-    ref = trial.reference.indip
-    if ref is None or ref.is_empty:
-        ref = trial.reference.stereophoto
+    trial, ref = _trial_with_reference(item)
     t, acc, gyr, _ = trial.session.imu.aligned()
-    if ref is None or ref.is_empty or gyr is None:
+    if ref is None or gyr is None:
         return []
     q_bd = np.asarray(trial.session.meta.mounting_q_bd, dtype=np.float64)
     up = levelled_gait_signals(t, quat_rotate(q_bd, acc), quat_rotate(q_bd, gyr))[:, 2]

@@ -17,18 +17,11 @@ def track_batch(spec: str, output: Path, *, config: Path | None, preset_name: st
                 plot: bool, repair: bool, overwrite: bool, engine: str, workers: int | None,
                 ray_address: str | None) -> None:
     """Track every recording of ``spec`` into ``output``; print the summary table."""
+    from hrtls.cli.config import chosen_config
     from hrtls.jobs.batch import find_recordings, plan_batch, run_batch
-    from hrtls.pipeline import load_config, preset
     from hrtls.runner import make_engine
 
-    if config is not None and preset_name is not None:
-        raise InputError("both --config and --preset", where="hrtls track",
-                         expected="one of them")
-    # Fail on a bad configuration before any work starts.
-    if config is not None:
-        load_config(config)
-    else:
-        preset(preset_name or "default")
+    chosen_config(config, preset_name, command="hrtls track")  # a bad one fails before any work
     if output.exists() and not output.is_dir():
         raise InputError("exists and is not a folder", where=f"--output {output}",
                          expected="a folder for the batch results")

@@ -3,14 +3,35 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from hrtls.cli.errors import reports_errors
 
+if TYPE_CHECKING:
+    from hrtls.pipeline.config import TrackerConfig
+
 app = typer.Typer(no_args_is_help=True, add_completion=False,
                   help="Tracker configurations.")
+
+
+def chosen_config(config: Path | None, preset_name: str | None, *, command: str
+                  ) -> TrackerConfig:
+    """The configuration of ``--config FILE`` or ``--preset NAME`` (``default`` when neither).
+
+    Raises
+    ------
+    InputError
+        Both options given, an unknown preset, or a bad TOML file.
+    """
+    from hrtls.errors import InputError
+    from hrtls.pipeline.config import load_config, preset
+
+    if config is not None and preset_name is not None:
+        raise InputError("both --config and --preset", where=command,
+                         expected="at most one of them")
+    return load_config(config) if config is not None else preset(preset_name or "default")
 
 
 @app.callback()
@@ -27,11 +48,7 @@ def show(
         "--config", "-c", help="A TOML file (its unset keys take their defaults).")] = None,
 ) -> None:
     """Print every key with its effective value; edit it and pass it back with --config."""
-    from hrtls.errors import InputError
-    from hrtls.pipeline.config import load_config, preset, to_toml
+    from hrtls.pipeline.config import to_toml
 
-    if config is not None and preset_name is not None:
-        raise InputError("both --config and --preset", where="hrtls config show",
-                         expected="at most one of them")
-    cfg = load_config(config) if config is not None else preset(preset_name or "default")
-    typer.echo(to_toml(cfg), nl=False)
+    typer.echo(to_toml(chosen_config(config, preset_name, command="hrtls config show")),
+               nl=False)

@@ -177,6 +177,7 @@ def mission_track(
     """Track a mission folder offline: every agent's track, the dropped nodes, report.json."""
     from rich.console import Console
 
+    from hrtls.cli.config import chosen_config
     from hrtls.errors import InputError
     from hrtls.io.mission import read_mission
     from hrtls.jobs.mission import (
@@ -187,16 +188,12 @@ def mission_track(
     )
     from hrtls.jobs.warmup import mark_compiled
     from hrtls.mission.tracker import MissionParams
-    from hrtls.pipeline import load_config, preset
 
-    if config is not None and preset_name is not None:
-        raise InputError("both --config and --preset", where="hrtls mission track",
-                         expected="one of them")
+    cfg = chosen_config(config, preset_name, command="hrtls mission track")
     if not math.isfinite(chunk_s) or chunk_s <= 0:
         raise InputError(f"{chunk_s}", where="--chunk-s", expected="a window > 0 s")
     folder = read_mission(mission_dir, repair=repair)
     check_mission_output(list(folder.agents), output, overwrite=overwrite)
-    cfg = load_config(config) if config is not None else preset(preset_name or "default")
     console = Console(highlight=False)
     with console.status("tracking the mission"):
         run = track_mission(folder, config=cfg,

@@ -107,6 +107,7 @@ def track(
         raise EngineError("--engine, --workers and --ray-address are for batches",
                           where=str(session),
                           expected="a folder of recordings or a glob (one recording: no engine)")
+    from hrtls.cli.config import chosen_config
     from hrtls.cli.sim import report_table
     from hrtls.errors import InputError
     from hrtls.jobs.track import (
@@ -116,18 +117,14 @@ def track(
         track_recording,
         write_track_outputs,
     )
-    from hrtls.pipeline import load_config, preset
 
-    if config is not None and preset_name is not None:
-        raise InputError("both --config and --preset", where="hrtls track",
-                         expected="one of them")
+    cfg = chosen_config(config, preset_name, command="hrtls track")
     if format_out not in ("csv", "parquet"):
         raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
     if not session.exists():
         raise InputError("no such file or folder", where=str(session),
                          expected="a recording (session folder, zip, logfile, ...)")
     check_output_dir(output, overwrite=overwrite)
-    cfg = load_config(config) if config is not None else preset(preset_name or "default")
     with progress_bars(show_progress) as progress:
         run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
                               trial=trial, progress=progress)
