@@ -221,7 +221,7 @@ def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
 
 
 def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: float,
-                  heading_known: bool, has_imu: bool) -> np.ndarray:
+                  heading_known: bool, yaw_relative: bool, has_imu: bool) -> np.ndarray:
     """Parameter record of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
     cfg = config
     return ev.loop_params(
@@ -231,6 +231,6 @@ def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: 
         random_walk=parts.random_walk, floor_snap=cfg.floor_snap,
         floor_height_m=floor_height_m, floor_sigma_m=cfg.floor_sigma_m,
         gate_probability=cfg.gate_probability, heading_known=heading_known,
-        has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
+        yaw_relative=yaw_relative, has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
         scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,
         scan_sigma_position_m=cfg.rss.sigma_position_m)

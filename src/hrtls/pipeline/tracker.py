@@ -226,6 +226,8 @@ class Tracker:
                 StepScaleParams, cfg.prediction.step_scale)), gait=self.history,
             params=build.kernel_params(cfg, parts, floor_height_m=meta.floor_height_m,
                                        heading_known=pose.heading is not None,
+                                       yaw_relative=not (cfg.attitude.use_magnetometer
+                                                         and s.has_mag),
                                        has_imu=s.has_imu),
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
             t0=s.t0)
