@@ -60,7 +60,6 @@ from hrtls.data import (
     OrientationSeries,
     Session,
     SessionMeta,
-    StartPose,
     StepEvents,
     Trajectory,
 )
@@ -185,7 +184,7 @@ class Tracker:
         if not s.has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
                       "walk between observations")
-        pose = meta.start_pose or StartPose()
+        pose = meta.start_pose or build.unknown_start(cfg, self.landmarks, notes)
         # the agent is placed at the start pose's time; attitude and gait run from t0 so the
         # filters have converged by then, and earlier steps/observations are ignored for
         # position (counted in the notes at the end)
