@@ -95,6 +95,6 @@ def test_ble_track_without_start_pose_starts_among_the_anchors(shared_data) -> N
         res = Tracker(preset("default")).run(s)
     tr = res.trajectory
     assert tr.cov_xy is not None
-    assert np.sqrt(tr.cov_xy[0, 0, 0]) > 3.0   # the first row (one reading in) says how little is known
+    assert np.sqrt(tr.cov_xy[0, 0, 0]) > 3.0   # one reading in: still far from sure
     _, err = position_errors(tr, s.truth)
     assert float(np.percentile(err, 75)) < 3.5
