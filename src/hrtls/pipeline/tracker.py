@@ -79,6 +79,7 @@ from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
 from hrtls.pipeline.imu_stage import AttitudeStage, HeldImu, note_session_mounting, resolve_mounting
+from hrtls.pipeline.mounting import uses_handheld_mounting
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.schedule import EventSchedule, PoseGate, chunk_end
 from hrtls.pipeline.step_scale import StepScaleLearner, StepScaleParams
@@ -163,7 +164,8 @@ class Tracker:
         self.notes = notes = Notes()
         self._base = rep.empty_base()
         self._two_pass = False
-        self._mounting_pending = cfg.attitude.mounting == "handheld" and s.has_imu
+        self._mounting_pending = (uses_handheld_mounting(cfg.attitude.mounting, meta.placement)
+                                  and s.has_imu)
         if self._mounting_pending and fixed_mounting_acc is not None:
             meta = resolve_mounting(meta, fixed_mounting_acc, notes)
             self._mounting_pending = False
@@ -312,7 +314,8 @@ class Tracker:
         imu = session.imu
         offline_notes: list[tuple[bool, str]] = []
         acc_mount = hard_iron = None
-        if imu is not None and self.config.attitude.mounting == "handheld":
+        if imu is not None and uses_handheld_mounting(self.config.attitude.mounting,
+                                                      session.meta.placement):
             # the walk starts at the start pose: samples before it (phone lying or being
             # picked up) would bias the mean tilt
             pose_t = session.meta.start_pose.t if session.meta.start_pose is not None else None
