@@ -27,6 +27,8 @@ from hrtls.service.headers import SecurityHeaders, content_security_policy
 from hrtls.service.host import DECODERS, HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
+from hrtls.service.positions import SOURCES as POSITION_SOURCES
+from hrtls.service.positions import decode_position
 from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
@@ -82,6 +84,8 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     engine = make_engine(settings.db_url)
     migrate(engine)
     DECODERS.setdefault("sensorlogger", decode_sensorlogger)
+    for source in POSITION_SOURCES:
+        DECODERS.setdefault(source, decode_position)
     sessions = session_factory(engine)
     hub = Hub()
     events = EventLog(sessions, hub, clock)
@@ -125,11 +129,20 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, dashboard, ingest, live, missions, orders
+    from hrtls.service.routes import (
+        agents,
+        auth,
+        dashboard,
+        ingest,
+        live,
+        missions,
+        orders,
+        positions,
+    )
     from hrtls.service.routes import events as event_routes
 
-    for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
-                   event_routes.router, orders.router, dashboard.router):
+    for router in (auth.router, missions.router, agents.router, ingest.router, positions.router,
+                   live.router, event_routes.router, orders.router, dashboard.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])
