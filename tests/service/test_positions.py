@@ -8,6 +8,7 @@ import json
 import math
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -17,8 +18,10 @@ from tests.service.conftest import Live, new_agent, new_mission
 from tests.service.streams import API, stored
 from tests.service.test_ingest import wait_idle
 
+from hrtls.io.session import read_session
 from hrtls.service import positions as pos
 from hrtls.service.batches import BatchError
+from hrtls.service.missions import export_mission
 from hrtls.service.seqbook import ASSIGNED_SEQ_BASE
 
 LAT0, LON0 = 48.0, 11.0
@@ -102,8 +105,7 @@ def test_protocols_read_their_documented_fields() -> None:
     ([("batt", "140")], "batt = 140"),
 ])
 def test_osmand_query_refusals(pairs: list[tuple[str, str]], text: str) -> None:
-    base = dict([("id", "p"), ("timestamp", "1800000000"), ("lat", "48"), ("lon", "11"),
-                 ("accuracy", "5")])
+    base = {"id": "p", "timestamp": "1800000000", "lat": "48", "lon": "11", "accuracy": "5"}
     base.update(pairs)
     with pytest.raises(BatchError) as err:
         pos.osmand_query(list(base.items()))
@@ -111,7 +113,7 @@ def test_osmand_query_refusals(pairs: list[tuple[str, str]], text: str) -> None:
 
 
 def test_osmand_query_needs_accuracy_and_single_values() -> None:
-    with pytest.raises(BatchError, match="accuracy .horizontal accuracy, m. is required"):
+    with pytest.raises(BatchError, match=r"accuracy \(horizontal accuracy, m\) is required"):
         pos.osmand_query([("id", "p"), ("timestamp", "1800000000"), ("lat", "48"),
                           ("lon", "11")])
     with pytest.raises(BatchError, match="given twice"):
@@ -123,11 +125,11 @@ def test_osmand_query_needs_accuracy_and_single_values() -> None:
 def test_json_protocols_refuse_undocumented_fields() -> None:
     body = traccar_json(1.8e9, 48.0, 11.0, 6.0)
     body["location"]["coords"]["latitud"] = 1.0
-    with pytest.raises(BatchError, match="location.coords: unknown field.*'latitud'"):
+    with pytest.raises(BatchError, match=r"location\.coords: unknown field.*'latitud'"):
         pos.osmand_json(body)
     with pytest.raises(BatchError, match="one location object"):
         pos.osmand_json({"device_id": "x", "location": [body["location"]]})
-    with pytest.raises(BatchError, match="unknown field.*'secret'"):
+    with pytest.raises(BatchError, match=r"unknown field.*'secret'"):
         pos.owntracks({**owntracks_msg(1_800_000_000, 48.0, 11.0, 7), "secret": 1})
     with pytest.raises(BatchError, match="cannot decrypt"):
         pos.owntracks({"_type": "encrypted", "data": "..."})
@@ -300,8 +302,8 @@ def _walk(t0: float, n: int) -> list[tuple[float, float, float]]:
     return out
 
 
-def test_gnss_agent_tracked_and_restart_replays_equal(
-        make_live: Callable[..., Live]) -> None:
+def test_gnss_agent_tracked_restart_replays_equal_and_exports_fixes(
+        make_live: Callable[..., Live], tmp_path: Path) -> None:
     live = make_live(snapshot_every_s=1e6)   # no snapshot: the restart replays the whole log
     with live.client(live.commander) as c:
         mid, a, t0 = gnss_mission(c)
@@ -338,3 +340,21 @@ def test_gnss_agent_tracked_and_restart_replays_equal(
     np.testing.assert_array_equal(after["t"], before["t"])
     np.testing.assert_allclose(after["xy"], before["xy"], atol=1e-9)
     np.testing.assert_allclose(after["cov"], before["cov"], atol=1e-9)
+    # the export holds the fixes in time order, in mission metres
+    export_mission(again.settings.db_url, mid, tmp_path / "exp")
+    fixes = read_session(tmp_path / "exp" / f"agent-{aid}").fixes
+    assert fixes is not None and len(fixes) == len(walk)
+    np.testing.assert_allclose(fixes.t, [w[0] - t0 for w in walk], atol=1e-6)
+    want = np.array([_local(lat, lon) for _, lat, lon in walk])
+    np.testing.assert_allclose(fixes.xyz[:, :2], want, atol=0.01)
+    np.testing.assert_allclose(fixes.sigma_m, 6.0 / 1.50959, rtol=1e-4)
+
+
+def test_positions_rate_limited_with_retry_after(make_live: Callable[..., Live]) -> None:
+    live = make_live(rate_per_agent_hz=0.5, rate_burst=2)
+    with live.client(live.commander) as c:
+        _, a, t0 = gnss_mission(c)
+    with httpx.Client(base_url=live.url, timeout=30) as phone:
+        codes = [osmand_get(phone, a["token"], t0 + 5 + i, 48.0, 11.0) for i in range(3)]
+    assert [r.status_code for r in codes] == [200, 200, 429]
+    assert int(codes[2].headers["retry-after"]) >= 1

@@ -18,17 +18,14 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from hrtls import __version__
 from hrtls.service import schemas
-from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.events import EventLog
 from hrtls.service.headers import SecurityHeaders, content_security_policy
-from hrtls.service.host import DECODERS, HostParams, TrackerHost
+from hrtls.service.host import HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
-from hrtls.service.positions import SOURCES as POSITION_SOURCES
-from hrtls.service.positions import decode_position
 from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
@@ -83,9 +80,6 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     """The FastAPI application of one deployment (database migrated on start-up)."""
     engine = make_engine(settings.db_url)
     migrate(engine)
-    DECODERS.setdefault("sensorlogger", decode_sensorlogger)
-    for source in POSITION_SOURCES:
-        DECODERS.setdefault(source, decode_position)
     sessions = session_factory(engine)
     hub = Hub()
     events = EventLog(sessions, hub, clock)

@@ -24,11 +24,14 @@ from sqlalchemy.orm import sessionmaker
 
 from hrtls.data.session import SessionMeta
 from hrtls.pipeline.output import Estimates
+from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
 from hrtls.service.batches import Batch, BatchError, decode_body, parse_batch
 from hrtls.service.clock import Clock
 from hrtls.service.events import EventLog
 from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
+from hrtls.service.positions import SOURCES as POSITION_SOURCES
+from hrtls.service.positions import decode_position
 from hrtls.service.rawlog import RawLogWriter, RawRow
 from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
 from hrtls.service.seqbook import ASSIGNED_SEQ_BASE, SeqBook
@@ -43,8 +46,9 @@ def decode_batch(body: bytes, content_type: str) -> Batch:
     return parse_batch(decode_body(body, content_type))
 
 
-DECODERS: dict[str, Decoder] = {"batch": decode_batch}
-"""Raw-log ``source`` -> how its stored bodies become batches (adapters add theirs)."""
+DECODERS: dict[str, Decoder] = {"batch": decode_batch, "sensorlogger": decode_sensorlogger,
+                                 **dict.fromkeys(POSITION_SOURCES, decode_position)}
+"""Raw-log ``source`` -> how its stored bodies become batches (replay, export)."""
 
 REPLAY_PAGE = 200
 KEEP_SNAPSHOTS = 20
