@@ -302,9 +302,10 @@ def _walk(t0: float, n: int) -> list[tuple[float, float, float]]:
     return out
 
 
+@pytest.mark.parametrize("snapshot_every_s", [1e6, 15.0])   # whole log / from a snapshot
 def test_gnss_agent_tracked_restart_replays_equal_and_exports_fixes(
-        make_live: Callable[..., Live], tmp_path: Path) -> None:
-    live = make_live(snapshot_every_s=1e6)   # no snapshot: the restart replays the whole log
+        make_live: Callable[..., Live], tmp_path: Path, snapshot_every_s: float) -> None:
+    live = make_live(snapshot_every_s=snapshot_every_s)
     with live.client(live.commander) as c:
         mid, a, t0 = gnss_mission(c)
         aid = a["agent"]["id"]
@@ -331,7 +332,7 @@ def test_gnss_agent_tracked_restart_replays_equal_and_exports_fixes(
     last = before["xy"][-1]
     assert abs(last[0] - 1.2 * before["t"][-1] + 2.4) < 15.0   # follows the walk east
     live.stop()
-    again = make_live(snapshot_every_s=1e6)
+    again = make_live(snapshot_every_s=snapshot_every_s)
     wait_idle(again)
     time.sleep(0.3)
     with again.client(again.commander) as c:
