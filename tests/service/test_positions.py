@@ -224,8 +224,14 @@ def test_three_app_formats_become_fixes_numbered_by_the_service(
         r = phone.post(f"{API}/ingest", json={"seq": ASSIGNED_SEQ_BASE + 4, "sos": True},
                        headers={"Authorization": f"Bearer {token}"})
         assert r.status_code == 422 and "numbered by the service" in r.json()["detail"]
+        # Traccar Client's SOS button
+        r = osmand_get(phone, token, t0 + 13.0, 48.0005, 11.0, alarm="sos")
+        assert r.status_code == 200 and r.json()["seq"] == ASSIGNED_SEQ_BASE + 4, r.text
+    wait_idle(live)
     status = commander.get(f"{API}/missions/{mid}/agents/{aid}").json()["status"]
     assert status["battery"] == 0.6 and status["acked_through"] == 0
+    sos = commander.get(f"{API}/missions/{mid}/events", params={"kind": "sos"}).json()
+    assert [(e["agent"], e["severity"]) for e in sos] == [(aid, "alarm")]
 
 
 def test_duplicates_out_of_order_and_refusals(live: Live, commander: httpx.Client) -> None:
@@ -280,13 +286,17 @@ def test_duplicates_out_of_order_and_refusals(live: Live, commander: httpx.Clien
         r = phone.post(f"{API}/ingest/osmand", params={"token": token}, content=b"lat=1",
                        headers={"Content-Type": "text/plain"})
         assert r.status_code == 415
+        # a JSON body without Content-Type is still read as JSON
+        r = phone.post(f"{API}/ingest/osmand", params={"token": token},
+                       content=json.dumps(traccar_json(t20 + 5, 48.0, 11.0, 6.0)).encode())
+        assert r.status_code == 200 and r.json()["status"] == "accepted", r.text
         # another agent's token writes to that agent only
         r = osmand_get(phone, other["token"], t0 + 50.0, 48.0, 11.0)
         assert r.status_code == 200 and r.json()["seq"] == ASSIGNED_SEQ_BASE
     wait_idle(live)
     host = live.server.config.app.state.services.host
     mine = host.agent(a["agent"]["id"])
-    assert mine.assigned.highest == late["seq"] - ASSIGNED_SEQ_BASE
+    assert mine.assigned.highest == late["seq"] + 1 - ASSIGNED_SEQ_BASE
     assert host.agent(other["agent"]["id"]).assigned.highest == 0
 
 

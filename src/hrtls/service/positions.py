@@ -326,6 +326,6 @@ def same_position(body: bytes, position: Position) -> bool:
         position.time_unix, position.lat_deg, position.lon_deg)
 
 
-def now_iso(t_unix: float) -> str:
+def iso_time(t_unix: float) -> str:
     """ISO 8601 UTC of a Unix time (for messages)."""
     return datetime.fromtimestamp(t_unix, UTC).isoformat()

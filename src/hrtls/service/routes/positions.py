@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import threading
 from typing import Annotated, Any
+from urllib.parse import parse_qsl
 
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -65,7 +66,7 @@ def _stored_twin(services: Services, agent_id: int, t: float,
             return int(row.seq)
     if rows:
         raise HTTPException(409, f"a different position at the same device time "
-                                 f"{pos.now_iso(position.time_unix)} is stored already "
+                                 f"{pos.iso_time(position.time_unix)} is stored already "
                                  f"(seq {rows[0].seq})")
     return None
 
@@ -81,13 +82,13 @@ def accept_position(services: Services, who: Principal, protocol: str, text: str
     t0, georeference = _mission_frame(services, who.mission_id)
     now = services.clock()
     if position.time_unix > now + pos.PARAMS.max_future_s:
-        raise BatchError(422, f"time {pos.now_iso(position.time_unix)} is more than "
+        raise BatchError(422, f"time {pos.iso_time(position.time_unix)} is more than "
                               f"{pos.PARAMS.max_future_s:g} s ahead of the server clock "
-                              f"({pos.now_iso(now)}): check the phone's clock")
+                              f"({pos.iso_time(now)}): check the phone's clock")
     if position.time_unix < t0:
         return {"status": "ignored", **ignored,
-                "reason": f"time {pos.now_iso(position.time_unix)} is before the mission "
-                          f"started ({pos.now_iso(t0)})"}
+                "reason": f"time {pos.iso_time(position.time_unix)} is before the mission "
+                          f"started ({pos.iso_time(t0)})"}
     t = position.time_unix - t0
     source = pos.PROTOCOLS[protocol]
     with _agent_lock(who.agent_id):
@@ -102,8 +103,8 @@ def accept_position(services: Services, who: Principal, protocol: str, text: str
                                        content_type=pos.ENVELOPE_TYPE, source=source,
                                        assigned=True)
             if ack["status"] == "accepted":
-                return {**ack, "x": batch.fixes.x[0] if batch.fixes else None,
-                        "y": batch.fixes.y[0] if batch.fixes else None, "t": t, **ignored}
+                assert batch.fixes is not None
+                return {**ack, "t": t, "x": batch.fixes.x[0], "y": batch.fixes.y[0], **ignored}
 
 
 async def _ingest(request: Request, services: Services, token: str | None, protocol: str,
@@ -145,14 +146,13 @@ async def osmand(request: Request, services: ServicesDep, token: Token = None) -
         raise HTTPException(413, f"query of {len(query)} bytes; at most {MAX_MESSAGE_BYTES}")
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     text = await _body_text(request) if request.method == "POST" else ""
-    if kind == "application/json" and text.strip():
+    if text.strip() and (kind == "application/json"
+                         or (kind == "" and text.lstrip().startswith("{"))):
         ack = await _ingest(request, services, token, "osmand-json", text)
         return JSONResponse(ack)
     if text.strip() and kind not in ("application/x-www-form-urlencoded", ""):
         raise HTTPException(415, f"Content-Type {kind!r}: send query parameters, a form "
                                  "(application/x-www-form-urlencoded) or application/json")
-    from urllib.parse import parse_qsl
-
     pairs = parse_qsl(query, keep_blank_values=True) + parse_qsl(text, keep_blank_values=True)
     ack = await _ingest(request, services, token, "osmand-query", pos.query_text(pairs))
     return JSONResponse(ack)
