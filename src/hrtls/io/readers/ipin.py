@@ -63,7 +63,9 @@ from hrtls.data import (
     GeoreferenceModel,
     ImuStream,
     Landmark,
+    OrientationSeries,
     RssReadings,
+    SensorSeries,
     Session,
     SessionMeta,
     StartPose,
@@ -295,19 +297,8 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
     t_min = float(start.t[0]) if (trim_to_start and start is not None) else None
     offsets, offset = sensor_offsets(log)
     _note_clocks(offsets, offset, notes)
-    accel = sensor_series(log, "ACCE", offsets, repair=repair, t_min=t_min)
-    gyro = sensor_series(log, "GYRO", offsets, repair=repair, t_min=t_min)
-    mag = sensor_series(log, "MAGN", offsets, repair=repair, t_min=t_min)
-    pressure = sensor_series(log, "PRES", offsets, repair=repair, t_min=t_min,
-                             scale=HPA_TO_PA)
-    if pressure is not None:
-        notes.append("PRES converted from mbar to Pa")
-    imu = None
-    if accel is not None:
-        imu = ImuStream(accel, gyro, mag, check_units=check_units)
-    elif gyro is not None or mag is not None:
-        notes.append("GYRO/MAGN present but no ACCE: no IMU stream")
-    orient = orientation(log, offsets, accel, mag, repair=repair, t_min=t_min, notes=notes)
+    imu, pressure, orient = _inertial(log, offsets, notes, repair=repair, t_min=t_min,
+                                      check_units=check_units)
     georef, checkpoints = _ground_truth(start, meta, source, notes, label=label,
                                         trim_to_start=trim_to_start)
     beacon_data: tuple[bytes, str] | None = None
@@ -339,6 +330,26 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
                           expected="a logfile with sensor or radio records")
     return Session(meta=meta, imu=imu, pressure=pressure, orientation=orient, rss=rss,
                    tags=tags, landmarks=landmarks, checkpoints=checkpoints)
+
+
+def _inertial(log: IpinLog, offsets: dict[str, float], notes: list[str], *, repair: bool,
+              t_min: float | None, check_units: bool
+              ) -> tuple[ImuStream | None, SensorSeries | None, OrientationSeries | None]:
+    """IMU stream, pressure (Pa) and AHRS orientation on the app clock."""
+    accel = sensor_series(log, "ACCE", offsets, repair=repair, t_min=t_min)
+    gyro = sensor_series(log, "GYRO", offsets, repair=repair, t_min=t_min)
+    mag = sensor_series(log, "MAGN", offsets, repair=repair, t_min=t_min)
+    pressure = sensor_series(log, "PRES", offsets, repair=repair, t_min=t_min,
+                             scale=HPA_TO_PA)
+    if pressure is not None:
+        notes.append("PRES converted from mbar to Pa")
+    imu = None
+    if accel is not None:
+        imu = ImuStream(accel, gyro, mag, check_units=check_units)
+    elif gyro is not None or mag is not None:
+        notes.append("GYRO/MAGN present but no ACCE: no IMU stream")
+    orient = orientation(log, offsets, accel, mag, repair=repair, t_min=t_min, notes=notes)
+    return imu, pressure, orient
 
 
 def _note_clocks(offsets: dict[str, float], offset: float | None, notes: list[str]) -> None:
