@@ -402,15 +402,7 @@ def inertial_lowpass_kernel(
             mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
             if mn > 1e-6:
                 dip = math.asin(min(1.0, max(-1.0, -m2 / mn)))
-                if aux[K.AUX_MREF_SET] < 0.5:
-                    aux[K.AUX_MREF_N] = prm[K.PRM_MAG_REF_N] \
-                        if math.isfinite(prm[K.PRM_MAG_REF_N]) else mn
-                    aux[K.AUX_MREF_DIP] = prm[K.PRM_MAG_REF_DIP] \
-                        if math.isfinite(prm[K.PRM_MAG_REF_DIP]) else dip
-                    aux[K.AUX_MCAND_N] = mn
-                    aux[K.AUX_MCAND_DIP] = dip
-                    aux[K.AUX_MCAND_T] = 0.0
-                    aux[K.AUX_MREF_SET] = 1.0
+                if K.first_field(aux, prm, mn, dip):
                     x[MN] = mn
                     x[MDIP] = dip
                 _mag_disturbance(x, aux, prm, mn, dip, rate, dt, gn, gd)
@@ -456,10 +448,8 @@ def inertial_lowpass_kernel(
         Q.set_q(x, QA, aw, ax, ay, az)
         # ---- output q = R_z(delta) * q_acc * q_gyr
         w, qx, qy, qz = Q.qmul(hc, 0.0, 0.0, hs, sw, sx, sy, sz)
-        qn = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
-        if w < 0.0:
-            qn = -qn
-        Q.write_q(out_q, i, w / qn, qx / qn, qy / qn, qz / qn)
+        w, qx, qy, qz = Q.positive_unit(w, qx, qy, qz)
+        Q.write_q(out_q, i, w, qx, qy, qz)
         out_var[i, 0] = x[VTILT]
         out_var[i, 1] = x[VTILT]
         out_var[i, 2] = x[VHEAD]

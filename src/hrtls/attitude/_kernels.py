@@ -174,6 +174,24 @@ def init_rest(aux: FloatArray, g0: float, g1: float, g2: float, a0: float, a1: f
 
 
 @numba.njit(inline="always", **JIT)
+def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
+    """Learn the reference field (norm ``n``, uT, and ``dip``, rad) at its first sample.
+
+    The given reference (``PRM_MAG_REF_*``) wins where it is finite; the candidate starts at
+    the sample. Returns True when this was the first sample (nothing changes otherwise).
+    """
+    if aux[AUX_MREF_SET] > 0.5:
+        return False
+    aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
+    aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
+    aux[AUX_MCAND_N] = n
+    aux[AUX_MCAND_DIP] = dip
+    aux[AUX_MCAND_T] = 0.0
+    aux[AUX_MREF_SET] = 1.0
+    return True
+
+
+@numba.njit(inline="always", **JIT)
 def mag_gate(
     aux: FloatArray, prm: FloatArray, mx: float, my: float, mz: float,
     ux: float, uy: float, uz: float, dt: float,
@@ -203,13 +221,7 @@ def mag_gate(
     aux[AUX_MPREV + 1] = my
     aux[AUX_MPREV + 2] = mz
     aux[AUX_MPREV_OK] = 1.0
-    if aux[AUX_MREF_SET] < 0.5:
-        aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
-        aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
-        aux[AUX_MCAND_N] = n
-        aux[AUX_MCAND_DIP] = dip
-        aux[AUX_MCAND_T] = 0.0
-        aux[AUX_MREF_SET] = 1.0
+    first_field(aux, prm, n, dip)
     # candidate tracking: a field that stays put for long enough becomes the reference
     gn = prm[PRM_MAG_NORM_GATE]
     gd = prm[PRM_MAG_DIP_GATE]

@@ -149,6 +149,15 @@ def heading_from_mag(
 
 
 @numba.njit(inline="always", **JIT)
+def positive_unit(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+    """``q / |q|`` with the sign chosen so that ``w >= 0``."""
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if w < 0.0:
+        n = -n
+    return w / n, x / n, y / n, z / n
+
+
+@numba.njit(inline="always", **JIT)
 def gyro_quat_step(
     w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, dt: float
 ) -> tuple[float, float, float, float]:
@@ -159,10 +168,7 @@ def gyro_quat_step(
     c, sc = cos_sinc(0.5 * math.sqrt(wx * wx + wy * wy + wz * wz) * dt)
     sk = 0.5 * dt * sc
     w, x, y, z = qmul(w, x, y, z, c, sk * wx, sk * wy, sk * wz)
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    if w < 0.0:
-        n = -n
-    return w / n, x / n, y / n, z / n
+    return positive_unit(w, x, y, z)
 
 
 @numba.njit(inline="always", **JIT)
