@@ -60,6 +60,7 @@ def ble_rows(log: IpinLog, *, repair: bool, t_min: float | None
 
 
 def check_rss(rss: FloatArray, lines: IntArray, label: str) -> None:
+    """Refuse a received power outside [-150, 30] dBm, naming its line."""
     bad = np.isfinite(rss) & ((rss > 30.0) | (rss < -150.0))
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
@@ -102,6 +103,7 @@ def wifi_rows(log: IpinLog, *, repair: bool, t_min: float | None
 
 
 def rfid_detections(log: IpinLog, *, repair: bool, t_min: float | None) -> TagDetections | None:
+    """RFID rows on the app clock: the tag id of each read."""
     rows, lines = log.get("RFID")
     if not rows:
         return None

@@ -169,6 +169,7 @@ def sensor_offsets(log: IpinLog) -> tuple[dict[str, float], float | None]:
 
 def trim(t: FloatArray, cols: list[np.ndarray], t_min: float | None
           ) -> tuple[FloatArray, list[np.ndarray]]:
+    """``t`` and the columns without the rows before ``t_min`` (None: all rows)."""
     if t_min is None:
         return t, cols
     keep = t >= t_min
@@ -177,6 +178,7 @@ def trim(t: FloatArray, cols: list[np.ndarray], t_min: float | None
 
 def sensor_series(log: IpinLog, kind: str, offsets: dict[str, float], *, repair: bool,
                    t_min: float | None, scale: float = 1.0) -> SensorSeries | None:
+    """The x, y, z (or pressure) values of ``kind`` times ``scale`` on the app clock."""
     rows, _ = log.get(kind)
     if not rows:
         return None
@@ -194,6 +196,7 @@ def sensor_series(log: IpinLog, kind: str, offsets: dict[str, float], *, repair:
 def orientation(log: IpinLog, offsets: dict[str, float], accel: SensorSeries | None,
                  mag: SensorSeries | None, *, repair: bool, t_min: float | None,
                  notes: list[str]) -> OrientationSeries | None:
+    """The AHRS rotation vectors as ``q_nd``, their reading checked against the data."""
     rows, _ = log.get("AHRS")
     if not rows:
         return None
@@ -222,6 +225,8 @@ def orientation(log: IpinLog, offsets: dict[str, float], accel: SensorSeries | N
 
 @dataclass
 class Posi:
+    """POSI records: time (s), WGS-84 latitude/longitude (deg), floor and counter label."""
+
     t: FloatArray
     lat: FloatArray
     lon: FloatArray
@@ -230,6 +235,7 @@ class Posi:
 
 
 def posi(log: IpinLog) -> Posi | None:
+    """The POSI records, checked (finite, in range, in time order; never repaired)."""
     rows, lines = log.get("POSI")
     if not rows:
         return None
