@@ -35,11 +35,10 @@ import numpy as np
 
 from _engine import Batch, add_engine_options
 from hrtls.frames import quat_rotate
-from hrtls.sim.gait_model import (
+from hrtls.sim.gait_model import GaitParams, simulate_gait
+from hrtls.sim.gait_waveforms import (
     GAIT_SIGNAL_COLUMNS,
-    GaitParams,
     levelled_gait_signals,
-    simulate_gait,
     stride_waveforms,
     waveform_harmonics,
 )

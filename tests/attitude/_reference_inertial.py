@@ -13,8 +13,8 @@ import math
 import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
 
+from hrtls.attitude import _inertial_lowpass_kernel as ILK
 from hrtls.attitude import _kernels as K
-from hrtls.attitude import inertial_lowpass as IL
 
 from ._reference import _read, init_q, mag_gate, qmul, rest_and_bias, rot_h
 
@@ -58,10 +58,10 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
     dt_gain = 0.0
     gains = {}
     P = np.zeros((3, 3))
-    sig0 = prm[IL._B_SIG0]
+    sig0 = prm[ILK.B_SIG0]
     gn, gd = prm[K.PRM_MAG_NORM_GATE], prm[K.PRM_MAG_DIP_GATE]
-    r_tilt, r_head = prm[IL._TILT_SIG] ** 2, prm[IL._HEAD_SIG] ** 2
-    walk2 = prm[IL._WALK] ** 2
+    r_tilt, r_head = prm[ILK.TILT_SIG] ** 2, prm[ILK.HEAD_SIG] ** 2
+    walk2 = prm[ILK.WALK] ** 2
     det = {}
     lp_ok = False
     v_tilt = v_head = math.pi ** 2
@@ -105,17 +105,17 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
         if abs(dt - dt_gain) > 0.01 * dt_gain:
             dt_gain = dt
             if lp_a is None:
-                lp_a = _Lowpass(prm[IL._TAU_ACC], dt, 3)
-                lp_r = _Lowpass(prm[IL._TAU_ACC], dt, 9)
-                lp_rb = _Lowpass(prm[IL._TAU_ACC], dt, 3)
+                lp_a = _Lowpass(prm[ILK.TAU_ACC], dt, 3)
+                lp_r = _Lowpass(prm[ILK.TAU_ACC], dt, 9)
+                lp_rb = _Lowpass(prm[ILK.TAU_ACC], dt, 3)
             for f in (lp_a, lp_r, lp_rb):
-                f.retune(prm[IL._TAU_ACC], dt)
+                f.retune(prm[ILK.TAU_ACC], dt)
             gains = {k: 1 - math.exp(-dt / prm[idx]) for k, idx in (
-                ("acc", IL._TAU_ACC), ("mag", IL._TAU_MAG), ("cur", IL._M_CUR_TAU),
-                ("ref", IL._M_REF_TAU))}
+                ("acc", ILK.TAU_ACC), ("mag", ILK.TAU_MAG), ("cur", ILK.M_CUR_TAU),
+                ("ref", ILK.M_REF_TAU))}
         for r in range(3):
             if P[r, r] < sig0 ** 2:
-                P[r, r] += math.radians(0.1) ** 2 / prm[IL._B_FORGET] * dt
+                P[r, r] += math.radians(0.1) ** 2 / prm[ILK.B_FORGET] * dt
         use_a = acc_fin
         k_tilt = 0.0
         if acc_fin:
@@ -142,22 +142,22 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
                 use_a = False
             H = lp_r.step(R6.ravel()).reshape(3, 3)
             lrb = lp_rb.step(R6 @ b)
-            if prm[IL._BIAS_EST] > 0.5 and used_gyr:
-                v = math.radians(0.1) ** 2 / prm[IL._B_FORGET] * dt
+            if prm[ILK.BIAS_EST] > 0.5 and used_gyr:
+                v = math.radians(0.1) ** 2 / prm[ILK.B_FORGET] * dt
                 if rest:
                     Hm, y = np.eye(3), aux[K.AUX_LP:K.AUX_LP + 3] - b
-                    W = np.eye(3) * (prm[IL._B_SIG_REST] ** 4 / v + prm[IL._B_SIG_REST] ** 2)
+                    W = np.eye(3) * (prm[ILK.B_SIG_REST] ** 4 / v + prm[ILK.B_SIG_REST] ** 2)
                 elif use_a:
                     Hm = H
                     y = np.r_[-wc[:2], 0.0] + lrb - H @ b
-                    wm = prm[IL._B_SIG_MOT] ** 4 / v + prm[IL._B_SIG_MOT] ** 2
-                    W = np.diag([wm, wm, wm / prm[IL._B_VERT]])
+                    wm = prm[ILK.B_SIG_MOT] ** 4 / v + prm[ILK.B_SIG_MOT] ** 2
+                    W = np.diag([wm, wm, wm / prm[ILK.B_VERT]])
                 else:
                     Hm = None
                 if Hm is not None:
                     S = Hm @ P @ Hm.T + W
                     Kg = P @ Hm.T @ np.linalg.inv(S)
-                    clip = prm[IL._B_CLIP]
+                    clip = prm[ILK.B_CLIP]
                     aux[K.AUX_BIAS:K.AUX_BIAS + 3] = np.clip(b + Kg @ y, -clip, clip)
                     P = P - Kg @ Hm @ P
         k_head = 0.0
@@ -180,24 +180,24 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
                 cn, cd = det["n"], det["dip"]
                 if abs(cn - aux[K.AUX_MREF_N]) < gn and abs(cd - aux[K.AUX_MREF_DIP]) < gd:
                     det["und"] += dt
-                    if det["und"] >= prm[IL._M_UNDIST]:
+                    if det["und"] >= prm[ILK.M_UNDIST]:
                         det["dist"] = 0.0
                         aux[K.AUX_MREF_N] += gains["ref"] * (cn - aux[K.AUX_MREF_N])
                         aux[K.AUX_MREF_DIP] += gains["ref"] * (cd - aux[K.AUX_MREF_DIP])
                 else:
                     det["und"], det["dist"] = 0.0, 1.0
                 if abs(cn - aux[K.AUX_MCAND_N]) < gn and abs(cd - aux[K.AUX_MCAND_DIP]) < gd:
-                    if rate >= prm[IL._M_NEW_RATE]:
+                    if rate >= prm[ILK.M_NEW_RATE]:
                         aux[K.AUX_MCAND_T] += dt
                         aux[K.AUX_MCAND_N] += gains["ref"] * (cn - aux[K.AUX_MCAND_N])
                         aux[K.AUX_MCAND_DIP] += gains["ref"] * (cd - aux[K.AUX_MCAND_DIP])
                         if det["dist"] > 0.5 and (
                                 aux[K.AUX_MCAND_T] >= prm[K.PRM_MAG_NEW_S]
                                 or (det["first"] > 0.5
-                                    and aux[K.AUX_MCAND_T] >= prm[IL._M_NEW_FIRST])):
+                                    and aux[K.AUX_MCAND_T] >= prm[ILK.M_NEW_FIRST])):
                             aux[K.AUX_MREF_N] = aux[K.AUX_MCAND_N]
                             aux[K.AUX_MREF_DIP] = aux[K.AUX_MCAND_DIP]
-                            det["und"], det["dist"], det["first"] = prm[IL._M_UNDIST], 0.0, 0.0
+                            det["und"], det["dist"], det["first"] = prm[ILK.M_UNDIST], 0.0, 0.0
                 else:
                     aux[K.AUX_MCAND_N], aux[K.AUX_MCAND_DIP] = cn, cd
                     aux[K.AUX_MCAND_T] = 0.0
@@ -205,13 +205,13 @@ def inertial_lowpass_reference(t, acc, gyr, mag, prm, has_gyr=True, has_mag=True
                 if det["init"] > 0.5:
                     k_head = max(k_head, 1.0 / det["init"])
                 if det["dist"] > 0.5:
-                    if det["rej"] <= prm[IL._M_MAX_REJ]:
+                    if det["rej"] <= prm[ILK.M_MAX_REJ]:
                         det["rej"] += dt
                         k_head = 0.0
                     else:
-                        k_head /= prm[IL._M_REJ_FACTOR]
+                        k_head /= prm[ILK.M_REJ_FACTOR]
                 else:
-                    det["rej"] = max(det["rej"] - prm[IL._M_REJ_FACTOR] * dt, 0.0)
+                    det["rej"] = max(det["rej"] - prm[ILK.M_REJ_FACTOR] * dt, 0.0)
                 if k_head > 0 and mE[0] ** 2 + mE[1] ** 2 > 1e-12:
                     delta = _wrap(delta + k_head * _wrap(
                         math.pi / 2 - math.atan2(mE[1], mE[0]) - delta))

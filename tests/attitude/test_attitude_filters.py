@@ -29,6 +29,7 @@ from hrtls.attitude import (
     make_filter,
 )
 from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
 from hrtls.data import ImuStream, SensorSeries
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_angle_between, quat_from_euler, quat_to_rotation
@@ -324,22 +325,22 @@ def test_kernel_helpers():
         q = rng.normal(size=4)
         v = rng.normal(size=3)
         jac = np.empty((3, 4))
-        K.rot_t_jacobian(*q, *v, jac)
+        Q.rot_t_jacobian(*q, *v, jac)
         np.testing.assert_allclose(
             jac, ref.complex_step_jacobian(lambda qq, v=v: ref.rot_h(qq).T @ v, q), atol=1e-12)
         w = rng.normal(size=3)
         phi = np.empty((4, 4))
-        K.transition(*w, 0.01, phi)
+        Q.transition(*w, 0.01, phi)
         from scipy.linalg import expm
         np.testing.assert_allclose(phi, expm(ref.omega(w) * 0.01), atol=1e-14)
         a = rng.normal(size=3)
         a /= np.linalg.norm(a)
-        q0 = np.array(K.shortest_arc_to_up(*a))
+        q0 = np.array(Q.shortest_arc_to_up(*a))
         np.testing.assert_allclose(ref.rot_h(q0) @ a, [0, 0, 1], atol=1e-12)
-    np.testing.assert_allclose(K.shortest_arc_to_up(0.0, 0.0, -1.0), [0, 1, 0, 0])
+    np.testing.assert_allclose(Q.shortest_arc_to_up(0.0, 0.0, -1.0), [0, 1, 0, 0])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        np.testing.assert_allclose(K.heading_from_mag(1, 0, 0, 0, 0.0, 0.0, 5.0), [1, 0, 0, 0])
+        np.testing.assert_allclose(Q.heading_from_mag(1, 0, 0, 0, 0.0, 0.0, 5.0), [1, 0, 0, 0])
 
 
 @pytest.mark.parametrize("method", ALL)
@@ -374,11 +375,11 @@ def test_gyro_quat_step_matches_transition():
         q /= np.linalg.norm(q)
         q *= np.sign(q[0])
         w = rng.normal(size=3) * rng.choice([1e-4, 1.0, 20.0])
-        K.transition(*w, 0.01, phi)
+        Q.transition(*w, 0.01, phi)
         expected = phi @ q
         expected /= np.linalg.norm(expected) * np.sign(expected[0])
-        np.testing.assert_allclose(K.gyro_quat_step(*q, *w, 0.01), expected, atol=1e-14)
-        np.testing.assert_allclose(K.gyro_quat_step.py_func(*q, *w, 0.01), expected,
+        np.testing.assert_allclose(Q.gyro_quat_step(*q, *w, 0.01), expected, atol=1e-14)
+        np.testing.assert_allclose(Q.gyro_quat_step.py_func(*q, *w, 0.01), expected,
                                    atol=1e-14)
 
 

@@ -15,7 +15,7 @@ from hrtls.attitude import (
     InertialLowpassParams,
     make_filter,
 )
-from hrtls.attitude import inertial_lowpass as IL
+from hrtls.attitude import _inertial_lowpass_kernel as ILK
 from hrtls.errors import InputError
 from hrtls.evaluate.orientation import orientation_errors
 from hrtls.frames import GRAVITY_M_S2, quat_angle_between, quat_from_euler, quat_rotate
@@ -59,12 +59,12 @@ def test_matches_slow_reference(case):
 def test_butterworth_gains_match_scipy():
     for tau, dt in ((3.0, 0.01), (0.5, 1 / 286.0), (10.0, 0.05)):
         prm = InertialLowpassParams(tau_acc_s=tau).kernel_array()
-        x = np.zeros(IL._NX)
-        IL._set_gains.py_func(x, prm, dt)
+        x = np.zeros(ILK.NX)
+        ILK._set_gains.py_func(x, prm, dt)
         b, a = butter(2, math.sqrt(2) / (2 * math.pi * tau), fs=1 / dt)
-        np.testing.assert_allclose([x[IL._CB0], 2 * x[IL._CB0], x[IL._CB0]], b, rtol=1e-12)
-        np.testing.assert_allclose([1.0, x[IL._CA1], x[IL._CA2]], a, rtol=1e-12)
-        assert x[IL._KMAG] == pytest.approx(1 - math.exp(-dt / 9.0))
+        np.testing.assert_allclose([x[ILK.CB0], 2 * x[ILK.CB0], x[ILK.CB0]], b, rtol=1e-12)
+        np.testing.assert_allclose([1.0, x[ILK.CA1], x[ILK.CA2]], a, rtol=1e-12)
+        assert x[ILK.KMAG] == pytest.approx(1 - math.exp(-dt / 9.0))
 
 
 # ------------------------------------------------------------------------------ physics

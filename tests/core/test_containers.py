@@ -133,6 +133,26 @@ def test_trajectory_and_steps_validate():
     assert list(s.activity) == [Activity.WALKING, Activity.UPSTAIRS]
 
 
+def test_steps_select_and_concatenate_keep_every_column():
+    a = StepEvents.build(t_start=[0.0, 0.5, 1.0], t_end=[0.5, 1.0, 1.5],
+                         length_m=[0.6, 0.7, 0.8], heading_rad=[0.1, 0.2, 0.3],
+                         dz_m=[0.0, 0.17, 0.0], activity=["walking", "upstairs", "standing"],
+                         frequency_hz=[2.0, 2.0, 1.9], acc_max=[3.0, 4.0, 5.0],
+                         acc_min=[-3.0, -4.0, -5.0])
+    kept = a.select(np.array([True, False, True]))
+    assert kept.t_start.tolist() == [0.0, 1.0]
+    assert kept.dz_m.tolist() == [0.0, 0.0]
+    assert kept.acc_min.tolist() == [-3.0, -5.0]
+    b = StepEvents.build(t_start=[2.0], t_end=[2.6], length_m=[0.5])
+    both = StepEvents.concatenate([kept, b])
+    assert len(both) == 3
+    assert both.length_m.tolist() == [0.6, 0.8, 0.5]
+    assert list(both.activity) == [Activity.WALKING, Activity.STANDING, Activity.WALKING]
+    assert np.isnan(both.heading_rad[2]) and both.heading_rad[:2].tolist() == [0.1, 0.3]
+    with pytest.raises(InputError):  # the parts must stay in time order
+        StepEvents.concatenate([b, kept])
+
+
 def test_activity_parse_errors_name_index():
     with pytest.raises(InputError, match="index 1"):
         activity_codes(["walking", "flying"])

@@ -15,13 +15,8 @@ from scipy.spatial.transform import Rotation
 
 from hrtls.errors import InputError
 from hrtls.frames import GRAVITY_M_S2, quat_conjugate, quat_from_euler, quat_rotate
-from hrtls.sim.gait_model import (
-    GaitParams,
-    levelled_gait_signals,
-    simulate_gait,
-    stride_waveforms,
-    waveform_harmonics,
-)
+from hrtls.sim.gait_model import GaitParams, simulate_gait
+from hrtls.sim.gait_waveforms import levelled_gait_signals, stride_waveforms, waveform_harmonics
 from hrtls.sim.imu_model import body_kinematics, ideal_imu
 from hrtls.sim.motion_truth import Waypoint, simulate_motion
 

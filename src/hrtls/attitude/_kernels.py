@@ -1,4 +1,4 @@
-"""Compiled helpers shared by the attitude filters (quaternions, gates, rest detection).
+"""State layout and per-sample steps shared by the attitude filters (gates, rest detection).
 
 Every filter keeps three plain float64 arrays as its state: ``x`` (its own state vector),
 ``P`` (its covariance, or an empty array) and ``aux`` (the bookkeeping below, the same layout for
@@ -7,25 +7,22 @@ part are the ``PRM_*`` constants, the filter-specific part starts at :data:`PRM_
 
 Conventions (see :mod:`hrtls.frames`): quaternions ``[w, x, y, z]``, Hamilton product, ``q``
 rotates device vectors into ENU; specific force at rest is ``+g`` on the navigation z axis.
+Quaternion helpers are in :mod:`~hrtls.attitude._quaternion`, the EKF linear algebra in
+:mod:`~hrtls.attitude._ekf_update`, the compile options in :mod:`~hrtls.attitude._jit`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import namedtuple
-from collections.abc import Callable
 from typing import Any
 
 import numba
 import numpy as np
 
+from hrtls.attitude._jit import JIT
+from hrtls.attitude._quaternion import heading_from_mag, rot, rot_t, shortest_arc_to_up, write_q
 from hrtls.frames import FloatArray
-
-FASTMATH = {"reassoc", "contract", "arcp", "nsz"}
-"""LLVM fast-math flags of the kernels: reassociation and fused multiply-add, but NaN and inf
-keep their IEEE meaning (the gates test for them)."""
-JIT: dict[str, Any] = {"cache": True, "fastmath": FASTMATH, "error_model": "numpy"}
-"""Options of every compiled attitude kernel."""
 
 # ------------------------------------------------------------------------------------------
 # aux layout (bookkeeping shared by every filter)
@@ -94,140 +91,8 @@ def new_aux(bias0: FloatArray) -> FloatArray:
 
 
 # ------------------------------------------------------------------------------------------
-# quaternion helpers (scalar first, Hamilton)
+# gates, rest detection and initialisation
 # ------------------------------------------------------------------------------------------
-@numba.njit(inline="always", **JIT)
-def qmul(
-    aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
-) -> tuple[float, float, float, float]:
-    """Hamilton product ``a * b``."""
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-@numba.njit(inline="always", **JIT)
-def rot_t(
-    w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
-) -> tuple[float, float, float]:
-    """``R(q)^T v`` with the homogeneous rotation matrix (exact for unit ``q``)."""
-    return (
-        (w * w + x * x - y * y - z * z) * v0 + 2.0 * (x * y + w * z) * v1
-        + 2.0 * (x * z - w * y) * v2,
-        2.0 * (x * y - w * z) * v0 + (w * w - x * x + y * y - z * z) * v1
-        + 2.0 * (y * z + w * x) * v2,
-        2.0 * (x * z + w * y) * v0 + 2.0 * (y * z - w * x) * v1
-        + (w * w - x * x - y * y + z * z) * v2,
-    )
-
-
-@numba.njit(inline="always", **JIT)
-def rot(
-    w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
-) -> tuple[float, float, float]:
-    """``R(q) v`` for a unit quaternion (device -> navigation)."""
-    return rot_t(w, -x, -y, -z, v0, v1, v2)
-
-
-Row3 = tuple[float, float, float]
-Row4 = tuple[float, float, float, float]
-
-
-@numba.njit(inline="always", **JIT)
-def rot_t_jac(
-    w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
-) -> tuple[Row4, Row4, Row4]:
-    """``d(R(q)^T v)/dq`` (3 x 4, columns w, x, y, z) as three row tuples."""
-    return (
-        (2.0 * (w * v0 + z * v1 - y * v2), 2.0 * (x * v0 + y * v1 + z * v2),
-         2.0 * (-y * v0 + x * v1 - w * v2), 2.0 * (-z * v0 + w * v1 + x * v2)),
-        (2.0 * (-z * v0 + w * v1 + x * v2), 2.0 * (y * v0 - x * v1 + w * v2),
-         2.0 * (x * v0 + y * v1 + z * v2), 2.0 * (-w * v0 - z * v1 + y * v2)),
-        (2.0 * (y * v0 - x * v1 + w * v2), 2.0 * (z * v0 - w * v1 - x * v2),
-         2.0 * (w * v0 + z * v1 - y * v2), 2.0 * (x * v0 + y * v1 + z * v2)),
-    )
-
-
-@numba.njit(**JIT)
-def rot_t_jacobian(
-    w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float, out: FloatArray
-) -> None:
-    """Write ``d(R(q)^T v)/dq`` (3 x 4, columns w, x, y, z) into ``out``."""
-    jac = rot_t_jac(w, x, y, z, v0, v1, v2)
-    for j in range(3):
-        for b in range(4):
-            out[j, b] = jac[j][b]
-
-
-@numba.njit(inline="always", **JIT)
-def cos_sinc(a: float) -> tuple[float, float]:
-    """``cos(a)`` and ``sin(a)/a``; Taylor series below 0.1 rad (error < 1e-16)."""
-    if abs(a) < 0.1:
-        a2 = a * a
-        c = 1.0 - a2 / 2.0 * (1.0 - a2 / 12.0 * (1.0 - a2 / 30.0 * (1.0 - a2 / 56.0)))
-        sc = 1.0 - a2 / 6.0 * (1.0 - a2 / 20.0 * (1.0 - a2 / 42.0 * (1.0 - a2 / 72.0)))
-        return c, sc
-    return math.cos(a), math.sin(a) / a
-
-
-@numba.njit(inline="always", **JIT)
-def transition(wx: float, wy: float, wz: float, dt: float, phi: FloatArray) -> None:
-    """``Phi = exp(Omega dt)`` for ``dq/dt = Omega q = q * [0, w] / 2`` (Inderst eq. 4.10-4.12).
-
-    ``Omega`` is skew, so the exponential is ``cos(a) I + sin(a)/|w| * 2 Omega`` with
-    ``a = |w| dt / 2``.
-    """
-    n = math.sqrt(wx * wx + wy * wy + wz * wz)
-    c, sc = cos_sinc(0.5 * n * dt)
-    # sin(a)/|w| = sinc(a) dt / 2 (the 2 of 2 Omega cancels the 1/2 inside Omega)
-    s = sc * 0.5 * dt
-    phi[0, 0] = c
-    phi[0, 1] = -s * wx
-    phi[0, 2] = -s * wy
-    phi[0, 3] = -s * wz
-    phi[1, 0] = s * wx
-    phi[1, 1] = c
-    phi[1, 2] = s * wz
-    phi[1, 3] = -s * wy
-    phi[2, 0] = s * wy
-    phi[2, 1] = -s * wz
-    phi[2, 2] = c
-    phi[2, 3] = s * wx
-    phi[3, 0] = s * wz
-    phi[3, 1] = s * wy
-    phi[3, 2] = -s * wx
-    phi[3, 3] = c
-
-
-@numba.njit(**JIT)
-def shortest_arc_to_up(ax: float, ay: float, az: float) -> tuple[float, float, float, float]:
-    """Quaternion rotating the unit vector ``a`` onto ``+z`` by the shortest arc.
-
-    Our reading of Inderst eq. 4.13 (initial tilt from the specific force at rest): the axis is
-    ``a x e_z`` and ``cos(angle) = a_z``, so ``q = [1 + a_z, a_y, -a_x, 0] / norm``.
-    """
-    w = 1.0 + az
-    if w < 1e-9:  # upside down: half turn about x
-        return 0.0, 1.0, 0.0, 0.0
-    n = math.sqrt(w * w + ay * ay + ax * ax)
-    return w / n, ay / n, -ax / n, 0.0
-
-
-@numba.njit(**JIT)
-def heading_from_mag(
-    w: float, x: float, y: float, z: float, mx: float, my: float, mz: float
-) -> tuple[float, float, float, float]:
-    """Rotate ``q`` about the vertical so the horizontal field of ``m`` points north (+y ENU)."""
-    nx, ny, _ = rot(w, x, y, z, mx, my, mz)
-    if nx * nx + ny * ny < 1e-18:
-        return w, x, y, z
-    ang = 0.5 * math.pi - math.atan2(ny, nx)
-    c = math.cos(0.5 * ang)
-    s = math.sin(0.5 * ang)
-    return qmul(c, 0.0, 0.0, s, w, x, y, z)
 
 
 @numba.njit(inline="always", **JIT)
@@ -309,6 +174,24 @@ def init_rest(aux: FloatArray, g0: float, g1: float, g2: float, a0: float, a1: f
 
 
 @numba.njit(inline="always", **JIT)
+def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
+    """Learn the reference field (norm ``n``, uT, and ``dip``, rad) at its first sample.
+
+    The given reference (``PRM_MAG_REF_*``) wins where it is finite; the candidate starts at
+    the sample. Returns True when this was the first sample (nothing changes otherwise).
+    """
+    if aux[AUX_MREF_SET] > 0.5:
+        return False
+    aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
+    aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
+    aux[AUX_MCAND_N] = n
+    aux[AUX_MCAND_DIP] = dip
+    aux[AUX_MCAND_T] = 0.0
+    aux[AUX_MREF_SET] = 1.0
+    return True
+
+
+@numba.njit(inline="always", **JIT)
 def mag_gate(
     aux: FloatArray, prm: FloatArray, mx: float, my: float, mz: float,
     ux: float, uy: float, uz: float, dt: float,
@@ -338,13 +221,7 @@ def mag_gate(
     aux[AUX_MPREV + 1] = my
     aux[AUX_MPREV + 2] = mz
     aux[AUX_MPREV_OK] = 1.0
-    if aux[AUX_MREF_SET] < 0.5:
-        aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
-        aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
-        aux[AUX_MCAND_N] = n
-        aux[AUX_MCAND_DIP] = dip
-        aux[AUX_MCAND_T] = 0.0
-        aux[AUX_MREF_SET] = 1.0
+    first_field(aux, prm, n, dip)
     # candidate tracking: a field that stays put for long enough becomes the reference
     gn = prm[PRM_MAG_NORM_GATE]
     gd = prm[PRM_MAG_DIP_GATE]
@@ -380,130 +257,6 @@ def init_attitude(
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     return w, x, y, z
-
-
-@numba.njit(inline="always", **JIT)
-def nav_rotation_var(
-    w: float, x: float, y: float, z: float, P: FloatArray, out: FloatArray, i: int
-) -> None:
-    """Variances of the small rotation about the ENU axes implied by a quaternion covariance.
-
-    ``dtheta_n = 2 vec(dq * conj(q)) = 2 M dq``; writes ``diag(4 M P M^T)`` to ``out[i]``.
-    """
-    m = ((-x, w, -z, y), (-y, z, w, -x), (-z, -y, x, w))
-    for r in range(3):
-        row = m[r]
-        acc = 0.0
-        for a in range(4):
-            pa = 0.0
-            for b in range(4):
-                pa += P[a, b] * row[b]
-            acc += row[a] * pa
-        out[i, r] = 4.0 * acc
-
-
-@numba.njit(inline="always", **JIT)
-def sym3_inverse(
-    s00: float, s01: float, s02: float, s11: float, s12: float, s22: float
-) -> tuple[bool, float, float, float, float, float, float]:
-    """Inverse of a symmetric positive definite 3 x 3 matrix by cofactors (upper triangle).
-
-    Returns False and zeros when the determinant is not positive.
-    """
-    c00 = s11 * s22 - s12 * s12
-    c01 = s02 * s12 - s01 * s22
-    c02 = s01 * s12 - s02 * s11
-    det = s00 * c00 + s01 * c01 + s02 * c02
-    if not det > 0.0:
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    inv = 1.0 / det
-    return (True, c00 * inv, c01 * inv, c02 * inv, (s00 * s22 - s02 * s02) * inv,
-            (s01 * s02 - s00 * s12) * inv, (s00 * s11 - s01 * s01) * inv)
-
-
-def make_block3(n: int, m: int) -> Callable[..., bool]:
-    """Compile the 3-row block update for ``n`` states of which the first ``m`` are measured.
-
-    ``H`` is zero beyond column ``m`` (e.g. the gyro bias is not measured directly); fixed
-    sizes let LLVM unroll the loops.
-    """
-
-    # closures of one qualname must not share a cache entry: no cache
-    @numba.njit(inline="always", fastmath=FASTMATH, error_model="numpy")
-    def update(
-        P: FloatArray, dx: FloatArray, H: Any, r0: float, r1: float, r2: float, var: float,
-        ph: FloatArray,
-    ) -> bool:
-        """EKF update with a 3-row measurement block, linearised at the prediction.
-
-        ``dx`` is the correction accumulated so far from earlier blocks (all blocks share one
-        linearisation point), so consecutive blocks equal one stacked update (eq. 4.19 / Colombo
-        eq. 8-11): ``S = H P H^T + var I``, ``K = P H^T S^-1``, ``dx += K (r - H dx)``,
-        ``P -= K H P``. ``H`` is a tuple of three rows, each a tuple of ``m`` values (held in
-        registers); ``ph`` is an (n, 3) work array. Returns False (nothing changed) when ``S``
-        is not positive definite.
-        """
-        H0, H1, H2 = H
-        for a in range(n):
-            acc0 = 0.0
-            acc1 = 0.0
-            acc2 = 0.0
-            for b in range(m):
-                pab = P[a, b]
-                acc0 += pab * H0[b]
-                acc1 += pab * H1[b]
-                acc2 += pab * H2[b]
-            ph[a, 0] = acc0
-            ph[a, 1] = acc1
-            ph[a, 2] = acc2
-        s00 = var
-        s01 = 0.0
-        s02 = 0.0
-        s11 = var
-        s12 = 0.0
-        s22 = var
-        e0 = r0
-        e1 = r1
-        e2 = r2
-        for a in range(m):
-            h0 = H0[a]
-            h1 = H1[a]
-            h2 = H2[a]
-            s00 += h0 * ph[a, 0]
-            s01 += h0 * ph[a, 1]
-            s02 += h0 * ph[a, 2]
-            s11 += h1 * ph[a, 1]
-            s12 += h1 * ph[a, 2]
-            s22 += h2 * ph[a, 2]
-            e0 -= h0 * dx[a]
-            e1 -= h1 * dx[a]
-            e2 -= h2 * dx[a]
-        ok, i00, i01, i02, i11, i12, i22 = sym3_inverse(s00, s01, s02, s11, s12, s22)
-        if not ok:
-            return False
-        for a in range(n):
-            p0 = ph[a, 0]
-            p1 = ph[a, 1]
-            p2 = ph[a, 2]
-            k0 = p0 * i00 + p1 * i01 + p2 * i02
-            k1 = p0 * i01 + p1 * i11 + p2 * i12
-            k2 = p0 * i02 + p1 * i12 + p2 * i22
-            dx[a] += k0 * e0 + k1 * e1 + k2 * e2
-            # P[a, b] -= K[a, :] . ph[b, :]; the upper triangle, mirrored afterwards
-            for b in range(a, n):
-                P[a, b] -= k0 * ph[b, 0] + k1 * ph[b, 1] + k2 * ph[b, 2]
-        for a in range(n):
-            for b in range(a):
-                P[a, b] = P[b, a]
-        return True
-
-    return update
-
-
-block3_update = make_block3(3, 3)
-"""Block update for 3 states (the Euler EKF); see ``make_block3``."""
-block3_update7 = make_block3(7, 4)
-"""Block update for 7 states (the quaternion EKF with bias)."""
 
 
 # ------------------------------------------------------------------------------------------
@@ -661,15 +414,6 @@ def horizontal_unit(
     return z0, z1, z2, math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
 
 
-@numba.njit(inline="always", **JIT)
-def write_q(out_q: FloatArray, i: int, w: float, x: float, y: float, z: float) -> None:
-    """``out_q[i] = q``."""
-    out_q[i, 0] = w
-    out_q[i, 1] = x
-    out_q[i, 2] = y
-    out_q[i, 3] = z
-
-
 @numba.njit(**JIT)
 def write_uninit(out_q: FloatArray, out_var: FloatArray, out_flags: Any, i: int) -> None:
     """Output of a sample before initialisation: identity, variance pi^2 (when kept), no flags."""
@@ -679,38 +423,3 @@ def write_uninit(out_q: FloatArray, out_var: FloatArray, out_flags: Any, i: int)
         out_var[i, 1] = math.pi ** 2
         out_var[i, 2] = math.pi ** 2
     out_flags[i] = 0
-
-
-@numba.njit(inline="always", **JIT)
-def update_finite(dx: FloatArray, P: FloatArray) -> bool:
-    """The correction and the variances of an EKF update are all finite."""
-    ok = True
-    for r in range(dx.shape[0]):
-        ok = ok and math.isfinite(dx[r]) and math.isfinite(P[r, r])
-    return ok
-
-
-@numba.njit(inline="always", **JIT)
-def gyro_quat_step(
-    w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, dt: float
-) -> tuple[float, float, float, float]:
-    """Gyro step of the attitude, normalised with ``w >= 0`` (Inderst eq. 4.10-4.12).
-
-    ``exp(Omega dt) q = q * [cos(a), sin(a) w / |w|]`` with ``a = |w| dt / 2``.
-    """
-    c, sc = cos_sinc(0.5 * math.sqrt(wx * wx + wy * wy + wz * wz) * dt)
-    sk = 0.5 * dt * sc
-    w, x, y, z = qmul(w, x, y, z, c, sk * wx, sk * wy, sk * wz)
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    if w < 0.0:
-        n = -n
-    return w / n, x / n, y / n, z / n
-
-
-@numba.njit(inline="always", **JIT)
-def set_q(v: FloatArray, k: int, w: float, x: float, y: float, z: float) -> None:
-    """``v[k:k + 4] = q`` (a quaternion inside a state vector)."""
-    v[k] = w
-    v[k + 1] = x
-    v[k + 2] = y
-    v[k + 3] = z

@@ -42,6 +42,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
+from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.attitude.fqa import fqa_quaternion
 from hrtls.frames import FloatArray
@@ -90,7 +92,7 @@ class ComplementaryParams(CommonParams):
                 self.bias_max_rad_s)
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _blend(
     gam: float, sw: float, sx: float, sy: float, sz: float,
     dw: float, dx: float, dy: float, dz: float,
@@ -106,7 +108,7 @@ def _blend(
     return w / n, x / n, y / n, z / n
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def complementary_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, aux: FloatArray, out_q: FloatArray,
@@ -127,7 +129,7 @@ def complementary_kernel(
                 out_extra[i, 0] = 0.0
                 out_extra[i, 1] = 0.0
                 continue
-            K.set_q(x, 0, w, qx, qy, qz)
+            Q.set_q(x, 0, w, qx, qy, qz)
             gam_a = 1.0
             gam_m = 1.0 if flags & K.FLAG_MAG else 0.0
         else:
@@ -139,7 +141,7 @@ def complementary_kernel(
                 flags |= gflags
                 wx, wy, wz = K.unbiased_rate(aux, s)
                 rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-                dw, dxx, dy, dz = K.gyro_quat_step(x[0], x[1], x[2], x[3], wx, wy, wz, dt)
+                dw, dxx, dy, dz = Q.gyro_quat_step(x[0], x[1], x[2], x[3], wx, wy, wz, dt)
             else:
                 dw = x[0]
                 dxx = x[1]
@@ -153,12 +155,12 @@ def complementary_kernel(
             if use_a:
                 gam_a = (1.0 - math.exp(-step / prm[_TAU_A])) * trust \
                     * (1.0 - s.acc_dev / prm[K.PRM_ACC_GATE])
-                pn0, pn1, pn2 = K.rot_t(w, qx, qy, qz, 0.0, 1.0, 0.0)
+                pn0, pn1, pn2 = Q.rot_t(w, qx, qy, qz, 0.0, 1.0, 0.0)
                 sw, sx, sy, sz = fqa_quaternion(s.a0, s.a1, s.a2, pn0, pn1, pn2)
                 w, qx, qy, qz = _blend(gam_a, sw, sx, sy, sz, w, qx, qy, qz)
             # ---- heading blend: FQA(vertical of q, m) vs q
             tw, tx, ty, tz = w, qx, qy, qz
-            ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
+            ux, uy, uz = Q.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
             use_m = s.mag_fin and K.mag_gate(aux, prm, s.m0, s.m1, s.m2, ux, uy, uz, dt)
             if use_m:
                 m0 = s.m0
@@ -176,12 +178,12 @@ def complementary_kernel(
             # leak into the tilt through the bias)
             if (flags & K.FLAG_GYR) and (gam_a > 0.0 or gam_m > 0.0) \
                     and prm[K.PRM_BIAS_EST] > 0.5:
-                ew, ex, ey, ez = K.qmul(dw, -dxx, -dy, -dz, tw, tx, ty, tz)
+                ew, ex, ey, ez = Q.qmul(dw, -dxx, -dy, -dz, tw, tx, ty, tz)
                 sgn = 2.0 if ew >= 0.0 else -2.0
                 c0 = sgn * ex
                 c1 = sgn * ey
                 c2 = sgn * ez
-                ew, ex, ey, ez = K.qmul(tw, -tx, -ty, -tz, w, qx, qy, qz)
+                ew, ex, ey, ez = Q.qmul(tw, -tx, -ty, -tz, w, qx, qy, qz)
                 sgn = 2.0 if ew >= 0.0 else -2.0
                 hv = sgn * (ex * ux + ey * uy + ez * uz)
                 c0 += hv * ux
@@ -194,8 +196,8 @@ def complementary_kernel(
                 aux[K.AUX_BIAS + 2] = min(bmax, max(-bmax, aux[K.AUX_BIAS + 2] - c2 * kb))
             if w < 0.0:
                 w, qx, qy, qz = -w, -qx, -qy, -qz
-            K.set_q(x, 0, w, qx, qy, qz)
-        K.write_q(out_q, i, x[0], x[1], x[2], x[3])
+            Q.set_q(x, 0, w, qx, qy, qz)
+        Q.write_q(out_q, i, x[0], x[1], x[2], x[3])
         out_flags[i] = flags
         out_extra[i, 0] = gam_a
         out_extra[i, 1] = gam_m

@@ -54,7 +54,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.attitude import _ekf_update as EK
 from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
+from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
@@ -149,13 +152,13 @@ class EulerEkfParams(CommonParams):
                 self.rate_ref_rad_s, self.dyn_acc_window_s, self.dyn_acc_corr_s)
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _wrap(a: float) -> float:
     """Wrap to (-pi, pi]."""
     return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _euler_to_quat(r: float, p: float, y: float) -> tuple[float, float, float, float]:
     cr = math.cos(0.5 * r)
     sr = math.sin(0.5 * r)
@@ -172,7 +175,7 @@ def _euler_to_quat(r: float, p: float, y: float) -> tuple[float, float, float, f
     return w, x, yy, z
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     sp = max(-1.0, min(1.0, 2.0 * (w * y - z * x)))
@@ -181,7 +184,7 @@ def _quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float
     return roll, pitch, yaw
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _sincos(w: float, x: float, y: float, z: float
             ) -> tuple[float, float, float, float, float, float]:
     """``sin/cos`` of roll, pitch, yaw of a unit quaternion, from its rotation matrix."""
@@ -197,7 +200,7 @@ def _sincos(w: float, x: float, y: float, z: float
     return r21 / cp, r22 / cp, sp, cp, r10 / cp, r00 / cp
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _reset_cov(P: FloatArray, prm: FloatArray) -> None:
     """``P(0) = p0 I``."""
     for r in range(3):
@@ -205,7 +208,7 @@ def _reset_cov(P: FloatArray, prm: FloatArray) -> None:
             P[r, c] = prm[_P0] if r == c else 0.0
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def euler_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,
@@ -284,7 +287,7 @@ def euler_ekf_kernel(
                 F[2, 2] = 1.0
                 if exact:
                     # R+ = R(theta) exp([w]x dt): quaternion step, back to angles
-                    cw, cx, cy_, cz = K.gyro_quat_step(cw, cx, cy_, cz, wx, wy, wz, dt)
+                    cw, cx, cy_, cz = Q.gyro_quat_step(cw, cx, cy_, cz, wx, wy, wz, dt)
                     x[0], x[1], x[2] = _quat_to_euler(cw, cx, cy_, cz)
                 else:
                     # eq. 5
@@ -330,7 +333,7 @@ def euler_ekf_kernel(
                     jac = ((0.0, -g * cp, 0.0),
                            (g * cp * cr, -g * sp * sr, 0.0),
                            (-g * cp * sr, -g * sp * cr, 0.0))
-                    use_a = K.block3_update(P, dx, jac, s.a0 - g * ux, s.a1 - g * uy,
+                    use_a = EK.block3_update(P, dx, jac, s.a0 - g * ux, s.a1 - g * uy,
                                             s.a2 - g * uz,
                                             prm[_QG] * (1.0 + rate2 * acc_rate_k) + q_dyn,
                                             ph)
@@ -342,7 +345,7 @@ def euler_ekf_kernel(
                     jac = ((0.0, -sy * sp, cy * cp),
                            (sy * sp * cr - cy * sr, sy * cp * sr, cy * sp * sr - sy * cr),
                            (-sy * sp * sr - cy * cr, sy * cp * cr, cy * sp * cr + sy * sr))
-                    use_m = K.block3_update(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
+                    use_m = EK.block3_update(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
                                             z2 / zn - h2, prm[_QN], ph)
                 if use_y:
                     # eta_z = C theta, C = [0, 0, 1] (eq. 1, 10)
@@ -361,7 +364,7 @@ def euler_ekf_kernel(
                             val = P[r, c] - kk[r] * pp[c]
                             P[r, c] = val
                             P[c, r] = val
-                if K.update_finite(dx, P):
+                if EK.update_finite(dx, P):
                     x[0] = _wrap(x[0] + dx[0])
                     x[1] += dx[1]
                     x[2] = _wrap(x[2] + dx[2])
@@ -379,8 +382,8 @@ def euler_ekf_kernel(
                     _reset_cov(P, prm)
             flags = K.count_used(aux, flags, use_a, use_m, has_mag)
             if moved:
-                K.set_q(x, 3, cw, cx, cy_, cz)
-        K.write_q(out_q, i, x[3], x[4], x[5], x[6])
+                Q.set_q(x, 3, cw, cx, cy_, cz)
+        Q.write_q(out_q, i, x[3], x[4], x[5], x[6])
         out_var[i, 0] = P[0, 0]
         out_var[i, 1] = P[1, 1]
         out_var[i, 2] = P[2, 2]

@@ -20,7 +20,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
+from hrtls.attitude._jit import JIT
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
@@ -29,7 +30,7 @@ __all__ = ["fqa", "fqa_quaternion"]
 _EPS = 1e-9
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _half(c: float, s: float) -> tuple[float, float]:
     """``cos(a/2), sin(a/2)`` from ``cos a, sin a`` (sign of the sine kept, 0 -> +)."""
     ch = math.sqrt(max(0.0, 0.5 * (1.0 + c)))
@@ -39,7 +40,7 @@ def _half(c: float, s: float) -> tuple[float, float]:
     return ch, sh
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def fqa_quaternion(
     a0: float, a1: float, a2: float, m0: float, m1: float, m2: float
 ) -> tuple[float, float, float, float]:
@@ -65,20 +66,20 @@ def fqa_quaternion(
     cph, sph = _half(cp, sp)
     crh, srh = _half(cr, sr)
     # q_pr = q_pitch * q_roll
-    w, x, y, z = K.qmul(cph, 0.0, sph, 0.0, crh, srh, 0.0, 0.0)
+    w, x, y, z = Q.qmul(cph, 0.0, sph, 0.0, crh, srh, 0.0, 0.0)
     # level the field: m_l = R(q_pr) m
-    lx, ly, _ = K.rot(w, x, y, z, m0, m1, m2)
+    lx, ly, _ = Q.rot(w, x, y, z, m0, m1, m2)
     hn = math.sqrt(lx * lx + ly * ly)
     if hn < _EPS:
         return w, x, y, z
     cyh, syh = _half(ly / hn, lx / hn)
-    w, x, y, z = K.qmul(cyh, 0.0, 0.0, syh, w, x, y, z)
+    w, x, y, z = Q.qmul(cyh, 0.0, 0.0, syh, w, x, y, z)
     if w < 0.0:
         return -w, -x, -y, -z
     return w, x, y, z
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _fqa_batch(acc: FloatArray, mag: FloatArray, out: FloatArray) -> None:
     for i in range(acc.shape[0]):
         w, x, y, z = fqa_quaternion(acc[i, 0], acc[i, 1], acc[i, 2],

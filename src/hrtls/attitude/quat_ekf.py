@@ -45,7 +45,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.attitude import _ekf_update as EK
 from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
+from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
@@ -164,7 +167,7 @@ class QuatEkfParams(CommonParams):
                 1.0 if (b and self.bias_var_at_rest and self.estimate_bias) else 0.0)
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _project(x: FloatArray, P: FloatArray) -> None:
     """``P <- J P J^T`` with ``J = diag(I - q q^T, I)`` (covariance of the unit quaternion)."""
     v0 = P[0, 0] * x[0] + P[0, 1] * x[1] + P[0, 2] * x[2] + P[0, 3] * x[3]
@@ -187,7 +190,7 @@ def _project(x: FloatArray, P: FloatArray) -> None:
             P[c, a] = val
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _normalize(x: FloatArray, P: FloatArray) -> None:
     """Unit norm with ``w >= 0``; a sign flip of ``q`` also flips its covariance with the bias."""
     n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
@@ -203,7 +206,7 @@ def _normalize(x: FloatArray, P: FloatArray) -> None:
     x[3] /= n
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _apply_f(
     f: tuple[float, float, float, float, float, float, float, float],
     v0: float, v1: float, v2: float, v3: float, v4: float, v5: float, v6: float,
@@ -222,7 +225,7 @@ def _apply_f(
     )
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _predict(
     x: FloatArray, P: FloatArray, work: FloatArray, wx: float, wy: float, wz: float, dt: float,
     qv: float, bw: float,
@@ -236,7 +239,7 @@ def _predict(
     ``F P``). With a 4-state filter the bias blocks of ``P`` are zero and stay zero.
     """
     n = math.sqrt(wx * wx + wy * wy + wz * wz)
-    c, sc = K.cos_sinc(0.5 * n * dt)
+    c, sc = Q.cos_sinc(0.5 * n * dt)
     s = sc * 0.5 * dt  # sin(|w| dt / 2) / |w|
     hd = -0.5 * dt
     q0 = x[0]
@@ -279,7 +282,7 @@ def _predict(
     P[6, 6] += bw
 
 
-@numba.njit(inline="always", **K.JIT)
+@numba.njit(inline="always", **JIT)
 def _shrink_bias_var(P: FloatArray, v: float) -> None:
     """Bias variances above ``v`` down to ``v``: ``P <- D P D``.
 
@@ -295,7 +298,7 @@ def _shrink_bias_var(P: FloatArray, v: float) -> None:
                 P[c, r] *= f
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
     """Initial covariance: ``p0`` per quaternion component, the bias variance, projected."""
     for r in range(_NS):
@@ -305,7 +308,7 @@ def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
     _project(x, P)
 
 
-@numba.njit(**K.JIT)
+@numba.njit(**JIT)
 def quat_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,
@@ -333,7 +336,7 @@ def quat_ekf_kernel(
             if flags == 0:
                 K.write_uninit(out_q, out_var, out_flags, i)
                 continue
-            K.set_q(x, 0, w, qx, qy, qz)
+            Q.set_q(x, 0, w, qx, qy, qz)
             _reset_cov(x, P, prm)
         else:
             flags = K.FLAG_VALID
@@ -362,7 +365,7 @@ def quat_ekf_kernel(
             qx = x[1]
             qy = x[2]
             qz = x[3]
-            ux, uy, uz = K.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
+            ux, uy, uz = Q.rot_t(w, qx, qy, qz, 0.0, 0.0, 1.0)
             use_a = s.acc_fin and s.acc_dev < prm[K.PRM_ACC_GATE]
             v_dyn = 0.0
             if s.acc_fin and dyn_k > 0.0:
@@ -387,17 +390,17 @@ def quat_ekf_kernel(
                 for r in range(_NS):
                     dx[r] = 0.0
                 if use_a:
-                    jac = K.rot_t_jac(w, qx, qy, qz, 0.0, 0.0, 1.0)
+                    jac = Q.rot_t_jac(w, qx, qy, qz, 0.0, 0.0, 1.0)
                     an = s.an
-                    use_a = K.block3_update7(P, dx, jac, s.a0 / an - ux, s.a1 / an - uy,
+                    use_a = EK.block3_update7(P, dx, jac, s.a0 / an - ux, s.a1 / an - uy,
                                              s.a2 / an - uz,
                                              va * (1.0 + rate2 * acc_rate_k) + v_dyn, ph)
                 if use_m:
-                    h0, h1, h2 = K.rot_t(w, qx, qy, qz, v0, v1, v2)
-                    jac = K.rot_t_jac(w, qx, qy, qz, v0, v1, v2)
-                    use_m = K.block3_update7(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
+                    h0, h1, h2 = Q.rot_t(w, qx, qy, qz, v0, v1, v2)
+                    jac = Q.rot_t_jac(w, qx, qy, qz, v0, v1, v2)
+                    use_m = EK.block3_update7(P, dx, jac, z0 / zn - h0, z1 / zn - h1,
                                              z2 / zn - h2, vm, ph)
-                if K.update_finite(dx, P):
+                if EK.update_finite(dx, P):
                     for r in range(4):
                         x[r] += dx[r]
                     for r in range(3):  # zero for the 4-state filter
@@ -410,8 +413,8 @@ def quat_ekf_kernel(
                     use_m = False
                     _reset_cov(x, P, prm)
             flags = K.count_used(aux, flags, use_a, use_m, has_mag)
-        K.write_q(out_q, i, x[0], x[1], x[2], x[3])
-        K.nav_rotation_var(x[0], x[1], x[2], x[3], P, out_var, i)
+        Q.write_q(out_q, i, x[0], x[1], x[2], x[3])
+        EK.nav_rotation_var(x[0], x[1], x[2], x[3], P, out_var, i)
         out_flags[i] = flags
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from enum import IntEnum
 
 import numpy as np
@@ -162,6 +163,15 @@ class StepEvents:
 
     def __len__(self) -> int:
         return len(self.t_start)
+
+    def select(self, keep: NDArray[np.bool_]) -> StepEvents:
+        """The steps where ``keep`` is true."""
+        return StepEvents(*(getattr(self, f.name)[keep] for f in fields(self)))
+
+    @classmethod
+    def concatenate(cls, parts: Sequence[StepEvents]) -> StepEvents:
+        """The steps of ``parts`` one after the other (at least one part)."""
+        return cls(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)))
 
     @property
     def distance_m(self) -> float:

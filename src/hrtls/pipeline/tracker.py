@@ -172,16 +172,9 @@ class Tracker:
         elif not self._mounting_pending:
             note_session_mounting(meta, notes)
         self.hard_iron_fixed_ut = fixed_hard_iron_ut
-        hard_iron = None
-        if cfg.attitude.mag_hard_iron == "fit" and s.has_imu and s.has_mag and \
-                fixed_hard_iron_ut is None:
-            hard_iron = RunningHardIron(RunningHardIronParams(
-                block_samples=max(1, round(s.rate_hz))))
         self._held = HeldImu()
         self.meta = meta
-        geo = None if meta.georeference is None else meta.georeference.to_georeference()
-        self.landmarks = {k: lm.resolved(geo) if (lm.position is not None or geo is not None)
-                          else lm for k, lm in landmarks.items()}
+        self.landmarks = _resolved(landmarks, meta)
         self.has_imu = s.has_imu
         if not s.has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
@@ -192,21 +185,7 @@ class Tracker:
         # position (counted in the notes at the end)
         self._pose = PoseGate(s.t0 if pose.t is None else max(float(pose.t), s.t0))
         state = FilterState.from_start_pose(pose, t=self._pose.t_pose)
-        # --- attitude
-        self.attitude_method = build.attitude_method(cfg, s, notes)
-        filt = build.attitude_filter(cfg, self.attitude_method)
-        # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
-        # filters already fuse the magnetometer with their own disturbance gates; with the
-        # hard iron already removed, the compass needs no warm-up of its own
-        compass = (CompassYaw(self._pose.t_pose, CompassParams(
-                       field_corrected=hard_iron is not None or fixed_hard_iron_ut is not None))
-                   if cfg.attitude.compass_yaw and s.has_mag
-                   and isinstance(filt, DeviceOrientation) else None)
-        self.attitude = None if filt is None else AttitudeStage(
-            filt, hard_iron=hard_iron, hard_iron_fixed_ut=fixed_hard_iron_ut, compass=compass,
-            use_mag=cfg.attitude.use_magnetometer and s.has_mag,
-            keep_attitude=self.keep_attitude)
-        self._hard_iron = hard_iron
+        self._build_attitude(fixed_hard_iron_ut)
         # --- gait (with the hand-held mounting: once it is known)
         self.gait: GaitAnalyzer | None = None
         running_factor = 1.0
@@ -239,6 +218,30 @@ class Tracker:
         self._t_last_sample = s.t0
         self._started = True
 
+    def _build_attitude(self, fixed_hard_iron_ut: np.ndarray | None) -> None:
+        """The attitude stage (method, filter, running hard iron, compass) for ``self.sensors``."""
+        cfg = self.config
+        s = self.sensors
+        hard_iron = None
+        if cfg.attitude.mag_hard_iron == "fit" and s.has_imu and s.has_mag and \
+                fixed_hard_iron_ut is None:
+            hard_iron = RunningHardIron(RunningHardIronParams(
+                block_samples=max(1, round(s.rate_hz))))
+        self.attitude_method = build.attitude_method(cfg, s, self.notes)
+        filt = build.attitude_filter(cfg, self.attitude_method)
+        # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
+        # filters already fuse the magnetometer with their own disturbance gates; with the
+        # hard iron already removed, the compass needs no warm-up of its own
+        compass = (CompassYaw(self._pose.t_pose, CompassParams(
+                       field_corrected=hard_iron is not None or fixed_hard_iron_ut is not None))
+                   if cfg.attitude.compass_yaw and s.has_mag
+                   and isinstance(filt, DeviceOrientation) else None)
+        self.attitude = None if filt is None else AttitudeStage(
+            filt, hard_iron=hard_iron, hard_iron_fixed_ut=fixed_hard_iron_ut, compass=compass,
+            use_mag=cfg.attitude.use_magnetometer and s.has_mag,
+            keep_attitude=self.keep_attitude)
+        self._hard_iron = hard_iron
+
     def set_landmarks(self, landmarks: dict[str, Landmark]) -> None:
         """Add or replace landmarks from now on (e.g. nodes localized during a mission).
 
@@ -248,10 +251,8 @@ class Tracker:
         if not self._started:
             raise InputError("set_landmarks() before start()", where="Tracker",
                              expected="start() first")
-        geo = None if self.meta.georeference is None else self.meta.georeference.to_georeference()
         self._start_landmarks = {**self._start_landmarks, **landmarks}
-        self.landmarks.update({k: lm.resolved(geo) if (lm.position is not None or geo is not None)
-                               else lm for k, lm in landmarks.items()})
+        self.landmarks.update(_resolved(landmarks, self.meta))
 
     def _build_gait(self) -> None:
         """The gait stage, for the mounting now known (``self.meta``)."""
@@ -373,7 +374,10 @@ class Tracker:
             eng.track.add(eng.state, eng.last_activity)
         trajectory = eng.track.trajectory()
         shown = self.history.steps[self.history.hidden:]
-        steps = StepEvents.empty() if not shown else _concat_steps(shown)
+        steps = StepEvents.empty()
+        if shown:
+            steps = StepEvents.concatenate(shown)
+            steps = replace(steps, heading_rad=wrap_angle(steps.heading_rad))
         floors: dict[str, Any] = {"source": "step model (barometer off)",
                                   "floor_height_m": self.meta.floor_height_m}
         if self.baro is not None:
@@ -539,7 +543,7 @@ class Tracker:
             hist.steps.append(steps)
             before = ~self._pose.keep("steps", steps.t_end)
             if before.any():
-                steps = _select_steps(steps, ~before)
+                steps = steps.select(~before)
         eng = self.engine
         if len(steps) and not eng.velocity_mode:
             rows = np.full((len(steps), 5), np.nan)
@@ -560,6 +564,13 @@ def _session_sensors(session: Session) -> Sensors:
                    has_orientation=session.orientation is not None,
                    rate_hz=leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
                    t0=session.time_span()[0])
+
+
+def _resolved(landmarks: dict[str, Landmark], meta: SessionMeta) -> dict[str, Landmark]:
+    """The landmarks with their positions in the session's local frame (where one is known)."""
+    geo = None if meta.georeference is None else meta.georeference.to_georeference()
+    return {k: lm.resolved(geo) if (lm.position is not None or geo is not None) else lm
+            for k, lm in landmarks.items()}
 
 
 def _fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.ndarray | None:
@@ -588,19 +599,3 @@ def leading_rate_hz(t: np.ndarray) -> float:
     """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
     head = t[:RATE_SAMPLES]
     return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0
-
-
-def _select_steps(steps: StepEvents, keep: np.ndarray) -> StepEvents:
-    """The steps where ``keep`` is true."""
-    return StepEvents(steps.t_start[keep], steps.t_end[keep], steps.length_m[keep],
-                      steps.heading_rad[keep], steps.dz_m[keep], steps.activity[keep],
-                      steps.frequency_hz[keep], steps.acc_max[keep], steps.acc_min[keep])
-
-
-def _concat_steps(parts: list[StepEvents]) -> StepEvents:
-    def cat(name: str) -> np.ndarray:
-        return np.concatenate([getattr(p, name) for p in parts])
-
-    return StepEvents(cat("t_start"), cat("t_end"), cat("length_m"),
-                      wrap_angle(cat("heading_rad")), cat("dz_m"), cat("activity"),
-                      cat("frequency_hz"), cat("acc_max"), cat("acc_min"))

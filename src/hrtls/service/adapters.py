@@ -1,4 +1,4 @@
-"""Phone apps as agents: Sensor Logger's HTTP push (IMU), OsmAnd / OwnTracks positions (GNSS).
+"""Phone apps as agents: Sensor Logger's HTTP push (IMU); GNSS apps: :mod:`.positions`.
 
 Sensor Logger: each push message is written as the app's own CSV export (one file per sensor)
 and read by :func:`hrtls.io.readers.sensorlogger.read_sensorlogger`, so sensor names, frames,

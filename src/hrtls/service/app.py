@@ -18,13 +18,12 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from hrtls import __version__
 from hrtls.service import schemas
-from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.clock import Clock, wall_clock
 from hrtls.service.db import make_engine, migrate, session_factory, transaction
 from hrtls.service.deps import Services
 from hrtls.service.events import EventLog
 from hrtls.service.headers import SecurityHeaders, content_security_policy
-from hrtls.service.host import DECODERS, HostParams, TrackerHost
+from hrtls.service.host import HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
 from hrtls.service.runner import TrackerRunner, make_runner
@@ -81,7 +80,6 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     """The FastAPI application of one deployment (database migrated on start-up)."""
     engine = make_engine(settings.db_url)
     migrate(engine)
-    DECODERS.setdefault("sensorlogger", decode_sensorlogger)
     sessions = session_factory(engine)
     hub = Hub()
     events = EventLog(sessions, hub, clock)
@@ -125,11 +123,20 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
-    from hrtls.service.routes import agents, auth, dashboard, ingest, live, missions, orders
+    from hrtls.service.routes import (
+        agents,
+        auth,
+        dashboard,
+        ingest,
+        live,
+        missions,
+        orders,
+        positions,
+    )
     from hrtls.service.routes import events as event_routes
 
-    for router in (auth.router, missions.router, agents.router, ingest.router, live.router,
-                   event_routes.router, orders.router, dashboard.router):
+    for router in (auth.router, missions.router, agents.router, ingest.router, positions.router,
+                   live.router, event_routes.router, orders.router, dashboard.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])

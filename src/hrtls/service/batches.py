@@ -170,7 +170,7 @@ PARTS = ("imu", "baro", "rss", "tags", "ranges", "fixes", "odometry")
 class Batch(Strict):
     """One numbered batch of an agent (docs/service-api.md, "Batch")."""
 
-    seq: int = Field(ge=0, lt=2**62)
+    seq: int = Field(ge=0, lt=2**31)
     imu: ImuPart | None = None
     baro: BaroPart | None = None
     rss: RssPart | None = None

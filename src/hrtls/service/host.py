@@ -24,14 +24,17 @@ from sqlalchemy.orm import sessionmaker
 
 from hrtls.data.session import SessionMeta
 from hrtls.pipeline.output import Estimates
+from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
-from hrtls.service.batches import Batch, decode_body, parse_batch
+from hrtls.service.batches import Batch, BatchError, decode_body, parse_batch
 from hrtls.service.clock import Clock
 from hrtls.service.events import EventLog
 from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
+from hrtls.service.positions import SOURCES as POSITION_SOURCES
+from hrtls.service.positions import decode_position
 from hrtls.service.rawlog import RawLogWriter, RawRow
 from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
-from hrtls.service.seqbook import SeqBook
+from hrtls.service.seqbook import ASSIGNED_SEQ_BASE, SeqBook
 
 log = logging.getLogger(__name__)
 
@@ -43,8 +46,9 @@ def decode_batch(body: bytes, content_type: str) -> Batch:
     return parse_batch(decode_body(body, content_type))
 
 
-DECODERS: dict[str, Decoder] = {"batch": decode_batch}
-"""Raw-log ``source`` -> how its stored bodies become batches (adapters add theirs)."""
+DECODERS: dict[str, Decoder] = {"batch": decode_batch, "sensorlogger": decode_sensorlogger,
+                                 **dict.fromkeys(POSITION_SOURCES, decode_position)}
+"""Raw-log ``source`` -> how its stored bodies become batches (replay, export)."""
 
 REPLAY_PAGE = 200
 KEEP_SNAPSHOTS = 20
@@ -78,6 +82,8 @@ class AgentLive:
     stale_after_s: float
     book: SeqBook
     tracked: bool
+    assigned: SeqBook = field(default_factory=SeqBook)
+    """Seqs the service numbered (positions of apps without seqs), minus ``ASSIGNED_SEQ_BASE``."""
     lock: threading.Lock = field(default_factory=threading.Lock)
     pending: list[Batch] = field(default_factory=list)
     opened: bool = False
@@ -103,7 +109,8 @@ class AgentLive:
         """Stale while a gap is open or nothing arrived for ``stale_after_s``."""
         silent = (self.last_receive_unix is None
                   or now_unix - self.last_receive_unix > self.stale_after_s)
-        return self.book.gap_open or self.backfill_from < math.inf or silent
+        return (self.book.gap_open or self.assigned.gap_open or self.backfill_from < math.inf
+                or silent)
 
     def status(self, now_unix: float) -> dict[str, Any]:
         """The ``Agent.status`` object of the contract."""
@@ -210,13 +217,17 @@ class TrackerHost:
                 return None
             mission = db.get(Mission, row.mission_id)
             assert mission is not None
-            book = SeqBook()
+            book, assigned = SeqBook(), SeqBook()
             for seq in db.scalars(select(RawBatch.seq).where(RawBatch.agent_id == agent_id)):
-                book.add(seq)
+                if seq >= ASSIGNED_SEQ_BASE:
+                    assigned.add(seq - ASSIGNED_SEQ_BASE)
+                else:
+                    book.add(seq)
             last = db.scalars(select(RawBatch.received_unix).where(
                 RawBatch.agent_id == agent_id).order_by(RawBatch.id.desc())).first()
             live = AgentLive(agent_id, row.mission_id, mission.t0_unix, mission.stale_after_s,
-                             book, row.start_pose is not None, last_receive_unix=last,
+                             book, row.start_pose is not None, assigned=assigned,
+                             last_receive_unix=last,
                              alarms=AgentAlarms(AlarmProfile(**mission.alarm_profile)))
         with self._lock:
             return self._agents.setdefault(agent_id, live)
@@ -249,13 +260,22 @@ class TrackerHost:
 
     # ------------------------------------------------------------------ ingest
     def accept(self, agent_id: int, batch: Batch, *, body: bytes, content_type: str,
-               source: str) -> dict[str, Any]:
-        """Store ``batch`` in the raw log and queue it; the ack (idempotent)."""
+               source: str, assigned: bool = False) -> dict[str, Any]:
+        """Store ``batch`` in the raw log and queue it; the ack (idempotent).
+
+        ``assigned``: the service numbered the batch (:meth:`next_assigned_seq`); client seqs
+        are below ``ASSIGNED_SEQ_BASE``, so both kinds of source can feed one agent.
+        """
+        if (batch.seq >= ASSIGNED_SEQ_BASE) != assigned:
+            raise BatchError(422, f"seq must be below {ASSIGNED_SEQ_BASE} (higher seqs are "
+                                  "numbered by the service)")
         live = self.agent(agent_id)
         if live is None:
             raise KeyError(agent_id)
+        book, key = (live.assigned, batch.seq - ASSIGNED_SEQ_BASE) if assigned else \
+            (live.book, batch.seq)
         with live.lock:
-            if batch.seq in live.book:
+            if key in book:
                 return self._ack(live, batch.seq, "duplicate")
             if len(live.pending) >= self.params.queue_batches:
                 raise Busy(1.0)
@@ -267,10 +287,10 @@ class TrackerHost:
             source=source, content_type=content_type, body=body))
         if not stored:
             with live.lock:
-                live.book.add(batch.seq)
+                book.add(key)
                 return self._ack(live, batch.seq, "duplicate")
         with live.lock:
-            live.book.add(batch.seq)
+            book.add(key)
             live.last_receive_unix = now
             if batch.status is not None and batch.status.battery is not None:
                 live.battery = batch.status.battery
@@ -282,8 +302,29 @@ class TrackerHost:
         self._schedule(live)
         return ack
 
+    def duplicate_ack(self, agent_id: int, seq: int) -> dict[str, Any]:
+        """The ack of a batch stored before as ``seq``."""
+        live = self.agent(agent_id)
+        if live is None:
+            raise KeyError(agent_id)
+        with live.lock:
+            return self._ack(live, seq, "duplicate")
+
+    def next_assigned_seq(self, agent_id: int) -> int:
+        """The next seq the service numbers a batch of ``agent_id`` with (callers serialise)."""
+        live = self.agent(agent_id)
+        if live is None:
+            raise KeyError(agent_id)
+        with live.lock:
+            return ASSIGNED_SEQ_BASE + live.assigned.highest + 1
+
     @staticmethod
     def _ack(live: AgentLive, seq: int, status: str) -> dict[str, Any]:
+        if seq >= ASSIGNED_SEQ_BASE:
+            return {"seq": seq, "status": status,
+                    "acked_through": ASSIGNED_SEQ_BASE + live.assigned.through,
+                    "missing": [[ASSIGNED_SEQ_BASE + a, ASSIGNED_SEQ_BASE + b]
+                                for a, b in live.assigned.missing()]}
         return {"seq": seq, "status": status, "acked_through": live.book.through,
                 "missing": live.book.missing()}
 

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+ASSIGNED_SEQ_BASE = 2**30
+"""Client seqs are below this; the service numbers batches of apps without seqs from here
+(OsmAnd, OwnTracks), so both can feed one agent. Seqs stay below 2**31 (a 32-bit column)."""
+
 
 @dataclass
 class SeqBook:

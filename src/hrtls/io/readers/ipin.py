@@ -51,9 +51,7 @@ keep their MAC as id and are listed in the notes.
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Callable, Collection, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -71,20 +69,23 @@ from hrtls.data import (
     Session,
     SessionMeta,
     StartPose,
-    TagDetections,
     Wgs84,
 )
 from hrtls.data.validation import FloatArray
-from hrtls.errors import FormatError, InputError, RepairWarning
-from hrtls.frames import Georeference, quat_conjugate
-from hrtls.io.readers._orientation import choose_orientation
-from hrtls.io.readers._text import (
-    IntArray,
-    check_stream,
-    csv_rows,
-    decode_text,
-    parse_float_rows,
+from hrtls.errors import FormatError, InputError
+from hrtls.frames import Georeference
+from hrtls.io.readers._ipin_radio import ble_rows, rfid_detections, wifi_rows
+from hrtls.io.readers._ipin_records import (
+    IpinLog,
+    Posi,
+    orientation,
+    posi,
+    sensor_offsets,
+    sensor_series,
+    split_log,
+    without_cut_last_line,
 )
+from hrtls.io.readers._text import csv_rows, decode_text
 from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.units import HPA_TO_PA
 
@@ -93,18 +94,7 @@ __all__ = ["BeaconIdRule", "ipin_beacon_id", "looks_like_ipin", "read_beacons_cs
 BeaconIdRule = Callable[[str, "int | None"], "str | None"]
 """``rule(mac, minor) -> landmark id`` (None: keep the MAC)."""
 
-CLOCK_SPREAD_S = 0.1
-"""Largest spread of per-type clock offsets for which one common offset is used, s."""
-
-_TYPE_RE = re.compile(r"[A-Z0-9]{4};")
 _SNIFF_RE = re.compile(r"^(ACCE|GYRO|MAGN|PRES|AHRS|POSI|BLE4|WIFI|GNSS);", re.MULTILINE)
-_SENSOR_CLOCK_TYPES = ("ACCE", "GYRO", "MAGN", "AHRS", "PRES")
-_USED_TYPES = ("ACCE", "GYRO", "MAGN", "PRES", "AHRS", "BLE4", "WIFI", "RFID", "POSI")
-_TEXT_TYPES = ("BLE4", "WIFI", "RFID")
-_NUMERIC_FIELDS = {
-    "ACCE": ("app_t", "sensor_t", "x", "y", "z"), "GYRO": ("app_t", "sensor_t", "x", "y", "z"),
-    "MAGN": ("app_t", "sensor_t", "x", "y", "z"), "PRES": ("app_t", "sensor_t", "pressure_mbar"),
-    "AHRS": ("app_t", "sensor_t", "pitch", "roll", "yaw", "q2", "q3", "q4")}
 
 
 def ipin_beacon_id(mac: str, minor: int | None) -> str | None:
@@ -121,336 +111,6 @@ def looks_like_ipin(head: bytes) -> bool:
     """True when the start of a file holds IPIN/EvAAL records (``ACCE;``, ``POSI;`` ...)."""
     text = head.decode("utf-8", errors="replace")
     return bool(_SNIFF_RE.search(text)) or "LogFile created by the 'GetSensorData'" in text
-
-
-@dataclass
-class _Log:
-    """A logfile split by record type: rows and their 1-based line numbers."""
-
-    label: str
-    rows: dict[str, list[str]] = field(default_factory=dict)
-    lines: dict[str, IntArray] = field(default_factory=dict)
-    parsed: dict[str, FloatArray] = field(default_factory=dict)
-    header: dict[str, str] = field(default_factory=dict)
-    skipped: dict[str, int] = field(default_factory=dict)
-
-    def get(self, kind: str) -> tuple[list[str], IntArray]:
-        return self.rows.get(kind, []), self.lines.get(kind, np.zeros(0, dtype=np.int64))
-
-
-def _without_cut_last_line(text: str, label: str, *, repair: bool) -> str:
-    """``text`` without a last line cut short (no newline, fewer fields than its type's lines).
-
-    A cut line of a record type that is not read is dropped with a warning; one of a type that
-    is read is dropped with ``repair`` and refused without.
-    """
-    if not text or text.endswith(("\n", "\r")):
-        return text
-    head, _, last = text.rpartition("\n")
-    kind = last[:5]
-    previous = head.rfind("\n" + kind)
-    if previous < 0 and not head.startswith(kind):
-        return text
-    start = previous + 1 if previous >= 0 else 0
-    end = head.find("\n", start)
-    fields = head[start:end if end >= 0 else None].rstrip().rstrip(";").count(";")
-    have = last.rstrip().rstrip(";").count(";")
-    if have >= fields:
-        return text
-    line = head.count("\n") + 2
-    where = f"{label} line {line}"
-    problem = f"last line cut short ({have + 1} of {fields + 1} fields, no newline at the end)"
-    if kind[:4] in _USED_TYPES and not repair:
-        raise FormatError(problem, where=where, expected="complete records",
-                          hint="pass --repair (repair=True in Python) to drop the cut line")
-    warnings.warn(f"{where}: {problem}; dropped it", RepairWarning, stacklevel=3)
-    return head + "\n"
-
-
-def _split_log(text: str, label: str) -> _Log:
-    """Group the lines by record type (vectorized over the whole file)."""
-    lines = text.splitlines()
-    log = _Log(label)
-    if not lines:
-        raise FormatError("file is empty", where=label, expected="an IPIN logfile")
-    prefixes = np.array([ln[:5] for ln in lines])
-    kinds, first = np.unique(prefixes, return_index=True)
-    bad = [i for kind, i in zip(kinds.tolist(), first.tolist(), strict=True)
-           if not (kind.startswith("%") or not kind.strip() or _TYPE_RE.fullmatch(kind))]
-    if bad:
-        i = min(bad)
-        line = lines[i] if len(lines[i]) <= 40 else lines[i][:37] + "..."
-        raise FormatError(f"line {line!r} is not a record", where=f"{label} line {i + 1}",
-                          expected="'TYPE;field;...' with a 4-character type (ACCE, GYRO, "
-                          "POSI, ...) or a '%' comment")
-    for kind in kinds.tolist():
-        if kind.startswith("%") or not kind.strip():
-            continue
-        idx = np.flatnonzero(prefixes == kind)
-        name = kind[:4]
-        if name in _USED_TYPES:
-            if name in _TEXT_TYPES:  # parsed field by field: drop a trailing ';'
-                log.rows[name] = [lines[j].rstrip().rstrip(";") for j in idx.tolist()]
-            else:
-                log.rows[name] = [lines[j] for j in idx.tolist()]
-            log.lines[name] = idx.astype(np.int64) + 1
-        else:
-            log.skipped[name] = len(idx)
-    for ln in lines[:200]:
-        if ln.startswith("%") and ":" in ln:
-            key, _, value = ln[1:].partition(":")
-            key = key.strip().lower()
-            if key in ("manufacturer", "model", "date of creation", "version",
-                       "api android version", "android version release"):
-                log.header[key] = value.strip()
-        elif ln.startswith("%") and "version" in ln.lower() and "version" not in log.header:
-            log.header["version"] = ln[1:].strip()
-    return log
-
-
-def _numeric(log: _Log, kind: str) -> tuple[FloatArray, IntArray]:
-    """The numeric fields of a sensor-clock record type (parsed once, then cached)."""
-    rows, lines = log.get(kind)
-    if kind not in log.parsed:
-        names = _NUMERIC_FIELDS[kind]
-        usecols = _vector_cols(log, kind) if len(names) == 5 else tuple(
-            range(1, len(names) + 1))
-        expected = f"{kind};" + ";".join(names)
-        log.parsed[kind] = parse_float_rows(rows, sep=";", usecols=usecols,
-                                            line_numbers=lines, where=log.label,
-                                            field_names=names, expected=expected)
-    return log.parsed[kind], lines
-
-
-def _vector_cols(log: _Log, kind: str) -> tuple[int, ...]:
-    """Field indices of app_t, sensor_t, x, y, z (MAGN may carry the header's empty field)."""
-    rows, _ = log.get(kind)
-    if kind == "MAGN" and rows:
-        fields = rows[0].split(";")
-        if len(fields) >= 7 and fields[4].strip() == "":
-            return (1, 2, 3, 5, 6)
-    return (1, 2, 3, 4, 5)
-
-
-def _sensor_offsets(log: _Log) -> tuple[dict[str, float], float | None]:
-    """Offsets ``app_t - sensor_t`` (s) per sensor-clock record type, and their common value.
-
-    One common offset (the median over all such records) is used when the per-type medians
-    agree within :data:`CLOCK_SPREAD_S`; otherwise each type keeps its own (some phones stamp
-    sensors on different clocks).
-    """
-    per: dict[str, FloatArray] = {}
-    for kind in _SENSOR_CLOCK_TYPES:
-        rows, _ = log.get(kind)
-        if rows:
-            vals, _ = _numeric(log, kind)
-            d = vals[:, 0] - vals[:, 1]
-            d = d[np.isfinite(d)]
-            if len(d):
-                per[kind] = d
-    if not per:
-        return {}, None
-    common = float(np.median(np.concatenate(list(per.values()))))
-    medians = {k: float(np.median(v)) for k, v in per.items()}
-    if max(medians.values()) - min(medians.values()) <= CLOCK_SPREAD_S:
-        return dict.fromkeys(medians, common), common
-    return medians, common
-
-
-def _trim(t: FloatArray, cols: list[np.ndarray], t_min: float | None
-          ) -> tuple[FloatArray, list[np.ndarray]]:
-    if t_min is None:
-        return t, cols
-    keep = t >= t_min
-    return t[keep], [c[keep] for c in cols]
-
-
-def _sensor_series(log: _Log, kind: str, offsets: dict[str, float], *, repair: bool,
-                   t_min: float | None, scale: float = 1.0) -> SensorSeries | None:
-    rows, _ = log.get(kind)
-    if not rows:
-        return None
-    offset = offsets.get(kind, 0.0)  # absent: no finite time at all, rejected below
-    values, lines = _numeric(log, kind)
-    where = f"{log.label} {kind}"
-    t, (v,) = check_stream(values[:, 1] + offset, [values[:, 2:] * scale], lines=lines,
-                           where=where, repair=repair)
-    t, (v,) = _trim(t, [v], t_min)
-    if len(t) == 0:
-        return None
-    return SensorSeries(t, v, f"{Path(log.label).name} {kind}")
-
-
-def _orientation(log: _Log, offsets: dict[str, float], accel: SensorSeries | None,
-                 mag: SensorSeries | None, *, repair: bool, t_min: float | None,
-                 notes: list[str]) -> OrientationSeries | None:
-    rows, _ = log.get("AHRS")
-    if not rows:
-        return None
-    offset = offsets.get("AHRS", 0.0)  # absent: no finite time at all, rejected below
-    values, lines = _numeric(log, "AHRS")
-    where = f"{log.label} AHRS"
-    t, (vec, ln) = check_stream(values[:, 1] + offset, [values[:, 5:8], lines], lines=lines,
-                                where=where, repair=repair)
-    sq = np.sum(vec**2, axis=1)
-    if np.any(sq > 1.0 + 2e-3):
-        i = int(np.flatnonzero(sq > 1.0 + 2e-3)[0])
-        raise InputError(f"|(q2, q3, q4)| = {np.sqrt(sq[i]):.4g}",
-                         where=f"{log.label} line {int(ln[i])}",
-                         expected="rotation-vector components of norm <= 1")
-    q = np.column_stack([np.sqrt(np.clip(1.0 - sq, 0.0, None)), vec])
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    t, (q,) = _trim(t, [q], t_min)
-    if len(t) == 0:
-        return None
-    _, q_nd = choose_orientation(
-        t, [("android rotation vector, device->ENU", lambda: q),
-            ("android rotation vector, inverse", lambda: quat_conjugate(q))],
-        accel=accel, mag=mag, where=f"{Path(log.label).name} AHRS", notes=notes)
-    return OrientationSeries(t, q_nd, f"{Path(log.label).name} AHRS")
-
-
-def _ble(log: _Log, *, repair: bool, t_min: float | None
-         ) -> tuple[FloatArray, list[str], list[int | None], FloatArray, IntArray]:
-    """BLE4 rows: time, MAC, minor (None for Eddystone), RSSI, lines."""
-    rows, lines = log.get("BLE4")
-    t = np.empty(len(rows))
-    rss = np.empty(len(rows))
-    macs: list[str] = []
-    minors: list[int | None] = []
-    for k, row in enumerate(rows):
-        f = row.split(";")
-        at = f"{log.label} line {int(lines[k])}"
-        if len(f) < 5:
-            raise FormatError(f"{len(f)} field(s)", where=at,
-                              expected="BLE4;app_t;iBeacon|Eddystone;MAC;RSSI;...")
-        try:
-            t[k] = float(f[1])
-            rss[k] = float(f[4])
-        except ValueError:
-            raise FormatError(f"time {f[1]!r} or RSSI {f[4]!r} is not a number", where=at,
-                              expected="BLE4;app_t;iBeacon|Eddystone;MAC;RSSI;...") from None
-        mac = f[3].strip().upper()
-        if not mac:
-            raise FormatError("empty MAC", where=at, expected="a beacon MAC address")
-        macs.append(mac)
-        minor: int | None = None
-        if f[2].strip().lower() == "ibeacon" and len(f) >= 8:
-            try:
-                minor = int(float(f[7]))
-            except (ValueError, OverflowError):
-                raise FormatError(f"MinorID {f[7]!r} is not a number", where=at,
-                                  expected="BLE4;app_t;iBeacon;MAC;RSSI;Power;MajorID;MinorID;"
-                                  "UUID") from None
-        minors.append(minor)
-    _check_rss(rss, lines, log.label)
-    mac_arr = np.array(macs, dtype=object)
-    minor_arr = np.array(minors, dtype=object)
-    t, (rss, mac_arr, minor_arr, lines) = check_stream(
-        t, [rss, mac_arr, minor_arr, lines], lines=lines, where=f"{log.label} BLE4",
-        repair=repair, strict=False)
-    t, (rss, mac_arr, minor_arr, lines) = _trim(t, [rss, mac_arr, minor_arr, lines], t_min)
-    return t, list(mac_arr), list(minor_arr), rss, lines
-
-
-def _check_rss(rss: FloatArray, lines: IntArray, label: str) -> None:
-    bad = np.isfinite(rss) & ((rss > 30.0) | (rss < -150.0))
-    if np.any(bad):
-        i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"RSS {rss[i]:g} dBm", where=f"{label} line {int(lines[i])}",
-                         expected="a received power between -150 and 30 dBm")
-
-
-def _wifi(log: _Log, *, repair: bool, t_min: float | None
-          ) -> tuple[FloatArray, list[str], FloatArray]:
-    """WIFI rows on the app clock: the scan's delivery time, shared by all its results.
-
-    (The per-result sensor timestamps are not ordered within a scan.)
-    """
-    rows, lines = log.get("WIFI")
-    t = np.empty(len(rows))
-    rss = np.empty(len(rows))
-    macs: list[str] = []
-    for k, row in enumerate(rows):
-        f = row.split(";")
-        at = f"{log.label} line {int(lines[k])}"
-        if len(f) < 7:
-            raise FormatError(f"{len(f)} field(s)", where=at,
-                              expected="WIFI;app_t;sensor_t;SSID;MAC;frequency;RSS")
-        try:
-            # the SSID may itself contain ';': take MAC, frequency and RSS from the right
-            t[k], rss[k] = float(f[1]), float(f[-1])
-        except ValueError:
-            raise FormatError("time or RSS is not a number", where=at,
-                              expected="WIFI;app_t;sensor_t;SSID;MAC;frequency;RSS") from None
-        mac = f[-3].strip().upper()
-        if not mac:
-            raise FormatError("empty MAC", where=at, expected="an access-point MAC (BSSID)")
-        macs.append(mac)
-    _check_rss(rss, lines, log.label)
-    mac_arr = np.array(macs, dtype=object)
-    t, (rss, mac_arr) = check_stream(t, [rss, mac_arr], lines=lines,
-                                     where=f"{log.label} WIFI", repair=repair, strict=False)
-    t, (rss, mac_arr) = _trim(t, [rss, mac_arr], t_min)
-    return t, list(mac_arr), rss
-
-
-def _rfid(log: _Log, *, repair: bool, t_min: float | None) -> TagDetections | None:
-    rows, lines = log.get("RFID")
-    if not rows:
-        return None
-    values = parse_float_rows(rows, sep=";", usecols=(1,), line_numbers=lines,
-                              where=log.label, field_names=("app_t",),
-                              expected="RFID;app_t;reader;tag;RSS_A;RSS_B")
-    tags = []
-    for k, row in enumerate(rows):
-        f = row.split(";")
-        if len(f) < 4 or not f[3].strip():
-            raise FormatError("missing tag id", where=f"{log.label} line {int(lines[k])}",
-                              expected="RFID;app_t;reader;tag;RSS_A;RSS_B")
-        tags.append(f[3].strip())
-    tag_arr = np.array(tags, dtype=object)
-    t, (tag_arr,) = check_stream(values[:, 0], [tag_arr], lines=lines,
-                                 where=f"{log.label} RFID", repair=repair, strict=False)
-    t, (tag_arr,) = _trim(t, [tag_arr], t_min)
-    if len(t) == 0:
-        return None
-    return TagDetections(t, np.asarray(tag_arr, dtype=np.str_), f"{Path(log.label).name} RFID")
-
-
-@dataclass
-class _Posi:
-    t: FloatArray
-    lat: FloatArray
-    lon: FloatArray
-    floor: FloatArray
-    counter: list[str]
-
-
-def _posi(log: _Log) -> _Posi | None:
-    rows, lines = log.get("POSI")
-    if not rows:
-        return None
-    names = ("t", "counter", "latitude", "longitude", "floor")
-    values = parse_float_rows(rows, sep=";", usecols=(1, 2, 3, 4, 5), line_numbers=lines,
-                              where=log.label, field_names=names,
-                              expected="POSI;t;counter;latitude;longitude;floor;building")
-    for j, (name, lo, hi) in enumerate((("t", -np.inf, np.inf), ("counter", -np.inf, np.inf),
-                                        ("latitude", -90.0, 90.0),
-                                        ("longitude", -180.0, 360.0),
-                                        ("floor", -1000.0, 1000.0))):
-        col = values[:, j]
-        bad = ~np.isfinite(col) | (col < lo) | (col > hi)
-        if np.any(bad):
-            i = int(np.flatnonzero(bad)[0])
-            raise InputError(f"{name} is {col[i]:g}", where=f"{log.label} line {int(lines[i])}",
-                             expected=f"a finite {name}" + ("" if np.isinf(lo) else
-                                                           f" in [{lo:g}, {hi:g}]"))
-    t = values[:, 0]
-    # ground truth is never repaired: a POSI that goes back in time is an error
-    check_stream(t, [], lines=lines, where=f"{log.label} POSI", repair=False, strict=False)
-    counter = [f"{c:g}" for c in values[:, 1]]
-    return _Posi(t, values[:, 2], values[:, 3], values[:, 4], counter)
 
 
 # --------------------------------------------------------------------------------------------
@@ -627,68 +287,21 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
     if not looks_like_ipin(data[:65536]):
         raise FormatError("no IPIN records (ACCE;, GYRO;, POSI; ...) in the first 64 KiB",
                           where=label, expected="an IPIN/EvAAL logfile")
-    log = _split_log(_without_cut_last_line(decode_text(data, where=label, lenient=True), label,
-                                            repair=repair), label)
+    log = split_log(without_cut_last_line(decode_text(data, where=label, lenient=True), label,
+                                          repair=repair), label)
     meta = SessionMeta(placement="hand") if floor_height_m is None else \
         SessionMeta(placement="hand", floor_height_m=floor_height_m)
-    fh = meta.floor_height_m
     notes: list[str] = []
-    files = [label]
+    source: dict[str, Any] = {"format": "ipin", "files": [label]}
 
-    posi = _posi(log)
-    t_min = float(posi.t[0]) if (trim_to_start and posi is not None) else None
-    offsets, offset = _sensor_offsets(log)
-    if offset is not None and len(set(offsets.values())) == 1:
-        notes.append(f"{'/'.join(offsets)} use their sensor timestamps shifted by "
-                     f"{offset:+.4f} s (median app - sensor time) onto the app clock of POSI "
-                     "and BLE4")
-    elif offset is not None:
-        notes.append("sensor clocks differ by record type, each shifted by its own median "
-                     "app - sensor time: " + ", ".join(f"{k} {v:+.4f} s"
-                                                      for k, v in offsets.items()))
-    accel = _sensor_series(log, "ACCE", offsets, repair=repair, t_min=t_min)
-    gyro = _sensor_series(log, "GYRO", offsets, repair=repair, t_min=t_min)
-    mag = _sensor_series(log, "MAGN", offsets, repair=repair, t_min=t_min)
-    pressure = _sensor_series(log, "PRES", offsets, repair=repair, t_min=t_min,
-                              scale=HPA_TO_PA)
-    if pressure is not None:
-        notes.append("PRES converted from mbar to Pa")
-    imu = None
-    if accel is not None:
-        imu = ImuStream(accel, gyro, mag, check_units=check_units)
-    elif gyro is not None or mag is not None:
-        notes.append("GYRO/MAGN present but no ACCE: no IMU stream")
-    orientation = _orientation(log, offsets, accel, mag, repair=repair, t_min=t_min,
-                               notes=notes)
-
-    # georeference, start pose and checkpoints from POSI
-    georef: Georeference | None = None
-    checkpoints = None
-    source: dict[str, Any] = {"format": "ipin", "files": files}
-    if posi is not None:
-        georef = Georeference(float(posi.lat[0]), float(posi.lon[0]), 0.0)
-        meta.georeference = GeoreferenceModel(lat_deg=georef.lat_deg, lon_deg=georef.lon_deg,
-                                              height_m=0.0)
-        meta.start_pose = StartPose(t=float(posi.t[0]), x=0.0, y=0.0,
-                                    z=float(posi.floor[0]) * fh)
-        source["start_pose_t_s"] = float(posi.t[0])
-        notes.append(f"POSI {posi.counter[0]} (t = {posi.t[0]:.3f} s, floor "
-                     f"{posi.floor[0]:g}) is the start pose and the georeference (local ENU "
-                     f"origin, height 0); start heading unknown")
-        if len(posi.t) > 1:
-            xyz = georef.from_wgs84(posi.lat[1:], posi.lon[1:], np.zeros(len(posi.t) - 1))
-            xyz[:, 2] = posi.floor[1:] * fh
-            checkpoints = Checkpoints(posi.t[1:], xyz, np.array(posi.counter[1:], dtype=np.str_),
-                                      f"{Path(label).name} POSI")
-            notes.append(f"POSI {posi.counter[1]}..{posi.counter[-1]} are checkpoints "
-                         f"(z = floor x {fh:g} m)")
-        if trim_to_start:
-            notes.append(f"data before the first POSI (t < {posi.t[0]:.3f} s) dropped")
-    else:
-        notes.append("no POSI records: no georeference, start pose or checkpoints")
-
-    # landmarks
-    landmarks: dict[str, Landmark] = {}
+    start = posi(log)
+    t_min = float(start.t[0]) if (trim_to_start and start is not None) else None
+    offsets, offset = sensor_offsets(log)
+    _note_clocks(offsets, offset, notes)
+    imu, pressure, orient = _inertial(log, offsets, notes, repair=repair, t_min=t_min,
+                                      check_units=check_units)
+    georef, checkpoints = _ground_truth(start, meta, source, notes, label=label,
+                                        trim_to_start=trim_to_start)
     beacon_data: tuple[bytes, str] | None = None
     if beacons is not None:
         bpath = Path(beacons)
@@ -697,53 +310,10 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
         beacon_data = (bpath.read_bytes(), str(bpath))
     elif find_beacons:
         beacon_data = _find_beacons(src, logname)
-    if beacon_data is not None:
-        files.append(beacon_data[1])
-        for lm in read_beacons_csv(beacon_data[0], where=beacon_data[1]):
-            if georef is not None and lm.wgs84 is not None:
-                xyz = georef.from_wgs84(lm.wgs84.lat, lm.wgs84.lon, 0.0)[0]
-                z = (lm.floor or 0) * fh
-                lm = lm.model_copy(update={"position": (float(xyz[0]), float(xyz[1]), z)})
-            landmarks[lm.id] = lm
-        notes.append(f"{len(landmarks)} beacon landmark(s) from {Path(beacon_data[1]).name}"
-                     + (" placed with z = floor x floor height" if georef is not None else
-                        " (WGS-84 only: no georeference)"))
-
-    # RSS: BLE4 (+ WIFI)
-    t_list: list[FloatArray] = []
-    id_list: list[str] = []
-    rss_list: list[FloatArray] = []
-    if log.rows.get("BLE4"):
-        t_b, macs, minors, rss_b, _ = _ble(log, repair=repair, t_min=t_min)
-        ids, used, unknown = _resolve_ids(macs, minors, landmarks, beacon_ids)
-        t_list.append(t_b)
-        id_list.extend(ids)
-        rss_list.append(rss_b)
-        if used:
-            notes.append("BLE4 beacons mapped to landmarks: " + ", ".join(
-                f"{m}->{i}" for m, i in sorted(used.items())))
-        if unknown:
-            notes.append(f"BLE4: {len(unknown)} beacon(s) match no landmark and keep their MAC "
-                         f"as id: {', '.join(unknown)}")
-    n_wifi = len(log.rows.get("WIFI", []))
-    if n_wifi and include_wifi:
-        t_w, macs_w, rss_w = _wifi(log, repair=repair, t_min=t_min)
-        t_list.append(t_w)
-        id_list.extend(macs_w)
-        rss_list.append(rss_w)
-        notes.append(f"WIFI: {len(t_w)} readings of {len(set(macs_w))} access points kept "
-                     "(anchor id = BSSID; no positions known)")
-    elif n_wifi:
-        notes.append(f"WIFI: {n_wifi} records not used (no access-point positions; pass "
-                     "include_wifi=True to keep them as RSS readings)")
-    rss = None
-    if t_list:
-        t_all = np.concatenate(t_list)
-        order = np.argsort(t_all, kind="stable")
-        if len(order):
-            rss = RssReadings(t_all[order], np.array(id_list, dtype=np.str_)[order],
-                              np.concatenate(rss_list)[order], f"{Path(label).name} RSS")
-    tags = _rfid(log, repair=repair, t_min=t_min)
+    landmarks = _landmarks(beacon_data, georef, meta.floor_height_m, source, notes)
+    rss = _rss(log, landmarks, beacon_ids, notes, repair=repair, t_min=t_min,
+               include_wifi=include_wifi, label=label)
+    tags = rfid_detections(log, repair=repair, t_min=t_min)
 
     if log.skipped:
         notes.append("records not used: " + ", ".join(
@@ -759,5 +329,127 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
     if imu is None and rss is None and tags is None:
         raise FormatError("no accelerometer (ACCE), BLE4 or RFID records", where=label,
                           expected="a logfile with sensor or radio records")
-    return Session(meta=meta, imu=imu, pressure=pressure, orientation=orientation, rss=rss,
+    return Session(meta=meta, imu=imu, pressure=pressure, orientation=orient, rss=rss,
                    tags=tags, landmarks=landmarks, checkpoints=checkpoints)
+
+
+def _inertial(log: IpinLog, offsets: dict[str, float], notes: list[str], *, repair: bool,
+              t_min: float | None, check_units: bool
+              ) -> tuple[ImuStream | None, SensorSeries | None, OrientationSeries | None]:
+    """IMU stream, pressure (Pa) and AHRS orientation on the app clock."""
+    accel = sensor_series(log, "ACCE", offsets, repair=repair, t_min=t_min)
+    gyro = sensor_series(log, "GYRO", offsets, repair=repair, t_min=t_min)
+    mag = sensor_series(log, "MAGN", offsets, repair=repair, t_min=t_min)
+    pressure = sensor_series(log, "PRES", offsets, repair=repair, t_min=t_min,
+                             scale=HPA_TO_PA)
+    if pressure is not None:
+        notes.append("PRES converted from mbar to Pa")
+    imu = None
+    if accel is not None:
+        imu = ImuStream(accel, gyro, mag, check_units=check_units)
+    elif gyro is not None or mag is not None:
+        notes.append("GYRO/MAGN present but no ACCE: no IMU stream")
+    orient = orientation(log, offsets, accel, mag, repair=repair, t_min=t_min, notes=notes)
+    return imu, pressure, orient
+
+
+def _note_clocks(offsets: dict[str, float], offset: float | None, notes: list[str]) -> None:
+    """Say how the sensor clocks were put on the app clock."""
+    if offset is not None and len(set(offsets.values())) == 1:
+        notes.append(f"{'/'.join(offsets)} use their sensor timestamps shifted by "
+                     f"{offset:+.4f} s (median app - sensor time) onto the app clock of POSI "
+                     "and BLE4")
+    elif offset is not None:
+        notes.append("sensor clocks differ by record type, each shifted by its own median "
+                     "app - sensor time: " + ", ".join(f"{k} {v:+.4f} s"
+                                                      for k, v in offsets.items()))
+
+
+def _ground_truth(start: Posi | None, meta: SessionMeta, source: dict[str, Any],
+                  notes: list[str], *, label: str, trim_to_start: bool
+                  ) -> tuple[Georeference | None, Checkpoints | None]:
+    """Georeference, start pose (set on ``meta``) and checkpoints from the POSI records."""
+    if start is None:
+        notes.append("no POSI records: no georeference, start pose or checkpoints")
+        return None, None
+    fh = meta.floor_height_m
+    georef = Georeference(float(start.lat[0]), float(start.lon[0]), 0.0)
+    meta.georeference = GeoreferenceModel(lat_deg=georef.lat_deg, lon_deg=georef.lon_deg,
+                                          height_m=0.0)
+    meta.start_pose = StartPose(t=float(start.t[0]), x=0.0, y=0.0,
+                                z=float(start.floor[0]) * fh)
+    source["start_pose_t_s"] = float(start.t[0])
+    notes.append(f"POSI {start.counter[0]} (t = {start.t[0]:.3f} s, floor "
+                 f"{start.floor[0]:g}) is the start pose and the georeference (local ENU "
+                 f"origin, height 0); start heading unknown")
+    checkpoints = None
+    if len(start.t) > 1:
+        xyz = georef.from_wgs84(start.lat[1:], start.lon[1:], np.zeros(len(start.t) - 1))
+        xyz[:, 2] = start.floor[1:] * fh
+        checkpoints = Checkpoints(start.t[1:], xyz, np.array(start.counter[1:], dtype=np.str_),
+                                  f"{Path(label).name} POSI")
+        notes.append(f"POSI {start.counter[1]}..{start.counter[-1]} are checkpoints "
+                     f"(z = floor x {fh:g} m)")
+    if trim_to_start:
+        notes.append(f"data before the first POSI (t < {start.t[0]:.3f} s) dropped")
+    return georef, checkpoints
+
+
+def _landmarks(beacon_data: tuple[bytes, str] | None, georef: Georeference | None, fh: float,
+               source: dict[str, Any], notes: list[str]) -> dict[str, Landmark]:
+    """Beacon landmarks from the CSV ``(data, label)``, placed in ENU when georeferenced."""
+    landmarks: dict[str, Landmark] = {}
+    if beacon_data is None:
+        return landmarks
+    source["files"].append(beacon_data[1])
+    for lm in read_beacons_csv(beacon_data[0], where=beacon_data[1]):
+        if georef is not None and lm.wgs84 is not None:
+            xyz = georef.from_wgs84(lm.wgs84.lat, lm.wgs84.lon, 0.0)[0]
+            z = (lm.floor or 0) * fh
+            lm = lm.model_copy(update={"position": (float(xyz[0]), float(xyz[1]), z)})
+        landmarks[lm.id] = lm
+    notes.append(f"{len(landmarks)} beacon landmark(s) from {Path(beacon_data[1]).name}"
+                 + (" placed with z = floor x floor height" if georef is not None else
+                    " (WGS-84 only: no georeference)"))
+    return landmarks
+
+
+def _rss(log: IpinLog, landmarks: dict[str, Landmark],
+         beacon_ids: Mapping[str, str] | BeaconIdRule | None, notes: list[str], *,
+         repair: bool, t_min: float | None, include_wifi: bool, label: str
+         ) -> RssReadings | None:
+    """RSS readings of BLE4 (+ WIFI), in time order."""
+    t_list: list[FloatArray] = []
+    id_list: list[str] = []
+    rss_list: list[FloatArray] = []
+    if log.rows.get("BLE4"):
+        t_b, macs, minors, rss_b, _ = ble_rows(log, repair=repair, t_min=t_min)
+        ids, used, unknown = _resolve_ids(macs, minors, landmarks, beacon_ids)
+        t_list.append(t_b)
+        id_list.extend(ids)
+        rss_list.append(rss_b)
+        if used:
+            notes.append("BLE4 beacons mapped to landmarks: " + ", ".join(
+                f"{m}->{i}" for m, i in sorted(used.items())))
+        if unknown:
+            notes.append(f"BLE4: {len(unknown)} beacon(s) match no landmark and keep their MAC "
+                         f"as id: {', '.join(unknown)}")
+    n_wifi = len(log.rows.get("WIFI", []))
+    if n_wifi and include_wifi:
+        t_w, macs_w, rss_w = wifi_rows(log, repair=repair, t_min=t_min)
+        t_list.append(t_w)
+        id_list.extend(macs_w)
+        rss_list.append(rss_w)
+        notes.append(f"WIFI: {len(t_w)} readings of {len(set(macs_w))} access points kept "
+                     "(anchor id = BSSID; no positions known)")
+    elif n_wifi:
+        notes.append(f"WIFI: {n_wifi} records not used (no access-point positions; pass "
+                     "include_wifi=True to keep them as RSS readings)")
+    if not t_list:
+        return None
+    t_all = np.concatenate(t_list)
+    order = np.argsort(t_all, kind="stable")
+    if not len(order):
+        return None
+    return RssReadings(t_all[order], np.array(id_list, dtype=np.str_)[order],
+                       np.concatenate(rss_list)[order], f"{Path(label).name} RSS")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import base64
 import contextlib
 import json
 from collections.abc import MutableMapping
@@ -175,19 +176,41 @@ async def _push_orders(send: Any, services: Services, agent_id: int) -> None:
         await asyncio.sleep(ORDER_POLL_S)
 
 
+def _basic_password(authorization: str | None) -> str | None:
+    """The password of an ``Authorization: Basic ...`` header value."""
+    scheme, _, value = (authorization or "").partition(" ")
+    if scheme.lower() != "basic":
+        return None
+    try:
+        _, sep, password = base64.b64decode(value.strip(), validate=True).decode().partition(":")
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return password if sep and password else None
+
+
+async def app_agent(request: Request, services: Services, token: str | None) -> Principal:
+    """The agent of a phone app's request: Bearer header, Basic-auth password or ``?token=``.
+
+    Apps that can only set a URL put the token in the query (it then shows in proxy logs).
+    """
+    header = request.headers.get("authorization")
+    secret = bearer_secret(header) or _basic_password(header) or token
+    who = None if secret is None else await services.authenticate(secret)
+    if who is None:
+        raise HTTPException(401, "token unknown, revoked or expired (Bearer, Basic password "
+                                 "or ?token=)", headers=UNAUTHORIZED)
+    if who.role != "agent" or who.agent_id is None or who.mission_id is None:
+        raise HTTPException(403, f"role {who.role!r} may not do this (needs agent)")
+    return who
+
+
 @router.post("/ingest/sensorlogger")
 async def sensorlogger(request: Request, services: ServicesDep,
                        token: Annotated[str | None, Query(max_length=200)] = None
                        ) -> JSONResponse:
     """Sensor Logger's HTTP push (the app cannot set headers: the token may be a query)."""
-    secret = bearer_secret(request.headers.get("authorization")) or token
-    who = None if secret is None else await services.authenticate(secret)
-    if who is None:
-        return JSONResponse({"detail": "token unknown, revoked or expired (Bearer or ?token=)"},
-                            status_code=401, headers=UNAUTHORIZED)
-    if who.role != "agent" or who.agent_id is None or who.mission_id is None:
-        return JSONResponse({"detail": f"role {who.role!r} may not do this (needs agent)"},
-                            status_code=403)
+    who = await app_agent(request, services, token)
+    assert who.agent_id is not None and who.mission_id is not None
     check_rate(services, who)
     body = await request.body()
     t0 = services.mission_t0(who.mission_id)

@@ -1,0 +1,457 @@
+"""Compiled filter of :mod:`hrtls.attitude.inertial_lowpass` (the equations are described there).
+
+The parameter array holds the shared part (:mod:`hrtls.attitude._kernels`) followed by
+``TAU_ACC`` .. ``WALK``; the state vector ``x`` has the layout ``QG`` .. ``HS`` (``NX`` values),
+``P`` is the 3 x 3 covariance of the gyro bias.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.attitude import _ekf_update as EK
+from hrtls.attitude import _kernels as K
+from hrtls.attitude import _quaternion as Q
+from hrtls.attitude._jit import JIT
+from hrtls.frames import FloatArray
+
+# ---- parameter layout (after the shared part)
+TAU_ACC = K.PRM_SPECIFIC
+TAU_MAG = K.PRM_SPECIFIC + 1
+BIAS_EST = K.PRM_SPECIFIC + 2
+B_SIG0 = K.PRM_SPECIFIC + 3
+B_FORGET = K.PRM_SPECIFIC + 4
+B_CLIP = K.PRM_SPECIFIC + 5
+B_SIG_MOT = K.PRM_SPECIFIC + 6
+B_VERT = K.PRM_SPECIFIC + 7
+B_SIG_REST = K.PRM_SPECIFIC + 8
+M_CUR_TAU = K.PRM_SPECIFIC + 9
+M_REF_TAU = K.PRM_SPECIFIC + 10
+M_NEW_FIRST = K.PRM_SPECIFIC + 11
+M_NEW_RATE = K.PRM_SPECIFIC + 12
+M_UNDIST = K.PRM_SPECIFIC + 13
+M_MAX_REJ = K.PRM_SPECIFIC + 14
+M_REJ_FACTOR = K.PRM_SPECIFIC + 15
+TILT_SIG = K.PRM_SPECIFIC + 16
+HEAD_SIG = K.PRM_SPECIFIC + 17
+WALK = K.PRM_SPECIFIC + 18
+
+BIAS_GROWTH_RAD2_S2 = float(np.deg2rad(0.1)) ** 2  # bias variance growth per bias_forgetting_s
+
+# ---- state layout
+QG = 0  # 0..3 q_gyr (d -> I)
+QA = 4  # 4..7 q_acc (I -> E')
+HC = 8  # cos(delta / 2) of the heading correction delta about the vertical
+ALP = 9  # 9..14 biquad state of lp(a_I), two per axis
+RLP = 15  # 15..32 biquad state of lp(R_6), row-major, two per entry
+RBLP = 33  # 33..38 biquad state of lp(R_6 b)
+DT = 39  # sample period the coefficients below belong to, s (0: none yet)
+CB0 = 40  # biquad b0, b1 (= 2 b0), b2 (= b0), a1, a2 at 40, 41, 42
+CA1 = 41
+CA2 = 42
+KACC = 43  # 1 - exp(-dt / tau_acc)
+KMAG = 44  # 1 - exp(-dt / tau_mag)
+KCUR = 45  # gain of the norm/dip low-pass
+KREF = 46  # gain of the reference update
+MN = 47  # low-passed field norm, uT
+MDIP = 48  # low-passed dip, rad
+MUND_T = 49  # time undisturbed, s
+MREJ_T = 50  # rejection time used, s
+MDIST = 51  # 1.0 while the field is disturbed
+MINIT = 52  # count of the averaging first heading corrections (0: done)
+MFIRST = 53  # 1.0 while the reference is only the first sample
+VTILT = 54  # roll/pitch variance, rad^2
+VHEAD = 55  # heading variance, rad^2
+LPOK = 56  # 1.0 once the low-passes were started on a sample
+HS = 57  # sin(delta / 2)
+NX = 58
+
+
+
+@numba.njit(inline="always", **JIT)
+def _biquad(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: float) -> float:
+    """One step of the Butterworth low-pass (transposed direct form II, ``b = b0 [1, 2, 1]``)."""
+    y = b0 * u + x[k]
+    x[k] = 2.0 * b0 * u - a1 * y + x[k + 1]
+    x[k + 1] = b0 * u - a2 * y
+    return y
+
+
+@numba.njit(inline="always", **JIT)
+def _biquad_steady(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: float) -> None:
+    """The state of a low-pass that has seen the constant ``u`` forever (output ``u``)."""
+    x[k + 1] = (b0 - a2) * u
+    x[k] = (3.0 * b0 - a1 - a2) * u
+
+
+@numba.njit(**JIT)
+def _set_gains(x: FloatArray, prm: FloatArray, dt: float) -> None:
+    """Gains for the sample period ``dt``.
+
+    Butterworth by the bilinear transform with pre-warping, ``K = tan(pi f_c dt)``,
+    ``b0 = K^2 / (1 + sqrt2 K + K^2)``, ``a1 = 2 (K^2 - 1) / (.)``,
+    ``a2 = (1 - sqrt2 K + K^2) / (.)``; first-order gains ``1 - exp(-dt / tau)``.
+    """
+    fc = math.sqrt(2.0) / (2.0 * math.pi * prm[TAU_ACC])
+    kk = math.tan(min(math.pi * fc * dt, 1.2))
+    nrm = 1.0 / (1.0 + math.sqrt(2.0) * kk + kk * kk)
+    x[CB0] = kk * kk * nrm
+    x[CA1] = 2.0 * (kk * kk - 1.0) * nrm
+    x[CA2] = (1.0 - math.sqrt(2.0) * kk + kk * kk) * nrm
+    x[KACC] = 1.0 - math.exp(-dt / prm[TAU_ACC])
+    x[KMAG] = 1.0 - math.exp(-dt / prm[TAU_MAG])
+    x[KCUR] = 1.0 - math.exp(-dt / prm[M_CUR_TAU])
+    x[KREF] = 1.0 - math.exp(-dt / prm[M_REF_TAU])
+    x[DT] = dt
+
+
+@numba.njit(inline="always", **JIT)
+def _rotation_matrix(w: float, x: float, y: float, z: float, out: FloatArray) -> None:
+    """``R(q)`` row-major into ``out[0:9]``."""
+    out[0] = 1.0 - 2.0 * (y * y + z * z)
+    out[1] = 2.0 * (x * y - w * z)
+    out[2] = 2.0 * (x * z + w * y)
+    out[3] = 2.0 * (x * y + w * z)
+    out[4] = 1.0 - 2.0 * (x * x + z * z)
+    out[5] = 2.0 * (y * z - w * x)
+    out[6] = 2.0 * (x * z - w * y)
+    out[7] = 2.0 * (y * z + w * x)
+    out[8] = 1.0 - 2.0 * (x * x + y * y)
+
+
+@numba.njit(**JIT)
+def _restart_lowpass(x: FloatArray, aux: FloatArray, a_i: tuple[float, float, float],
+                     rr: FloatArray) -> None:
+    """Low-pass states at rest on the current ``a_I``, ``R_6`` (in ``rr``) and ``R_6 b``."""
+    b0 = x[CB0]
+    a1 = x[CA1]
+    a2 = x[CA2]
+    for c in range(3):
+        _biquad_steady(x, ALP + 2 * c, a_i[c], b0, a1, a2)
+    for r in range(9):
+        _biquad_steady(x, RLP + 2 * r, rr[r], b0, a1, a2)
+    for r in range(3):
+        rb = (rr[3 * r] * aux[K.AUX_BIAS] + rr[3 * r + 1] * aux[K.AUX_BIAS + 1]
+              + rr[3 * r + 2] * aux[K.AUX_BIAS + 2])
+        _biquad_steady(x, RBLP + 2 * r, rb, b0, a1, a2)
+
+
+@numba.njit(inline="always", **JIT)
+def _steady_noise(var: float, growth: float) -> float:
+    """Measurement variance ``w = var^2 / v + var`` whose steady-state estimate variance is ``var``.
+
+    For a scalar random walk with per-sample growth ``v`` measured every sample with variance
+    ``w``, the a-priori variance ``p`` solves ``p^2 = v (p + w)``; the a-posteriori one,
+    ``p w / (p + w)``, equals ``var`` for this ``w`` [3.4].
+    """
+    return var * var / max(growth, 1e-300) + var
+
+
+@numba.njit(inline="always", **JIT)
+def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y: FloatArray,
+                 wv: FloatArray, clip: float, M: FloatArray, k: FloatArray) -> None:
+    """Kalman update of the bias, ``b`` clipped.
+
+    ``S = H P H^T + diag(wv)``, ``K = P H^T S^-1``, ``b += K y``, ``P -= K H P`` (``H``
+    row-major 3 x 3, ``M`` and ``k`` work space).
+    """
+    for a in range(3):
+        for r in range(3):
+            M[a, r] = P[a, 0] * H[3 * r] + P[a, 1] * H[3 * r + 1] + P[a, 2] * H[3 * r + 2]
+    s00 = H[0] * M[0, 0] + H[1] * M[1, 0] + H[2] * M[2, 0] + wv[0]
+    s01 = H[0] * M[0, 1] + H[1] * M[1, 1] + H[2] * M[2, 1]
+    s02 = H[0] * M[0, 2] + H[1] * M[1, 2] + H[2] * M[2, 2]
+    s11 = H[3] * M[0, 1] + H[4] * M[1, 1] + H[5] * M[2, 1] + wv[1]
+    s12 = H[3] * M[0, 2] + H[4] * M[1, 2] + H[5] * M[2, 2]
+    s22 = H[6] * M[0, 2] + H[7] * M[1, 2] + H[8] * M[2, 2] + wv[2]
+    ok, i00, i01, i02, i11, i12, i22 = EK.sym3_inverse(s00, s01, s02, s11, s12, s22)
+    if not ok:
+        return
+    for a in range(3):
+        m0 = M[a, 0]
+        m1 = M[a, 1]
+        m2 = M[a, 2]
+        k[a, 0] = m0 * i00 + m1 * i01 + m2 * i02
+        k[a, 1] = m0 * i01 + m1 * i11 + m2 * i12
+        k[a, 2] = m0 * i02 + m1 * i12 + m2 * i22
+    for a in range(3):
+        db = k[a, 0] * y[0] + k[a, 1] * y[1] + k[a, 2] * y[2]
+        if math.isfinite(db):
+            aux[K.AUX_BIAS + a] = min(clip, max(-clip, aux[K.AUX_BIAS + a] + db))
+    for a in range(3):
+        for b in range(a, 3):
+            v = P[a, b] - (k[a, 0] * M[b, 0] + k[a, 1] * M[b, 1] + k[a, 2] * M[b, 2])
+            P[a, b] = v
+            P[b, a] = v
+
+
+@numba.njit(inline="always", **JIT)
+def _start(x: FloatArray, P: FloatArray, aux: FloatArray, prm: FloatArray, flags: int,
+           w: float, qx: float, qy: float, qz: float, r_tilt: float, r_head: float,
+           p_max: float) -> None:
+    """State at initialisation: ``q_gyr = q``, no inclination or heading correction yet."""
+    Q.set_q(x, QG, w, qx, qy, qz)
+    Q.set_q(x, QA, 1.0, 0.0, 0.0, 0.0)
+    x[HC] = 1.0
+    x[HS] = 0.0
+    x[DT] = 0.0
+    x[LPOK] = 0.0
+    mag0 = (flags & K.FLAG_MAG) != 0
+    x[MN] = aux[K.AUX_MREF_N]
+    x[MDIP] = aux[K.AUX_MREF_DIP]
+    x[MUND_T] = 0.0
+    x[MREJ_T] = 0.0
+    x[MDIST] = 0.0
+    x[MINIT] = 2.0 if mag0 else 1.0
+    x[MFIRST] = 0.0 if (math.isfinite(prm[K.PRM_MAG_REF_N])
+                        and math.isfinite(prm[K.PRM_MAG_REF_DIP])) else 1.0
+    x[VTILT] = r_tilt
+    x[VHEAD] = r_head if mag0 else math.pi ** 2
+    for a in range(3):
+        for b in range(3):
+            P[a, b] = p_max if a == b else 0.0
+
+
+@numba.njit(inline="always", **JIT)
+def _mag_disturbance(x: FloatArray, aux: FloatArray, prm: FloatArray, mn: float, dip: float,
+                     rate: float, dt: float, gn: float, gd: float) -> None:
+    """Disturbance detection and reference update [3.5] from the field norm ``mn`` and dip.
+
+    Low-passes norm and dip, sets ``x[MDIST]`` while they leave the reference, slowly updates
+    the reference while undisturbed, and makes a candidate field that stays stable while the
+    device turns (``rate``, rad/s) the new reference.
+    """
+    x[MN] += x[KCUR] * (mn - x[MN])
+    x[MDIP] += x[KCUR] * (dip - x[MDIP])
+    cn = x[MN]
+    cd = x[MDIP]
+    if abs(cn - aux[K.AUX_MREF_N]) < gn and abs(cd - aux[K.AUX_MREF_DIP]) < gd:
+        x[MUND_T] += dt
+        if x[MUND_T] >= prm[M_UNDIST]:
+            x[MDIST] = 0.0
+            aux[K.AUX_MREF_N] += x[KREF] * (cn - aux[K.AUX_MREF_N])
+            aux[K.AUX_MREF_DIP] += x[KREF] * (cd - aux[K.AUX_MREF_DIP])
+    else:
+        x[MUND_T] = 0.0
+        x[MDIST] = 1.0
+    if abs(cn - aux[K.AUX_MCAND_N]) < gn and abs(cd - aux[K.AUX_MCAND_DIP]) < gd:
+        if rate >= prm[M_NEW_RATE]:
+            aux[K.AUX_MCAND_T] += dt
+            aux[K.AUX_MCAND_N] += x[KREF] * (cn - aux[K.AUX_MCAND_N])
+            aux[K.AUX_MCAND_DIP] += x[KREF] * (cd - aux[K.AUX_MCAND_DIP])
+            if x[MDIST] > 0.5 and (
+                    aux[K.AUX_MCAND_T] >= prm[K.PRM_MAG_NEW_S]
+                    or (x[MFIRST] > 0.5 and aux[K.AUX_MCAND_T] >= prm[M_NEW_FIRST])):
+                aux[K.AUX_MREF_N] = aux[K.AUX_MCAND_N]
+                aux[K.AUX_MREF_DIP] = aux[K.AUX_MCAND_DIP]
+                x[MUND_T] = prm[M_UNDIST]
+                x[MDIST] = 0.0
+                x[MFIRST] = 0.0
+    else:
+        aux[K.AUX_MCAND_N] = cn
+        aux[K.AUX_MCAND_DIP] = cd
+        aux[K.AUX_MCAND_T] = 0.0
+
+
+@numba.njit(**JIT)
+def inertial_lowpass_kernel(
+    t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
+    has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,
+    out_q: FloatArray, out_var: FloatArray, out_flags: NDArray[np.uint8],
+    out_extra: FloatArray,
+) -> None:
+    """The filter over one chunk (module text, steps 1-5); mutates ``x``, ``P`` and ``aux``."""
+    n = t.shape[0]
+    rr = np.empty(9)  # R_6 of this sample
+    hh = np.empty(9)  # lp(R_6)
+    yv = np.empty(3)
+    wv = np.empty(3)
+    M = np.empty((3, 3))
+    kw = np.empty((3, 3))
+    eye = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+    sig0 = prm[B_SIG0]
+    p_max = sig0 * sig0
+    p_grow = BIAS_GROWTH_RAD2_S2 / prm[B_FORGET]
+    clip = prm[B_CLIP]
+    walk2 = prm[WALK] ** 2
+    r_tilt = prm[TILT_SIG] ** 2
+    r_head = prm[HEAD_SIG] ** 2
+    gn = prm[K.PRM_MAG_NORM_GATE]
+    gd = prm[K.PRM_MAG_DIP_GATE]
+    bias_on = prm[BIAS_EST] > 0.5
+    for i in range(n):
+        s = K.read_sample(t, acc, gyr, mag, i, has_gyr, has_mag, prm, aux)
+        dt = s.dt
+        if aux[K.AUX_INIT] < 0.5:
+            flags, w, qx, qy, qz = K.try_init(aux, prm, s, has_mag)
+            if flags == 0:
+                K.write_uninit(out_q, out_var, out_flags, i)
+                out_extra[i, 0] = 0.0
+                continue
+            _start(x, P, aux, prm, flags, w, qx, qy, qz, r_tilt, r_head, p_max)
+            Q.write_q(out_q, i, w, qx, qy, qz)
+            out_var[i, 0] = x[VTILT]
+            out_var[i, 1] = x[VTILT]
+            out_var[i, 2] = x[VHEAD]
+            out_flags[i] = flags
+            out_extra[i, 0] = 0.0
+            continue
+        flags = K.FLAG_VALID
+        gw = x[QG]
+        gx = x[QG + 1]
+        gy = x[QG + 2]
+        gz = x[QG + 3]
+        aw = x[QA]
+        ax = x[QA + 1]
+        ay = x[QA + 2]
+        az = x[QA + 3]
+        # ---- 1. strapdown integration [3.1]
+        gflags = K.gyro_step(aux, prm, s, has_gyr)
+        rate = 0.0
+        if gflags:
+            flags |= gflags
+            wx, wy, wz = K.unbiased_rate(aux, s)
+            rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+            gw, gx, gy, gz = Q.gyro_quat_step(gw, gx, gy, gz, wx, wy, wz, dt)
+        restart = x[LPOK] < 0.5 or dt > prm[K.PRM_MAX_DT]  # not started yet, or a gap
+        if abs(dt - x[DT]) > 0.01 * x[DT]:
+            _set_gains(x, prm, dt)
+        for a in range(3):
+            if P[a, a] < p_max:
+                P[a, a] += p_grow * dt
+        # ---- 2. inclination from lp(a_I) [3.2]
+        use_a = s.acc_fin
+        k_tilt = 0.0
+        wc0 = 0.0
+        wc1 = 0.0
+        if use_a:
+            a_i = Q.rot(gw, gx, gy, gz, s.a0, s.a1, s.a2)
+            sw, sx, sy, sz = Q.qmul(aw, ax, ay, az, gw, gx, gy, gz)
+            _rotation_matrix(sw, sx, sy, sz, rr)
+            b0 = x[CB0]
+            a1 = x[CA1]
+            a2 = x[CA2]
+            if restart:
+                _restart_lowpass(x, aux, a_i, rr)
+                x[LPOK] = 1.0
+            l0 = _biquad(x, ALP, a_i[0], b0, a1, a2)
+            l1 = _biquad(x, ALP + 2, a_i[1], b0, a1, a2)
+            l2 = _biquad(x, ALP + 4, a_i[2], b0, a1, a2)
+            e0, e1, e2 = Q.rot(aw, ax, ay, az, l0, l1, l2)
+            en = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if en > 1e-9:
+                e0 /= en
+                e1 /= en
+                e2 /= en
+                c = math.sqrt(max(0.5 * (1.0 + e2), 0.0))
+                if c > 1e-6:
+                    cw, cx, cy = c, 0.5 * e1 / c, -0.5 * e0 / c
+                else:  # filtered gravity points down: half turn about x
+                    cw, cx, cy = 0.0, 1.0, 0.0
+                aw, ax, ay, az = Q.qmul(cw, cx, cy, 0.0, aw, ax, ay, az)
+                an = math.sqrt(aw * aw + ax * ax + ay * ay + az * az)
+                aw /= an
+                ax /= an
+                ay /= an
+                az /= an
+                wc0 = 2.0 * cx / dt
+                wc1 = 2.0 * cy / dt
+                k_tilt = x[KACC]
+            else:
+                use_a = False
+            # ---- 4. gyro bias [3.4]: lp(R_6), lp(R_6 b) and the pseudo-measurement
+            bx0 = aux[K.AUX_BIAS]
+            bx1 = aux[K.AUX_BIAS + 1]
+            bx2 = aux[K.AUX_BIAS + 2]
+            for r in range(9):
+                hh[r] = _biquad(x, RLP + 2 * r, rr[r], b0, a1, a2)
+            lrb0 = _biquad(x, RBLP, rr[0] * bx0 + rr[1] * bx1 + rr[2] * bx2, b0, a1, a2)
+            lrb1 = _biquad(x, RBLP + 2, rr[3] * bx0 + rr[4] * bx1 + rr[5] * bx2, b0, a1, a2)
+            lrb2 = _biquad(x, RBLP + 4, rr[6] * bx0 + rr[7] * bx1 + rr[8] * bx2, b0, a1, a2)
+            if bias_on and (gflags & K.FLAG_GYR):
+                if gflags & K.FLAG_REST:
+                    yv[0] = aux[K.AUX_LP] - bx0
+                    yv[1] = aux[K.AUX_LP + 1] - bx1
+                    yv[2] = aux[K.AUX_LP + 2] - bx2
+                    wr = _steady_noise(prm[B_SIG_REST] ** 2, p_grow * dt)
+                    wv[0] = wr
+                    wv[1] = wr
+                    wv[2] = wr
+                    _bias_update(P, aux, eye, yv, wv, clip, M, kw)
+                elif use_a:
+                    yv[0] = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
+                    yv[1] = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
+                    yv[2] = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
+                    wm = _steady_noise(prm[B_SIG_MOT] ** 2, p_grow * dt)
+                    wv[0] = wm
+                    wv[1] = wm
+                    wv[2] = wm / prm[B_VERT]
+                    _bias_update(P, aux, hh, yv, wv, clip, M, kw)
+        # ---- 3. heading [3.3] with 5. disturbance rejection [3.5]
+        use_m = False
+        k_head = 0.0
+        sw, sx, sy, sz = Q.qmul(aw, ax, ay, az, gw, gx, gy, gz)  # q_6
+        hc = x[HC]
+        hs = x[HS]
+        if s.mag_fin:
+            m0, m1, m2 = Q.rot(sw, sx, sy, sz, s.m0, s.m1, s.m2)
+            mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+            if mn > 1e-6:
+                dip = math.asin(min(1.0, max(-1.0, -m2 / mn)))
+                if K.first_field(aux, prm, mn, dip):
+                    x[MN] = mn
+                    x[MDIP] = dip
+                _mag_disturbance(x, aux, prm, mn, dip, rate, dt, gn, gd)
+                k_head = x[KMAG]
+                if x[MINIT] > 0.5:
+                    k_head = max(k_head, 1.0 / x[MINIT])
+                if x[MDIST] > 0.5:
+                    if x[MREJ_T] <= prm[M_MAX_REJ]:
+                        x[MREJ_T] += dt
+                        k_head = 0.0
+                    else:
+                        k_head /= prm[M_REJ_FACTOR]
+                else:
+                    x[MREJ_T] = max(x[MREJ_T] - prm[M_REJ_FACTOR] * dt, 0.0)
+                hn = m0 * m0 + m1 * m1
+                if k_head > 0.0 and hn > 1e-12:
+                    # wrap(delta* - delta) is the angle from the field turned by delta to
+                    # north: atan2(h_x, h_y) with h = R_z(delta) m
+                    c_d = hc * hc - hs * hs
+                    s_d = 2.0 * hc * hs
+                    err = math.atan2(c_d * m0 - s_d * m1, s_d * m0 + c_d * m1)
+                    # delta += k err, on the half-angle pair
+                    c, sc = Q.cos_sinc(0.5 * k_head * err)
+                    si = sc * 0.5 * k_head * err
+                    hc, hs = hc * c - hs * si, hs * c + hc * si
+                    hn = math.sqrt(hc * hc + hs * hs)
+                    hc /= hn
+                    hs /= hn
+                    x[HC] = hc
+                    x[HS] = hs
+                    use_m = True
+                    if x[MINIT] > 0.5:
+                        x[MINIT] += 1.0
+                        if 1.0 / x[MINIT] < x[KMAG]:
+                            x[MINIT] = 0.0
+                else:
+                    k_head = 0.0
+        flags = K.count_used(aux, flags, use_a, use_m, has_mag)
+        # ---- variances (module text)
+        x[VTILT] = min((1.0 - k_tilt) * x[VTILT] + k_tilt * r_tilt + walk2 * dt, math.pi ** 2)
+        x[VHEAD] = min((1.0 - k_head) * x[VHEAD] + k_head * r_head + walk2 * dt, math.pi ** 2)
+        Q.set_q(x, QG, gw, gx, gy, gz)
+        Q.set_q(x, QA, aw, ax, ay, az)
+        # ---- output q = R_z(delta) * q_acc * q_gyr
+        w, qx, qy, qz = Q.qmul(hc, 0.0, 0.0, hs, sw, sx, sy, sz)
+        w, qx, qy, qz = Q.positive_unit(w, qx, qy, qz)
+        Q.write_q(out_q, i, w, qx, qy, qz)
+        out_var[i, 0] = x[VTILT]
+        out_var[i, 1] = x[VTILT]
+        out_var[i, 2] = x[VHEAD]
+        out_flags[i] = flags
+        out_extra[i, 0] = x[MDIST]
