@@ -362,14 +362,15 @@ def cases() -> list[Case]:
         MetricSpec("p90 error [m]", p90_error, "2.4 (Sec. IV)", ("<=", 1.8)),
         MetricSpec("RSS alone - ours, mean [m]", rss_gain, "~1.5 (Kalman vs RSS alone)",
                    (">=", 1.5), higher_is_better=True)]))
-    for user, (kf_mean, kf_max) in _TARRIO_OFFICE_KF.items():
-        out.append(Case(f"tarrio_office user {user}", "tarrio_office", {"user": user},
+    for office_user, (kf_mean, kf_max) in _TARRIO_OFFICE_KF.items():
+        out.append(Case(f"tarrio_office user {office_user}", "tarrio_office",
+                        {"user": office_user},
                         "tarrio2011", [
                             MetricSpec("mean error [m]", mean_error,
                                        f"{kf_mean:.2f} (Table I, KF)", ("<=", kf_mean)),
                             MetricSpec("max error [m]", max_error,
                                        f"{kf_max:.2f} (Table II, KF)", ("<=", kf_max))],
-                        quick=user == 1))
+                        quick=office_user == 1))
     for tags, (fig, goal) in _RING.items():
         out.append(Case(f"inderst_ring tags={tags}", "inderst_ring", {"tags": tags},
                         "inderst-rfid", [MetricSpec(
