@@ -448,7 +448,7 @@ class Tracker:
             "engine": eng.state_dict(),
             "scale": {k: getattr(eng.scale, k) for k in StepScaleLearner.STATE},
             "history": self.history.state(eng.state.t),
-            "gait": None if self.gait is None else self.gait.state(),
+            "gait": None if self.gait is None else self.gait.state(strict_json=False),
             "attitude": None if self.attitude is None else self.attitude.state(),
             "held": {k: getattr(self._held, k) for k in HeldImu.STATE},
             "baro": None if self.baro is None else self.baro.state(),
