@@ -355,16 +355,34 @@ def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
             include_header=False, quoting_style=style, batch_size=1 << 16))
 
 
-def arrow_from_columns(columns: Mapping[str, NDArray[np.generic]]) -> pa.Table:
+ArrowColumn = NDArray[np.generic] | pa.Array
+"""A column to write: numpy (numbers or text), or an Arrow array taken as it is."""
+
+
+def arrow_from_columns(columns: Mapping[str, ArrowColumn]) -> pa.Table:
     """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text.
 
     Built from buffers: :func:`pyarrow.array` and :func:`pyarrow.table` would import pandas.
+    Arrow arrays are kept as they are.
     """
     arrays = []
     for values in columns.values():
+        if isinstance(values, pa.Array):
+            arrays.append(values)
+            continue
         arr = np.asarray(values)
         arrays.append(_float_array(arr) if arr.dtype.kind in "fiub" else _text_array(arr))
     return pa.Table.from_arrays(arrays, names=list(columns))
+
+
+def labelled_text(indices: NDArray[np.integer], labels: Sequence[str]) -> pa.Array:
+    """The text column ``labels[indices]`` (a few labels over many rows), made in Arrow."""
+    index = np.ascontiguousarray(indices, dtype=np.int32)
+    if len(index) and (index.min() < 0 or index.max() >= len(labels)):
+        raise IndexError(f"label index outside 0..{len(labels) - 1}")
+    codes = pa.Array.from_buffers(pa.int32(), len(index), [None, pa.py_buffer(index)])
+    dictionary = _text_array(np.asarray(list(labels), dtype=np.str_))
+    return pa.DictionaryArray.from_arrays(codes, dictionary).dictionary_decode()
 
 
 def _float_array(values: NDArray[np.generic]) -> pa.Array:
@@ -383,6 +401,6 @@ def _text_array(values: NDArray[np.generic]) -> pa.Array:
                                  [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))])
 
 
-def format_table(columns: Mapping[str, NDArray[np.generic]]) -> str:
+def format_table(columns: Mapping[str, ArrowColumn]) -> str:
     """Render columns as CSV text with a header line (NaN in a numeric column: empty field)."""
     return csv_bytes(arrow_from_columns(columns)).decode("utf-8")

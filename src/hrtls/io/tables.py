@@ -29,11 +29,13 @@ from hrtls.data import StepEvents, Trajectory, activity_codes, activity_labels
 from hrtls.errors import FormatError, UnitError
 from hrtls.frames import Georeference
 from hrtls.io.csvtable import (
+    ArrowColumn,
     Table,
     arrow_columns,
     arrow_from_columns,
     check_columns,
     csv_bytes,
+    labelled_text,
     read_table,
     write_csv,
 )
@@ -53,7 +55,7 @@ def _spec(table: str) -> TableSpec:
                           expected=f"one of {', '.join(TABLES)}") from None
 
 
-def to_arrow(columns: Mapping[str, NDArray[np.generic]], *, table: str) -> pa.Table:
+def to_arrow(columns: Mapping[str, ArrowColumn], *, table: str) -> pa.Table:
     """A typed Arrow table of ``table`` (a name in :data:`~hrtls.io.schema.TABLES`).
 
     Columns keep their given order; each must be one the table allows.
@@ -138,8 +140,7 @@ def read_parquet(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
     return from_arrow(arrow, table=table, name=name, owned=True)
 
 
-def encode_table(columns: Mapping[str, NDArray[np.generic]], *, table: str, suffix: str
-                 ) -> bytes:
+def encode_table(columns: Mapping[str, ArrowColumn], *, table: str, suffix: str) -> bytes:
     """The file contents of ``table`` as ``.csv`` or ``.parquet``."""
     arrow = to_arrow(columns, table=table)
     if suffix == ".parquet":
@@ -149,8 +150,7 @@ def encode_table(columns: Mapping[str, NDArray[np.generic]], *, table: str, suff
     raise FormatError(f"suffix {suffix!r}", where=table, expected=".csv or .parquet")
 
 
-def write_table_file(columns: Mapping[str, NDArray[np.generic]], *, table: str, path: Path
-                     ) -> Path:
+def write_table_file(columns: Mapping[str, ArrowColumn], *, table: str, path: Path) -> Path:
     """Write ``table`` as ``.csv`` or ``.parquet`` (by the suffix of ``path``).
 
     The file is written as it is encoded (its whole contents are not held in memory).
@@ -175,15 +175,40 @@ def decode_table(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
 # --------------------------------------------------------------------------------------------
 # Results of ``hrtls track``
 # --------------------------------------------------------------------------------------------
+_CODE_SPAN = 1024
+"""Activity codes spanning more values than this are labelled through :func:`numpy.unique`."""
+
+
+def activity_text(codes: NDArray[np.integer]) -> tuple[NDArray[np.intp], list[str]]:
+    """``(index, labels)`` with ``labels[index]`` equal to ``activity_labels(codes)``.
+
+    The labels of the few distinct codes are looked up once, not per row.
+    """
+    codes = np.asarray(codes, dtype=np.int64)
+    if not len(codes):
+        return np.zeros(0, dtype=np.intp), []
+    lo, hi = int(codes.min()), int(codes.max())
+    if hi - lo < _CODE_SPAN:
+        values, index = np.arange(lo, hi + 1), (codes - lo).astype(np.intp)
+    else:
+        values, index = np.unique(codes, return_inverse=True)
+    return index, activity_labels(values).tolist()
+
+
+def activity_column(codes: NDArray[np.integer]) -> pa.Array:
+    """The ``activity`` text column of activity codes."""
+    return labelled_text(*activity_text(codes))
+
+
 def trajectory_columns(trajectory: Trajectory, *, georeference: Georeference | None = None
-                       ) -> dict[str, np.ndarray]:
+                       ) -> dict[str, ArrowColumn]:
     """Columns of the ``trajectory`` table (with ``lat,lon`` when a georeference is given)."""
     tr = trajectory
-    cols: dict[str, np.ndarray] = {
+    cols: dict[str, ArrowColumn] = {
         "t": tr.t, "x": tr.xyz[:, 0], "y": tr.xyz[:, 1], "z": tr.xyz[:, 2],
         "heading": tr.heading_rad, "var_x": tr.cov_xy[:, 0, 0], "cov_xy": tr.cov_xy[:, 0, 1],
         "var_y": tr.cov_xy[:, 1, 1], "var_heading": tr.var_heading,
-        "activity": activity_labels(tr.activity),
+        "activity": activity_column(tr.activity),
     }
     if georeference is not None and len(tr):
         wgs = georeference.to_wgs84(tr.xyz)
@@ -232,12 +257,12 @@ def read_trajectory(path: Path) -> Trajectory:
     return trajectory_from_table(table, name=path.name)
 
 
-def steps_columns(steps: StepEvents) -> dict[str, np.ndarray]:
+def steps_columns(steps: StepEvents) -> dict[str, ArrowColumn]:
     """Columns of the ``steps`` table."""
     return {
         "t_start": steps.t_start, "t_end": steps.t_end, "length": steps.length_m,
         "heading": steps.heading_rad, "dz": steps.dz_m,
-        "activity": activity_labels(steps.activity),
+        "activity": activity_column(steps.activity),
         "frequency": steps.frequency_hz, "acc_max": steps.acc_max, "acc_min": steps.acc_min,
     }
 
