@@ -16,7 +16,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypeAlias
 
 import numpy as np
 import pyarrow as pa
@@ -355,7 +355,7 @@ def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
             include_header=False, quoting_style=style, batch_size=1 << 16))
 
 
-ArrowColumn = NDArray[np.generic] | pa.Array
+ArrowColumn: TypeAlias = NDArray[np.generic] | pa.Array
 """A column to write: numpy (numbers or text), or an Arrow array taken as it is."""
 
 
@@ -370,7 +370,7 @@ def arrow_from_columns(columns: Mapping[str, ArrowColumn]) -> pa.Table:
         if isinstance(values, pa.Array):
             arrays.append(values)
             continue
-        arr = np.asarray(values)
+        arr: NDArray[np.generic] = np.asarray(values)
         arrays.append(_float_array(arr) if arr.dtype.kind in "fiub" else _text_array(arr))
     return pa.Table.from_arrays(arrays, names=list(columns))
 

@@ -294,8 +294,10 @@ class SessionStream:
         raise NotStreamable(str(self.path))
 
     def _pieces(self) -> Iterator[pa.Table]:
-        """The IMU table in pieces: slices of the table parsed by :meth:`start_imu` (then let
-        go of), or read from the file."""
+        """The IMU table in pieces: slices of the table :meth:`start_imu` parsed, or the file's.
+
+        The parsed table is let go of at the end of the pass.
+        """
         if not self._whole:
             yield from self._imu.pieces(self._chunk_rows)
             return
