@@ -12,8 +12,9 @@
 The readers run interleaved, ``--repeat`` rounds, so each round compares them under the same
 load; the table shows the best round (CPU seconds of all threads, and wall seconds) and the
 spread of the per-round ratio (min / median / max). Run: ``python benchmarks/session_io.py
-[--rows N] [--repeat 5] [--hours-track 2] [--hours-memory 8] [--skip-track]``; simulated
-sessions are cached under ``--work``.
+[--rows N] [--repeat 5] [--hours-track 2] [--hours-memory 8] [--skip-track] [--breakdown]``;
+simulated sessions are cached under ``--work``. ``--breakdown`` adds one more two-hour run in a child
+that times its phases (imports, reading, tracker, evaluation, writing), CPU seconds each.
 """
 
 from __future__ import annotations
@@ -99,6 +100,60 @@ def track_child(session: Path, out: Path) -> tuple[float, float, float, float]:
     return wall, cpu, tracker_s, peak_mb
 
 
+BREAKDOWN = """
+import collections, contextlib, io, sys, time
+T0 = time.process_time()
+from hrtls.cli.app import main
+import hrtls.jobs.track as J, hrtls.io.stream as S, hrtls.pipeline.tracker as TR
+import hrtls.recordings
+spent = collections.defaultdict(float)
+spent["imports"] = time.process_time() - T0
+def timed_method(owner, name, label):
+    fn = getattr(owner, name)
+    def wrapper(*a, **k):
+        c0 = time.process_time()
+        try:
+            return fn(*a, **k)
+        finally:
+            spent[label] += time.process_time() - c0
+    setattr(owner, name, wrapper)
+for owner, name, label in [
+        (J, "track_recording", "track_recording"), (S.SessionStream, "start_imu", "read IMU whole"),
+        (S.SessionStream, "truth", "read truth"), (TR.Tracker, "update", "tracker"),
+        (TR.Tracker, "finish", "tracker"), (J, "evaluate_track", "evaluation"),
+        (J, "write_track_outputs", "write outputs")]:
+    timed_method(owner, name, label)
+sys.argv = ["hrtls", "track", *sys.argv[1:]]
+with contextlib.redirect_stdout(io.StringIO()):
+    try:
+        main()
+    except SystemExit:
+        pass
+spent["total"] = time.process_time() - T0
+spent["read the rest (open, chunks, other tables)"] = spent.pop("track_recording") - sum(
+    spent[k] for k in ("read IMU whole", "read truth", "tracker"))
+spent["other (options, report on screen)"] = spent["total"] - sum(
+    v for k, v in spent.items() if k != "total")
+for k, v in spent.items():
+    print(f"PHASE {k}={v:.3f}")
+"""
+"""One ``hrtls track`` in this process, CPU seconds per phase (the functions are wrapped by
+timers only)."""
+
+
+def breakdown(session: Path, out: Path, table: Table) -> None:
+    """Where the CPU time of one ``hrtls track`` goes, one row per phase."""
+    text, _, _, _ = _child([sys.executable, "-c", BREAKDOWN, str(session), "-o", str(out),
+                            "--overwrite"])
+    phases = dict(re.findall(r"PHASE (.+)=([0-9.]+)", text))
+    total = float(phases.pop("total"))
+    tracker = float(phases["tracker"])
+    for label, value in phases.items():
+        table.add_row(f"  {label}", f"{float(value):.2f}", "",
+                      f"{float(value) / tracker:.2f}x tracker, {float(value) / total:.0%}",
+                      "", "", "")
+
+
 def _spread(ratios: list[float]) -> str:
     return f"{min(ratios):.2f} / {statistics.median(ratios):.2f} / {max(ratios):.2f}"
 
@@ -156,6 +211,10 @@ def tracking(args: argparse.Namespace, table: Table) -> None:
     _, s_wall, s_cpu, _ = _child([*HRTLS_IMPORTS])
     table.add_row("  of which start and exit (imports only)", f"{s_cpu:.2f}", f"{s_wall:.2f}",
                   f"{s_cpu / tracker_s:.2f}x tracker (CPU)", "", "", "")
+    if args.breakdown:
+        table.add_row(f"hrtls track {args.hours_track:g} h again, CPU by phase", "", "", "",
+                      "", "", "")
+        breakdown(s2, args.work / "out_track", table)
     wall, cpu, tracker_s, peak_mb = track_child(s8, args.work / "out_memory")
     table.add_row(f"hrtls track {args.hours_memory:g} h peak memory (tracker {tracker_s:.2f} s)",
                   f"{cpu:.2f}", f"{wall:.2f}", f"{peak_mb:,.0f} MB", "", "< 1000 MB",
@@ -170,6 +229,8 @@ def main() -> None:
     parser.add_argument("--hours-memory", type=float, default=8.0)
     parser.add_argument("--skip-track", action="store_true")
     parser.add_argument("--skip-read", action="store_true")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="also one more two-hour run, its CPU time by phase")
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "hrtls-io")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
