@@ -13,8 +13,8 @@ The readers run interleaved, ``--repeat`` rounds, so each round compares them un
 load; the table shows the best round (CPU seconds of all threads, and wall seconds) and the
 spread of the per-round ratio (min / median / max). Run: ``python benchmarks/session_io.py
 [--rows N] [--repeat 5] [--hours-track 2] [--hours-memory 8] [--skip-track] [--breakdown]``;
-simulated sessions are cached under ``--work``. ``--breakdown`` adds one more two-hour run in a child
-that times its phases (imports, reading, tracker, evaluation, writing), CPU seconds each.
+simulated sessions are cached under ``--work``. ``--breakdown`` adds one more two-hour run in a
+child that times its phases (imports, reading, tracker, evaluation, writing), CPU seconds each.
 """
 
 from __future__ import annotations
