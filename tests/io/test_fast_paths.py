@@ -173,3 +173,25 @@ def test_chunks_after_start_imu_equal_chunks_read_from_the_file(tmp_path, name):
             np.testing.assert_array_equal(x.imu.gyro.values, y.imu.gyro.values)
             np.testing.assert_array_equal(x.imu.mag.values, y.imu.mag.values)
         assert not started._whole, again
+
+
+def test_convert_to_parquet_and_back_to_csv(tmp_path):
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+
+    n = 400
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + np.linspace(0, 0.1, n)[:, None]
+    write_session(Session(imu=ImuStream(SensorSeries(t, acc))), tmp_path / "s")
+    runner = CliRunner()
+    res = runner.invoke(app, ["convert", str(tmp_path / "s"), "-o", str(tmp_path / "p"),
+                              "--to", "parquet"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "p" / "imu.parquet").exists() and not (tmp_path / "p" / "imu.csv").exists()
+    res = runner.invoke(app, ["convert", str(tmp_path / "p"), "-o", str(tmp_path / "c")])
+    assert res.exit_code == 0, res.output
+    np.testing.assert_array_equal(read_session(tmp_path / "c").imu.accel.values, acc)
+    res = runner.invoke(app, ["convert", str(tmp_path / "s"), "-o", str(tmp_path / "x"),
+                              "--to", "hdf5"])
+    assert res.exit_code != 0 and "--to" in res.output and "csv or parquet" in res.output
