@@ -7,13 +7,16 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+from sqlalchemy import select
 from typer.testing import CliRunner
 
 from hrtls.cli.app import app
 from hrtls.io.mission import read_mission
-from hrtls.io.tables import read_trajectory
+from hrtls.io.tables import decode_table, read_trajectory
 from hrtls.service.client import AgentClient, session_batches
+from hrtls.service.db import make_engine, session_factory
 from hrtls.service.missions import export_mission
+from hrtls.service.models import EstimateRow
 
 from .conftest import Live, new_agent
 from .streams import API, mission_for, office, start_pose
@@ -34,6 +37,22 @@ def test_export_tracks_offline_as_the_agent_alone(live: Live, commander: httpx.C
     assert commander.get(f"{API}/missions/{mid}").status_code == 200
     out = tmp_path / "exp"
     export_mission(live.settings.db_url, mid, out)
+
+    estimates = decode_table((out / f"agent-{aid}" / "service_estimates.csv").read_bytes(),
+                             table="estimates", name="service_estimates.csv")
+    engine = make_engine(live.settings.db_url)
+    try:
+        with session_factory(engine)() as db:
+            stored = db.execute(select(EstimateRow.t, EstimateRow.x, EstimateRow.activity)
+                                .where(EstimateRow.agent_id == aid)
+                                .order_by(EstimateRow.t)).all()
+    finally:
+        engine.dispose()
+    assert estimates.n_rows == len(stored) > 0
+    t, x, activity = zip(*stored, strict=True)
+    np.testing.assert_array_equal(estimates.float("t"), t)
+    np.testing.assert_array_equal(estimates.float("x"), x)
+    assert estimates.str("activity").tolist() == list(activity)
 
     spec = json.loads((out / "mission.json").read_text())
     assert spec["service"]["id"] == mid and spec["service"]["t0_unix"] > 0

@@ -231,6 +231,9 @@ def convert(
     beacons: BeaconsOption = None,
     trial: TrialOption = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing session.")] = False,
+    to: Annotated[str, typer.Option(
+        "--to", help="Tables as csv | parquet (typed, compressed, units in the schema).")]
+    = "csv",
 ) -> None:
     """Convert a recording into a session folder (SI units, ENU, checked)."""
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -238,6 +241,8 @@ def convert(
     from hrtls.io.session import SESSION_FILES, write_session
     from hrtls.recordings import detect_format
 
+    if to not in ("csv", "parquet"):
+        raise InputError(f"{to!r}", where="--to", expected="csv or parquet")
     if output.suffix.lower() == ".zip":
         if output.exists() and not overwrite:
             raise InputError("already exists", where=str(output), expected="a new path (or "
@@ -261,7 +266,8 @@ def convert(
             raise UnitError(exc.problem, where=exc.where, expected=exc.expected,
                             hint="see `hrtls info` and the reader's unit options") from None
         progress.update(task, advance=1, description=f"writing {output}")
-        write_session(session, output, overwrite=overwrite)
+        write_session(session, output, overwrite=overwrite,
+                      table_format="parquet" if to == "parquet" else "csv")
         progress.update(task, advance=1)
     console.print(f"wrote {output}")
 

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypeAlias
 
 import numpy as np
 import pyarrow as pa
@@ -37,12 +38,15 @@ class Table:
 
     Numeric columns may be held as the parser's float64 Arrow arrays (nulls for unknown
     values) and become numpy arrays only when asked for, so a group of columns is copied once,
-    straight into its ``(n, k)`` array (:meth:`matrix`).
+    straight into its ``(n, k)`` array (:meth:`matrix`). With ``owned`` (the Arrow arrays were
+    made by the reader and nothing else holds them) a column of one chunk without nulls is
+    handed out by :meth:`float` as a writable view of its buffer, not copied.
     """
 
     columns: Mapping[str, Column | pa.ChunkedArray]
     present: tuple[str, ...]
     n_rows: int
+    owned: bool = False
 
     def column(self, name: str) -> Column:
         """A column as numpy: text, or float64 numbers."""
@@ -67,6 +71,10 @@ class Table:
         """A numeric column (unknown values as NaN)."""
         col = self.columns[name]
         if isinstance(col, pa.ChunkedArray):
+            if self.owned and col.num_chunks == 1 and not col.null_count:
+                view = float_values(col.chunks[0])
+                if view.flags.writeable:
+                    return view
             return self.matrix((name,))[:, 0]
         return np.asarray(col, dtype=np.float64)
 
@@ -111,6 +119,16 @@ def _as_float64(col: pa.ChunkedArray) -> pa.ChunkedArray:
     return col if col.type == pa.float64() else col.cast(pa.float64())
 
 
+def _all_finite(values: pa.ChunkedArray) -> bool:
+    """True when the values that are not null are all finite, in one pass (a sum).
+
+    A sum is finite only if every value summed is (IEEE: inf and NaN propagate); a False
+    (a non-finite value, or finite values whose sum overflows) only calls for the exact check.
+    """
+    total = pc.sum(values, skip_nulls=True).as_py()
+    return total is None or math.isfinite(total)
+
+
 def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
                   ) -> tuple[dict[str, Column | pa.ChunkedArray], ValueProblem | None]:
     """Checked columns of ``table``, or the first value that does not fit.
@@ -139,11 +157,13 @@ def arrow_columns(table: pa.Table, kinds: Mapping[str, ColumnKind]
             return out, ValueProblem(_first(col.is_null()), name, f"{name!r} is missing",
                                      "a number")
         values = _as_float64(col)
-        bad = pc.is_inf(values) if kind == "float_or_empty" else pc.invert(pc.is_finite(values))
-        if pc.any(bad).as_py():
-            k = _first(pc.fill_null(bad, False))
-            return out, ValueProblem(k, name, f"{name!r} is {values[k].as_py()}",
-                                     "a finite number")
+        if not _all_finite(values):
+            bad = (pc.is_inf(values) if kind == "float_or_empty"
+                   else pc.invert(pc.is_finite(values)))
+            if pc.any(bad).as_py():
+                k = _first(pc.fill_null(bad, False))
+                return out, ValueProblem(k, name, f"{name!r} is {values[k].as_py()}",
+                                         "a finite number")
         out[name] = values
     return out, None
 
@@ -262,7 +282,7 @@ def _fast(body: pa.Buffer, header: list[str], kinds: Mapping[str, ColumnKind]) -
     columns, problem = arrow_columns(parsed, kinds)
     if problem is not None:
         return None
-    return Table(columns, tuple(header), parsed.num_rows)
+    return Table(columns, tuple(header), parsed.num_rows, owned=True)
 
 
 def _head(buf: pa.Buffer) -> bytes:
@@ -335,16 +355,34 @@ def write_csv(table: pa.Table, sink: pa.NativeFile) -> None:
             include_header=False, quoting_style=style, batch_size=1 << 16))
 
 
-def arrow_from_columns(columns: Mapping[str, NDArray[np.generic]]) -> pa.Table:
+ArrowColumn: TypeAlias = NDArray[np.generic] | pa.Array
+"""A column to write: numpy (numbers or text), or an Arrow array taken as it is."""
+
+
+def arrow_from_columns(columns: Mapping[str, ArrowColumn]) -> pa.Table:
     """Arrow table of numpy columns: numbers as float64 (NaN as null), anything else as text.
 
     Built from buffers: :func:`pyarrow.array` and :func:`pyarrow.table` would import pandas.
+    Arrow arrays are kept as they are.
     """
     arrays = []
     for values in columns.values():
-        arr = np.asarray(values)
+        if isinstance(values, pa.Array):
+            arrays.append(values)
+            continue
+        arr: NDArray[np.generic] = np.asarray(values)
         arrays.append(_float_array(arr) if arr.dtype.kind in "fiub" else _text_array(arr))
     return pa.Table.from_arrays(arrays, names=list(columns))
+
+
+def labelled_text(indices: NDArray[np.integer], labels: Sequence[str]) -> pa.Array:
+    """The text column ``labels[indices]`` (a few labels over many rows), made in Arrow."""
+    index = np.ascontiguousarray(indices, dtype=np.int32)
+    if len(index) and (index.min() < 0 or index.max() >= len(labels)):
+        raise IndexError(f"label index outside 0..{len(labels) - 1}")
+    codes = pa.Array.from_buffers(pa.int32(), len(index), [None, pa.py_buffer(index)])
+    dictionary = _text_array(np.asarray(list(labels), dtype=np.str_))
+    return pa.DictionaryArray.from_arrays(codes, dictionary).dictionary_decode()
 
 
 def _float_array(values: NDArray[np.generic]) -> pa.Array:
@@ -363,6 +401,6 @@ def _text_array(values: NDArray[np.generic]) -> pa.Array:
                                  [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))])
 
 
-def format_table(columns: Mapping[str, NDArray[np.generic]]) -> str:
+def format_table(columns: Mapping[str, ArrowColumn]) -> str:
     """Render columns as CSV text with a header line (NaN in a numeric column: empty field)."""
     return csv_bytes(arrow_from_columns(columns)).decode("utf-8")

@@ -31,10 +31,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes, activity_labels
+from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference
 from hrtls.io.jsonstream import Rows, materialized, write_json
+from hrtls.io.tables import activity_text
 
 FloatArray = NDArray[np.float64]
 
@@ -194,6 +195,20 @@ def _rows(values: np.ndarray, convert: Callable[[list[Any]], list[Any]] = list) 
     return Rows(len(values), lambda i, j: convert(values[i:j].tolist()))
 
 
+def _number_rows(values: FloatArray) -> Rows:
+    """Numbers of ``values``, NaN as null, made a slice at a time."""
+    def make(i: int, j: int) -> list[float | None]:
+        part = values[i:j]
+        return part.tolist() if np.isfinite(part).all() else nan_to_none(part.tolist())
+    return Rows(len(values), make)
+
+
+def _label_rows(codes: NDArray[np.integer]) -> Rows:
+    """Activity labels of ``codes``, made a slice at a time."""
+    index, labels = activity_text(codes)
+    return Rows(len(index), lambda i, j: [labels[k] for k in index[i:j].tolist()])
+
+
 def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
                      landmarks: LandmarkInput = None, georeference: Georeference | None = None,
                      time_origin_unix_s: float | None = None, name: str | None = None
@@ -213,8 +228,8 @@ def _document(trajectory: Trajectory, *, steps: StepEvents | None,
     track_props: dict[str, Any] = {
         "kind": "trajectory",
         "t_s": [_rows(trajectory.t)],
-        "heading_rad": [_rows(trajectory.heading_rad, nan_to_none)],
-        "activity": [_rows(activity_labels(trajectory.activity))],
+        "heading_rad": [_number_rows(trajectory.heading_rad)],
+        "activity": [_label_rows(trajectory.activity)],
     }
     if name is not None:
         track_props["name"] = name
@@ -225,9 +240,9 @@ def _document(trajectory: Trajectory, *, steps: StepEvents | None,
             raise InputError("steps given but the trajectory is empty", where="steps",
                              expected="a trajectory to place the steps on")
         step_coords = to_output_coordinates(trajectory.position_at(steps.t_end), georeference)
-        labels = activity_labels(steps.activity)
+        labels = _label_rows(steps.activity)
         features.append(Rows(len(steps), lambda i, j: _step_features(
-            steps, step_coords, labels, i, j)))
+            steps, step_coords, labels.make(i, j), i, j)))
     for landmark in landmark_list(landmarks):
         position = landmark_output_position(landmark, georeference)
         features.append({
@@ -245,13 +260,13 @@ def _document(trajectory: Trajectory, *, steps: StepEvents | None,
     return doc
 
 
-def _step_features(steps: StepEvents, coords: FloatArray, labels: NDArray[np.str_], i: int,
+def _step_features(steps: StepEvents, coords: FloatArray, labels: list[str], i: int,
                    j: int) -> list[dict[str, Any]]:
-    """The Point features of steps ``i`` to ``j - 1``."""
+    """The Point features of steps ``i`` to ``j - 1`` (``labels``: their activities)."""
     where = coords[i:j].tolist()
     columns = zip(steps.t_start[i:j].tolist(), steps.t_end[i:j].tolist(),
                   steps.length_m[i:j].tolist(), nan_to_none(steps.heading_rad[i:j].tolist()),
-                  steps.dz_m[i:j].tolist(), labels[i:j].tolist(), strict=True)
+                  steps.dz_m[i:j].tolist(), labels, strict=True)
     return [{"type": "Feature", "geometry": {"type": "Point", "coordinates": xyz},
              "properties": {"kind": "step", "index": k, "t_start_s": t_start, "t_end_s": t_end,
                             "length_m": length, "heading_rad": heading, "dz_m": dz,

@@ -68,7 +68,7 @@ RESULT_FILES = ("trajectory.csv", "steps.csv", "trajectory.parquet", "steps.parq
 """Outputs that may sit beside a session without being part of it."""
 
 TableFormat = Literal["csv", "parquet"]
-"""How a session's tables are written: ``csv`` (interchange) or ``parquet`` (typed, zstd)."""
+"""How a session's tables are written: ``csv`` (interchange) or ``parquet`` (typed, LZ4)."""
 
 _AXES = ("x", "y", "z")
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 from typing import Any
 
 import numpy as np
@@ -91,13 +90,22 @@ def agent_session(db: DbSession, mission: Mission, agent: Agent) -> Session | No
     return Session(meta=meta, landmarks=landmarks, **parts)
 
 
+ESTIMATE_COLUMNS = ("t", "x", "y", "z", "floor", "cxx", "cxy", "cyy", "heading_rad",
+                    "var_heading", "activity", "since_correction_s")
+"""Columns of ``service_estimates.csv``: the ``estimates`` table of :mod:`hrtls.io.schema`."""
+
+
 def estimates_csv(db: DbSession, agent_id: int) -> str:
-    """The agent's stored estimates as CSV (mission time)."""
-    out = io.StringIO()
-    out.write("t,x,y,z,floor,cxx,cxy,cyy,heading_rad,var_heading,activity,since_correction_s\n")
-    for r in db.scalars(select(EstimateRow).where(EstimateRow.agent_id == agent_id)
-                        .order_by(EstimateRow.t)):
-        sc = "" if r.since_correction_s is None else repr(r.since_correction_s)
-        out.write(f"{r.t!r},{r.x!r},{r.y!r},{r.z!r},{r.floor},{r.cxx!r},{r.cxy!r},{r.cyy!r},"
-                  f"{r.heading_rad!r},{r.var_heading!r},{r.activity},{sc}\n")
-    return out.getvalue()
+    """The agent's stored estimates as CSV (mission time), by the session tables' writer."""
+    from hrtls.io.tables import encode_table
+
+    fields = [getattr(EstimateRow, c) for c in ESTIMATE_COLUMNS]
+    rows = db.execute(select(*fields).where(EstimateRow.agent_id == agent_id)
+                      .order_by(EstimateRow.t)).all()
+    columns: dict[str, np.ndarray] = {}
+    for k, name in enumerate(ESTIMATE_COLUMNS):
+        values = [r[k] for r in rows]
+        columns[name] = (np.array(values, dtype=np.str_) if name == "activity" else
+                         np.array([np.nan if v is None else v for v in values],
+                                  dtype=np.float64))
+    return encode_table(columns, table="estimates", suffix=".csv").decode("utf-8")
