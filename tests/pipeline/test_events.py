@@ -109,7 +109,8 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
         if i == 0:
             flight[0] = flight[1] = round((state.x[2] - dz) / 3.0)
         stairs = act in (int(Activity.UPSTAIRS), int(Activity.DOWNSTAIRS))
-        pull = flight_step(flight, dz, stairs, 3.0, fp.change_fraction, fp.end_flat_steps)
+        pull = flight_step(flight, dz, stairs, 3.0, fp.change_fraction, fp.end_flat_steps,
+                           fp.direction_fraction)
         if pull and (stairs or act in (int(Activity.WALKING), int(Activity.STANDING))):
             state, _ = floor_level_update(state, 3.0, gate_probability=None,
                                           floor=int(flight[1]))

@@ -266,9 +266,13 @@ def walking_flags(t: FloatArray, step_ends_s: FloatArray | None) -> NDArray[np.b
 def stairs_rates(t: FloatArray, step_starts_s: FloatArray | None,
                  step_ends_s: FloatArray | None, step_dz_m: FloatArray | None
                  ) -> FloatArray:
-    """The step model's climb rate at ``t``, m/s: ``dz / duration`` of the last step that
-    ended within the 2 s before (or at) ``t``, 0 without one (steps in time order)."""
-    if step_ends_s is None or step_starts_s is None or step_dz_m is None or not len(step_ends_s):
+    """The step model's climb rate at ``t``, m/s (steps in time order).
+
+    ``dz / duration`` of the last step that ended within the 2 s before (or at) ``t``; 0
+    without one.
+    """
+    if step_ends_s is None or step_starts_s is None or step_dz_m is None \
+            or not len(step_ends_s):
         return np.zeros(len(t))
     ends = np.asarray(step_ends_s, dtype=np.float64)
     rate = np.asarray(step_dz_m, dtype=np.float64) / np.maximum(

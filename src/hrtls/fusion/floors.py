@@ -8,8 +8,10 @@ walking (its window lags, a landing looks flat) leaves z short of the next floor
 
 * a flight starts at a stair step and lasts until ``end_flat_steps`` consecutive steps that are
   not stairs (a landing of a few steps stays inside the flight);
-* the flight's climb ``c`` has the sign of the majority (up minus down: a person does not turn
-  round on a flight, the classifier confuses up and down) and the size of the mean stair step
+* the flight's climb ``c`` has the sign of the majority of its stair climb, once up and down
+  differ by ``direction_fraction`` of a floor height (a person does not turn round on a
+  flight, the classifier confuses up and down; before that ``c`` is 0; once the flight has
+  changed the floor, the direction of that change) and the size of the mean stair step
   ``|dz|`` times its ``n`` stair steps and the ``g`` steps between them that were not labelled
   stairs (a classifier misses some steps of a flight), ``min(n + g, 2 n)``: flat steps count
   only as long as at least half of the flight's steps are stairs;
@@ -19,9 +21,10 @@ walking (its window lags, a landing looks flat) leaves z short of the next floor
 * after the flight, every walking or standing step pulls z to the floor's level with a soft
   pseudo-measurement (:func:`floor_level_update`).
 
-Isolated misclassified stair steps (fewer than ``change_fraction h`` of climb between runs of
-``end_flat_steps`` flat steps) never change the floor. This is our addition; the thesis only
-reports the floor through z.
+A flight whose stair steps add up to less than ``change_fraction h / 2`` never changes the
+floor: isolated misclassified stair steps (a few between runs of ``end_flat_steps`` steps that
+are not stairs) leave it alone. This is our addition; the thesis only reports the floor
+through z.
 """
 
 from __future__ import annotations
@@ -43,7 +46,6 @@ from hrtls.fusion.gating import (
 )
 from hrtls.fusion.state import FilterState
 
-
 FLIGHT_STATE = ("floor_start", "floor", "up_m", "down_m", "flat_steps", "stair_steps",
                 "gap_steps")
 """The flight rule's state (:func:`flight_step`): the floor the flight started on, the floor now
@@ -60,16 +62,24 @@ class FlightParams:
     change_fraction: share of a floor height a flight's climb needs to change the floor.
     end_flat_steps: consecutive steps that are not stairs that end a flight (a landing and a
         classifier's lag are shorter).
+    direction_fraction: share of a floor height by which a flight's stair climb up and down
+        must differ before it has a direction.
     """
 
     change_fraction: float = 0.6
     end_flat_steps: int = 12
+    direction_fraction: float = 0.15
 
     def __post_init__(self) -> None:
         if not (isinstance(self.change_fraction, int | float)
                 and 0.5 <= self.change_fraction < 1.0):
             raise InputError(f"{self.change_fraction!r}", where="FlightParams.change_fraction",
                              expected="0.5 <= change_fraction < 1 (of a floor height)")
+        if not (isinstance(self.direction_fraction, int | float)
+                and 0.0 < self.direction_fraction < self.change_fraction):
+            raise InputError(f"{self.direction_fraction!r}",
+                             where="FlightParams.direction_fraction",
+                             expected="0 < direction_fraction < change_fraction")
         if not (isinstance(self.end_flat_steps, int) and self.end_flat_steps >= 1):
             raise InputError(f"{self.end_flat_steps!r}", where="FlightParams.end_flat_steps",
                              expected="an integer >= 1")
@@ -92,7 +102,8 @@ def floor_level(index: ArrayLike, floor_height_m: float, *, ground_z_m: float = 
 
 @numba.njit(cache=True, error_model="numpy")
 def flight_step(st: FloatArray, dz_m: float, stairs: bool, floor_height_m: float,
-                change_fraction: float, end_flat_steps: float) -> bool:  # pragma: no cover
+                change_fraction: float, end_flat_steps: float,
+                direction_fraction: float) -> bool:  # pragma: no cover
     """One step of the flight rule (module docstring), ``st`` (:data:`FLIGHT_STATE`) in place.
 
     Returns True when z is to be pulled to the level of floor ``st[1]`` after this step.
@@ -107,7 +118,11 @@ def flight_step(st: FloatArray, dz_m: float, stairs: bool, floor_height_m: float
         st[5] += 1.0
         st[4] = 0.0
         up, down = st[2], st[3]
-        sign = 1.0 if up > down else -1.0 if down > up else 0.0
+        if st[1] != st[0]:           # the flight changed the floor: its direction is known
+            sign = 1.0 if st[1] > st[0] else -1.0
+        else:
+            margin = direction_fraction * floor_height_m
+            sign = 1.0 if up - down >= margin else -1.0 if down - up >= margin else 0.0
         climb = (up + down) / st[5] * min(st[5] + st[6], 2.0 * st[5])
         floor = st[0] + sign * math.floor(climb / floor_height_m + 1.0 - change_fraction)
         changed = floor != st[1]

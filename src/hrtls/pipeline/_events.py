@@ -85,6 +85,7 @@ LOOP_PARAMS_DTYPE = np.dtype([
     ("floor_sigma_m", np.float64),
     ("flight_change_fraction", np.float64),
     ("flight_end_flat_steps", np.float64),
+    ("flight_direction_fraction", np.float64),
     ("gate_1d", np.float64),
     ("gate_2d", np.float64),
     ("heading_known", np.bool_),
@@ -173,6 +174,7 @@ def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
     fp = flight or FlightParams()
     rec["flight_change_fraction"] = fp.change_fraction
     rec["flight_end_flat_steps"] = fp.end_flat_steps
+    rec["flight_direction_fraction"] = fp.direction_fraction
     rec["gate_1d"] = chi2_threshold(1, gate_probability)
     rec["gate_2d"] = chi2_threshold(2, gate_probability)
     rec["heading_known"] = heading_known
@@ -245,7 +247,8 @@ def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
         fl[1] = np.rint((x[2] - dz) / h)
         fl[0] = fl[1]
     stairs = act in (_UPSTAIRS, _DOWNSTAIRS)
-    pull = flight_step(fl, dz, stairs, h, prm.flight_change_fraction, prm.flight_end_flat_steps)
+    pull = flight_step(fl, dz, stairs, h, prm.flight_change_fraction, prm.flight_end_flat_steps,
+                       prm.flight_direction_fraction)
     if pull and (stairs or act in (_WALKING, _STANDING)):
         floor_level_correction(x, p, h, 0.0, prm.floor_sigma_m, 0.0, False, fl[1])
 

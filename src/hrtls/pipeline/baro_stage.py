@@ -78,8 +78,11 @@ class BaroStage:
 
     def add_steps(self, t_end: np.ndarray, t_start: np.ndarray | None = None,
                   dz_m: np.ndarray | None = None) -> None:
-        """Detected steps' end times (the walking flags), and their start times and height
-        changes (the step model's climb rate on stairs; None: no climb)."""
+        """Detected steps' end times (the walking flags).
+
+        With their start times and height changes too: the step model's climb rate on stairs
+        (None: no climb).
+        """
         if len(t_end):
             n = len(t_end)
             self.step_ends = np.concatenate([self.step_ends, np.asarray(t_end, np.float64)])
