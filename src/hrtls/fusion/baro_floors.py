@@ -17,10 +17,12 @@ The floor is a state machine run sample by sample (causal, compiled):
   else at the barometer's climb rate of the 3 s before when steps were detected then, else
   held, and the step is removed from then on. A fast change that lasts more than
   ``max_step_s`` is no door (their pressure rises within a second): it is a climb (an
-  elevator) and is kept whole. While walking on steps that are not stairs, nothing is
-  removed: the walking classifier may have missed the stairs, and a door step met on a
-  flight (0.3 m/s of climb, close to the limits) swallowed the flight; a door while walking
-  flat (about 0.7 m) stays below the sustained change a floor needs;
+  elevator) and is kept whole. While walking on steps that are not stairs, a change is
+  removed only when it takes back about the steps removed so far (a door opened while
+  standing closes) or is faster than 1.5 ``max_climb_m_s``: the walking classifier may
+  have missed the stairs, and a door step met on a flight (0.3 m/s of climb, close to the
+  limits) swallowed the flight; a door while walking flat (about 0.7 m) stays below the
+  sustained change a floor needs;
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -192,7 +194,12 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
         fast_change = (t[i] - t[j] > 0.5
                        and abs(fast[i] - fast[j] - rate * (t[i] - t[j]))
                        > limit * (t[i] - t[j]))
-        if fast_change and not in_step and (stairs[i] != 0.0 or not walking[i]):
+        if fast_change and not in_step and walking[i] and stairs[i] == 0.0:
+            # walking: only a change back by about an open step, or one too fast for stairs
+            change_m = fast[i] - fast[j]
+            fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
+                           or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
+        if fast_change and not in_step:
             in_step = True
             steps += 1.0
             t_start = t[j]
