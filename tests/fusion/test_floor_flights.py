@@ -131,7 +131,7 @@ def _mission(seed: int, *, barometer: bool, activity: str) -> float:
 @pytest.mark.parametrize("seed", [0, 2])
 def test_stairs_alone_move_the_floor_on_the_two_floor_mission(seed: int) -> None:
     """Development seeds 0 and 2 (LDA labels half of a flight as walking): the floor follows
-    the two flights up and the two down without a barometer (was 0.37-0.58)."""
+    the two flights up and the two down without a barometer."""
     assert _mission(seed, barometer=False, activity="lda") >= 0.97
 
 
