@@ -140,3 +140,30 @@ def test_barometer_keeps_the_flights_with_door_steps(seed: int) -> None:
     """Seeds 100 and 116 (looked at: a door's pressure step on a flight swallowed the flight,
     0.62 and 0.88 before): every floor right with the barometer and motion activity."""
     assert math.isclose(_mission(seed, barometer=True, activity="motion"), 1.0)
+
+
+def test_a_snapshot_from_before_the_flight_rule_restores() -> None:
+    """Snapshots without the flight rule's and the barometer's step state (taken before they
+    were kept) continue; the multi-floor mission with its barometer, split in two chunks."""
+    from hrtls.pipeline import Tracker, preset
+    from hrtls.pipeline import snapshot as snap
+    from hrtls.pipeline.chunks import session_window
+    from hrtls.sim.scenarios import run_scenario
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = run_scenario("inderst_multifloor", 1).session
+        first, rest = (session_window(session, -np.inf, 150.0),
+                       session_window(session, 150.0, np.inf))
+        assert first is not None and rest is not None
+        tracker = Tracker(preset("default"))
+        tracker.start_session(session)
+        tracker.update(first)
+        d = snap.unpack(tracker.snapshot())
+        del d["engine"]["flight"], d["baro"]["step_starts"], d["baro"]["step_dz"]
+        old = Tracker.restore(snap.pack(d))
+        old.update(rest)
+        result = old.finish()
+    f = floor_detection(result.trajectory, session.truth, None,
+                        floor_height_m=session.meta.floor_height_m)
+    assert f is not None and f["time_share_correct_on_floors"] >= 0.99

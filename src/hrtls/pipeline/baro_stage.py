@@ -197,6 +197,12 @@ class BaroStage:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Inverse of :meth:`state`."""
+        """Inverse of :meth:`state` (one without the steps' starts and height changes, from
+        before they were kept, takes them as steps of no climb).
+        """
         for k in self.STATE:
-            setattr(self, k, state[k])
+            if k in ("step_starts", "step_dz") and k not in state:
+                setattr(self, k, np.array(state["step_ends"], dtype=np.float64)
+                        if k == "step_starts" else np.zeros(len(state["step_ends"])))
+            else:
+                setattr(self, k, state[k])

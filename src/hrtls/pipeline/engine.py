@@ -351,9 +351,12 @@ class FusionEngine:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`."""
+        """Continue from :meth:`state_dict` (one without the flight rule's state, from before
+        it was added, starts it afresh at the next step).
+        """
         for name in self.STATE:
-            setattr(self, name, state[name])
+            setattr(self, name, state.get(name, ev.NO_FLIGHT) if name == "flight"
+                    else state[name])
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]
