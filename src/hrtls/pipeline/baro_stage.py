@@ -197,8 +197,10 @@ class BaroStage:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Inverse of :meth:`state` (one without the steps' starts and height changes, from
-        before they were kept, takes them as steps of no climb).
+        """Inverse of :meth:`state`.
+
+        A state without the steps' starts and height changes (from before they were kept)
+        takes its steps as steps of no climb.
         """
         for k in self.STATE:
             if k in ("step_starts", "step_dz") and k not in state:

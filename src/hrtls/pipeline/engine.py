@@ -351,8 +351,9 @@ class FusionEngine:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict` (one without the flight rule's state, from before
-        it was added, starts it afresh at the next step).
+        """Continue from :meth:`state_dict`.
+
+        A state without the flight rule's (from before it was kept) starts it afresh.
         """
         for name in self.STATE:
             setattr(self, name, state.get(name, ev.NO_FLIGHT) if name == "flight"
