@@ -2,8 +2,10 @@
 
 * ``inderst_multifloor`` (barometer with noise, weather drift and door steps): the share of time
   on the right floor while the truth is on a floor (ISO/IEC 18305 reading) and over all times,
-  with the barometer and without it (stairs from the step model alone), per preset; mean, worst
-  and the share of seeds meeting the target (>= 99 % with, >= 95 % without). Seeds 0-9 are the
+  with the barometer and without it (stairs from the step model alone: with the preset's
+  activity, which labels no stairs when it is ``motion``, and with the LDA's), per preset; mean,
+  10th percentile, worst and the share of seeds meeting the target (>= 99 % with, >= 95 %
+  without). Seeds 0-9 are the
   development seeds the barometric stage was designed on; seeds 100-119 were then looked at to
   understand two failures (so they are no longer held out); ``--seeds`` held-out seeds start at
   ``--first-seed`` (200).
@@ -51,9 +53,12 @@ def simulated_seed(item: SeedItem) -> dict[tuple[str, str], tuple[float, float]]
     out: dict[tuple[str, str], tuple[float, float]] = {}
     for name in item.presets:
         cfg = preset(name)
-        # the tracker runs the barometric stage itself; off: stairs from the step model
-        plain = Tracker(cfg.model_copy(update={"barometer": False})).run(session)
-        for label, result in (("step model", plain), ("barometer", Tracker(cfg).run(session))):
+        # the tracker runs the barometric stage itself; off: stairs from the step model (the
+        # preset's activity, and the LDA's stairs as the thesis' rescuer has them)
+        plain = cfg.model_copy(update={"barometer": False})
+        lda = plain.model_copy(update={"gait": cfg.gait.model_copy(update={"activity": "lda"})})
+        for label, c in (("step model", plain), ("step model, LDA", lda), ("barometer", cfg)):
+            result = Tracker(c).run(session)
             f = floor_detection(result.trajectory, session.truth, session.checkpoints,
                                 floor_height_m=session.meta.floor_height_m)
             assert f is not None
@@ -62,8 +67,8 @@ def simulated_seed(item: SeedItem) -> dict[tuple[str, str], tuple[float, float]]
 
 
 def simulated(batch: Batch, seeds: list[int], presets: list[str]) -> Table:
-    table = Table("preset", "heights from", "seeds", "on floors mean", "on floors worst",
-                  "all times mean", "seeds >= target", "target",
+    table = Table("preset", "heights from", "seeds", "on floors mean", "on floors p10",
+                  "on floors worst", "all times mean", "seeds >= target", "target",
                   title=f"inderst_multifloor, seeds {seeds[0]}..{seeds[-1]}")
     rows: dict[tuple[str, str], list[tuple[float, float]]] = {}
     items = [SeedItem(seed, tuple(presets)) for seed in seeds]
@@ -74,7 +79,8 @@ def simulated(batch: Batch, seeds: list[int], presets: list[str]) -> Table:
         on = np.array([v[0] for v in values])
         every = np.array([v[1] for v in values])
         target = 0.99 if label == "barometer" else 0.95
-        table.add_row(name, label, str(len(on)), f"{on.mean():.4f}", f"{on.min():.4f}",
+        table.add_row(name, label, str(len(on)), f"{on.mean():.4f}",
+                      f"{np.percentile(on, 10):.4f}", f"{on.min():.4f}",
                       f"{every.mean():.4f}", f"{np.mean(on >= target):.0%}", f"{target:.2f}")
     return table
 

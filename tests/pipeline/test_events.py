@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.fusion.channel import ChannelEstimator
-from hrtls.fusion.floors import floor_level_update
+from hrtls.fusion.floors import FlightParams, flight_step, floor_level_update
 from hrtls.fusion.gating import kalman_update
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams, predict_random_walk
@@ -98,6 +98,7 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
     # is the reference before the step; unknown: the predictor takes or adopts it)
     state = start
     predictor = StepPredictor(sp)
+    flight, fp = np.array(ev.NO_FLIGHT), FlightParams()
     for i, (length, heading, dz, act, var) in enumerate(steps):
         preset = heading_known and not state.has_input_heading
         if preset:
@@ -106,8 +107,14 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
                                   dz_m=dz, activity=act, var_heading_rad2=var)
         if preset:   # the preset reference is still one step's heading
             state = state.evolve(reference_pending=True)
-        if act in (int(Activity.WALKING), int(Activity.STANDING)):
-            state, _ = floor_level_update(state, 3.0, gate_probability=None)
+        if i == 0:
+            flight[0] = flight[1] = round((state.x[2] - dz) / 3.0)
+        stairs = act in (int(Activity.UPSTAIRS), int(Activity.DOWNSTAIRS))
+        pull = flight_step(flight, dz, stairs, 3.0, fp.change_fraction, fp.end_flat_steps,
+                           fp.direction_fraction)
+        if pull and (stairs or act in (int(Activity.WALKING), int(Activity.STANDING))):
+            state, _ = floor_level_update(state, 3.0, gate_probability=None,
+                                          floor=int(flight[1]))
     # kernel
     n = len(steps)
     x, p = start.x.copy(), start.P.copy()

@@ -10,10 +10,19 @@ The floor is a state machine run sample by sample (causal, compiled):
   stays within ``freeze_fraction`` of a floor height of it, ``level`` follows it with time
   constant ``drift_tau_s``: weather drift (about 1 hPa an hour, 8 m) is absorbed;
 * a change faster than people climb (``max_climb_m_s`` over 1 s of the altitude smoothed over
-  ``step_smooth_s``) is a pressure step of a door or the ventilation: while it lasts (until
-  the change is below half that speed) the altitude is held, or continued at the climb rate of
-  the 3 s before when steps were detected then (stairs), and the step is removed from then on
-  (fast elevators are taken for pressure steps too);
+  ``step_smooth_s``, beyond the climb the step model expects: the last step's ``dz`` over its
+  duration while the steps are stairs) met while standing or on stairs is a pressure step of
+  a door or the ventilation: while it lasts (until the change beyond the continued climb is
+  below half that speed) the altitude is continued at the step model's climb rate on stairs,
+  else at the barometer's climb rate of the 3 s before when steps were detected then, else
+  held, and the step is removed from then on. A fast change that lasts more than
+  ``max_step_s`` is no door (their pressure rises within a second): it is a climb (an
+  elevator) and is kept whole. While walking on steps that are not stairs, a change is
+  removed only when it takes back about the steps removed so far (a door opened while
+  standing closes) or is faster than 1.5 ``max_climb_m_s``: the walking classifier may
+  have missed the stairs, and a door step met on a flight (0.3 m/s of climb, close to the
+  limits) swallowed the flight; a door while walking flat (about 0.7 m) stays below the
+  sustained change a floor needs;
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -26,7 +35,7 @@ switches at half the climb as the true floor does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -56,10 +65,12 @@ class BaroFloorParams:
     drift_tau_s: float = 60.0
     max_climb_m_s: float = 1.0
     step_smooth_s: float = 0.5
+    max_step_s: float = 4.0
 
     def __post_init__(self) -> None:
         for name in ("floor_height_m", "smooth_s", "hold_s", "change_fraction",
-                     "freeze_fraction", "drift_tau_s", "max_climb_m_s", "step_smooth_s"):
+                     "freeze_fraction", "drift_tau_s", "max_climb_m_s", "step_smooth_s",
+                     "max_step_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0.0):
                 raise InputError(f"{name} = {value}", where="BaroFloorParams",
@@ -126,7 +137,8 @@ class BaroFloorState:
 
     ``p0_pa``: the first pressure (the altitude reference); ``scalars``: the machine's state
     (:data:`N_SCALARS`); the other arrays are the last samples the windows still reach
-    (time, raw altitude, walking, fast and steady altitude, smoothed altitude).
+    (time, raw altitude, walking, fast and steady altitude, smoothed altitude, the step
+    model's climb rate).
     """
 
     p0_pa: float
@@ -137,6 +149,7 @@ class BaroFloorState:
     fast_m: FloatArray
     steady_m: FloatArray
     a_m: FloatArray
+    stairs_m_s: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 @numba.njit(cache=True)
@@ -152,20 +165,22 @@ def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
 
 
 @numba.njit(cache=True)
-def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], i0: int,
-                fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
+def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stairs: FloatArray,
+                i0: int, fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
                 level: FloatArray, floor: NDArray[np.int64], fast_s: float, slow_s: float,
-                max_climb: float, height: float, hold_s: float, change: float,
-                freeze: float, tau_s: float) -> None:  # pragma: no cover - compiled
+                max_climb: float, max_step_s: float, height: float, hold_s: float,
+                change: float, freeze: float, tau_s: float) -> None:  # pragma: no cover
     """Samples ``i0..`` of history + new block: smoothing, pressure steps, floor machine.
 
     ``fast``, ``steady`` and ``a`` hold the history before ``i0`` and are filled from it on;
     ``st`` (the scalars of :class:`BaroFloorState`) is updated in place.
 
-    Pressure steps: while the change of ``fast`` over the last second is faster than
-    ``max_climb`` (and until it falls below half of that) the altitude continues at the
-    climb rate of the 3 s before when the person was walking then, else it is held; when the
-    change is slower again, the step (what went beyond that) is subtracted from then on.
+    Pressure steps: while the change of ``fast`` over the last second departs from the
+    expected climb (``stairs``, the step model's rate; during a step the rate it is continued
+    at) by more than ``max_climb`` (until it falls below half of that) the altitude continues
+    at the step model's rate on stairs, else at the climb rate of the 3 s before when the
+    person was walking then, else it is held; when the change is slower again, the step (what
+    went beyond that) is subtracted from then on.
     """
     offset, in_step, t_start, f_start, climb = st[0], st[1] > 0.5, st[2], st[3], st[4]
     steps, lv, fl, pending, started, changes = st[5], st[6], int(st[7]), st[8], st[9], st[10]
@@ -174,9 +189,16 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], i0: 
         fast[i] = _window_mean(t, raw, i, fast_s)
         while t[j] < t[i] - 1.0:
             j += 1
+        rate = stairs[i] if stairs[i] != 0.0 else climb if in_step else 0.0
         limit = 0.5 * max_climb if in_step else max_climb
         fast_change = (t[i] - t[j] > 0.5
-                       and abs(fast[i] - fast[j]) > limit * (t[i] - t[j]))
+                       and abs(fast[i] - fast[j] - rate * (t[i] - t[j]))
+                       > limit * (t[i] - t[j]))
+        if fast_change and not in_step and walking[i] and stairs[i] == 0.0:
+            # walking: only a change back by about an open step, or one too fast for stairs
+            change_m = fast[i] - fast[j]
+            fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
+                           or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
         if fast_change and not in_step:
             in_step = True
             steps += 1.0
@@ -189,11 +211,18 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], i0: 
             if walking[j] and t[j] - t[k] > 1.0:
                 climb = (fast[j] - fast[k]) / (t[j] - t[k])
                 climb = max(-0.5 * max_climb, min(0.5 * max_climb, climb))
-        if in_step and not fast_change:
-            offset += (fast[i] - f_start) - climb * (t[i] - t_start)
+            rate = stairs[i] if stairs[i] != 0.0 else climb
+            # continued from the change's start, a second before
+            steady[i] = f_start - offset + rate * (t[i] - t_start)
+        elif in_step and t[i] - t_start > max_step_s:
+            steady[i] = fast[i] - offset     # too long for a door: a climb, kept whole
             in_step = False
-        if in_step:
-            steady[i] = f_start - offset + climb * (t[i] - t_start)
+            steps -= 1.0
+        elif in_step:
+            steady[i] = steady[i - 1] + rate * (t[i] - t[i - 1])
+            if not fast_change:
+                offset = fast[i] - steady[i]
+                in_step = False
         else:
             steady[i] = fast[i] - offset
         a[i] = _window_mean(t, steady, i, slow_s)
@@ -241,14 +270,35 @@ def walking_flags(t: FloatArray, step_ends_s: FloatArray | None) -> NDArray[np.b
     return np.asarray((last >= 0) & (t - ends[np.clip(last, 0, None)] <= 2.0))
 
 
+def stairs_rates(t: FloatArray, step_starts_s: FloatArray | None,
+                 step_ends_s: FloatArray | None, step_dz_m: FloatArray | None
+                 ) -> FloatArray:
+    """The step model's climb rate at ``t``, m/s (steps in time order).
+
+    ``dz / duration`` of the last step that ended within the 2 s before (or at) ``t``; 0
+    without one.
+    """
+    if step_ends_s is None or step_starts_s is None or step_dz_m is None \
+            or not len(step_ends_s):
+        return np.zeros(len(t))
+    ends = np.asarray(step_ends_s, dtype=np.float64)
+    rate = np.asarray(step_dz_m, dtype=np.float64) / np.maximum(
+        ends - np.asarray(step_starts_s, dtype=np.float64), 0.2)
+    last = np.searchsorted(ends, t, side="right") - 1
+    ok = (last >= 0) & (t - ends[np.clip(last, 0, None)] <= 2.0)
+    return np.asarray(np.where(ok, rate[np.clip(last, 0, None)], 0.0))
+
+
 def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa: FloatArray,
-                       walking: NDArray[np.bool_], *, params: BaroFloorParams
+                       walking: NDArray[np.bool_], *, params: BaroFloorParams,
+                       stairs_m_s: FloatArray | None = None
                        ) -> tuple[BaroFloorState | None, BaroFloors]:
     """The next block of pressure samples (causal: the same result in any split).
 
-    ``state`` is None for the first block; ``walking`` from :func:`walking_flags` with the
-    steps known up to the block's end. Returns the new state and the block's floors
-    (``pressure_steps``: the count since the first block).
+    ``state`` is None for the first block; ``walking`` from :func:`walking_flags` and
+    ``stairs_m_s`` (None: 0) from :func:`stairs_rates` with the steps known up to the block's
+    end. Returns the new state and the block's floors (``pressure_steps``: the count since
+    the first block).
 
     Raises
     ------
@@ -275,6 +325,9 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
     tt = np.concatenate([state.t, t])
     raw = np.concatenate([state.raw_m, scale_height_m(state.p0_pa) * np.log(state.p0_pa / pa)])
     walk = np.concatenate([state.walking, np.asarray(walking, dtype=np.bool_)])
+    rates = np.concatenate([state.stairs_m_s if len(state.stairs_m_s) == i0 else np.zeros(i0),
+                            np.zeros(len(t)) if stairs_m_s is None
+                            else np.asarray(stairs_m_s, dtype=np.float64)])
     n = len(tt)
     fast = np.concatenate([state.fast_m, np.empty(n - i0)])
     steady = np.concatenate([state.steady_m, np.empty(n - i0)])
@@ -282,24 +335,27 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
     st = state.scalars.copy()
     level = np.empty(n)
     floor = np.zeros(n, dtype=np.int64)
-    _baro_block(tt, raw, walk, i0, fast, steady, a, st, level, floor, p.step_smooth_s,
-                p.smooth_s - p.step_smooth_s, p.max_climb_m_s, p.floor_height_m, p.hold_s,
+    _baro_block(tt, raw, walk, rates, i0, fast, steady, a, st, level, floor, p.step_smooth_s,
+                p.smooth_s - p.step_smooth_s, p.max_climb_m_s, p.max_step_s, p.floor_height_m,
+                p.hold_s,
                 p.change_fraction, p.freeze_fraction, p.drift_tau_s)
     keep = tt >= tt[-1] - (max(p.smooth_s, 4.0) + 1.0)
     keep[max(0, n - 2):] = True
     new = BaroFloorState(state.p0_pa, st, tt[keep], raw[keep], walk[keep], fast[keep],
-                         steady[keep], a[keep])
+                         steady[keep], a[keep], rates[keep])
     lv, fl, av = level[i0:], floor[i0:], a[i0:]
     return new, BaroFloors(t, av, lv, fl, fl * p.floor_height_m + (av - lv), int(st[5]))
 
 
 def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorParams | None = None,
-                step_times_s: FloatArray | None = None) -> BaroFloors:
+                step_times_s: FloatArray | None = None, step_starts_s: FloatArray | None = None,
+                step_dz_m: FloatArray | None = None) -> BaroFloors:
     """Floors (relative to the first sample's floor) and heights from a pressure series.
 
     ``step_times_s`` (the detected steps' end times) tells when the person walked: a pressure
     step met while walking keeps the climb rate of before it (stairs), otherwise the height is
-    held through it.
+    held through it; with ``step_starts_s`` and ``step_dz_m`` too, the step model's climb rate
+    on stairs (:func:`stairs_rates`) is expected and continued.
 
     Raises
     ------
@@ -312,5 +368,7 @@ def baro_floors(t: FloatArray, pressure_pa: FloatArray, *, params: BaroFloorPara
     if t.ndim != 1 or pa.shape != t.shape or len(t) < 2:
         raise InputError(f"shapes {t.shape} and {pa.shape}", where="baro_floors",
                          expected="two 1-D arrays of the same length >= 2")
-    _, floors = baro_floors_update(None, t, pa, walking_flags(t, step_times_s), params=p)
+    _, floors = baro_floors_update(None, t, pa, walking_flags(t, step_times_s), params=p,
+                                   stairs_m_s=stairs_rates(t, step_starts_s, step_times_s,
+                                                           step_dz_m))
     return floors

@@ -38,7 +38,7 @@ from hrtls.fusion.channel import (
     ChannelState,
     channel_update,
 )
-from hrtls.fusion.floors import floor_level_correction
+from hrtls.fusion.floors import FLIGHT_STATE, FlightParams, flight_step, floor_level_correction
 from hrtls.fusion.gating import (
     ACCEPTED,
     GATED,
@@ -72,6 +72,7 @@ N_RECENT = 16
 
 _WALKING, _STANDING, _RUNNING = (int(Activity.WALKING), int(Activity.STANDING),
                                  int(Activity.RUNNING))
+_UPSTAIRS, _DOWNSTAIRS = int(Activity.UPSTAIRS), int(Activity.DOWNSTAIRS)
 
 LOOP_PARAMS_DTYPE = np.dtype([
     ("step", STEP_PREDICTION_DTYPE),
@@ -82,6 +83,9 @@ LOOP_PARAMS_DTYPE = np.dtype([
     ("floor_snap", np.bool_),
     ("floor_height_m", np.float64),
     ("floor_sigma_m", np.float64),
+    ("flight_change_fraction", np.float64),
+    ("flight_end_flat_steps", np.float64),
+    ("flight_direction_fraction", np.float64),
     ("gate_1d", np.float64),
     ("gate_2d", np.float64),
     ("heading_known", np.bool_),
@@ -98,7 +102,8 @@ LOOP_PARAMS_DTYPE = np.dtype([
 
 ``step``, ``random_walk``, ``channel`` (used when ``estimate_channel``), ``path_loss``: the
 records of the fusion components (``path_loss``: the fixed model of the scans, and ``d0_m`` of
-the tight readings). ``floor_snap``: pull z to the nearest floor level (1-sigma
+the tight readings). ``floor_snap``: the flight rule (``flight_*``, see
+:mod:`hrtls.fusion.floors`) decides the floor and pulls z to its level (1-sigma
 ``floor_sigma_m``) after walking / standing steps. ``gate_1d`` / ``gate_2d``: chi-square gate
 thresholds of readings / ranges and of scan positions. ``heading_known``: the first step
 heading sets the heading reference before the step (a start pose with a heading).
@@ -131,6 +136,7 @@ LOOP_STATE_DTYPE = np.dtype([
     ("n_scan_accepted", np.int64),
     ("n_scans", np.int64),
     ("n_headings", np.int64),
+    ("flight", np.float64, (len(FLIGHT_STATE),)),
 ])
 """Mutable scalars of :func:`event_kernel` (updated in place).
 
@@ -142,14 +148,19 @@ estimated), ``sigma_db`` their shadowing. ``step_scale`` multiplies every step l
 ``scan_base`` is subtracted from the scan row index of scan events. Counts of the run:
 ``n_steps`` steps, ``n_soft`` accepted readings / ranges, ``n_scan_accepted`` accepted scan
 updates, ``n_scans`` scans, ``n_headings`` steps with a finite heading (kept in ``recent``).
+``flight``: the flight rule's state (:data:`hrtls.fusion.floors.FLIGHT_STATE`).
 """
+
+NO_FLIGHT = (math.nan, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0)
+"""The flight rule's state before the first step."""
 
 
 def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
                 range_params: RangeParams, channel: ChannelEstimatorParams | None,
                 random_walk: RandomWalkParams, floor_snap: bool, floor_height_m: float,
-                floor_sigma_m: float, gate_probability: float, heading_known: bool,
-                yaw_relative: bool, has_imu: bool, rss_min_distance_m: float, scan_jump: bool,
+                floor_sigma_m: float, flight: FlightParams | None = None,
+                gate_probability: float, heading_known: bool, yaw_relative: bool,
+                has_imu: bool, rss_min_distance_m: float, scan_jump: bool,
                 scan_wls_covariance: bool, scan_sigma_position_m: float) -> np.ndarray:
     """The :data:`LOOP_PARAMS_DTYPE` record (one-element array) of the given components.
 
@@ -164,6 +175,10 @@ def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
     rec["floor_snap"] = floor_snap
     rec["floor_height_m"] = floor_height_m
     rec["floor_sigma_m"] = floor_sigma_m
+    fp = flight or FlightParams()
+    rec["flight_change_fraction"] = fp.change_fraction
+    rec["flight_end_flat_steps"] = fp.end_flat_steps
+    rec["flight_direction_fraction"] = fp.direction_fraction
     rec["gate_1d"] = chi2_threshold(1, gate_probability)
     rec["gate_2d"] = chi2_threshold(2, gate_probability)
     rec["heading_known"] = heading_known
@@ -181,8 +196,8 @@ def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
 def loop_state(state: FilterState, *, path_loss: PathLossModel, channel: ChannelState | None,
                last_activity: int = _STANDING, last_step_end_s: float = 0.0,
                step_scale: float = 1.0, running_multiplier: float = 1.0,
-               yaw_offset_rad: float = 0.0, scan_base: int = 0
-               ) -> tuple[np.ndarray, FloatArray]:
+               yaw_offset_rad: float = 0.0, scan_base: int = 0,
+               flight: tuple[float, ...] = NO_FLIGHT) -> tuple[np.ndarray, FloatArray]:
     """The :data:`LOOP_STATE_DTYPE` record (one-element array) and the channel covariance.
 
     ``channel`` None: the tight readings use ``path_loss`` (and the covariance is unused).
@@ -198,6 +213,7 @@ def loop_state(state: FilterState, *, path_loss: PathLossModel, channel: Channel
     rec["running_multiplier"] = running_multiplier
     rec["yaw_offset_rad"] = yaw_offset_rad
     rec["scan_base"] = scan_base
+    rec["flight"] = np.asarray(flight, dtype=np.float64)
     if channel is not None:
         rec["channel"] = channel.record()
         rec["sigma_db"] = math.sqrt(channel.residual_var_db2)
@@ -212,7 +228,7 @@ def loop_state(state: FilterState, *, path_loss: PathLossModel, channel: Channel
 @numba.njit(cache=True, error_model="numpy")
 def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, length: float,
           heading: float, dz: float, act: int, var_h: float) -> None:  # pragma: no cover
-    """One step (``predict_step``), the known start heading and the floor constraint."""
+    """One step (``predict_step``), the known start heading, the flight rule and the floor."""
     # the reference is set by this step's heading: before it with a known start heading
     # (preset), else by the predictor; either way the first stride completes it
     first = not s.has_input_heading and np.isfinite(heading)
@@ -232,8 +248,18 @@ def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
     s.t = max(t, s.t)
     s.last_activity = act
     s.last_step_end_s = t
-    if prm.floor_snap and act in (_WALKING, _STANDING):
-        floor_level_correction(x, p, prm.floor_height_m, 0.0, prm.floor_sigma_m, 0.0, False)
+    if not prm.floor_snap:
+        return
+    h = prm.floor_height_m
+    fl = s.flight
+    if not math.isfinite(fl[1]):
+        fl[1] = np.rint((x[2] - dz) / h)
+        fl[0] = fl[1]
+    stairs = act in (_UPSTAIRS, _DOWNSTAIRS)
+    pull = flight_step(fl, dz, stairs, h, prm.flight_change_fraction, prm.flight_end_flat_steps,
+                       prm.flight_direction_fraction)
+    if pull and (stairs or act in (_WALKING, _STANDING)):
+        floor_level_correction(x, p, h, 0.0, prm.floor_sigma_m, 0.0, False, fl[1])
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -23,6 +23,7 @@ from hrtls.fusion.baro_floors import (
     BaroFloorParams,
     BaroFloorState,
     baro_floors_update,
+    stairs_rates,
     walking_flags,
 )
 
@@ -40,8 +41,8 @@ class BaroStageParams:
 class BaroStage:
     """Queue, causal floor filter and its outputs (time, floor, height) for one track."""
 
-    STATE = ("filter", "queue_t", "queue_p", "step_ends", "out_t", "out_floor", "out_z",
-             "anchor_floor", "changes")
+    STATE = ("filter", "queue_t", "queue_p", "step_ends", "step_starts", "step_dz", "out_t",
+             "out_floor", "out_z", "anchor_floor", "changes")
     """Attributes a snapshot holds."""
 
     def __init__(self, *, floor_height_m: float, t_pose: float, z_pose_m: float,
@@ -54,6 +55,8 @@ class BaroStage:
         self.queue_t = np.zeros(0)
         self.queue_p = np.zeros(0)
         self.step_ends = np.zeros(0)
+        self.step_starts = np.zeros(0)
+        self.step_dz = np.zeros(0)
         self.out_t = np.zeros(0)
         self.out_floor = np.zeros(0, dtype=np.int64)
         self.out_z = np.zeros(0)
@@ -73,27 +76,43 @@ class BaroStage:
             self.queue_p = np.concatenate([self.queue_p,
                                            np.asarray(pressure_pa, dtype=np.float64)])
 
-    def add_steps(self, t_end: np.ndarray) -> None:
-        """Detected steps' end times (the walking flags)."""
+    def add_steps(self, t_end: np.ndarray, t_start: np.ndarray | None = None,
+                  dz_m: np.ndarray | None = None) -> None:
+        """Detected steps' end times (the walking flags).
+
+        With their start times and height changes too: the step model's climb rate on stairs
+        (None: no climb).
+        """
         if len(t_end):
+            n = len(t_end)
             self.step_ends = np.concatenate([self.step_ends, np.asarray(t_end, np.float64)])
+            self.step_starts = np.concatenate([self.step_starts, np.asarray(
+                t_end if t_start is None else t_start, np.float64)])
+            self.step_dz = np.concatenate([self.step_dz, np.zeros(n) if dz_m is None
+                                           else np.asarray(dz_m, np.float64)])
+
+    def _trim_steps(self, t_s: float) -> None:
+        keep = self.step_ends >= t_s - 2.5
+        self.step_ends = self.step_ends[keep]
+        self.step_starts = self.step_starts[keep]
+        self.step_dz = self.step_dz[keep]
 
     def advance(self, horizon_s: float) -> None:
         """Process the queued samples up to ``horizon_s``."""
         # pressure samples still to come are after the queue's first or after the horizon
         t_next = min(float(self.queue_t[0]), horizon_s) if len(self.queue_t) else horizon_s
         if len(self.step_ends) and math.isfinite(t_next):
-            self.step_ends = self.step_ends[self.step_ends >= t_next - 2.5]
+            self._trim_steps(t_next)
         n = int(np.searchsorted(self.queue_t, horizon_s, side="right"))
         if n == 0:
             return
         t, p = self.queue_t[:n], self.queue_p[:n]
         self.queue_t, self.queue_p = self.queue_t[n:], self.queue_p[n:]
         prev_floor = int(self.out_floor[-1]) if len(self.out_floor) else None
-        self.filter, out = baro_floors_update(self.filter, t, p,
-                                              walking_flags(t, self.step_ends),
-                                              params=self.floor_params)
-        self.step_ends = self.step_ends[self.step_ends >= t[-1] - 2.5]
+        self.filter, out = baro_floors_update(
+            self.filter, t, p, walking_flags(t, self.step_ends), params=self.floor_params,
+            stairs_m_s=stairs_rates(t, self.step_starts, self.step_ends, self.step_dz))
+        self._trim_steps(float(t[-1]))
         self.changes += out.changes + int(prev_floor is not None
                                           and prev_floor != int(out.floor[0]))
         if self.anchor_floor is None and t[-1] > self.t_pose:
@@ -178,6 +197,14 @@ class BaroStage:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Inverse of :meth:`state`."""
+        """Inverse of :meth:`state`.
+
+        A state without the steps' starts and height changes (from before they were kept)
+        takes its steps as steps of no climb.
+        """
         for k in self.STATE:
-            setattr(self, k, state[k])
+            if k in ("step_starts", "step_dz") and k not in state:
+                setattr(self, k, np.array(state["step_ends"], dtype=np.float64)
+                        if k == "step_starts" else np.zeros(len(state["step_ends"])))
+            else:
+                setattr(self, k, state[k])

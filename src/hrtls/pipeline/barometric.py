@@ -55,7 +55,8 @@ def apply_baro_floors(result: TrackResult, pressure: SensorSeries | None, *,
     p = params or BaroStageParams()
     fp = floor_params or BaroFloorParams(floor_height_m=floor_height_m)
     floors = baro_floors(pressure.t, pressure.values[:, 0], params=fp,
-                         step_times_s=result.steps.t_end)
+                         step_times_s=result.steps.t_end, step_starts_s=result.steps.t_start,
+                         step_dz_m=result.steps.dz_m)
     tr = result.trajectory
     fl, z_rel = floors.at(tr.t)
     z = tr.xyz[0, 2] + z_rel - fp.floor_height_m * fl[0]

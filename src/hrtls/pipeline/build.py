@@ -20,6 +20,7 @@ from hrtls.data.session import StartPose
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams
 from hrtls.fusion.fixes import FixCorrector, FixParams
+from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.random_walk import RandomWalkParams
 from hrtls.fusion.ranges import RangeParams
@@ -255,6 +256,7 @@ def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: 
         channel=None if parts.channel_estimator is None else parts.channel_estimator.params,
         random_walk=parts.random_walk, floor_snap=cfg.floor_snap,
         floor_height_m=floor_height_m, floor_sigma_m=cfg.floor_sigma_m,
+        flight=params_of(FlightParams, cfg.floor_flight),
         gate_probability=cfg.gate_probability, heading_known=heading_known,
         yaw_relative=yaw_relative, has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
         scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,

@@ -27,6 +27,7 @@ from hrtls.attitude.inertial_lowpass import InertialLowpassParams
 from hrtls.attitude.quat_ekf import QuatEkfParams
 from hrtls.errors import FormatError, InputError
 from hrtls.fusion.channel import ChannelEstimatorParams
+from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.random_walk import RandomWalkParams
 from hrtls.pipeline.step_scale import StepScaleParams
 
@@ -274,6 +275,8 @@ class TrackerConfig(_Section):
     floor_snap: bool = True
     floor_sigma_m: float = Field(default=0.1, gt=0.0, description="1-sigma of the floor-level "
                                  "pseudo-measurement after a flat step")
+    floor_flight: dict[str, Any] = _table(FlightParams)
+    """When a stairs flight changes the floor (:class:`hrtls.fusion.floors.FlightParams`)."""
     barometer: bool = Field(default=True, description="heights and floors from the "
                             "recording's barometer when it has one (hrtls.pipeline.barometric)")
 

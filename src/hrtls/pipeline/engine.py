@@ -112,7 +112,8 @@ class FusionEngine:
 
     STATE = ("state", "last_activity", "last_step_end", "yaw_offset", "vel_t", "vel_v",
              "vel_yaw", "vel_var", "vel_bin", "stretch", "corrected_since_fix", "last_speed",
-             "recent_heading", "fix_schedule", "fix_phase_set", "tag_memory", "channel_state")
+             "recent_heading", "fix_schedule", "fix_phase_set", "tag_memory", "channel_state",
+             "flight")
     """Plain attributes of the engine's state (snapshot)."""
 
     def __init__(self, config: TrackerConfig, parts: Corrections, *, state: FilterState,
@@ -138,6 +139,7 @@ class FusionEngine:
         self.track.add(state, int(Activity.UNKNOWN))
         self.last_activity = int(Activity.UNKNOWN)
         self.last_step_end = -math.inf
+        self.flight: tuple[float, ...] = ev.NO_FLIGHT
         self.yaw_offset = 0.0
         self.vel_t = np.zeros(0)
         self.vel_v = np.zeros(0)
@@ -198,7 +200,7 @@ class FusionEngine:
             st, path_loss=self.parts.path_loss, channel=cstate, last_activity=self.last_activity,
             last_step_end_s=self.last_step_end, step_scale=sc_.step_scale,
             running_multiplier=self.running_factor * sc_.run_scale / sc_.step_scale,
-            yaw_offset_rad=self.yaw_offset, scan_base=sched.scan_base)
+            yaw_offset_rad=self.yaw_offset, scan_base=sched.scan_base, flight=self.flight)
         out = _KernelOut(n)
         recent = np.empty((ev.N_RECENT, 2))
         att = self.attitude
@@ -214,6 +216,7 @@ class FusionEngine:
         self.last_activity = int(sc["last_activity"])
         self.last_step_end = float(sc["last_step_end_s"])
         self.yaw_offset = float(sc["yaw_offset_rad"])
+        self.flight = tuple(float(v) for v in sc["flight"])
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
@@ -352,9 +355,13 @@ class FusionEngine:
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`."""
+        """Continue from :meth:`state_dict`.
+
+        A state without the flight rule's (from before it was kept) starts it afresh.
+        """
         for name in self.STATE:
-            setattr(self, name, state[name])
+            setattr(self, name, state.get(name, ev.NO_FLIGHT) if name == "flight"
+                    else state[name])
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]

@@ -534,7 +534,7 @@ class Tracker:
                       q_nd: np.ndarray | None) -> None:
         hist = self.history
         if self.baro is not None:
-            self.baro.add_steps(result.steps.t_end)
+            self.baro.add_steps(result.steps.t_end, result.steps.t_start, result.steps.dz_m)
         if len(result.motion_sigma_m_s2) and t is not None:
             hist.motion_t.append(t)
             hist.motion_sigma.append(result.motion_sigma_m_s2)
