@@ -371,6 +371,11 @@ def cases() -> list[Case]:
                             MetricSpec("max error [m]", max_error,
                                        f"{kf_max:.2f} (Table II, KF)", ("<=", kf_max))],
                         quick=office_user == 1))
+    out.append(Case("inderst_ring tags=none (PDR only)", "inderst_ring", {"tags": "none"},
+                    "inderst-rfid", [MetricSpec(
+                        "max checkpoint error [m]", checkpoint_max,
+                        "16.13 (Table 6.10, prediction only)", ("<=", 16.13))],
+                    paper_config=without_bearing, default_config=without_bearing, quick=False))
     for tags, (fig, goal) in _RING.items():
         out.append(Case(f"inderst_ring tags={tags}", "inderst_ring", {"tags": tags},
                         "inderst-rfid", [MetricSpec(
@@ -391,7 +396,10 @@ def cases() -> list[Case]:
                    higher_is_better=True),
         MetricSpec("time on the right floor", floors_correct,
                    "none (issue 19 target: 0.99 with a barometer)", (">=", 0.99),
-                   higher_is_better=True)], paper_config=thesis_stairs, quick=False))
+                   higher_is_better=True),
+        MetricSpec("max checkpoint error [m]", checkpoint_max,
+                   "26 (Table 6.8, ~280 m, prediction only)", ("<=", 26.0))],
+        paper_config=thesis_stairs, quick=False))
     users = {"A": ("6.14", "1.6", "3.97", "1.07", "3.14"),
              "B": ("6.15", "1.1", "2.62", "0.84", "2.64")}
     for user, (table, pos_mean, pos_max, head_mean, head_max) in users.items():
