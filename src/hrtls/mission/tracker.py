@@ -96,7 +96,8 @@ class _NodeReadings:
         group = np.empty(len(t), dtype=np.int64)
         group[order] = np.cumsum(new_pass) - 1
         return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
-                                range_m=self.r, range_sigma_m=self.s, group=group)
+                                range_m=self.r, range_sigma_m=self.s, group=group,
+                                chain=np.asarray(self.agent, dtype=np.int64))
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,14 +158,22 @@ class MissionTracker:
         self._version: dict[str, int] = {}
         self._estimated_at: dict[str, int] = {}
 
-    def run(self) -> MissionResult:
-        """Process every agent's session to its end."""
+    def windows(self) -> list[tuple[float, float]]:
+        """The common windows ``(t_start, t_end)`` covering every agent's session."""
         spans = [s.time_span() for s in self.sessions.values()]
         t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
-        k = 0
-        while t0 + k * self.params.chunk_s <= t1:
-            self.step(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
-            k += 1
+        n = math.floor((t1 - t0) / self.params.chunk_s) + 1
+        return [(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
+                for k in range(n)]
+
+    def run(self) -> MissionResult:
+        """Process every agent's session to its end."""
+        for t_start, t_end in self.windows():
+            self.step(t_start, t_end)
+        return self.result()
+
+    def result(self) -> MissionResult:
+        """Finish every agent's tracker; the mission's result (after the last window)."""
         results = {name: tr.finish() for name, tr in self.trackers.items()}
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
@@ -183,6 +192,8 @@ class MissionTracker:
             self.trackers[name].update(part.with_parts(ranges=use))
             if keep is not None:
                 touched |= self._collect(i, name, keep)
+            self._trim_rows(name, t_end)
+        changed: list[str] = []
         for node in sorted(touched):
             n_now = len(self.readings[node].r)
             n_then = self._estimated_at.get(node, 0)
@@ -198,10 +209,11 @@ class MissionTracker:
             self.estimates[node] = est
             if est.localized:
                 self._version[node] = self._version.get(node, 0) + 1
+                changed.append(node)
                 self.history.setdefault(node, []).append(
                     (t_end, est.position_m.copy(), est.covariance_m2.copy()))
         if self.params.cooperate:
-            self._share(t_end)
+            self._share(changed, t_end)
 
     def _split_ranges(self, i: int, ranges: RangeMeasurements | None
                       ) -> tuple[RangeMeasurements | None, RangeMeasurements | None]:
@@ -235,22 +247,40 @@ class MissionTracker:
     def _node_var(self, node: str) -> float:
         return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
 
-    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
-        """Store the readings with the agent's estimate at their times; the nodes touched."""
-        est = self.trackers[name].estimates_since(-math.inf if not self._rows[name]
-                                                  else self._last_t[name])
+    def _agent_rows(self, name: str) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """The agent's recent estimates (time, xy, covariance) with this window's new rows."""
+        est = self.trackers[name].estimates_since(self._last_t[name])
         if len(est):
             self._rows[name].append((est.t, est.xyz[:, :2], est.cov_xy))
             self._last_t[name] = float(est.t[-2]) if len(est) > 1 else self._last_t[name]
         if not self._rows[name]:
+            return None
+        if len(self._rows[name]) > 1:
+            t = np.concatenate([r[0] for r in self._rows[name]])
+            xy = np.concatenate([r[1] for r in self._rows[name]])
+            cov = np.concatenate([r[2] for r in self._rows[name]])
+            t, idx = np.unique(t[::-1], return_index=True)      # the newest version of a row
+            self._rows[name] = [(t, xy[::-1][idx], cov[::-1][idx])]
+        return self._rows[name][0]
+
+    def _trim_rows(self, name: str, t_end: float) -> None:
+        """Drop the rows no later reading can need: all before the last one at or before t_end.
+
+        Keeps the per-window cost of :meth:`_collect` independent of the mission's length.
+        """
+        if len(self._rows[name]) != 1:
+            return
+        t, xy, cov = self._rows[name][0]
+        i = max(int(np.searchsorted(t, t_end, side="right")) - 2, 0)
+        if i > 0:
+            self._rows[name] = [(t[i:], xy[i:], cov[i:])]
+
+    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
+        """Store the readings with the agent's estimate at their times; the nodes touched."""
+        rows = self._agent_rows(name)
+        if rows is None:
             return set()
-        t = np.concatenate([r[0] for r in self._rows[name]])
-        xy = np.concatenate([r[1] for r in self._rows[name]])
-        cov = np.concatenate([r[2] for r in self._rows[name]])
-        t, idx = np.unique(t[::-1], return_index=True)          # the newest version of a row
-        xy = xy[::-1][idx]
-        cov = cov[::-1][idx]
-        self._rows[name] = [(t, xy, cov)]
+        t, xy, cov = rows
         touched: set[str] = set()
         for n in np.unique(ranges.node).tolist():
             node = str(n)
@@ -276,11 +306,10 @@ class MissionTracker:
             touched.add(node)
         return touched
 
-    def _share(self, t: float) -> None:
-        """Give each localized node (current version) to the agents allowed to use it."""
-        for node, est in self.estimates.items():
-            if not est.localized:
-                continue
+    def _share(self, changed: list[str], t: float) -> None:
+        """Give each node re-localized in this window to the agents allowed to use it."""
+        for node in changed:
+            est = self.estimates[node]
             v = self._version[node]
             sigma = float(np.sqrt(self._node_var(node)))
             lm = Landmark(id=node, kind="node", floor=0, accuracy_m=max(sigma, 1e-6),
