@@ -83,15 +83,15 @@ class NodeEstimatorParams:
 
     min_ranges: int = 4
     min_spread_m: float = 0.5
-    max_sigma_m: float = 3.0
+    max_sigma_m: float = 5.0
     outlier_gate_probability: float = 0.999
     consistency_gate_probability: float = 0.999
     ambiguity_margin: float = 9.0
     max_outlier_passes: int = 10
     max_consistency_passes: int = 2
     max_iterations: int = 30
-    agent_cov_scale: float = 1.0
-    agent_correlation: float = 0.0
+    agent_cov_scale: float = 2.5
+    agent_correlation: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.agent_correlation < 1.0:

@@ -7,19 +7,30 @@ common windows of ``chunk_s``; within a window each agent's ranges go one of thr
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
   landmarks, the range sigma widened by the node's position uncertainty,
-  ``sqrt(sigma^2 + lambda_max(P_node))``);
+  ``sqrt(sigma^2 + n * lambda_max(P_node))``, ``n`` the ranges the agent has used from that node
+  in its current pass, this window's included: the node's error is one and the same for every
+  range of a pass, and the agent's filter takes each range as independent; the widening keeps
+  the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
+  of once per range);
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
   as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator`.
 
-Double counting: an agent never uses a node whose estimate contains its own ranges (its error
-is inside that estimate, and using it would count the agent's own position twice); an agent
-that contributed to a node keeps contributing, an agent that uses it never contributes. So the
-direct correlation between an agent and the nodes it localized never enters its filter. The
-second-order loop (agent A localizes n, agent B corrected by n localizes m, A uses m) is not
-modelled.
+Double counting. The node's error and the error of an agent that contributed to it are
+correlated (the agent's error at its readings is inside the node's estimate), so by default an
+agent that contributed to a node keeps contributing and does not use it, and an agent that uses a
+node never contributes to it. The one exception is a loop closure: a contributor may use the node
+once its own covariance has grown ``loop_closure_ratio`` times (trace) beyond the smallest it had
+at its readings of that node. Scalar reasoning, agent error ``e2 = e1 + d`` now (``var P2 =
+P1 + D``), node error ``e1 + v``: the filter's update taking the node as independent with variance
+``a * P1`` claims a posterior variance ``P2 a P1 / (P2 + a P1)`` while the true one is
+``P1 + (a P1 / (P2 + a P1))^2 D``; with ``a = 2`` (the node's variance doubled for its
+contributors) the two agree at ``P2 = 4 P1`` and the claim is conservative beyond. Passes of
+different agents are taken as partly correlated in the node estimate (``agent_correlation``); the
+second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not modelled.
 
 After every window the nodes with new readings are re-estimated from all their readings, and
-each localized node is given to every agent allowed to use it (``Tracker.set_landmarks``).
+each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
+the agent's filter is decided here).
 With ``cooperate=False`` no node is ever given to an agent (each agent alone).
 """
 
@@ -58,6 +69,9 @@ class MissionParams:
         A node is estimated again once its readings grew by this fraction (at least 3 new).
     cooperate:
         Give localized nodes to the agents (False: every agent alone).
+    loop_closure_ratio:
+        A contributor uses a node once its covariance trace is this many times the smallest it
+        had at its readings of the node (module doc; ``inf``: contributors never use it).
     nodes:
         Node estimator parameters.
     """
@@ -66,6 +80,7 @@ class MissionParams:
     pass_gap_s: float = 15.0
     refresh_fraction: float = 0.2
     cooperate: bool = True
+    loop_closure_ratio: float = 4.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
 
     def __post_init__(self) -> None:
@@ -73,6 +88,9 @@ class MissionParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="MissionParams", expected="> 0 s")
+        if not self.loop_closure_ratio >= 1.0:
+            raise InputError(f"loop_closure_ratio = {self.loop_closure_ratio}",
+                             where="MissionParams", expected=">= 1 (inf: never)")
 
 
 @dataclass
@@ -100,6 +118,21 @@ class _NodeReadings:
                                 chain=np.asarray(self.agent, dtype=np.int64))
 
 
+@dataclass(frozen=True)
+class LoopClosure:
+    """A contributor starting to use its node.
+
+    ``t``: time of the agent's row the decision used; covariance traces (m^2) of that row and
+    the smallest at the agent's readings of the node.
+    """
+
+    t: float
+    agent: str
+    node: str
+    trace_now_m2: float
+    trace_readings_m2: float
+
+
 @dataclass(frozen=True, eq=False)
 class NodeTrack:
     """A node's estimate over the mission."""
@@ -113,7 +146,8 @@ class NodeTrack:
 class MissionResult:
     """Per-agent results, the final node estimates and each node's history (localized rows).
 
-    ``readings``: the ranges kept for each node's estimate, all agents.
+    ``readings``: the ranges kept for each node's estimate, all agents; ``closures``: the loop
+    closures (contributors starting to use a node they fed).
     """
 
     agents: dict[str, TrackResult]
@@ -121,6 +155,7 @@ class MissionResult:
     node_history: dict[str, NodeTrack]
     contributors: dict[str, list[str]]
     readings: dict[str, int] = field(default_factory=dict)
+    closures: list[LoopClosure] = field(default_factory=list)
 
 
 def _known_ids(session: Session) -> list[str]:
@@ -157,6 +192,9 @@ class MissionTracker:
             k: [] for k in self.names}
         self._version: dict[str, int] = {}
         self._estimated_at: dict[str, int] = {}
+        self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
+        self._contrib_trace: dict[tuple[int, str], float] = {}
+        self.closures: list[LoopClosure] = []
 
     def windows(self) -> list[tuple[float, float]]:
         """The common windows ``(t_start, t_end)`` covering every agent's session."""
@@ -179,7 +217,8 @@ class MissionTracker:
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
         readings = {n: len(r.r) for n, r in self.readings.items()}
-        return MissionResult(results, dict(self.estimates), hist, contributors, readings)
+        return MissionResult(results, dict(self.estimates), hist, contributors, readings,
+                             list(self.closures))
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -226,8 +265,7 @@ class MissionTracker:
         if (usable | known).any():
             sig = ranges.sigma_m.copy()
             if usable.any():
-                extra = np.array([self._node_var(str(n)) for n in ranges.node[usable]])
-                sig[usable] = np.sqrt(sig[usable] ** 2 + extra)
+                sig[usable] = np.sqrt(sig[usable] ** 2 + self._use_var(i, ranges, usable))
             m = usable | known
             use = RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m], sig[m])
             for n in set(ranges.node[usable].tolist()):
@@ -241,8 +279,36 @@ class MissionTracker:
 
     def _usable(self, i: int, node: str) -> bool:
         """A node localized by the mission that agent ``i`` may use (see module doc)."""
-        return (self.params.cooperate and node in self.given[i]
-                and i not in self.contrib.get(node, set()))
+        if not (self.params.cooperate and node in self.given[i]):
+            return False
+        if i not in self.contrib.get(node, set()) or i in self.users.get(node, set()):
+            return True
+        rows = self._rows[self.names[i]]
+        if not rows or not math.isfinite(self.params.loop_closure_ratio):
+            return False
+        now, then = float(np.trace(rows[0][2][-1])), self._contrib_trace[(i, node)]
+        if now < self.params.loop_closure_ratio * then:
+            return False
+        self.closures.append(LoopClosure(float(rows[0][0][-1]), self.names[i], node, now, then))
+        self.users.setdefault(node, set()).add(i)
+        return True
+
+    def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
+                 ) -> FloatArray:
+        """Variance added to each usable range: node variance times its uses in the pass."""
+        extra = np.zeros(int(np.count_nonzero(usable)))
+        nodes = ranges.node[usable]
+        times = ranges.t[usable]
+        for n in np.unique(nodes).tolist():
+            m = nodes == n
+            last_t, count = self._pass_use.get((i, str(n)), (-math.inf, 0))
+            if float(times[m][0]) - last_t > self.params.pass_gap_s:
+                count = 0
+            count += int(np.count_nonzero(m))
+            self._pass_use[(i, str(n))] = (float(times[m][-1]), count)
+            mine = 2.0 if i in self.contrib.get(str(n), set()) else 1.0     # module doc
+            extra[m] = count * mine * self._node_var(str(n))
+        return extra
 
     def _node_var(self, node: str) -> float:
         return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
@@ -303,11 +369,13 @@ class MissionTracker:
             rd.r.extend(ranges.range_m[m][ok].tolist())
             rd.s.extend(ranges.sigma_m[m][ok].tolist())
             self.contrib.setdefault(node, set()).add(i)
+            tr = float(np.min(np.trace(cov[j], axis1=1, axis2=2)))
+            self._contrib_trace[(i, node)] = min(self._contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
 
     def _share(self, changed: list[str], t: float) -> None:
-        """Give each node re-localized in this window to the agents allowed to use it."""
+        """Give each node re-localized in this window to every agent (see :meth:`_usable`)."""
         for node in changed:
             est = self.estimates[node]
             v = self._version[node]
@@ -316,7 +384,7 @@ class MissionTracker:
                           position=(float(est.position_m[0]), float(est.position_m[1]), 0.0),
                           updated=t)
             for i, name in enumerate(self.names):
-                if i in self.contrib.get(node, set()) or self.given[i].get(node) == v:
+                if self.given[i].get(node) == v:
                     continue
                 self.trackers[name].set_landmarks({node: lm})
                 self.given[i][node] = v
