@@ -88,8 +88,14 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
         assert report["evaluation"]["position"]["mean"] > 0
         assert report["mission"]["cooperate"] is cooperate
         assert name in text
-    assert json.loads((tmp_path / "out" / "report.json").read_text())["params"] == {
-        "cooperate": cooperate, "chunk_s": chunk_s, "config": "default"}
+    summary = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert summary["params"] == {
+        "cooperate": cooperate, "chunk_s": chunk_s, "loop_closure_ratio": 4.0,
+        "agent_cov_scale": 2.5, "agent_correlation": 0.5, "config": "default"}
+    assert summary["loop_closures"] == [
+        {"t": c.t, "agent": c.agent, "node": c.node, "trace_now_m2": c.trace_now_m2,
+         "trace_readings_m2": c.trace_readings_m2} for c in res.closures]
+    assert bool(res.closures) <= cooperate
     fixes = sum(r.report["corrections"].get("range", {}).get("accepted", 0)
                 for r in res.agents.values())
     assert (fixes > 0) is cooperate
