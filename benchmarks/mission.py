@@ -47,10 +47,13 @@ def _seeds(text: str) -> list[int]:
     return out
 
 
-def agent_errors(mission: Mission, result: MissionResult) -> tuple[np.ndarray, np.ndarray]:
-    """Horizontal errors and their NEES (2 dof) at 1 Hz over every rescuer's walk."""
-    errs, nees = [], []
+def agent_errors(mission: Mission, result: MissionResult, kind: str = "rescuer"
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal errors and their NEES (2 dof) at 1 Hz over every rescuer's (robot's) track."""
+    errs, nees = [np.zeros(0)], [np.zeros(0)]
     for name, res in result.agents.items():
+        if mission.kinds.get(name, "rescuer") != kind:
+            continue
         truth = mission.simulations[name].session.truth
         assert truth is not None
         tr = res.trajectory
@@ -103,6 +106,7 @@ class ModeScores:
     anees: float
     rmse: float
     node_nees: list[float]
+    robot_p90: float
     rmse_true_agents: float
     window_ms: tuple[float, float]
     agent_ms: tuple[float, float]
@@ -172,12 +176,15 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     out: dict[str, ModeScores] = {}
     for mode in ("off", "on"):
         tracker = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on",
-                                                                      nodes=item.nodes))
+                                                                      nodes=item.nodes),
+                                 kinds=mission.kinds)
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
+        robot = agent_errors(mission, res, "robot")[0]
         out[mode] = ModeScores(float(np.mean(e)), float(np.percentile(e, 90)),
                                float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees,
+                               float(np.percentile(robot, 90)) if len(robot) else float("nan"),
                                true_agent_rmse(mission, tracker), _quarters(windows),
                                _quarters(agents_s), _quarters(nodes_s))
     return out
@@ -188,6 +195,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 (dev) or 100-129 (held-out)")
     ap.add_argument("--nodes", type=int, default=40)
     ap.add_argument("--rescuers", type=int, default=3)
+    ap.add_argument("--robots", type=int, default=0)
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--node-failure", type=float, default=0.0)
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
@@ -198,7 +206,7 @@ def main() -> None:
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
-    opts = MissionOptions(n_rescuers=args.rescuers, n_nodes=args.nodes,
+    opts = MissionOptions(n_rescuers=args.rescuers, n_robots=args.robots, n_nodes=args.nodes,
                           range_sigma_m=args.range_sigma_m,
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s)
     rows: dict[str, dict[str, list[float]]] = {
@@ -232,9 +240,10 @@ def main() -> None:
             nees_all[mode].extend(m.node_nees)
             print(f"seed {item.seed} {mode:>3}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
-                  f"{m.anees:.1f}; node NEES "
+                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
-    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.nodes} nodes, range sigma "
+    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots, "
+          f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m, node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
           f"mean / p90 / "

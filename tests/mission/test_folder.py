@@ -236,11 +236,11 @@ def test_unknown_agent_kind_names_the_field(tmp_path: Path) -> None:
     assert "mission.json" in text and "'agents.0.kind'" in text and "rescuer" in text
 
 
-def test_robot_agents_are_refused_until_the_tracker_has_a_robot_filter(tmp_path: Path) -> None:
+def test_a_robot_without_odometry_is_refused(tmp_path: Path) -> None:
     m = _tiny(tmp_path)
     _edit(m / "mission.json", lambda d: d["agents"][1].update(kind="robot"))
     text = _fails(m, tmp_path)
-    assert "agents[1].kind" in text and "robot" in text
+    assert "agents[1]" in text and "robot" in text and "fixes.csv" in text
 
 
 @pytest.mark.parametrize(("file", "change", "needle"), [
@@ -292,6 +292,6 @@ def test_ranges_to_unlisted_nodes_warn_with_the_agent_folder(tmp_path: Path) -> 
 
 def test_unknown_simulate_option_is_refused(tmp_path: Path) -> None:
     res = runner.invoke(app, ["simulate", "inderst_hybrid_mission", "-o", str(tmp_path / "m"),
-                              "-O", "n_robots=1"])
+                              "-O", "n_drones=1"])
     assert res.exit_code == 2
-    assert "unknown option 'n_robots'" in " ".join(res.output.split())
+    assert "unknown option 'n_drones'" in " ".join(res.output.split())

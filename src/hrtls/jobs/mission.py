@@ -56,14 +56,16 @@ class MissionRun:
 
 
 def estimator_sessions(folder: MissionFolder) -> dict[str, Session]:
-    """The sessions the mission tracker gets; robots are refused (no robot filter in it yet)."""
+    """The sessions the mission tracker gets (without ground truth); robots need odometry."""
+    sessions = folder.sessions()
     for i, agent in enumerate(folder.agents.values()):
-        if agent.kind != "rescuer":
-            raise InputError(f"agent {agent.name!r} is a {agent.kind}",
-                             where=f"{folder.path / MISSION_FILE} agents[{i}].kind",
-                             expected="rescuers only (the mission tracker has no robot "
-                                      "filter yet)")
-    return folder.sessions()
+        if agent.kind == "robot" and (sessions[agent.name].fixes is None
+                                      or sessions[agent.name].meta.start_pose is None):
+            raise InputError(f"robot {agent.name!r} has no odometry poses or start pose",
+                             where=f"{folder.path / MISSION_FILE} agents[{i}]",
+                             expected="a robot session with fixes.csv (wheel odometry poses) "
+                                      "and meta.start_pose")
+    return sessions
 
 
 def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
@@ -74,13 +76,14 @@ def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
         folder = read_mission(folder)
     sessions = estimator_sessions(folder)
     start = time.perf_counter()
-    result = MissionTracker(sessions, config=config, params=params).run()
+    kinds = {name: a.kind for name, a in folder.agents.items()}
+    result = MissionTracker(sessions, config=config, params=params, kinds=kinds).run()
     seconds = time.perf_counter() - start
     agents: dict[str, TrackResult] = {}
     evaluations: dict[str, dict[str, Any] | None] = {}
     for name, raw in result.agents.items():
         agent = folder.agents[name]
-        finished = finish_track(raw, sessions[name], config)
+        finished = finish_track(raw, sessions[name], config) if agent.kind == "rescuer" else raw
         finished.report["input"] = {"format": "mission", "path": str(agent.path),
                                     "mission": str(folder.path)}
         finished.report["mission"] = {

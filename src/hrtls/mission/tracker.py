@@ -1,7 +1,9 @@
 """Mission tracker: every agent's causal tracker plus the dropped network, in one loop.
 
-Each agent runs its own :class:`hrtls.pipeline.Tracker` (causal, chunk by chunk). Time advances in
-common windows of ``chunk_s``; within a window each agent's ranges go one of three ways:
+Each agent runs its own causal tracker, chunk by chunk: :class:`hrtls.pipeline.Tracker` for a
+rescuer, :class:`hrtls.mission.robot.RobotTracker` (odometry + range EKF) for a robot. Time
+advances in common windows of ``chunk_s``; within a window each agent's ranges go one of three
+ways:
 
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
@@ -37,6 +39,7 @@ With ``cooperate=False`` no node is ever given to an agent (each agent alone).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,6 +50,7 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import InputError
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.chunks import aligned_imu, session_window
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -169,15 +173,23 @@ class MissionTracker:
     """All agents of a mission and the dropped nodes as one causal loop (see module doc)."""
 
     def __init__(self, agents: dict[str, Session], *, config: TrackerConfig | None = None,
-                 params: MissionParams | None = None) -> None:
+                 params: MissionParams | None = None, kinds: Mapping[str, str] | None = None
+                 ) -> None:
         if not agents:
             raise InputError("no agents", where="mission", expected="at least one session")
         self.params = params or MissionParams()
         self.names = list(agents)
+        self.kinds = {k: (kinds or {}).get(k, "rescuer") for k in self.names}
+        bad = [k for k, v in self.kinds.items() if v not in ("rescuer", "robot")]
+        if bad:
+            raise InputError(f"agent {bad[0]!r} is a {self.kinds[bad[0]]!r}", where="mission kinds",
+                             expected="rescuer or robot")
         self.sessions = {k: (s.with_parts(imu=aligned_imu(s.imu)) if s.imu is not None else s)
                          for k, s in agents.items()}
         self.known = [_known_ids(self.sessions[k]) for k in self.names]
-        self.trackers = {k: Tracker(config) for k in self.names}
+        self.trackers: dict[str, Tracker | RobotTracker] = {
+            k: RobotTracker() if self.kinds[k] == "robot" else Tracker(config)
+            for k in self.names}
         for k, tr in self.trackers.items():
             tr.start_session(self.sessions[k])
         self.estimator = NodeEstimator(self.params.nodes)
