@@ -64,7 +64,7 @@ class PeakStepParams:
     default_step_s: float = 0.55
     detrend_cutoff_hz: float = 0.3
     std_window_s: float = 2.0
-    rhythm_relative_threshold: float = 0.3
+    rhythm_relative_threshold: float = 0.4
     rhythm_min_ratio: float = 0.7
     rhythm_max_ratio: float = 1.4
 

@@ -242,3 +242,23 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     # length and heading of the step that *ends* at each event
     return SimWalk(t, acc_d, q_nd, mount, act, step_t, len_s[cross - 1], psi[cross],
                    act[cross - 1], speed, p)
+
+
+def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
+    """Stand, walk about 10 m, turn on the spot (U-turn), walk back, stop and stand.
+
+    A random person and mounting; 2-4 s standing at each end, 5.5-8 s each way, a 1.5-2.5 s
+    turn of +-180 deg. The steps of the start and stop ramps shrink to 10-40 % of the walking
+    amplitude, the turning steps to 25-50 % (lower-back recordings: the last peak of a walk
+    can be a quarter of the others, e.g. mobgap MS/001 Test5).
+    """
+    rng = np.random.default_rng(seed)
+    person = SimPerson.random(rng)
+    st0, w1, turn, w2, st1 = (rng.uniform(2, 4), rng.uniform(5.5, 8), rng.uniform(1.5, 2.5),
+                              rng.uniform(5.5, 8), rng.uniform(2, 4))
+    segs = [(int(Activity.STANDING), st0), (int(Activity.WALKING), w1 + turn + w2),
+            (int(Activity.STANDING), st1)]
+    return simulate(segs, person=person, rate_hz=rate_hz, q_bd=random_mounting(rng),
+                    seed=seed, stop_amplitude=rng.uniform(0.1, 0.4),
+                    turns=((st0 + w1, turn, np.pi * rng.choice([-1.0, 1.0])),),
+                    turn_amplitude=rng.uniform(0.25, 0.5))
