@@ -7,6 +7,8 @@ Run ``PYTHONPATH=src python benchmarks/steps_stops.py`` (about 2 min). Prints on
   100-129: count error and the true steps with no detected step within 0.45 s, by position;
 * mobgap Test5 (lab walks, lower back), whole trials including the standing parts, with the
   default tracker: our count against INDIP, Stereophoto and their union;
+* mobgap Test11 (daily life): INDIP contacts without a step, by position (first / last two
+  of a bout, inside a reference turn of 45 deg or more, elsewhere);
 * Oxford user1, the six placements with the default tracker (front/back pocket were the files
   the detector was tuned on, also for this change), and a leave-one-placement-out choice of
   ``rhythm_relative_threshold`` from a grid.
@@ -129,6 +131,47 @@ def mobgap_rows() -> None:
                      f"vs union {(tot[0] - tot[3]) / tot[3] * 100:+.1f}% ({tot[0]}/{tot[3]})"))
 
 
+def mobgap_daily_rows() -> None:
+    """Test11 (daily life): INDIP contacts with no step within 0.45 s, by position in the bout."""
+    from hrtls.datasets import mobgap
+    from hrtls.pipeline.config import preset
+    from hrtls.pipeline.tracker import Tracker
+
+    root = DATA / "mobgap_lab"
+    trials = [mobgap.load_trial(root, tid.participant, tid.test, tid.trial)
+              for tid in mobgap.list_trials(root) if tid.test == "Test11"]
+    for name, params in (("before", OLD), ("after", None)):
+        where = {"first 2": 0, "last 2": 0, "turn >= 45 deg": 0, "other": 0}
+        n_ref = n_in = 0
+        for trial in trials:
+            ref = trial.reference.indip
+            if ref is None:
+                continue
+            with tracker_rule(params), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = Tracker(preset("default")).run(trial.session)
+            te = res.steps.t_end - trial.session.imu.accel.t[0]
+            turns = [(a, b) for a, b, ang in zip(ref.turn_start_s, ref.turn_end_s,
+                                                 ref.turn_angle_deg, strict=True)
+                     if abs(ang) >= 45]
+            ic_all = ref.initial_contacts_s
+            for b0, b1 in zip(ref.bout_start_s, ref.bout_end_s, strict=True):
+                ic = np.sort(ic_all[(ic_all >= b0 - 1e-6) & (ic_all <= b1 + 1e-6)
+                                    & np.isfinite(ic_all)])
+                hit, _ = matched(te, ic)
+                n_in += int(np.sum((te >= b0 - 0.3) & (te <= b1 + 0.3)))
+                n_ref += ic.size
+                for k in np.flatnonzero(~hit):
+                    key = ("first 2" if k < 2 else "last 2" if k >= ic.size - 2
+                           else "turn >= 45 deg" if any(a - 0.3 <= ic[k] <= b + 0.3
+                                                        for a, b in turns) else "other")
+                    where[key] += 1
+        missed = ", ".join(f"{k} {v}" for k, v in where.items())
+        ROWS.append(("mobgap Test11 (daily life), INDIP bouts", name,
+                     f"count {(n_in - n_ref) / n_ref * 100:+.1f}% ({n_in}/{n_ref}); contacts "
+                     f"with no step within 0.45 s: {missed}"))
+
+
 def oxford_rows() -> None:
     from hrtls.datasets import oxford
     from hrtls.pipeline.config import preset
@@ -161,6 +204,7 @@ def main() -> None:
     sim_rows(range(100, 130), "held-out seeds 100-129")
     if DATA.is_dir():
         mobgap_rows()
+        mobgap_daily_rows()
         oxford_rows()
     w0 = max(len(r[0]) for r in ROWS)
     w1 = max(len(r[1]) for r in ROWS)
