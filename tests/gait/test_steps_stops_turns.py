@@ -16,6 +16,8 @@ from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
 from hrtls.gait.synthetic import SimWalk, short_walk_u_turn, simulate
 
+from ._chunks import run_with_restarts
+
 OLD_RULE = PeakStepParams(rhythm_relative_threshold=PeakStepParams().relative_threshold)
 """The detector before the rhythm rule: one relative threshold for every peak."""
 
@@ -148,3 +150,23 @@ def test_mobgap_short_walks_counted_with_the_standing_parts(shared_data: Path) -
         n_ref += len(ic)
     assert n_ref == 36
     assert n_ref <= n_det <= n_ref + 7
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(100, 129), cuts=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=4))
+def test_short_walk_live_with_restarts_equals_offline(seed: int, cuts: list[float]) -> None:
+    # the live path: chunks, each state through JSON into a fresh analyzer
+    walk = short_walk_u_turn(seed)
+    n = walk.t.size
+    bounds = [0, *sorted({int(c * (n - 1)) + 1 for c in cuts}), n]
+    bounds = sorted(set(bounds))
+
+    def make() -> GaitAnalyzer:
+        return GaitAnalyzer(rate_hz=100.0, heading="yaw", step_yaw="turns",
+                            window_features=False)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = make().process(walk.t, walk.acc_d)
+        live = run_with_restarts(make, walk.t, walk.acc_d, None, bounds)
+    np.testing.assert_allclose(live.steps.t_end, whole.steps.t_end)
