@@ -7,7 +7,13 @@ only) and prints, over the seeds, mean / p90 / worst of:
 * the rescuers' horizontal position error (sampled at 1 Hz while walking, all rescuers),
 * the rescuers' NEES (2 dof, expected 2 when their covariance is consistent),
 * the fraction of nodes localized at the end, their RMSE and mean NEES (2 dof, with the
-  chi-square 95 % bounds of that mean over the localized nodes).
+  chi-square 95 % bounds of that mean over the localized nodes);
+* the node RMSE the same estimator reaches from the same ranges taken at the agents' *true*
+  positions (scoring only: how much of the node error is the agents' own error);
+* the mission loop's cost per window (``chunk_s`` of every agent), first vs last quarter of the
+  mission: the whole window, the agents' part (their trackers' updates and the reading
+  collection, ``_collect``: flat when the per-agent cost does not grow with the mission's length)
+  and the node re-estimation (grows with the readings of the nodes in range).
 
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
@@ -20,12 +26,15 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options
+from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
 
@@ -38,10 +47,13 @@ def _seeds(text: str) -> list[int]:
     return out
 
 
-def agent_errors(mission: Mission, result: MissionResult) -> tuple[np.ndarray, np.ndarray]:
-    """Horizontal errors and their NEES (2 dof) at 1 Hz over every rescuer's walk."""
-    errs, nees = [], []
+def agent_errors(mission: Mission, result: MissionResult, kind: str = "rescuer"
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal errors and their NEES (2 dof) at 1 Hz over every rescuer's (robot's) track."""
+    errs, nees = [np.zeros(0)], [np.zeros(0)]
     for name, res in result.agents.items():
+        if mission.kinds.get(name, "rescuer") != kind:
+            continue
         truth = mission.simulations[name].session.truth
         assert truth is not None
         tr = res.trajectory
@@ -80,6 +92,7 @@ class SeedItem:
 
     seed: int
     options: MissionOptions
+    nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,68 @@ class ModeScores:
     anees: float
     rmse: float
     node_nees: list[float]
+    robot_p90: float
+    rmse_true_agents: float
+    window_ms: tuple[float, float]
+    agent_ms: tuple[float, float]
+    nodes_ms: tuple[float, float]
+
+
+def _quarters(x: list[float]) -> tuple[float, float]:
+    q = max(len(x) // 4, 1)
+    return float(np.mean(x[:q])) * 1e3, float(np.mean(x[-q:])) * 1e3
+
+
+def _run_timed(tracker: MissionTracker
+               ) -> tuple[MissionResult, list[float], list[float], list[float]]:
+    """Run the tracker window by window: the result, each window's time, its agents' part
+    (trackers' updates and reading collection) and its node re-estimation."""
+    spent = {"agents": [0.0], "nodes": [0.0]}
+
+    def timed(fn: Callable[..., Any], part: str) -> Callable[..., Any]:
+        def run(*args: Any, **kwargs: Any) -> Any:
+            t = time.perf_counter()
+            out = fn(*args, **kwargs)
+            spent[part][-1] += time.perf_counter() - t
+            return out
+        return run
+
+    tracker._collect = timed(tracker._collect, "agents")  # type: ignore[method-assign]
+    for tr in tracker.trackers.values():
+        tr.update = timed(tr.update, "agents")  # type: ignore[method-assign]
+    tracker.estimator.estimate = timed(tracker.estimator.estimate,  # type: ignore[method-assign]
+                                       "nodes")
+    windows: list[float] = []
+    for t_start, t_end in tracker.windows():
+        t = time.perf_counter()
+        tracker.step(t_start, t_end)
+        windows.append(time.perf_counter() - t)
+        spent["agents"].append(0.0)
+        spent["nodes"].append(0.0)
+    return tracker.result(), windows, spent["agents"][:-1], spent["nodes"][:-1]
+
+
+def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
+    """Node RMSE from the same readings placed at the agents' true positions (zero covariance)."""
+    est = NodeEstimator(tracker.params.nodes)
+    d2 = []
+    for node, rd in tracker.readings.items():
+        obs = rd.ranges(tracker.params.pass_gap_s)
+        ag, t = np.asarray(rd.agent), np.asarray(rd.t)
+        xy = np.zeros((len(t), 2))
+        for i, name in enumerate(tracker.names):
+            truth = mission.simulations[name].session.truth
+            assert truth is not None
+            m = ag == i
+            xy[m, 0] = np.interp(t[m], truth.t, truth.xyz[:, 0])
+            xy[m, 1] = np.interp(t[m], truth.t, truth.xyz[:, 1])
+        e = est.estimate(NodeRanges.build(agent_xy_m=xy, agent_cov_m2=np.zeros((len(t), 2, 2)),
+                                          range_m=obs.range_m, range_sigma_m=obs.range_sigma_m,
+                                          group=obs.group, chain=obs.chain))
+        if e.localized:
+            d = e.position_m - mission.node_truth_m[node]
+            d2.append(float(d @ d))
+    return float(np.sqrt(np.mean(d2))) if d2 else float("nan")
 
 
 def run_seed(item: SeedItem) -> dict[str, ModeScores]:
@@ -100,11 +175,18 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     mission = inderst_hybrid_mission(item.seed, item.options)
     out: dict[str, ModeScores] = {}
     for mode in ("off", "on"):
-        res = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on")).run()
+        tracker = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on",
+                                                                      nodes=item.nodes),
+                                 kinds=mission.kinds)
+        res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
+        robot = agent_errors(mission, res, "robot")[0]
         out[mode] = ModeScores(float(np.mean(e)), float(np.percentile(e, 90)),
-                               float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees)
+                               float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees,
+                               float(np.percentile(robot, 90)) if len(robot) else float("nan"),
+                               true_agent_rmse(mission, tracker), _quarters(windows),
+                               _quarters(agents_s), _quarters(nodes_s))
     return out
 
 
@@ -113,20 +195,31 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 (dev) or 100-129 (held-out)")
     ap.add_argument("--nodes", type=int, default=40)
     ap.add_argument("--rescuers", type=int, default=3)
+    ap.add_argument("--robots", type=int, default=0)
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--node-failure", type=float, default=0.0)
+    ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
+    ap.add_argument("--agent-cov-scale", type=float, default=None,
+                    help="NodeEstimatorParams.agent_cov_scale (default: its default)")
+    ap.add_argument("--agent-correlation", type=float, default=None,
+                    help="NodeEstimatorParams.agent_correlation (default: its default)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
-    opts = MissionOptions(n_rescuers=args.rescuers, n_nodes=args.nodes,
+    opts = MissionOptions(n_rescuers=args.rescuers, n_robots=args.robots, n_nodes=args.nodes,
                           range_sigma_m=args.range_sigma_m,
-                          node_failure_fraction=args.node_failure)
+                          node_failure_fraction=args.node_failure, walk_s=args.walk_s)
     rows: dict[str, dict[str, list[float]]] = {
-        m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": []}
+        m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
+            "rmse_true": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [], "n1": []}
         for m in ("off", "on")}
     nees_all: dict[str, list[float]] = {"off": [], "on": []}
     t0 = time.perf_counter()
-    items = [SeedItem(seed, opts) for seed in _seeds(args.seeds)]
+    nodes = NodeEstimatorParams()
+    for key in ("agent_cov_scale", "agent_correlation"):
+        if getattr(args, key) is not None:
+            nodes = replace(nodes, **{key: getattr(args, key)})
+    items = [SeedItem(seed, opts, nodes) for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in ("off", "on"):
             m = scores[mode]
@@ -137,24 +230,44 @@ def main() -> None:
             r["frac"].append(m.frac)
             r["anees"].append(m.anees)
             r["rmse"].append(m.rmse)
+            r["rmse_true"].append(m.rmse_true_agents)
+            r["w0"].append(m.window_ms[0])
+            r["w1"].append(m.window_ms[1])
+            r["a0"].append(m.agent_ms[0])
+            r["a1"].append(m.agent_ms[1])
+            r["n0"].append(m.nodes_ms[0])
+            r["n1"].append(m.nodes_ms[1])
             nees_all[mode].extend(m.node_nees)
             print(f"seed {item.seed} {mode:>3}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
-                  f"{m.anees:.1f}; node NEES "
+                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
-    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.nodes} nodes, range sigma "
-          f"{args.range_sigma_m} m, node failure {args.node_failure}; values are mean / p90 / "
+    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots, "
+          f"{args.nodes} nodes, range sigma "
+          f"{args.range_sigma_m} m, node failure {args.node_failure}, agent covariance scale "
+          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
+          f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     print("| cooperation | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
-          "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) "
+          "| node RMSE from true agent positions, m |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for mode in ("off", "on"):
         r = rows[mode]
         n = len(nees_all[mode])
         lo, hi = (chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n) if n else (0, 0)
         nees = f"{np.mean(nees_all[mode]):.2f} ({lo:.2f}-{hi:.2f}, n={n})" if n else "-"
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
-              f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} |")
+              f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} "
+              f"| {_stats(r['rmse_true'])} |")
+    print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
+    print("| cooperation | window | agents (trackers + collection) | node re-estimation |")
+    print("|---|---|---|---|")
+    for mode in ("off", "on"):
+        r = rows[mode]
+        print(f"| {mode} | {np.mean(r['w0']):.1f} / {np.mean(r['w1']):.1f} "
+              f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
+              f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} |")
     batch.finish()
 
 

@@ -88,8 +88,14 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
         assert report["evaluation"]["position"]["mean"] > 0
         assert report["mission"]["cooperate"] is cooperate
         assert name in text
-    assert json.loads((tmp_path / "out" / "report.json").read_text())["params"] == {
-        "cooperate": cooperate, "chunk_s": chunk_s, "config": "default"}
+    summary = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert summary["params"] == {
+        "cooperate": cooperate, "chunk_s": chunk_s, "loop_closure_ratio": 4.0,
+        "agent_cov_scale": 2.5, "agent_correlation": 0.5, "config": "default"}
+    assert summary["loop_closures"] == [
+        {"t": c.t, "agent": c.agent, "node": c.node, "trace_now_m2": c.trace_now_m2,
+         "trace_readings_m2": c.trace_readings_m2} for c in res.closures]
+    assert bool(res.closures) <= cooperate
     fixes = sum(r.report["corrections"].get("range", {}).get("accepted", 0)
                 for r in res.agents.values())
     assert (fixes > 0) is cooperate
@@ -230,11 +236,11 @@ def test_unknown_agent_kind_names_the_field(tmp_path: Path) -> None:
     assert "mission.json" in text and "'agents.0.kind'" in text and "rescuer" in text
 
 
-def test_robot_agents_are_refused_until_the_tracker_has_a_robot_filter(tmp_path: Path) -> None:
+def test_a_robot_without_odometry_is_refused(tmp_path: Path) -> None:
     m = _tiny(tmp_path)
     _edit(m / "mission.json", lambda d: d["agents"][1].update(kind="robot"))
     text = _fails(m, tmp_path)
-    assert "agents[1].kind" in text and "robot" in text
+    assert "agents[1]" in text and "robot" in text and "fixes.csv" in text
 
 
 @pytest.mark.parametrize(("file", "change", "needle"), [
@@ -286,6 +292,6 @@ def test_ranges_to_unlisted_nodes_warn_with_the_agent_folder(tmp_path: Path) -> 
 
 def test_unknown_simulate_option_is_refused(tmp_path: Path) -> None:
     res = runner.invoke(app, ["simulate", "inderst_hybrid_mission", "-o", str(tmp_path / "m"),
-                              "-O", "n_robots=1"])
+                              "-O", "n_drones=1"])
     assert res.exit_code == 2
-    assert "unknown option 'n_robots'" in " ".join(res.output.split())
+    assert "unknown option 'n_drones'" in " ".join(res.output.split())

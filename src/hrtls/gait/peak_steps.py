@@ -8,6 +8,15 @@ larger) and is at least ``min_step_s`` after the previous step. The step ends at
 starts at the previous step's peak (after a pause longer than ``max_step_s`` the start is the end
 minus the last step period).
 
+A timing rule (our addition, for stops and turns): the trailing 2 s deviation still
+holds the full-speed steps when a person slows down to stop or turns on the spot, so the weaker
+last and turning steps fell under the relative threshold. A peak that comes on the walking
+rhythm (between ``rhythm_min_ratio`` and ``rhythm_max_ratio`` times the last step period after
+the previous step) is held only to ``rhythm_relative_threshold`` times the deviation; the
+secondary lobes the relative threshold rejects come early in a step, off the rhythm. The
+decision needs only the lobe's own samples and the last two step times: the step is still
+released at its down-going zero crossing.
+
 Zero crossings use a small hysteresis band and the signal is detrended by subtracting a slow
 first-order low-pass (``detrend_cutoff_hz``) so that a bias in the levelled acceleration does not
 move the crossings.
@@ -21,6 +30,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
 from hrtls.gait.motion_detector import RunningStd, RunningStdState
 from hrtls.gait.pll import StepDetection
@@ -40,6 +50,10 @@ class PeakStepParams:
     default_step_s: step period assumed for the first step after a pause, s.
     detrend_cutoff_hz: corner of the slow mean removed before crossing tests, Hz.
     std_window_s: window of the running standard deviation, s.
+    rhythm_relative_threshold: relative threshold for a peak on the walking rhythm (at most
+        ``relative_threshold``).
+    rhythm_min_ratio, rhythm_max_ratio: a peak is on the rhythm when it comes this many last
+        step periods after the previous step.
     """
 
     peak_threshold_m_s2: float = 0.45
@@ -50,6 +64,9 @@ class PeakStepParams:
     default_step_s: float = 0.55
     detrend_cutoff_hz: float = 0.3
     std_window_s: float = 2.0
+    rhythm_relative_threshold: float = 0.4
+    rhythm_min_ratio: float = 0.7
+    rhythm_max_ratio: float = 1.4
 
 
 @numba.njit(cache=True)
@@ -57,14 +74,17 @@ def peak_step_kernel(t: FloatArray, x: FloatArray, sigma: FloatArray, pars: Floa
                      st: FloatArray, steps: FloatArray) -> int:  # pragma: no cover
     """Scan a chunk; return the number of steps written to ``steps`` (rows as StepDetection).
 
-    ``pars = [peak_thr, rel_thr, hyst, min_step, max_step, default_step, detrend_hz]``.
+    ``pars = [peak_thr, rel_thr, hyst, min_step, max_step, default_step, detrend_hz,
+    rhythm_rel, rhythm_min, rhythm_max]``.
     ``st = [t_last, trend, positive, peak_val, peak_t, min_val, last_step_t, last_period,
-    peak_ok]``; ``t_last`` NaN before the first sample.
+    sigma_max]`` (``sigma_max``: largest deviation over the current positive lobe); ``t_last``
+    NaN before the first sample.
     """
     thr, rel, hyst = pars[0], pars[1], pars[2]
     min_step, max_step, def_step, det_hz = pars[3], pars[4], pars[5], pars[6]
+    rhythm_rel, rhythm_min, rhythm_max = pars[7], pars[8], pars[9]
     t_last, trend, positive, peak_val = st[0], st[1], st[2], st[3]
-    peak_t, min_val, last_t, last_period, peak_ok = st[4], st[5], st[6], st[7], st[8]
+    peak_t, min_val, last_t, last_period, sig_max = st[4], st[5], st[6], st[7], st[8]
     ns = 0
     for i in range(t.shape[0]):
         if not np.isfinite(t_last):
@@ -82,18 +102,22 @@ def peak_step_kernel(t: FloatArray, x: FloatArray, sigma: FloatArray, pars: Floa
                 positive = 1.0
                 peak_val = v
                 peak_t = t[i]
-                peak_ok = rel * sigma[i]
+                sig_max = sigma[i]
         else:
             if v > peak_val:
                 peak_val = v
                 peak_t = t[i]
-            if rel * sigma[i] > peak_ok:
-                peak_ok = rel * sigma[i]
+            if sigma[i] > sig_max:
+                sig_max = sigma[i]
             if v < -hyst:
                 positive = 0.0
-                level = thr if thr > peak_ok else peak_ok
-                if peak_val >= level and peak_t - last_t >= min_step:
-                    gap = peak_t - last_t
+                gap = peak_t - last_t
+                on_rhythm = (last_period > 0.0 and gap <= max_step
+                             and rhythm_min * last_period <= gap <= rhythm_max * last_period)
+                level = (min(rhythm_rel, rel) if on_rhythm else rel) * sig_max
+                if level < thr:
+                    level = thr
+                if peak_val >= level and gap >= min_step:
                     if gap <= max_step:
                         start = last_t
                         last_period = gap
@@ -110,7 +134,7 @@ def peak_step_kernel(t: FloatArray, x: FloatArray, sigma: FloatArray, pars: Floa
                 elif v < min_val:
                     min_val = v
     st[0], st[1], st[2], st[3] = t_last, trend, positive, peak_val
-    st[4], st[5], st[6], st[7], st[8] = peak_t, min_val, last_t, last_period, peak_ok
+    st[4], st[5], st[6], st[7], st[8] = peak_t, min_val, last_t, last_period, sig_max
     return ns
 
 
@@ -144,9 +168,17 @@ class PeakStepDetector:
         for name in ("min_step_s", "max_step_s", "default_step_s", "detrend_cutoff_hz",
                      "std_window_s"):
             check_positive(getattr(p, name), name)
+        if not (0.0 < p.rhythm_min_ratio < p.rhythm_max_ratio) or \
+                p.rhythm_relative_threshold < 0.0:
+            raise InputError(
+                f"rhythm ratios {p.rhythm_min_ratio}-{p.rhythm_max_ratio}, relative "
+                f"{p.rhythm_relative_threshold}", where="PeakStepParams",
+                expected="0 < rhythm_min_ratio < rhythm_max_ratio, "
+                         "rhythm_relative_threshold >= 0")
         self._pars = np.array([p.peak_threshold_m_s2, p.relative_threshold, p.hysteresis_m_s2,
                                p.min_step_s, p.max_step_s, p.default_step_s,
-                               p.detrend_cutoff_hz])
+                               p.detrend_cutoff_hz, p.rhythm_relative_threshold,
+                               p.rhythm_min_ratio, p.rhythm_max_ratio])
         self._std = RunningStd(window_s=p.std_window_s)
         self.reset()
 

@@ -125,7 +125,9 @@ def random_mounting(rng: np.random.Generator) -> FloatArray:
 def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = None,
              rate_hz: float = 100.0, q_bd: FloatArray | None = None,
              turn_rate_rad_s: float = 0.0, heading0_rad: float = 0.0,
-             ramp_s: float = 1.0, seed: int = 0) -> SimWalk:
+             ramp_s: float = 1.0, seed: int = 0, stop_amplitude: float | None = None,
+             turns: tuple[tuple[float, float, float], ...] = (),
+             turn_amplitude: float = 0.5) -> SimWalk:
     """Simulate a sequence of ``(activity, duration_s)`` segments.
 
     Parameters
@@ -138,6 +140,12 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     heading0_rad: initial walking direction (ENU), rad.
     ramp_s: duration of the speed ramps at the start and end of each bout, s.
     seed: random seed of noise and jitter.
+    stop_amplitude: None: the step amplitude ignores the ramps; else the vertical and AP
+        amplitude of the steps of a ramp scale from this fraction (bout start and end) to 1
+        (smaller steps while starting and stopping).
+    turns: turns on the spot ``(t_start_s, duration_s, angle_rad)``: the walking direction
+        turns by the angle at a constant rate, the step amplitude and speed scale by
+        ``turn_amplitude`` (short, flat turning steps).
     """
     rng = np.random.default_rng(seed)
     p = person or SimPerson()
@@ -153,6 +161,7 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     len_s = np.zeros(n)  # true length of the step each sample belongs to
     ap_s = np.zeros(n)  # antero-posterior amplitude relative to walking
     speed = np.zeros(n)  # forward speed, m/s
+    ramp_all = np.ones(n)
     i0 = 0
     cyc = 0.0
     for a, dur in segments:
@@ -191,7 +200,16 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
             # speed ramps up over the first and down over the last second of a bout
             ramp = np.clip(np.minimum(t[i0:i1] - t[i0], t[i1 - 1] - t[i0:i1]) / ramp_s, 0, 1)
             speed[i0:i1] *= ramp
+            ramp_all[i0:i1] = ramp
         i0 = i1
+    turn_rate = np.where(act != Activity.STANDING, turn_rate_rad_s, 0.0)
+    if stop_amplitude is not None:
+        amp_v *= stop_amplitude + (1.0 - stop_amplitude) * ramp_all
+    for t_turn, d_turn, angle in turns:
+        inside = (t >= t_turn) & (t < t_turn + d_turn)
+        turn_rate = np.where(inside, turn_rate + angle / d_turn, turn_rate)
+        amp_v[inside] *= turn_amplitude
+        speed[inside] *= turn_amplitude
     phi = 2.0 * np.pi * phase
     moving = act != Activity.STANDING
     # forward acceleration of the mean speed (smoothed over 0.5 s)
@@ -208,7 +226,7 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     a_ml = np.where(moving, a_ml, 0.5 * sway)
     # walking direction and trunk yaw oscillation at stride frequency
     dt = 1.0 / rate_hz
-    psi = heading0_rad + np.cumsum(np.where(moving, turn_rate_rad_s, 0.0)) * dt
+    psi = heading0_rad + np.cumsum(turn_rate) * dt
     trunk = np.where(moving, np.deg2rad(3.0) * np.sin(0.5 * phi), 0.0)
     lin_n = np.column_stack([np.cos(psi) * a_ap - np.sin(psi) * a_ml,
                              np.sin(psi) * a_ap + np.cos(psi) * a_ml, a_v])
@@ -224,3 +242,23 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     # length and heading of the step that *ends* at each event
     return SimWalk(t, acc_d, q_nd, mount, act, step_t, len_s[cross - 1], psi[cross],
                    act[cross - 1], speed, p)
+
+
+def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
+    """Stand, walk about 10 m, turn on the spot (U-turn), walk back, stop and stand.
+
+    A random person and mounting; 2-4 s standing at each end, 5.5-8 s each way, a 1.5-2.5 s
+    turn of +-180 deg. The steps of the start and stop ramps shrink to 10-40 % of the walking
+    amplitude, the turning steps to 25-50 % (lower-back recordings: the last peak of a walk
+    can be a quarter of the others, e.g. mobgap MS/001 Test5).
+    """
+    rng = np.random.default_rng(seed)
+    person = SimPerson.random(rng)
+    st0, w1, turn, w2, st1 = (rng.uniform(2, 4), rng.uniform(5.5, 8), rng.uniform(1.5, 2.5),
+                              rng.uniform(5.5, 8), rng.uniform(2, 4))
+    segs = [(int(Activity.STANDING), st0), (int(Activity.WALKING), w1 + turn + w2),
+            (int(Activity.STANDING), st1)]
+    return simulate(segs, person=person, rate_hz=rate_hz, q_bd=random_mounting(rng),
+                    seed=seed, stop_amplitude=rng.uniform(0.1, 0.4),
+                    turns=((st0 + w1, turn, np.pi * rng.choice([-1.0, 1.0])),),
+                    turn_amplitude=rng.uniform(0.25, 0.5))

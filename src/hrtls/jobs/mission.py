@@ -10,12 +10,14 @@ scores it against its truth; :func:`write_mission_outputs` writes
   cov_xy, var_y, localized, readings, contributors, status`` (position and covariance of
   localized nodes only; ``z`` is empty, the estimate is planar; ``contributors``: the agents
   whose ranges fed the node, space-separated, ``none``; ``status``: ``localized`` or why not);
-* ``report.json``: the mission summary (:func:`mission_summary`).
+* ``report.json``: the mission summary (:func:`mission_summary`), with the loop closures
+  (contributors that started to use a node they fed, ``hrtls.mission.tracker``).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,14 +56,16 @@ class MissionRun:
 
 
 def estimator_sessions(folder: MissionFolder) -> dict[str, Session]:
-    """The sessions the mission tracker gets; robots are refused (no robot filter in it yet)."""
+    """The sessions the mission tracker gets (without ground truth); robots need odometry."""
+    sessions = folder.sessions()
     for i, agent in enumerate(folder.agents.values()):
-        if agent.kind != "rescuer":
-            raise InputError(f"agent {agent.name!r} is a {agent.kind}",
-                             where=f"{folder.path / MISSION_FILE} agents[{i}].kind",
-                             expected="rescuers only (the mission tracker has no robot "
-                                      "filter yet)")
-    return folder.sessions()
+        if agent.kind == "robot" and (sessions[agent.name].fixes is None
+                                      or sessions[agent.name].meta.start_pose is None):
+            raise InputError(f"robot {agent.name!r} has no odometry poses or start pose",
+                             where=f"{folder.path / MISSION_FILE} agents[{i}]",
+                             expected="a robot session with fixes.csv (wheel odometry poses) "
+                                      "and meta.start_pose")
+    return sessions
 
 
 def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
@@ -72,13 +76,14 @@ def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
         folder = read_mission(folder)
     sessions = estimator_sessions(folder)
     start = time.perf_counter()
-    result = MissionTracker(sessions, config=config, params=params).run()
+    kinds = {name: a.kind for name, a in folder.agents.items()}
+    result = MissionTracker(sessions, config=config, params=params, kinds=kinds).run()
     seconds = time.perf_counter() - start
     agents: dict[str, TrackResult] = {}
     evaluations: dict[str, dict[str, Any] | None] = {}
     for name, raw in result.agents.items():
         agent = folder.agents[name]
-        finished = finish_track(raw, sessions[name], config)
+        finished = finish_track(raw, sessions[name], config) if agent.kind == "rescuer" else raw
         finished.report["input"] = {"format": "mission", "path": str(agent.path),
                                     "mission": str(folder.path)}
         finished.report["mission"] = {
@@ -160,6 +165,7 @@ def _headline(evaluation: dict[str, Any] | None) -> dict[str, Any] | None:
 def mission_summary(run: MissionRun) -> dict[str, Any]:
     """The mission's ``report.json``: inputs, parameters, per-agent and node figures."""
     folder, res = run.folder, run.result
+    ratio = run.params.loop_closure_ratio
     localized = [n for n, e in res.nodes.items() if e.localized]
     agents = {}
     for name, tr in run.agents.items():
@@ -174,11 +180,17 @@ def mission_summary(run: MissionRun) -> dict[str, Any]:
         "mission": {"path": str(folder.path), "name": folder.name, "agents": len(folder.agents),
                     "nodes_listed": len(folder.nodes), "landmarks": sorted(folder.landmarks)},
         "params": {"cooperate": run.params.cooperate, "chunk_s": run.params.chunk_s,
+                   "loop_closure_ratio": ratio if math.isfinite(ratio) else None,
+                   "agent_cov_scale": run.params.nodes.agent_cov_scale,
+                   "agent_correlation": run.params.nodes.agent_correlation,
                    "config": run.config.name},
         "tracker_s": run.tracker_s,
         "agents": agents,
         "nodes": {"heard": len(res.readings), "localized": len(localized),
                   "localized_ids": sorted(localized), "score": node_scores(run)},
+        "loop_closures": [{"t": c.t, "agent": c.agent, "node": c.node,
+                           "trace_now_m2": c.trace_now_m2,
+                           "trace_readings_m2": c.trace_readings_m2} for c in res.closures],
     }
 
 

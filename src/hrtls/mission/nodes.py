@@ -6,14 +6,20 @@ trilateration constraint. Unlike a fixed anchor, the agent's estimate is wrong b
 strongly correlated over one pass (dead-reckoning drift changes slowly): treating the ranges of a
 pass as independent would count the same agent error many times and make the node's covariance
 far too small. Each pass ``g`` of an agent therefore carries its own position offset ``b_g``
-(the agent's error during that pass, prior ``N(0, P_g)`` from the agent's own covariance), and the
-node position ``p`` is estimated jointly with the offsets by weighted Gauss-Newton (the
+(the agent's error during that pass). The passes of one agent (one ``chain``) are not independent
+either: its error at a later pass is the error at the earlier one plus the drift in between. The
+offsets of a chain are a random walk, ``b_g = sum_{j <= g} w_j`` over the chain's passes in time
+order, with independent increments ``w_j ~ N(0, D_j)``, ``D_1 = P_1``, ``D_j = [P_j - S_{j-1}]+``
+(``P_j`` the agent's own covariance during pass ``j``, ``S_{j-1} = D_1 + ... + D_{j-1}``, ``[.]+``
+the positive semi-definite part), so every pass's offset has a prior covariance ``S_j >= P_j``.
+The node position ``p`` is estimated jointly with the increments by weighted Gauss-Newton (the
 least-squares refinement of Sec. 3.5, step 3, with the agent's uncertainty):
 
-    minimize  sum_k ((r_k - ||p - a_k + b_g(k)||) / s_k)^2 + sum_g b_g^T P_g^-1 b_g
+    minimize  sum_k ((r_k - ||p - a_k + b_g(k)||) / s_k)^2 + sum_j w_j^T D_j^-1 w_j
 
 The node's covariance is the ``p`` block of the inverse normal matrix, i.e. the range information
-with every pass's offset marginalized out (the sandwich form of the correlated errors).
+with every pass's offset marginalized out (the sandwich form of the correlated errors). Passes of
+different chains (agents) are taken as independent.
 
 Checks before a node counts as localized:
 
@@ -66,19 +72,31 @@ class NodeEstimatorParams:
         Passes dropped by the leave-one-pass-out check at most.
     max_iterations:
         Gauss-Newton iterations per solve.
+    agent_cov_scale:
+        The agents' reported covariances are multiplied by this (their filters' own NEES at the
+        readings, measured on development seeds, is above its 2 dof expectation).
+    agent_correlation:
+        Part ``rho`` of the agents' errors common to all agents (same floor, same entrance,
+        same magnetic disturbances): one offset ``c ~ N(0, rho * P_min)`` shared by every pass,
+        ``P_min`` the smallest (trace) scaled pass covariance; each chain's walk models the rest.
     """
 
     min_ranges: int = 4
     min_spread_m: float = 0.5
-    max_sigma_m: float = 3.0
+    max_sigma_m: float = 5.0
     outlier_gate_probability: float = 0.999
     consistency_gate_probability: float = 0.999
     ambiguity_margin: float = 9.0
     max_outlier_passes: int = 10
     max_consistency_passes: int = 2
     max_iterations: int = 30
+    agent_cov_scale: float = 2.5
+    agent_correlation: float = 0.5
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.agent_correlation < 1.0:
+            raise InputError(f"agent_correlation = {self.agent_correlation}",
+                             where="NodeEstimatorParams", expected="in [0, 1)")
         for name in ("outlier_gate_probability", "consistency_gate_probability"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:
@@ -87,7 +105,7 @@ class NodeEstimatorParams:
         if self.min_ranges < 3:
             raise InputError(f"min_ranges = {self.min_ranges}", where="NodeEstimatorParams",
                              expected=">= 3 (a planar position needs three ranges)")
-        for name in ("min_spread_m", "max_sigma_m", "ambiguity_margin"):
+        for name in ("min_spread_m", "max_sigma_m", "ambiguity_margin", "agent_cov_scale"):
             if not getattr(self, name) > 0:
                 raise InputError(f"{name} = {getattr(self, name)}",
                                  where="NodeEstimatorParams", expected="> 0")
@@ -109,6 +127,9 @@ class NodeRanges:
         ``(k,)`` 1-sigma of the distance (LOS), m.
     group:
         ``(k,)`` pass of each reading: readings of one group share one agent error.
+    chain:
+        ``(k,)`` agent of each reading: the passes of one chain, in increasing ``group`` order,
+        are its passes in time order and their offsets a random walk (module doc).
     """
 
     agent_xy_m: FloatArray
@@ -116,11 +137,12 @@ class NodeRanges:
     range_m: FloatArray
     range_sigma_m: FloatArray
     group: IntArray
+    chain: IntArray
 
     def __post_init__(self) -> None:
         k = self.range_m.shape[0] if self.range_m.ndim == 1 else -1
         shapes = {"agent_xy_m": (k, 2), "agent_cov_m2": (k, 2, 2), "range_m": (k,),
-                  "range_sigma_m": (k,), "group": (k,)}
+                  "range_sigma_m": (k,), "group": (k,), "chain": (k,)}
         for name, shape in shapes.items():
             if getattr(self, name).shape != shape:
                 raise InputError(f"{name} has shape {getattr(self, name).shape}",
@@ -134,13 +156,15 @@ class NodeRanges:
 
     @classmethod
     def build(cls, *, agent_xy_m: object, agent_cov_m2: object, range_m: object,
-              range_sigma_m: object, group: object) -> NodeRanges:
-        """Arrays converted to float64 / int64."""
+              range_sigma_m: object, group: object, chain: object | None = None
+              ) -> NodeRanges:
+        """Arrays converted to float64 / int64; no ``chain``: every pass its own agent."""
         return cls(np.asarray(agent_xy_m, np.float64).reshape(-1, 2),
                    np.asarray(agent_cov_m2, np.float64).reshape(-1, 2, 2),
                    np.asarray(range_m, np.float64).reshape(-1),
                    np.asarray(range_sigma_m, np.float64).reshape(-1),
-                   np.asarray(group, np.int64).reshape(-1))
+                   np.asarray(group, np.int64).reshape(-1),
+                   np.asarray(group if chain is None else chain, np.int64).reshape(-1))
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
@@ -187,23 +211,58 @@ class _Solve:
     ok: bool
 
 
-def _offset_priors(obs: NodeRanges, use: BoolArray) -> tuple[IntArray, FloatArray]:
-    """Group index per kept reading (0..J-1) and the ``(J, 2, 2)`` inverse offset priors."""
+@dataclass(frozen=True, eq=False)
+class _Offsets:
+    """The pass offsets of the kept readings: ``b = anc @ w`` (per axis), ``w_j ~ N(0, D_j)``."""
+
+    g: IntArray          # (k,) pass index 0..J-1 of each kept reading
+    anc: FloatArray      # (J, M) 1 where increment m is part of pass g's offset (M = J or J + 1)
+    d_inv: FloatArray    # (M, 2, 2) inverse increment priors (the last: common offset, if any)
+    s: FloatArray        # (J, 2, 2) prior covariance of each pass's offset
+
+
+def _psd_part(m: FloatArray) -> FloatArray:
+    w, v = np.linalg.eigh(0.5 * (m + m.T))
+    return np.asarray((v * np.maximum(w, 0.0)) @ v.T, dtype=np.float64)
+
+
+def _offsets(obs: NodeRanges, use: BoolArray, prm: NodeEstimatorParams) -> _Offsets:
+    """Random-walk offset model of the kept readings' passes (module doc)."""
     groups, inv = np.unique(obs.group[use], return_inverse=True)
-    cov = obs.agent_cov_m2[use]
-    pg = np.zeros((groups.size, 2, 2))
-    np.add.at(pg, inv, cov)
-    pg /= np.bincount(inv, minlength=groups.size)[:, None, None]
-    pg = 0.5 * (pg + np.transpose(pg, (0, 2, 1))) + 1e-9 * np.eye(2)
-    return inv.astype(np.int64), np.asarray(np.linalg.inv(pg), dtype=np.float64)
+    n_g = groups.size
+    pg = np.zeros((n_g, 2, 2))
+    np.add.at(pg, inv, obs.agent_cov_m2[use])
+    pg *= prm.agent_cov_scale / np.bincount(inv, minlength=n_g)[:, None, None]
+    common = np.zeros((2, 2))
+    if prm.agent_correlation > 0.0:
+        common = prm.agent_correlation * pg[int(np.argmin(np.trace(pg, axis1=1, axis2=2)))]
+    chain = np.zeros(n_g, dtype=np.int64)
+    chain[inv] = obs.chain[use]
+    anc = np.zeros((n_g, n_g + (prm.agent_correlation > 0.0)))
+    inc = np.zeros((anc.shape[1], 2, 2))
+    cum = np.zeros((n_g, 2, 2))
+    for c in np.unique(chain).tolist():
+        members = np.flatnonzero(chain == c)            # groups sorted: time order in chain
+        total = common.copy()
+        for pos, j in enumerate(members.tolist()):
+            inc[j] = _psd_part(pg[j] - total) + 1e-9 * np.eye(2)
+            total = total + inc[j]
+            cum[j] = total
+            anc[j, members[:pos + 1]] = 1.0
+    if anc.shape[1] > n_g:
+        anc[:, n_g] = 1.0
+        inc[n_g] = common + 1e-9 * np.eye(2)
+    return _Offsets(inv.astype(np.int64), anc, np.asarray(np.linalg.inv(inc), np.float64), cum)
 
 
-def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, max_iterations: int) -> _Solve:
-    """Joint Gauss-Newton over the node and the pass offsets (Levenberg damping)."""
+def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, prm: NodeEstimatorParams) -> _Solve:
+    """Joint Gauss-Newton over the node and the offset increments (Levenberg damping)."""
     a = obs.agent_xy_m[use]
     r = obs.range_m[use]
     s = obs.range_sigma_m[use]
-    g, pinv = _offset_priors(obs, use)
+    off = _offsets(obs, use, prm)
+    max_iterations = prm.max_iterations
+    g, pinv, anc_k = off.g, off.d_inv, off.anc[off.g]
     n_g = pinv.shape[0]
     n = 2 + 2 * n_g
     k = a.shape[0]
@@ -211,29 +270,25 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, max_iterations: int)
     theta[:2] = p0
 
     def parts(th: FloatArray) -> tuple[FloatArray, FloatArray, float]:
-        b = th[2:].reshape(n_g, 2)
-        diff = th[:2] - a + b[g]
+        w = th[2:].reshape(n_g, 2)
+        diff = th[:2] - a + anc_k @ w
         h = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
         u = diff / h[:, None]
         res = (r - h) / s
-        cost = float(res @ res + np.einsum("gi,gij,gj->", b, pinv, b))
+        cost = float(res @ res + np.einsum("gi,gij,gj->", w, pinv, w))
         return res, u, cost
 
     def normal(th: FloatArray, res: FloatArray, u: FloatArray) -> tuple[FloatArray, FloatArray]:
-        jac = np.zeros((k, n))
-        jw = u / s[:, None]                      # d h / d p = d h / d b_g = u
-        jac[:, :2] = jw
-        cols = 2 + 2 * g
-        rows = np.arange(k)
-        jac[rows, cols] = jw[:, 0]
-        jac[rows, cols + 1] = jw[:, 1]
+        jw = u / s[:, None]                      # d h / d p = d h / d w_j (j in the pass) = u
+        jac = np.concatenate([jw, (anc_k[:, :, None] * jw[:, None, :]).reshape(k, 2 * n_g)],
+                             axis=1)
         hess = jac.T @ jac
         grad = -(jac.T @ res)                    # gradient of 0.5 * cost w.r.t. theta
-        b = th[2:].reshape(n_g, 2)
+        w = th[2:].reshape(n_g, 2)
         for j in range(n_g):
             sl = slice(2 + 2 * j, 4 + 2 * j)
             hess[sl, sl] += pinv[j]
-            grad[sl] += pinv[j] @ b[j]
+            grad[sl] += pinv[j] @ w[j]
         return hess, grad
 
     res, u, cost = parts(theta)
@@ -267,7 +322,7 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, max_iterations: int)
     cov = cov_full[:2, :2]
     cov = 0.5 * (cov + cov.T)
     # per-reading residual whitened by its prior spread (range noise + the pass's agent error)
-    pg = np.linalg.inv(pinv)[g]
+    pg = off.s[g]
     var = s ** 2 + np.einsum("ki,kij,kj->k", u, pg, u)
     whitened = (r - (np.linalg.norm(theta[:2] - a, axis=1))) / np.sqrt(var)
     return _Solve(p=theta[:2].copy(), cov=cov, cost=cost, whitened=whitened, iterations=it, ok=ok)
@@ -323,14 +378,14 @@ class NodeEstimator:
         p0 = initial_m if initial_m is not None else _initial(obs.agent_xy_m, obs.range_m)
         if p0 is None or not np.all(np.isfinite(p0)):
             return fail("no initial position")
-        sol = _solve(obs, use, np.asarray(p0, np.float64), prm.max_iterations)
+        sol = _solve(obs, use, np.asarray(p0, np.float64), prm)
         for _ in range(prm.max_outlier_passes):          # NLOS gate, worst reading first
             idx = np.flatnonzero(use)
             worst = int(np.argmax(sol.whitened ** 2))
             if sol.whitened[worst] ** 2 <= self._gate1 or idx.size <= prm.min_ranges:
                 break
             use[idx[worst]] = False
-            sol = _solve(obs, use, sol.p, prm.max_iterations)
+            sol = _solve(obs, use, sol.p, prm)
         for _ in range(prm.max_consistency_passes):      # leave one pass out
             bad = self._worst_pass(obs, use, sol)
             if bad is None:
@@ -338,7 +393,7 @@ class NodeEstimator:
             use[(obs.group == bad) & use] = False
             if np.count_nonzero(use) < prm.min_ranges:
                 return fail("ranges of the passes disagree")
-            sol = _solve(obs, use, sol.p, prm.max_iterations)
+            sol = _solve(obs, use, sol.p, prm)
         if not sol.ok:
             return fail("singular geometry", sol)
         if np.count_nonzero(use) < prm.min_ranges:
@@ -348,7 +403,7 @@ class NodeEstimator:
             return fail("agents' positions are collinear", sol)
         mirror = sol.p - 2.0 * float((sol.p - centre) @ normal) * normal
         if np.linalg.norm(mirror - sol.p) > 1e-3:
-            alt = _solve(obs, use, mirror, prm.max_iterations)
+            alt = _solve(obs, use, mirror, prm)
             if (np.linalg.norm(alt.p - sol.p) > 3.0 * np.sqrt(np.trace(sol.cov))
                     and alt.cost - sol.cost < prm.ambiguity_margin):
                 return fail("mirror ambiguity across the agents' path", sol)
@@ -370,7 +425,7 @@ class NodeEstimator:
                 continue
             if _spread(obs.agent_xy_m[keep])[0] < self.params.min_spread_m:
                 continue
-            other = _solve(obs, keep, sol.p, self.params.max_iterations)
+            other = _solve(obs, keep, sol.p, self.params)
             if not other.ok:
                 continue
             diff = other.p - sol.p

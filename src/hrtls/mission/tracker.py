@@ -1,31 +1,45 @@
 """Mission tracker: every agent's causal tracker plus the dropped network, in one loop.
 
-Each agent runs its own :class:`hrtls.pipeline.Tracker` (causal, chunk by chunk). Time advances in
-common windows of ``chunk_s``; within a window each agent's ranges go one of three ways:
+Each agent runs its own causal tracker, chunk by chunk: :class:`hrtls.pipeline.Tracker` for a
+rescuer, :class:`hrtls.mission.robot.RobotTracker` (odometry + range EKF) for a robot. Time
+advances in common windows of ``chunk_s``; within a window each agent's ranges go one of three
+ways:
 
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
   landmarks, the range sigma widened by the node's position uncertainty,
-  ``sqrt(sigma^2 + lambda_max(P_node))``);
+  ``sqrt(sigma^2 + n * lambda_max(P_node))``, ``n`` the ranges the agent has used from that node
+  in its current pass, this window's included: the node's error is one and the same for every
+  range of a pass, and the agent's filter takes each range as independent; the widening keeps
+  the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
+  of once per range);
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
   as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator`.
 
-Double counting: an agent never uses a node whose estimate contains its own ranges (its error
-is inside that estimate, and using it would count the agent's own position twice); an agent
-that contributed to a node keeps contributing, an agent that uses it never contributes. So the
-direct correlation between an agent and the nodes it localized never enters its filter. The
-second-order loop (agent A localizes n, agent B corrected by n localizes m, A uses m) is not
-modelled.
+Double counting. The node's error and the error of an agent that contributed to it are
+correlated (the agent's error at its readings is inside the node's estimate), so by default an
+agent that contributed to a node keeps contributing and does not use it, and an agent that uses a
+node never contributes to it. The one exception is a loop closure: a contributor may use the node
+once its own covariance has grown ``loop_closure_ratio`` times (trace) beyond the smallest it had
+at its readings of that node. Scalar reasoning, agent error ``e2 = e1 + d`` now (``var P2 =
+P1 + D``), node error ``e1 + v``: the filter's update taking the node as independent with variance
+``a * P1`` claims a posterior variance ``P2 a P1 / (P2 + a P1)`` while the true one is
+``P1 + (a P1 / (P2 + a P1))^2 D``; with ``a = 2`` (the node's variance doubled for its
+contributors) the two agree at ``P2 = 4 P1`` and the claim is conservative beyond. Passes of
+different agents are taken as partly correlated in the node estimate (``agent_correlation``); the
+second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not modelled.
 
 After every window the nodes with new readings are re-estimated from all their readings, and
-each localized node is given to every agent allowed to use it (``Tracker.set_landmarks``).
+each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
+the agent's filter is decided here).
 With ``cooperate=False`` no node is ever given to an agent (each agent alone).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,6 +50,7 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import InputError
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.chunks import aligned_imu, session_window
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -58,6 +73,9 @@ class MissionParams:
         A node is estimated again once its readings grew by this fraction (at least 3 new).
     cooperate:
         Give localized nodes to the agents (False: every agent alone).
+    loop_closure_ratio:
+        A contributor uses a node once its covariance trace is this many times the smallest it
+        had at its readings of the node (module doc; ``inf``: contributors never use it).
     nodes:
         Node estimator parameters.
     """
@@ -66,6 +84,7 @@ class MissionParams:
     pass_gap_s: float = 15.0
     refresh_fraction: float = 0.2
     cooperate: bool = True
+    loop_closure_ratio: float = 4.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
 
     def __post_init__(self) -> None:
@@ -73,6 +92,9 @@ class MissionParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="MissionParams", expected="> 0 s")
+        if not self.loop_closure_ratio >= 1.0:
+            raise InputError(f"loop_closure_ratio = {self.loop_closure_ratio}",
+                             where="MissionParams", expected=">= 1 (inf: never)")
 
 
 @dataclass
@@ -96,7 +118,23 @@ class _NodeReadings:
         group = np.empty(len(t), dtype=np.int64)
         group[order] = np.cumsum(new_pass) - 1
         return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
-                                range_m=self.r, range_sigma_m=self.s, group=group)
+                                range_m=self.r, range_sigma_m=self.s, group=group,
+                                chain=np.asarray(self.agent, dtype=np.int64))
+
+
+@dataclass(frozen=True)
+class LoopClosure:
+    """A contributor starting to use its node.
+
+    ``t``: time of the agent's row the decision used; covariance traces (m^2) of that row and
+    the smallest at the agent's readings of the node.
+    """
+
+    t: float
+    agent: str
+    node: str
+    trace_now_m2: float
+    trace_readings_m2: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,7 +150,8 @@ class NodeTrack:
 class MissionResult:
     """Per-agent results, the final node estimates and each node's history (localized rows).
 
-    ``readings``: the ranges kept for each node's estimate, all agents.
+    ``readings``: the ranges kept for each node's estimate, all agents; ``closures``: the loop
+    closures (contributors starting to use a node they fed).
     """
 
     agents: dict[str, TrackResult]
@@ -120,6 +159,7 @@ class MissionResult:
     node_history: dict[str, NodeTrack]
     contributors: dict[str, list[str]]
     readings: dict[str, int] = field(default_factory=dict)
+    closures: list[LoopClosure] = field(default_factory=list)
 
 
 def _known_ids(session: Session) -> list[str]:
@@ -133,15 +173,23 @@ class MissionTracker:
     """All agents of a mission and the dropped nodes as one causal loop (see module doc)."""
 
     def __init__(self, agents: dict[str, Session], *, config: TrackerConfig | None = None,
-                 params: MissionParams | None = None) -> None:
+                 params: MissionParams | None = None, kinds: Mapping[str, str] | None = None
+                 ) -> None:
         if not agents:
             raise InputError("no agents", where="mission", expected="at least one session")
         self.params = params or MissionParams()
         self.names = list(agents)
+        self.kinds = {k: (kinds or {}).get(k, "rescuer") for k in self.names}
+        bad = [k for k, v in self.kinds.items() if v not in ("rescuer", "robot")]
+        if bad:
+            raise InputError(f"agent {bad[0]!r} is a {self.kinds[bad[0]]!r}", where="mission kinds",
+                             expected="rescuer or robot")
         self.sessions = {k: (s.with_parts(imu=aligned_imu(s.imu)) if s.imu is not None else s)
                          for k, s in agents.items()}
         self.known = [_known_ids(self.sessions[k]) for k in self.names]
-        self.trackers = {k: Tracker(config) for k in self.names}
+        self.trackers: dict[str, Tracker | RobotTracker] = {
+            k: RobotTracker() if self.kinds[k] == "robot" else Tracker(config)
+            for k in self.names}
         for k, tr in self.trackers.items():
             tr.start_session(self.sessions[k])
         self.estimator = NodeEstimator(self.params.nodes)
@@ -156,21 +204,33 @@ class MissionTracker:
             k: [] for k in self.names}
         self._version: dict[str, int] = {}
         self._estimated_at: dict[str, int] = {}
+        self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
+        self._contrib_trace: dict[tuple[int, str], float] = {}
+        self.closures: list[LoopClosure] = []
+
+    def windows(self) -> list[tuple[float, float]]:
+        """The common windows ``(t_start, t_end)`` covering every agent's session."""
+        spans = [s.time_span() for s in self.sessions.values()]
+        t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
+        n = math.floor((t1 - t0) / self.params.chunk_s) + 1
+        return [(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
+                for k in range(n)]
 
     def run(self) -> MissionResult:
         """Process every agent's session to its end."""
-        spans = [s.time_span() for s in self.sessions.values()]
-        t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
-        k = 0
-        while t0 + k * self.params.chunk_s <= t1:
-            self.step(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
-            k += 1
+        for t_start, t_end in self.windows():
+            self.step(t_start, t_end)
+        return self.result()
+
+    def result(self) -> MissionResult:
+        """Finish every agent's tracker; the mission's result (after the last window)."""
         results = {name: tr.finish() for name, tr in self.trackers.items()}
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
         readings = {n: len(r.r) for n, r in self.readings.items()}
-        return MissionResult(results, dict(self.estimates), hist, contributors, readings)
+        return MissionResult(results, dict(self.estimates), hist, contributors, readings,
+                             list(self.closures))
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -183,6 +243,8 @@ class MissionTracker:
             self.trackers[name].update(part.with_parts(ranges=use))
             if keep is not None:
                 touched |= self._collect(i, name, keep)
+            self._trim_rows(name, t_end)
+        changed: list[str] = []
         for node in sorted(touched):
             n_now = len(self.readings[node].r)
             n_then = self._estimated_at.get(node, 0)
@@ -198,10 +260,11 @@ class MissionTracker:
             self.estimates[node] = est
             if est.localized:
                 self._version[node] = self._version.get(node, 0) + 1
+                changed.append(node)
                 self.history.setdefault(node, []).append(
                     (t_end, est.position_m.copy(), est.covariance_m2.copy()))
         if self.params.cooperate:
-            self._share(t_end)
+            self._share(changed, t_end)
 
     def _split_ranges(self, i: int, ranges: RangeMeasurements | None
                       ) -> tuple[RangeMeasurements | None, RangeMeasurements | None]:
@@ -214,8 +277,7 @@ class MissionTracker:
         if (usable | known).any():
             sig = ranges.sigma_m.copy()
             if usable.any():
-                extra = np.array([self._node_var(str(n)) for n in ranges.node[usable]])
-                sig[usable] = np.sqrt(sig[usable] ** 2 + extra)
+                sig[usable] = np.sqrt(sig[usable] ** 2 + self._use_var(i, ranges, usable))
             m = usable | known
             use = RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m], sig[m])
             for n in set(ranges.node[usable].tolist()):
@@ -229,28 +291,74 @@ class MissionTracker:
 
     def _usable(self, i: int, node: str) -> bool:
         """A node localized by the mission that agent ``i`` may use (see module doc)."""
-        return (self.params.cooperate and node in self.given[i]
-                and i not in self.contrib.get(node, set()))
+        if not (self.params.cooperate and node in self.given[i]):
+            return False
+        if i not in self.contrib.get(node, set()) or i in self.users.get(node, set()):
+            return True
+        rows = self._rows[self.names[i]]
+        if not rows or not math.isfinite(self.params.loop_closure_ratio):
+            return False
+        now, then = float(np.trace(rows[0][2][-1])), self._contrib_trace[(i, node)]
+        if now < self.params.loop_closure_ratio * then:
+            return False
+        self.closures.append(LoopClosure(float(rows[0][0][-1]), self.names[i], node, now, then))
+        self.users.setdefault(node, set()).add(i)
+        return True
+
+    def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
+                 ) -> FloatArray:
+        """Variance added to each usable range: node variance times its uses in the pass."""
+        extra = np.zeros(int(np.count_nonzero(usable)))
+        nodes = ranges.node[usable]
+        times = ranges.t[usable]
+        for n in np.unique(nodes).tolist():
+            m = nodes == n
+            last_t, count = self._pass_use.get((i, str(n)), (-math.inf, 0))
+            if float(times[m][0]) - last_t > self.params.pass_gap_s:
+                count = 0
+            count += int(np.count_nonzero(m))
+            self._pass_use[(i, str(n))] = (float(times[m][-1]), count)
+            mine = 2.0 if i in self.contrib.get(str(n), set()) else 1.0     # module doc
+            extra[m] = count * mine * self._node_var(str(n))
+        return extra
 
     def _node_var(self, node: str) -> float:
         return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
 
-    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
-        """Store the readings with the agent's estimate at their times; the nodes touched."""
-        est = self.trackers[name].estimates_since(-math.inf if not self._rows[name]
-                                                  else self._last_t[name])
+    def _agent_rows(self, name: str) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """The agent's recent estimates (time, xy, covariance) with this window's new rows."""
+        est = self.trackers[name].estimates_since(self._last_t[name])
         if len(est):
             self._rows[name].append((est.t, est.xyz[:, :2], est.cov_xy))
             self._last_t[name] = float(est.t[-2]) if len(est) > 1 else self._last_t[name]
         if not self._rows[name]:
+            return None
+        if len(self._rows[name]) > 1:
+            t = np.concatenate([r[0] for r in self._rows[name]])
+            xy = np.concatenate([r[1] for r in self._rows[name]])
+            cov = np.concatenate([r[2] for r in self._rows[name]])
+            t, idx = np.unique(t[::-1], return_index=True)      # the newest version of a row
+            self._rows[name] = [(t, xy[::-1][idx], cov[::-1][idx])]
+        return self._rows[name][0]
+
+    def _trim_rows(self, name: str, t_end: float) -> None:
+        """Drop the rows no later reading can need: all before the last one at or before t_end.
+
+        Keeps the per-window cost of :meth:`_collect` independent of the mission's length.
+        """
+        if len(self._rows[name]) != 1:
+            return
+        t, xy, cov = self._rows[name][0]
+        i = max(int(np.searchsorted(t, t_end, side="right")) - 2, 0)
+        if i > 0:
+            self._rows[name] = [(t[i:], xy[i:], cov[i:])]
+
+    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
+        """Store the readings with the agent's estimate at their times; the nodes touched."""
+        rows = self._agent_rows(name)
+        if rows is None:
             return set()
-        t = np.concatenate([r[0] for r in self._rows[name]])
-        xy = np.concatenate([r[1] for r in self._rows[name]])
-        cov = np.concatenate([r[2] for r in self._rows[name]])
-        t, idx = np.unique(t[::-1], return_index=True)          # the newest version of a row
-        xy = xy[::-1][idx]
-        cov = cov[::-1][idx]
-        self._rows[name] = [(t, xy, cov)]
+        t, xy, cov = rows
         touched: set[str] = set()
         for n in np.unique(ranges.node).tolist():
             node = str(n)
@@ -273,21 +381,22 @@ class MissionTracker:
             rd.r.extend(ranges.range_m[m][ok].tolist())
             rd.s.extend(ranges.sigma_m[m][ok].tolist())
             self.contrib.setdefault(node, set()).add(i)
+            tr = float(np.min(np.trace(cov[j], axis1=1, axis2=2)))
+            self._contrib_trace[(i, node)] = min(self._contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
 
-    def _share(self, t: float) -> None:
-        """Give each localized node (current version) to the agents allowed to use it."""
-        for node, est in self.estimates.items():
-            if not est.localized:
-                continue
+    def _share(self, changed: list[str], t: float) -> None:
+        """Give each node re-localized in this window to every agent (see :meth:`_usable`)."""
+        for node in changed:
+            est = self.estimates[node]
             v = self._version[node]
             sigma = float(np.sqrt(self._node_var(node)))
             lm = Landmark(id=node, kind="node", floor=0, accuracy_m=max(sigma, 1e-6),
                           position=(float(est.position_m[0]), float(est.position_m[1]), 0.0),
                           updated=t)
             for i, name in enumerate(self.names):
-                if i in self.contrib.get(node, set()) or self.given[i].get(node) == v:
+                if self.given[i].get(node) == v:
                     continue
                 self.trackers[name].set_landmarks({node: lm})
                 self.given[i][node] = v

@@ -9,7 +9,11 @@ through the corridors, ranging to every node within ``max_range_m`` (Gaussian no
 
 The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
-for scoring only. One floor only (the issue's two floors and the robot are not simulated here).
+for scoring only. ``n_robots`` robots (default none) enter ``stagger_s / 2`` after the first
+rescuer and drive random corridor routes at about 0.5 m/s; a robot's session holds its wheel
+odometry poses (:func:`hrtls.sim.team.odometry_poses`, 5 Hz) and its ranges to the nodes (the
+same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. One floor only (the
+issue's two floors are not simulated here).
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
@@ -22,7 +26,7 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,12 +34,16 @@ from shapely.geometry import Point, box
 from shapely.ops import unary_union
 
 from hrtls.data import Session
+from hrtls.data.observations import GroundTruth
+from hrtls.data.results import Activity, StepEvents
+from hrtls.data.session import SessionMeta, StartPose
 from hrtls.errors import InputError
 from hrtls.sim.devices import get_device
-from hrtls.sim.infrastructure import RangeModel, RfidTag
+from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
-from hrtls.sim.motion_truth import random_floorplan_walk
+from hrtls.sim.motion_truth import random_floorplan_walk, simulate_motion
 from hrtls.sim.scenarios import Infrastructure, SimulationResult, _rngs, simulate_person
+from hrtls.sim.team import ROBOT_RATE_HZ, odometry_poses
 
 FloatArray = NDArray[np.float64]
 
@@ -52,6 +60,7 @@ class MissionOptions:
     """Options of :func:`inderst_hybrid_mission` (lengths m, times s)."""
 
     n_rescuers: int = 3
+    n_robots: int = 0
     n_nodes: int = 40
     walk_s: float = 300.0
     stagger_s: float = 60.0
@@ -61,6 +70,8 @@ class MissionOptions:
     node_failure_fraction: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.n_robots < 0:
+            raise InputError(f"{self.n_robots} robots", where="MissionOptions", expected=">= 0")
         if self.n_rescuers < 1 or self.n_nodes < 1:
             raise InputError(f"{self.n_rescuers} rescuers, {self.n_nodes} nodes",
                              where="MissionOptions", expected=">= 1 each")
@@ -79,6 +90,8 @@ class Mission:
     options: MissionOptions
     scenario: str = "inderst_hybrid_mission"
     seed: int = 0
+    kinds: dict[str, Literal["rescuer", "robot"]] = dataclasses.field(default_factory=dict)
+    """Agent kind by name (``rescuer`` when missing)."""
 
 
 def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, float, float]]:
@@ -121,8 +134,42 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         known = {k: lm for k, lm in sim.session.landmarks.items() if lm.kind != "node"}
         agents[f"R{i + 1}"] = dataclasses.replace(sim.session, landmarks=known)
         sims[f"R{i + 1}"] = sim
+    kinds: dict[str, Literal["rescuer", "robot"]] = dict.fromkeys(agents, "rescuer")
+    for i in range(o.n_robots):
+        name = f"B{i + 1}"
+        agents[name], sims[name] = _robot(seed, i, o, alive, model)
+        kinds[name] = "robot"
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
-    return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed)
+    return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
+                   kinds=kinds)
+
+
+def _robot(seed: int, i: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
+           model: RangeModel) -> tuple[Session, SimulationResult]:
+    """Robot ``i``: a corridor route at about 0.5 m/s, odometry poses and ranges (module doc)."""
+    rr = _rngs(seed * 1000 + 500 + 17 * (i + 1))
+    wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 0.5, start=ENTRANCE_XY,
+                                speed_range_m_s=(0.4, 0.6), stop_probability=0.05,
+                                stop_range_s=(2.0, 5.0), min_leg_m=3.0)
+    motion = simulate_motion(wps, rate_hz=ROBOT_RATE_HZ,
+                             start_pause_s=3.0 + (i + 0.5) * o.stagger_s)
+    track = TrackSample(t=motion.t, xyz=motion.xyz, heading=motion.heading, speed=motion.speed)
+    meta = SessionMeta(start_pose=StartPose(x=float(motion.xyz[0, 0]), y=float(motion.xyz[0, 1]),
+                                            z=0.0, heading=float(motion.heading[0]),
+                                            sigma_xy_m=0.1, sigma_heading_rad=0.02),
+                       source={"format": "hrtls-sim", "scenario": "inderst_hybrid_mission",
+                               "seed": seed, "robot": i},
+                       notes=["robot wheel odometry poses (fixes.csv) and ranges to nodes"])
+    session = Session(meta=meta, fixes=odometry_poses(motion.t, motion.xyz, rr[1]),
+                      ranges=range_measurements(nodes, model, track, rr[6]),
+                      truth=GroundTruth(motion.t, motion.xyz, motion.heading))
+    z = np.zeros(0)
+    moving = np.where(motion.speed > 0.05, int(Activity.WALKING), int(Activity.STANDING))
+    return session, SimulationResult(
+        scenario="inderst_hybrid_mission", seed=seed, options={"robot": i}, session=session,
+        true_steps=StepEvents(z, z, z, z, z, np.zeros(0, dtype=np.int64), z, z, z),
+        activity_t=motion.t, activity=moving.astype(np.int64), motion=motion,
+        description=f"hybrid mission, robot {i + 1} of {o.n_robots} (wheel odometry)")
 
 
 def mission_summary(mission: Mission) -> dict[str, Any]:
@@ -165,7 +212,7 @@ def write_mission_result(mission: Mission, path: Path | str, *, overwrite: bool 
 
     landmarks = {k: lm for s in mission.agents.values() for k, lm in s.landmarks.items()}
     root = write_mission(
-        path, agents=[(k, "rescuer", s) for k, s in mission.agents.items()],
+        path, agents=[(k, mission.kinds.get(k, "rescuer"), s) for k, s in mission.agents.items()],
         nodes=list(mission.node_truth_m), landmarks=landmarks, name=mission.scenario,
         source={"simulator": mission.scenario, "seed": mission.seed,
                 "options": dataclasses.asdict(mission.options)},

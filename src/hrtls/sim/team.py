@@ -124,6 +124,26 @@ def _route_b(v: float, fh: float, stop_s: float) -> list[Waypoint]:
             *_stairs_down(v, fh)]
 
 
+def odometry_poses(t: np.ndarray, xyz: np.ndarray, rng: np.random.Generator, *,
+                   scale_sigma: float = 0.01, heading_step_sigma_rad: float = np.deg2rad(0.05)
+                   ) -> PositionFixes:
+    """Wheel odometry of a true track, as poses.
+
+    The true displacement integrated with one scale error (``scale_sigma``) and a heading random
+    walk (``heading_step_sigma_rad`` per sample), from the true start; sigma 0.05 m + 1 % of the
+    distance.
+    """
+    step = np.diff(xyz[:, :2], axis=0)
+    heading_err = np.cumsum(rng.normal(0.0, heading_step_sigma_rad, len(step)))
+    c, s = np.cos(heading_err), np.sin(heading_err)
+    scale = 1.0 + rng.normal(0.0, scale_sigma)
+    moved = scale * np.column_stack([c * step[:, 0] - s * step[:, 1],
+                                     s * step[:, 0] + c * step[:, 1]])
+    xy = xyz[0, :2] + np.vstack([[0.0, 0.0], np.cumsum(moved, axis=0)])
+    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(step, axis=1))])
+    return PositionFixes(t, np.column_stack([xy, np.zeros(len(xy))]), 0.05 + 0.01 * travelled)
+
+
 def _robot(seed: int, *, speed_m_s: float, laps: int) -> TeamMember:
     rng = np.random.default_rng([seed, 991])
     legs = [Waypoint(x=2.0, y=0.0)]
@@ -133,17 +153,7 @@ def _robot(seed: int, *, speed_m_s: float, laps: int) -> TeamMember:
                  Waypoint(x=39.0, y=0.0, speed_m_s=speed_m_s, corner_radius_m=1.0),
                  Waypoint(x=2.0, y=0.0, speed_m_s=speed_m_s, corner_radius_m=0.0)]
     motion = simulate_motion(legs, rate_hz=ROBOT_RATE_HZ, start_pause_s=2.0, end_pause_s=2.0)
-    # odometry: integrate the true displacement with a 1 % scale error and a heading random walk
-    step = np.diff(motion.xyz[:, :2], axis=0)
-    heading_err = np.cumsum(rng.normal(0.0, np.deg2rad(0.05), len(step)))
-    c, s = np.cos(heading_err), np.sin(heading_err)
-    scale = 1.0 + rng.normal(0.0, 0.01)
-    moved = scale * np.column_stack([c * step[:, 0] - s * step[:, 1],
-                                     s * step[:, 0] + c * step[:, 1]])
-    xy = motion.xyz[0, :2] + np.vstack([[0.0, 0.0], np.cumsum(moved, axis=0)])
-    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(step, axis=1))])
-    sigma = 0.05 + 0.01 * travelled
-    fixes = PositionFixes(motion.t, np.column_stack([xy, np.zeros(len(xy))]), sigma)
+    fixes = odometry_poses(motion.t, motion.xyz, rng)
     meta = SessionMeta(start_pose=StartPose(x=float(motion.xyz[0, 0]), y=float(motion.xyz[0, 1]),
                                             z=0.0, heading=float(motion.heading[0]),
                                             sigma_xy_m=0.1, sigma_heading_rad=0.05),

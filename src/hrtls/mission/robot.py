@@ -1,0 +1,228 @@
+"""A robot as a mission agent: wheel odometry plus ranges in one EKF (Inderst thesis Sec. 6.4).
+
+A robot's session holds its odometry poses (``fixes``: positions integrated by the wheels, in a
+frame aligned with the world at the start pose) and its ranges to nodes. The filter's state is
+``[x, y, psi]``: the robot's position and the rotation ``psi`` of the odometry frame against the
+world (the odometry's heading error; a random walk per metre driven). Each odometry displacement
+``d`` (odometry frame) predicts (the discrete unicycle, eq. 6.2, with the heading from the wheels)
+
+    p += R(psi) d,   P = F P F^T + Q,   F = I + [[0, 0, -(R d)_y], [0, 0, (R d)_x], [0, 0, 0]],
+    Q = diag((f |d|)^2, (f |d|)^2, q_psi |d|)
+
+and each range to a landmark with a position (the session's, or a node the mission gave with
+:meth:`RobotTracker.set_landmarks`) corrects it as eq. 6.4 (scalar EKF update, Joseph form,
+innovation gate). The per-event loop is a compiled kernel; :class:`RobotTracker` has the part of
+:class:`hrtls.pipeline.Tracker`'s interface :class:`~hrtls.mission.tracker.MissionTracker` uses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.data import Session
+from hrtls.data.landmarks import Landmark
+from hrtls.data.results import StepEvents, Trajectory
+from hrtls.errors import InputError
+from hrtls.pipeline.output import Estimates
+from hrtls.pipeline.tracker import TrackResult
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotTrackerParams:
+    """Parameters of :class:`RobotTracker`.
+
+    Attributes
+    ----------
+    odometry_fraction:
+        1-sigma of a displacement's error per axis, as a fraction of its length.
+    heading_var_per_m:
+        Growth of the odometry-frame rotation variance per metre driven, rad^2 / m.
+    gate_sigma:
+        A range whose innovation exceeds this many sigmas is rejected (NLOS).
+    """
+
+    odometry_fraction: float = 0.03
+    heading_var_per_m: float = 1e-4
+    gate_sigma: float = 4.0
+
+    def __post_init__(self) -> None:
+        for name in ("odometry_fraction", "heading_var_per_m", "gate_sigma"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InputError(f"{name} = {v}", where="RobotTrackerParams", expected="> 0")
+
+
+@numba.njit(cache=True)
+def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatArray,
+                 t_rng: FloatArray, lm: FloatArray, r: FloatArray, s: FloatArray,
+                 frac: float, q_psi: float, gate: float
+                 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Odometry predictions and range updates in time order (module doc).
+
+    Returns the state and covariance after each odometry event ``(n, 3)``, ``(n, 3, 3)`` and
+    which ranges were accepted; ``x``, ``p`` are updated in place. A range at the time of an
+    odometry event is applied after it; ranges with a NaN landmark are skipped.
+    """
+    n, m = t_odo.shape[0], t_rng.shape[0]
+    xs = np.empty((n, 3))
+    ps = np.empty((n, 3, 3))
+    acc = np.zeros(m, dtype=np.bool_)
+    j = 0
+    for i in range(n):
+        while j < m and t_rng[j] < t_odo[i]:
+            acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+            j += 1
+        c, sn = math.cos(x[2]), math.sin(x[2])
+        dx = c * d_odo[i, 0] - sn * d_odo[i, 1]
+        dy = sn * d_odo[i, 0] + c * d_odo[i, 1]
+        x[0] += dx
+        x[1] += dy
+        f = np.eye(3)
+        f[0, 2] = -dy
+        f[1, 2] = dx
+        pn = f @ p @ f.T
+        dist = math.hypot(d_odo[i, 0], d_odo[i, 1])
+        pn[0, 0] += (frac * dist) ** 2 + 1e-10
+        pn[1, 1] += (frac * dist) ** 2 + 1e-10
+        pn[2, 2] += q_psi * dist
+        p[:, :] = 0.5 * (pn + pn.T)
+        while j < m and t_rng[j] <= t_odo[i]:
+            acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+            j += 1
+        xs[i] = x
+        ps[i] = p
+    while j < m:
+        acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+        j += 1
+    return xs, ps, acc
+
+
+@numba.njit(cache=True)
+def _range_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: float,
+                  gate: float) -> bool:
+    if not (math.isfinite(lm[0]) and math.isfinite(lm[1])):
+        return False
+    ex, ey = x[0] - lm[0], x[1] - lm[1]
+    h = math.hypot(ex, ey)
+    if h < 1e-9:
+        return False
+    hrow = np.array([ex / h, ey / h, 0.0])
+    ph = p @ hrow
+    sv = hrow @ ph + s * s
+    innov = r - h
+    if innov * innov > gate * gate * sv:
+        return False
+    k = ph / sv
+    x += k * innov
+    ikh = np.eye(3) - np.outer(k, hrow)
+    pn = ikh @ p @ ikh.T + np.outer(k, k) * (s * s)
+    p[:, :] = 0.5 * (pn + pn.T)
+    return True
+
+
+class RobotTracker:
+    """A robot's causal EKF, chunk by chunk (see module doc)."""
+
+    def __init__(self, params: RobotTrackerParams | None = None) -> None:
+        self.params = params or RobotTrackerParams()
+        self.landmarks: dict[str, tuple[float, float]] = {}
+        self._rows: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+        self._accepted = 0
+        self._rejected = 0
+        self._started = False
+
+    def start_session(self, session: Session) -> None:
+        """Start at the session's start pose; its landmarks with a position are known."""
+        sp = session.meta.start_pose
+        if sp is None or session.fixes is None or len(session.fixes.t) < 2:
+            raise InputError("a robot session needs a start pose and odometry poses",
+                             where="robot session", expected="meta.start_pose and fixes.csv")
+        self.x = np.array([sp.x, sp.y, 0.0])
+        self.p = np.diag([sp.sigma_xy_m ** 2, sp.sigma_xy_m ** 2, sp.sigma_heading_rad ** 2])
+        self._last_odo = np.asarray(session.fixes.xyz[0, :2], dtype=np.float64).copy()
+        self._last_t = -math.inf
+        self.set_landmarks({k: lm for k, lm in session.landmarks.items()
+                            if lm.position is not None})
+        self._started = True
+
+    def set_landmarks(self, landmarks: dict[str, Landmark]) -> None:
+        """Add or replace landmarks (their local position) from now on."""
+        for k, lm in landmarks.items():
+            if lm.position is not None:
+                self.landmarks[k] = (float(lm.position[0]), float(lm.position[1]))
+
+    def update(self, chunk: Session) -> None:
+        """Feed one chunk: its odometry poses and ranges (times after the previous chunk's)."""
+        if not self._started:
+            raise InputError("update() before start_session()", where="RobotTracker",
+                             expected="start_session() first")
+        t_odo = np.zeros(0)
+        d = np.zeros((0, 2))
+        if chunk.fixes is not None:
+            keep = chunk.fixes.t > self._last_t
+            t_odo = np.asarray(chunk.fixes.t[keep], dtype=np.float64)
+            xy = np.asarray(chunk.fixes.xyz[keep, :2], dtype=np.float64)
+            if len(t_odo):
+                d = np.diff(np.vstack([self._last_odo, xy]), axis=0)
+                self._last_odo = xy[-1].copy()
+                self._last_t = float(t_odo[-1])
+        rg = chunk.ranges
+        t_r = np.zeros(0) if rg is None else np.asarray(rg.t, dtype=np.float64)
+        lm = np.full((len(t_r), 2), np.nan)
+        r = np.zeros(len(t_r)) if rg is None else np.asarray(rg.range_m, dtype=np.float64)
+        s = np.ones(len(t_r))
+        if rg is not None:
+            s = np.where(np.isfinite(rg.sigma_m), rg.sigma_m, 0.1)
+            for k, node in enumerate(rg.node.tolist()):
+                if str(node) in self.landmarks:
+                    lm[k] = self.landmarks[str(node)]
+        prm = self.params
+        xs, ps, acc = robot_kernel(self.x, self.p, d, t_odo, t_r, lm, r, s,
+                                   prm.odometry_fraction, prm.heading_var_per_m, prm.gate_sigma)
+        tried = int(np.count_nonzero(np.isfinite(lm[:, 0])))
+        self._accepted += int(np.count_nonzero(acc))
+        self._rejected += tried - int(np.count_nonzero(acc))
+        if len(t_odo):
+            self._rows.append((t_odo, xs, ps))
+
+    def _all(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        if len(self._rows) > 1:
+            self._rows = [(np.concatenate([r[0] for r in self._rows]),
+                           np.concatenate([r[1] for r in self._rows]),
+                           np.concatenate([r[2] for r in self._rows]))]
+        if not self._rows:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3, 3))
+        return self._rows[0]
+
+    def estimates_since(self, t_after_s: float = -math.inf) -> Estimates:
+        """Rows with time > ``t_after_s`` (every row is final)."""
+        t, xs, ps = self._all()
+        i = int(np.searchsorted(t, t_after_s, side="right"))
+        t, xs, ps = t[i:], xs[i:], ps[i:]
+        n = len(t)
+        xyz = np.column_stack([xs[:, :2], np.zeros(n)])
+        return Estimates(t, xyz, xs[:, 2].copy(), ps[:, :2, :2].copy(), ps[:, 2, 2].copy(),
+                         np.zeros(n, dtype=np.int64), np.full(n, np.inf),
+                         np.zeros(n, dtype=np.int64))
+
+    def finish(self) -> TrackResult:
+        """The robot's track (rows at its odometry poses) and a short report."""
+        est = self.estimates_since()
+        traj = Trajectory(est.t, est.xyz, est.heading_rad, est.cov_xy, est.var_heading,
+                          est.activity)
+        z = np.zeros(0)
+        steps = StepEvents(z, z, z, z, z, np.zeros(0, dtype=np.int64), z, z, z)
+        dist = float(np.sum(np.hypot(*np.diff(est.xyz[:, :2], axis=0).T))) if len(est) > 1 \
+            else 0.0
+        report: dict[str, Any] = {
+            "summary": {"steps": 0, "distance_walked_m": dist, "filter": "robot EKF"},
+            "corrections": {"range": {"accepted": self._accepted, "rejected": self._rejected}}}
+        return TrackResult(traj, steps, None, [], report)
