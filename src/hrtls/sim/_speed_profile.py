@@ -16,7 +16,7 @@ FloatArray = NDArray[np.float64]
 
 @numba.njit(cache=True)
 def run_profile_kernel(seg_s0: FloatArray, seg_v: FloatArray, length: float, dt: float,
-                        accel: float, decel: float, max_n: int) -> tuple[FloatArray, FloatArray]:
+                       accel: float, decel: float, max_n: int) -> tuple[FloatArray, FloatArray]:
     """Arc length and speed of one stop-free run sampled every ``dt`` (starts and ends at rest).
 
     ``seg_s0`` are the starts of the speed-limit segments (first is 0), ``seg_v`` their limits.
@@ -64,8 +64,8 @@ def smootherstep(x: FloatArray) -> FloatArray:
 
 
 def run_speed_limits(geo: PathGeometry, *, start_m: float, end_m: float,
-                      leg_speed_m_s: FloatArray, lateral_accel_m_s2: float
-                      ) -> tuple[FloatArray, FloatArray]:
+                     leg_speed_m_s: FloatArray, lateral_accel_m_s2: float
+                     ) -> tuple[FloatArray, FloatArray]:
     """Speed-limit segments of the run ``[start_m, end_m]``: starts and limits.
 
     Starts are in m from the run's start; a limit (m/s) is the leg speed, in an arc also
@@ -87,7 +87,7 @@ def run_speed_limits(geo: PathGeometry, *, start_m: float, end_m: float,
 
 
 def still_headings(*, duration_s: float, heading_rad: float, turn_rad: float,
-                    turn_rate_rad_s: float, dt_s: float, min_turn_s: float) -> FloatArray:
+                   turn_rate_rad_s: float, dt_s: float, min_turn_s: float) -> FloatArray:
     """Headings while standing ``duration_s``, turning ``turn_rad`` on the spot at its start."""
     n = round(duration_s / dt_s)
     if n <= 0:
