@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from shapely.geometry import LineString, Point, box
 
 from hrtls.errors import InputError
+from hrtls.sim._speed_profile import run_profile_kernel
 from hrtls.sim.errors import (
     ErrorRealization,
     SensorErrorModel,
@@ -37,7 +38,6 @@ from hrtls.sim.infrastructure import (
 from hrtls.sim.magnetic import EarthField, MagneticAnomaly, MagneticEnvironment
 from hrtls.sim.motion_truth import (
     Waypoint,
-    _run_profile_kernel,
     build_geometry,
     circle_waypoints,
     random_floorplan_walk,
@@ -73,7 +73,7 @@ def _profile_reference(seg_s0, seg_v, length, dt, accel, decel, max_n):
 def test_profile_kernel_matches_python(speeds, length):
     seg_s0 = np.linspace(0.0, length, len(speeds) + 1)[:-1]
     seg_v = np.asarray(speeds)
-    a, b = _run_profile_kernel(seg_s0, seg_v, length, 0.02, 1.0, 1.2, 100000)
+    a, b = run_profile_kernel(seg_s0, seg_v, length, 0.02, 1.0, 1.2, 100000)
     c, d = _profile_reference(seg_s0, seg_v, length, 0.02, 1.0, 1.2, 100000)
     np.testing.assert_allclose(a, c, atol=1e-9)
     np.testing.assert_allclose(b, d, atol=1e-9)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Literal, cast
+from typing import Annotated, Any, Literal, cast
 
 import typer
 
@@ -60,33 +60,47 @@ def serve(
         "--new-commander-token", help="Create and print another commander token.")] = False,
 ) -> None:
     """Run the supervisor: live tracking of the team, REST + WebSocket API and dashboard."""
-    from pydantic import ValidationError
-
     from hrtls.errors import InputError
 
     if (ssl_certfile is None) != (ssl_keyfile is None):
         raise InputError("only one of --ssl-certfile / --ssl-keyfile", where="hrtls serve",
                          expected="both (TLS) or neither (plain HTTP on loopback)")
+    settings = _settings(db=db, host=host, port=port, publish_hz=publish_hz,
+                         max_body_kib=max_body_kib, rate_per_agent_hz=rate_per_agent,
+                         rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
+                         session_hours=session_hours, token_cache_ttl_s=token_cache_ttl,
+                         cors_origins=tuple(cors_origin or ()), tls=ssl_certfile is not None,
+                         engine=cast("Literal['local', 'ray']", engine),
+                         ray_address=ray_address, ray_shards=ray_shards,
+                         basemap_url=basemap_url)
+    _run(settings, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
+         new_commander_token=new_commander_token)
+
+
+def _settings(**fields: Any) -> Settings:
+    """The service settings; an invalid value raises an error naming its command-line flag."""
+    from pydantic import ValidationError
+
+    from hrtls.errors import InputError
+
     try:
-        settings = Settings(db=db, host=host, port=port, publish_hz=publish_hz,
-                            max_body_kib=max_body_kib, rate_per_agent_hz=rate_per_agent,
-                            rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
-                            session_hours=session_hours, token_cache_ttl_s=token_cache_ttl,
-                            cors_origins=tuple(cors_origin or ()),
-                            tls=ssl_certfile is not None,
-                            engine=cast("Literal['local', 'ray']", engine),
-                            ray_address=ray_address, ray_shards=ray_shards,
-                            basemap_url=basemap_url)
+        return Settings(**fields)
     except ValidationError as exc:
         first = exc.errors()[0]
         name = str(first["loc"][0]) if first["loc"] else "option"
         flag = _FLAGS.get(name, "--" + name.replace("_", "-"))
         raise InputError(str(first["msg"]), where=flag, expected="see hrtls serve --help"
                          ) from None
+
+
+def _run(settings: Settings, *, ssl_certfile: Path | None, ssl_keyfile: Path | None,
+         new_commander_token: bool) -> None:
+    """Prepare the database, print the addresses (and a new token), then serve until stopped."""
     import uvicorn
 
     from hrtls.service.app import bootstrap, create_app
 
+    host, port = settings.host, settings.port
     secret = bootstrap(settings, new_commander=new_commander_token)
     scheme = "https" if settings.tls else "http"
     typer.echo(f"hrtls supervisor: dashboard {scheme}://{host}:{port}/  "

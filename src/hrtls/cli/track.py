@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
@@ -16,6 +16,8 @@ from hrtls.jobs.warmup import mark_compiled
 
 if TYPE_CHECKING:
     from hrtls.jobs.track import Progress
+    from hrtls.pipeline.config import TrackerConfig
+    from hrtls.pipeline.tracker import TrackResult
 
 console = Console(highlight=False)
 
@@ -51,6 +53,84 @@ def progress_bars(show: bool | None) -> Iterator[Progress | None]:
 
 def _fmt(value: float | None, unit: str = " m") -> str:
     return "-" if value is None else f"{value:.2f}{unit}"
+
+
+def _refuse_engine_options(session: Path, *, engine: str, workers: int | None,
+                           ray_address: str | None) -> None:
+    """``--engine``, ``--workers`` and ``--ray-address`` are errors for one recording."""
+    if engine != "local" or workers is not None or ray_address is not None:
+        from hrtls.errors import InputError
+
+        raise InputError("--engine, --workers and --ray-address are for batches",
+                         where=str(session),
+                         expected="a folder of recordings or a glob (one recording: no engine)")
+
+
+def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
+               beacons: Path | None, fmt: str | None, trial: str | None, plot: bool,
+               overwrite: bool, format_out: str, show_progress: bool | None) -> None:
+    """Track one recording, write its results to ``output`` and print a summary."""
+    from hrtls.errors import InputError
+    from hrtls.jobs.track import (
+        check_output_dir,
+        evaluate_track,
+        reference_steps,
+        track_recording,
+        write_track_outputs,
+    )
+
+    if format_out not in ("csv", "parquet"):
+        raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
+    if not session.exists():
+        raise InputError("no such file or folder", where=str(session),
+                         expected="a recording (session folder, zip, logfile, ...)")
+    check_output_dir(output, overwrite=overwrite)
+    with progress_bars(show_progress) as progress:
+        run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
+                              trial=trial, progress=progress)
+    result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
+    del run
+    evaluation = evaluate_track(result, data)
+    reference = reference_steps(result, data)
+    if not plot:  # the ground truth is not needed any more: not held while writing
+        data = data.with_parts(truth=None)
+    if reference is not None:
+        result.report["reference_steps"] = reference
+    write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
+                        evaluation=evaluation, table_format="parquet"
+                        if format_out == "parquet" else "csv")
+    _print_summary(result, name=cfg.name, samples=n, tracker_s=seconds, reference=reference,
+                   evaluation=evaluation)
+    console.print(f"wrote {output}")
+
+
+def _print_summary(result: TrackResult, *, name: str, samples: int, tracker_s: float,
+                   reference: dict[str, Any] | None, evaluation: dict[str, Any] | None) -> None:
+    """Steps, distance, speed, reference steps, corrections, notes and the evaluation."""
+    from hrtls.cli.sim import report_table
+
+    n, seconds = samples, tracker_s
+    summary = result.report["summary"]
+    console.print(f"[bold]{name}[/bold]: {summary['steps']} steps, "
+                  f"{summary['distance_walked_m']:.1f} m walked, "
+                  f"{n:,} IMU samples in {seconds:.2f} s"
+                  f"{f' ({n / seconds:,.0f} samples/s)' if n and seconds > 0 else ''}")
+    if reference is not None:
+        inside = reference.get("ours_in_reference_bouts")
+        error = reference["error_fraction"]
+        bouts = "" if inside is None else f", {inside} inside the reference walking bouts"
+        off = "" if error is None else f", {100 * error:+.1f} %"
+        console.print(f"steps: {reference['ours']} ours{bouts}; reference "
+                      f"{reference['reference']} ({reference['source']}){off}")
+    counts = result.report["corrections"]
+    if counts:
+        console.print("corrections: " + "; ".join(
+            f"{kind} " + ", ".join(f"{v} {k}" for k, v in c.items())
+            for kind, c in counts.items()))
+    for note in result.report["notes"]:
+        console.print(f"note: {note}")
+    if evaluation is not None:
+        console.print(report_table(evaluation))
 
 
 @reports_errors
@@ -101,66 +181,13 @@ def track(
                     repair=repair, overwrite=overwrite, engine=engine, workers=workers,
                     ray_address=ray_address)
         return
-    if engine != "local" or workers is not None or ray_address is not None:
-        from hrtls.errors import InputError as EngineError
-
-        raise EngineError("--engine, --workers and --ray-address are for batches",
-                          where=str(session),
-                          expected="a folder of recordings or a glob (one recording: no engine)")
+    _refuse_engine_options(session, engine=engine, workers=workers, ray_address=ray_address)
     from hrtls.cli.config import chosen_config
-    from hrtls.cli.sim import report_table
-    from hrtls.errors import InputError
-    from hrtls.jobs.track import (
-        check_output_dir,
-        evaluate_track,
-        reference_steps,
-        track_recording,
-        write_track_outputs,
-    )
 
     cfg = chosen_config(config, preset_name, command="hrtls track")
-    if format_out not in ("csv", "parquet"):
-        raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
-    if not session.exists():
-        raise InputError("no such file or folder", where=str(session),
-                         expected="a recording (session folder, zip, logfile, ...)")
-    check_output_dir(output, overwrite=overwrite)
-    with progress_bars(show_progress) as progress:
-        run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
-                              trial=trial, progress=progress)
-    result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
-    del run
-    evaluation = evaluate_track(result, data)
-    reference = reference_steps(result, data)
-    if not plot:  # the ground truth is not needed any more: not held while writing
-        data = data.with_parts(truth=None)
-    if reference is not None:
-        result.report["reference_steps"] = reference
-    write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
-                        evaluation=evaluation, table_format="parquet"
-                        if format_out == "parquet" else "csv")
-    summary = result.report["summary"]
-    console.print(f"[bold]{cfg.name}[/bold]: {summary['steps']} steps, "
-                  f"{summary['distance_walked_m']:.1f} m walked, "
-                  f"{n:,} IMU samples in {seconds:.2f} s"
-                  f"{f' ({n / seconds:,.0f} samples/s)' if n and seconds > 0 else ''}")
-    if reference is not None:
-        inside = reference.get("ours_in_reference_bouts")
-        error = reference["error_fraction"]
-        bouts = "" if inside is None else f", {inside} inside the reference walking bouts"
-        off = "" if error is None else f", {100 * error:+.1f} %"
-        console.print(f"steps: {reference['ours']} ours{bouts}; reference "
-                      f"{reference['reference']} ({reference['source']}){off}")
-    counts = result.report["corrections"]
-    if counts:
-        console.print("corrections: " + "; ".join(
-            f"{kind} " + ", ".join(f"{v} {k}" for k, v in c.items())
-            for kind, c in counts.items()))
-    for note in result.report["notes"]:
-        console.print(f"note: {note}")
-    if evaluation is not None:
-        console.print(report_table(evaluation))
-    console.print(f"wrote {output}")
+    _track_one(session, output, cfg=cfg, repair=repair, beacons=beacons, fmt=fmt, trial=trial,
+               plot=plot, overwrite=overwrite, format_out=format_out,
+               show_progress=show_progress)
     mark_compiled()
 
 

@@ -16,13 +16,16 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
 
 from hrtls.cli.errors import reports_errors
 from hrtls.errors import FormatError, InputError
+
+if TYPE_CHECKING:
+    from hrtls.parallel import Engine
 
 app = typer.Typer(no_args_is_help=True,
                   help="Sensor-network self-localization with mobile agents (Inderst Ch. 5-6).")
@@ -313,36 +316,11 @@ def plan(
           agent_links=links or None, agent_path_m=path)
 
 
-@app.command("experiment")
-@reports_errors
-def experiment(
-    study: Annotated[str, typer.Option(help="'loose', 'tight', 'noise' or 'all'.")] = "all",
-    networks: Annotated[int, typer.Option(help="Random networks per study.")] = 1000,
-    noise_networks: Annotated[int, typer.Option(help="Networks of the noise study.")] = 200,
-    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
-    plot: Annotated[Path | None, typer.Option(help="PNG of one example loose-cooperation "
-                                                   "network after the planner.")] = None,
-    tight_plot: Annotated[Path | None, typer.Option(
-        help="PNG of one example tight-cooperation run (robot path, disconnected graph).")]
-    = None,
-    engine_name: Annotated[str, typer.Option(
-        "--engine", help="Where the networks run: local | ray (same numbers either way).")]
-    = "local",
-    workers: Annotated[int | None, typer.Option(
-        help="Networks simulated at once (default: all cores).")] = None,
-    ray_address: Annotated[str | None, typer.Option(
-        help="With --engine ray: cluster address (default: a local Ray).")] = None,
-) -> None:
-    """Run the thesis' studies (Fig. 6.11, 6.13-6.17, 2 % noise) and print tables."""
-    from hrtls.runner import make_engine
+def _print_studies(study: str, *, networks: int, noise_networks: int, seed: int,
+                   engine: Engine) -> None:
+    """Run the chosen studies (seeds ``seed`` to ``seed + 3``) and print their tables."""
     from hrtls.wsn import experiment as ex
 
-    if study not in ("loose", "tight", "noise", "all"):
-        raise InputError(f"study {study!r}", where="--study",
-                         expected="loose, tight, noise or all")
-    if networks < 1 or noise_networks < 1:
-        raise InputError("network count < 1", where="--networks", expected=">= 1")
-    engine = make_engine(engine_name, workers=workers, ray_address=ray_address)
     if study in ("loose", "all"):
         s = ex.loose_study(n_networks=networks, seed=seed, engine=engine)
         typer.echo(f"\nLoose cooperation (Fig. 6.11): {s.n_nodes} nodes in the unit square, "
@@ -366,40 +344,83 @@ def experiment(
         typer.echo(f"\nTight cooperation with {100 * z.noise_fraction:g} % range noise "
                    f"(robot odometry exact), {noise_networks} networks")
         typer.echo(ex.format_table(t.rows))
+
+
+def _plot_loose_example(path: Path, *, seed: int) -> None:
+    """PNG of a random connected corner-seed network after the Safe Navigation planner."""
+    from hrtls.wsn.agents import RangeWorld, RescuerAgent, RescuerParams
+    from hrtls.wsn.network import connected_components, corner_seed_network
+    from hrtls.wsn.planner import safe_navigation
+
+    rng = np.random.default_rng(seed)
+    while True:
+        net = corner_seed_network(rng)
+        if connected_components(net).max() == 0:
+            break
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=net.radius_m,
+                       radio_range_m=net.radius_m)
+    nav = safe_navigation(net, RescuerAgent(world, net.position_m[0],
+                                            params=RescuerParams(), rng=rng))
+    _plot(path, net, nav.augmented, title=f"SELA + planner: {len(nav.waypoints)} way points",
+          waypoints_m=nav.temp_positions_m, agent_links=list(nav.temp_links),
+          agent_path_m=nav.path_m)
+
+
+def _plot_tight_example(path: Path, *, seed: int) -> None:
+    """PNG of a tight-cooperation run on a disconnected 12-node graph (Fig. 6.14)."""
+    from hrtls.wsn.agents import RangeWorld, RobotAgent, RobotParams
+    from hrtls.wsn.network import connected_components, random_network
+    from hrtls.wsn.tight import TightParams, tight_cooperation
+
+    rng = np.random.default_rng(seed)
+    while True:  # a disconnected 12-node graph whose parts are within d_r (Fig. 6.14)
+        net = random_network(rng, n_nodes=12, radius_m=0.2, width_m=0.6, height_m=0.6,
+                             anchors="none")
+        if connected_components(net).max() == 1 and connected_components(
+                net, radius_m=0.4).max() == 0:
+            break
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=0.2,
+                       radio_range_m=0.4)
+    robot = RobotAgent(world, np.zeros(3), params=RobotParams(arrival_radius_m=0.002))
+    res = tight_cooperation(net, robot, params=TightParams(
+        delta_m=0.01, radio_range_m=0.4, search_region_m=(0.0, 0.0, 0.6, 0.6)))
+    _plot(path, net, res.localization, agent_path_m=res.path_m, labels=True,
+          title=f"Tight cooperation: {len(res.assigned)} nodes assigned by the robot, "
+                f"{res.legs} legs")
+
+
+@app.command("experiment")
+@reports_errors
+def experiment(
+    study: Annotated[str, typer.Option(help="'loose', 'tight', 'noise' or 'all'.")] = "all",
+    networks: Annotated[int, typer.Option(help="Random networks per study.")] = 1000,
+    noise_networks: Annotated[int, typer.Option(help="Networks of the noise study.")] = 200,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    plot: Annotated[Path | None, typer.Option(help="PNG of one example loose-cooperation "
+                                                   "network after the planner.")] = None,
+    tight_plot: Annotated[Path | None, typer.Option(
+        help="PNG of one example tight-cooperation run (robot path, disconnected graph).")]
+    = None,
+    engine_name: Annotated[str, typer.Option(
+        "--engine", help="Where the networks run: local | ray (same numbers either way).")]
+    = "local",
+    workers: Annotated[int | None, typer.Option(
+        help="Networks simulated at once (default: all cores).")] = None,
+    ray_address: Annotated[str | None, typer.Option(
+        help="With --engine ray: cluster address (default: a local Ray).")] = None,
+) -> None:
+    """Run the thesis' studies (Fig. 6.11, 6.13-6.17, 2 % noise) and print tables."""
+    from hrtls.runner import make_engine
+
+    if study not in ("loose", "tight", "noise", "all"):
+        raise InputError(f"study {study!r}", where="--study",
+                         expected="loose, tight, noise or all")
+    if networks < 1 or noise_networks < 1:
+        raise InputError("network count < 1", where="--networks", expected=">= 1")
+    engine = make_engine(engine_name, workers=workers, ray_address=ray_address)
+    _print_studies(study, networks=networks, noise_networks=noise_networks, seed=seed,
+                   engine=engine)
     if plot is not None:
-        from hrtls.wsn.agents import RangeWorld, RescuerAgent, RescuerParams
-        from hrtls.wsn.network import connected_components, corner_seed_network
-        from hrtls.wsn.planner import safe_navigation
-
-        rng = np.random.default_rng(seed)
-        while True:
-            net = corner_seed_network(rng)
-            if connected_components(net).max() == 0:
-                break
-        world = RangeWorld(true_positions_m=net.position_m, link_radius_m=net.radius_m,
-                           radio_range_m=net.radius_m)
-        nav = safe_navigation(net, RescuerAgent(world, net.position_m[0],
-                                                params=RescuerParams(), rng=rng))
-        _plot(plot, net, nav.augmented, title=f"SELA + planner: {len(nav.waypoints)} way points",
-              waypoints_m=nav.temp_positions_m, agent_links=list(nav.temp_links),
-              agent_path_m=nav.path_m)
+        _plot_loose_example(plot, seed=seed)
     if tight_plot is not None:
-        from hrtls.wsn.agents import RangeWorld, RobotAgent, RobotParams
-        from hrtls.wsn.network import connected_components, random_network
-        from hrtls.wsn.tight import TightParams, tight_cooperation
-
-        rng = np.random.default_rng(seed + 1)
-        while True:  # a disconnected 12-node graph whose parts are within d_r (Fig. 6.14)
-            net = random_network(rng, n_nodes=12, radius_m=0.2, width_m=0.6, height_m=0.6,
-                                 anchors="none")
-            if connected_components(net).max() == 1 and connected_components(
-                    net, radius_m=0.4).max() == 0:
-                break
-        world = RangeWorld(true_positions_m=net.position_m, link_radius_m=0.2,
-                           radio_range_m=0.4)
-        robot = RobotAgent(world, np.zeros(3), params=RobotParams(arrival_radius_m=0.002))
-        res = tight_cooperation(net, robot, params=TightParams(
-            delta_m=0.01, radio_range_m=0.4, search_region_m=(0.0, 0.0, 0.6, 0.6)))
-        _plot(tight_plot, net, res.localization, agent_path_m=res.path_m, labels=True,
-              title=f"Tight cooperation: {len(res.assigned)} nodes assigned by the robot, "
-                    f"{res.legs} legs")
+        _plot_tight_example(tight_plot, seed=seed + 1)

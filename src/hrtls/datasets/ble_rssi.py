@@ -180,6 +180,45 @@ def _read_track(file: Path) -> tuple[FloatArray, list[str], list[str], FloatArra
             np.asarray(numbers, dtype=np.float64).reshape(-1, _COLUMNS - 4))
 
 
+def _time_order(unix_s: FloatArray, *, file_name: str, repair: bool, notes: list[str]
+                ) -> NDArray[np.intp] | None:
+    """The sorting order of readings that go back in time (repair), else None; or raise."""
+    back = np.flatnonzero(np.diff(unix_s) < 0)
+    if not len(back):
+        return None
+    first = int(back[0]) + 2
+    if not repair:
+        raise InputError(f"time goes back by {unix_s[back[0]] - unix_s[back[0] + 1]:.6g} s",
+                         where=f"{file_name} line {first}",
+                         expected="non-decreasing times",
+                         hint="pass repair=True to sort the readings with a warning")
+    largest = float(np.max(unix_s[back] - unix_s[back + 1]))
+    order = np.argsort(unix_s, kind="stable")
+    message = (f"{file_name}: sorted {len(back)} backward time step(s) of at most "
+               f"{largest:.3g} s at line(s) {', '.join(str(int(i) + 2) for i in back[:5])}")
+    warn_repair(message)
+    notes.append("repair: " + message.split(": ", 1)[1])
+    return order
+
+
+def _truth_per_time(t: FloatArray, xyz: FloatArray, *, file_name: str
+                    ) -> tuple[FloatArray, FloatArray]:
+    """One truth sample per distinct time: the mean beacon position (m), warned if they differ.
+
+    Equal times carry equal positions in the published files.
+    """
+    t_truth, start, counts = np.unique(t, return_index=True, return_counts=True)
+    truth_xyz = np.add.reduceat(xyz, start, axis=0) / counts[:, None]
+    spread = np.zeros(len(t_truth))
+    for i in np.flatnonzero(counts > 1):
+        group = xyz[start[i]:start[i] + counts[i]]
+        spread[i] = float(np.max(np.ptp(group, axis=0)))
+    if np.any(spread > 0):
+        warn_repair(f"{file_name}: {int(np.count_nonzero(spread > 0))} time(s) with differing "
+                    f"beacon positions (up to {spread.max():.3g} m) averaged for the truth")
+    return t_truth, truth_xyz
+
+
 def load_trajectory(root: str | Path, name: str, *, repair: bool = True) -> BleRssiTrajectory:
     """Load ``trk/<name>_all_sensors.mbd`` with the receivers of ``cnf/tetam.dev``.
 
@@ -215,36 +254,15 @@ def load_trajectory(root: str | Path, name: str, *, repair: bool = True) -> BleR
     xyz = numbers[:, 0:3]
     rotation = numbers[:, 3:].reshape(-1, 3, 3)
 
-    back = np.flatnonzero(np.diff(unix) < 0)
-    notes = []
-    if len(back):
-        first = int(back[0]) + 2
-        if not repair:
-            raise InputError(f"time goes back by {unix[back[0]] - unix[back[0] + 1]:.6g} s",
-                             where=f"{file.name} line {first}",
-                             expected="non-decreasing times",
-                             hint="pass repair=True to sort the readings with a warning")
-        largest = float(np.max(unix[back] - unix[back + 1]))
-        order = np.argsort(unix, kind="stable")
+    notes: list[str] = []
+    order = _time_order(unix, file_name=file.name, repair=repair, notes=notes)
+    if order is not None:
         unix, anchor, rss = unix[order], anchor[order], rss[order]
         xyz, rotation, lines = xyz[order], rotation[order], lines[order]
-        message = (f"{file.name}: sorted {len(back)} backward time step(s) of at most "
-                   f"{largest:.3g} s at line(s) {', '.join(str(int(i) + 2) for i in back[:5])}")
-        warn_repair(message)
-        notes.append("repair: " + message.split(": ", 1)[1])
     origin = float(unix[0])
     t = unix - origin
 
-    # one truth sample per distinct time; equal times carry equal positions in the files
-    t_truth, start, counts = np.unique(t, return_index=True, return_counts=True)
-    truth_xyz = np.add.reduceat(xyz, start, axis=0) / counts[:, None]
-    spread = np.zeros(len(t_truth))
-    for i in np.flatnonzero(counts > 1):
-        group = xyz[start[i]:start[i] + counts[i]]
-        spread[i] = float(np.max(np.ptp(group, axis=0)))
-    if np.any(spread > 0):
-        warn_repair(f"{file.name}: {int(np.count_nonzero(spread > 0))} time(s) with differing "
-                    f"beacon positions (up to {spread.max():.3g} m) averaged for the truth")
+    t_truth, truth_xyz = _truth_per_time(t, xyz, file_name=file.name)
 
     landmarks = {
         alias: Landmark.model_validate({"id": alias, "kind": "anchor", "position": rec.xyz,

@@ -97,6 +97,70 @@ def _merge_equal_times(ns: np.ndarray, rows: FloatArray) -> tuple[np.ndarray, Fl
     return unique, out, n_copies, n_avg
 
 
+def _drop_zero_rows(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, file_name: str,
+                    repair: bool, notes: list[str]
+                    ) -> tuple[np.ndarray, FloatArray, np.ndarray]:
+    """Rows whose accelerometer is all zero: an error, or dropped with a warning (repair)."""
+    zero = np.all(rows[:, 0:3] == 0.0, axis=1)
+    if np.any(zero):
+        first = int(lines[np.flatnonzero(zero)[0]])
+        if not repair:
+            raise InputError(f"{int(zero.sum())} all-zero accelerometer row(s), first at line "
+                             f"{first}", where=f"{file_name} line {first}",
+                             expected="a real accelerometer sample (|a| near 9.8 m/s^2)",
+                             hint="pass repair=True to drop such rows with a warning")
+        warn_repair(f"{file_name}: dropped {int(zero.sum())} all-zero row(s) "
+                    f"(line(s) {', '.join(str(v) for v in lines[zero][:5])})")
+        notes.append(f"repair: dropped {int(zero.sum())} all-zero row(s) starting at line {first}")
+        ns, rows, lines = ns[~zero], rows[~zero], lines[~zero]
+    return ns, rows, lines
+
+
+def _increasing_times(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, file_name: str,
+                      repair: bool, notes: list[str]) -> tuple[np.ndarray, FloatArray]:
+    """Non-increasing timestamps: an error, or sorted and merged with a warning (repair)."""
+    step = np.diff(ns)
+    bad = np.flatnonzero(step <= 0)
+    if len(bad):
+        first_line = int(lines[bad[0] + 1])
+        if not repair:
+            kind = "equals" if step[bad[0]] == 0 else "is before"
+            raise InputError(f"timestamp {kind} the previous one ({len(bad)} such row(s) in the "
+                             "file)", where=f"{file_name} line {first_line}",
+                             expected="strictly increasing timestamps",
+                             hint="pass repair=True to sort and merge them with a warning")
+        order = np.argsort(ns, kind="stable")
+        n_back = int(np.count_nonzero(step < 0))
+        ns, rows = ns[order], rows[order]
+        ns, rows, n_copies, n_avg = _merge_equal_times(ns, rows)
+        actions = [text for count, text in (
+            (n_back, f"sorted {n_back} backward step(s)"),
+            (n_copies, f"dropped {n_copies} exact duplicate row(s)"),
+            (n_avg, f"merged {n_avg} row(s) with equal time (accelerometer averaged)"))
+            if count]
+        message = (f"{file_name}: non-increasing timestamps at line(s) "
+                   f"{', '.join(str(int(lines[i + 1])) for i in bad[:5])}: "
+                   + ", ".join(actions))
+        warn_repair(message)
+        notes.append("repair: " + message.split(": ", 1)[1])
+    return ns, rows
+
+
+def _step_counts(t: FloatArray, rows: FloatArray, *, file_name: str
+                 ) -> tuple[FloatArray, int, int]:
+    """``(ground-truth step times s, ground-truth steps, app steps)`` from the counters."""
+    truth = rows[:, 4]
+    if np.any(truth != np.round(truth)) or np.any(np.diff(truth) < 0):
+        raise FormatError("ground-truth step counter is not a non-decreasing integer",
+                          where=f"{file_name} column 6", expected="a running step count")
+    rises = np.diff(truth).astype(np.int64)
+    idx = np.flatnonzero(rises > 0)
+    step_times = np.repeat(t[idx + 1], rises[idx])
+    total_steps = int(truth[-1] - truth[0])
+    app_steps = int(rows[-1, 3] - rows[0, 3])
+    return step_times, total_steps, app_steps
+
+
 def load_recording(path: str | Path, *, repair: bool = False) -> OxfordRecording:
     """Load one recording.
 
@@ -119,43 +183,10 @@ def load_recording(path: str | Path, *, repair: bool = False) -> OxfordRecording
     lines = np.arange(1, len(table) + 1)
     notes: list[str] = []
 
-    zero = np.all(rows[:, 0:3] == 0.0, axis=1)
-    if np.any(zero):
-        first = int(lines[np.flatnonzero(zero)[0]])
-        if not repair:
-            raise InputError(f"{int(zero.sum())} all-zero accelerometer row(s), first at line "
-                             f"{first}", where=f"{file.name} line {first}",
-                             expected="a real accelerometer sample (|a| near 9.8 m/s^2)",
-                             hint="pass repair=True to drop such rows with a warning")
-        warn_repair(f"{file.name}: dropped {int(zero.sum())} all-zero row(s) "
-                    f"(line(s) {', '.join(str(v) for v in lines[zero][:5])})")
-        notes.append(f"repair: dropped {int(zero.sum())} all-zero row(s) starting at line {first}")
-        ns, rows, lines = ns[~zero], rows[~zero], lines[~zero]
-
-    step = np.diff(ns)
-    bad = np.flatnonzero(step <= 0)
-    if len(bad):
-        first_line = int(lines[bad[0] + 1])
-        if not repair:
-            kind = "equals" if step[bad[0]] == 0 else "is before"
-            raise InputError(f"timestamp {kind} the previous one ({len(bad)} such row(s) in the "
-                             "file)", where=f"{file.name} line {first_line}",
-                             expected="strictly increasing timestamps",
-                             hint="pass repair=True to sort and merge them with a warning")
-        order = np.argsort(ns, kind="stable")
-        n_back = int(np.count_nonzero(step < 0))
-        ns, rows = ns[order], rows[order]
-        ns, rows, n_copies, n_avg = _merge_equal_times(ns, rows)
-        actions = [text for count, text in (
-            (n_back, f"sorted {n_back} backward step(s)"),
-            (n_copies, f"dropped {n_copies} exact duplicate row(s)"),
-            (n_avg, f"merged {n_avg} row(s) with equal time (accelerometer averaged)"))
-            if count]
-        message = (f"{file.name}: non-increasing timestamps at line(s) "
-                   f"{', '.join(str(int(lines[i + 1])) for i in bad[:5])}: "
-                   + ", ".join(actions))
-        warn_repair(message)
-        notes.append("repair: " + message.split(": ", 1)[1])
+    ns, rows, lines = _drop_zero_rows(ns, rows, lines, file_name=file.name, repair=repair,
+                                      notes=notes)
+    ns, rows = _increasing_times(ns, rows, lines, file_name=file.name, repair=repair,
+                                 notes=notes)
     if len(ns) < 2:
         raise FormatError(f"{len(ns)} usable rows", where=file.name, expected="at least 2 rows")
 
@@ -164,15 +195,7 @@ def load_recording(path: str | Path, *, repair: bool = False) -> OxfordRecording
     for i in gaps:
         notes.append(f"gap of {1e3 * (t[i + 1] - t[i]):.0f} ms after t = {t[i]:.3f} s")
 
-    truth = rows[:, 4]
-    if np.any(truth != np.round(truth)) or np.any(np.diff(truth) < 0):
-        raise FormatError("ground-truth step counter is not a non-decreasing integer",
-                          where=f"{file.name} column 6", expected="a running step count")
-    rises = np.diff(truth).astype(np.int64)
-    idx = np.flatnonzero(rises > 0)
-    step_times = np.repeat(t[idx + 1], rises[idx])
-    total_steps = int(truth[-1] - truth[0])
-    app_steps = int(rows[-1, 3] - rows[0, 3])
+    step_times, total_steps, app_steps = _step_counts(t, rows, file_name=file.name)
 
     match = _NAME.match(file.name)
     placement = match.group("placement").lower() if match else "unknown"

@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numba
 import numpy as np
@@ -38,6 +38,11 @@ from scipy.stats import chi2
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from hrtls.data.landmarks import Landmark
 
 Status = Literal["accepted", "rejected", "skipped"]
 
@@ -428,3 +433,23 @@ def skipped(kind: str, t: float, reason: str, source: str = "") -> UpdateDiagnos
 def rejected(kind: str, t: float, reason: str, source: str = "") -> UpdateDiagnostics:
     """Diagnostics of an observation rejected before forming an innovation."""
     return UpdateDiagnostics(kind, t, "rejected", source=source, reason=reason)
+
+
+def positioned_readings(indices: ArrayLike, ids: np.ndarray, t_s: FloatArray,
+                        landmarks: dict[str, Landmark], *, kind: str, what: str,
+                        diagnostics: list[UpdateDiagnostics]
+                        ) -> Iterator[tuple[int, float, str, FloatArray]]:
+    """``(index, t s, landmark id, landmark xyz m)`` of the readings ``indices`` in order.
+
+    A reading whose landmark is unknown or has no position is not yielded: a skipped
+    diagnostic ("``what`` without a known position") is appended to ``diagnostics`` in its
+    place, so that the caller's diagnostics stay in reading order.
+    """
+    for i in np.asarray(indices, dtype=np.int64):
+        landmark_id = str(ids[i])
+        t = float(t_s[i])
+        lm = landmarks.get(landmark_id)
+        if lm is None or lm.position is None:
+            diagnostics.append(skipped(kind, t, f"{what} without a known position", landmark_id))
+            continue
+        yield int(i), t, landmark_id, lm.xyz()

@@ -30,10 +30,10 @@ from hrtls.fusion.gating import (
     TOO_NEAR,
     UpdateDiagnostics,
     chi2_threshold,
+    positioned_readings,
     rejected,
     scalar_diagnostics,
     scalar_update,
-    skipped,
 )
 from hrtls.fusion.state import FilterState
 
@@ -151,14 +151,10 @@ def update_ranges(state: FilterState, measurements: RangeMeasurements, indices: 
                   ) -> tuple[FilterState, list[UpdateDiagnostics]]:
     """Apply the readings ``indices`` one after the other (unknown nodes are skipped)."""
     diags: list[UpdateDiagnostics] = []
-    for i in np.asarray(indices, dtype=np.int64):
-        node_id = str(measurements.node[i])
-        t = float(measurements.t[i])
-        lm = landmarks.get(node_id)
-        if lm is None or lm.position is None:
-            diags.append(skipped("range", t, "node without a known position", node_id))
-            continue
-        upd = range_update(state, lm.xyz(), float(measurements.range_m[i]),
+    for i, t, node_id, xyz in positioned_readings(indices, measurements.node, measurements.t,
+                                                  landmarks, kind="range", what="node",
+                                                  diagnostics=diags):
+        upd = range_update(state, xyz, float(measurements.range_m[i]),
                            float(measurements.sigma_m[i]), params=params, t=t, source=node_id)
         state = upd.state
         diags.append(upd.diagnostics)

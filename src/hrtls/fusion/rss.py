@@ -34,10 +34,10 @@ from hrtls.fusion.gating import (
     TOO_NEAR,
     UpdateDiagnostics,
     chi2_threshold,
+    positioned_readings,
     rejected,
     scalar_diagnostics,
     scalar_update,
-    skipped,
 )
 from hrtls.fusion.path_loss import LN10, PathLossModel
 from hrtls.fusion.ranges import RangeParams, range_update
@@ -135,14 +135,8 @@ def update_rss_readings(state: FilterState, rss: RssReadings, indices: ArrayLike
     re-estimated model.
     """
     diags: list[UpdateDiagnostics] = []
-    for i in np.asarray(indices, dtype=np.int64):
-        anchor = str(rss.anchor[i])
-        t = float(rss.t[i])
-        lm = landmarks.get(anchor)
-        if lm is None or lm.position is None:
-            diags.append(skipped("rss", t, "anchor without a known position", anchor))
-            continue
-        a = lm.xyz()
+    for i, t, anchor, a in positioned_readings(indices, rss.anchor, rss.t, landmarks,
+                                               kind="rss", what="anchor", diagnostics=diags):
         if estimator is not None and channel is not None:
             dims = 3 if use_3d else 2
             dist = float(np.linalg.norm(state.x[:dims] - a[:dims]))

@@ -243,6 +243,47 @@ def transform_features(features: FloatArray, log_features: bool) -> FloatArray:
     return np.asarray(np.log(np.clip(features, 0.0, None) + 1e-3), dtype=np.float64)
 
 
+def _checked_training_data(features: FloatArray, labels: ArrayLike, *,
+                          groups: ArrayLike | None, covariance: str, pooled_blend: float
+                          ) -> tuple[FloatArray, IntArray, IntArray]:
+    """``(features, labels, groups)`` as arrays of one row per window; bad options raise."""
+    f = as_matrix(features, where="LDA features", columns=len(LDA_FEATURES))
+    y = np.asarray(labels, dtype=np.int64)
+    if y.shape != (f.shape[0],):
+        raise InputError(f"{y.shape[0]} labels for {f.shape[0]} windows", where="labels",
+                         expected="one label per window")
+    g = np.zeros_like(y) if groups is None else np.asarray(groups, dtype=np.int64)
+    if g.shape != y.shape:
+        raise InputError(f"{g.shape[0]} groups for {y.shape[0]} windows", where="groups",
+                         expected="one source group per window")
+    if covariance not in ("pooled", "per_class"):
+        raise InputError(f"covariance = {covariance!r}", where="covariance",
+                         expected="'pooled' or 'per_class'")
+    if not 0.0 <= pooled_blend <= 1.0:
+        raise InputError(f"pooled_blend = {pooled_blend}", where="pooled_blend",
+                         expected="a share in [0, 1]")
+    return f, y, g
+
+
+def _component_covariance(x: FloatArray, members: list[NDArray[np.bool_]], means: FloatArray, *,
+                          resid: FloatArray, covariance: str, pooled_blend: float,
+                          min_component_windows: int) -> FloatArray:
+    """Pooled Ledoit-Wolf covariance, or one per component blended with it (``per_class``)."""
+    from sklearn.covariance import ledoit_wolf
+
+    pooled = np.asarray(ledoit_wolf(resid)[0], dtype=np.float64)
+    if covariance == "pooled":
+        return pooled
+    covs = []
+    for m, mu in zip(members, means, strict=True):
+        if int(m.sum()) < min_component_windows:
+            covs.append(pooled)
+            continue
+        own = np.asarray(ledoit_wolf(x[m] - mu)[0], dtype=np.float64)
+        covs.append((1.0 - pooled_blend) * own + pooled_blend * pooled)
+    return np.array(covs)
+
+
 def train_lda(features: FloatArray, labels: ArrayLike, *, window_s: float = 2.0,
               cutoff_hz: float = 6.0, loss: FloatArray | None = None,
               shrinkage: float | str | None = "auto", info: str = "",
@@ -271,24 +312,10 @@ def train_lda(features: FloatArray, labels: ArrayLike, *, window_s: float = 2.0,
     pooled_blend: share of the pooled covariance mixed into each per-component covariance.
     min_component_windows: components with fewer windows use the pooled covariance.
     """
-    from sklearn.covariance import ledoit_wolf
     from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 
-    f = as_matrix(features, where="LDA features", columns=len(LDA_FEATURES))
-    y = np.asarray(labels, dtype=np.int64)
-    if y.shape != (f.shape[0],):
-        raise InputError(f"{y.shape[0]} labels for {f.shape[0]} windows", where="labels",
-                         expected="one label per window")
-    g = np.zeros_like(y) if groups is None else np.asarray(groups, dtype=np.int64)
-    if g.shape != y.shape:
-        raise InputError(f"{g.shape[0]} groups for {y.shape[0]} windows", where="groups",
-                         expected="one source group per window")
-    if covariance not in ("pooled", "per_class"):
-        raise InputError(f"covariance = {covariance!r}", where="covariance",
-                         expected="'pooled' or 'per_class'")
-    if not 0.0 <= pooled_blend <= 1.0:
-        raise InputError(f"pooled_blend = {pooled_blend}", where="pooled_blend",
-                         expected="a share in [0, 1]")
+    f, y, g = _checked_training_data(features, labels, groups=groups, covariance=covariance,
+                                     pooled_blend=pooled_blend)
     keep = y != int(Activity.UNKNOWN)
     f, y, g = f[keep], y[keep], g[keep]
     classes = np.unique(y)
@@ -310,18 +337,9 @@ def train_lda(features: FloatArray, labels: ArrayLike, *, window_s: float = 2.0,
     members = [(y == c) & (g == s) for c, s in pairs]
     means = np.array([x[m].mean(axis=0) for m in members])
     resid = np.concatenate([x[m] - mu for m, mu in zip(members, means, strict=True)])
-    pooled = np.asarray(ledoit_wolf(resid)[0], dtype=np.float64)
-    if covariance == "pooled":
-        cov: FloatArray = pooled
-    else:
-        covs = []
-        for m, mu in zip(members, means, strict=True):
-            if int(m.sum()) < min_component_windows:
-                covs.append(pooled)
-                continue
-            own = np.asarray(ledoit_wolf(x[m] - mu)[0], dtype=np.float64)
-            covs.append((1.0 - pooled_blend) * own + pooled_blend * pooled)
-        cov = np.array(covs)
+    cov = _component_covariance(x, members, means, resid=resid, covariance=covariance,
+                                pooled_blend=pooled_blend,
+                                min_component_windows=min_component_windows)
     counts = np.bincount(comp_class, minlength=classes.size)
     return LdaModel(classes, means, cov, priors, loss_m, window_s, cutoff_hz, LDA_FEATURES,
                     info, log_features, comp_class, 1.0 / counts[comp_class], dft_zero_pad)

@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import networkx as nx
-import numba
 import numpy as np
 import shapely
 from numpy.typing import NDArray
@@ -30,6 +29,7 @@ from shapely.geometry.base import BaseGeometry
 from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
+from hrtls.sim._speed_profile import run_profile_kernel, run_speed_limits, still_headings
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -225,54 +225,6 @@ def build_geometry(waypoints: Sequence[Waypoint]) -> PathGeometry:
     )
 
 
-@numba.njit(cache=True)
-def _run_profile_kernel(seg_s0: FloatArray, seg_v: FloatArray, length: float, dt: float,
-                        accel: float, decel: float, max_n: int) -> tuple[FloatArray, FloatArray]:
-    """Arc length and speed of one stop-free run sampled every ``dt`` (starts and ends at rest).
-
-    ``seg_s0`` are the starts of the speed-limit segments (first is 0), ``seg_v`` their limits.
-    The speed tends to ``min(limit, braking curves of later limits and of the end)`` with the
-    acceleration bounds ``accel`` / ``decel``.
-    """
-    s_out = np.empty(max_n)
-    v_out = np.empty(max_n)
-    s = 0.0
-    v = 0.0
-    n = 0
-    s_out[0] = 0.0
-    v_out[0] = 0.0
-    n = 1
-    nseg = seg_s0.shape[0]
-    v_floor = 0.5 * accel * dt
-    while n < max_n:
-        j = nseg - 1
-        while j > 0 and seg_s0[j] > s:
-            j -= 1
-        target = seg_v[j]
-        for m in range(j + 1, nseg):
-            brake = np.sqrt(seg_v[m] * seg_v[m] + 2.0 * decel * max(seg_s0[m] - s, 0.0))
-            target = min(target, brake)
-        target = min(target, np.sqrt(2.0 * decel * max(length - s, 0.0)))
-        dv = target - v
-        dv = min(max(dv, -2.0 * decel * dt), accel * dt)  # room to track the braking curve
-        v = max(v + dv, v_floor)
-        if s + v * dt >= length:
-            s_out[n] = length
-            v_out[n] = 0.0
-            n += 1
-            break
-        s += v * dt
-        s_out[n] = s
-        v_out[n] = v
-        n += 1
-    return s_out[:n], v_out[:n]
-
-
-def _smootherstep(x: FloatArray) -> FloatArray:
-    x = np.clip(x, 0.0, 1.0)
-    return np.asarray(x * x * x * (x * (6.0 * x - 15.0) + 10.0), dtype=np.float64)
-
-
 @dataclass(frozen=True, slots=True)
 class MotionTruth:
     """Sampled ground truth of the nominal (non-oscillating) motion.
@@ -326,14 +278,8 @@ class MotionTruth:
         return np.asarray(np.floor(self.xyz[:, 2] / floor_height_m + 0.5), dtype=np.int64)
 
 
-def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
-                    params: MotionParams | None = None, start_pause_s: float = 2.0,
-                    end_pause_s: float = 2.0, t0_s: float = 0.0) -> MotionTruth:
-    """Sample the motion along ``waypoints`` at ``rate_hz``.
-
-    The person stands still for ``start_pause_s`` before walking and ``end_pause_s`` after.
-    """
-    p = params or MotionParams()
+def _check_waypoints(waypoints: Sequence[Waypoint], *, rate_hz: float) -> None:
+    """Reject a non-positive rate, speed or a negative stop, naming the waypoint."""
     if not rate_hz > 0:
         raise InputError(f"rate {rate_hz}", where="rate_hz", expected="a positive rate in Hz")
     for i, w in enumerate(waypoints[1:], start=1):
@@ -343,8 +289,10 @@ def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
         if w.stop_s < 0:
             raise InputError(f"stop {w.stop_s}", where=f"waypoints index {i} stop_s",
                              expected="a non-negative duration in s")
-    geo = build_geometry(waypoints)
-    dt = 1.0 / rate_hz
+
+
+def _leg_labels(waypoints: Sequence[Waypoint]) -> tuple[IntArray, IntArray, FloatArray]:
+    """Per leg: gait (GAIT_*), :class:`~hrtls.data.Activity` code and cruise speed, m/s."""
     n_legs = len(waypoints) - 1
     dz = np.diff([w.z for w in waypoints])
     leg_gait = np.array([GAIT_STAIRS if abs(dz[j]) > 1e-6 else
@@ -355,10 +303,19 @@ def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
         else int(Activity.RUNNING) if waypoints[j + 1].run else int(Activity.WALKING)
         for j in range(n_legs)], dtype=np.int64)
     leg_speed = np.array([waypoints[j + 1].speed_m_s for j in range(n_legs)])
-    # boundaries of stop-free runs: interior waypoints with a stop or a sharp turn
+    return leg_gait, leg_activity, leg_speed
+
+
+def _run_boundaries(waypoints: Sequence[Waypoint], geo: PathGeometry
+                    ) -> tuple[list[float], list[tuple[float, float, float]]]:
+    """Path positions (m) bounding the stop-free runs and what follows each run.
+
+    After each run: ``(turn rad, turn rate rad/s, stop s)``; a run ends at a waypoint with a
+    stop or a turn on the spot.
+    """
     boundaries = [0.0]
-    pauses: list[tuple[float, float, float]] = []  # (turn rad, turn rate, stop s) after run
-    for i in range(1, n_legs):
+    pauses: list[tuple[float, float, float]] = []
+    for i in range(1, len(waypoints) - 1):
         w = waypoints[i]
         turn = float(geo.corner_turn[i - 1])
         if w.stop_s > 0 or abs(turn) > 1e-9:
@@ -366,67 +323,38 @@ def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
             pauses.append((turn, w.turn_rate_rad_s, w.stop_s))
     boundaries.append(geo.total_length_m)
     pauses.append((0.0, 1.0, waypoints[-1].stop_s))
+    return boundaries, pauses
 
-    s_parts: list[FloatArray] = []
-    v_parts: list[FloatArray] = []
-    h_parts: list[FloatArray | None] = []
-    run_parts: list[FloatArray] = []
-    heading_now = float(geo.h0[0])
 
-    def add_still(duration: float, heading_from: float, turn: float, rate: float,
-                  s_here: float) -> float:
-        n = round(duration / dt)
-        if n <= 0:
-            return heading_from + turn
-        if abs(turn) > 0:
-            t_turn = max(abs(turn) * 1.875 / max(rate, 1e-3), p.min_turn_s)  # peak rate of
-            n_turn = min(round(t_turn / dt), n)  # smootherstep is 1.875x its mean
-            frac = _smootherstep(np.arange(1, n + 1) / max(n_turn, 1))
-            h = heading_from + turn * frac
-        else:
-            h = np.full(n, heading_from)
-        s_parts.append(np.full(n, s_here))
-        v_parts.append(np.zeros(n))
-        h_parts.append(h)
-        run_parts.append(np.full(n, -1.0))
-        return heading_from + turn
+@dataclass(slots=True)
+class _Timeline:
+    """The samples of the walk in order: arc length, speed, run index, headings of stills."""
 
-    add_still(start_pause_s, heading_now, 0.0, 1.0, 0.0)
-    for r in range(len(boundaries) - 1):
-        a, b = boundaries[r], boundaries[r + 1]
-        # speed-limit segments of this run: primitives clipped to [a, b]
-        starts = np.clip(geo.s0, a, b)
-        ends = np.clip(geo.s0 + geo.length, a, b)
-        keep = ends - starts > 1e-9
-        idx = np.flatnonzero(keep)
-        limits = leg_speed[geo.leg[idx]].copy()
-        curv = np.abs(geo.k[idx])
-        arc = curv > 0
-        limits[arc] = np.minimum(limits[arc], np.sqrt(p.lateral_accel_m_s2 / curv[arc]))
-        # arcs join two legs: use the slower of both
-        nxt = np.minimum(geo.leg[idx] + 1, n_legs - 1)
-        limits[arc] = np.minimum(limits[arc], leg_speed[nxt[arc]])
-        seg_s0 = starts[idx] - a
-        seg_s0[0] = 0.0
-        est_time = (b - a) / max(float(np.min(limits)), 0.05) + 20.0
-        s_run, v_run = _run_profile_kernel(seg_s0, limits, b - a, dt, p.accel_m_s2,
-                                           p.decel_m_s2, int(est_time / dt) + 10)
-        s_parts.append(a + s_run)
-        v_parts.append(v_run)
-        h_parts.append(None)
-        run_parts.append(np.full(len(s_run), float(r)))
-        _, h_end, _ = geo.evaluate(np.array([b - 1e-9]))
-        turn, rate, stop = pauses[r]
-        still = stop + (max(abs(turn) * 1.875 / rate, p.min_turn_s) if abs(turn) > 0 else 0.0)
-        if r == len(boundaries) - 2:
-            still += end_pause_s
-        add_still(still, float(h_end[0]), turn, rate, b)
+    s: list[FloatArray]
+    v: list[FloatArray]
+    heading: list[FloatArray | None]
+    run: list[FloatArray]
 
-    s_all = np.concatenate(s_parts)
-    v_all = np.concatenate(v_parts)
-    run_id = np.concatenate(run_parts).astype(np.int64)
-    n_total = len(s_all)
-    t = np.asarray(t0_s + np.arange(n_total) * dt, dtype=np.float64)
+    def add_still(self, heading_rad: FloatArray, *, s_m: float) -> None:
+        n = len(heading_rad)
+        if n == 0:
+            return
+        self.s.append(np.full(n, s_m))
+        self.v.append(np.zeros(n))
+        self.heading.append(heading_rad)
+        self.run.append(np.full(n, -1.0))
+
+    def add_run(self, s_m: FloatArray, v_m_s: FloatArray, *, run: int) -> None:
+        self.s.append(s_m)
+        self.v.append(v_m_s)
+        self.heading.append(None)
+        self.run.append(np.full(len(s_m), float(run)))
+
+
+def _body_pose(geo: PathGeometry, line: _Timeline, *, s_all: FloatArray, run_id: IntArray,
+               boundaries: Sequence[float], smoothing_samples: float
+               ) -> tuple[FloatArray, FloatArray]:
+    """Position (m) and smoothed heading (rad) per sample: the path's, stills' headings kept."""
     # evaluate each run strictly inside its span so corner headings belong to the right leg
     s_eval = s_all.copy()
     for r in range(len(boundaries) - 1):
@@ -435,13 +363,55 @@ def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
     xyz, h_path, _ = geo.evaluate(s_eval)
     heading = h_path.copy()
     pos = 0
-    for part_s, part_h in zip(s_parts, h_parts, strict=True):
+    for part_s, part_h in zip(line.s, line.heading, strict=True):
         if part_h is not None:
             heading[pos:pos + len(part_s)] = part_h
         pos += len(part_s)
     # the body does not turn with infinite angular acceleration at line/arc joints
-    heading = wrap_angle(gaussian_filter1d(np.unwrap(heading), p.heading_smoothing_s / dt,
+    heading = wrap_angle(gaussian_filter1d(np.unwrap(heading), smoothing_samples,
                                            mode="nearest"))
+    return xyz, heading
+
+
+def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
+                    params: MotionParams | None = None, start_pause_s: float = 2.0,
+                    end_pause_s: float = 2.0, t0_s: float = 0.0) -> MotionTruth:
+    """Sample the motion along ``waypoints`` at ``rate_hz``.
+
+    The person stands still for ``start_pause_s`` before walking and ``end_pause_s`` after.
+    """
+    p = params or MotionParams()
+    _check_waypoints(waypoints, rate_hz=rate_hz)
+    geo = build_geometry(waypoints)
+    dt = 1.0 / rate_hz
+    leg_gait, leg_activity, leg_speed = _leg_labels(waypoints)
+    boundaries, pauses = _run_boundaries(waypoints, geo)
+    line = _Timeline([], [], [], [])
+    line.add_still(still_headings(duration_s=start_pause_s, heading_rad=float(geo.h0[0]),
+                                   turn_rad=0.0, turn_rate_rad_s=1.0, dt_s=dt,
+                                   min_turn_s=p.min_turn_s), s_m=0.0)
+    for r in range(len(boundaries) - 1):
+        a, b = boundaries[r], boundaries[r + 1]
+        seg_s0, limits = run_speed_limits(geo, start_m=a, end_m=b, leg_speed_m_s=leg_speed,
+                                           lateral_accel_m_s2=p.lateral_accel_m_s2)
+        est_time = (b - a) / max(float(np.min(limits)), 0.05) + 20.0
+        s_run, v_run = run_profile_kernel(seg_s0, limits, b - a, dt, p.accel_m_s2,
+                                           p.decel_m_s2, int(est_time / dt) + 10)
+        line.add_run(a + s_run, v_run, run=r)
+        _, h_end, _ = geo.evaluate(np.array([b - 1e-9]))
+        turn, rate, stop = pauses[r]
+        still = stop + (max(abs(turn) * 1.875 / rate, p.min_turn_s) if abs(turn) > 0 else 0.0)
+        if r == len(boundaries) - 2:
+            still += end_pause_s
+        line.add_still(still_headings(duration_s=still, heading_rad=float(h_end[0]),
+                                       turn_rad=turn, turn_rate_rad_s=rate, dt_s=dt,
+                                       min_turn_s=p.min_turn_s), s_m=b)
+    s_all = np.concatenate(line.s)
+    v_all = np.concatenate(line.v)
+    run_id = np.concatenate(line.run).astype(np.int64)
+    t = np.asarray(t0_s + np.arange(len(s_all)) * dt, dtype=np.float64)
+    xyz, heading = _body_pose(geo, line, s_all=s_all, run_id=run_id, boundaries=boundaries,
+                              smoothing_samples=p.heading_smoothing_s / dt)
     moving = run_id >= 0
     leg_idx = geo.leg_at(s_all)
     gait = np.where(moving, leg_gait[leg_idx], GAIT_WALK)

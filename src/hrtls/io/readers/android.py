@@ -133,40 +133,13 @@ def _orientation_q(angles_deg: FloatArray, pitch_sign: float, roll_sign: float) 
     return quat_normalize(quat_multiply(q, quat_axis("y", roll_sign * a[:, 2])))
 
 
-def read_android(path: Path | str, *, repair: bool = False, time_unit: str = "auto",
-                 accel_unit: str = "auto", gyro_unit: str = "auto", mag_unit: str = "auto",
-                 sensors: Mapping[str, str] | None = None,
-                 check_units: bool = True, max_bytes: int = DEFAULT_MAX_BYTES) -> Session:
-    """Read Android per-sensor text files (a folder, a zip, or one file) into a session.
+_RawFile = tuple[FloatArray, FloatArray, np.ndarray, str]
+"""``(raw timestamps, values, line numbers, file label)`` of one sensor file."""
 
-    Parameters
-    ----------
-    path:
-        A folder or zip of per-sensor files, or one accelerometer file.
-    repair:
-        Drop non-finite rows, sort backward times and merge duplicated times with a
-        :class:`~hrtls.errors.RepairWarning`; without it they raise :class:`InputError`
-        naming the file line.
-    time_unit:
-        ``"auto"`` (guess from the sample spacing), ``"s"``, ``"ms"``, ``"us"`` or ``"ns"``.
-    accel_unit, gyro_unit, mag_unit:
-        ``"auto"`` (SI unless the values clearly are another unit) or a unit such as ``"g"``,
-        ``"deg/s"``, ``"gauss"``.
-    sensors:
-        Explicit ``{file name: sensor}`` (sensor: accelerometer, gyroscope, magnetometer,
-        orientation) for files whose names do not tell.
-    check_units:
-        Reject an IMU whose units still look wrong after conversion (g, deg/s, gauss ...)
-        with a :class:`~hrtls.errors.UnitError`; False keeps such data as it is.
-    max_bytes:
-        Cap on the size read (zip: total uncompressed size).
 
-    Raises
-    ------
-    FormatError, InputError, UnitError
-        Naming the file, line and field that are wrong.
-    """
-    src = open_source(path, max_bytes=max_bytes)
+def _assign_sensors(src: Source, *, sensors: Mapping[str, str] | None
+                    ) -> tuple[dict[str, str], list[str]]:
+    """``({file: sensor}, files skipped)``: each file's sensor, from ``sensors`` or its name."""
     explicit = {PurePosixPath(k).name.lower(): v for k, v in (sensors or {}).items()}
     for name, given in explicit.items():
         if given not in _KINDS:
@@ -203,34 +176,36 @@ def read_android(path: Path | str, *, repair: bool = False, time_unit: str = "au
                           hint="pass sensors={'file': 'accelerometer'} if the name does not "
                           "say it" + (f"; files seen: {', '.join(skipped[:8])}" if skipped
                                       else ""))
-    notes: list[str] = []
-    raw: dict[str, tuple[FloatArray, FloatArray, np.ndarray, str]] = {}
-    for name, kind in assigned.items():
-        raw[kind] = _read_file(src, name)
-    # one time unit for all files, and one origin
+    return assigned, skipped
+
+
+def _common_time_scale(raw: dict[str, _RawFile], *, time_unit: str, where: str
+                       ) -> tuple[float, str]:
+    """``(seconds per tick, unit name)`` shared by all files; files that disagree raise."""
     units = {}
-    for kind, (t_raw, _, _, where) in raw.items():
-        units[kind] = time_scale(t_raw, time_unit, where=where)
+    for kind, (t_raw, _, _, file) in raw.items():
+        units[kind] = time_scale(t_raw, time_unit, where=file)
     if len({u for _, u in units.values()}) > 1:
         listing = ", ".join(f"{k}: {u}" for k, (_, u) in units.items())
-        raise FormatError(f"files disagree on the time unit ({listing})", where=str(src.path),
+        raise FormatError(f"files disagree on the time unit ({listing})", where=where,
                           expected="one time unit for all sensors",
                           hint="pass time_unit='ms' or 'ns'")
-    scale, unit_name = next(iter(units.values()))
-    firsts = [float(np.nanmin(r[0])) for r in raw.values() if np.isfinite(r[0]).any()]
-    t0 = min(firsts) if firsts else 0.0
-    notes.append(f"timestamps in {unit_name} "
-                 f"({'guessed from the sample spacing' if time_unit == 'auto' else 'stated'}),"
-                 f" t = 0 at the first sample")
-    time_origin = t0 * scale if 1e9 <= t0 * scale <= 4e9 else None
+    return next(iter(units.values()))
 
+
+def _sensor_series(raw: dict[str, _RawFile], *, t0: float, scale_s: float, repair: bool,
+                   units: Mapping[str, str], notes: list[str]
+                   ) -> tuple[dict[str, SensorSeries], tuple[FloatArray, FloatArray] | None]:
+    """Checked series in SI per sensor, and ``(t_s, angles_deg)`` of the orientation file.
+
+    ``units`` maps accelerometer/gyroscope/magnetometer to their stated unit (or "auto").
+    """
     series: dict[str, SensorSeries] = {}
     orient_raw: tuple[FloatArray, FloatArray] | None = None
-    quantity: dict[str, tuple[Quantity, str]] = {
-        "accelerometer": ("accel", accel_unit), "gyroscope": ("gyro", gyro_unit),
-        "magnetometer": ("mag", mag_unit)}
+    quantity: dict[str, Quantity] = {"accelerometer": "accel", "gyroscope": "gyro",
+                                     "magnetometer": "mag"}
     for kind, (t_raw, values, lines, where) in raw.items():
-        t = (t_raw - t0) * scale
+        t = (t_raw - t0) * scale_s
         t, (v,) = check_stream(t, [values], lines=lines, where=where, repair=repair)
         if len(t) == 0:
             if kind == "accelerometer":
@@ -241,22 +216,79 @@ def read_android(path: Path | str, *, repair: bool = False, time_unit: str = "au
         if kind == "orientation":
             orient_raw = (t, v)
             continue
-        q_name, unit = quantity[kind]
-        v = to_si(v, q_name, unit, where=Path(where).name, notes=notes)
+        v = to_si(v, quantity[kind], units[kind], where=Path(where).name, notes=notes)
         series[kind] = SensorSeries(t, v, Path(where).name)
+    return series, orient_raw
+
+
+def _legacy_orientation(t_s: FloatArray, angles_deg: FloatArray, *, name: str,
+                        accel: SensorSeries, mag: SensorSeries | None, notes: list[str]
+                        ) -> OrientationSeries:
+    """``TYPE_ORIENTATION`` angles as ``q_nd``, with the pitch/roll signs the data support."""
+    candidates = [(f"legacy TYPE_ORIENTATION, pitch {ps:+.0f}, roll {rs:+.0f}",
+                   (lambda ps=ps, rs=rs: _orientation_q(angles_deg, ps, rs)))
+                  for ps, rs in ((-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0))]
+    _, q = choose_orientation(t_s, candidates, accel=accel, mag=mag, where=name, notes=notes)
+    return OrientationSeries(t_s, q, name)
+
+
+def read_android(path: Path | str, *, repair: bool = False, time_unit: str = "auto",
+                 accel_unit: str = "auto", gyro_unit: str = "auto", mag_unit: str = "auto",
+                 sensors: Mapping[str, str] | None = None,
+                 check_units: bool = True, max_bytes: int = DEFAULT_MAX_BYTES) -> Session:
+    """Read Android per-sensor text files (a folder, a zip, or one file) into a session.
+
+    Parameters
+    ----------
+    path:
+        A folder or zip of per-sensor files, or one accelerometer file.
+    repair:
+        Drop non-finite rows, sort backward times and merge duplicated times with a
+        :class:`~hrtls.errors.RepairWarning`; without it they raise :class:`InputError`
+        naming the file line.
+    time_unit:
+        ``"auto"`` (guess from the sample spacing), ``"s"``, ``"ms"``, ``"us"`` or ``"ns"``.
+    accel_unit, gyro_unit, mag_unit:
+        ``"auto"`` (SI unless the values clearly are another unit) or a unit such as ``"g"``,
+        ``"deg/s"``, ``"gauss"``.
+    sensors:
+        Explicit ``{file name: sensor}`` (sensor: accelerometer, gyroscope, magnetometer,
+        orientation) for files whose names do not tell.
+    check_units:
+        Reject an IMU whose units still look wrong after conversion (g, deg/s, gauss ...)
+        with a :class:`~hrtls.errors.UnitError`; False keeps such data as it is.
+    max_bytes:
+        Cap on the size read (zip: total uncompressed size).
+
+    Raises
+    ------
+    FormatError, InputError, UnitError
+        Naming the file, line and field that are wrong.
+    """
+    src = open_source(path, max_bytes=max_bytes)
+    assigned, skipped = _assign_sensors(src, sensors=sensors)
+    notes: list[str] = []
+    raw: dict[str, _RawFile] = {}
+    for name, kind in assigned.items():
+        raw[kind] = _read_file(src, name)
+    # one time unit for all files, and one origin
+    scale, unit_name = _common_time_scale(raw, time_unit=time_unit, where=str(src.path))
+    firsts = [float(np.nanmin(r[0])) for r in raw.values() if np.isfinite(r[0]).any()]
+    t0 = min(firsts) if firsts else 0.0
+    notes.append(f"timestamps in {unit_name} "
+                 f"({'guessed from the sample spacing' if time_unit == 'auto' else 'stated'}),"
+                 f" t = 0 at the first sample")
+    time_origin = t0 * scale if 1e9 <= t0 * scale <= 4e9 else None
+    series, orient_raw = _sensor_series(
+        raw, t0=t0, scale_s=scale, repair=repair, notes=notes,
+        units={"accelerometer": accel_unit, "gyroscope": gyro_unit, "magnetometer": mag_unit})
     accel = series["accelerometer"]
     imu = ImuStream(accel, series.get("gyroscope"), series.get("magnetometer"),
                     check_units=check_units)
     orientation = None
     if orient_raw is not None:
-        t_o, ang = orient_raw
-        oname = Path(raw["orientation"][3]).name
-        candidates = [(f"legacy TYPE_ORIENTATION, pitch {ps:+.0f}, roll {rs:+.0f}",
-                       (lambda ps=ps, rs=rs: _orientation_q(ang, ps, rs)))
-                      for ps, rs in ((-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0))]
-        _, q = choose_orientation(t_o, candidates, accel=accel, mag=imu.mag, where=oname,
-                                  notes=notes)
-        orientation = OrientationSeries(t_o, q, oname)
+        orientation = _legacy_orientation(*orient_raw, name=Path(raw["orientation"][3]).name,
+                                          accel=accel, mag=imu.mag, notes=notes)
     source: dict[str, Any] = {"format": "android", "files": [src.label(n) for n in assigned],
                               "sensors": {src.label(n): k for n, k in assigned.items()},
                               "time_unit": unit_name}

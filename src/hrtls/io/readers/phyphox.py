@@ -164,6 +164,53 @@ def _time_origin(src: Source, notes: list[str]) -> float | None:
     return None
 
 
+def _find_sensor_columns(src: Source) -> tuple[dict[str, _Found], list[str]]:
+    """The sensor column groups of the export's CSVs by kind, and the files they are in."""
+    found: dict[str, _Found] = {}
+    used: list[str] = []
+    for name in src.names:
+        if not name.lower().endswith((".csv", ".txt")) or name.lower().startswith("meta/") \
+                or "/meta/" in name.lower():
+            continue
+        if not looks_like_phyphox(src.head(name, 4096)):
+            continue
+        table = read_header_csv(src.read(name), where=src.label(name))
+        groups = _scan_table(table, PurePosixPath(name).name)
+        if groups:
+            used.append(src.label(name))
+        for g in groups:
+            if g.kind in found:
+                raise FormatError(f"{g.kind} data in two files ({found[g.kind].where}, "
+                                  f"{g.where})", where=str(src.path),
+                                  expected="one export per sensor")
+            found[g.kind] = g
+    if not found:
+        raise FormatError("no phyphox sensor columns", where=str(src.path),
+                          expected='a CSV with "Time (s)" and columns like "Acceleration x '
+                          '(m/s^2)"')
+    return found, used
+
+
+def _series_in_si(found: dict[str, _Found], *, repair: bool, notes: list[str]
+                  ) -> dict[str, SensorSeries]:
+    """Checked series per kind, IMU quantities converted to SI (one unit per x, y, z)."""
+    series: dict[str, SensorSeries] = {}
+    for kind, g in found.items():
+        t, (v,) = check_stream(g.t, [g.values], lines=g.lines, where=g.where, repair=repair)
+        if len(t) == 0:
+            notes.append(f"{g.where}: no {kind} samples, not used")
+            continue
+        quantity = _QUANTITY.get(kind)
+        if quantity is not None:
+            unit = g.units[0] or "auto"
+            if any(u != g.units[0] for u in g.units):
+                raise FormatError(f"axes in different units ({', '.join(map(str, g.units))})",
+                                  where=f"{g.where} line 1", expected="one unit for x, y, z")
+            v = to_si(v, quantity, unit, where=f"{Path(g.where).name} {kind}", notes=notes)
+        series[kind] = SensorSeries(t, v, f"{Path(g.where).name} {kind}")
+    return series
+
+
 def read_phyphox(path: Path | str, *, repair: bool = False, check_units: bool = True,
                  max_bytes: int = DEFAULT_MAX_BYTES) -> Session:
     """Read a phyphox CSV export (zip, folder or one CSV) into a session.
@@ -190,42 +237,8 @@ def read_phyphox(path: Path | str, *, repair: bool = False, check_units: bool = 
     """
     src = open_source(path, max_bytes=max_bytes)
     notes: list[str] = []
-    found: dict[str, _Found] = {}
-    used: list[str] = []
-    for name in src.names:
-        if not name.lower().endswith((".csv", ".txt")) or name.lower().startswith("meta/") \
-                or "/meta/" in name.lower():
-            continue
-        if not looks_like_phyphox(src.head(name, 4096)):
-            continue
-        table = read_header_csv(src.read(name), where=src.label(name))
-        groups = _scan_table(table, PurePosixPath(name).name)
-        if groups:
-            used.append(src.label(name))
-        for g in groups:
-            if g.kind in found:
-                raise FormatError(f"{g.kind} data in two files ({found[g.kind].where}, "
-                                  f"{g.where})", where=str(src.path),
-                                  expected="one export per sensor")
-            found[g.kind] = g
-    if not found:
-        raise FormatError("no phyphox sensor columns", where=str(src.path),
-                          expected='a CSV with "Time (s)" and columns like "Acceleration x '
-                          '(m/s^2)"')
-    series: dict[str, SensorSeries] = {}
-    for kind, g in found.items():
-        t, (v,) = check_stream(g.t, [g.values], lines=g.lines, where=g.where, repair=repair)
-        if len(t) == 0:
-            notes.append(f"{g.where}: no {kind} samples, not used")
-            continue
-        quantity = _QUANTITY.get(kind)
-        if quantity is not None:
-            unit = g.units[0] or "auto"
-            if any(u != g.units[0] for u in g.units):
-                raise FormatError(f"axes in different units ({', '.join(map(str, g.units))})",
-                                  where=f"{g.where} line 1", expected="one unit for x, y, z")
-            v = to_si(v, quantity, unit, where=f"{Path(g.where).name} {kind}", notes=notes)
-        series[kind] = SensorSeries(t, v, f"{Path(g.where).name} {kind}")
+    found, used = _find_sensor_columns(src)
+    series = _series_in_si(found, repair=repair, notes=notes)
     accel = series.get("accel")
     if accel is not None and len(accel) >= 20:
         norm = float(np.median(np.linalg.norm(accel.values, axis=1)))

@@ -50,6 +50,7 @@ from hrtls.io.readers._orientation import FRAME_TO_ENU, choose_orientation, refe
 from hrtls.io.readers._text import (
     HeaderCsv,
     IntArray,
+    Quantity,
     check_stream,
     csv_rows,
     decode_text,
@@ -66,6 +67,7 @@ SENSOR_LOGGER_FILES = ("TotalAcceleration.csv", "Accelerometer.csv", "Gravity.cs
                        "Metadata.csv")
 """Files of an export that the reader uses."""
 
+_XYZ = ("x", "y", "z")
 _ORIENTATION_CHOICES = ("auto", "none", *FRAME_TO_ENU, *(f"{f}-inverse" for f in FRAME_TO_ENU))
 
 
@@ -135,6 +137,120 @@ def _stream(reader: _Reader, base: str, columns: tuple[str, ...], *, repair: boo
     return t, v, where
 
 
+def _resolve_platform(platform: str, *, meta_row: dict[str, str], has_total: bool,
+                      notes: list[str]) -> str:
+    """The platform whose conventions apply: the stated one, else from the export."""
+    if platform != "auto":
+        return platform
+    standardised = meta_row.get("standardisation", "").lower() == "true"
+    found = meta_row.get("platform", "").lower()
+    if found in ("ios", "android"):
+        platform = "ios-standardised" if found == "ios" and standardised else found
+        notes.append(f"platform {platform} (Metadata.csv)")
+    elif has_total:
+        platform = "android"
+        notes.append("platform android (TotalAcceleration.csv present; no Metadata.csv)")
+    else:
+        platform = "android"
+        notes.append("platform unknown (no Metadata.csv): Android sign conventions "
+                     "assumed, unverified; pass platform='ios' for an iPhone export")
+    return platform
+
+
+def _user_plus_gravity(t_a: FloatArray, user_acc: FloatArray,
+                       grav: tuple[FloatArray, FloatArray, str], *, notes: list[str]
+                       ) -> FloatArray:
+    """``Accelerometer.csv + Gravity.csv``, gravity interpolated when the times differ."""
+    t_g, g, _ = grav
+    if len(t_g) == len(t_a) and np.array_equal(t_g, t_a):
+        notes.append("accelerometer = Accelerometer.csv + Gravity.csv")
+        return user_acc + g
+    g_i = np.column_stack([np.interp(t_a, t_g, g[:, k]) for k in range(3)])
+    notes.append("accelerometer = Accelerometer.csv + Gravity.csv (gravity "
+                 "interpolated onto the accelerometer's times)")
+    return user_acc + g_i
+
+
+def _require_gravity_included(acc: FloatArray, *, where: str, notes: list[str]) -> None:
+    """Accept ``Accelerometer.csv`` alone only when its median norm is about 1 g."""
+    norm = float(np.median(np.linalg.norm(acc, axis=1))) if len(acc) else 0.0
+    near_g = 0.7 * G_TO_M_S2 <= norm <= 1.3 * G_TO_M_S2 or 0.7 <= norm <= 1.3
+    if not near_g:
+        raise FormatError(
+            f"Accelerometer.csv holds acceleration without gravity (median |a| = "
+            f"{norm:.3g}) and there is no Gravity.csv or TotalAcceleration.csv",
+            where=where, expected="the specific force (with gravity)",
+            hint="enable Gravity or Total Acceleration in the app")
+    notes.append(f"accelerometer = Accelerometer.csv, which includes gravity "
+                 f"(median |a| = {norm:.3g})")
+
+
+def _specific_force(reader: _Reader, *, flip: bool, repair: bool, notes: list[str]
+                    ) -> tuple[FloatArray, FloatArray, str]:
+    """``(t_s, specific force, file)`` from the acceleration files (see the module docstring)."""
+    total = _stream(reader, "TotalAcceleration.csv", _XYZ, repair=repair)
+    if total is not None:
+        notes.append("accelerometer = TotalAcceleration.csv (specific force incl. gravity)")
+        return total
+    user = _stream(reader, "Accelerometer.csv", _XYZ, repair=repair)
+    grav = _stream(reader, "Gravity.csv", _XYZ, repair=repair)
+    if user is None:
+        raise FormatError("no samples in TotalAcceleration.csv or Accelerometer.csv",
+                          where=str(reader.src.path),
+                          expected="a Sensor Logger export with accelerometer data")
+    t_a, acc, where_a = user
+    if grav is not None:
+        acc = _user_plus_gravity(t_a, acc, grav, notes=notes)
+    else:
+        _require_gravity_included(acc, where=where_a, notes=notes)
+    if flip:
+        acc = -acc
+        notes.append("iOS acceleration negated to the specific-force convention (iOS "
+                     "reports it with the opposite sign of Android)")
+    return t_a, acc, where_a
+
+
+def _orientation_series(reader: _Reader, *, orientation: str, platform: str,
+                        accel: SensorSeries, mag: SensorSeries | None, repair: bool,
+                        notes: list[str]) -> OrientationSeries | None:
+    """``q_nd`` from ``Orientation.csv`` in the reading the data support, or None."""
+    ori = None if orientation == "none" else _stream(
+        reader, "Orientation.csv", ("qw", "qx", "qy", "qz"), repair=repair)
+    if ori is None:
+        return None
+    t_o, q_raw, where = ori
+    norms = np.linalg.norm(q_raw, axis=1)
+    if np.any(norms < 1e-6):
+        i = int(np.flatnonzero(norms < 1e-6)[0])
+        raise InputError("zero quaternion", where=f"{where} line "
+                         f"{int(reader.tables['Orientation.csv'].lines[i])}",
+                         expected="unit quaternions qw,qx,qy,qz")
+    q_raw = q_raw / norms[:, None]
+    if orientation == "auto":
+        first = "nwu" if platform.startswith("ios") else "enu"
+        order = [first] + [f for f in FRAME_TO_ENU if f != first]
+        names = [(f, False) for f in order] + [(f, True) for f in order]
+    else:
+        frame, _, inv = orientation.partition("-")
+        names = [(frame, bool(inv))]
+    candidates = [(_reading_name(f, inv),
+                   (lambda f=f, inv=inv: reference_to_enu(q_raw, f, inverse=inv)))
+                  for f, inv in names]
+    _, q_nd = choose_orientation(t_o, candidates, accel=accel, mag=mag,
+                                 where="Orientation.csv", notes=notes,
+                                 verify_only=orientation != "auto")
+    return OrientationSeries(t_o, q_nd, "Orientation.csv")
+
+
+def _imu_series(reader: _Reader, base: str, quantity: Quantity, unit: str, *, repair: bool,
+                notes: list[str]) -> SensorSeries | None:
+    """An x/y/z sensor file as a series in SI units, or None when absent/empty."""
+    found = _stream(reader, base, _XYZ, repair=repair)
+    if found is None:
+        return None
+    return SensorSeries(found[0], to_si(found[1], quantity, unit, where=base, notes=notes), base)
+
+
 def read_sensorlogger(path: Path | str, *, repair: bool = False, platform: str = "auto",
                       accel_unit: str = "auto", gyro_unit: str = "auto",
                       mag_unit: str = "auto", orientation: str = "auto",
@@ -181,105 +297,22 @@ def read_sensorlogger(path: Path | str, *, repair: bool = False, platform: str =
                           expected=f"some of {', '.join(SENSOR_LOGGER_FILES)}")
     notes: list[str] = []
     meta_row = _metadata(src)
-    standardised = meta_row.get("standardisation", "").lower() == "true"
-    if platform == "auto":
-        found = meta_row.get("platform", "").lower()
-        if found in ("ios", "android"):
-            platform = "ios-standardised" if found == "ios" and standardised else found
-            notes.append(f"platform {platform} (Metadata.csv)")
-        elif "TotalAcceleration.csv" in reader.tables:
-            platform = "android"
-            notes.append("platform android (TotalAcceleration.csv present; no Metadata.csv)")
-        else:
-            platform = "android"
-            notes.append("platform unknown (no Metadata.csv): Android sign conventions "
-                         "assumed, unverified; pass platform='ios' for an iPhone export")
-    flip = platform == "ios"
-    xyz = ("x", "y", "z")
-
-    # specific force
-    total = _stream(reader, "TotalAcceleration.csv", xyz, repair=repair)
-    if total is not None:
-        t_a, acc, where_a = total
-        notes.append("accelerometer = TotalAcceleration.csv (specific force incl. gravity)")
-    else:
-        user = _stream(reader, "Accelerometer.csv", xyz, repair=repair)
-        grav = _stream(reader, "Gravity.csv", xyz, repair=repair)
-        if user is None:
-            raise FormatError("no samples in TotalAcceleration.csv or Accelerometer.csv",
-                              where=str(src.path),
-                              expected="a Sensor Logger export with accelerometer data")
-        t_a, acc, where_a = user
-        if grav is not None:
-            t_g, g, _ = grav
-            if len(t_g) == len(t_a) and np.array_equal(t_g, t_a):
-                acc = acc + g
-                notes.append("accelerometer = Accelerometer.csv + Gravity.csv")
-            else:
-                g_i = np.column_stack([np.interp(t_a, t_g, g[:, k]) for k in range(3)])
-                acc = acc + g_i
-                notes.append("accelerometer = Accelerometer.csv + Gravity.csv (gravity "
-                             "interpolated onto the accelerometer's times)")
-        else:
-            norm = float(np.median(np.linalg.norm(acc, axis=1))) if len(acc) else 0.0
-            near_g = 0.7 * G_TO_M_S2 <= norm <= 1.3 * G_TO_M_S2 or 0.7 <= norm <= 1.3
-            if not near_g:
-                raise FormatError(
-                    f"Accelerometer.csv holds acceleration without gravity (median |a| = "
-                    f"{norm:.3g}) and there is no Gravity.csv or TotalAcceleration.csv",
-                    where=where_a, expected="the specific force (with gravity)",
-                    hint="enable Gravity or Total Acceleration in the app")
-            notes.append(f"accelerometer = Accelerometer.csv, which includes gravity "
-                         f"(median |a| = {norm:.3g})")
-        if flip:
-            acc = -acc
-            notes.append("iOS acceleration negated to the specific-force convention (iOS "
-                         "reports it with the opposite sign of Android)")
+    platform = _resolve_platform(platform, meta_row=meta_row,
+                                 has_total="TotalAcceleration.csv" in reader.tables, notes=notes)
+    t_a, acc, where_a = _specific_force(reader, flip=platform == "ios", repair=repair,
+                                        notes=notes)
     acc = to_si(acc, "accel", accel_unit, where=Path(where_a).name, notes=notes)
     accel = SensorSeries(t_a, acc, Path(where_a).name)
-    gyro = mag = None
-    gy = _stream(reader, "Gyroscope.csv", xyz, repair=repair)
-    if gy is not None:
-        gyro = SensorSeries(gy[0], to_si(gy[1], "gyro", gyro_unit, where="Gyroscope.csv",
-                                         notes=notes), "Gyroscope.csv")
-    mg = _stream(reader, "Magnetometer.csv", xyz, repair=repair)
-    if mg is not None:
-        mag = SensorSeries(mg[0], to_si(mg[1], "mag", mag_unit, where="Magnetometer.csv",
-                                        notes=notes), "Magnetometer.csv")
+    gyro = _imu_series(reader, "Gyroscope.csv", "gyro", gyro_unit, repair=repair, notes=notes)
+    mag = _imu_series(reader, "Magnetometer.csv", "mag", mag_unit, repair=repair, notes=notes)
     imu = ImuStream(accel, gyro, mag, check_units=check_units)
     pressure = None
     bar = _stream(reader, "Barometer.csv", ("pressure",), repair=repair)
     if bar is not None:
         pressure = SensorSeries(bar[0], bar[1] * HPA_TO_PA, "Barometer.csv")
         notes.append("Barometer.csv pressure converted from hPa to Pa")
-
-    orient = None
-    ori = None if orientation == "none" else _stream(
-        reader, "Orientation.csv", ("qw", "qx", "qy", "qz"), repair=repair)
-    if ori is not None:
-        t_o, q_raw, _ = ori
-        norms = np.linalg.norm(q_raw, axis=1)
-        if np.any(norms < 1e-6):
-            i = int(np.flatnonzero(norms < 1e-6)[0])
-            raise InputError("zero quaternion", where=f"{ori[2]} line "
-                             f"{int(reader.tables['Orientation.csv'].lines[i])}",
-                             expected="unit quaternions qw,qx,qy,qz")
-        q_raw = q_raw / norms[:, None]
-        if orientation == "auto":
-            first = "nwu" if platform.startswith("ios") else "enu"
-            order = [first] + [f for f in FRAME_TO_ENU if f != first]
-            names = [(f, False) for f in order] + [(f, True) for f in order]
-        else:
-            frame, _, inv = orientation.partition("-")
-            names = [(frame, bool(inv))]
-        candidates = [(_reading_name(f, inv),
-                       (lambda f=f, inv=inv: reference_to_enu(q_raw, f, inverse=inv)))
-                      for f, inv in names]
-        _, q_nd = choose_orientation(t_o, candidates, accel=accel, mag=mag,
-                                     where="Orientation.csv", notes=notes,
-                                     verify_only=orientation != "auto")
-        orient = OrientationSeries(t_o, q_nd, "Orientation.csv")
-
+    orient = _orientation_series(reader, orientation=orientation, platform=platform,
+                                 accel=accel, mag=mag, repair=repair, notes=notes)
     source: dict[str, Any] = {"format": "sensorlogger",
                               "files": [t.where for t in reader.tables.values()],
                               "platform": platform}
