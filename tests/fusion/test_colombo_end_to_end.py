@@ -94,3 +94,18 @@ def test_chunked_equals_offline_with_fixes(circle: SimulationResult, name: str) 
     assert len(a) == len(b)
     np.testing.assert_allclose(a.t, b.t, atol=1e-9, rtol=0)
     np.testing.assert_allclose(a.xyz, b.xyz, atol=1e-6, rtol=0)
+
+
+def test_paper_preset_stretching_on_the_square() -> None:
+    """colombo2014 (velocity model, eq. 24-28 fed back with gain 1) on the square: the
+    stretching runs in the product path and yields usable yaw pseudo-measurements; on the
+    circle the chords between 10 s fixes are mostly shorter than ``min_chord_m``."""
+    sim = run_scenario("colombo_square", 0, tp_s=10.0)
+    tracker = Tracker(_fix_period_of(10.0)(preset("colombo2014")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tracker.run(sim.session.with_parts(truth=None, checkpoints=None))
+    assert tracker.yaw_pseudo
+    for p in tracker.yaw_pseudo:
+        assert np.isfinite(p.yaw_rad) and p.var_yaw_rad2 > 0
+        assert abs(p.correction_rad) <= 0.5

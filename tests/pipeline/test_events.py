@@ -46,7 +46,8 @@ def params(mode_state: bool, chan: bool, has_imu: bool = True, *,
         step=sp, path_loss=model or PathLossModel(), range_params=RangeParams(),
         channel=ChannelEstimator().params if chan else None, random_walk=RandomWalkParams(),
         floor_snap=True, floor_height_m=3.0, floor_sigma_m=0.1,
-        gate_probability=gate_probability, heading_known=True, has_imu=has_imu,
+        gate_probability=gate_probability, heading_known=True, yaw_relative=False,
+        has_imu=has_imu,
         rss_min_distance_m=0.5, scan_jump=scan_mode == "wls", scan_wls_covariance=wls_cov,
         scan_sigma_position_m=2.0)
     return prm, sp
@@ -125,6 +126,27 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
     assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-12
     np.testing.assert_allclose(p, state.P, atol=1e-12)
     np.testing.assert_allclose(out["p"], np.transpose(out["p"], (0, 2, 1)), atol=0)
+
+
+def test_relative_input_yaw_is_aligned_to_the_start_heading() -> None:
+    """Gyro-only yaw in heading_mode "input": its zero is arbitrary, so the first step's heading
+    is mapped onto the known start heading (pi/2) and later headings keep their changes."""
+    prm, _ = params(False, False)
+    prm["yaw_relative"] = True
+    start = FilterState.initial(t=0.0, heading_rad=math.pi / 2)
+    x, p = start.x.copy(), start.P.copy()
+    sc, cov = state_record(start)
+    walk = int(Activity.WALKING)
+    data = np.array([[1.0, 0.3, 0.0, walk, 1e-4], [1.0, 0.3 + math.pi / 2, 0.0, walk, 1e-4]])
+    out = run_kernel(np.zeros(2, dtype=np.int64), np.array([1.0, 2.0]), data, prm, sc, cov, x, p)
+    np.testing.assert_allclose(out["x"][0, :2], [0.0, 1.0], atol=1e-12)     # north, not 0.3 rad
+    np.testing.assert_allclose(out["x"][1, :2], [-1.0, 1.0], atol=1e-12)    # then west
+    assert sc[0]["yaw_offset_rad"] == pytest.approx(math.pi / 2 - 0.3)
+    prm["yaw_relative"] = False                      # an absolute yaw is used as it is
+    x, p = start.x.copy(), start.P.copy()
+    sc, cov = state_record(start)
+    out = run_kernel(np.zeros(1, dtype=np.int64), np.array([1.0]), data[:1], prm, sc, cov, x, p)
+    np.testing.assert_allclose(out["x"][0, :2], [math.cos(0.3), math.sin(0.3)], atol=1e-12)
 
 
 obs_st = st.tuples(st.booleans(), st.floats(0.0, 20.0), st.floats(0.0, 20.0),

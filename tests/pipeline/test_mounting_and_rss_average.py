@@ -71,6 +71,35 @@ def test_handheld_mounting_is_estimated_and_noted(office: SimulationResult) -> N
     assert any(n.startswith("mounting: from the session") for n in res0.report["notes"])
 
 
+def test_auto_mounting_follows_the_session_placement(office: SimulationResult) -> None:
+    from hrtls.pipeline.mounting import uses_handheld_mounting
+
+    assert preset("default").attitude.mounting == "auto"
+    assert uses_handheld_mounting("auto", " Hand ") and uses_handheld_mounting("handheld", None)
+    assert not uses_handheld_mounting("auto", "belt") and not uses_handheld_mounting("auto", None)
+    assert not uses_handheld_mounting("session", "hand")
+    meta = office.session.meta.model_copy(update={"placement": "hand"})
+    res = Tracker(preset("default")).run(office.session.with_parts(meta=meta))
+    assert any(n.startswith("mounting: hand-held") for n in res.report["notes"])
+
+
+@pytest.mark.realdata
+def test_default_on_an_ipin_log_uses_the_handheld_mounting(shared_data) -> None:  # type: ignore[no-untyped-def]
+    """IPIN T04r01 with `default`: 17.2 m mean landmark error while the mounting was left
+    unknown; the reader now says the phone is hand-held."""
+    from hrtls.evaluate.metrics import checkpoint_errors
+    from hrtls.recordings import read_any
+
+    path = shared_data / "ipin2023" / "IPIN2023_T3_TrainingTrial04_repetition01.txt"
+    if not path.is_file():
+        pytest.skip("ipin2023 not present")
+    s = read_any(path)
+    assert s.meta.placement == "hand"
+    res = Tracker(preset("default")).run(s)
+    assert s.checkpoints is not None
+    assert float(np.mean(checkpoint_errors(res.trajectory, s.checkpoints)[1])) < 3.5
+
+
 def _chunked(cfg: TrackerConfig, sim: SimulationResult, chunk_s: float) -> TrackResult:
     s = sim.session
     tr = Tracker(cfg)

@@ -72,10 +72,33 @@ def test_refuses_unknown_classes_and_extensions() -> None:
         snap.pack({"x": Other()})
     body = msgpack.packb({"x": msgpack.ExtType(5, msgpack.packb(["os.system", {}]))})
     with pytest.raises(FormatError, match="unknown state class"):
-        snap.unpack(snap.MAGIC + bytes([snap.VERSION]) + zlib.compress(body))
+        snap.unpack(_framed(body))
     body = msgpack.packb({"x": msgpack.ExtType(42, b"")})
     with pytest.raises(FormatError, match="extension type 42"):
-        snap.unpack(snap.MAGIC + bytes([snap.VERSION]) + zlib.compress(body))
+        snap.unpack(_framed(body))
+    with pytest.raises(FormatError, match="corrupt snapshot"):
+        snap.unpack(_framed(body)[:-3])                                  # body cut off
+    with pytest.raises(FormatError, match="corrupt snapshot"):
+        snap.unpack(snap.MAGIC + bytes([snap.VERSION]) + b"\x01")       # no length
+
+
+def _framed(body: bytes) -> bytes:
+    """A version-4 snapshot around a hand-made msgpack body."""
+    import struct
+
+    import pyarrow as pa
+
+    return (snap.MAGIC + bytes([4]) + struct.pack("<I", len(body))
+            + pa.compress(body, codec="zstd", asbytes=True))
+
+
+def test_reads_version_3_snapshots() -> None:
+    """Version 3 (zlib) snapshots, as the service stored them before, are still read."""
+    state = {"a": np.arange(4.0), "b": (1, "x")}
+    body = snap._packb(state)
+    out = snap.unpack(snap.MAGIC + bytes([3]) + zlib.compress(body, 1))
+    np.testing.assert_array_equal(out["a"], state["a"])
+    assert out["b"] == (1, "x")
 
 
 def test_reads_version_2_snapshots() -> None:

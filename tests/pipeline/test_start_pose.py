@@ -56,3 +56,45 @@ def test_pose_time_before_recording_is_start(office: SimulationResult) -> None:
     res = Tracker(preset("default")).run(s)
     assert res.trajectory.t[0] == pytest.approx(s.time_span()[0])
     assert not any("start pose holds" in n for n in res.report["notes"])
+
+
+def test_unknown_start_is_the_anchors_centroid_with_their_spread() -> None:
+    from hrtls.data.landmarks import Landmark
+    from hrtls.pipeline import build
+    from hrtls.pipeline.build import Notes
+
+    lms = {k: Landmark(id=k, kind="anchor", position=p) for k, p in
+           {"a": (0.0, 0.0, 1.0), "b": (6.0, 0.0, 1.0), "c": (0.0, 8.0, 1.0),
+            "d": (6.0, 8.0, 1.0)}.items()}
+    lms["tag"] = Landmark(id="tag", kind="rfid", position=(100.0, 100.0, 0.0))  # not RSS
+    notes = Notes()
+    pose = build.unknown_start(preset("default"), lms, notes)
+    assert (pose.x, pose.y) == (3.0, 4.0)
+    assert pose.sigma_xy_m == pytest.approx(5.0)          # every anchor 5 m from the centre
+    assert pose.heading is None
+    assert any("no start pose" in n for n in notes.items)
+    off = preset("default").model_copy(update={
+        "rss": preset("default").rss.model_copy(update={"mode": "off"})})
+    assert build.unknown_start(off, lms, Notes()).sigma_xy_m == 0.5   # nothing places it
+
+
+@pytest.mark.realdata
+def test_ble_track_without_start_pose_starts_among_the_anchors(shared_data) -> None:  # type: ignore[no-untyped-def]
+    """Real BLE RSS (no IMU, no start pose): the track used to start at (0, 0) with 0.5 m
+    while the walker was 19 m away (p75 11.3 m on straight_02)."""
+    import warnings
+
+    from hrtls.recordings import read_any
+
+    path = shared_data / "ble_rssi" / "trk" / "straight_02_all_sensors.mbd"
+    if not path.is_file():
+        pytest.skip("ble_rssi not present")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = read_any(path, repair=True)
+        res = Tracker(preset("default")).run(s)
+    tr = res.trajectory
+    assert tr.cov_xy is not None
+    assert np.sqrt(tr.cov_xy[0, 0, 0]) > 3.0   # one reading in: still far from sure
+    _, err = position_errors(tr, s.truth)
+    assert float(np.percentile(err, 75)) < 3.5

@@ -105,8 +105,18 @@ def test_phone_log_with_a_body_worn_preset_gets_the_hint(shared_data: Path, tmp_
     log = shared_data / LOG
     if not log.exists():
         pytest.skip("ipin2023 recordings not available")
-    out = tmp_path / "default"
-    result = runner.invoke(app, ["track", str(log), "-o", str(out)])
+    # default takes the hand-held mounting from the reader's placement: no hint needed
+    out0 = tmp_path / "default"
+    result = runner.invoke(app, ["track", str(log), "-o", str(out0)])
+    assert result.exit_code == 0, result.output
+    assert "--preset handheld-phone" not in result.output
+    report = json.loads((out0 / "report.json").read_text())
+    assert any(n.startswith("mounting: hand-held") for n in report["notes"])
+    # a configuration that insists on the session's (unknown) mounting gets the hint
+    cfg = tmp_path / "body.toml"
+    cfg.write_text('[attitude]\nmounting = "session"\n')
+    out = tmp_path / "body"
+    result = runner.invoke(app, ["track", str(log), "-o", str(out), "--config", str(cfg)])
     assert result.exit_code == 0, result.output
     assert "--preset handheld-phone" in result.output
     report = json.loads((out / "report.json").read_text())

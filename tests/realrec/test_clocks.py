@@ -38,7 +38,9 @@ def test_small_steps_are_not_jumps() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(n=st.integers(5, 200), dt=st.floats(0.005, 0.2),
+# n >= 20: at most 4 jumps stay a minority of the steps, so the median step is the nominal one
+# (with n = 5 two jumps are half the steps and no nominal step exists)
+@given(n=st.integers(20, 200), dt=st.floats(0.005, 0.2),
        jumps=st.lists(st.tuples(st.floats(0.05, 0.95), st.floats(-5000.0, 5000.0)),
                       min_size=1, max_size=4))
 def test_remove_jumps_restores_a_regular_clock(n: int, dt: float,

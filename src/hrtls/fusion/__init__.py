@@ -23,13 +23,11 @@ event loop (:mod:`hrtls.pipeline._events`): each is written once.
 
 from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams, ChannelState
 from hrtls.fusion.fixes import (
-    ColomboRunResult,
     FixCorrector,
     FixParams,
     FixSchedule,
     StretchMemory,
     YawPseudoMeasurement,
-    run_velocity_with_fixes,
 )
 from hrtls.fusion.floors import floor_index, floor_level, floor_level_update
 from hrtls.fusion.gating import (
@@ -64,7 +62,6 @@ __all__ = [
     "ChannelEstimator",
     "ChannelEstimatorParams",
     "ChannelState",
-    "ColomboRunResult",
     "FilterState",
     "FixCorrector",
     "FixParams",
@@ -98,7 +95,6 @@ __all__ = [
     "predict_random_walk",
     "range_update",
     "rss_update",
-    "run_velocity_with_fixes",
     "scan_position",
     "stretch_yaw",
     "summarize",

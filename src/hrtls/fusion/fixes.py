@@ -11,11 +11,9 @@ Reading of eq. 19 for a stream of fixes: the platform queries the infrastructure
 use the first fix in ``[i Tp, i Tp + slot_tolerance_s]`` taken while moving, once per slot ``i``.
 ``period_s=None`` uses every fix taken while moving (``require_motion=False``: every fix).
 
-:func:`run_velocity_with_fixes` is the whole second EKF of Colombo: velocity prediction
-(:mod:`hrtls.fusion.velocity_prediction`), fixes, and the yaw stretching of eq. 24-28
-(:mod:`hrtls.fusion.yaw_stretch`) whose pseudo-measurements are returned for the attitude filter
-and, with ``yaw_feedback_gain > 0``, applied as a yaw offset to the following samples (a stand-in
-for feeding them to the attitude filter when it runs before the position filter).
+The tracker (:mod:`hrtls.pipeline.observations`) runs Colombo's second EKF: velocity or step
+prediction, these fixes, and the yaw stretching of eq. 24-28 (:mod:`hrtls.fusion.yaw_stretch`)
+between two accepted fixes, kept across chunks in :class:`StretchMemory`.
 """
 
 from __future__ import annotations
@@ -27,9 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hrtls.data.observations import PositionFixes
 from hrtls.errors import InputError
-from hrtls.frames import wrap_angle
 from hrtls.fusion._checks import (
     FloatArray,
     finite_matrix,
@@ -39,8 +35,6 @@ from hrtls.fusion._checks import (
 )
 from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped
 from hrtls.fusion.state import IH, N_STATE, FilterState
-from hrtls.fusion.velocity_prediction import VelocityPredictor
-from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -294,158 +288,3 @@ class StretchMemory:
                    np.asarray(data["t"], dtype=np.float64),
                    np.asarray(data["speed_m_s"], dtype=np.float64),
                    np.asarray(data["yaw_rad"], dtype=np.float64))
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class ColomboRunResult:
-    """Output of :func:`run_velocity_with_fixes`.
-
-    Attributes
-    ----------
-    t, xyz, heading_rad, cov_xy, var_heading: per-sample track (predicted values; a fix
-        acts from the next sample on).
-    diagnostics: one record per fix.
-    yaw_pseudo: yaw pseudo-measurements produced by stretching.
-    state, schedule: final filter and policy states.
-    yaw_offset_rad: accumulated yaw feedback (0 without feedback).
-    memory: stretching memory for the next chunk (None before the first accepted fix).
-    """
-
-    t: FloatArray
-    xyz: FloatArray
-    heading_rad: FloatArray
-    cov_xy: FloatArray
-    var_heading: FloatArray
-    diagnostics: list[UpdateDiagnostics]
-    yaw_pseudo: list[YawPseudoMeasurement]
-    state: FilterState
-    schedule: FixSchedule
-    yaw_offset_rad: float = 0.0
-    memory: StretchMemory | None = None
-
-
-def run_velocity_with_fixes(state: FilterState, *, t: ArrayLike, speed_m_s: ArrayLike,
-                            yaw_rad: ArrayLike, moving: ArrayLike, fixes: PositionFixes | None,
-                            predictor: VelocityPredictor | None = None,
-                            corrector: FixCorrector | None = None,
-                            schedule: FixSchedule | None = None,
-                            var_yaw_rad2: ArrayLike | None = None,
-                            var_speed_m2_s2: ArrayLike | None = None,
-                            stretch: YawStretchParams | None = None,
-                            yaw_feedback_gain: float = 0.0,
-                            yaw_offset_rad: float = 0.0,
-                            memory: StretchMemory | None = None) -> ColomboRunResult:
-    """Colombo's second EKF over a chunk: prediction eq. 16-17, fixes eq. 18-23, stretch 24-28.
-
-    Parameters
-    ----------
-    state:
-        State at or before ``t[0]``.
-    t, speed_m_s, yaw_rad:
-        Per-sample inputs of the prediction.
-    moving:
-        Per-sample motion flag (eq. 19), bool (N,).
-    fixes:
-        Position fixes; those outside ``(state.t, t[-1]]`` are ignored.
-    predictor, corrector, schedule:
-        Parts and policy state (defaults when None).
-    var_yaw_rad2, var_speed_m2_s2:
-        Per-sample or scalar variances (defaults from the predictor parameters).
-    stretch:
-        Enables the yaw stretching with these parameters (None: off).
-    yaw_feedback_gain:
-        Fraction of each yaw correction added to a yaw offset applied to later samples.
-    yaw_offset_rad:
-        Initial yaw offset (from a previous chunk).
-    memory:
-        Stretching memory from the previous chunk (:attr:`ColomboRunResult.memory`).
-    """
-    pred = predictor or VelocityPredictor()
-    corr = corrector or FixCorrector()
-    sched = schedule or FixSchedule()
-    tt = finite_vector(t, where="colombo t")
-    n = tt.shape[0]
-    v = np.broadcast_to(np.asarray(speed_m_s, dtype=np.float64), (n,))
-    yaw = finite_vector(yaw_rad, where="colombo yaw_rad", length=n)
-    mov = np.asarray(moving, dtype=bool)
-    if mov.shape != (n,):
-        raise InputError(f"shape {mov.shape}", where="colombo moving", expected=f"({n},)")
-    vy = None if var_yaw_rad2 is None else np.broadcast_to(
-        np.asarray(var_yaw_rad2, dtype=np.float64), (n,))
-    vv = None if var_speed_m2_s2 is None else np.broadcast_to(
-        np.asarray(var_speed_m2_s2, dtype=np.float64), (n,))
-    gain = finite_scalar(yaw_feedback_gain, where="yaw_feedback_gain", non_negative=True)
-    offset = finite_scalar(yaw_offset_rad, where="yaw_offset_rad")
-
-    if fixes is not None and len(fixes) and n:
-        sel = (fixes.t > state.t) & (fixes.t <= tt[-1])
-        f_idx = np.flatnonzero(sel)
-    else:
-        f_idx = np.zeros(0, dtype=np.int64)
-    xyz_parts: list[FloatArray] = []
-    head_parts: list[FloatArray] = []
-    cov_parts: list[FloatArray] = []
-    varh_parts: list[FloatArray] = []
-    diags: list[UpdateDiagnostics] = []
-    pseudo: list[YawPseudoMeasurement] = []
-    start = 0
-    mem = memory
-    yaw_used = yaw + offset
-
-    def advance(stop: int) -> None:
-        nonlocal state, start, mem
-        if stop <= start:
-            return
-        res = pred.run(state, tt[start:stop], v[start:stop], yaw_used[start:stop],
-                       None if vy is None else vy[start:stop],
-                       None if vv is None else vv[start:stop])
-        xyz_parts.append(res.xyz)
-        head_parts.append(res.heading_rad)
-        cov_parts.append(res.cov_xy)
-        varh_parts.append(res.var_heading)
-        if mem is not None:
-            mem = mem.extended(tt[start:stop], v[start:stop], yaw_used[start:stop])
-        state = res.state
-        start = stop
-
-    for i in f_idx:
-        assert fixes is not None
-        tf = float(fixes.t[i])
-        stop = int(np.searchsorted(tt, tf, side="right"))
-        advance(stop)
-        mv = bool(mov[stop - 1]) if stop > 0 else False
-        prior_xy = state.x[:2].copy()
-        upd = corr.update(state, sched, t=tf, xyz=fixes.xyz[i], sigma_m=float(fixes.sigma_m[i]),
-                          moving=mv, has_z=fixes.has_z)
-        diags.append(upd.diagnostics)
-        state, sched = upd.state, upd.schedule
-        if not upd.diagnostics.accepted:
-            continue
-        sigma = corr.params.sigma_m or float(fixes.sigma_m[i])
-        fix_xy = np.asarray(fixes.xyz[i, :2], dtype=np.float64)
-        if stretch is not None and mem is not None:
-            res_s = stretch_yaw(t_start=mem.t_fix, t=mem.t, speed_m_s=mem.speed_m_s,
-                                yaw_rad=mem.yaw_rad, start_xy=mem.post_xy,
-                                offset_start=mem.fix_xy - mem.post_xy,
-                                offset_end=fix_xy - prior_xy, sigma_start_m=mem.sigma_m,
-                                sigma_end_m=sigma, params=stretch)       # eq. 24-28
-            if res_s.valid:
-                pseudo.append(YawPseudoMeasurement(tf, res_s.yaw_rad, res_s.var_yaw_rad2,
-                                                   res_s.correction_rad))
-                if gain > 0.0:
-                    delta = gain * res_s.correction_rad
-                    offset = float(wrap_angle(offset + delta))
-                    yaw_used[stop:] = yaw[stop:] + offset
-                    x = state.x.copy()
-                    x[IH] = float(wrap_angle(x[IH] + delta))
-                    state = state.evolve(x=x)
-        empty = np.zeros(0)
-        mem = StretchMemory(tf, state.x[:2].copy(), fix_xy, sigma, empty, empty, empty)
-    advance(n)
-
-    def cat(parts: list[FloatArray], shape: tuple[int, ...]) -> FloatArray:
-        return np.concatenate(parts) if parts else np.zeros(shape)
-
-    return ColomboRunResult(tt, cat(xyz_parts, (0, 3)), cat(head_parts, (0,)),
-                            cat(cov_parts, (0, 2, 2)), cat(varh_parts, (0,)), diags, pseudo,
-                            state, sched, offset, mem)

@@ -664,12 +664,14 @@ class GaitAnalyzer:
                           step_excursion_m=h)
 
     # ------------------------------------------------------------------ save / restore
-    def state(self) -> dict[str, Any]:
-        """The whole analyzer state as plain JSON values (strict JSON: no NaN/inf literals).
+    def state(self, *, strict_json: bool = True) -> dict[str, Any]:
+        """The whole analyzer state as plain values.
 
         Combines the sub-estimators' ``to_dict`` states, the filter memories and the held
         samples and steps. :meth:`restore` on an analyzer built with the same parameters
-        continues exactly where this one stopped.
+        continues exactly where this one stopped. ``strict_json``: non-finite floats become the
+        strings ``"nan"``, ``"inf"``, ``"-inf"`` (no NaN literals in JSON); False keeps them
+        as floats for a binary codec that carries them (the tracker's msgpack snapshot).
         """
         pend = self._pending
         det = StepDetection.concat(pend.steps)
@@ -709,6 +711,9 @@ class GaitAnalyzer:
                 "mv": pend.mv.tolist(), "hq_t": pend.hq_t.tolist(),
                 "hq_h": pend.hq_h.tolist()},
         }
+        if not strict_json:
+            out["nonfinite_as_strings"] = False
+            return out
         encoded: dict[str, Any] = _encode_nonfinite(out)
         return encoded
 
@@ -717,7 +722,7 @@ class GaitAnalyzer:
         if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
             raise InputError("not a GaitAnalyzer state", where="state",
                              expected=f"a dict with 'format': '{STATE_FORMAT}'")
-        d = _decode_nonfinite(state)
+        d = state if state.get("nonfinite_as_strings") is False else _decode_nonfinite(state)
         try:
             kind = d["step_detector"]["kind"]
             is_pll = isinstance(self.step_detector, PllStepDetector)

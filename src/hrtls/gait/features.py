@@ -15,6 +15,7 @@ Body-frame columns are ``[AP, ML, V]`` = hrtls body ``[x forward, y left, z up]`
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,28 @@ from hrtls.gait._state import FloatArray, as_matrix, check_positive
 
 TREE_FEATURES = ("vertical_variance", "vertical_dynamics_index", "ml_amplitude")
 LDA_FEATURES = ("std_ml", "std_v", "std_ap", "dft_ml", "dft_v", "dft_ap", "range_ml")
+
+
+@functools.lru_cache(maxsize=64)
+def _butter_sos(order: int, cutoff_hz: float, rate_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Second-order sections and their unit steady-state memory, designed once per set.
+
+    A restore rebuilds every filter; the cached arrays are read-only and each filter copies them.
+    """
+    sos = butter(order, cutoff_hz, fs=rate_hz, output="sos")
+    zi = sosfilt_zi(sos)
+    sos.flags.writeable = False
+    zi.flags.writeable = False
+    return sos, zi
+
+
+@functools.lru_cache(maxsize=64)
+def _group_delay_s(order: int, cutoff_hz: float, rate_hz: float, frequency_hz: float) -> float:
+    df = 0.01
+    f = np.array([max(frequency_hz - df, 1e-3), frequency_hz + df])
+    _, h = sosfreqz(_butter_sos(order, cutoff_hz, rate_hz)[0], worN=f, fs=rate_hz)
+    ph = np.unwrap(np.angle(h))
+    return float(-(ph[1] - ph[0]) / (2.0 * np.pi * (f[1] - f[0])))
 
 
 class StreamingButterworth:
@@ -46,17 +69,14 @@ class StreamingButterworth:
                              where="StreamingButterworth",
                              expected="order >= 1 and cutoff below the Nyquist frequency")
         self.rate_hz = float(rate_hz)
-        self.sos = butter(order, cutoff_hz, fs=rate_hz, output="sos")
-        self._zi_unit = sosfilt_zi(self.sos)
+        self._design = (order, float(cutoff_hz), self.rate_hz)
+        sos, zi_unit = _butter_sos(*self._design)
+        self.sos, self._zi_unit = sos.copy(), zi_unit.copy()
         self.zi: FloatArray | None = None
 
     def group_delay_s(self, frequency_hz: float) -> float:
         """Group delay of the filter at ``frequency_hz``, s (from the unwrapped phase)."""
-        df = 0.01
-        f = np.array([max(frequency_hz - df, 1e-3), frequency_hz + df])
-        _, h = sosfreqz(self.sos, worN=f, fs=self.rate_hz)
-        ph = np.unwrap(np.angle(h))
-        return float(-(ph[1] - ph[0]) / (2.0 * np.pi * (f[1] - f[0])))
+        return _group_delay_s(*self._design, float(frequency_hz))
 
     def reset(self) -> None:
         """Forget the filter memory (the next sample starts the filter in steady state)."""

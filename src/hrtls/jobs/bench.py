@@ -250,6 +250,13 @@ def mean_error(result: TrackResult, sim: SimulationResult) -> float:
     return float(np.mean(position_errors(result.trajectory, truth)[1]))
 
 
+def max_error(result: TrackResult, sim: SimulationResult) -> float:
+    """Maximum horizontal error (m)."""
+    truth = sim.session.truth
+    assert truth is not None
+    return float(np.max(position_errors(result.trajectory, truth)[1]))
+
+
 def checkpoint_max(result: TrackResult, sim: SimulationResult) -> float:
     """Inderst eq. 6.1: maximum checkpoint error (m)."""
     cps = sim.session.checkpoints
@@ -325,6 +332,9 @@ def thesis_stairs(config: TrackerConfig) -> TrackerConfig:
 
 # ---------------------------------------------------------------------------------- cases
 _BASSO = {1: 1.0, 2: 2.1, 3: 0.9, 4: 1.6, 5: 1.6, 6: 1.4}
+_TARRIO_OFFICE_KF = {1: (2.39, 3.91), 2: (2.26, 4.36), 3: (1.64, 4.02), 4: (2.92, 4.30),
+                     5: (2.30, 4.65), 6: (2.22, 4.33), 7: (2.63, 3.92), 8: (2.22, 4.62)}
+"""Tarrio Sec. V, Tables I-II: the Kalman filter's mean and maximum error per user (m)."""
 _RING = {"all": ("2.62", 2.0), "corners": ("4.28", 3.0), "corridor": ("13.34", 5.0),
          "no_tag5": ("2.62", 2.0)}
 
@@ -352,6 +362,20 @@ def cases() -> list[Case]:
         MetricSpec("p90 error [m]", p90_error, "2.4 (Sec. IV)", ("<=", 1.8)),
         MetricSpec("RSS alone - ours, mean [m]", rss_gain, "~1.5 (Kalman vs RSS alone)",
                    (">=", 1.5), higher_is_better=True)]))
+    for office_user, (kf_mean, kf_max) in _TARRIO_OFFICE_KF.items():
+        out.append(Case(f"tarrio_office user {office_user}", "tarrio_office",
+                        {"user": office_user},
+                        "tarrio2011", [
+                            MetricSpec("mean error [m]", mean_error,
+                                       f"{kf_mean:.2f} (Table I, KF)", ("<=", kf_mean)),
+                            MetricSpec("max error [m]", max_error,
+                                       f"{kf_max:.2f} (Table II, KF)", ("<=", kf_max))],
+                        quick=office_user == 1))
+    out.append(Case("inderst_ring tags=none (PDR only)", "inderst_ring", {"tags": "none"},
+                    "inderst-rfid", [MetricSpec(
+                        "max checkpoint error [m]", checkpoint_max,
+                        "16.13 (Table 6.10, prediction only)", ("<=", 16.13))],
+                    paper_config=without_bearing, default_config=without_bearing, quick=False))
     for tags, (fig, goal) in _RING.items():
         out.append(Case(f"inderst_ring tags={tags}", "inderst_ring", {"tags": tags},
                         "inderst-rfid", [MetricSpec(
@@ -372,7 +396,10 @@ def cases() -> list[Case]:
                    higher_is_better=True),
         MetricSpec("time on the right floor", floors_correct,
                    "none (issue 19 target: 0.99 with a barometer)", (">=", 0.99),
-                   higher_is_better=True)], paper_config=thesis_stairs, quick=False))
+                   higher_is_better=True),
+        MetricSpec("max checkpoint error [m]", checkpoint_max,
+                   "26 (Table 6.8, ~280 m, prediction only)", ("<=", 26.0))],
+        paper_config=thesis_stairs, quick=False))
     users = {"A": ("6.14", "1.6", "3.97", "1.07", "3.14"),
              "B": ("6.15", "1.1", "2.62", "0.84", "2.64")}
     for user, (table, pos_mean, pos_max, head_mean, head_max) in users.items():

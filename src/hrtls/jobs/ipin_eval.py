@@ -295,7 +295,8 @@ def make_config(*, attitude: str = "device", rss: str = "off", heading_mode: str
     if weinberg_k is not None:
         gait["weinberg_k"] = weinberg_k
     return TrackerConfig.model_validate({
-        "name": name, "attitude": {"method": attitude}, "gait": gait,
+        # the mounting is the case's (prepare_session), not the reader's placement
+        "name": name, "attitude": {"method": attitude, "mounting": "session"}, "gait": gait,
         "prediction": {"heading_mode": heading_mode},
         "rss": {"mode": rss, "estimate_channel": estimate_channel},
         "fixes": {"enabled": False}, "tags": {"enabled": False}, "ranges": {"enabled": False}})

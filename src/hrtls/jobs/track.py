@@ -23,6 +23,7 @@ from hrtls.io.tables import write_steps, write_trajectory
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
+from hrtls.pipeline.mounting import uses_handheld_mounting
 from hrtls.pipeline.tracker import RATE_SAMPLES, Tracker, TrackResult, leading_rate_hz
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
@@ -48,13 +49,14 @@ class TrackRun:
     streamed: bool
 
 
-def streams(config: TrackerConfig) -> bool:
+def streams(config: TrackerConfig, placement: str | None) -> bool:
     """True when ``config`` needs no samples at :meth:`Tracker.start`.
 
     The hand-held mounting and the hard-iron fit need the accelerometer and magnetometer over
     their windows.
     """
-    return config.attitude.mounting != "handheld" and config.attitude.mag_hard_iron != "fit"
+    return (not uses_handheld_mounting(config.attitude.mounting, placement)
+            and config.attitude.mag_hard_iron != "fit")
 
 
 def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
@@ -160,9 +162,10 @@ def _with_input(run: TrackRun, input_report: dict[str, Any], config: TrackerConf
                 ) -> TrackRun:
     report = run.result.report
     report["input"] = input_report
-    placement = (run.session.meta.placement or "").lower()
-    handheld = input_report["format"] in HANDHELD_FORMATS or placement in ("hand", "handheld")
-    if handheld and config.attitude.mounting != "handheld":
+    placement = run.session.meta.placement
+    handheld = input_report["format"] in HANDHELD_FORMATS or \
+        uses_handheld_mounting("auto", placement)
+    if handheld and not uses_handheld_mounting(config.attitude.mounting, placement):
         note = (f"this is a hand-held phone recording ({input_report['format']}) but the "
                 f"configuration {config.name!r} expects a body-worn device: use --preset "
                 "handheld-phone (or [attitude] mounting = \"handheld\")")
@@ -199,7 +202,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     tracker = Tracker(config, keep_attitude=False)
     chunks = stream.chunks()
     held: list[Session] = []
-    if streams(config):
+    if streams(config, stream.meta.placement):
         # the nominal rate is the median spacing of the leading samples, as in Tracker.run
         for chunk in chunks:
             held.append(chunk)

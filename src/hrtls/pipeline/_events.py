@@ -89,6 +89,7 @@ LOOP_PARAMS_DTYPE = np.dtype([
     ("gate_1d", np.float64),
     ("gate_2d", np.float64),
     ("heading_known", np.bool_),
+    ("yaw_relative", np.bool_),
     ("has_imu", np.bool_),
     ("rss_min_distance_m", np.float64),
     ("range_default_sigma_m", np.float64),
@@ -106,6 +107,9 @@ the tight readings). ``floor_snap``: the flight rule (``flight_*``, see
 ``floor_sigma_m``) after walking / standing steps. ``gate_1d`` / ``gate_2d``: chi-square gate
 thresholds of readings / ranges and of scan positions. ``heading_known``: the first step
 heading sets the heading reference before the step (a start pose with a heading).
+``yaw_relative``: the input headings have no absolute reference (a yaw without magnetometer);
+with ``heading_mode = "input"`` and a known start heading, the first one is aligned to it
+through ``yaw_offset_rad``.
 ``has_imu``: False grows the covariance by the random walk before each observation.
 ``scan_jump``: ``[rss] mode = "wls"`` (the estimate jumps to each WLS position), else the
 Kalman update with the WLS covariance (``scan_wls_covariance``) or
@@ -155,7 +159,7 @@ def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
                 range_params: RangeParams, channel: ChannelEstimatorParams | None,
                 random_walk: RandomWalkParams, floor_snap: bool, floor_height_m: float,
                 floor_sigma_m: float, flight: FlightParams | None = None,
-                gate_probability: float, heading_known: bool,
+                gate_probability: float, heading_known: bool, yaw_relative: bool,
                 has_imu: bool, rss_min_distance_m: float, scan_jump: bool,
                 scan_wls_covariance: bool, scan_sigma_position_m: float) -> np.ndarray:
     """The :data:`LOOP_PARAMS_DTYPE` record (one-element array) of the given components.
@@ -178,6 +182,7 @@ def loop_params(*, step: StepPredictionParams, path_loss: PathLossModel,
     rec["gate_1d"] = chi2_threshold(1, gate_probability)
     rec["gate_2d"] = chi2_threshold(2, gate_probability)
     rec["heading_known"] = heading_known
+    rec["yaw_relative"] = yaw_relative
     rec["has_imu"] = has_imu
     rec["rss_min_distance_m"] = rss_min_distance_m
     rec["range_default_sigma_m"] = range_params.default_sigma_m
@@ -227,6 +232,10 @@ def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
     # the reference is set by this step's heading: before it with a known start heading
     # (preset), else by the predictor; either way the first stride completes it
     first = not s.has_input_heading and np.isfinite(heading)
+    if prm.heading_known and first and prm.yaw_relative and not prm.step.heading_from_state:
+        # the input replaces the state heading: align its arbitrary zero to the start heading
+        s.yaw_offset_rad = wrap_rad(s.yaw_offset_rad + x[3] - heading)
+        heading = x[3]
     if prm.heading_known and first:
         s.input_heading_rad = wrap_rad(heading)
         s.has_input_heading = True

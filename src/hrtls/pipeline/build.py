@@ -15,6 +15,8 @@ from hrtls.attitude.base import AttitudeFilter
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import DEFAULT_FILTER, make_filter
 from hrtls.data import SessionMeta
+from hrtls.data.landmarks import Landmark
+from hrtls.data.session import StartPose
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.fusion.channel import ChannelEstimator, ChannelEstimatorParams
 from hrtls.fusion.fixes import FixCorrector, FixParams
@@ -221,8 +223,31 @@ def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
     )
 
 
+def unknown_start(config: TrackerConfig, landmarks: dict[str, Landmark], notes: Notes
+                  ) -> StartPose:
+    """The prior of a session without a start pose.
+
+    With positioned anchors for an enabled RSS or range correction, the agent is somewhere
+    among them: their centroid with a 1-sigma of their RMS spread (at least 1 m), so the
+    infrastructure places it and the early rows show how little is known. Otherwise the
+    origin of the local frame with :class:`StartPose`'s default uncertainty.
+    """
+    kinds = (("anchor", "beacon") if config.rss.mode != "off" else ()) + \
+        (("node",) if config.ranges.enabled else ())
+    xy = np.array([lm.position[:2] for lm in landmarks.values()
+                   if lm.kind in kinds and lm.position is not None], dtype=np.float64)
+    if len(xy) < 3:
+        return StartPose()
+    centre = xy.mean(axis=0)
+    spread = max(float(np.sqrt(np.mean(np.sum((xy - centre) ** 2, axis=1)))), 1.0)
+    notes.add(f"no start pose: starting at the centroid of {len(xy)} anchors "
+              f"({centre[0]:.1f}, {centre[1]:.1f}) m with 1-sigma {spread:.1f} m, until the "
+              "infrastructure places the agent")
+    return StartPose(x=float(centre[0]), y=float(centre[1]), sigma_xy_m=spread)
+
+
 def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: float,
-                  heading_known: bool, has_imu: bool) -> np.ndarray:
+                  heading_known: bool, yaw_relative: bool, has_imu: bool) -> np.ndarray:
     """Parameter record of the compiled event loop (see :mod:`hrtls.pipeline._events`)."""
     cfg = config
     return ev.loop_params(
@@ -233,6 +258,6 @@ def kernel_params(config: TrackerConfig, parts: Corrections, *, floor_height_m: 
         floor_height_m=floor_height_m, floor_sigma_m=cfg.floor_sigma_m,
         flight=params_of(FlightParams, cfg.floor_flight),
         gate_probability=cfg.gate_probability, heading_known=heading_known,
-        has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
+        yaw_relative=yaw_relative, has_imu=has_imu, rss_min_distance_m=cfg.rss.min_distance_m,
         scan_jump=cfg.rss.mode == "wls", scan_wls_covariance=cfg.rss.use_wls_covariance,
         scan_sigma_position_m=cfg.rss.sigma_position_m)

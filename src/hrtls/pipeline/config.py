@@ -83,10 +83,12 @@ class AttitudeConfig(_Section):
         default=True, description="remove the device orientation's slow yaw wander with the "
         "magnetometer (self-calibrated hard iron; our addition, see pipeline.compass); only "
         "with method device (our filters fuse the magnetometer themselves)")
-    mounting: Literal["session", "handheld"] = "session"
+    mounting: Literal["auto", "session", "handheld"] = "auto"
     """Device->body mounting: ``session`` uses ``meta.mounting_q_bd`` (unknown when unset);
     ``handheld`` estimates it for a phone held in front in portrait (top edge forward) from
-    the mean specific force (:func:`hrtls.pipeline.mounting.handheld_mounting_q_bd`)."""
+    the mean specific force (:func:`hrtls.pipeline.mounting.handheld_mounting_q_bd`);
+    ``auto`` is ``handheld`` when ``meta.placement`` says the device is held in the hand
+    (e.g. IPIN logs), else ``session``."""
     mounting_window_s: float = Field(
         default=10.0, gt=0.0, description="handheld mounting: seconds of accelerometer from "
         "the start pose over which the mean specific force gives the mounting; the gait stage "

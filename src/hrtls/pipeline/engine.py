@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -40,13 +41,15 @@ VELOCITY_ROW_PERIOD_S = 0.04
 """Output period of the trajectory rows of the velocity-driven prediction (s)."""
 
 
-def _last_starting_by(blocks: list[np.ndarray], t: float) -> int:
+def _last_starting_by(blocks: Sequence[Any], t: float,
+                      times: Callable[[Any], np.ndarray] = lambda b: b) -> int:
     """Index of the last non-empty block whose first time is at or before ``t`` (0: none).
 
-    Searched from the end (blocks are in time order; a long mission has many).
+    ``times`` gives a block's times. Searched from the end and lazily (blocks are in time
+    order; a long mission has many, and the answer is near the end).
     """
     for k in range(len(blocks) - 1, -1, -1):
-        b = blocks[k]
+        b = times(blocks[k])
         if len(b) and b[0] <= t:
             return k
     return 0
@@ -82,7 +85,7 @@ class GaitHistory:
 
         The step block in progress at ``t`` and the motion blocks from the latest one before.
         """
-        j = _last_starting_by([b.t_start for b in self.steps], t)
+        j = _last_starting_by(self.steps, t, lambda b: b.t_start)
         m = self._first_motion(t)
         return {"steps": self.steps[j:], "motion_t": self.motion_t[m:],
                 "motion_sigma": self.motion_sigma[m:]}
@@ -212,6 +215,7 @@ class FusionEngine:
                                              bool(sc["reference_pending"]))
         self.last_activity = int(sc["last_activity"])
         self.last_step_end = float(sc["last_step_end_s"])
+        self.yaw_offset = float(sc["yaw_offset_rad"])
         self.flight = tuple(float(v) for v in sc["flight"])
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:

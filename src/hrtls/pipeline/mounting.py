@@ -22,6 +22,18 @@ FloatArray = NDArray[np.float64]
 
 HANDHELD_FORWARD_D = (0.0, 1.0, 0.0)
 """Device axis along the walking direction of a phone held in portrait (its top edge)."""
+HANDHELD_PLACEMENTS = frozenset({"hand", "handheld", "hand-held"})
+"""``SessionMeta.placement`` values of a device held in the hand (case-insensitive)."""
+
+
+def uses_handheld_mounting(mounting: str, placement: str | None) -> bool:
+    """Whether ``[attitude] mounting`` estimates the hand-held mounting for this placement.
+
+    ``handheld`` always; ``auto`` when the session says the device is held in the hand;
+    ``session`` never.
+    """
+    return mounting == "handheld" or (
+        mounting == "auto" and (placement or "").strip().lower() in HANDHELD_PLACEMENTS)
 
 
 def handheld_mounting_q_bd(acc_d_m_s2: ArrayLike, *,

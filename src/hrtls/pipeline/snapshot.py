@@ -1,4 +1,8 @@
-"""Byte form of a tracker's state: versioned header + zlib-compressed msgpack of plain values.
+"""Byte form of a tracker's state: versioned header + zstd-compressed msgpack of plain values.
+
+Layout (version 4): ``MAGIC``, the version byte, the body length (uint32, little endian), then
+the body compressed with zstd (pyarrow's codec; zlib took 1.4 ms of a 2.4 ms snapshot, zstd
+0.1 ms for 3 % more bytes). Versions 2 and 3 (zlib) are still read.
 
 Only data are stored (numbers, strings, numeric arrays as raw little-endian bytes, and the
 fields of a fixed list of state dataclasses, rebuilt by their constructors); no code is
@@ -9,12 +13,14 @@ pickled, so a snapshot from an untrusted source cannot run anything. :func:`pack
 from __future__ import annotations
 
 import dataclasses
+import struct
 import zlib
 from collections import deque
 from typing import Any
 
 import msgpack
 import numpy as np
+import pyarrow as pa
 
 from hrtls.attitude.base import AttitudeState
 from hrtls.calibration.hard_iron_running import RunningHardIronState
@@ -29,10 +35,11 @@ from hrtls.fusion.tags import TagMemory
 
 MAGIC = b"HRTLSNAP"
 """First bytes of every snapshot."""
-VERSION = 3
+VERSION = 4
 """Layout version (the byte after the magic) written by :func:`pack`."""
-READABLE = (2, 3)
-"""Versions :func:`unpack` reads (2: every value tagged in plain msgpack maps)."""
+READABLE = (2, 3, 4)
+"""Versions :func:`unpack` reads (2: every value tagged in plain msgpack maps; 2-3: zlib)."""
+_LENGTH = struct.Struct("<I")
 
 _CLASSES: dict[str, type] = {c.__name__: c for c in (
     FilterState, ChannelState, StretchMemory, TagMemory, FixSchedule, RssScan, StepEvents,
@@ -134,8 +141,20 @@ def _decode_v2(obj: Any) -> Any:
 
 
 def pack(state: dict[str, Any]) -> bytes:
-    """Header + zlib(msgpack(state)) with arrays as raw bytes."""
-    return MAGIC + bytes([VERSION]) + zlib.compress(_packb(state), 1)
+    """Header + body length + zstd(msgpack(state)) with arrays as raw bytes."""
+    body = _packb(state)
+    return (MAGIC + bytes([VERSION]) + _LENGTH.pack(len(body))
+            + pa.compress(body, codec="zstd", asbytes=True))
+
+
+def _body(raw: bytes, version: int) -> bytes:
+    start = len(MAGIC) + 1
+    if version < 4:
+        return zlib.decompress(raw[start:])
+    (length,) = _LENGTH.unpack_from(raw, start)
+    body: bytes = pa.decompress(raw[start + _LENGTH.size:], decompressed_size=length,
+                                codec="zstd", asbytes=True)
+    return body
 
 
 def unpack(data: bytes) -> dict[str, Any]:
@@ -151,12 +170,13 @@ def unpack(data: bytes) -> dict[str, Any]:
         raise FormatError(f"snapshot version {version}", where="snapshot",
                           expected=f"version {' or '.join(str(v) for v in READABLE)}")
     try:
-        body = zlib.decompress(raw[len(MAGIC) + 1:])
+        body = _body(raw, version)
         if version == 2:
             out = _decode_v2(msgpack.unpackb(body, raw=False, strict_map_key=False))
         else:
             out = _unpackb(body)
-    except (zlib.error, ValueError, TypeError, msgpack.UnpackException) as exc:
+    except (zlib.error, ValueError, TypeError, struct.error, OSError, pa.ArrowException,
+            msgpack.UnpackException) as exc:
         raise FormatError(f"corrupt snapshot ({exc})", where="snapshot",
                           expected="bytes from Tracker.snapshot()") from None
     if not isinstance(out, dict):

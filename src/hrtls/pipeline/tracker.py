@@ -60,7 +60,6 @@ from hrtls.data import (
     OrientationSeries,
     Session,
     SessionMeta,
-    StartPose,
     StepEvents,
     Trajectory,
 )
@@ -80,6 +79,7 @@ from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
 from hrtls.pipeline.imu_stage import AttitudeStage, HeldImu, note_session_mounting, resolve_mounting
+from hrtls.pipeline.mounting import uses_handheld_mounting
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.schedule import EventSchedule, PoseGate, chunk_end
 from hrtls.pipeline.step_scale import StepScaleLearner, StepScaleParams
@@ -164,7 +164,8 @@ class Tracker:
         self.notes = notes = Notes()
         self._base = rep.empty_base()
         self._two_pass = False
-        self._mounting_pending = cfg.attitude.mounting == "handheld" and s.has_imu
+        self._mounting_pending = (uses_handheld_mounting(cfg.attitude.mounting, meta.placement)
+                                  and s.has_imu)
         if self._mounting_pending and fixed_mounting_acc is not None:
             meta = resolve_mounting(meta, fixed_mounting_acc, notes)
             self._mounting_pending = False
@@ -178,7 +179,7 @@ class Tracker:
         if not s.has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
                       "walk between observations")
-        pose = meta.start_pose or StartPose()
+        pose = meta.start_pose or build.unknown_start(cfg, self.landmarks, notes)
         # the agent is placed at the start pose's time; attitude and gait run from t0 so the
         # filters have converged by then, and earlier steps/observations are ignored for
         # position (counted in the notes at the end)
@@ -205,6 +206,8 @@ class Tracker:
                 StepScaleParams, cfg.prediction.step_scale)), gait=self.history,
             params=build.kernel_params(cfg, parts, floor_height_m=meta.floor_height_m,
                                        heading_known=pose.heading is not None,
+                                       yaw_relative=not (cfg.attitude.use_magnetometer
+                                                         and s.has_mag),
                                        has_imu=s.has_imu),
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
             t0=s.t0)
@@ -312,7 +315,8 @@ class Tracker:
         imu = session.imu
         offline_notes: list[tuple[bool, str]] = []
         acc_mount = hard_iron = None
-        if imu is not None and self.config.attitude.mounting == "handheld":
+        if imu is not None and uses_handheld_mounting(self.config.attitude.mounting,
+                                                      session.meta.placement):
             # the walk starts at the start pose: samples before it (phone lying or being
             # picked up) would bias the mean tilt
             pose_t = session.meta.start_pose.t if session.meta.start_pose is not None else None
@@ -444,7 +448,7 @@ class Tracker:
             "engine": eng.state_dict(),
             "scale": {k: getattr(eng.scale, k) for k in StepScaleLearner.STATE},
             "history": self.history.state(eng.state.t),
-            "gait": None if self.gait is None else self.gait.state(),
+            "gait": None if self.gait is None else self.gait.state(strict_json=False),
             "attitude": None if self.attitude is None else self.attitude.state(),
             "held": {k: getattr(self._held, k) for k in HeldImu.STATE},
             "baro": None if self.baro is None else self.baro.state(),

@@ -289,7 +289,8 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
                           where=label, expected="an IPIN/EvAAL logfile")
     log = split_log(without_cut_last_line(decode_text(data, where=label, lenient=True), label,
                                           repair=repair), label)
-    meta = SessionMeta() if floor_height_m is None else SessionMeta(floor_height_m=floor_height_m)
+    meta = SessionMeta(placement="hand") if floor_height_m is None else \
+        SessionMeta(placement="hand", floor_height_m=floor_height_m)
     notes: list[str] = []
     source: dict[str, Any] = {"format": "ipin", "files": [label]}
 
