@@ -318,6 +318,7 @@ class GaitAnalyzer:
         self._step_filter.reset()
         self._pending = _Pending()
         self._t_last = -np.inf
+        self._forward_d: FloatArray | None = None
         self._frame = "levelled"
 
     # ------------------------------------------------------------------ helpers
@@ -422,7 +423,10 @@ class GaitAnalyzer:
         # --- heading per step
         # body forward axis in ENU: rotate the device-frame image of body x by q_nd
         fwd_n = None
-        fwd_d = quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
+        if self.mounting_known:
+            fwd_d = quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
+        else:
+            fwd_d = self._unknown_mounting_forward(q_nd)
         if q_nd is not None and self.velocity is not None and self.mounting_known:
             fwd_n = rotate(q_nd, fwd_d)
         if self.heading == "fourier":
@@ -663,6 +667,23 @@ class GaitAnalyzer:
                           np.zeros(0), np.zeros(0), self._frame, features=feats,
                           step_excursion_m=h)
 
+    def _unknown_mounting_forward(self, q_nd: FloatArray | None) -> FloatArray:
+        """The device axis whose yaw stands for the walking direction, mounting unknown.
+
+        The axis most orthogonal to the vertical at the first sample with an attitude (device
+        x only when it is that axis; one sample, so any split into chunks chooses alike), kept
+        for the whole recording. Only its yaw
+        *changes* are used (the heading offset is unknown either way), and those are well
+        defined only for an axis far from the vertical: a lower-back sensor strapped with x up
+        made the yaw of x noise (turns off by 30-120 deg).
+        """
+        if self._forward_d is None and q_nd is not None and len(q_nd):
+            up_d = quat_to_matrix(q_nd[0])[2]   # ENU up in device axes
+            axis = np.eye(3)[int(np.argmin(np.abs(up_d)))]
+            level = axis - float(axis @ up_d) * up_d   # made horizontal at that sample
+            self._forward_d = level / np.linalg.norm(level)
+        return np.array([1.0, 0.0, 0.0]) if self._forward_d is None else self._forward_d
+
     # ------------------------------------------------------------------ save / restore
     def state(self, *, strict_json: bool = True) -> dict[str, Any]:
         """The whole analyzer state as plain values.
@@ -680,6 +701,7 @@ class GaitAnalyzer:
             "format": STATE_FORMAT,
             "version": 1,
             "t_last": self._t_last,
+            "forward_d": None if self._forward_d is None else self._forward_d.tolist(),
             "frame": self._frame,
             "levelling": self._levelling.state.to_dict(),
             "motion": self.motion.state.to_dict(),
@@ -781,6 +803,9 @@ class GaitAnalyzer:
             pend.hq_h = np.asarray(pd["hq_h"], dtype=np.float64).reshape(-1)
             self._pending = pend
             self._t_last = float(d["t_last"])
+            fwd = d.get("forward_d")   # absent in states before the axis was chosen: device x
+            self._forward_d = (np.array([1.0, 0.0, 0.0]) if "forward_d" not in d else
+                               None if fwd is None else np.asarray(fwd, dtype=np.float64))
             self._frame = str(d["frame"])
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed state ({exc!r})", where="state",
