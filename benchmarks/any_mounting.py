@@ -21,8 +21,9 @@ from rich.console import Console
 from rich.table import Table
 from scipy.spatial.transform import Rotation
 
-from hrtls.data import ImuStream, SensorSeries, Session
+from hrtls.data import Session
 from hrtls.datasets.mobgap import list_trials, load_trial
+from hrtls.evaluate.metrics import heading_change_rad
 from hrtls.pipeline import Tracker, preset
 
 ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mobgap_lab"
@@ -30,16 +31,9 @@ ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mobgap_
 
 def rotated(session: Session, r: np.ndarray) -> Session:
     """The session in another device frame (``v_new = r @ v``), mounting unknown."""
-    imu = session.imu
-    assert imu is not None
-
-    def rot(s: SensorSeries | None) -> SensorSeries | None:
-        return None if s is None else SensorSeries(s.t, s.values @ r.T, s.name)
-
-    accel = rot(imu.accel)
-    assert accel is not None
+    assert session.imu is not None
     meta = session.meta.model_copy(update={"mounting_q_bd": None})
-    return session.with_parts(meta=meta, imu=ImuStream(accel, rot(imu.gyro), rot(imu.mag)))
+    return session.with_parts(meta=meta, imu=session.imu.in_device_frame(r))
 
 
 def turn_deg(session: Session) -> float:
@@ -47,10 +41,7 @@ def turn_deg(session: Session) -> float:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = Tracker(preset("default")).run(session)
-    h = res.steps.heading_rad
-    h = np.unwrap(h[np.isfinite(h)])
-    k = max(2, len(h) // 5)
-    return float(np.degrees(np.mean(h[-k:]) - np.mean(h[:k])))
+    return float(np.degrees(heading_change_rad(res.steps)))
 
 
 def main() -> None:

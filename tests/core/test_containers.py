@@ -162,3 +162,30 @@ def test_guess_time_scale():
     assert guess_time_scale(np.arange(10) * 10.0) == 1e-3  # ms at 100 Hz
     assert guess_time_scale(np.arange(10) * 1e7) == 1e-9  # ns at 100 Hz
     assert guess_time_scale(np.arange(10) * 0.01) == 1.0
+
+
+def test_imu_in_another_device_frame_and_heading_change() -> None:
+    """Hand-made: a 90 deg turn about z of the device frame maps x onto y; refusals named."""
+    import math
+
+    from hrtls.data import ImuStream, SensorSeries, StepEvents
+    from hrtls.errors import InputError
+    from hrtls.evaluate.metrics import heading_change_rad
+
+    t = np.arange(3) * 0.01
+    acc = SensorSeries(t, np.tile([1.0, 0.0, 9.81], (3, 1)), "accel")
+    rz = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    out = ImuStream(acc).in_device_frame(rz)
+    np.testing.assert_allclose(out.accel.values, np.tile([0.0, 1.0, 9.81], (3, 1)))
+    assert out.gyro is None and out.mag is None
+    with pytest.raises(InputError, match="r_new_old"):
+        ImuStream(acc).in_device_frame(2.0 * np.eye(3))
+    n = 10
+    heading = np.r_[np.zeros(5), np.full(5, 3.0)]          # a 3 rad turn half-way
+    heading[7] = np.nan
+    steps = StepEvents.build(t_start=np.arange(n) * 0.5, t_end=np.arange(n) * 0.5 + 0.5,
+                             length_m=np.full(n, 0.7), heading_rad=heading)
+    assert heading_change_rad(steps) == pytest.approx(3.0)
+    with pytest.raises(InputError, match="heading_change_rad"):
+        heading_change_rad(steps, end_fraction=0.9)
+    assert math.isfinite(heading_change_rad(steps, end_fraction=0.5))

@@ -163,6 +163,25 @@ class ImuStream:
             self.mag.values if self.shares_time(self.mag) else self.mag.interpolate(t))
         return t, self.accel.values, gyr, mag
 
+    def in_device_frame(self, r_new_old: ArrayLike) -> ImuStream:
+        """The same stream in another device frame (units not re-checked).
+
+        ``r_new_old`` (3, 3) maps old device axes to new: ``v_new = r_new_old @ v_old`` for
+        every sensor's vectors.
+        """
+        r = np.asarray(r_new_old, dtype=np.float64)
+        if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-9):
+            raise InputError(f"shape {r.shape}", where="r_new_old",
+                             expected="a 3x3 rotation matrix")
+
+        def rot(series: SensorSeries | None) -> SensorSeries | None:
+            return None if series is None else SensorSeries(series.t, series.values @ r.T,
+                                                            series.name)
+
+        accel = rot(self.accel)
+        assert accel is not None
+        return ImuStream(accel, rot(self.gyro), rot(self.mag), check_units=False)
+
     def between(self, t_start_s: float, t_end_s: float) -> ImuStream:
         """The part of the stream with ``t_start_s <= t < t_end_s`` (units not re-checked)."""
         return ImuStream(

@@ -235,6 +235,22 @@ def heading_errors(estimate: Trajectory, truth: GroundTruth) -> tuple[FloatArray
     return truth.t, np.abs(wrap_angle(est - truth.heading_rad))
 
 
+def heading_change_rad(steps: StepEvents, *, end_fraction: float = 0.2) -> float:
+    """Heading change over a walk from its step headings, rad (CCW positive, ENU).
+
+    The mean unwrapped heading of the last ``end_fraction`` of the steps with a heading minus
+    that of the first (at least two steps at each end); needs four such steps.
+    """
+    h = np.asarray(steps.heading_rad, dtype=np.float64)
+    h = np.unwrap(h[np.isfinite(h)])
+    if len(h) < 4 or not 0.0 < end_fraction <= 0.5:
+        raise InputError(f"{len(h)} step headings, end_fraction {end_fraction}",
+                         where="heading_change_rad",
+                         expected="at least 4 step headings and 0 < end_fraction <= 0.5")
+    k = max(2, int(len(h) * end_fraction))
+    return float(np.mean(h[-k:]) - np.mean(h[:k]))
+
+
 def _smoothed_velocities(estimate: Trajectory, truth: GroundTruth, rate_hz: float,
                          window_s: float) -> tuple[FloatArray, FloatArray] | None:
     """Horizontal velocities (M, 2) of estimate and truth on a common grid over the truth span.

@@ -678,7 +678,7 @@ class GaitAnalyzer:
         made the yaw of x noise (turns off by 30-120 deg).
         """
         if self._forward_d is None and q_nd is not None and len(q_nd):
-            up_d = quat_to_matrix(q_nd[0])[2]   # ENU up in device axes
+            up_d = quat_to_matrix(q_nd[0])[2]   # row 2 of R (v_n = R v_d): ENU up, device axes
             axis = np.eye(3)[int(np.argmin(np.abs(up_d)))]
             level = axis - float(axis @ up_d) * up_d   # made horizontal at that sample
             self._forward_d = level / np.linalg.norm(level)

@@ -59,7 +59,7 @@ from hrtls.parallel import Engine, LocalEngine, values_or_raise
 from hrtls.pipeline import Tracker, TrackerConfig, preset
 from hrtls.pipeline.config import TagsConfig
 from hrtls.pipeline.tracker import TrackResult
-from hrtls.sim.scenarios import SimulationResult, run_scenario
+from hrtls.sim.scenarios import TARRIO_OFFICE_TABLE, SimulationResult, run_scenario
 
 DEFINITIONS = {
     "p97_axis": "97th percentile of max(|e_x|, |e_y|) over the walk (Colombo Sec. V)",
@@ -332,9 +332,6 @@ def thesis_stairs(config: TrackerConfig) -> TrackerConfig:
 
 # ---------------------------------------------------------------------------------- cases
 _BASSO = {1: 1.0, 2: 2.1, 3: 0.9, 4: 1.6, 5: 1.6, 6: 1.4}
-_TARRIO_OFFICE_KF = {1: (2.39, 3.91), 2: (2.26, 4.36), 3: (1.64, 4.02), 4: (2.92, 4.30),
-                     5: (2.30, 4.65), 6: (2.22, 4.33), 7: (2.63, 3.92), 8: (2.22, 4.62)}
-"""Tarrio Sec. V, Tables I-II: the Kalman filter's mean and maximum error per user (m)."""
 _RING = {"all": ("2.62", 2.0), "corners": ("4.28", 3.0), "corridor": ("13.34", 5.0),
          "no_tag5": ("2.62", 2.0)}
 
@@ -362,7 +359,8 @@ def cases() -> list[Case]:
         MetricSpec("p90 error [m]", p90_error, "2.4 (Sec. IV)", ("<=", 1.8)),
         MetricSpec("RSS alone - ours, mean [m]", rss_gain, "~1.5 (Kalman vs RSS alone)",
                    (">=", 1.5), higher_is_better=True)]))
-    for office_user, (kf_mean, kf_max) in _TARRIO_OFFICE_KF.items():
+    for office_user, row in TARRIO_OFFICE_TABLE.items():   # KF: columns 3 and 6
+        kf_mean, kf_max = row[2], row[5]
         out.append(Case(f"tarrio_office user {office_user}", "tarrio_office",
                         {"user": office_user},
                         "tarrio2011", [

@@ -154,18 +154,13 @@ def _input_report(fmt: str, caught: list[warnings.WarningMessage], notes: list[s
     return {"format": fmt, "repairs": repairs, "notes": list(notes)}
 
 
-HANDHELD_FORMATS = frozenset({"ipin"})
-"""Formats recorded with a phone held in the hand (IPIN: in front of the face or chest)."""
-
-
 def _with_input(run: TrackRun, input_report: dict[str, Any], config: TrackerConfig
                 ) -> TrackRun:
     report = run.result.report
     report["input"] = input_report
-    placement = run.session.meta.placement
-    handheld = input_report["format"] in HANDHELD_FORMATS or \
-        uses_handheld_mounting("auto", placement)
-    if handheld and not uses_handheld_mounting(config.attitude.mounting, placement):
+    placement = run.session.meta.placement   # the reader's (IPIN: "hand")
+    if (uses_handheld_mounting("auto", placement)
+            and not uses_handheld_mounting(config.attitude.mounting, placement)):
         note = (f"this is a hand-held phone recording ({input_report['format']}) but the "
                 f"configuration {config.name!r} expects a body-worn device: use --preset "
                 "handheld-phone (or [attitude] mounting = \"handheld\")")
