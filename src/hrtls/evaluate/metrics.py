@@ -18,6 +18,8 @@ flattered by dropping the truth it did not reach.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -356,3 +358,18 @@ def activity_confusion(true_t: ArrayLike, true_codes: ArrayLike, est_t: ArrayLik
     np.add.at(m, (rows, cols), 1)
     return ActivityConfusion(labels=tuple(c.label for c in ACTIVITY_CLASSES), matrix=m,
                              accuracy=float(np.trace(m) / m.sum()))
+
+
+def class_weighted_error(truth: np.ndarray, predicted: np.ndarray,
+                         weights: Mapping[Activity, int]) -> float:
+    """Error rate, %, with each true class's error rate weighted by ``weights``.
+
+    NaN when a weighted class has no window in ``truth``.
+    """
+    total = 0.0
+    for cls, w in weights.items():
+        mine = truth == int(cls)
+        if not mine.any():
+            return math.nan
+        total += w * float(np.mean(predicted[mine] != int(cls)))
+    return 100.0 * total / sum(weights.values())

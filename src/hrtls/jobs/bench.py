@@ -55,6 +55,7 @@ from hrtls.evaluate.metrics import (
 )
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.step_length_fit import CalibrationWalk, fit_frequency_law, fit_weinberg
+from hrtls.jobs import bench_studies
 from hrtls.parallel import Engine, LocalEngine, values_or_raise
 from hrtls.pipeline import Tracker, TrackerConfig, preset
 from hrtls.pipeline.config import TagsConfig
@@ -153,10 +154,14 @@ Metric = Callable[[TrackResult, SimulationResult], float]
 
 @dataclass(frozen=True, slots=True)
 class MetricSpec:
-    """A metric of a case: label, paper figure, target (``("<=", 0.5)``), worst = max or min."""
+    """A metric of a case: label, paper figure, target (``("<=", 0.5)``), worst = max or min.
+
+    ``fn`` scores a tracked walk; None for the metrics of a study case (its ``study`` gives
+    the values).
+    """
 
     label: str
-    fn: Metric
+    fn: Metric | None
     paper: str
     target: tuple[str, float] | None = None
     higher_is_better: bool = False
@@ -177,6 +182,10 @@ class Case:
     quick: bool = True
     relative_to: str | None = None
     """Label of a case whose ``default`` value (same metric) this one must not exceed."""
+    study: Callable[[int], Sequence[float]] | None = None
+    """A study instead of a tracked walk (:mod:`hrtls.jobs.bench_studies`): the values of the
+    metrics for one seed. hrtls' default for such a job is the paper's method, so both columns
+    hold its values."""
 
 
 # ---------------------------------------------------------------------------------- metrics
@@ -413,7 +422,61 @@ def cases() -> list[Case]:
                             paper_config=cfg, default_config=cfg, quick=False,
                             relative_to=None if cfg is without_bearing
                             else f"inderst_two_users {user} position corr."))
+    out += _two_user_prediction_cases() + _study_cases()
     return out
+
+
+def _two_user_prediction_cases() -> list[Case]:
+    """Tables 6.11-6.12: the two users' walk with the inertial platform alone (no tags)."""
+    figures = {"A": ("6.11", "7.2", "15.6"), "B": ("6.12", "5", "8.9")}
+    return [Case(f"inderst_two_users {user} prediction only", "inderst_two_users",
+                 {"user": user, "tags": False}, "inderst-rfid", [
+                     MetricSpec("mean checkpoint error [m]", checkpoint_mean,
+                                f"{mean_fig} (Table {table}, prediction)", ("<=", float(mean_fig))),
+                     MetricSpec("max checkpoint error [m]", checkpoint_max,
+                                f"{max_fig} (Table {table}, prediction)", ("<=", float(max_fig)))],
+                 paper_config=without_bearing, default_config=without_bearing, quick=False)
+            for user, (table, mean_fig, max_fig) in figures.items()]
+
+
+def _lda_study(seed: int) -> list[float]:
+    return [bench_studies.activity_cross_validation(seed)]
+
+
+def _loose_study(seed: int) -> list[float]:
+    return list(bench_studies.loose_cooperation(seed))
+
+
+def _tight_study(seed: int) -> list[float]:
+    return list(bench_studies.tight_cooperation(seed))
+
+
+def _study_cases() -> list[Case]:
+    """Inderst Sec. 6.2 (activity recognition) and Sec. 6.4 (range-node network) studies."""
+    return [
+        Case("inderst_activity_study (10 users, leave one out)", "activity_course", {},
+             "LDA eq. 4.8", [MetricSpec(
+                 "error rate, Table 6.7 class mix [%]", None, "12.44 (Sec. 6.2, Table 6.7)",
+                 ("<=", 12.44), note="per-class errors of the pooled held-out users' windows "
+                 "weighted by Table 6.7's class counts")],
+             quick=False, study=_lda_study),
+        Case(f"wsn_loose ({bench_studies.LOOSE_NETWORKS} networks of 50 nodes, rho 0.2)",
+             "wsn", {}, "SELA + planner", [
+                 MetricSpec("nodes localized by SELA alone [share]", None,
+                            "- (Fig. 6.11a: 5 of 50 in its one network)",
+                            higher_is_better=True),
+                 MetricSpec("connected networks fully localized with the planner [share]", None,
+                            "all (Fig. 6.11c, Sec. 5.4)", (">=", 1.0),
+                            higher_is_better=True)],
+             quick=False, study=_loose_study),
+        Case(f"wsn_tight ({bench_studies.TIGHT_NETWORKS} networks of 50 nodes, no anchors)",
+             "wsn", {}, "robot + Algorithm 1", [
+                 MetricSpec("networks fully localized [share]", None,
+                            "all (Figs. 6.13-6.16: every example network)", (">=", 1.0),
+                            higher_is_better=True),
+                 MetricSpec("position RMSE after refinement [rho]", None,
+                            "- (not reported)")],
+             quick=False, study=_tight_study)]
 
 
 def _fix_period_of(tp: float) -> Callable[[TrackerConfig], TrackerConfig]:
@@ -560,6 +623,9 @@ def run_item(item: BenchItem) -> dict[str, list[float]]:
     channel) its user calibrated on the calibration course of the same person.
     """
     case = _case(item.case)
+    if case.study is not None:
+        values = [float(v) for v in case.study(item.seed)]
+        return {"paper": values, "default": values}
     sim = run_scenario(case.scenario, item.seed, **case.options)
     cal = run_scenario(case.scenario, item.seed, calibration=True, **case.options)
     blind = sim.session.with_parts(truth=None, checkpoints=None)
@@ -569,8 +635,15 @@ def run_item(item: BenchItem) -> dict[str, list[float]]:
         res = _track(cfg, session)
         scored = dataclasses.replace(sim, session=session.with_parts(
             truth=sim.session.truth, checkpoints=sim.session.checkpoints))
-        out[which] = [float(m.fn(res, scored)) for m in case.metrics]
+        out[which] = [float(_scored_by(m)(res, scored)) for m in case.metrics]
     return out
+
+
+def _scored_by(metric: MetricSpec) -> Metric:
+    if metric.fn is None:
+        raise InputError(f"metric {metric.label!r} has no scorer", where="bench case",
+                         expected="a tracked case's metric (a study gives its own values)")
+    return metric.fn
 
 
 @dataclass(frozen=True, slots=True)
