@@ -115,3 +115,35 @@ def test_long_recordings_are_thinned_without_changing_the_offset() -> None:
     thinned = fit_hard_iron(mag, up_d=acc.mean(axis=0), max_samples=5_000)
     assert thinned.n_used <= 5_000
     assert thinned.hard_iron_ut[:2] == pytest.approx(c[:2], abs=0.1)
+
+
+def _covered_deg_sorted(d: np.ndarray) -> float:
+    """Slow readable reference: 360 deg less the widest gap of the sorted directions."""
+    ang = np.sort(np.arctan2(d[:, 1], d[:, 0]))
+    gap = ang[0] + 2.0 * np.pi - ang[-1]
+    if len(ang) > 1:
+        gap = max(gap, float(np.max(np.diff(ang))))
+    return 360.0 - float(np.degrees(gap))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(-np.pi, np.pi), min_size=1, max_size=80),
+       st.floats(0.1, 50.0))
+def test_covered_angle_equals_the_sorted_reference(angles: list[float], radius: float) -> None:
+    from hrtls.calibration.hard_iron import _spread_kernel
+
+    a = np.asarray(angles)
+    d = radius * np.column_stack([np.cos(a), np.sin(a)])
+    arc, extent = _spread_kernel(d)
+    assert arc == pytest.approx(_covered_deg_sorted(d), abs=1e-9)
+    assert extent == pytest.approx(max(np.ptp(d[:, 0]), np.ptp(d[:, 1])))
+
+
+def test_covered_angle_hand_computed() -> None:
+    from hrtls.calibration.hard_iron import _spread_kernel
+
+    # directions 0, 90 and 180 deg: the widest gap is the 180 deg from 180 back to 0
+    d = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
+    assert _spread_kernel(d)[0] == pytest.approx(180.0)
+    # a single direction covers nothing
+    assert _spread_kernel(np.array([[0.0, 2.0]]))[0] == pytest.approx(0.0)

@@ -83,20 +83,23 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     for a in range(dim):
         mean[a] /= n
     m = np.zeros((dim + 1, dim + 2))      # [A^T A | A^T b], A = [2u, 1], b = |u|^2
+    row = np.empty(dim + 1)
+    row[dim] = 1.0
     for i in range(p.shape[0]):
         if not keep[i]:
             continue
-        row = np.empty(dim + 1)
         bb = 0.0
         for a in range(dim):
             u = p[i, a] - mean[a]
             row[a] = 2.0 * u
             bb += u * u
-        row[dim] = 1.0
         for a in range(dim + 1):
-            for b in range(dim + 1):
+            for b in range(a, dim + 1):
                 m[a, b] += row[a] * row[b]
             m[a, dim + 1] += row[a] * bb
+    for a in range(dim + 1):    # A^T A is symmetric: the lower triangle from the upper
+        for b in range(a):
+            m[a, b] = m[b, a]
     k = dim + 1
     for col in range(k):
         piv = col
@@ -169,16 +172,34 @@ def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, pas
 def _spread_kernel(d: FloatArray) -> tuple[float, float]:
     """Angle covered by the 2-D vectors ``d`` (N, 2) around the origin, deg; their extent.
 
-    The extent is the largest range of one coordinate.
+    The angle is 360 deg less the widest gap between neighbouring directions (the wrap-around
+    gap included), found without sorting: N directions over a range R leave a gap of at least
+    R / (N - 1), wider than each of N + 1 buckets of width R / N, so the widest gap lies between
+    the largest direction of a bucket and the smallest of the next non-empty one (the bucket
+    index never decreases with the direction). The extent is the largest range of one
+    coordinate.
     """
     n = d.shape[0]
     ang = np.empty(n)
+    lo, hi = math.inf, -math.inf
     for i in range(n):
         ang[i] = math.atan2(d[i, 1], d[i, 0])
-    ang.sort()
-    gap = ang[0] + 2.0 * math.pi - ang[n - 1]
-    for i in range(1, n):
-        gap = max(gap, ang[i] - ang[i - 1])
+        lo = min(lo, ang[i])
+        hi = max(hi, ang[i])
+    gap = lo + 2.0 * math.pi - hi
+    if hi > lo:
+        b_min = np.full(n + 1, math.inf)
+        b_max = np.full(n + 1, -math.inf)
+        scale = n / (hi - lo)
+        for i in range(n):
+            k = min(int((ang[i] - lo) * scale), n)
+            b_min[k] = min(b_min[k], ang[i])
+            b_max[k] = max(b_max[k], ang[i])
+        prev = b_max[0]
+        for k in range(1, n + 1):
+            if b_min[k] <= b_max[k]:
+                gap = max(gap, b_min[k] - prev)
+                prev = b_max[k]
     extent = 0.0
     for a in range(d.shape[1]):
         extent = max(extent, d[:, a].max() - d[:, a].min())
@@ -186,15 +207,55 @@ def _spread_kernel(d: FloatArray) -> tuple[float, float]:
 
 
 @numba.njit(cache=True)
-def _residual_kernel(p: FloatArray, c: FloatArray, r: float) -> float:
-    """RMS distance of the points ``p`` from the circle (sphere) ``(c, r)``."""
-    acc = 0.0
-    for i in range(p.shape[0]):
-        d2 = 0.0
-        for a in range(p.shape[1]):
-            d2 += (p[i, a] - c[a]) ** 2
-        acc += (math.sqrt(d2) - r) ** 2
-    return math.sqrt(acc / p.shape[0])
+def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
+                passes: int) -> tuple[bool, FloatArray, float, float, float, float, int]:
+    """Samples ``m`` (N, 3) projected on the rows of ``basis``, gated fit, coverage, residual.
+
+    Returns ``(ok, c, r, residual, arc_deg, extent, n_used)`` with the centre ``c`` in the
+    projected coordinates; ``ok`` false: a fit gave ``r^2 <= 0`` (the rest is then unset).
+    For a 3-D basis the coverage is measured in the plane of the two main axes of the kept
+    samples around the centre.
+    """
+    n, dim = m.shape[0], basis.shape[0]
+    p = np.empty((n, dim))
+    for i in range(n):
+        for a in range(dim):
+            p[i, a] = m[i, 0] * basis[a, 0] + m[i, 1] * basis[a, 1] + m[i, 2] * basis[a, 2]
+    c, r, keep, ok = _gated_fit_kernel(p, gate_fraction, min_samples, passes)
+    if not ok:
+        return False, c, 0.0, math.nan, math.nan, math.nan, 0
+    n_used = int(keep.sum())
+    d = np.empty((n_used, dim))
+    k = 0
+    for i in range(n):
+        if keep[i]:
+            for a in range(dim):
+                d[k, a] = p[i, a] - c[a]
+            k += 1
+    resid = 0.0
+    for i in range(n_used):
+        resid += (math.sqrt(np.sum(d[i] * d[i])) - r) ** 2
+    resid = math.sqrt(resid / n_used)
+    if dim == 3:  # directions in the plane of their two main axes
+        _, _, vt = np.linalg.svd(d - d.sum(axis=0) / n_used, full_matrices=False)
+        d = np.ascontiguousarray(d @ np.ascontiguousarray(vt[:2].T))
+    arc, extent = _spread_kernel(d)
+    return True, c, r, resid, arc, extent, n_used
+
+
+def _plane_basis(up_d: ArrayLike | None) -> FloatArray:
+    """Rows spanning the plane perpendicular to ``up_d`` (identity without ``up_d``)."""
+    if up_d is None:
+        return np.eye(3)
+    up = np.asarray(up_d, dtype=np.float64)
+    norm = math.sqrt(float(up @ up)) if up.shape == (3,) else math.nan
+    if not (math.isfinite(norm) and norm > 0.0):
+        raise InputError(f"up_d = {up_d!r}", where="hard-iron fit",
+                         expected="a finite non-zero 3-vector")
+    up = up / norm
+    e1 = _cross3(up, np.eye(3)[int(np.argmin(np.abs(up)))])  # up x its least aligned axis
+    e1 /= math.sqrt(float(e1 @ e1))
+    return np.array([e1, _cross3(up, e1)])
 
 
 def _cross3(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -226,36 +287,19 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         blocks = m[:n].reshape(-1, block_samples, 3)
         ok = np.all(np.isfinite(blocks), axis=(1, 2))  # a block with a gap is dropped
         m = blocks[ok].mean(axis=1)
-    m = m[np.all(np.isfinite(m), axis=1)]
+    if not np.isfinite(m.sum()):
+        m = m[np.all(np.isfinite(m), axis=1)]
     if len(m) > max_samples:  # evenly thinned: the offset needs the headings, not every sample
         m = m[:: -(-len(m) // max_samples)]
     if len(m) < min_samples:
         raise InputError(f"{len(m)} finite samples", where="hard-iron fit",
                          expected=f"at least {min_samples}")
-    if up_d is None:
-        basis = np.eye(3)
-    else:
-        up = np.asarray(up_d, dtype=np.float64)
-        if up.shape != (3,) or not np.all(np.isfinite(up)) or not np.linalg.norm(up) > 0:
-            raise InputError(f"up_d = {up_d!r}", where="hard-iron fit",
-                             expected="a finite non-zero 3-vector")
-        up = up / np.linalg.norm(up)
-        # two unit vectors spanning the plane perpendicular to up
-        e1 = _cross3(up, np.eye(3)[int(np.argmin(np.abs(up)))])
-        e1 /= np.linalg.norm(e1)
-        basis = np.vstack([e1, _cross3(up, e1)])
-    p_all = np.ascontiguousarray(m @ basis.T)
-    c, r, keep, ok = _gated_fit_kernel(p_all, float(gate_fraction), int(min_samples),
-                                       _GATE_PASSES)
+    basis = _plane_basis(up_d)
+    ok, c, r, resid, arc, extent, n_used = _fit_kernel(
+        np.ascontiguousarray(m), basis, float(gate_fraction), int(min_samples), _GATE_PASSES)
     if not ok:
         raise InputError("circle fit failed", where="hard-iron fit",
                          expected="field samples from a device that turned")
-    p = p_all[keep]
-    d = p - c
-    if d.shape[1] == 3:  # directions in the plane of their two main axes
-        _, _, vt = np.linalg.svd(d - d.mean(axis=0), full_matrices=False)
-        d = d @ vt[:2].T
-    arc, extent = _spread_kernel(np.ascontiguousarray(d))
     if r < min_field_ut or extent < r:
         # samples that hardly move (no turning) fit a small circle around their own noise
         raise InputError(f"the field samples span {extent:.1f} uT around a fitted "
@@ -266,9 +310,8 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         raise InputError(f"the field turned through {arc:.0f} deg", where="hard-iron fit",
                          expected=f"at least {min_arc_deg:.0f} deg of turning",
                          hint="walk a loop or turn around; or calibrate with a figure of eight")
-    resid = _residual_kernel(p, c, r)
-    return HardIronFit(hard_iron_ut=np.asarray(c @ basis, dtype=np.float64), field_ut=r,
-                       residual_ut=resid, arc_deg=arc, n_used=len(p))
+    return HardIronFit(hard_iron_ut=c @ basis, field_ut=r, residual_ut=resid, arc_deg=arc,
+                       n_used=n_used)
 
 
 def hard_iron_samples(imu: ImuStream, window_s: float = 0.0

@@ -145,10 +145,15 @@ def loose_cooperation(seed: int) -> tuple[float, float]:
     """Fig. 6.11 setting over :data:`LOOSE_NETWORKS` random networks of bench seed ``seed``.
 
     Returns the share of nodes SELA localizes alone (all networks) and the share of connected
-    networks that end fully localized with the planner (NaN when none is connected).
+    networks that end fully localized with the planner. When none of the networks is
+    connected, the study is doubled (up to eight times) until one is; NaN if none ever is.
     """
-    study = loose_study(n_networks=LOOSE_NETWORKS, seed=seed)
-    rows = {r.group: r for r in study.rows}
+    count = LOOSE_NETWORKS
+    while True:  # the first networks of a larger study are those of the smaller one
+        rows = {r.group: r for r in loose_study(n_networks=count, seed=seed).rows}
+        if "connected" in rows or count >= 8 * LOOSE_NETWORKS:
+            break
+        count *= 2
     connected = rows.get("connected")
     return rows["all"].sela, math.nan if connected is None else connected.complete
 
