@@ -1,18 +1,19 @@
 """Hand-held IMU in fast motion, BROAD-like (benchmark and test data, truth known).
 
-Three kinds of unit, after the fast trials of BROAD (Laidig, Weygers & Seel 2021) that are not
-in ``../shared/data/broad``: ``translation`` (quick linear accelerations of several m/s^2 at
-0.5-3 Hz, the orientation only wobbling by a few degrees), ``rotation`` (large, fast rotations
-about all axes, the position nearly still) and ``combined`` (both). A unit rests for ``rest_s``,
-then moves; the motion fades in and out over ``ramp_s`` around each of ``n_breaks`` pauses of
-``break_s``. Seeds: 1-3 are for development, 101-110 are held out (``DEV_SEEDS``,
-``HELD_OUT_SEEDS``); nothing is tuned on the held-out seeds.
+Three kinds of unit, after the fast trials of BROAD (Laidig, Caruso, Cereatti & Seel 2021,
+Data 6(7) 72) that are not in ``../shared/data/broad``: ``translation`` (quick linear
+accelerations of several m/s^2 at 0.5-3 Hz, the orientation only wobbling by a few degrees),
+``rotation`` (large, fast rotations about all axes, the position nearly still) and ``combined``
+(both). A unit rests for ``rest_s``, then moves; the motion fades in and out smoothly over
+``ramp_s`` around each of ``n_breaks`` pauses of ``break_s``. Seeds: 1-3 are for development,
+101-110 are held out (``DEV_SEEDS``, ``HELD_OUT_SEEDS``); nothing is tuned on the held-out
+seeds.
 
 Physics (conventions of ``docs/conventions.md``: ENU, ``q_nb`` maps body vectors to ENU,
 ``g_n = [0, 0, -9.80665]``):
 
 * position ``p_n(t) = e(t) s(t)``, ``s`` a sum of sines with analytic derivatives and ``e`` the
-  motion envelope (raised-cosine ramps), so ``a_n = e'' s + 2 e' s' + e s''`` exactly;
+  motion envelope (quintic ramps), so ``a_n = e'' s + 2 e' s' + e s''`` exactly;
 * orientation from roll, pitch, yaw (``R_nb = Rz(yaw) Ry(pitch) Rx(roll)``), each a constant
   plus ``e(t)`` times a sum of sines, the yaw with an extra slow turn;
 * gyroscope: the mean body rate between samples, ``omega = rotvec(R_{k-1}^T R_k) / dt`` (as
@@ -61,24 +62,24 @@ class FastMotion:
 
 def _envelope(t: np.ndarray, on: list[tuple[float, float]], ramp_s: float
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``e, e', e''`` of a motion envelope: 1 inside each ``(t0, t1)``, raised-cosine ramps."""
+    """``e, e', e''`` of a motion envelope: 1 inside each ``(t0, t1)``, smooth ramps.
+
+    The ramps are the quintic ``h(u) = 10 u^3 - 15 u^4 + 6 u^5`` (``h' = 30 u^2 (1 - u)^2``,
+    ``h'' = 60 u (1 - u) (1 - 2 u)``, ``u`` the ramp time over ``ramp_s``), whose first and
+    second derivatives vanish at both ends: the body's acceleration has no jumps.
+    """
     e = np.zeros_like(t)
     de = np.zeros_like(t)
     dde = np.zeros_like(t)
-    w = np.pi / ramp_s
     for t0, t1 in on:
-        up = (t >= t0) & (t < t0 + ramp_s)
-        flat = (t >= t0 + ramp_s) & (t < t1 - ramp_s)
-        down = (t >= t1 - ramp_s) & (t < t1)
-        u = w * (t[up] - t0)
-        e[up] = 0.5 - 0.5 * np.cos(u)
-        de[up] = 0.5 * w * np.sin(u)
-        dde[up] = 0.5 * w * w * np.cos(u)
-        e[flat] = 1.0
-        u = w * (t[down] - (t1 - ramp_s))
-        e[down] = 0.5 + 0.5 * np.cos(u)
-        de[down] = -0.5 * w * np.sin(u)
-        dde[down] = -0.5 * w * w * np.cos(u)
+        for start, sign in ((t0, 1.0), (t1 - ramp_s, -1.0)):
+            sel = (t >= start) & (t < start + ramp_s)
+            u = (t[sel] - start) / ramp_s
+            h = u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+            e[sel] = h if sign > 0 else 1.0 - h
+            de[sel] = sign * 30.0 * u * u * (1.0 - u) ** 2 / ramp_s
+            dde[sel] = sign * 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / ramp_s ** 2
+        e[(t >= t0 + ramp_s) & (t < t1 - ramp_s)] = 1.0
     return e, de, dde
 
 
