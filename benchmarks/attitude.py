@@ -23,9 +23,18 @@ constant heading offset removed; only ``movement`` samples; NaN references skipp
 Data: (1) ``hrtls.sim`` office walk (waist phone, magnetic anomalies), (2) the compact walking
 simulator ``benchmarks/_attitude_sim.py`` with magnetic anomaly patches and a large gyro bias
 (seeds 1-3),
-(3) the BROAD trials in ``../shared/data/broad`` (skipped when absent). The data sets run
-through ``--engine`` (``benchmarks/_engine.py``); the speed runs stay in this process, one at a
-time.
+(3) the BROAD trials in ``../shared/data/broad`` (skipped when absent), (4) with
+``--fast-motion dev|held-out|all``, the simulated fast hand-held motions of
+``benchmarks/_attitude_fast_sim.py`` (fast translation, fast rotation, both; 286 Hz; seeds 1-3
+for development, 101-110 held out), printed in their own tables, one row per unit and the
+mean / median / worst over seeds per kind; ``--fast-only`` skips (1)-(3)::
+
+    python benchmarks/attitude.py --fast-motion all --fast-only \
+        --methods inertial-lp,vqf,vqf-6d,quat-ekf,complementary
+
+``vqf`` is VQF's 9-D output, ``vqf-6d`` its 6-D output (heading from the gyroscope only). The
+data sets run through ``--engine`` (``benchmarks/_engine.py``); the speed runs stay in this
+process, one at a time.
 """
 
 from __future__ import annotations
@@ -42,6 +51,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _attitude_fast_sim import DEV_SEEDS, HELD_OUT_SEEDS, KINDS, simulate_fast_motion
 from _attitude_sim import simulate_walk
 from _engine import Batch, add_engine_options
 from hrtls.attitude import make_filter, orientation_errors
@@ -76,6 +86,13 @@ def vqf_runner(t, acc, gyr, mag, rate):
     out = v.updateBatch(np.ascontiguousarray(gyr), np.ascontiguousarray(acc),
                         np.ascontiguousarray(mag))
     return out["quat9D"]
+
+
+def vqf6d_runner(t, acc, gyr, mag, rate):
+    from vqf import VQF
+
+    v = VQF(1.0 / rate)
+    return v.updateBatch(np.ascontiguousarray(gyr), np.ascontiguousarray(acc))["quat6D"]
 
 
 def imufusion_runner(t, acc, gyr, mag, rate):
@@ -133,6 +150,7 @@ def available() -> tuple[dict[str, Runner], list[str]]:
     }
     notes = []
     for label, module, runner in (("vqf", "vqf", vqf_runner),
+                                  ("vqf-6d", "vqf", vqf6d_runner),
                                   ("imufusion", "imufusion", imufusion_runner),
                                   ("ahrs-ekf", "ahrs", ahrs_runner("ekf")),
                                   ("ahrs-madgwick", "ahrs", ahrs_runner("madgwick"))):
@@ -174,6 +192,11 @@ def dataset_sim_walk(duration_s: float, seed: int) -> tuple:
     return s.t, s.acc, s.gyr, s.mag, s.q_true, s.movement, 100.0
 
 
+def dataset_fast(kind: str, seed: int) -> tuple:
+    s = simulate_fast_motion(kind, seed=seed)
+    return s.t, s.acc, s.gyr, s.mag, s.q_true, s.movement, s.rate_hz
+
+
 def dataset_broad(path: Path) -> tuple:
     import h5py
 
@@ -190,7 +213,7 @@ def dataset_broad(path: Path) -> tuple:
 
 @dataclass(frozen=True)
 class DatasetItem:
-    """One data set (``kind`` sim-office, sim-walk or broad) and the methods to score on it."""
+    """One data set (``kind`` sim-office, sim-walk, fast-<kind> or broad) and its methods."""
 
     name: str
     kind: str
@@ -207,6 +230,8 @@ def load(item: DatasetItem) -> tuple:
         return dataset_sim_office(item.duration_s)
     if item.kind == "sim-walk":
         return dataset_sim_walk(item.duration_s, item.seed)
+    if item.kind.startswith("fast-"):
+        return dataset_fast(item.kind.removeprefix("fast-"), item.seed)
     assert item.path is not None
     return dataset_broad(item.path)
 
@@ -244,6 +269,44 @@ def speed(runner: Runner, n: int) -> float:
     return n / best
 
 
+def fast_items(which: str, labels: tuple[str, ...], quick: bool) -> list[DatasetItem]:
+    """The fast-motion units of ``--fast-motion`` (every kind for each seed of the set)."""
+    seeds = {"none": (), "dev": DEV_SEEDS, "held-out": HELD_OUT_SEEDS,
+             "all": DEV_SEEDS + HELD_OUT_SEEDS}[which]
+    return [DatasetItem(f"fast-{kind}-{seed}", f"fast-{kind}", labels, quick, seed=seed)
+            for kind in KINDS for seed in seeds]
+
+
+def print_fast(names: list[str], results: dict[str, dict[str, tuple[float, float]]],
+               methods: list[str]) -> None:
+    """Per-unit and per-kind tables of the fast-motion units (development / held-out seeds)."""
+    print()
+    print("fast-motion units: inclination / heading RMS in degrees")
+    header = f"{'unit':22s} | " + " | ".join(f"{m:>13s}" for m in methods)
+    print(header)
+    print("-" * len(header))
+    for n in names:
+        cells = [f"{results[m][n][0]:5.2f} / {results[m][n][1]:5.2f}" if n in results[m]
+                 else f"{'-':>13s}" for m in methods]
+        print(f"{n:22s} | " + " | ".join(cells))
+    print()
+    print("fast-motion units over seeds: inclination / heading RMS in degrees, "
+          "mean | median | worst")
+    for set_name, seeds in (("dev", DEV_SEEDS), ("held-out", HELD_OUT_SEEDS)):
+        for kind in (*KINDS, "all"):
+            kinds = KINDS if kind == "all" else (kind,)
+            units = [f"fast-{k}-{s}" for k in kinds for s in seeds]
+            if not all(u in names for u in units):
+                continue
+            print(f"{set_name} seeds {seeds[0]}-{seeds[-1]}, {kind}")
+            for m in methods:
+                r = np.array([results[m][u] for u in units if u in results[m]])
+                if len(r) == 0:
+                    continue
+                stats = (r.mean(axis=0), np.median(r, axis=0), r.max(axis=0))
+                print(f"  {m:14s} | " + " | ".join(f"{a:5.2f} / {b:5.2f}" for a, b in stats))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter data and speed runs")
@@ -251,6 +314,12 @@ def main() -> None:
     ap.add_argument("--speed-only", action="store_true", help="only the speed column")
     ap.add_argument("--speed-samples", type=int, default=0,
                     help="samples of the speed runs (default 1 M, --quick 200 k)")
+    ap.add_argument("--fast-motion", choices=("none", "dev", "held-out", "all"), default="none",
+                    help="add the simulated fast-motion units: development seeds "
+                         f"{DEV_SEEDS[0]}-{DEV_SEEDS[-1]}, held-out seeds "
+                         f"{HELD_OUT_SEEDS[0]}-{HELD_OUT_SEEDS[-1]}, or both")
+    ap.add_argument("--fast-only", action="store_true",
+                    help="only the fast-motion units (no office walk, walks or BROAD)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -270,7 +339,7 @@ def main() -> None:
     for seed in (1, 2, 3):
         datasets.append(DatasetItem(f"sim-walk{seed}", "sim-walk", labels, args.quick,
                                     duration_s=120.0 if args.quick else 300.0, seed=seed))
-    if args.speed_only:
+    if args.speed_only or args.fast_only:
         datasets = []
     elif BROAD.is_dir():
         for p in sorted(BROAD.glob("*.hdf5")):
@@ -278,6 +347,8 @@ def main() -> None:
                                         args.quick, path=p))
     else:
         print(f"note: {BROAD} not found; BROAD trials skipped")
+    if not args.speed_only:
+        datasets += fast_items(args.fast_motion, labels, args.quick)
 
     results: dict[str, dict[str, tuple[float, float]]] = {m: {} for m in methods}
     rates: dict[str, float] = {}
@@ -286,9 +357,10 @@ def main() -> None:
         rates[label] = speed(runner, n_slow if slow else n_fast)
         print(f"speed {label}: {rates[label] / 1e6:.3f} M samples/s", flush=True)
     names = []
+    fast_names = []
     for item, (n_samples, per_method) in batch.map(accuracy, datasets,
                                                    label=lambda it: it.name):
-        names.append(item.name)
+        (fast_names if item.kind.startswith("fast-") else names).append(item.name)
         for label, value in per_method.items():
             results[label][item.name] = value
         print(f"done {item.name} ({n_samples} samples)", flush=True)
@@ -319,6 +391,8 @@ def main() -> None:
                 continue
             stats = (r.mean(axis=0), np.median(r, axis=0), r.max(axis=0))
             print(f"{label:14s} | " + " | ".join(f"{a:5.2f} / {b:5.2f}" for a, b in stats))
+    if fast_names:
+        print_fast(fast_names, results, list(methods))
     batch.finish()
 
 
