@@ -107,3 +107,38 @@ def test_dead_reckoning_agent_completes_connected_network_regression() -> None:
     assert nav.complete
     err = np.linalg.norm(nav.localization.estimate_m - net.position_m, axis=1)
     assert err.max() < 0.5 * 0.2
+
+
+def test_arc_visit_almost_on_the_node_regression() -> None:
+    # Network 18 of `loose_study(n_networks=20, seed=122)`, exactly tracked agent: an arc visit
+    # stood 1.8e-5 m from node 48, so its two candidates were 3.5e-5 m apart, and the candidate
+    # way point was skipped as already visited; the arc search then returned the same point
+    # until node 48 was given up in a connected network.
+    rng = np.random.default_rng(np.random.SeedSequence(122).spawn(20)[18])
+    net = corner_seed_network(rng, n_nodes=50, radius_m=0.2)
+    assert connected_components(net).max() == 0
+    world = RangeWorld(true_positions_m=net.position_m, link_radius_m=0.2, radio_range_m=0.2)
+    agent = RescuerAgent(world, net.position_m[0], params=RescuerParams(), rng=rng)
+    nav = safe_navigation(net, agent)
+    assert nav.complete
+    assert sum(w.kind == "arc" for w in nav.waypoints) == 1
+    pts = np.array([w.position_m for w in nav.waypoints])
+    gap = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.eye(len(pts))
+    assert gap.min() > 1e-3 * 0.2  # no place visited twice
+    err = np.linalg.norm(nav.localization.estimate_m - net.position_m, axis=1)
+    assert err.max() < 1e-9 * 0.2
+
+
+def test_candidates_on_the_line_of_their_neighbours_get_a_separating_way_point() -> None:
+    # node 2 lies 1e-4 m off the line of the anchors 0, 1: its candidates are 2e-4 m apart
+    p = np.array([[0.0, 0.0], [0.15, 0.0], [0.1, 1e-4]])
+    net = network_from_positions(p, radius_m=0.2, anchor=np.array([1, 1, 0], bool))
+    aug = AugmentedFramework(net)
+    loc = aug.localize(None)
+    assert not loc.localized[2]
+    (wp,) = plan_waypoints(aug, loc)
+    assert wp.kind == "candidate" and wp.targets == (2,)
+    assert np.isclose(abs(wp.position_m[1]), 0.1) and np.isclose(wp.position_m[0], 0.1)
+    nav = _run(net)
+    assert nav.complete and len(nav.waypoints) == 1
+    assert np.allclose(nav.localization.estimate_m[2], p[2], atol=1e-9)

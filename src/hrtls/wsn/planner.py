@@ -12,6 +12,9 @@ Planner (one round), reading of the thesis used here:
 * an unlocalized node with two localized neighbours whose candidates SELA cannot tell apart gets
   one of its candidate positions as way point (Fig. 5.3): when the agent stands there, either it
   hears the node (a third range) or the candidate is ruled out by the agent's own shadow edge;
+  candidates within ``collinear_fraction * rho`` of the line of those two neighbours (close to
+  each other) get instead the point half ``rho`` across that line, where the node is heard and
+  the third range is far from collinear;
 * an unlocalized node with a single localized neighbour ``p`` (the *pivot*) gets a new seed
   ``Sigma_j = {p, a, b}`` with ``a, b`` the two localized nodes nearest to ``p``; the coverage of
   each seed node is the square ``S_i`` of half side ``rho`` (eq. 5.2), their intersection is the
@@ -70,8 +73,8 @@ class PlannerParams:
     share_seeds:
         Merge way points of nodes whose seeds share >= 2 nodes (thesis Sec. 5.3, last paragraph).
     collinear_fraction:
-        A vertex of ``Q_j`` is "collinear" with two seed nodes when its distance from their line
-        is below this times ``rho``.
+        A vertex of ``Q_j`` (a candidate) is "collinear" with two seed nodes (the two neighbours
+        it comes from) when its distance from their line is below this times ``rho``.
     heuristic:
         Use the thesis' seed/vertex way points; False uses only candidates and the arc search.
     """
@@ -171,14 +174,25 @@ def _localized_neighbours(adj: Adjacency, loc: BoolArray, u: int) -> tuple[IntAr
     return nb[m], d[m]
 
 
+def _pair_index(pts: FloatArray) -> tuple[int, int]:
+    dm = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    ia, ib = np.unravel_index(int(np.argmax(np.triu(dm, 1))), dm.shape)
+    return int(ia), int(ib)
+
+
+def _farthest_pair(adj: Adjacency, loc: Localization, u: int) -> FloatArray:
+    """Positions of the two localized neighbours of ``u`` that give its candidates, ``(2, 2)``."""
+    pts = loc.estimate_m[_localized_neighbours(adj, loc.localized, u)[0]]
+    return pts[list(_pair_index(pts))]
+
+
 def _surviving_candidates(
     u: int, adj: Adjacency, loc: Localization, rho: float, params: PropagationParams
 ) -> list[FloatArray]:
     """Candidates of a 2-covered node not ruled out by ranges or a non-linked localized node."""
     nb, d = _localized_neighbours(adj, loc.localized, u)
     pts = loc.estimate_m[nb]
-    dm = np.linalg.norm(pts[:, None] - pts[None], axis=2)
-    ia, ib = np.unravel_index(int(np.argmax(np.triu(dm, 1))), dm.shape)
+    ia, ib = _pair_index(pts)
     tol = params.range_tolerance_fraction * rho
     try:
         cands = circle_candidates(pts[ia], float(d[ia]), pts[ib], float(d[ib]), tolerance_m=tol)
@@ -229,6 +243,9 @@ def plan_waypoints(
             if not cands:
                 continue
             c = min(cands, key=lambda q: float(np.linalg.norm(q - centroid)))
+            pair = _farthest_pair(adj, loc, u)
+            if _collinear_with_seed(c, pair, prm.collinear_fraction * rho):
+                c = _separating_point(pair, np.mean(cands, axis=0), rho, centroid)
             out.append(WayPoint(position_m=c, kind="candidate", targets=(u,)))
         elif nb.size == 1 and prm.heuristic:
             p = int(nb[0])
@@ -258,6 +275,22 @@ def plan_waypoints(
         out.extend(WayPoint(position_m=v, kind=k, targets=(u,), seed=s)
                    for u, s, v, k in pivot_items)
     return out
+
+
+def _separating_point(pair_m: FloatArray, mid_m: FloatArray, rho: float,
+                      centroid: FloatArray) -> FloatArray:
+    """Candidate way point for candidates almost on the line of their two neighbours.
+
+    Such candidates are close to each other (the agent stood almost on the node): standing on
+    one adds a nearly collinear range, or revisits the same place. The way point is half ``rho``
+    from ``mid_m`` (the candidates' midpoint) across the line ``pair_m``: the node is heard there,
+    the ranges to the two candidates differ by their whole separation and the three ranges are
+    far from collinear.
+    """
+    t = pair_m[1] - pair_m[0]
+    e = np.array([-t[1], t[0]]) / max(float(np.hypot(*t)), 1e-300)
+    w = (mid_m + 0.5 * rho * e, mid_m - 0.5 * rho * e)
+    return min(w, key=lambda q: float(np.linalg.norm(q - centroid)))
 
 
 def _collinear_with_seed(v: FloatArray, seed_m: FloatArray, tol_m: float) -> bool:
