@@ -36,17 +36,9 @@ from hrtls.frames import quat_conjugate, quat_rotate
 from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
-from hrtls.gait.analyzer_state import (
-    STATE_FORMAT,
-    PendingGait,
-    decode_nonfinite,
-    encode_nonfinite,
-)
+from hrtls.gait.analyzer_state import STATE_FORMAT, PendingGait, decode_nonfinite, encode_nonfinite
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
-from hrtls.gait.features import (
-    StreamingButterworth,
-    WindowFeatures,
-)
+from hrtls.gait.features import StreamingButterworth, WindowFeatures
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingState
 from hrtls.gait.gait_result import GaitResult
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
