@@ -41,6 +41,8 @@ from hrtls.gait.step_length_fit import (
     fit_frequency_law,
     fit_pendulum,
     fit_weinberg,
+    fit_weinberg_running,
+    walks_between_marks,
 )
 from hrtls.gait.step_length_pendulum import PendulumModel, vertical_excursion
 from hrtls.gait.step_length_stride import chord_factor, prorated_stride_lengths
@@ -90,6 +92,7 @@ __all__ = [
     "fit_frequency_law",
     "fit_pendulum",
     "fit_weinberg",
+    "fit_weinberg_running",
     "from_orientation",
     "prorated_stride_lengths",
     "session_inputs",
@@ -97,4 +100,5 @@ __all__ = [
     "train_lda",
     "vertical_excursion",
     "walking_bouts",
+    "walks_between_marks",
 ]
