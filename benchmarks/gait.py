@@ -26,11 +26,12 @@ from hrtls.datasets.mobgap import GaitReference
 from hrtls.frames import wrap_angle
 from hrtls.gait.activity_lda import DEFAULT_MODEL_FILE, LdaModel, default_loss, train_lda
 from hrtls.gait.activity_tree import calibrate_tree, classify_tree
-from hrtls.gait.analyzer import GaitAnalyzer, activity_windows, session_inputs
+from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.features import window_labels
 from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pll import PllStepDetector, StepDetection
+from hrtls.gait.session_analysis import activity_windows, session_inputs
 from hrtls.gait.step_length import FrequencyLawModel, WeinbergModel
 from hrtls.gait.step_length_fit import (
     CalibrationWalk,

@@ -286,7 +286,7 @@ class HeadingItem:
 def heading_error(item: HeadingItem) -> tuple[int, float, float]:
     """Steps with a heading, median and 90th percentile |error| (deg) of one scenario-seed."""
     from hrtls.frames import wrap_angle
-    from hrtls.gait.analyzer import analyze_session
+    from hrtls.gait.session_analysis import analyze_session
     from hrtls.sim.scenarios import run_scenario
 
     res = run_scenario(item.name, item.seed)

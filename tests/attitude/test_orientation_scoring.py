@@ -9,10 +9,11 @@ import pytest
 from typer.testing import CliRunner
 
 from hrtls.cli import attitude as cli
+from hrtls.datasets.reference_orientation import read_reference_orientation
 from hrtls.errors import FormatError, InputError
 from hrtls.evaluate.orientation import orientation_errors, score_orientation
 from hrtls.frames import quat_from_euler, quat_multiply
-from hrtls.io.orientation import REFERENCE_FILE, read_reference_orientation
+from hrtls.io.orientation import REFERENCE_FILE
 
 from .conftest import make_motion
 

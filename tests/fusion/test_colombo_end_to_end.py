@@ -11,13 +11,13 @@ import pytest
 from hrtls.data import Trajectory
 from hrtls.data.observations import GroundTruth
 from hrtls.jobs.bench import (
-    _fix_period_of,
     _track,
     calibrated_session,
     p97_axis,
     predicted_track,
     speed_rmse,
 )
+from hrtls.jobs.bench_cases import fixes_every
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.diagnostics import DiagnosticsLog
@@ -58,7 +58,7 @@ def test_speed_rmse_scores_the_walk_only() -> None:
 def test_default_meets_the_targets_on_one_circle(circle: SimulationResult) -> None:
     """As the bench runs it: no truth in the session, the step model from the user's
     calibration course (the simulator's step law is not the estimator's)."""
-    cfg = _fix_period_of(10.0)(preset("default"))
+    cfg = fixes_every(10.0)(preset("default"))
     cal = run_scenario("colombo_circle", 0, calibration=True, tp_s=10.0)
     blind = circle.session.with_parts(truth=None, checkpoints=None)
     res = _track(cfg, calibrated_session(cfg, blind, cal))
@@ -69,7 +69,7 @@ def test_default_meets_the_targets_on_one_circle(circle: SimulationResult) -> No
 
 
 def test_step_model_stretching_gives_yaw_pseudo_measurements(circle: SimulationResult) -> None:
-    tracker = Tracker(_fix_period_of(10.0)(preset("default")))
+    tracker = Tracker(fixes_every(10.0)(preset("default")))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         tracker.run(circle.session)
@@ -80,7 +80,7 @@ def test_step_model_stretching_gives_yaw_pseudo_measurements(circle: SimulationR
 
 @pytest.mark.parametrize("name", ["default", "colombo2014"])
 def test_chunked_equals_offline_with_fixes(circle: SimulationResult, name: str) -> None:
-    cfg = _fix_period_of(10.0)(preset(name))
+    cfg = fixes_every(10.0)(preset(name))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         offline = Tracker(cfg).run(circle.session)
@@ -101,7 +101,7 @@ def test_paper_preset_stretching_on_the_square() -> None:
     stretching runs in the product path and yields usable yaw pseudo-measurements; on the
     circle the chords between 10 s fixes are mostly shorter than ``min_chord_m``."""
     sim = run_scenario("colombo_square", 0, tp_s=10.0)
-    tracker = Tracker(_fix_period_of(10.0)(preset("colombo2014")))
+    tracker = Tracker(fixes_every(10.0)(preset("colombo2014")))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         tracker.run(sim.session.with_parts(truth=None, checkpoints=None))

@@ -191,7 +191,7 @@ def test_dft_between_bins_hand_case() -> None:
 
 # ------------------------------------------------------------------ default model regression
 def test_default_model_on_held_out_synthetic_person() -> None:
-    from hrtls.gait.analyzer import activity_windows
+    from hrtls.gait.session_analysis import activity_windows
     from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
 
     rng = np.random.default_rng(4242)  # not one of the training persons (seeds 900-911)
@@ -206,7 +206,7 @@ def test_default_model_on_held_out_synthetic_person() -> None:
 
 def test_default_model_on_held_out_hrtls_sim_seed() -> None:
     sim = pytest.importorskip("hrtls.sim.scenarios")
-    from hrtls.gait.analyzer import activity_windows, session_inputs
+    from hrtls.gait.session_analysis import activity_windows, session_inputs
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -14,7 +14,8 @@ from hrtls.cli import gait as gait_cli
 from hrtls.data import ImuStream, SensorSeries, Session, SessionMeta
 from hrtls.errors import FormatError
 from hrtls.gait.activity_lda import LdaModel
-from hrtls.gait.analyzer import GaitAnalyzer, analyze_session, session_inputs
+from hrtls.gait.analyzer import GaitAnalyzer
+from hrtls.gait.session_analysis import analyze_session, session_inputs
 from hrtls.gait.synthetic import SimPerson, simulate
 
 

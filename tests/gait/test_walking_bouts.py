@@ -220,8 +220,8 @@ def test_real_mobgap_daily_life_walking_windows(shared_data) -> None:
     """MS/001 daily life: bouts raise the walking/not-walking window accuracy vs INDIP."""
     from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
     from hrtls.datasets import mobgap
-    from hrtls.gait.analyzer import session_inputs
     from hrtls.gait.features import window_labels
+    from hrtls.gait.session_analysis import session_inputs
 
     trial = mobgap.load_trial(shared_data / "mobgap_lab", "MS/001", "Test11", "Trial1")
     t, acc, _, mount, rate = session_inputs(trial.session)

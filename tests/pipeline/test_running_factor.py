@@ -8,8 +8,7 @@ import pytest
 from hrtls.data import Activity, StepEvents
 from hrtls.errors import InputError
 from hrtls.gait.pll import StepDetection
-from hrtls.gait.step_length_fit import CalibrationWalk
-from hrtls.jobs.bench import fit_weinberg_running
+from hrtls.gait.step_length_fit import CalibrationWalk, fit_weinberg_running
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.build import step_model
 from hrtls.pipeline.step_scale import StepScaleLearner

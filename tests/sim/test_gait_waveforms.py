@@ -329,7 +329,7 @@ def test_levelled_signals_reject_bad_input():
 def test_fourier_heading_on_simulated_basso_walk():
     """Basso's tip-to-tail heading needs the real AP timing; ~90 deg off on the old model."""
     from hrtls.frames import wrap_angle
-    from hrtls.gait.analyzer import analyze_session
+    from hrtls.gait.session_analysis import analyze_session
     from hrtls.sim.scenarios import run_scenario
 
     res = run_scenario("basso_test1", 0)

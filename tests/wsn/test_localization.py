@@ -6,7 +6,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hrtls.errors import InputError
-from hrtls.wsn._propagation import propagate_reference
+from hrtls.wsn._propagation_reference import propagate_reference
 from hrtls.wsn.network import Network, corner_seed_network, network_from_positions
 from hrtls.wsn.shadow_edge import circle_candidates, shadow_edge_localize
 from hrtls.wsn.trilateration import PropagationParams, trilaterate, trilaterate_network

@@ -8,9 +8,12 @@ standard deviation (with two fitted parameters), floored at ``min_sigma_db``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hrtls.data.landmarks import Landmark
 from hrtls.data.session import ChannelModel
 from hrtls.errors import InputError
 
@@ -41,3 +44,16 @@ def fit_path_loss(*, distance_m: ArrayLike, rss_dbm: ArrayLike,
     resid = z - (a_dbm + eta * g)
     sigma = float(np.sqrt(np.sum(resid**2) / max(z.size - 2, 1)))
     return ChannelModel(a_dbm=float(a_dbm), eta=float(eta), sigma_db=max(sigma, min_sigma_db))
+
+
+def survey_path_loss(*, receiver_xy: ArrayLike, anchors: Sequence[str], rss_dbm: ArrayLike,
+                     landmarks: Mapping[str, Landmark],
+                     eta_bounds: tuple[float, float] = (1.0, 6.0)) -> ChannelModel:
+    """:func:`fit_path_loss` on readings taken at known receiver positions.
+
+    ``receiver_xy`` (N, 2) are the receiver positions at the readings, ``anchors`` the anchor
+    of each reading (landmark ids); the distance is horizontal.
+    """
+    anchor_xy = np.array([landmarks[a].xyz()[:2] for a in anchors])
+    return fit_path_loss(distance_m=np.linalg.norm(np.asarray(receiver_xy) - anchor_xy, axis=1),
+                         rss_dbm=rss_dbm, eta_bounds=eta_bounds)

@@ -44,15 +44,14 @@ from hrtls.calibration.imu import (
     gyroscope_rate_test,
 )
 from hrtls.data import Session
+from hrtls.datasets.reference_orientation import (
+    find_reference_orientation,
+    read_reference_orientation,
+)
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.evaluate.orientation import OrientationScore, score_orientation
 from hrtls.io.intervals import read_intervals
-from hrtls.io.orientation import (
-    OrientationTable,
-    find_reference_orientation,
-    read_orientation_csv,
-    read_reference_orientation,
-)
+from hrtls.io.orientation import OrientationTable, read_orientation_csv
 
 __all__ = [
     "attitude",

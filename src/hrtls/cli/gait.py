@@ -54,8 +54,8 @@ def labelled_windows(sessions: list[Path], *, window_s: float, cutoff_hz: float
     interval get the label UNKNOWN (-1).
     """
     from hrtls.data import Session
-    from hrtls.gait.analyzer import activity_windows, session_inputs
     from hrtls.gait.features import window_labels
+    from hrtls.gait.session_analysis import activity_windows, session_inputs
 
     tree, feats, labels = [], [], []
     for path in sessions:
@@ -149,9 +149,10 @@ def calibrate_steps(
 ) -> None:
     """Fit the step-length model from walks of known length (Basso eq. 1-2) into a profile."""
     from hrtls.data import Session, UserProfile
-    from hrtls.gait.analyzer import GaitAnalyzer, session_inputs
+    from hrtls.gait.analyzer import GaitAnalyzer
     from hrtls.gait.peak_steps import PeakStepDetector
     from hrtls.gait.pll import PllStepDetector, StepDetection
+    from hrtls.gait.session_analysis import session_inputs
     from hrtls.gait.step_length_fit import (
         CalibrationWalk,
         fit_frequency_law,

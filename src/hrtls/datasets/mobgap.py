@@ -434,44 +434,12 @@ def load_trial(root: str | Path, participant: str, test: str, trial: str, *,
                          expected="'MicroWB' or 'ContinuousWalkingPeriod'")
     folder = dataset_dir(root, "mobgap_lab")
     data_path = folder / participant / "data.mat"
-    if not data_path.is_file():
-        raise InputError(f"participant {participant!r} not found", where=str(folder),
-                         expected=f"one of {', '.join(_participants(folder)) or '(none)'}")
-    measure = _load_measure(data_path)
-    if test not in measure._fieldnames:
-        raise InputError(f"test {test!r} not found", where=str(data_path),
-                         expected=f"one of {', '.join(measure._fieldnames)}")
-    test_node = getattr(measure, test)
-    if trial not in test_node._fieldnames:
-        raise InputError(f"trial {trial!r} not found", where=f"{data_path} {test}",
-                         expected=f"one of {', '.join(test_node._fieldnames)}")
-    node = getattr(test_node, trial)
+    node = _trial_node(folder, data_path, participant, test, trial)
     where = f"{data_path} {test}.{trial}"
     unit = _field(_field(node, "SU", where), "LowerBack", where)
-    fs_node = _field(unit, "Fs", where)
-    rates = {name: float(_field(fs_node, name, f"{where}.Fs")) for name in ("Acc", "Gyr", "Bar")}
-    if len(set(rates.values())) != 1 or rates["Acc"] <= 0:
-        raise FormatError(f"sampling rates {rates}", where=f"{where}.Fs",
-                          expected="one common positive rate for Acc, Gyr and Bar")
-    fs = rates["Acc"]
-    acc_g = np.asarray(_field(unit, "Acc", where), dtype=np.float64)
-    gyr_deg_s = np.asarray(_field(unit, "Gyr", where), dtype=np.float64)
-    bar_hpa = np.asarray(_field(unit, "Bar", where), dtype=np.float64).ravel()
-    stamp = np.asarray(_field(unit, "Timestamp", where), dtype=np.float64).ravel()
-    mag = np.asarray(getattr(unit, "Mag", np.zeros((0, 3))), dtype=np.float64)
+    fs, acc_g, gyr_deg_s, bar_hpa, stamp = _lower_back_signals(unit, where)
     n = len(acc_g)
-    for label, arr in (("Gyr", gyr_deg_s), ("Bar", bar_hpa), ("Timestamp", stamp)):
-        if len(arr) != n:
-            raise FormatError(f"{len(arr)} samples of {label} but {n} of Acc", where=where,
-                              expected="equal lengths")
-    if n < 2:
-        raise FormatError(f"{n} samples", where=where, expected="at least 2 samples")
     t = np.arange(n, dtype=np.float64) / fs
-    drift = np.abs((stamp - stamp[0]) - t)
-    if not np.all(np.isfinite(drift)) or float(drift.max()) > 0.5 / fs:
-        idx = int(np.argmax(np.where(np.isfinite(drift), drift, np.inf)))
-        raise FormatError(f"Timestamp departs from k/Fs by {drift[idx]:.4g} s at sample {idx}",
-                          where=f"{where}.Timestamp", expected=f"a uniform {fs:g} Hz clock")
     imu = ImuStream(
         accel=SensorSeries(t, acc_g * G_TO_M_S2, "mobgap Acc (converted from g)"),
         gyro=SensorSeries(t, gyr_deg_s * DEG, "mobgap Gyr (converted from deg/s)"),
@@ -505,6 +473,62 @@ def load_trial(root: str | Path, participant: str, test: str, trial: str, *,
         notes=notes,
     )
     session = Session(meta=meta, imu=imu, pressure=pressure)
+    mag = np.asarray(getattr(unit, "Mag", np.zeros((0, 3))), dtype=np.float64)
+    mag_raw = mag if mag.shape == (n, 3) else np.zeros((0, 3))
+    return MobgapTrial(id=MobgapTrialId(participant, test, trial), session=session,
+                       reference=_references(node, level, fs, where),
+                       mag_unknown_unit=mag_raw, sampling_rate_hz=fs)
+
+
+def _trial_node(folder: Path, data_path: Path, participant: str, test: str, trial: str) -> Any:
+    """The MATLAB node of one trial (InputError listing what exists when it is not there)."""
+    if not data_path.is_file():
+        raise InputError(f"participant {participant!r} not found", where=str(folder),
+                         expected=f"one of {', '.join(_participants(folder)) or '(none)'}")
+    measure = _load_measure(data_path)
+    if test not in measure._fieldnames:
+        raise InputError(f"test {test!r} not found", where=str(data_path),
+                         expected=f"one of {', '.join(measure._fieldnames)}")
+    test_node = getattr(measure, test)
+    if trial not in test_node._fieldnames:
+        raise InputError(f"trial {trial!r} not found", where=f"{data_path} {test}",
+                         expected=f"one of {', '.join(test_node._fieldnames)}")
+    return getattr(test_node, trial)
+
+
+def _lower_back_signals(unit: Any, where: str) -> tuple[float, FloatArray, FloatArray,
+                                                         FloatArray, FloatArray]:
+    """Rate (Hz), Acc (g), Gyr (deg/s), Bar (hPa) and Timestamp of the lower-back unit.
+
+    Checks one common rate, equal lengths and a timestamp clock of ``k / Fs``.
+    """
+    fs_node = _field(unit, "Fs", where)
+    rates = {name: float(_field(fs_node, name, f"{where}.Fs")) for name in ("Acc", "Gyr", "Bar")}
+    if len(set(rates.values())) != 1 or rates["Acc"] <= 0:
+        raise FormatError(f"sampling rates {rates}", where=f"{where}.Fs",
+                          expected="one common positive rate for Acc, Gyr and Bar")
+    fs = rates["Acc"]
+    acc_g = np.asarray(_field(unit, "Acc", where), dtype=np.float64)
+    gyr_deg_s = np.asarray(_field(unit, "Gyr", where), dtype=np.float64)
+    bar_hpa = np.asarray(_field(unit, "Bar", where), dtype=np.float64).ravel()
+    stamp = np.asarray(_field(unit, "Timestamp", where), dtype=np.float64).ravel()
+    n = len(acc_g)
+    for label, arr in (("Gyr", gyr_deg_s), ("Bar", bar_hpa), ("Timestamp", stamp)):
+        if len(arr) != n:
+            raise FormatError(f"{len(arr)} samples of {label} but {n} of Acc", where=where,
+                              expected="equal lengths")
+    if n < 2:
+        raise FormatError(f"{n} samples", where=where, expected="at least 2 samples")
+    drift = np.abs((stamp - stamp[0]) - np.arange(n, dtype=np.float64) / fs)
+    if not np.all(np.isfinite(drift)) or float(drift.max()) > 0.5 / fs:
+        idx = int(np.argmax(np.where(np.isfinite(drift), drift, np.inf)))
+        raise FormatError(f"Timestamp departs from k/Fs by {drift[idx]:.4g} s at sample {idx}",
+                          where=f"{where}.Timestamp", expected=f"a uniform {fs:g} Hz clock")
+    return fs, acc_g, gyr_deg_s, bar_hpa, stamp
+
+
+def _references(node: Any, level: BoutLevel, fs: float, where: str) -> MobgapReference:
+    """The INDIP and Stereophoto references of a trial (None where a system is missing)."""
     standards = getattr(node, "Standards", None)
     systems: dict[str, GaitReference | None] = {}
     for system in REFERENCE_SYSTEMS:
@@ -516,7 +540,4 @@ def load_trial(root: str | Path, participant: str, test: str, trial: str, *,
         fs_ref = float(fs_ref_raw[0]) if len(fs_ref_raw) == 1 else fs
         systems[system] = _parse_reference(ref_node, system, level, fs_ref,
                                            f"{where}.Standards.{system}")
-    reference = MobgapReference(indip=systems["INDIP"], stereophoto=systems["Stereophoto"])
-    mag_raw = mag if mag.shape == (n, 3) else np.zeros((0, 3))
-    return MobgapTrial(id=MobgapTrialId(participant, test, trial), session=session,
-                       reference=reference, mag_unknown_unit=mag_raw, sampling_rate_hz=fs)
+    return MobgapReference(indip=systems["INDIP"], stereophoto=systems["Stereophoto"])

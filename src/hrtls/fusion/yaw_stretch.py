@@ -166,15 +166,8 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
     duration = float(tt[-1] - t0)
     if duration <= 0.0:
         return invalid("fixes at the same time")
-    dt = np.diff(np.concatenate(([t0], tt)))
-    s = np.column_stack([np.cos(th), np.sin(th)])
-    step = (dt * v)[:, None] * s                        # T_c s(theta) v   (eq. 16)
-    shift = np.outer(dt / duration, lb - la)            # (l(k) - l(k-m)) / m  (eq. 26)
-    d = step + shift
-    theta_bar = np.where(dt > 0.0, np.arctan2(d[:, 1], d[:, 0]), th)      # eq. 28
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v_bar = np.where(dt > 0.0, np.hypot(d[:, 0], d[:, 1]) / dt, v)  # eq. 27
-    xy = np.vstack([p0 + la, p0 + la + np.cumsum(d, axis=0)])           # eq. 24-25
+    dt, step, theta_bar, v_bar, xy = _stretched_track(tt, v, th, t_start=t0, start_xy=p0 + la,
+                                                      shift=lb - la)
     path = float(np.sum(dt * v))
     walked = path if path_m is None else finite_scalar(path_m, where="stretch path_m",
                                                         non_negative=True)
@@ -187,23 +180,13 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
         return YawStretchResult(False, "no moving sample", float("nan"), float("nan"), 0.0, 1.0,
                                 theta_bar, v_bar, xy)
     j0 = int(moving[-1])
-    if prm.method == "paper":
-        yaw = float(wrap_angle(theta_bar[j0]))                           # eq. 28, j = 0
-        corr = float(wrap_angle(yaw - th[j0]))
-        var = (sa * sa + sb * sb + drift2) / (path * path) + prm.sigma_floor_rad**2
-    else:
-        chord_est = np.sum(step, axis=0)                                 # p_b - p_a
-        chord_fix = chord_est + (lb - la)                                # c_b - c_a
-        n_est = float(np.hypot(*chord_est))
-        n_fix = float(np.hypot(*chord_fix))
-        if min(n_est, n_fix) < prm.min_chord_m:
-            return YawStretchResult(False, f"chord {min(n_est, n_fix):.2f} m shorter than "
-                                    f"{prm.min_chord_m} m", float("nan"), float("nan"), 0.0,
-                                    1.0, theta_bar, v_bar, xy)
-        corr = float(wrap_angle(np.arctan2(chord_fix[1], chord_fix[0])
-                                - np.arctan2(chord_est[1], chord_est[0])))
-        yaw = float(wrap_angle(th[j0] + corr))
-        var = (sa * sa + sb * sb + drift2) / (n_fix * n_fix) + prm.sigma_floor_rad**2
+    synth = _synthesized_yaw(prm, step=step, shift=lb - la, yaw_est=float(th[j0]),
+                             yaw_stretched=float(theta_bar[j0]),
+                             noise2=sa * sa + sb * sb + drift2, path_m=path)
+    if isinstance(synth, str):
+        return YawStretchResult(False, synth, float("nan"), float("nan"), 0.0, 1.0,
+                                theta_bar, v_bar, xy)
+    yaw, corr, var = synth
     scale = float(v_bar[j0] / v[j0]) if v[j0] > 0.0 else 1.0
     if abs(corr) > prm.max_correction_rad:
         return YawStretchResult(False, f"correction {corr:.3f} rad beyond "
@@ -212,3 +195,48 @@ def stretch_yaw(*, t_start: float, t: ArrayLike, speed_m_s: ArrayLike, yaw_rad: 
     if not np.isfinite(var):
         raise InputError("non-finite yaw variance", where="stretch_yaw")
     return YawStretchResult(True, "", yaw, var, corr, scale, theta_bar, v_bar, xy)
+
+
+def _stretched_track(tt: FloatArray, v: FloatArray, th: FloatArray, *, t_start: float,
+                     start_xy: FloatArray, shift: FloatArray
+                     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Sample spacing, open-loop steps, stretched yaw and speed, and the stretched track.
+
+    ``shift`` is ``l_b - l_a``, spread over the segment in proportion to time (eq. 26);
+    ``start_xy`` is ``p_a + l_a``.
+    """
+    duration = float(tt[-1] - t_start)
+    dt = np.diff(np.concatenate(([t_start], tt)))
+    s = np.column_stack([np.cos(th), np.sin(th)])
+    step = (dt * v)[:, None] * s                        # T_c s(theta) v   (eq. 16)
+    d = step + np.outer(dt / duration, shift)          # (l(k) - l(k-m)) / m  (eq. 26)
+    theta_bar = np.where(dt > 0.0, np.arctan2(d[:, 1], d[:, 0]), th)      # eq. 28
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_bar = np.where(dt > 0.0, np.hypot(d[:, 0], d[:, 1]) / dt, v)  # eq. 27
+    xy = np.vstack([start_xy, start_xy + np.cumsum(d, axis=0)])         # eq. 24-25
+    return dt, step, theta_bar, v_bar, xy
+
+
+def _synthesized_yaw(prm: YawStretchParams, *, step: FloatArray, shift: FloatArray,
+                     yaw_est: float, yaw_stretched: float, noise2: float,
+                     path_m: float) -> tuple[float, float, float] | str:
+    """Yaw, correction and variance at the last moving sample, or why there is none.
+
+    ``"paper"``: the stretched yaw itself (eq. 28, j = 0). Else the estimated yaw turned by
+    the angle between the estimated chord and the chord of the fixes. ``noise2`` is the sum of
+    the fixes' variances and the squared drift, m^2.
+    """
+    if prm.method == "paper":
+        yaw = float(wrap_angle(yaw_stretched))
+        corr = float(wrap_angle(yaw - yaw_est))
+        return yaw, corr, noise2 / (path_m * path_m) + prm.sigma_floor_rad**2
+    chord_est = np.sum(step, axis=0)                                 # p_b - p_a
+    chord_fix = chord_est + shift                                    # c_b - c_a
+    n_est = float(np.hypot(*chord_est))
+    n_fix = float(np.hypot(*chord_fix))
+    if min(n_est, n_fix) < prm.min_chord_m:
+        return f"chord {min(n_est, n_fix):.2f} m shorter than {prm.min_chord_m} m"
+    corr = float(wrap_angle(np.arctan2(chord_fix[1], chord_fix[0])
+                            - np.arctan2(chord_est[1], chord_est[0])))
+    yaw = float(wrap_angle(yaw_est + corr))
+    return yaw, corr, noise2 / (n_fix * n_fix) + prm.sigma_floor_rad**2

@@ -13,18 +13,22 @@ One module per algorithm (see ``docs``/ARCHITECTURE):
 :mod:`~hrtls.gait.step_length` and :mod:`~hrtls.gait.step_length_fit` (Weinberg, Basso II-D,
 Inderst eq. 4.25), :mod:`~hrtls.gait.fourier_heading` (Basso III),
 :mod:`~hrtls.gait.velocity_automaton` (Colombo III-C), :mod:`~hrtls.gait.vertical` (levelling)
-and :mod:`~hrtls.gait.analyzer` (:class:`GaitAnalyzer`, composing them).
+and :mod:`~hrtls.gait.analyzer` (:class:`GaitAnalyzer`, composing them, with its parts
+:mod:`~hrtls.gait.step_heading`, :mod:`~hrtls.gait.step_release`,
+:mod:`~hrtls.gait.window_activity` and :mod:`~hrtls.gait.analyzer_state`);
+:mod:`~hrtls.gait.session_analysis` runs it over a whole session.
 """
 
 from hrtls.gait.activity_lda import LdaModel, train_lda
 from hrtls.gait.activity_tree import TreeThresholds, calibrate_tree, classify_tree
-from hrtls.gait.analyzer import GaitAnalyzer, GaitResult, activity_windows, analyze_session
+from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingParams
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams
 from hrtls.gait.motion_detector import MotionDetector, MotionParams
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepParams
 from hrtls.gait.pll import PllParams, PllStepDetector, StepDetection
+from hrtls.gait.session_analysis import activity_windows, analyze_session, session_inputs
 from hrtls.gait.step_length import (
     FrequencyLawModel,
     StairsModel,
@@ -37,6 +41,8 @@ from hrtls.gait.step_length_fit import (
     fit_frequency_law,
     fit_pendulum,
     fit_weinberg,
+    fit_weinberg_running,
+    walks_between_marks,
 )
 from hrtls.gait.step_length_pendulum import PendulumModel, vertical_excursion
 from hrtls.gait.step_length_stride import chord_factor, prorated_stride_lengths
@@ -86,10 +92,13 @@ __all__ = [
     "fit_frequency_law",
     "fit_pendulum",
     "fit_weinberg",
+    "fit_weinberg_running",
     "from_orientation",
     "prorated_stride_lengths",
+    "session_inputs",
     "step_model_from_dict",
     "train_lda",
     "vertical_excursion",
     "walking_bouts",
+    "walks_between_marks",
 ]

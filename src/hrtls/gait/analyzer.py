@@ -25,26 +25,22 @@ running oscillator, gates steps and gives the activity when no classifier is set
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hrtls.data import Activity, Session, StepEvents
+from hrtls.data import Activity, StepEvents
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.frames import GRAVITY_M_S2, quat_conjugate, quat_rotate, quat_to_matrix, wrap_angle
+from hrtls.frames import quat_conjugate, quat_rotate
 from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
 from hrtls.gait.activity_lda import LdaModel
-from hrtls.gait.activity_tree import TreeThresholds, classify_tree
+from hrtls.gait.activity_tree import TreeThresholds
+from hrtls.gait.analyzer_state import STATE_FORMAT, PendingGait, decode_nonfinite, encode_nonfinite
 from hrtls.gait.cadence import CadenceDetector, CadenceParams
-from hrtls.gait.features import (
-    DFT_ZERO_PAD,
-    StreamingButterworth,
-    WindowFeatures,
-    window_features,
-)
+from hrtls.gait.features import StreamingButterworth, WindowFeatures
 from hrtls.gait.fourier_heading import FourierHeading, FourierHeadingState
+from hrtls.gait.gait_result import GaitResult
 from hrtls.gait.missed_steps import MissedStepFiller, MissedStepParams, MissedStepState
 from hrtls.gait.motion_detector import (
     STILL,
@@ -55,8 +51,16 @@ from hrtls.gait.motion_detector import (
 )
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepState
 from hrtls.gait.pll import PllState, PllStepDetector, StepDetection
-from hrtls.gait.step_length import StairsModel, StepModel, WeinbergModel, displacements
+from hrtls.gait.step_heading import (
+    TURNING_STEP_RAD,
+    StepYaw,
+    held_heading,
+    level_forward_axis,
+    yaw_step_headings,
+)
+from hrtls.gait.step_length import StairsModel, StepModel, WeinbergModel
 from hrtls.gait.step_length_pendulum import vertical_excursion
+from hrtls.gait.step_release import release_steps
 from hrtls.gait.velocity_automaton import AutomatonState, VelocityAutomaton
 from hrtls.gait.vertical import (
     GravityLevelling,
@@ -67,95 +71,14 @@ from hrtls.gait.vertical import (
     rotate,
 )
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
+from hrtls.gait.window_activity import classify_windows, feature_axes, windows_features
+
+__all__ = ["TURNING_STEP_RAD", "GaitAnalyzer", "GaitResult", "HeadingSource", "StepYaw"]
 
 IntArray = NDArray[np.int64]
-HEADING_HOLD_DELAY_S = 0.5
 EXCURSION_BUFFER_S = 5.0
 DEFAULT_CADENCE = CadenceParams()
 HeadingSource = Literal["fourier", "yaw", "none"]
-StepYaw = Literal["endpoints", "mean", "turns"]
-TURNING_STEP_RAD = math.radians(20.0)
-"""step_yaw="turns": a step turning more than this uses the time-averaged yaw"""
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class GaitResult:
-    """What one call of the analyzer produced.
-
-    Attributes
-    ----------
-    steps: step table (t_start, t_end, length, heading, dz, activity, frequency, extremes).
-    activity_t, activity: per-sample activity codes of the samples classified in this call.
-    velocity_t, velocity_m_s: per-sample walking velocity (Colombo automaton; empty when off).
-    motion_sigma_m_s2: per-sample 2 s std of vertical acceleration (Basso II-B) of this chunk.
-    heading_frame: ``"enu"`` (orientation given) or ``"levelled"`` (relative to the device,
-        accelerometer-only).
-    features: activity features of the windows completed in this call (Inderst Sec. 4.1).
-    step_excursion_m: vertical excursion of the pelvis during each step of ``steps``, m
-        (:mod:`hrtls.gait.step_length_pendulum`).
-    """
-
-    steps: StepEvents
-    activity_t: FloatArray
-    activity: IntArray
-    velocity_t: FloatArray
-    velocity_m_s: FloatArray
-    motion_sigma_m_s2: FloatArray
-    heading_frame: str
-    features: WindowFeatures = field(default_factory=lambda: WindowFeatures(
-        np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7))))
-    step_excursion_m: FloatArray = field(default_factory=lambda: np.zeros(0))
-
-    @classmethod
-    def concat(cls, parts: list[GaitResult]) -> GaitResult:
-        """Join the results of consecutive calls."""
-        if not parts:
-            return cls(StepEvents.empty(), np.zeros(0), np.zeros(0, dtype=np.int64),
-                       np.zeros(0), np.zeros(0), np.zeros(0), "levelled")
-        cols = ("t_start", "t_end", "length_m", "heading_rad", "dz_m", "activity",
-                "frequency_hz", "acc_max", "acc_min")
-        steps = StepEvents(*(np.concatenate([getattr(p.steps, c) for p in parts]) for c in cols))
-        feats = WindowFeatures(*(np.concatenate([getattr(p.features, c) for p in parts])
-                                 for c in ("t_start", "t_end", "tree", "lda")))
-        return cls(steps,
-                   np.concatenate([p.activity_t for p in parts]),
-                   np.concatenate([p.activity for p in parts]),
-                   np.concatenate([p.velocity_t for p in parts]),
-                   np.concatenate([p.velocity_m_s for p in parts]),
-                   np.concatenate([p.motion_sigma_m_s2 for p in parts]),
-                   parts[-1].heading_frame, feats,
-                   np.concatenate([p.step_excursion_m for p in parts]))
-
-
-@dataclass
-class _Pending:
-    """Samples waiting for their activity window and steps waiting for their activity."""
-
-    t: FloatArray = field(default_factory=lambda: np.zeros(0))
-    acc: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    # combined motion state and Basso spread of the held samples
-    ms: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    sg: FloatArray = field(default_factory=lambda: np.zeros(0))
-    steps: list[StepDetection] = field(default_factory=list)
-    headings: list[FloatArray] = field(default_factory=list)
-    excursions: list[FloatArray] = field(default_factory=list)
-    # recent vertical acceleration for the step excursions: times and values
-    vb_t: FloatArray = field(default_factory=lambda: np.zeros(0))
-    vb_a: FloatArray = field(default_factory=lambda: np.zeros(0))
-    # recent unwrapped yaw of the body forward axis (heading="yaw"): times and values
-    yb_t: FloatArray = field(default_factory=lambda: np.zeros(0))
-    yb_y: FloatArray = field(default_factory=lambda: np.zeros(0))
-    win_end: list[float] = field(default_factory=list)
-    win_label: list[int] = field(default_factory=list)
-    last_label: int = int(Activity.UNKNOWN)
-    yaw_last: float = float("nan")
-    heading_last: float = float("nan")
-    # motion history for the step gate: sample times and moving flags (0/1)
-    mt: FloatArray = field(default_factory=lambda: np.zeros(0))
-    mv: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    # step headings waiting to take effect on the held walking direction: times and values
-    hq_t: FloatArray = field(default_factory=lambda: np.zeros(0))
-    hq_h: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 class GaitAnalyzer:
@@ -316,7 +239,7 @@ class GaitAnalyzer:
         self._levelling.reset()
         self._act_filter.reset()
         self._step_filter.reset()
-        self._pending = _Pending()
+        self._pending = PendingGait()
         self._t_last = -np.inf
         self._forward_d: FloatArray | None = None
         self._frame = "levelled"
@@ -336,27 +259,6 @@ class GaitAnalyzer:
         # inside a positive lobe its peak (a step end not reported yet) is at or after v[4]
         c = v[4] if v[2] == 1.0 else v[0]
         return float(c) - self._step_delay_s if np.isfinite(c) else -math.inf
-
-    def _window_labels(self, feats_tree: FloatArray, feats_lda: FloatArray,
-                       sigma_end: FloatArray, state_end: IntArray,
-                       walk_share: FloatArray | None = None) -> IntArray:
-        if walk_share is not None:
-            # walking bouts (module walking_bouts); running from the combined motion state
-            run = state_end == int(Activity.RUNNING) if self.cadence is not None else (
-                sigma_end > self.motion.params.run_threshold_m_s2)
-            return np.where(walk_share > 0.5, np.where(run, int(Activity.RUNNING),
-                                                       int(Activity.WALKING)),
-                            int(Activity.STANDING)).astype(np.int64)
-        if isinstance(self.activity, LdaModel):
-            return self.activity.predict(feats_lda)
-        if isinstance(self.activity, TreeThresholds):
-            return classify_tree(feats_tree, self.activity)
-        if self.cadence is not None:
-            # combined motion state at the window end (0/1/2 are STANDING/WALKING/RUNNING)
-            return np.where(state_end < 0, int(Activity.STANDING), state_end).astype(np.int64)
-        return np.where(sigma_end > self.motion.params.run_threshold_m_s2, int(Activity.RUNNING),
-                        np.where(sigma_end > self.motion.params.still_threshold_m_s2,
-                                 int(Activity.WALKING), int(Activity.STANDING))).astype(np.int64)
 
     # ------------------------------------------------------------------ main entry
     def update(self, t: FloatArray, acc_d_m_s2: FloatArray,
@@ -378,122 +280,14 @@ class GaitAnalyzer:
         self._t_last = float(tt[-1])
         lev = self._level(tt, acc, q_nd)
         self._frame = lev.frame
-        basso = self.motion.update(tt, lev.vertical_m_s2)
-        v_lp = self._step_filter.update(lev.vertical_m_s2)
-        if self.cadence is not None:
-            p = self.motion.params
-            cad = self.cadence.update(v_lp, basso.sigma_m_s2,
-                                      still_threshold_m_s2=p.still_threshold_m_s2,
-                                      run_threshold_m_s2=p.run_threshold_m_s2)
-            motion = MotionResult(basso.t, basso.mean_m_s2, basso.sigma_m_s2, cad.state)
-        else:
-            motion = basso
-
-        # --- steps
-        if isinstance(self.step_detector, PllStepDetector):
-            pll_motion = motion
-            if self._pll_enable is not None:
-                # the loop runs (and locks) on any motion above the floor; its steps are
-                # then confirmed by the gate on the combined motion state
-                st = np.where((motion.state == STILL) & (motion.sigma_m_s2 > self._pll_enable),
-                              1, motion.state).astype(np.int64)
-                pll_motion = MotionResult(motion.t, motion.mean_m_s2, motion.sigma_m_s2, st)
-            det = self.step_detector.update(lev.vertical_m_s2, pll_motion).steps
-        else:
-            det = self.step_detector.update(tt, v_lp)
-            # report the steps at the peaks of the unfiltered signal: remove the filter delay
-            det = StepDetection(det.t_start - self._step_delay_s, det.t_end - self._step_delay_s,
-                                det.frequency_hz, det.acc_max, det.acc_min)
-        if self.filler is not None:
-            det = self.filler.update(det)
-        if self.bouts is not None:
-            self.bouts.add(det.t_end, self._steps_complete_s())
-        # vertical excursion of each new step (inverted pendulum length model)
-        pm = self._pending
-        vb_t = np.concatenate([pm.vb_t, tt])
-        vb_a = np.concatenate([pm.vb_a, lev.vertical_m_s2])
-        exc = vertical_excursion(vb_t, vb_a, det.t_start, det.t_end)
-        recent = vb_t >= tt[-1] - EXCURSION_BUFFER_S
-        pm.vb_t = vb_t[recent]
-        pm.vb_a = vb_a[recent]
-        if self._gate:
-            pm.mt = np.concatenate([pm.mt, tt])
-            pm.mv = np.concatenate([pm.mv, (motion.state != STILL).astype(np.int64)])
-
-        # --- heading per step
-        # body forward axis in ENU: rotate the device-frame image of body x by q_nd
-        fwd_n = None
-        if self.mounting_known:
-            fwd_d = quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
-        else:
-            fwd_d = self._unknown_mounting_forward(q_nd)
-        if q_nd is not None and self.velocity is not None and self.mounting_known:
-            fwd_n = rotate(q_nd, fwd_d)
-        if self.heading == "fourier":
-            head = self.fourier.update(tt, lev.horizontal_m_s2, det.t_end).heading_rad
-        elif self.heading == "yaw" and q_nd is not None:
-            # mean direction of the body forward axis over the step: of its start and end
-            # yaw ("endpoints") or the time average over the step ("mean")
-            # (unwrapped continuously across chunks; the last seconds are kept so that a step
-            # starting or ending before this chunk reads the same yaw as in a whole run)
-            yaw = heading_of(q_nd, fwd_d)
-            pm = self._pending
-            if np.isfinite(pm.yaw_last):
-                yaw += 2.0 * np.pi * np.round((pm.yaw_last - yaw[0]) / (2.0 * np.pi))
-            yb_t = np.concatenate([pm.yb_t, tt])
-            yb_y = np.concatenate([pm.yb_y, yaw])
-            y_end = np.interp(det.t_end, yb_t, yb_y)
-            y_start = np.interp(det.t_start, yb_t, yb_y)
-            head = np.arctan2(np.sin(y_start) + np.sin(y_end), np.cos(y_start) + np.cos(y_end))
-            if self.step_yaw != "endpoints" and yb_t.size > 1:
-                # time average of the unwrapped yaw over [t_start, t_end] (trapezoid rule)
-                area = np.concatenate([[0.0], np.cumsum(0.5 * (yb_y[1:] + yb_y[:-1])
-                                                        * np.diff(yb_t))])
-                span = det.t_end - det.t_start
-                mean = (np.interp(det.t_end, yb_t, area)
-                        - np.interp(det.t_start, yb_t, area)) / np.where(span > 0, span, 1.0)
-                use = span > 0
-                if self.step_yaw == "turns":
-                    use &= np.abs(y_end - y_start) > TURNING_STEP_RAD
-                head = np.where(use, wrap_angle(mean), head)
-            pm.yaw_last = float(yaw[-1])
-            recent = yb_t >= tt[-1] - EXCURSION_BUFFER_S
-            pm.yb_t = yb_t[recent]
-            pm.yb_y = yb_y[recent]
-        else:
-            head = np.full(len(det), np.nan)
-
-        # walking direction held from the latest finite step heading (forward fill); a
-        # heading takes effect HEADING_HOLD_DELAY_S after its step end, a time by which every
-        # detector has reported the step, so that chunked and whole runs agree
-        ok = np.isfinite(head)
-        pm = self._pending
-        q_t = np.concatenate([pm.hq_t, det.t_end[ok] + HEADING_HOLD_DELAY_S])
-        q_h = np.concatenate([pm.hq_h, head[ok]])
-        due = q_t <= tt[-1]
-        at = np.searchsorted(tt, q_t[due])
-        src = np.full(tt.shape[0], -1, dtype=np.int64)
-        src[np.clip(at, 0, tt.shape[0] - 1)] = np.arange(at.shape[0])
-        src = np.maximum.accumulate(src)
-        psi_held = np.concatenate([[pm.heading_last], q_h[due]])[src + 1]
-        if due.any():
-            pm.heading_last = float(q_h[due][-1])
-        pm.hq_t = q_t[~due]
-        pm.hq_h = q_h[~due]
-
-        # --- velocity (Colombo), forward axis from attitude+mounting or the held heading
-        if self.velocity is not None:
-            if fwd_n is not None and self.mounting_known:
-                nrm = np.hypot(fwd_n[:, 0], fwd_n[:, 1])[:, None]
-                fwd = np.where(nrm > 1e-6, fwd_n[:, :2] / np.maximum(nrm, 1e-12), 0.0)
-            else:
-                psi = np.where(np.isfinite(psi_held), psi_held, 0.0)
-                fwd = np.column_stack([np.cos(psi), np.sin(psi)])
-            a_fwd = np.einsum("ij,ij->i", lev.horizontal_m_s2, fwd)
-            vel = self.velocity.update(tt, a_fwd)
-            vel_t, vel_v = vel.t, vel.velocity_m_s
-        else:
-            vel_t, vel_v = np.zeros(0), np.zeros(0)
+        motion, v_lp = self._motion_state(tt, lev)
+        det = self._detect_steps(tt, lev, v_lp, motion)
+        exc = self._step_excursions(tt, lev, det, motion)
+        fwd_d = (quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
+                 if self.mounting_known else self._unknown_mounting_forward(q_nd))
+        head = self._step_headings(tt, lev, q_nd, det, fwd_d)
+        psi_held = held_heading(self._pending, tt, det.t_end, head)
+        vel_t, vel_v = self._walking_velocity(tt, lev, q_nd, fwd_d, psi_held)
 
         # --- activity windows
         pend = self._pending
@@ -514,34 +308,105 @@ class GaitAnalyzer:
         return GaitResult(steps, act_t, act.astype(np.int64), vel_t, vel_v, motion.sigma_m_s2,
                           lev.frame, feats, h)
 
+    def _motion_state(self, tt: FloatArray,
+                      lev: LevelledAcceleration) -> tuple[MotionResult, FloatArray]:
+        """Motion state and the step detector's low-passed vertical acceleration.
+
+        Basso's spread test, combined with the periodicity test when ``cadence`` is set.
+        """
+        basso = self.motion.update(tt, lev.vertical_m_s2)
+        v_lp = self._step_filter.update(lev.vertical_m_s2)
+        if self.cadence is None:
+            return basso, v_lp
+        p = self.motion.params
+        cad = self.cadence.update(v_lp, basso.sigma_m_s2,
+                                  still_threshold_m_s2=p.still_threshold_m_s2,
+                                  run_threshold_m_s2=p.run_threshold_m_s2)
+        return MotionResult(basso.t, basso.mean_m_s2, basso.sigma_m_s2, cad.state), v_lp
+
+    def _detect_steps(self, tt: FloatArray, lev: LevelledAcceleration, v_lp: FloatArray,
+                      motion: MotionResult) -> StepDetection:
+        """The steps the detector reports in this chunk (filled in, registered with the bouts)."""
+        if isinstance(self.step_detector, PllStepDetector):
+            pll_motion = motion
+            if self._pll_enable is not None:
+                # the loop runs (and locks) on any motion above the floor; its steps are
+                # then confirmed by the gate on the combined motion state
+                st = np.where((motion.state == STILL) & (motion.sigma_m_s2 > self._pll_enable),
+                              1, motion.state).astype(np.int64)
+                pll_motion = MotionResult(motion.t, motion.mean_m_s2, motion.sigma_m_s2, st)
+            det = self.step_detector.update(lev.vertical_m_s2, pll_motion).steps
+        else:
+            det = self.step_detector.update(tt, v_lp)
+            # report the steps at the peaks of the unfiltered signal: remove the filter delay
+            det = StepDetection(det.t_start - self._step_delay_s, det.t_end - self._step_delay_s,
+                                det.frequency_hz, det.acc_max, det.acc_min)
+        if self.filler is not None:
+            det = self.filler.update(det)
+        if self.bouts is not None:
+            self.bouts.add(det.t_end, self._steps_complete_s())
+        return det
+
+    def _step_excursions(self, tt: FloatArray, lev: LevelledAcceleration, det: StepDetection,
+                         motion: MotionResult) -> FloatArray:
+        """Vertical excursion of each new step (inverted pendulum length model).
+
+        Also keeps the recent vertical acceleration and, with the step gate, the motion
+        history in the pending state.
+        """
+        pm = self._pending
+        vb_t = np.concatenate([pm.vb_t, tt])
+        vb_a = np.concatenate([pm.vb_a, lev.vertical_m_s2])
+        exc = vertical_excursion(vb_t, vb_a, det.t_start, det.t_end)
+        recent = vb_t >= tt[-1] - EXCURSION_BUFFER_S
+        pm.vb_t = vb_t[recent]
+        pm.vb_a = vb_a[recent]
+        if self._gate:
+            pm.mt = np.concatenate([pm.mt, tt])
+            pm.mv = np.concatenate([pm.mv, (motion.state != STILL).astype(np.int64)])
+        return exc
+
+    def _step_headings(self, tt: FloatArray, lev: LevelledAcceleration,
+                       q_nd: FloatArray | None, det: StepDetection,
+                       fwd_d: FloatArray) -> FloatArray:
+        """Heading of each new step by the configured source (NaN when there is none)."""
+        if self.heading == "fourier":
+            heading: FloatArray = self.fourier.update(tt, lev.horizontal_m_s2,
+                                                      det.t_end).heading_rad
+            return heading
+        if self.heading == "yaw" and q_nd is not None:
+            # direction of the body forward axis fwd_d (device frame) rotated by q_nd
+            return yaw_step_headings(self._pending, tt, heading_of(q_nd, fwd_d), det.t_start,
+                                     det.t_end, step_yaw=self.step_yaw,
+                                     keep_s=EXCURSION_BUFFER_S)
+        return np.full(len(det), np.nan)
+
+    def _walking_velocity(self, tt: FloatArray, lev: LevelledAcceleration,
+                          q_nd: FloatArray | None, fwd_d: FloatArray,
+                          psi_held: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Walking velocity (Colombo's automaton; empty when it is off).
+
+        Along the body forward axis when attitude and mounting are known, else along the held
+        walking direction.
+        """
+        if self.velocity is None:
+            return np.zeros(0), np.zeros(0)
+        if q_nd is not None and self.mounting_known:
+            fwd_n = rotate(q_nd, fwd_d)
+            nrm = np.hypot(fwd_n[:, 0], fwd_n[:, 1])[:, None]
+            fwd = np.where(nrm > 1e-6, fwd_n[:, :2] / np.maximum(nrm, 1e-12), 0.0)
+        else:
+            psi = np.where(np.isfinite(psi_held), psi_held, 0.0)
+            fwd = np.column_stack([np.cos(psi), np.sin(psi)])
+        a_fwd = np.einsum("ij,ij->i", lev.horizontal_m_s2, fwd)
+        vel = self.velocity.update(tt, a_fwd)
+        return vel.t, vel.velocity_m_s
+
     def _activity_input(self, acc: FloatArray, lev: LevelledAcceleration,
                         psi_held: FloatArray) -> FloatArray:
-        """Low-passed AP, ML and vertical acceleration of the samples (window features).
-
-        AP/ML axes: the mounting when known, else the levelled horizontal acceleration turned
-        into the held walking direction (raw levelled axes until a heading exists).
-        """
-        if self.mounting_known:
-            body = acc @ quat_to_matrix(self.q_bd).T
-            ap, ml = body[:, 0], body[:, 1]
-        else:
-            known = np.isfinite(psi_held)
-            c = np.where(known, np.cos(psi_held), 1.0)
-            sn = np.where(known, np.sin(psi_held), 0.0)
-            hx, hy = lev.horizontal_m_s2[:, 0], lev.horizontal_m_s2[:, 1]
-            ap, ml = c * hx + sn * hy, -sn * hx + c * hy
-        feat_in = np.column_stack([ap, ml, lev.vertical_m_s2 + GRAVITY_M_S2])
-        return self._act_filter.update(feat_in)
-
-    def _features(self, act_t: FloatArray, acc: FloatArray, j: int) -> WindowFeatures:
-        """Activity features of whole windows (Inderst Sec. 4.1) with the classifier's settings."""
-        return window_features(act_t, acc, window_samples=j,
-                               anthropometric_nr=(self.activity.anthropometric_nr
-                                                  if isinstance(self.activity, TreeThresholds)
-                                                  else 1.0),
-                               dft_zero_pad=(self.activity.dft_zero_pad
-                                             if isinstance(self.activity, LdaModel)
-                                             else DFT_ZERO_PAD))
+        """Low-passed AP, ML and vertical acceleration of the samples (window features)."""
+        axes = feature_axes(acc, lev, psi_held, q_bd=self.q_bd if self.mounting_known else None)
+        return self._act_filter.update(axes)
 
     def _windows(self, *, final: bool) -> tuple[FloatArray, IntArray, WindowFeatures]:
         """Label the complete activity windows that can be labelled (all when ``final``)."""
@@ -556,20 +421,17 @@ class GaitAnalyzer:
         if not nw:
             return act_t, np.zeros(0, dtype=np.int64), WindowFeatures(
                 np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 7)))
-        if self.activity is None and not self.window_features:
-            # motion-based labels need no features: only the window times (NaN features)
-            starts = act_t[np.arange(nw) * j]
-            ends = act_t[np.arange(1, nw + 1) * j - 1]
-            wf = WindowFeatures(starts, ends, np.full((nw, 3), np.nan), np.full((nw, 7), np.nan))
-        else:
-            wf = self._features(act_t, pend.acc[: nw * j], j)
+        wf = windows_features(act_t, pend.acc[: nw * j], window_samples=j, activity=self.activity,
+                              compute=self.activity is not None or self.window_features)
         idx = np.arange(1, nw + 1) * j - 1
         sig_end = np.where(np.isfinite(pend.sg[idx]), pend.sg[idx], 0.0)
         state_end = pend.ms[idx]
         share = None
         if self._bout_labels and self.bouts is not None:
             share = self.bouts.walking(act_t).reshape(nw, j).mean(axis=1)
-        labels = self._window_labels(wf.tree, wf.lda, sig_end, state_end, share)
+        labels = classify_windows(wf.tree, wf.lda, sig_end, state_end, share,
+                                  activity=self.activity, motion=self.motion.params,
+                                  combined_state=self.cadence is not None)
         act = np.repeat(labels, j)
         pend.win_end.extend(wf.t_end.tolist())
         pend.win_label.extend(labels.tolist())
@@ -582,63 +444,10 @@ class GaitAnalyzer:
 
     def _release(self, *, final: bool) -> tuple[StepEvents, FloatArray]:
         """Steps whose activity window is known (all when ``final``) and their excursions."""
-        pend = self._pending
-        det = StepDetection.concat(pend.steps)
-        head = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
-        exc = np.concatenate(pend.excursions) if pend.excursions else np.zeros(0)
-        ends = np.asarray(pend.win_end)
-        labels = np.asarray(pend.win_label, dtype=np.int64)
-        if final:
-            ready = np.ones(len(det), dtype=bool)
-        else:
-            ready = det.t_end <= (ends[-1] if ends.size else -np.inf)
-            if self._gate:
-                ready &= det.t_end + self.gate_lookahead_s <= self._t_last
-        if self.bouts is not None and not final:
-            ready &= self.bouts.decided(det.t_end)
-        sel = np.flatnonzero(ready)
-        rest = np.flatnonzero(~ready)
-        if self._gate:
-            # motion somewhere in [t_end, t_end + lookahead] (see the class notes)
-            cs = np.concatenate([[0], np.cumsum(pend.mv)])
-            i0 = np.searchsorted(pend.mt, det.t_end[sel], side="left")
-            i1 = np.searchsorted(pend.mt, det.t_end[sel] + self.gate_lookahead_s, side="right")
-            sel = sel[cs[i1] - cs[i0] > 0]
-            # keep what pending steps and steps still to be reported (their ends may lie a
-            # little before the current sample) may need
-            first_needed = self._t_last - EXCURSION_BUFFER_S
-            if rest.size:
-                first_needed = min(first_needed, float(det.t_end[rest[0]]))
-            keep_m = pend.mt >= first_needed - 1e-9
-            pend.mt = pend.mt[keep_m]
-            pend.mv = pend.mv[keep_m]
-        if self.bouts is not None:
-            sel = sel[self.bouts.in_bout(det.t_end[sel])]
-        w = np.searchsorted(ends, det.t_end[sel], side="left")
-        act = np.where(w < labels.size, labels[np.clip(w, 0, max(labels.size - 1, 0))]
-                       if labels.size else int(Activity.UNKNOWN),
-                       pend.last_label).astype(np.int64)
-        if act.size and labels.size == 0:
-            act[:] = int(Activity.WALKING)
-        act = np.where(act == int(Activity.UNKNOWN), int(Activity.WALKING), act)
-        released = StepDetection(det.t_start[sel], det.t_end[sel], det.frequency_hz[sel],
-                                 det.acc_max[sel], det.acc_min[sel])
-        length, dz = displacements(released, act, self.step_model, self.stairs, exc[sel])
-        pend.steps = [StepDetection(det.t_start[rest], det.t_end[rest], det.frequency_hz[rest],
-                                    det.acc_max[rest], det.acc_min[rest])]
-        pend.headings = [head[rest]]
-        pend.excursions = [exc[rest]]
-        # keep only windows that pending steps may still need
-        if ends.size > 1:
-            keep_from = ends.size - 1
-            if rest.size:
-                keep_from = min(keep_from, int(np.searchsorted(ends, det.t_end[rest[0]])))
-            pend.win_end = ends[keep_from:].tolist()
-            pend.win_label = labels[keep_from:].tolist()
-        return StepEvents.build(t_start=released.t_start, t_end=released.t_end,
-                                length_m=length, heading_rad=head[sel], dz_m=dz, activity=act,
-                                frequency_hz=released.frequency_hz, acc_max=released.acc_max,
-                                acc_min=released.acc_min), exc[sel]
+        return release_steps(self._pending, final=final, t_last=self._t_last,
+                             gate_lookahead_s=self.gate_lookahead_s if self._gate else None,
+                             bouts=self.bouts, step_model=self.step_model, stairs=self.stairs,
+                             keep_s=EXCURSION_BUFFER_S)
 
     def flush(self) -> GaitResult:
         """End of the recording: release held steps and label the last partial window."""
@@ -670,18 +479,13 @@ class GaitAnalyzer:
     def _unknown_mounting_forward(self, q_nd: FloatArray | None) -> FloatArray:
         """The device axis whose yaw stands for the walking direction, mounting unknown.
 
-        The axis most orthogonal to the vertical at the first sample with an attitude (device
-        x only when it is that axis; one sample, so any split into chunks chooses alike), kept
-        for the whole recording. Only its yaw
-        *changes* are used (the heading offset is unknown either way), and those are well
-        defined only for an axis far from the vertical: a lower-back sensor strapped with x up
+        :func:`~hrtls.gait.step_heading.level_forward_axis` at the first sample with an
+        attitude (device x only when it is that axis; one sample, so any split into chunks
+        chooses alike), kept for the whole recording. A lower-back sensor strapped with x up
         made the yaw of x noise (turns off by 30-120 deg).
         """
         if self._forward_d is None and q_nd is not None and len(q_nd):
-            up_d = quat_to_matrix(q_nd[0])[2]   # row 2 of R (v_n = R v_d): ENU up, device axes
-            axis = np.eye(3)[int(np.argmin(np.abs(up_d)))]
-            level = axis - float(axis @ up_d) * up_d   # made horizontal at that sample
-            self._forward_d = level / np.linalg.norm(level)
+            self._forward_d = level_forward_axis(q_nd[0])
         return np.array([1.0, 0.0, 0.0]) if self._forward_d is None else self._forward_d
 
     # ------------------------------------------------------------------ save / restore
@@ -694,9 +498,6 @@ class GaitAnalyzer:
         strings ``"nan"``, ``"inf"``, ``"-inf"`` (no NaN literals in JSON); False keeps them
         as floats for a binary codec that carries them (the tracker's msgpack snapshot).
         """
-        pend = self._pending
-        det = StepDetection.concat(pend.steps)
-        heads = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
         out: dict[str, Any] = {
             "format": STATE_FORMAT,
             "version": 1,
@@ -716,27 +517,12 @@ class GaitAnalyzer:
             "act_filter_zi": None if self._act_filter.zi is None else self._act_filter.zi.tolist(),
             "step_filter_zi": (None if self._step_filter.zi is None
                                else self._step_filter.zi.tolist()),
-            "pending": {
-                "t": pend.t.tolist(), "acc": pend.acc.tolist(),
-                "ms": pend.ms.tolist(), "sg": pend.sg.tolist(),
-                "steps": np.column_stack([det.t_start, det.t_end, det.frequency_hz,
-                                          det.acc_max, det.acc_min]).tolist(),
-                "headings": heads.tolist(),
-                "excursions": (np.concatenate(pend.excursions) if pend.excursions
-                               else np.zeros(0)).tolist(),
-                "vb_t": pend.vb_t.tolist(), "vb_a": pend.vb_a.tolist(),
-                "yb_t": pend.yb_t.tolist(), "yb_y": pend.yb_y.tolist(),
-                "win_end": list(pend.win_end),
-                "win_label": [int(v) for v in pend.win_label],
-                "last_label": int(pend.last_label), "yaw_last": pend.yaw_last,
-                "heading_last": pend.heading_last, "mt": pend.mt.tolist(),
-                "mv": pend.mv.tolist(), "hq_t": pend.hq_t.tolist(),
-                "hq_h": pend.hq_h.tolist()},
+            "pending": self._pending.to_dict(),
         }
         if not strict_json:
             out["nonfinite_as_strings"] = False
             return out
-        encoded: dict[str, Any] = _encode_nonfinite(out)
+        encoded: dict[str, Any] = encode_nonfinite(out)
         return encoded
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -744,7 +530,7 @@ class GaitAnalyzer:
         if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
             raise InputError("not a GaitAnalyzer state", where="state",
                              expected=f"a dict with 'format': '{STATE_FORMAT}'")
-        d = state if state.get("nonfinite_as_strings") is False else _decode_nonfinite(state)
+        d = state if state.get("nonfinite_as_strings") is False else decode_nonfinite(state)
         try:
             kind = d["step_detector"]["kind"]
             is_pll = isinstance(self.step_detector, PllStepDetector)
@@ -776,32 +562,7 @@ class GaitAnalyzer:
                                    else np.asarray(d["act_filter_zi"], dtype=np.float64))
             self._step_filter.zi = (None if d["step_filter_zi"] is None
                                     else np.asarray(d["step_filter_zi"], dtype=np.float64))
-            pd = d["pending"]
-            pend = _Pending()
-            pend.t = np.asarray(pd["t"], dtype=np.float64).reshape(-1)
-            pend.acc = np.asarray(pd["acc"], dtype=np.float64).reshape(-1, 3)
-            # states written before the held motion state was kept: unknown (-1 / NaN)
-            pend.ms = np.asarray(pd.get("ms", [-1] * pend.t.shape[0]),
-                                 dtype=np.int64).reshape(-1)
-            pend.sg = np.asarray(pd.get("sg", [math.nan] * pend.t.shape[0]),
-                                 dtype=np.float64).reshape(-1)
-            pend.steps = [StepDetection.from_rows(np.asarray(pd["steps"], dtype=np.float64))]
-            pend.headings = [np.asarray(pd["headings"], dtype=np.float64).reshape(-1)]
-            pend.excursions = [np.asarray(pd["excursions"], dtype=np.float64).reshape(-1)]
-            pend.vb_t = np.asarray(pd["vb_t"], dtype=np.float64).reshape(-1)
-            pend.vb_a = np.asarray(pd["vb_a"], dtype=np.float64).reshape(-1)
-            pend.yb_t = np.asarray(pd["yb_t"], dtype=np.float64).reshape(-1)
-            pend.yb_y = np.asarray(pd["yb_y"], dtype=np.float64).reshape(-1)
-            pend.win_end = [float(v) for v in pd["win_end"]]
-            pend.win_label = [int(v) for v in pd["win_label"]]
-            pend.last_label = int(pd["last_label"])
-            pend.yaw_last = float(pd["yaw_last"])
-            pend.heading_last = float(pd["heading_last"])
-            pend.mt = np.asarray(pd["mt"], dtype=np.float64).reshape(-1)
-            pend.mv = np.asarray(pd["mv"], dtype=np.int64).reshape(-1)
-            pend.hq_t = np.asarray(pd["hq_t"], dtype=np.float64).reshape(-1)
-            pend.hq_h = np.asarray(pd["hq_h"], dtype=np.float64).reshape(-1)
-            self._pending = pend
+            self._pending = PendingGait.from_dict(d["pending"])
             self._t_last = float(d["t_last"])
             fwd = d.get("forward_d")   # absent in states before the axis was chosen: device x
             self._forward_d = (np.array([1.0, 0.0, 0.0]) if "forward_d" not in d else
@@ -826,96 +587,3 @@ class GaitAnalyzer:
         return GaitResult(out.steps, out.activity_t, out.activity, out.velocity_t,
                           out.velocity_m_s, out.motion_sigma_m_s2, first.heading_frame,
                           out.features, out.step_excursion_m)
-
-
-STATE_FORMAT = "hrtls-gait-analyzer-state"
-_NONFINITE = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
-
-
-def _encode_nonfinite(obj: Any) -> Any:
-    """Replace non-finite floats by the strings ``"nan"``, ``"inf"``, ``"-inf"`` (recursive)."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return "nan" if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {k: _encode_nonfinite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_encode_nonfinite(v) for v in obj]
-    return obj
-
-
-def _decode_nonfinite(obj: Any) -> Any:
-    """Inverse of :func:`_encode_nonfinite`."""
-    if isinstance(obj, str) and obj in _NONFINITE:
-        return _NONFINITE[obj]
-    if isinstance(obj, dict):
-        return {k: _decode_nonfinite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_decode_nonfinite(v) for v in obj]
-    return obj
-
-
-def activity_windows(t: FloatArray, acc_d_m_s2: FloatArray, *, rate_hz: float,
-                     q_nd: FloatArray | None = None, mounting_q_bd: FloatArray | None = None,
-                     window_s: float = 2.0, cutoff_hz: float = 6.0,
-                     anthropometric_nr: float = 1.0) -> WindowFeatures:
-    """Activity features of a whole recording, computed by :class:`GaitAnalyzer` itself.
-
-    Vertical from the levelled acceleration (plus g); AP and ML from the mounting rotation, or
-    (mounting unknown) from the levelled horizontal acceleration turned into the Fourier walking
-    direction; 5th-order Butterworth at ``cutoff_hz`` (Inderst Sec. 4.1); windows of
-    ``window_s``. Training and classification therefore see the same features.
-    """
-    import warnings
-
-    tree = TreeThresholds(anthropometric_nr=anthropometric_nr)
-    ga = GaitAnalyzer(rate_hz=rate_hz, activity=tree, mounting_q_bd=mounting_q_bd,
-                      activity_window_s=window_s, activity_cutoff_hz=cutoff_hz)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DegradedInputWarning)
-        return ga.process(t, acc_d_m_s2, q_nd).features
-
-
-def session_inputs(session: Session) -> tuple[FloatArray, FloatArray, FloatArray | None,
-                                               FloatArray | None, float]:
-    """Accelerometer times and samples, orientation on those times (or None), mounting, rate.
-
-    The orientation stream, when present, is interpolated (slerp) onto the accelerometer times;
-    samples outside its span use its first/last value.
-    """
-    if session.imu is None:
-        raise InputError("session has no IMU", where="session",
-                         expected="imu.csv with an accelerometer")
-    t = session.imu.accel.t
-    acc = session.imu.accel.values
-    if t.shape[0] < 8:
-        raise InputError(f"{t.shape[0]} accelerometer samples", where="imu.csv",
-                         expected="at least 8 samples")
-    rate = float(1.0 / np.median(np.diff(t)))
-    q_nd = None
-    if session.orientation is not None and len(session.orientation.t) >= 2:
-        from scipy.spatial.transform import Slerp
-
-        from hrtls.frames import quat_from_rotation, quat_to_rotation
-
-        ot = session.orientation.t
-        slerp = Slerp(ot, quat_to_rotation(session.orientation.q))
-        q_nd = quat_from_rotation(slerp(np.clip(t, ot[0], ot[-1])))
-    mount = session.meta.mounting_q_bd
-    return t, acc, q_nd, None if mount is None else np.asarray(mount, dtype=np.float64), rate
-
-
-def analyze_session(session: Session, **analyzer_kwargs: object) -> GaitResult:
-    """Run a :class:`GaitAnalyzer` over a whole session.
-
-    The mounting rotation and the user's step model (``meta.user.step_model``) come from the
-    session unless given in ``analyzer_kwargs`` (keyword arguments of :class:`GaitAnalyzer`).
-    """
-    from hrtls.gait.step_length import step_model_from_dict
-
-    t, acc, q_nd, mount, rate = session_inputs(session)
-    kwargs: dict[str, object] = {"rate_hz": rate, "mounting_q_bd": mount}
-    if session.meta.user.step_model:
-        kwargs["step_model"] = step_model_from_dict(session.meta.user.step_model)
-    kwargs.update(analyzer_kwargs)
-    analyzer = GaitAnalyzer(**kwargs)  # type: ignore[arg-type]
-    return analyzer.process(t, acc, q_nd)

@@ -12,15 +12,22 @@ Each calibration walk gives the detected steps and the true distance ``D``:
 * Pendulum (:mod:`hrtls.gait.step_length_pendulum`): ``D_i = K * U_i`` with
   ``U_i = sum_k 2 sqrt(2 L h_k - h_k^2)``, so ``K = sum_i D_i U_i / sum_i U_i^2`` (``L`` is
   kept from the base model).
+* Weinberg with a running constant: ``D_i = K_walk S_walk,i + K_run S_run,i`` over the steps
+  classified walking / running, jointly by least squares.
+
+:func:`walks_between_marks` cuts a recording's steps into calibration walks at marked times.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
+from numpy.typing import NDArray
 
+from hrtls.data import Activity, StepEvents
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray
 from hrtls.gait.pll import StepDetection
@@ -133,3 +140,50 @@ def fit_pendulum(walks: Sequence[CalibrationWalk], *,
                          expected="steps with a vertical pelvis motion")
     return PendulumModel(k=float(np.sum(d * uu) / np.sum(uu * uu)),
                          leg_length_m=b.leg_length_m, max_length_m=b.max_length_m)
+
+
+def fit_weinberg_running(walks: Sequence[CalibrationWalk], running: Sequence[NDArray[np.bool_]]
+                         ) -> tuple[float, float] | None:
+    """Weinberg K of walking and of running steps, jointly by least squares over the walks.
+
+    Each calibration walk's length is ``K_walk S_walk + K_run S_run`` with ``S`` the sums of
+    ``(a_max - a_min)^(1/4)`` of its steps classified walking / running (``running``: one
+    mask per walk). None when fewer than two walks have a substantial share (30 %) of running
+    steps, when every walk has, or when the fit is implausible.
+    """
+    rows, dist = [], []
+    n_run = 0
+    for w, r in zip(walks, running, strict=True):
+        q = np.sqrt(np.sqrt(np.clip(w.steps.acc_max - w.steps.acc_min, 0.0, None)))
+        rows.append([float(np.sum(q[~r])), float(np.sum(q[r]))])
+        dist.append(w.distance_m)
+        n_run += int(np.mean(r) > 0.3)
+    if n_run < 2 or n_run == len(walks):
+        return None
+    sol = np.linalg.lstsq(np.asarray(rows), np.asarray(dist), rcond=None)[0]
+    k_walk, k_run = float(sol[0]), float(sol[1])
+    if not (k_walk > 0 and 0.5 <= k_run / k_walk <= 2.0):
+        return None
+    return k_walk, k_run
+
+
+def walks_between_marks(steps: StepEvents, t_marks: FloatArray, distance_m: FloatArray, *,
+                        min_steps: int = 10
+                        ) -> tuple[list[CalibrationWalk], list[NDArray[np.bool_]]]:
+    """Calibration walks between consecutive marked times, and their running-step masks.
+
+    ``distance_m`` is the distance travelled at each of ``t_marks`` (increasing); a walk holds
+    the steps ending in ``(t_k, t_k+1]``. Stretches with fewer than ``min_steps`` steps are
+    left out.
+    """
+    walks: list[CalibrationWalk] = []
+    runs: list[NDArray[np.bool_]] = []
+    for k, (a, b) in enumerate(pairwise(np.asarray(t_marks, dtype=np.float64).tolist())):
+        sel = (steps.t_end > a) & (steps.t_end <= b)
+        if np.count_nonzero(sel) < min_steps:
+            continue
+        det = StepDetection(steps.t_start[sel], steps.t_end[sel], steps.frequency_hz[sel],
+                            steps.acc_max[sel], steps.acc_min[sel])
+        walks.append(CalibrationWalk(det, float(distance_m[k + 1] - distance_m[k])))
+        runs.append(steps.activity[sel] == int(Activity.RUNNING))
+    return walks, runs

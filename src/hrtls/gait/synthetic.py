@@ -153,80 +153,123 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     total = sum(d for _, d in segments)
     n = round(total * rate_hz)
     t = np.arange(n) / rate_hz
-    act = np.empty(n, dtype=np.int64)
-    phase = np.zeros(n)  # step phase, cycles
-    amp_v = np.zeros(n)
-    amp_ml = np.zeros(n)
-    shape = np.zeros((n, 3))  # h2, h3 scale and a stairs/run shape flag
-    len_s = np.zeros(n)  # true length of the step each sample belongs to
-    ap_s = np.zeros(n)  # antero-posterior amplitude relative to walking
-    speed = np.zeros(n)  # forward speed, m/s
-    ramp_all = np.ones(n)
+    g = _GaitProfile.zeros(n)
     i0 = 0
     cyc = 0.0
     for a, dur in segments:
         i1 = min(n, i0 + round(dur * rate_hz))
-        act[i0:i1] = a
+        g.act[i0:i1] = a
         if a == Activity.STANDING:
-            phase[i0:i1] = cyc
+            g.phase[i0:i1] = cyc
         else:
-            f0 = {Activity.WALKING: p.walk_hz, Activity.RUNNING: p.run_hz,
-                  Activity.UPSTAIRS: p.up_hz, Activity.DOWNSTAIRS: p.down_hz}[Activity(a)]
-            # piecewise-constant frequency with jitter per step
-            k = i0
-            while k < i1:
-                f = f0 * (1.0 + p.step_jitter * rng.normal())
-                m = max(1, round(rate_hz / f))
-                kk = min(i1, k + m)
-                phase[k:kk] = cyc + np.arange(kk - k) / m
-                length = p.step_length(a, f)
-                len_s[k:kk] = length
-                speed[k:kk] = length * f
-                h2 = p.h2 * (1.8 if a == Activity.UPSTAIRS else 1.0)
-                h3 = p.h3 * (3.0 if a == Activity.DOWNSTAIRS else 1.0) + (
-                    0.15 if a == Activity.DOWNSTAIRS else 0.0)
-                amp = p.vertical_pp(a, length * f) / _waveform_pp(h2, h3, p.p2, p.p3)
-                amp_v[k:kk] = amp * (1.0 + 0.05 * rng.normal())
-                amp_ml[k:kk] = p.ml_walk_m_s2 * {
-                    Activity.WALKING: 1.0, Activity.RUNNING: 1.5, Activity.UPSTAIRS: p.ml_up_ratio,
-                    Activity.DOWNSTAIRS: p.ml_down_ratio}[Activity(a)]
-                ap_s[k:kk] = {Activity.WALKING: 1.0, Activity.RUNNING: 1.0,
-                              Activity.UPSTAIRS: 0.5, Activity.DOWNSTAIRS: 0.6}[Activity(a)]
-                shape[k:kk, 0] = h2
-                shape[k:kk, 1] = h3
-                cyc += (kk - k) / m
-                k = kk
-            cyc = np.ceil(cyc - 1e-9)
+            cyc = _bout_steps(g, a, i0, i1, cyc=cyc, person=p, rate_hz=rate_hz, rng=rng)
             # speed ramps up over the first and down over the last second of a bout
             ramp = np.clip(np.minimum(t[i0:i1] - t[i0], t[i1 - 1] - t[i0:i1]) / ramp_s, 0, 1)
-            speed[i0:i1] *= ramp
-            ramp_all[i0:i1] = ramp
+            g.speed[i0:i1] *= ramp
+            g.ramp[i0:i1] = ramp
         i0 = i1
-    turn_rate = np.where(act != Activity.STANDING, turn_rate_rad_s, 0.0)
+    turn_rate = np.where(g.act != Activity.STANDING, turn_rate_rad_s, 0.0)
     if stop_amplitude is not None:
-        amp_v *= stop_amplitude + (1.0 - stop_amplitude) * ramp_all
+        g.amp_v *= stop_amplitude + (1.0 - stop_amplitude) * g.ramp
     for t_turn, d_turn, angle in turns:
         inside = (t >= t_turn) & (t < t_turn + d_turn)
         turn_rate = np.where(inside, turn_rate + angle / d_turn, turn_rate)
-        amp_v[inside] *= turn_amplitude
-        speed[inside] *= turn_amplitude
-    phi = 2.0 * np.pi * phase
-    moving = act != Activity.STANDING
+        g.amp_v[inside] *= turn_amplitude
+        g.speed[inside] *= turn_amplitude
     # forward acceleration of the mean speed (smoothed over 0.5 s)
     kern = np.ones(max(1, round(0.5 * rate_hz)))
-    speed = np.convolve(speed, kern / kern.size, mode="same")
+    speed = np.convolve(g.speed, kern / kern.size, mode="same")
+    psi = heading0_rad + np.cumsum(turn_rate) * (1.0 / rate_hz)
+    acc_d, q_nd = _device_signals(g, t, speed, psi, person=p, mount=mount, rate_hz=rate_hz,
+                                  rng=rng)
+    # step events: integer crossings of the phase while moving
+    moving = g.act != Activity.STANDING
+    cross = np.flatnonzero((np.floor(g.phase[1:]) > np.floor(g.phase[:-1])) & moving[1:]) + 1
+    step_t = t[cross]
+    # length and heading of the step that *ends* at each event
+    return SimWalk(t, acc_d, q_nd, mount, g.act, step_t, g.len_s[cross - 1], psi[cross],
+                   g.act[cross - 1], speed, p)
+
+
+@dataclass
+class _GaitProfile:
+    """Per-sample gait of a simulated walk, before it becomes device signals."""
+
+    act: np.ndarray      # activity code
+    phase: FloatArray    # step phase, cycles
+    amp_v: FloatArray    # vertical amplitude
+    amp_ml: FloatArray   # mediolateral amplitude
+    shape: FloatArray    # h2, h3 scale and a stairs/run shape flag (n, 3)
+    len_s: FloatArray    # true length of the step each sample belongs to
+    ap_s: FloatArray     # antero-posterior amplitude relative to walking
+    speed: FloatArray    # forward speed, m/s
+    ramp: FloatArray     # speed ramp of the bout (1 outside the ramps)
+
+    @classmethod
+    def zeros(cls, n: int) -> _GaitProfile:
+        """A profile of ``n`` samples (activity unset, ramp 1)."""
+        return cls(np.empty(n, dtype=np.int64), np.zeros(n), np.zeros(n), np.zeros(n),
+                   np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n), np.ones(n))
+
+
+def _bout_steps(g: _GaitProfile, a: int, i0: int, i1: int, *, cyc: float, person: SimPerson,
+                rate_hz: float, rng: np.random.Generator) -> float:
+    """Fill samples ``i0:i1`` of ``g`` with steps of activity ``a``; the phase at the end.
+
+    Piecewise-constant frequency with jitter per step; the phase starts at ``cyc`` and ends
+    rounded up to a whole cycle.
+    """
+    p = person
+    f0 = {Activity.WALKING: p.walk_hz, Activity.RUNNING: p.run_hz,
+          Activity.UPSTAIRS: p.up_hz, Activity.DOWNSTAIRS: p.down_hz}[Activity(a)]
+    k = i0
+    while k < i1:
+        f = f0 * (1.0 + p.step_jitter * rng.normal())
+        m = max(1, round(rate_hz / f))
+        kk = min(i1, k + m)
+        g.phase[k:kk] = cyc + np.arange(kk - k) / m
+        length = p.step_length(a, f)
+        g.len_s[k:kk] = length
+        g.speed[k:kk] = length * f
+        h2 = p.h2 * (1.8 if a == Activity.UPSTAIRS else 1.0)
+        h3 = p.h3 * (3.0 if a == Activity.DOWNSTAIRS else 1.0) + (
+            0.15 if a == Activity.DOWNSTAIRS else 0.0)
+        amp = p.vertical_pp(a, length * f) / _waveform_pp(h2, h3, p.p2, p.p3)
+        g.amp_v[k:kk] = amp * (1.0 + 0.05 * rng.normal())
+        g.amp_ml[k:kk] = p.ml_walk_m_s2 * {
+            Activity.WALKING: 1.0, Activity.RUNNING: 1.5, Activity.UPSTAIRS: p.ml_up_ratio,
+            Activity.DOWNSTAIRS: p.ml_down_ratio}[Activity(a)]
+        g.ap_s[k:kk] = {Activity.WALKING: 1.0, Activity.RUNNING: 1.0,
+                        Activity.UPSTAIRS: 0.5, Activity.DOWNSTAIRS: 0.6}[Activity(a)]
+        g.shape[k:kk, 0] = h2
+        g.shape[k:kk, 1] = h3
+        cyc += (kk - k) / m
+        k = kk
+    return float(np.ceil(cyc - 1e-9))
+
+
+def _device_signals(g: _GaitProfile, t: FloatArray, speed: FloatArray, psi: FloatArray, *,
+                    person: SimPerson, mount: FloatArray, rate_hz: float,
+                    rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+    """Device-frame specific force (with noise) and attitude ``q_nd`` of the profile.
+
+    ``speed`` is the smoothed forward speed (its derivative is the forward acceleration),
+    ``psi`` the walking direction; the trunk adds a yaw oscillation at stride frequency and a
+    pitch oscillation at step frequency while moving.
+    """
+    p = person
+    n = t.shape[0]
+    phi = 2.0 * np.pi * g.phase
+    moving = g.act != Activity.STANDING
     a_mean = np.gradient(speed, 1.0 / rate_hz)
-    a_v = amp_v * (np.cos(phi) + shape[:, 0] * np.cos(2 * phi + p.p2)
-                   + shape[:, 1] * np.cos(3 * phi + p.p3))
-    a_ap = p.ap_ratio * ap_s * amp_v * np.cos(phi - 1.4 * np.pi)
-    a_ml = amp_ml * np.sin(0.5 * phi + 0.3)
+    a_v = g.amp_v * (np.cos(phi) + g.shape[:, 0] * np.cos(2 * phi + p.p2)
+                     + g.shape[:, 1] * np.cos(3 * phi + p.p3))
+    a_ap = p.ap_ratio * g.ap_s * g.amp_v * np.cos(phi - 1.4 * np.pi)
+    a_ml = g.amp_ml * np.sin(0.5 * phi + 0.3)
     sway = 0.05 * np.sin(2 * np.pi * 0.3 * t + rng.uniform(0, 6))
     a_v = np.where(moving, a_v, sway)
     a_ap = np.where(moving, a_ap, 0.5 * sway) + a_mean
     a_ml = np.where(moving, a_ml, 0.5 * sway)
-    # walking direction and trunk yaw oscillation at stride frequency
-    dt = 1.0 / rate_hz
-    psi = heading0_rad + np.cumsum(turn_rate) * dt
     trunk = np.where(moving, np.deg2rad(3.0) * np.sin(0.5 * phi), 0.0)
     lin_n = np.column_stack([np.cos(psi) * a_ap - np.sin(psi) * a_ml,
                              np.sin(psi) * a_ap + np.cos(psi) * a_ml, a_v])
@@ -236,12 +279,7 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     q_nd = quat_multiply(q_nb, mount[None, :])  # v_n = q_nb q_bd v_d
     q_dn = q_nd * np.array([1.0, -1.0, -1.0, -1.0])
     acc_d = quat_rotate(q_dn, f_n) + p.noise_m_s2 * rng.normal(size=(n, 3))
-    # step events: integer crossings of the phase while moving
-    cross = np.flatnonzero((np.floor(phase[1:]) > np.floor(phase[:-1])) & moving[1:]) + 1
-    step_t = t[cross]
-    # length and heading of the step that *ends* at each event
-    return SimWalk(t, acc_d, q_nd, mount, act, step_t, len_s[cross - 1], psi[cross],
-                   act[cross - 1], speed, p)
+    return acc_d, q_nd
 
 
 def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:

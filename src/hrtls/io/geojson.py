@@ -425,41 +425,77 @@ def read_geojson(path: str | Path) -> GeoJsonTrack:
         doc = json.loads(file.read_text(encoding="utf-8"))
     except ValueError as exc:
         raise FormatError(f"invalid JSON ({exc})", where=str(file), expected="GeoJSON") from None
-    if not isinstance(doc, dict):
-        raise FormatError("top level is not an object", where=str(file), expected="GeoJSON")
-    if doc.get("type") == "Feature":
-        features: list[Any] = [doc]
-    elif doc.get("type") in ("FeatureCollection", LOCAL_TYPE) and isinstance(
-            doc.get("features"), list):
-        features = doc["features"]
-    else:
-        raise FormatError(f"type {doc.get('type')!r}", where=str(file),
-                          expected="a FeatureCollection or a Feature")
+    features = _features(doc, where=str(file))
     is_wgs84, georeference = parse_crs_member(doc.get(CRS_MEMBER),
                                               where=f"{file.name} {CRS_MEMBER}")
     origin = doc.get(TIME_ORIGIN_MEMBER)
     if origin is not None and not isinstance(origin, int | float):
         raise FormatError(f"{origin!r}", where=f"{file.name} {TIME_ORIGIN_MEMBER}",
                           expected="a Unix time in s")
+    track_index = _track_index(features, where=str(file))
+    where = f"{file.name} features[{track_index}]"
+    track = features[track_index]
+    coords = _geometry_coords(track.get("geometry"), where=f"{where}.geometry")
+    tp = _props(track)
+    t_s, heading, activity = _vertex_columns(tp, len(coords), where=where)
+    step_rows: list[dict[str, Any]] = []
+    step_coords: list[FloatArray] = []
+    landmarks: list[Landmark] = []
+    for i, feature in enumerate(features):
+        p = _props(feature)
+        here = f"{file.name} features[{i}]"
+        if p.get("kind") == "step":
+            step_coords.append(_geometry_coords(feature.get("geometry"), where=f"{here}.geometry"))
+            step_rows.append(p)
+        elif p.get("kind") == "landmark":
+            landmarks.append(_landmark(feature, p, is_wgs84=is_wgs84, where=here))
+    return GeoJsonTrack(
+        coordinates=coords, is_wgs84=is_wgs84, georeference=georeference, t_s=t_s,
+        heading_rad=heading, activity=activity,
+        time_origin_unix_s=None if origin is None else float(origin),
+        step_coordinates=(np.concatenate(step_coords) if step_coords else np.zeros((0, 3))),
+        steps=_steps(step_rows, where=file.name) if step_rows else None, landmarks=landmarks,
+        name=str(tp["name"]) if "name" in tp else None,
+    )
 
-    def props(feature: Any) -> dict[str, Any]:
-        value = feature.get("properties") if isinstance(feature, dict) else None
-        return value if isinstance(value, dict) else {}
 
-    track_index = next((i for i, f in enumerate(features) if props(f).get("kind") == "trajectory"),
-                       None)
+def _features(doc: Any, *, where: str) -> list[Any]:
+    """The features of a GeoJSON document (a Feature, a FeatureCollection or the local type)."""
+    if not isinstance(doc, dict):
+        raise FormatError("top level is not an object", where=where, expected="GeoJSON")
+    if doc.get("type") == "Feature":
+        return [doc]
+    if doc.get("type") in ("FeatureCollection", LOCAL_TYPE) and isinstance(
+            doc.get("features"), list):
+        features: list[Any] = doc["features"]
+        return features
+    raise FormatError(f"type {doc.get('type')!r}", where=where,
+                      expected="a FeatureCollection or a Feature")
+
+
+def _props(feature: Any) -> dict[str, Any]:
+    """The properties of a feature ({} when it has none)."""
+    value = feature.get("properties") if isinstance(feature, dict) else None
+    return value if isinstance(value, dict) else {}
+
+
+def _track_index(features: list[Any], *, where: str) -> int:
+    """Index of the trajectory feature, else of the first LineString feature."""
+    track_index = next((i for i, f in enumerate(features)
+                        if _props(f).get("kind") == "trajectory"), None)
     if track_index is None:
         track_index = next((i for i, f in enumerate(features) if isinstance(f, dict)
                             and isinstance(f.get("geometry"), dict)
                             and f["geometry"].get("type") == "LineString"), None)
     if track_index is None:
-        raise FormatError("no trajectory feature", where=str(file),
+        raise FormatError("no trajectory feature", where=where,
                           expected="a feature with properties.kind 'trajectory' or a LineString")
-    where = f"{file.name} features[{track_index}]"
-    track = features[track_index]
-    coords = _geometry_coords(track.get("geometry"), where=f"{where}.geometry")
-    tp = props(track)
-    n = len(coords)
+    return track_index
+
+
+def _vertex_columns(tp: dict[str, Any], n: int, *, where: str
+                    ) -> tuple[FloatArray | None, FloatArray | None, NDArray[np.int64] | None]:
+    """Times, headings and activity codes of the track's ``n`` vertices (None when absent)."""
 
     def per_vertex(key: str) -> FloatArray | None:
         if key not in tp:
@@ -482,53 +518,41 @@ def read_geojson(path: str | Path) -> GeoJsonTrack:
                               expected="one label per vertex")
         activity = activity_codes(np.array([str(v) for v in raw], dtype=np.str_),
                                   where=f"{where}.properties.activity")
+    return t_s, heading, activity
 
-    step_rows: list[dict[str, Any]] = []
-    step_coords: list[FloatArray] = []
-    landmarks: list[Landmark] = []
-    for i, feature in enumerate(features):
-        p = props(feature)
-        here = f"{file.name} features[{i}]"
-        if p.get("kind") == "step":
-            step_coords.append(_geometry_coords(feature.get("geometry"), where=f"{here}.geometry"))
-            step_rows.append(p)
-        elif p.get("kind") == "landmark":
-            point = _geometry_coords(feature.get("geometry"), where=f"{here}.geometry")
-            data = dict(p.get("landmark") or {})
-            data.pop("position", None)
-            data.pop("wgs84", None)
-            if len(point) != 1:
-                raise FormatError("landmark without a point", where=here, expected="a Point")
-            x, y, z = (float(v) for v in point[0])
-            location = ({"wgs84": {"lat": y, "lon": x, "alt": z}} if is_wgs84
-                        else {"position": (x, y, z)})
-            try:
-                landmarks.append(Landmark(**data, **location))
-            except (ValueError, TypeError) as exc:
-                raise FormatError(f"bad landmark ({exc})", where=here,
-                                  expected="an hrtls landmark") from None
-    steps = None
-    if step_rows:
-        try:
-            steps = StepEvents.build(
-                t_start=[r["t_start_s"] for r in step_rows],
-                t_end=[r["t_end_s"] for r in step_rows],
-                length_m=[r["length_m"] for r in step_rows],
-                heading_rad=[np.nan if r.get("heading_rad") is None else r["heading_rad"]
-                             for r in step_rows],
-                dz_m=[r.get("dz_m", 0.0) for r in step_rows],
-                activity=activity_codes(np.array([str(r.get("activity", "walking"))
-                                                  for r in step_rows], dtype=np.str_),
-                                        where=f"{file.name} step activity"),
-            )
-        except (KeyError, TypeError) as exc:
-            raise FormatError(f"step feature lacks {exc}", where=file.name,
-                              expected="t_start_s, t_end_s, length_m") from None
-    return GeoJsonTrack(
-        coordinates=coords, is_wgs84=is_wgs84, georeference=georeference, t_s=t_s,
-        heading_rad=heading, activity=activity,
-        time_origin_unix_s=None if origin is None else float(origin),
-        step_coordinates=(np.concatenate(step_coords) if step_coords else np.zeros((0, 3))),
-        steps=steps, landmarks=landmarks,
-        name=str(tp["name"]) if "name" in tp else None,
-    )
+
+def _landmark(feature: Any, p: dict[str, Any], *, is_wgs84: bool, where: str) -> Landmark:
+    """The landmark of a ``kind: landmark`` feature, placed at its Point."""
+    point = _geometry_coords(feature.get("geometry"), where=f"{where}.geometry")
+    data = dict(p.get("landmark") or {})
+    data.pop("position", None)
+    data.pop("wgs84", None)
+    if len(point) != 1:
+        raise FormatError("landmark without a point", where=where, expected="a Point")
+    x, y, z = (float(v) for v in point[0])
+    location = ({"wgs84": {"lat": y, "lon": x, "alt": z}} if is_wgs84
+                else {"position": (x, y, z)})
+    try:
+        return Landmark(**data, **location)
+    except (ValueError, TypeError) as exc:
+        raise FormatError(f"bad landmark ({exc})", where=where,
+                          expected="an hrtls landmark") from None
+
+
+def _steps(step_rows: list[dict[str, Any]], *, where: str) -> StepEvents:
+    """The step table of the ``kind: step`` features' properties."""
+    try:
+        return StepEvents.build(
+            t_start=[r["t_start_s"] for r in step_rows],
+            t_end=[r["t_end_s"] for r in step_rows],
+            length_m=[r["length_m"] for r in step_rows],
+            heading_rad=[np.nan if r.get("heading_rad") is None else r["heading_rad"]
+                         for r in step_rows],
+            dz_m=[r.get("dz_m", 0.0) for r in step_rows],
+            activity=activity_codes(np.array([str(r.get("activity", "walking"))
+                                              for r in step_rows], dtype=np.str_),
+                                    where=f"{where} step activity"),
+        )
+    except (KeyError, TypeError) as exc:
+        raise FormatError(f"step feature lacks {exc}", where=where,
+                          expected="t_start_s, t_end_s, length_m") from None

@@ -1,11 +1,10 @@
 """Orientation time series on disk: the CSV of ``hrtls attitude`` and reference orientations.
 
-A reference orientation is one of
-
-* a CSV ``t,qw,qx,qy,qz[,movement]`` (``q_nb``, ENU; empty fields where the reference was lost;
-  ``movement`` 1/0 marks the samples to score), e.g. ``orientation_reference.csv`` in a session
-  folder, or the CSV written by ``hrtls attitude`` (its ``roll,pitch,yaw`` columns are ignored);
-* a BROAD trial (``.hdf5``): its optical orientation and ``movement`` flags.
+The CSV is ``t,qw,qx,qy,qz[,movement]`` (``q_nb``, ENU; empty fields where the reference was
+lost; ``movement`` 1/0 marks the samples to score), e.g. ``orientation_reference.csv`` in a
+session folder, or the CSV written by ``hrtls attitude`` (its ``roll,pitch,yaw`` columns are
+ignored). A reference orientation from any recording, BROAD trials included, is read by
+:mod:`hrtls.datasets.reference_orientation`.
 """
 
 from __future__ import annotations
@@ -19,8 +18,8 @@ from numpy.typing import NDArray
 from hrtls.errors import InputError
 from hrtls.io.csvtable import ColumnKind, read_table
 
-__all__ = ["REFERENCE_FILE", "OrientationTable", "find_reference_orientation",
-           "read_orientation_csv", "read_reference_orientation"]
+__all__ = ["REFERENCE_FILE", "OrientationTable", "read_orientation_csv",
+           "session_reference_orientation"]
 
 REFERENCE_FILE = "orientation_reference.csv"
 """Name of a reference orientation inside a session folder."""
@@ -53,33 +52,9 @@ def read_orientation_csv(path: Path) -> OrientationTable:
     return OrientationTable(table.float("t"), q, mask, path.name)
 
 
-def read_reference_orientation(path: Path) -> OrientationTable:
-    """A reference orientation from a CSV or a BROAD trial (module text)."""
-    path = Path(path)
-    if path.is_dir():
-        ref = find_reference_orientation(path)
-        if ref is None:
-            raise InputError(f"no {REFERENCE_FILE}", where=str(path),
-                             expected="a session folder with a reference orientation")
-        return ref
-    if path.suffix.lower() in (".hdf5", ".h5"):
-        from hrtls.datasets.broad import load_trial
-
-        trial = load_trial(path)
-        imu = trial.session.imu
-        assert imu is not None
-        return OrientationTable(imu.accel.t, trial.reference_q, trial.movement, path.name)
-    return read_orientation_csv(path)
-
-
-def find_reference_orientation(recording: Path) -> OrientationTable | None:
-    """The reference orientation a recording carries (BROAD trial, session folder), or None."""
-    recording = Path(recording)
-    if recording.is_dir() and (recording / REFERENCE_FILE).is_file():
-        return read_orientation_csv(recording / REFERENCE_FILE)
-    if recording.is_file() and recording.suffix.lower() in (".hdf5", ".h5"):
-        from hrtls.datasets.formats import looks_like_broad
-
-        if looks_like_broad(recording):
-            return read_reference_orientation(recording)
+def session_reference_orientation(folder: Path) -> OrientationTable | None:
+    """The reference orientation of a session folder (its ``REFERENCE_FILE``), or None."""
+    folder = Path(folder)
+    if folder.is_dir() and (folder / REFERENCE_FILE).is_file():
+        return read_orientation_csv(folder / REFERENCE_FILE)
     return None

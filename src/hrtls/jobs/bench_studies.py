@@ -24,11 +24,12 @@ from hrtls.attitude.registry import DEFAULT_FILTER, make_filter
 from hrtls.data import Activity
 from hrtls.evaluate.metrics import class_weighted_error
 from hrtls.gait.activity_lda import train_lda
-from hrtls.gait.analyzer import activity_windows
 from hrtls.gait.features import window_labels
+from hrtls.gait.session_analysis import activity_windows
 from hrtls.sim.devices import get_device
 from hrtls.sim.motion_truth import MotionParams, Waypoint
-from hrtls.sim.scenarios import SimulationResult, simulate_person
+from hrtls.sim.person import simulate_person
+from hrtls.sim.simulation_result import SimulationResult
 from hrtls.wsn.experiment import loose_study, tight_study
 
 __all__ = ["TABLE_6_7_WINDOWS", "activity_course", "activity_cross_validation",

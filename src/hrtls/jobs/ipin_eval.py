@@ -36,7 +36,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from hrtls.calibration.channel import fit_path_loss
+from hrtls.calibration.channel import survey_path_loss
 from hrtls.data import (
     ChannelModel,
     Checkpoints,
@@ -114,9 +114,9 @@ def calibrate_channel(session: Session, *, rss_window_s: float = 0.0,
         raise InputError(f"{int(keep.sum())} readings within the landmarks' time span",
                          where="calibration session", expected="at least 3")
     xy = np.column_stack([np.interp(rss.t[keep], t_ref, xy_ref[:, i]) for i in range(2)])
-    beacon = np.array([session.landmarks[a].xyz()[:2] for a in rss.anchor[keep].tolist()])
-    return fit_path_loss(distance_m=np.linalg.norm(xy - beacon, axis=1),
-                         rss_dbm=rss.rss_dbm[keep], eta_bounds=eta_bounds)
+    return survey_path_loss(receiver_xy=xy, anchors=rss.anchor[keep].tolist(),
+                            rss_dbm=rss.rss_dbm[keep], landmarks=session.landmarks,
+                            eta_bounds=eta_bounds)
 
 
 def prepare_session(session: Session, *, mounting: Mounting = "handheld",

@@ -20,11 +20,12 @@ from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
 from hrtls.io.tables import write_steps, write_trajectory
+from hrtls.pipeline.build import RATE_SAMPLES, leading_rate_hz
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
 from hrtls.pipeline.mounting import uses_handheld_mounting
-from hrtls.pipeline.tracker import RATE_SAMPLES, Tracker, TrackResult, leading_rate_hz
+from hrtls.pipeline.tracker import Tracker, TrackResult
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
 LOCAL_GEOJSON = "trajectory.local.json"

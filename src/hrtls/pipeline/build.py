@@ -14,7 +14,7 @@ import numpy as np
 from hrtls.attitude.base import AttitudeFilter
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.attitude.registry import DEFAULT_FILTER, make_filter
-from hrtls.data import SessionMeta
+from hrtls.data import Session, SessionMeta
 from hrtls.data.landmarks import Landmark
 from hrtls.data.session import StartPose
 from hrtls.errors import DegradedInputWarning, InputError
@@ -67,6 +67,26 @@ class Sensors:
     has_orientation: bool
     rate_hz: float
     t0: float
+
+    @classmethod
+    def of_session(cls, session: Session) -> Sensors:
+        """The sensors of a whole session (rate from its leading accelerometer times)."""
+        imu = session.imu
+        return cls(has_imu=imu is not None, has_gyro=imu is not None and imu.gyro is not None,
+                   has_mag=imu is not None and imu.mag is not None,
+                   has_orientation=session.orientation is not None,
+                   rate_hz=leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
+                   t0=session.time_span()[0])
+
+
+RATE_SAMPLES = 512
+"""Leading accelerometer samples whose median spacing gives the nominal rate (start_session)."""
+
+
+def leading_rate_hz(t: np.ndarray) -> float:
+    """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
+    head = t[:RATE_SAMPLES]
+    return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0
 
 
 def attitude_method(config: TrackerConfig, sensors: Sensors, notes: Notes) -> str:

@@ -74,7 +74,9 @@ from hrtls.pipeline import build
 from hrtls.pipeline import report as rep
 from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.baro_stage import BaroStage
+from hrtls.pipeline.build import RATE_SAMPLES as RATE_SAMPLES
 from hrtls.pipeline.build import Notes, Sensors
+from hrtls.pipeline.build import leading_rate_hz as leading_rate_hz
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
@@ -86,8 +88,6 @@ from hrtls.pipeline.step_scale import StepScaleLearner, StepScaleParams
 
 LIVE_LATENCY_S = 4.0
 """Events are held until the IMU stream is this far past them (late step detections), s."""
-RATE_SAMPLES = 512
-"""Leading accelerometer samples whose median spacing gives the nominal rate (start_session)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -308,7 +308,7 @@ class Tracker:
         Of its samples only the first ``RATE_SAMPLES`` accelerometer times are read (the
         nominal rate: median spacing), so a session cut later starts the same tracker.
         """
-        self._begin(session.meta, session.landmarks, _session_sensors(session))
+        self._begin(session.meta, session.landmarks, Sensors.of_session(session))
 
     def _start_two_pass(self, session: Session) -> None:
         """``[offline] two_pass``: start with the whole recording's hard iron and mounting."""
@@ -326,7 +326,7 @@ class Tracker:
         if imu is not None and imu.mag is not None and \
                 self.config.attitude.mag_hard_iron == "fit":
             hard_iron = _fit_hard_iron_offline(imu, offline_notes)
-        self._begin(session.meta, session.landmarks, _session_sensors(session),
+        self._begin(session.meta, session.landmarks, Sensors.of_session(session),
                     fixed_mounting_acc=acc_mount, fixed_hard_iron_ut=hard_iron)
         self._two_pass = True
         for degraded, text in offline_notes:
@@ -557,15 +557,6 @@ class Tracker:
             eng.buffer_velocity(result, t, q_nd, self.meta.mounting_q_bd)
 
 
-def _session_sensors(session: Session) -> Sensors:
-    imu = session.imu
-    return Sensors(has_imu=imu is not None, has_gyro=imu is not None and imu.gyro is not None,
-                   has_mag=imu is not None and imu.mag is not None,
-                   has_orientation=session.orientation is not None,
-                   rate_hz=leading_rate_hz(imu.accel.t) if imu is not None else 0.0,
-                   t0=session.time_span()[0])
-
-
 def _resolved(landmarks: dict[str, Landmark], meta: SessionMeta) -> dict[str, Landmark]:
     """The landmarks with their positions in the session's local frame (where one is known)."""
     geo = None if meta.georeference is None else meta.georeference.to_georeference()
@@ -593,9 +584,3 @@ def _fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.
         f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
         f"of turning, {fit.n_used} samples"))
     return fit.hard_iron_ut
-
-
-def leading_rate_hz(t: np.ndarray) -> float:
-    """Nominal rate from the median spacing of the first ``RATE_SAMPLES`` times, Hz."""
-    head = t[:RATE_SAMPLES]
-    return float(1.0 / np.median(np.diff(head))) if len(head) >= 2 else 0.0

@@ -78,6 +78,42 @@ async def _publish_loop(services: Services) -> None:
 def create_app(settings: Settings, *, clock: Clock = wall_clock,
                runner: TrackerRunner | None = None) -> FastAPI:
     """The FastAPI application of one deployment (database migrated on start-up)."""
+    services = _services(settings, clock=clock, runner=runner)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        await run_in_threadpool(services.host.start)
+        publisher = asyncio.create_task(_publish_loop(services))
+        try:
+            yield
+        finally:
+            publisher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await publisher
+            await run_in_threadpool(services.host.stop)
+            services.engine.dispose()
+
+    app = FastAPI(title="hrtls supervisor", version=__version__, lifespan=lifespan,
+                  docs_url=f"{API_PREFIX}/docs", openapi_url=f"{API_PREFIX}/openapi.json",
+                  redoc_url=None)
+    app.state.services = services
+    _add_error_handlers(app)
+    _add_routes(app, settings)
+    _mount_dashboard(app, settings.web_root)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityHeaders, csp=content_security_policy(settings.basemap_url),
+                       docs_prefix=f"{API_PREFIX}/docs")
+    if settings.cors_origins:
+        from fastapi.middleware.cors import CORSMiddleware
+
+        app.add_middleware(CORSMiddleware, allow_origins=list(settings.cors_origins),
+                           allow_credentials=True, allow_methods=["*"],
+                           allow_headers=["Authorization", "Content-Type"])
+    return app
+
+
+def _services(settings: Settings, *, clock: Clock, runner: TrackerRunner | None) -> Services:
+    """Database (migrated), event log, tracker host, socket hub and limits of a deployment."""
     engine = make_engine(settings.db_url)
     migrate(engine)
     sessions = session_factory(engine)
@@ -88,30 +124,16 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
                                          snapshot_every_s=settings.snapshot_every_s,
                                          workers=settings.tracker_threads),
                        events=events)
-    services = Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
-                        agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
-                                               burst=settings.rate_burst, clock=clock),
-                        host=host, hub=hub, events=events,
-                        tokens=TokenCache(ttl_s=settings.token_cache_ttl_s,
-                                          max_entries=settings.token_cache_entries))
+    return Services(settings=settings, engine=engine, sessions=sessions, clock=clock,
+                    agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
+                                           burst=settings.rate_burst, clock=clock),
+                    host=host, hub=hub, events=events,
+                    tokens=TokenCache(ttl_s=settings.token_cache_ttl_s,
+                                      max_entries=settings.token_cache_entries))
 
-    @asynccontextmanager
-    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        await run_in_threadpool(host.start)
-        publisher = asyncio.create_task(_publish_loop(services))
-        try:
-            yield
-        finally:
-            publisher.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await publisher
-            await run_in_threadpool(host.stop)
-            engine.dispose()
 
-    app = FastAPI(title="hrtls supervisor", version=__version__, lifespan=lifespan,
-                  docs_url=f"{API_PREFIX}/docs", openapi_url=f"{API_PREFIX}/openapi.json",
-                  redoc_url=None)
-    app.state.services = services
+def _add_error_handlers(app: FastAPI) -> None:
+    """Validation errors as one readable ``detail`` (plus the list); HTTP errors as JSON."""
 
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -123,6 +145,9 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
         return JSONResponse({"detail": str(exc.detail)}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
+
+def _add_routes(app: FastAPI, settings: Settings) -> None:
+    """The API routers under ``API_PREFIX``, the health check and a 404 for anything else."""
     from hrtls.service.routes import (
         agents,
         auth,
@@ -147,18 +172,6 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
                                                            "DELETE"], include_in_schema=False)
     def _unknown(rest: str) -> None:
         raise HTTPException(404, f"no route {API_PREFIX}/{rest}")
-
-    _mount_dashboard(app, settings.web_root)
-    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
-    app.add_middleware(SecurityHeaders, csp=content_security_policy(settings.basemap_url),
-                       docs_prefix=f"{API_PREFIX}/docs")
-    if settings.cors_origins:
-        from fastapi.middleware.cors import CORSMiddleware
-
-        app.add_middleware(CORSMiddleware, allow_origins=list(settings.cors_origins),
-                           allow_credentials=True, allow_methods=["*"],
-                           allow_headers=["Authorization", "Content-Type"])
-    return app
 
 
 def _mount_dashboard(app: FastAPI, web_root: Path | None) -> None:

@@ -42,7 +42,9 @@ from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
 from hrtls.sim.motion_truth import random_floorplan_walk, simulate_motion
-from hrtls.sim.scenarios import Infrastructure, SimulationResult, _rngs, simulate_person
+from hrtls.sim.person import Infrastructure, simulate_person
+from hrtls.sim.scenario_options import scenario_rngs
+from hrtls.sim.simulation_result import SimulationResult
 from hrtls.sim.team import ROBOT_RATE_HZ, odometry_poses
 
 FloatArray = NDArray[np.float64]
@@ -110,7 +112,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     See the module doc.
     """
     o = options or MissionOptions()
-    r = _rngs(seed)
+    r = scenario_rngs(seed)
     nodes = _drop_nodes(r[7], o.n_nodes)
     alive = {k: v for k, v in nodes.items() if r[7].random() >= o.node_failure_fraction}
     tags = [RfidTag(id="T1", position=(1.5, 0.2, 2.2), lobe_orientation_rad=np.pi / 2, floor=0),
@@ -121,7 +123,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     agents: dict[str, Session] = {}
     sims: dict[str, SimulationResult] = {}
     for i in range(o.n_rescuers):
-        rr = _rngs(seed * 1000 + 17 * (i + 1))
+        rr = scenario_rngs(seed * 1000 + 17 * (i + 1))
         wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 1.15,
                                     start=ENTRANCE_XY, stop_probability=0.1,
                                     stop_range_s=(2.0, 8.0), min_leg_m=3.0)
@@ -147,7 +149,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
 def _robot(seed: int, i: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
            model: RangeModel) -> tuple[Session, SimulationResult]:
     """Robot ``i``: a corridor route at about 0.5 m/s, odometry poses and ranges (module doc)."""
-    rr = _rngs(seed * 1000 + 500 + 17 * (i + 1))
+    rr = scenario_rngs(seed * 1000 + 500 + 17 * (i + 1))
     wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 0.5, start=ENTRANCE_XY,
                                 speed_range_m_s=(0.4, 0.6), stop_probability=0.05,
                                 stop_range_s=(2.0, 5.0), min_leg_m=3.0)

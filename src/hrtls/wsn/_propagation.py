@@ -1,4 +1,4 @@
-"""Queue-based localization propagation shared by TLA and SELA (compiled kernel + reference).
+"""Queue-based localization propagation shared by TLA and SELA (compiled kernel).
 
 The kernel works on the CSR adjacency of the link graph. A node enters the work queue only when
 one of its neighbours is localized (or, for SELA, when a node two hops away becomes a possible
@@ -17,6 +17,9 @@ Rules (Inderst thesis Sec. 3.5 and 5.2):
   and is *not* linked to the node lies closer than ``rho - shadow_margin_m`` to the candidate
   (the shadow edge ``(i, j)``: under the disk model the node would have heard ``j``).
   Exactly one surviving candidate -> placed; none -> flagged inconsistent; two -> ambiguous.
+
+A slow pure-Python version of the same rules, for the tests, is
+:mod:`hrtls.wsn._propagation_reference`.
 """
 
 from __future__ import annotations
@@ -454,126 +457,3 @@ def propagate_kernel(
                         tail = (tail + 1) % qn
                         inq[v] = True
     return n_order
-
-
-def propagate_reference(
-    indptr: IntArray,
-    indices: IntArray,
-    dist: FloatArray,
-    pos: FloatArray,
-    localized: BoolArray,
-    radius: float,
-    use_shadow: bool,
-    range_tol: float,
-    min_spread: float,
-    shadow_margin: float,
-    max_gdop: float,
-    flip_tol: float,
-) -> tuple[BoolArray, FloatArray, NDArray[np.int8]]:
-    """Slow pure-Python version by repeated sweeps (test reference; same rules, other order).
-
-    The least-squares fix is computed by scipy instead of the compiled solver.
-    """
-    n = indptr.size - 1
-    loc = localized.copy()
-    p = pos.copy()
-    meth = np.zeros(n, dtype=np.int8)
-    changed = True
-    while changed:
-        changed = False
-        for u in range(n):
-            if loc[u]:
-                continue
-            nb = [(int(indices[k]), float(dist[k])) for k in range(indptr[u], indptr[u + 1])]
-            nbset = {j for j, _ in nb}
-            ln = [(j, d) for j, d in nb if loc[j]]
-            pts = np.array([p[j] for j, _ in ln]).reshape(-1, 2)
-            ds = np.array([d for _, d in ln])
-            pair: tuple[int, int] | None = None
-            if len(ln) >= 3:
-                q = pts - pts.mean(axis=0)
-                lam = np.linalg.eigvalsh(q.T @ q)[0]
-                if np.sqrt(max(lam, 0.0) / len(ln)) >= min_spread:
-                    x = _reference_lsq(pts, ds)
-                    if np.max(np.abs(np.linalg.norm(pts - x, axis=1) - ds)) > range_tol:
-                        continue
-                    u_vec = (x - pts) / np.linalg.norm(x - pts, axis=1)[:, None]
-                    if np.sqrt(np.trace(np.linalg.inv(u_vec.T @ u_vec))) > max_gdop:
-                        continue_shadow = True
-                    else:
-                        continue_shadow = False
-                        pair = _reference_flip(pts, ds, x, flip_tol)
-                        if pair is None:
-                            loc[u] = True
-                            p[u] = x
-                            meth[u] = M_TRILATERATION
-                            changed = True
-                            continue
-                    if continue_shadow:
-                        pair = None
-            if not use_shadow or len(ln) < 2:
-                continue
-            if pair is None:
-                dmat = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
-                flat = np.unravel_index(int(np.argmax(np.triu(dmat, 1))), dmat.shape)
-                ia, ib = int(flat[0]), int(flat[1])
-            else:
-                ia, ib = pair
-            ok, c1x, c1y, c2x, c2y = _circle_candidates.py_func(
-                pts[ia, 0], pts[ia, 1], ds[ia], pts[ib, 0], pts[ib, 1], ds[ib], range_tol
-            )
-            if np.linalg.norm(pts[ia] - pts[ib]) < 2.0 * min_spread or not ok:
-                continue
-            if _gdop2.py_func(pts[ia, 0], pts[ia, 1], pts[ib, 0], pts[ib, 1], c1x, c1y) > max_gdop:
-                continue
-            cands = [np.array([c1x, c1y]), np.array([c2x, c2y])]
-            witnesses = {
-                int(indices[k])
-                for j, _ in ln
-                for k in range(indptr[j], indptr[j + 1])
-                if loc[indices[k]] and indices[k] not in nbset and indices[k] != u
-            }
-            alive = []
-            for cand in cands:
-                good = bool(np.all(np.abs(np.linalg.norm(pts - cand, axis=1) - ds) <= range_tol))
-                if good and any(
-                    np.linalg.norm(cand - p[w]) < radius - shadow_margin for w in witnesses
-                ):
-                    good = False
-                alive.append(good)
-            if alive[0] != alive[1]:
-                loc[u] = True
-                p[u] = cands[0] if alive[0] else cands[1]
-                meth[u] = M_SHADOW
-                changed = True
-    return loc, p, meth
-
-
-def _reference_flip(
-    pts: FloatArray, ds: FloatArray, x: FloatArray, tol: float
-) -> tuple[int, int] | None:
-    """Pair whose reflection of ``x`` also fits all ranges (first 8 neighbours), else None."""
-    lim = min(len(ds), 8)
-    for a in range(lim):
-        for b in range(a + 1, lim):
-            t = pts[b] - pts[a]
-            foot = pts[a] + np.dot(x - pts[a], t) / np.dot(t, t) * t
-            mirror = 2.0 * foot - x
-            if np.linalg.norm(mirror - x) <= 2.0 * tol:
-                continue
-            if np.max(np.abs(np.linalg.norm(pts - mirror, axis=1) - ds)) <= tol:
-                return a, b
-    return None
-
-
-def _reference_lsq(pts: FloatArray, ds: FloatArray) -> FloatArray:
-    """Nonlinear least squares by scipy (reference for the compiled solver)."""
-    from scipy.optimize import least_squares
-
-    x0 = pts.mean(axis=0) + 1e-3 * (pts.max() - pts.min() + 1.0)
-    a = 2.0 * (pts[1:] - pts[0])
-    b = (ds[0] ** 2 - ds[1:] ** 2) + np.sum(pts[1:] ** 2, axis=1) - np.sum(pts[0] ** 2)
-    x0 = np.linalg.lstsq(a, b, rcond=None)[0]
-    sol = least_squares(lambda x: np.linalg.norm(pts - x, axis=1) - ds, x0, xtol=1e-15,
-                        ftol=1e-15, gtol=1e-15)
-    return np.asarray(sol.x, dtype=np.float64)

@@ -143,13 +143,36 @@ def refine_positions(
         raise InputError("no fixed or prior node", where="refine",
                          expected="anchors or agent-placed nodes with a prior (gauge)")
     sig = np.maximum(prm.range_sigma_fraction * d, prm.range_sigma_floor_m)
-    w = 1.0 / sig
-    m = e.shape[0]
-    soft_idx = np.flatnonzero(soft)
-    lam = 1e-9
-    it = 0
+    problem = _RangeProblem(edges=e, distance_m=d, weight=1.0 / sig, column=col, n_free=nf,
+                            soft=np.flatnonzero(soft), prior_m=pm, prior_sigma_m=ps)
+    x, h, it = _levenberg_marquardt(problem, x, free, prm)
+    _, _, res = problem.normal_equations(x)
+    if prm.covariance:
+        cov = _covariance_blocks(h, nf, free, n)
+    return Refinement(estimate_m=x, covariance_m2=cov, refined=free, iterations=it,
+                      normalized_rms=float(np.sqrt(np.mean(res**2))))
 
-    def build(xx: FloatArray) -> tuple[sp.csc_matrix, FloatArray, FloatArray]:
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class _RangeProblem:
+    """Weighted range residuals of the used links plus the soft priors, over the free nodes.
+
+    ``column[i]`` is the index of free node ``i`` among the unknowns (-1 when not free);
+    ``soft`` are the free nodes with a finite prior.
+    """
+
+    edges: IntArray
+    distance_m: FloatArray
+    weight: FloatArray
+    column: IntArray
+    n_free: int
+    soft: IntArray
+    prior_m: FloatArray
+    prior_sigma_m: FloatArray
+
+    def normal_equations(self, xx: FloatArray) -> tuple[sp.csc_matrix, FloatArray, FloatArray]:
+        """Gauss-Newton ``J^T J`` (plus prior weights), gradient ``J^T res`` and residuals."""
+        e, d, w, col, nf = self.edges, self.distance_m, self.weight, self.column, self.n_free
         diff = xx[e[:, 0]] - xx[e[:, 1]]
         r = np.linalg.norm(diff, axis=1)
         r = np.maximum(r, 1e-12)
@@ -167,32 +190,40 @@ def refine_positions(
                 cols.append(2 * c[ok] + ax)
                 vals.append(sign * u[ok, ax] * w[ok])
         jac = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                            shape=(m, 2 * nf))
+                            shape=(e.shape[0], 2 * nf))
         # J is d(res)/dx with res = (d - r) w: d r/dx_a = u, so d res / dx_a = -u w
         h = (jac.T @ jac).tocsc()
         g = jac.T @ res
-        if soft_idx.size:
-            wp = 1.0 / ps[soft_idx] ** 2
+        if self.soft.size:
+            wp = 1.0 / self.prior_sigma_m[self.soft] ** 2
             diag = np.zeros(2 * nf)
-            cc = col[soft_idx]
+            cc = col[self.soft]
             diag[2 * cc] = wp
             diag[2 * cc + 1] = wp
             h = h + sp.diags(diag, format="csc")
-            pr = (xx[soft_idx] - pm[soft_idx]) * wp[:, None]
+            pr = (xx[self.soft] - self.prior_m[self.soft]) * wp[:, None]
             g[2 * cc] += pr[:, 0]
             g[2 * cc + 1] += pr[:, 1]
         return h, g, res
 
-    def cost(xx: FloatArray) -> float:
+    def cost(self, xx: FloatArray) -> float:
+        """Sum of the squared weighted residuals and prior terms."""
+        e = self.edges
         r = np.linalg.norm(xx[e[:, 0]] - xx[e[:, 1]], axis=1)
-        c = float(np.sum(((d - r) * w) ** 2))
-        if soft_idx.size:
-            c += float(np.sum(np.sum((xx[soft_idx] - pm[soft_idx]) ** 2, axis=1)
-                              / ps[soft_idx] ** 2))
+        c = float(np.sum(((self.distance_m - r) * self.weight) ** 2))
+        if self.soft.size:
+            c += float(np.sum(np.sum((xx[self.soft] - self.prior_m[self.soft]) ** 2, axis=1)
+                              / self.prior_sigma_m[self.soft] ** 2))
         return c
 
-    c0 = cost(x)
-    h, g, _ = build(x)
+
+def _levenberg_marquardt(problem: _RangeProblem, x: FloatArray, free: BoolArray,
+                         prm: RefineParams) -> tuple[FloatArray, sp.csc_matrix, int]:
+    """Damped Gauss-Newton from ``x``: the positions, the last ``J^T J`` and the iterations."""
+    lam = 1e-9
+    it = 0
+    c0 = problem.cost(x)
+    h, g, _ = problem.normal_equations(x)
     for it in range(1, prm.max_iterations + 1):  # noqa: B007
         dg = h.diagonal()
         a = (h + sp.diags(lam * np.maximum(dg, 1e-12), format="csc")).tocsc()
@@ -203,22 +234,18 @@ def refine_positions(
             continue
         xn = x.copy()
         xn[free] += step.reshape(-1, 2)
-        cn = cost(xn)
+        cn = problem.cost(xn)
         if cn <= c0:
             x, c0 = xn, cn
             lam = max(lam / 10, 1e-12)
-            h, g, _ = build(x)
+            h, g, _ = problem.normal_equations(x)
             if np.max(np.abs(step)) < prm.step_tolerance_m:
                 break
         else:
             lam *= 10
             if lam > 1e8:
                 break
-    _, _, res = build(x)
-    if prm.covariance:
-        cov = _covariance_blocks(h, nf, free, n)
-    return Refinement(estimate_m=x, covariance_m2=cov, refined=free, iterations=it,
-                      normalized_rms=float(np.sqrt(np.mean(res**2))))
+    return x, h, it
 
 
 def _covariance_blocks(h: sp.csc_matrix, nf: int, free: BoolArray, n: int) -> FloatArray:

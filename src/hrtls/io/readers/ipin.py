@@ -283,12 +283,7 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
     src = open_source(path, max_bytes=max_bytes)
     logname = _pick_logfile(src)
     label = src.label(logname)
-    data = src.read(logname)
-    if not looks_like_ipin(data[:65536]):
-        raise FormatError("no IPIN records (ACCE;, GYRO;, POSI; ...) in the first 64 KiB",
-                          where=label, expected="an IPIN/EvAAL logfile")
-    log = split_log(without_cut_last_line(decode_text(data, where=label, lenient=True), label,
-                                          repair=repair), label)
+    log = _split_logfile(src.read(logname), label=label, repair=repair)
     meta = SessionMeta(placement="hand") if floor_height_m is None else \
         SessionMeta(placement="hand", floor_height_m=floor_height_m)
     notes: list[str] = []
@@ -302,19 +297,45 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
                                       check_units=check_units)
     georef, checkpoints = _ground_truth(start, meta, source, notes, label=label,
                                         trim_to_start=trim_to_start)
-    beacon_data: tuple[bytes, str] | None = None
-    if beacons is not None:
-        bpath = Path(beacons)
-        if not bpath.is_file():
-            raise InputError("no such file", where=str(bpath), expected="a beacon CSV")
-        beacon_data = (bpath.read_bytes(), str(bpath))
-    elif find_beacons:
-        beacon_data = _find_beacons(src, logname)
+    beacon_data = _beacon_csv(src, logname, beacons=beacons, find_beacons=find_beacons)
     landmarks = _landmarks(beacon_data, georef, meta.floor_height_m, source, notes)
     rss = _rss(log, landmarks, beacon_ids, notes, repair=repair, t_min=t_min,
                include_wifi=include_wifi, label=label)
     tags = rfid_detections(log, repair=repair, t_min=t_min)
 
+    _note_log(log, offsets, offset, source, notes)
+    meta.source = source
+    meta.notes = notes
+    if imu is None and rss is None and tags is None:
+        raise FormatError("no accelerometer (ACCE), BLE4 or RFID records", where=label,
+                          expected="a logfile with sensor or radio records")
+    return Session(meta=meta, imu=imu, pressure=pressure, orientation=orient, rss=rss,
+                   tags=tags, landmarks=landmarks, checkpoints=checkpoints)
+
+
+def _split_logfile(data: bytes, *, label: str, repair: bool) -> IpinLog:
+    """The records of a logfile's bytes (FormatError when it holds no IPIN records)."""
+    if not looks_like_ipin(data[:65536]):
+        raise FormatError("no IPIN records (ACCE;, GYRO;, POSI; ...) in the first 64 KiB",
+                          where=label, expected="an IPIN/EvAAL logfile")
+    return split_log(without_cut_last_line(decode_text(data, where=label, lenient=True), label,
+                                           repair=repair), label)
+
+
+def _beacon_csv(src: Source, logname: str, *, beacons: Path | str | None,
+                find_beacons: bool) -> tuple[bytes, str] | None:
+    """Bytes and name of the beacon CSV: the one given, else one found beside the logfile."""
+    if beacons is not None:
+        bpath = Path(beacons)
+        if not bpath.is_file():
+            raise InputError("no such file", where=str(bpath), expected="a beacon CSV")
+        return bpath.read_bytes(), str(bpath)
+    return _find_beacons(src, logname) if find_beacons else None
+
+
+def _note_log(log: IpinLog, offsets: dict[str, float], offset: float | None,
+              source: dict[str, Any], notes: list[str]) -> None:
+    """Record the unused records, the device header and the sensor clock offsets."""
     if log.skipped:
         notes.append("records not used: " + ", ".join(
             f"{k} ({n})" for k, n in sorted(log.skipped.items())))
@@ -324,13 +345,6 @@ def read_ipin(path: Path | str, *, repair: bool = False, beacons: Path | str | N
         source["sensor_clock_offset_s"] = offset
         if len(set(offsets.values())) > 1:
             source["sensor_clock_offsets_s"] = offsets
-    meta.source = source
-    meta.notes = notes
-    if imu is None and rss is None and tags is None:
-        raise FormatError("no accelerometer (ACCE), BLE4 or RFID records", where=label,
-                          expected="a logfile with sensor or radio records")
-    return Session(meta=meta, imu=imu, pressure=pressure, orientation=orient, rss=rss,
-                   tags=tags, landmarks=landmarks, checkpoints=checkpoints)
 
 
 def _inertial(log: IpinLog, offsets: dict[str, float], notes: list[str], *, repair: bool,
