@@ -234,7 +234,10 @@ def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samp
             k += 1
     resid = 0.0
     for i in range(n_used):
-        resid += (math.sqrt(np.sum(d[i] * d[i])) - r) ** 2
+        d2 = 0.0
+        for a in range(dim):
+            d2 += d[i, a] * d[i, a]
+        resid += (math.sqrt(d2) - r) ** 2
     resid = math.sqrt(resid / n_used)
     if dim == 3:  # directions in the plane of their two main axes
         _, _, vt = np.linalg.svd(d - d.sum(axis=0) / n_used, full_matrices=False)

@@ -127,9 +127,13 @@ class RunningHardIron:
             m_mean = mb.mean(axis=1)
             a_mean = ab.mean(axis=1)
             t_end = t[pos + bs - 1:end:bs]
-            for b in range(k):
-                out[pos + b * bs:pos + (b + 1) * bs] = st.c_ut
-                self._close(m_mean[b] if good[b] else None, a_mean[b], float(t_end[b]))
+            b = 0
+            while b < k:   # runs of blocks that end where a refit may be due
+                e = min(k, b + self.params.refit_blocks
+                        - st.n_closed % self.params.refit_blocks)
+                out[pos + b * bs:pos + e * bs] = st.c_ut
+                self._close_run(m_mean[b:e], a_mean[b:e], good[b:e], float(t_end[e - 1]))
+                b = e
             pos = end
         if pos < n:
             self._add_partial(mag_ut[pos:], acc_m_s2[pos:])
@@ -151,6 +155,30 @@ class RunningHardIron:
         st.part_acc = np.zeros(3)
         st.part_n = 0
         st.part_bad = False
+
+    def _close_run(self, mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
+                   t_end: float) -> None:
+        """Completed blocks of which only the last may be due for a refit (``good``: no gap).
+
+        Equal to :meth:`_close` block by block; the kept means are appended at once unless the
+        run would thin the kept set.
+        """
+        st, prm = self.state, self.params
+        n_good = int(good.sum())
+        slot = (st.n_good + np.arange(n_good)) % st.stride == 0
+        n_new = int(slot.sum())
+        if st.n_kept + n_new > prm.max_blocks:
+            for j in range(len(good)):
+                self._close(mag_mean[j] if good[j] else None, acc_mean[j], t_end)
+            return
+        st.blocks_mag[st.n_kept:st.n_kept + n_new] = mag_mean[good][slot]
+        st.n_kept += n_new
+        # block by block, as :meth:`_close` adds them (the same rounding)
+        st.acc_sum = np.cumsum(np.vstack([st.acc_sum, acc_mean[good]]), axis=0)[-1]
+        st.n_good += n_good
+        st.n_closed += len(good)
+        if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
+            self._refit(t_end)
 
     def _close(self, mag_mean: FloatArray | None, acc_mean: FloatArray, t_end: float) -> None:
         """One completed block (``mag_mean`` None: it had a gap); refit when one is due."""
