@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.calibration.test_hard_iron import walking_field
 
 from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
-from tests.calibration.test_hard_iron import walking_field
 
 C_UT = np.array([4.0, -3.0, 1.0])
 
