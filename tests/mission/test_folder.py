@@ -295,3 +295,37 @@ def test_unknown_simulate_option_is_refused(tmp_path: Path) -> None:
                               "-O", "n_drones=1"])
     assert res.exit_code == 2
     assert "unknown option 'n_drones'" in " ".join(res.output.split())
+
+
+# --------------------------------------------------------------------------------------------
+# landmark updates during the mission (landmark_updates.json)
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("content", "needle"), [
+    ({"id": "T1"}, "list of location messages"),
+    ([{"id": "T1", "position": [0, 0, 0]}], "item 0: no field 'updated'"),
+    ([{"id": "T1", "position": [0, 0, 0], "updated": 5, "status": "gone"}], "'status'"),
+    ([{"id": "N1", "position": [0, 0, 0], "updated": 5}], "id 'N1' is a dropped node"),
+])
+def test_bad_landmark_updates_name_the_item(tmp_path: Path, content: object,
+                                            needle: str) -> None:
+    m = _tiny(tmp_path)
+    (m / "landmark_updates.json").write_text(json.dumps(content))
+    text = _fails(m, tmp_path)
+    assert "landmark_updates.json" in text and needle in text
+
+
+def test_a_tag_destroyed_mid_mission_stops_correcting(tmp_path: Path) -> None:
+    from hrtls.sim.scenarios import run_scenario
+
+    ring = run_scenario("inderst_ring", 3, distance_m=150.0).session
+    assert ring.tags is not None
+    late = (ring.tags.tag == "T5") & (ring.tags.t > 100.0)
+    assert late.any() and ((ring.tags.tag == "T5") & (ring.tags.t < 100.0)).any()
+    m = write_mission(tmp_path / "m", agents=[("A", "rescuer", ring)], name="ring")
+    gone = ring.landmarks["T5"].model_copy(update={"updated": 100.0, "status": "destroyed"})
+    (m / "landmark_updates.json").write_text(json.dumps([gone.model_dump(mode="json")]))
+    assert read_mission(m).landmark_updates == (gone,)
+    _track(m, tmp_path / "out")
+    report = json.loads((tmp_path / "out" / "agents" / "A" / "report.json").read_text())
+    assert any("landmark 'T5' destroyed at 100.00 s: its readings no longer correct" in str(n)
+               for n in report["notes"]), report["notes"]

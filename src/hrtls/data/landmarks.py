@@ -3,7 +3,9 @@
 A landmark (passive RFID tag, BLE beacon, radio node, camera, ...) tells a passing agent where it
 is and how it can be passed: its position in the navigation frame or in WGS-84, its floor, the
 bearings (directions of travel) that lead through it, the accuracy radius and the orientation of
-its antenna lobe, its classification and when its information was last updated.
+its antenna lobe, its classification and when its information was last updated: a new version
+during the mission (moved, destroyed, a hazard nearby) holds from that time on
+(:mod:`hrtls.pipeline.landmark_updates`).
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ class Landmark(BaseModel):
     lobe_half_angle_rad: float | None = Field(default=None, gt=0.0, le=math.pi)
     classification: str | None = None
     updated: float | None = None
+    """Time (s, session clock) from which this version holds; None: from the start."""
+    status: Literal["active", "destroyed"] = "active"
+    """A destroyed landmark corrects nothing from ``updated`` on."""
+    hazard: str | None = Field(default=None, max_length=200)
+    """A hazard reported near the landmark (for the people; the filter ignores it)."""
 
     @field_validator("position")
     @classmethod

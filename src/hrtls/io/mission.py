@@ -7,6 +7,9 @@
 * ``network.json`` (optional): ``{"nodes": [{"id": ...}]}``, the dropped range nodes, ids only;
 * ``landmarks.json`` (optional): the mission's known location messages (session format), given
   to every agent (an agent's own landmark of the same id wins);
+* ``landmark_updates.json`` (optional): new versions of location messages during the mission
+  (moved, ``"status": "destroyed"``, a ``hazard`` nearby), each with its time ``updated`` (s);
+  every agent uses each version from that time on (:mod:`hrtls.pipeline.landmark_updates`);
 * one session per agent (:func:`hrtls.io.session.read_session`; other recordings are converted
   first, ``hrtls convert``);
 * ``network_truth.json`` (optional, scoring only): ``{"nodes": [{"id", "position": [x, y(, z)]}]}``.
@@ -43,6 +46,7 @@ MISSION_VERSION = 1
 MISSION_FILE = "mission.json"
 NETWORK_FILE = "network.json"
 LANDMARKS_FILE = "landmarks.json"
+LANDMARK_UPDATES_FILE = "landmark_updates.json"
 NETWORK_TRUTH_FILE = "network_truth.json"
 AgentKind = Literal["rescuer", "robot"]
 
@@ -147,6 +151,8 @@ class MissionFolder:
         The mission's known location messages (``landmarks.json``).
     node_truth_m:
         ``id -> (2,) or (3,)`` true node positions, m (``network_truth.json``; None without).
+    landmark_updates:
+        Versions of location messages during the mission, by time (``landmark_updates.json``).
     """
 
     path: Path
@@ -155,6 +161,7 @@ class MissionFolder:
     nodes: tuple[str, ...]
     landmarks: dict[str, Landmark]
     node_truth_m: dict[str, FloatArray] | None
+    landmark_updates: tuple[Landmark, ...] = ()
 
     def sessions(self) -> dict[str, Session]:
         """What the estimator gets: each agent's session without its ground truth."""
@@ -244,7 +251,34 @@ def read_mission(path: Path | str, *, repair: bool = False) -> MissionFolder:
                                        where=root / NETWORK_TRUTH_FILE,
                                        expected='{"nodes": [{"id", "position": [x, y(, z)]}]}')
         truth = {n.id: np.asarray(n.position, dtype=np.float64) for n in nt.nodes}
-    return MissionFolder(root, spec.name, agents, nodes, landmarks, truth)
+    return MissionFolder(root, spec.name, agents, nodes, landmarks, truth,
+                         _read_landmark_updates(root / LANDMARK_UPDATES_FILE, nodes))
+
+
+def _read_landmark_updates(path: Path, nodes: Sequence[str]) -> tuple[Landmark, ...]:
+    """The versions of ``landmark_updates.json`` by time (none without the file)."""
+    if not path.is_file():
+        return ()
+    items = _load_json(path)
+    if not isinstance(items, list):
+        raise FormatError(f"top level is {type(items).__name__}", where=str(path),
+                          expected="a JSON list of location messages with 'updated' (s)")
+    out = []
+    for i, item in enumerate(items):
+        try:
+            lm = Landmark.model_validate(item)
+        except ValidationError as exc:
+            raise FormatError(pydantic_problem(exc), where=f"{path} item {i}",
+                              expected="a location message (id, position or wgs84, ...)"
+                              ) from None
+        if lm.updated is None:
+            raise FormatError("no field 'updated'", where=f"{path} item {i}",
+                              expected="the time (s, session clock) the version holds from")
+        if lm.id in nodes:
+            raise FormatError(f"id {lm.id!r} is a dropped node", where=f"{path} item {i}",
+                              expected="a landmark id (nodes are localized by the mission)")
+        out.append(lm)
+    return tuple(sorted(out, key=lambda v: float(v.updated or 0.0)))
 
 
 def _read_agents(mfile: Path, entries: Sequence[AgentEntry], nodes: Sequence[str],

@@ -77,7 +77,8 @@ def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
     sessions = estimator_sessions(folder)
     start = time.perf_counter()
     kinds = {name: a.kind for name, a in folder.agents.items()}
-    result = MissionTracker(sessions, config=config, params=params, kinds=kinds).run()
+    result = MissionTracker(sessions, config=config, params=params, kinds=kinds,
+                            landmark_updates=folder.landmark_updates).run()
     seconds = time.perf_counter() - start
     agents: dict[str, TrackResult] = {}
     evaluations: dict[str, dict[str, Any] | None] = {}

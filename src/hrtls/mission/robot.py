@@ -18,6 +18,7 @@ innovation gate). The per-event loop is a compiled kernel; :class:`RobotTracker`
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -158,6 +159,13 @@ class RobotTracker:
         for k, lm in landmarks.items():
             if lm.position is not None:
                 self.landmarks[k] = (float(lm.position[0]), float(lm.position[1]))
+
+    def update_landmarks(self, versions: Sequence[Landmark]) -> None:
+        """New versions of landmarks from now on; a destroyed one is no range anchor any more."""
+        for v in versions:
+            if v.status == "destroyed":
+                self.landmarks.pop(v.id, None)
+        self.set_landmarks({v.id: v for v in versions if v.status != "destroyed"})
 
     def update(self, chunk: Session) -> None:
         """Feed one chunk: its odometry poses and ranges (times after the previous chunk's)."""

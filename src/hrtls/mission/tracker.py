@@ -39,7 +39,7 @@ With ``cooperate=False`` no node is ever given to an agent (each agent alone).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -173,8 +173,8 @@ class MissionTracker:
     """All agents of a mission and the dropped nodes as one causal loop (see module doc)."""
 
     def __init__(self, agents: dict[str, Session], *, config: TrackerConfig | None = None,
-                 params: MissionParams | None = None, kinds: Mapping[str, str] | None = None
-                 ) -> None:
+                 params: MissionParams | None = None, kinds: Mapping[str, str] | None = None,
+                 landmark_updates: Sequence[Landmark] = ()) -> None:
         if not agents:
             raise InputError("no agents", where="mission", expected="at least one session")
         self.params = params or MissionParams()
@@ -192,6 +192,10 @@ class MissionTracker:
             for k in self.names}
         for k, tr in self.trackers.items():
             tr.start_session(self.sessions[k])
+            if isinstance(tr, Tracker):
+                tr.update_landmarks(landmark_updates)
+        # robots take a version at the first window starting at or after its time
+        self._robot_updates = sorted(landmark_updates, key=lambda v: float(v.updated or 0.0))
         self.estimator = NodeEstimator(self.params.nodes)
         self.readings: dict[str, _NodeReadings] = {}
         self.estimates: dict[str, NodeEstimate] = {}
@@ -235,6 +239,12 @@ class MissionTracker:
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
         touched: set[str] = set()
+        due = [v for v in self._robot_updates if float(v.updated or 0.0) <= t_start]
+        if due:
+            self._robot_updates = self._robot_updates[len(due):]
+            for tr in self.trackers.values():
+                if isinstance(tr, RobotTracker):
+                    tr.update_landmarks(due)
         for i, name in enumerate(self.names):
             part = session_window(self.sessions[name], t_start, t_end)
             if part is None:

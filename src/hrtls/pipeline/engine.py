@@ -30,6 +30,7 @@ from hrtls.pipeline.build import Corrections
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
+from hrtls.pipeline.landmark_updates import LandmarkVersions
 from hrtls.pipeline.observations import apply_observation
 from hrtls.pipeline.output import TrackRows
 from hrtls.pipeline.schedule import EventSchedule, PoseGate
@@ -123,6 +124,7 @@ class FusionEngine:
         self.config = config
         self.parts = parts
         self.landmarks = landmarks
+        self.versions = LandmarkVersions()
         self.schedule = schedule
         self.pose = pose
         self.scale = scale
@@ -352,6 +354,7 @@ class FusionEngine:
         out = {name: getattr(self, name) for name in self.STATE}
         out["last_row"] = last_row
         out["fix_phase_s"] = self.parts.fix_corrector.params.phase_s
+        out["landmark_versions"] = self.versions.state()
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -362,6 +365,8 @@ class FusionEngine:
         for name in self.STATE:
             setattr(self, name, state.get(name, ev.NO_FLIGHT) if name == "flight"
                     else state[name])
+        if "landmark_versions" in state:   # snapshots from before landmark updates have none
+            self.versions.restore(state["landmark_versions"])
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]

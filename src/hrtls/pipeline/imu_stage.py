@@ -16,8 +16,9 @@ import numpy as np
 
 from hrtls.attitude.base import AttitudeFilter, AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
+from hrtls.calibration.hard_iron import fit_hard_iron, hard_iron_samples
 from hrtls.calibration.hard_iron_running import RunningHardIron
-from hrtls.data import OrientationSeries, SessionMeta
+from hrtls.data import ImuStream, OrientationSeries, SessionMeta
 from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_multiply
 from hrtls.pipeline.build import Notes
@@ -193,3 +194,25 @@ class AttitudeStage:
                 setattr(self.compass, k, v)
         if self.hard_iron is not None:
             self.hard_iron.state = state["hard_iron"]
+
+
+def fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.ndarray | None:
+    """``[offline] two_pass``: the hard iron fitted on the whole recording (or None, noted).
+
+    Blocks of ``rate_hz`` magnetometer samples are averaged before the fit: one second when
+    the magnetometer runs at the accelerometer rate, longer when it is slower.
+    """
+    mag, up_d = hard_iron_samples(imu)
+    if mag is None:
+        return None
+    try:
+        fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(imu.accel.rate_hz)))
+    except InputError as exc:
+        notes.append((True, f"magnetometer hard iron not fitted ({exc}); field used raw"))
+        return None
+    notes.append((False,
+        "magnetometer hard iron fitted on the whole recording's turns ([offline] two_pass):"
+        f" c = [{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
+        f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
+        f"of turning, {fit.n_used} samples"))
+    return fit.hard_iron_ut

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hrtls.data import Activity
+from hrtls.data import Activity, Landmark
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
 from hrtls.fusion.fixes import (
@@ -62,15 +62,26 @@ def apply_observation(eng: FusionEngine, t: float, kind: int, payload: Any) -> N
         apply_bearing(eng, t, tag_id, np.asarray(bearings) + shift)
     elif kind == RANGE:
         node, rng, sigma = payload
-        lm = eng.landmarks.get(node)
+        lm = landmark_at(eng, node, t)
         if lm is None or lm.position is None:
-            eng.diagnostics.append(skipped("range", t, "node without a known position", node))
+            eng.diagnostics.append(skipped("range", t, _why_not(eng, node, t, "node"), node))
             return
         upd_r = range_update(eng.state, lm.xyz(), rng, sigma, params=eng.parts.range_params,
                              t=t, source=node)
         eng.state = upd_r.state
         eng.diagnostics.append(upd_r.diagnostics)
         eng.corrected_since_fix = eng.corrected_since_fix or upd_r.diagnostics.accepted
+
+
+def landmark_at(eng: FusionEngine, landmark_id: str, t: float) -> Landmark | None:
+    """The version of a landmark in force at ``t`` (None: unknown or destroyed)."""
+    return eng.versions.at(eng.landmarks, landmark_id, t)
+
+
+def _why_not(eng: FusionEngine, landmark_id: str, t: float, what: str) -> str:
+    if eng.versions.destroyed_at(landmark_id, t):
+        return "landmark destroyed"
+    return f"{what} without a known position"
 
 
 def _learn_scale(eng: FusionEngine, prior_xy: np.ndarray, post_xy: np.ndarray) -> None:
@@ -83,13 +94,19 @@ def apply_tags(eng: FusionEngine, t: float, ids: list[str]) -> None:
     cfg = eng.config
     prior_xy = eng.state.x[:2].copy()
     parts = eng.parts
-    upd = parts.tag_corrector.update_ids(eng.state, t=t, ids=ids, landmarks=eng.landmarks,
+    gone = [i for i in ids if eng.versions.destroyed_at(i, t)]
+    eng.diagnostics.extend([skipped("tag", t, "landmark destroyed", i) for i in gone])
+    ids = [i for i in ids if i not in gone]
+    if not ids:
+        return
+    known = {i: lm for i in ids if (lm := landmark_at(eng, i, t)) is not None}
+    upd = parts.tag_corrector.update_ids(eng.state, t=t, ids=ids, landmarks=known,
                                          memory=eng.tag_memory)
     if (parts.tag_fallback is not None and upd.strategy == 0
             and not any(d.accepted for d in upd.diagnostics)):
         # every lobe failed the gate: the dead reckoning, not the tag, is off --
         # re-initialize by the thesis' strategies (eq. 4.26-4.33)
-        upd = parts.tag_fallback.update_ids(eng.state, t=t, ids=ids, landmarks=eng.landmarks,
+        upd = parts.tag_fallback.update_ids(eng.state, t=t, ids=ids, landmarks=known,
                                             memory=eng.tag_memory)
     eng.state, eng.tag_memory = upd.state, upd.memory
     eng.diagnostics.extend(upd.diagnostics)
@@ -98,7 +115,7 @@ def apply_tags(eng: FusionEngine, t: float, ids: list[str]) -> None:
         _learn_scale(eng, prior_xy, eng.state.x[:2].copy())
     if cfg.tags.bearing_correction and upd.strategy != -1:
         for tag_id in ids:
-            lm = eng.landmarks.get(tag_id)
+            lm = known.get(tag_id)
             if lm is None or not lm.bearings_rad:
                 continue
             if cfg.tags.bearing_confirm_s > 0.0:
@@ -245,9 +262,9 @@ def apply_rss(eng: FusionEngine, t: float, payload: Any) -> None:
     parts = eng.parts
     if payload[0] == "reading":
         _, anchor, value = payload
-        lm = eng.landmarks.get(anchor)
+        lm = landmark_at(eng, anchor, t)
         if lm is None or lm.position is None:
-            eng.diagnostics.append(skipped("rss", t, "anchor without a known position", anchor))
+            eng.diagnostics.append(skipped("rss", t, _why_not(eng, anchor, t, "anchor"), anchor))
             return
         model = parts.path_loss
         if parts.channel_estimator is not None and eng.channel_state is not None:

@@ -52,10 +52,8 @@ import numpy as np
 
 from hrtls.attitude.base import AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
-from hrtls.calibration.hard_iron import fit_hard_iron, hard_iron_samples
 from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
 from hrtls.data import (
-    ImuStream,
     Landmark,
     OrientationSeries,
     Session,
@@ -80,7 +78,13 @@ from hrtls.pipeline.build import leading_rate_hz as leading_rate_hz
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
-from hrtls.pipeline.imu_stage import AttitudeStage, HeldImu, note_session_mounting, resolve_mounting
+from hrtls.pipeline.imu_stage import (
+    AttitudeStage,
+    HeldImu,
+    fit_hard_iron_offline,
+    note_session_mounting,
+    resolve_mounting,
+)
 from hrtls.pipeline.mounting import uses_handheld_mounting
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.schedule import EventSchedule, PoseGate, chunk_end
@@ -216,6 +220,7 @@ class Tracker:
         self.baro = (BaroStage(floor_height_m=meta.floor_height_m, t_pose=self._pose.t_pose,
                                z_pose_m=float(state.x[2])) if cfg.barometer else None)
         self._t_last_sample = s.t0
+        self._t_consumed = -math.inf
         self._started = True
 
     def _build_attitude(self, fixed_hard_iron_ut: np.ndarray | None) -> None:
@@ -325,7 +330,7 @@ class Tracker:
             acc_mount = imu.accel.values[sel] if sel.any() else imu.accel.values
         if imu is not None and imu.mag is not None and \
                 self.config.attitude.mag_hard_iron == "fit":
-            hard_iron = _fit_hard_iron_offline(imu, offline_notes)
+            hard_iron = fit_hard_iron_offline(imu, offline_notes)
         self._begin(session.meta, session.landmarks, Sensors.of_session(session),
                     fixed_mounting_acc=acc_mount, fixed_hard_iron_ut=hard_iron)
         self._two_pass = True
@@ -333,10 +338,39 @@ class Tracker:
             (self.notes.degrade if degraded else self.notes.add)(text)
 
     def update(self, chunk: Session) -> None:
-        """Consume the samples and observations of one chunk (in time order across chunks)."""
+        """Consume the samples and observations of one chunk (in time order across chunks).
+
+        Landmark versions due inside it (:meth:`update_landmarks`) are applied at their times.
+        """
         if not self._started:
             raise InputError("update() before start()", where="Tracker",
                              expected="start() (or run()) first")
+        for piece, due in self.engine.versions.cut(chunk, chunk_end(chunk)):
+            if piece is not None:
+                self._update_piece(piece)
+            for version in due:
+                self._apply_version(version)
+
+    def update_landmarks(self, landmarks: Sequence[Landmark]) -> None:
+        """New landmark versions (moved, destroyed, a hazard nearby) from their ``updated`` on.
+
+        ``updated`` may not lie before the data already consumed
+        (:mod:`hrtls.pipeline.landmark_updates`).
+        """
+        if not self._started:
+            raise InputError("update_landmarks() before start()", where="Tracker",
+                             expected="start() first")
+        self.engine.versions.add(landmarks, t_now=self._t_consumed)
+
+    def _apply_version(self, v: Landmark) -> None:
+        lm = v if v.status == "destroyed" else _resolved({v.id: v}, self.meta)[v.id]
+        self.notes.add(self.engine.versions.applied(lm, self.landmarks.pop(v.id, None)))
+        self._start_landmarks = {k: x for k, x in self._start_landmarks.items() if k != v.id}
+        if v.status != "destroyed":
+            self.landmarks[v.id], self._start_landmarks[v.id] = lm, v
+
+    def _update_piece(self, chunk: Session) -> None:
+        self._t_consumed = max(self._t_consumed, chunk_end(chunk))
         sched = self.schedule
         sched.observations(self._pose.observations(chunk), self.notes,
                            channel_estimated=self.engine.parts.channel_estimator is not None,
@@ -442,6 +476,7 @@ class Tracker:
             "gait_built": self.gait is not None,
             "tracker": {"mounting_pending": self._mounting_pending,
                         "t_last_sample": self._t_last_sample, "two_pass": self._two_pass,
+                        "t_consumed": self._t_consumed,
                         "hard_iron_fixed_ut": self.hard_iron_fixed_ut,
                         "notes": self.notes.items, "ignored": self._pose.ignored},
             "schedule": self.schedule.state(),
@@ -475,6 +510,7 @@ class Tracker:
             p = d["tracker"]
             tr._mounting_pending = p["mounting_pending"]
             tr._t_last_sample = p["t_last_sample"]
+            tr._t_consumed = p.get("t_consumed", tr._t_last_sample)   # older snapshots
             tr._two_pass = p["two_pass"]
             tr.notes = Notes(p["notes"])
             tr._pose.ignored = p["ignored"]
@@ -562,25 +598,3 @@ def _resolved(landmarks: dict[str, Landmark], meta: SessionMeta) -> dict[str, La
     geo = None if meta.georeference is None else meta.georeference.to_georeference()
     return {k: lm.resolved(geo) if (lm.position is not None or geo is not None) else lm
             for k, lm in landmarks.items()}
-
-
-def _fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.ndarray | None:
-    """``[offline] two_pass``: the hard iron fitted on the whole recording (or None, noted).
-
-    Blocks of ``rate_hz`` magnetometer samples are averaged before the fit: one second when
-    the magnetometer runs at the accelerometer rate, longer when it is slower.
-    """
-    mag, up_d = hard_iron_samples(imu)
-    if mag is None:
-        return None
-    try:
-        fit = fit_hard_iron(mag, up_d=up_d, block_samples=max(1, round(imu.accel.rate_hz)))
-    except InputError as exc:
-        notes.append((True, f"magnetometer hard iron not fitted ({exc}); field used raw"))
-        return None
-    notes.append((False,
-        "magnetometer hard iron fitted on the whole recording's turns ([offline] two_pass):"
-        f" c = [{', '.join(f'{v:.2f}' for v in fit.hard_iron_ut)}] uT, horizontal field "
-        f"{fit.field_ut:.1f} uT, residual {fit.residual_ut:.2f} uT, {fit.arc_deg:.0f} deg "
-        f"of turning, {fit.n_used} samples"))
-    return fit.hard_iron_ut
