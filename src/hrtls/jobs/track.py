@@ -24,7 +24,7 @@ from hrtls.pipeline.build import RATE_SAMPLES, leading_rate_hz
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
-from hrtls.pipeline.mounting import uses_handheld_mounting
+from hrtls.pipeline.mounting import declared_handheld, uses_handheld_mounting
 from hrtls.pipeline.tracker import Tracker, TrackResult
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
@@ -160,8 +160,7 @@ def _with_input(run: TrackRun, input_report: dict[str, Any], config: TrackerConf
     report = run.result.report
     report["input"] = input_report
     placement = run.session.meta.placement   # the reader's (IPIN: "hand")
-    if (uses_handheld_mounting("auto", placement)
-            and not uses_handheld_mounting(config.attitude.mounting, placement)):
+    if declared_handheld(placement) and config.attitude.mounting == "session":
         note = (f"this is a hand-held phone recording ({input_report['format']}) but the "
                 f"configuration {config.name!r} expects a body-worn device: use --preset "
                 "handheld-phone (or [attitude] mounting = \"handheld\")")

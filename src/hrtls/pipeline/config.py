@@ -88,7 +88,12 @@ class AttitudeConfig(_Section):
     ``handheld`` estimates it for a phone held in front in portrait (top edge forward) from
     the mean specific force (:func:`hrtls.pipeline.mounting.handheld_mounting_q_bd`);
     ``auto`` is ``handheld`` when ``meta.placement`` says the device is held in the hand
-    (e.g. IPIN logs), else ``session``."""
+    (e.g. IPIN logs) or when the placement is not declared and the first samples look like a
+    phone held in front (``handheld_screen_tilt_deg``), else ``session``."""
+    handheld_screen_tilt_deg: tuple[float, float] = Field(
+        default=(14.0, 66.0), description="auto mounting, placement not declared: a mean "
+        "screen-normal tilt from the vertical in this range (deg, portrait, top edge up) marks "
+        "a phone held in front (pipeline.mounting.looks_handheld)")
     mounting_window_s: float = Field(
         default=10.0, gt=0.0, description="handheld mounting: seconds of accelerometer from "
         "the start pose over which the mean specific force gives the mounting; the gait stage "

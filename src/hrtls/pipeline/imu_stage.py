@@ -23,7 +23,8 @@ from hrtls.errors import DegradedInputWarning, InputError
 from hrtls.frames import quat_multiply
 from hrtls.pipeline.build import Notes
 from hrtls.pipeline.compass import CompassYaw
-from hrtls.pipeline.mounting import handheld_mounting_q_bd
+from hrtls.pipeline.config import AttitudeConfig
+from hrtls.pipeline.mounting import declared_handheld, handheld_mounting_q_bd, looks_handheld
 
 DEFAULT_VAR_YAW_RAD2 = 0.01
 """Yaw variance when the attitude filter gives none (rad^2)."""
@@ -72,8 +73,20 @@ def note_session_mounting(meta: SessionMeta, notes: Notes) -> None:
                   f"[{', '.join(f'{v:.4f}' for v in meta.mounting_q_bd)}])")
 
 
-def resolve_mounting(meta: SessionMeta, acc_d: np.ndarray, notes: Notes) -> SessionMeta:
-    """The session metadata with the hand-held mounting from these samples (noted)."""
+def resolve_mounting(meta: SessionMeta, acc_d: np.ndarray, notes: Notes,
+                     cfg: AttitudeConfig) -> SessionMeta:
+    """The session metadata with the hand-held mounting from these samples (noted).
+
+    With ``auto`` mounting and no declared placement the samples first decide whether the
+    device is a phone held in front (:func:`~hrtls.pipeline.mounting.looks_handheld`).
+    """
+    if len(acc_d) and cfg.mounting == "auto" and not declared_handheld(meta.placement):
+        held, how = looks_handheld(acc_d, screen_tilt_deg=cfg.handheld_screen_tilt_deg)
+        notes.add(f"placement not declared: {how} over the first {len(acc_d)} samples, "
+                  + ("a phone held in front" if held else "not a phone held in front"))
+        if not held:
+            note_session_mounting(meta, notes)
+            return meta
     if len(acc_d):
         try:
             q_bd = handheld_mounting_q_bd(acc_d)

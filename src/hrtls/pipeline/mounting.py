@@ -26,14 +26,43 @@ HANDHELD_PLACEMENTS = frozenset({"hand", "handheld", "hand-held"})
 """``SessionMeta.placement`` values of a device held in the hand (case-insensitive)."""
 
 
-def uses_handheld_mounting(mounting: str, placement: str | None) -> bool:
-    """Whether ``[attitude] mounting`` estimates the hand-held mounting for this placement.
+def declared_handheld(placement: str | None) -> bool:
+    """Whether ``SessionMeta.placement`` says the device is held in the hand."""
+    return (placement or "").strip().lower() in HANDHELD_PLACEMENTS
 
-    ``handheld`` always; ``auto`` when the session says the device is held in the hand;
+
+def uses_handheld_mounting(mounting: str, placement: str | None) -> bool:
+    """Whether ``[attitude] mounting`` holds the first samples for a hand-held mounting.
+
+    ``handheld`` always; ``auto`` when the session says the device is held in the hand, or
+    says nothing of where it is (then the samples decide, :func:`looks_handheld`);
     ``session`` never.
     """
     return mounting == "handheld" or (
-        mounting == "auto" and (placement or "").strip().lower() in HANDHELD_PLACEMENTS)
+        mounting == "auto" and (declared_handheld(placement) or not (placement or "").strip()))
+
+
+def looks_handheld(acc_d_m_s2: ArrayLike, *, screen_tilt_deg: tuple[float, float]
+                   ) -> tuple[bool, str]:
+    """Whether the mean specific force is that of a phone held in front in portrait.
+
+    Such a phone is read while walking: its screen normal (device +z) points up, tilted from
+    the vertical by ``screen_tilt_deg`` (min, max), and its top edge (+y) is the higher one
+    (the long axis more vertical than the short one). Flat (a table, a bag) or upright (a
+    pocket, a belt clip, a lower-back wearable) devices fall outside. Returns the verdict and
+    the tilt in words.
+    """
+    acc = np.asarray(acc_d_m_s2, dtype=np.float64)
+    up = acc.mean(axis=0) if acc.ndim == 2 and len(acc) else np.full(3, np.nan)
+    norm = float(np.linalg.norm(up))
+    if not (np.isfinite(norm) and norm > 1.0):
+        return False, "no usable mean specific force"
+    ux, uy, uz = up / norm
+    tilt = float(np.degrees(np.arccos(np.clip(uz, -1.0, 1.0))))
+    portrait = bool(uy > abs(ux))
+    ok = bool(screen_tilt_deg[0] <= tilt <= screen_tilt_deg[1] and portrait)
+    return ok, (f"screen {tilt:.0f} deg from the vertical, "
+                f"{'top edge up' if portrait else 'not portrait with the top edge up'}")
 
 
 def handheld_mounting_q_bd(acc_d_m_s2: ArrayLike, *,

@@ -171,7 +171,7 @@ class Tracker:
         self._mounting_pending = (uses_handheld_mounting(cfg.attitude.mounting, meta.placement)
                                   and s.has_imu)
         if self._mounting_pending and fixed_mounting_acc is not None:
-            meta = resolve_mounting(meta, fixed_mounting_acc, notes)
+            meta = resolve_mounting(meta, fixed_mounting_acc, notes, cfg.attitude)
             self._mounting_pending = False
         elif not self._mounting_pending:
             note_session_mounting(meta, notes)
@@ -553,15 +553,15 @@ class Tracker:
 
     def _release_held(self) -> None:
         """The mounting window has elapsed (or the recording ended): mounting, gait, samples."""
-        held = self._held
+        held, cfg = self._held, self.config.attitude
         self._mounting_pending = False
         if not len(held.t):
-            self.meta = resolve_mounting(self.meta, np.zeros((0, 3)), self.notes)
+            self.meta = resolve_mounting(self.meta, np.zeros((0, 3)), self.notes, cfg)
             self._build_gait()
             return
         t_from = max(float(held.t[0]), self._pose.t_pose)
-        sel = (held.t >= t_from) & (held.t < t_from + self.config.attitude.mounting_window_s)
-        self.meta = resolve_mounting(self.meta, held.acc[sel], self.notes)
+        sel = (held.t >= t_from) & (held.t < t_from + cfg.mounting_window_s)
+        self.meta = resolve_mounting(self.meta, held.acc[sel], self.notes, cfg)
         self._build_gait()
         self._held = HeldImu()
         self._process_imu(held.t, held.acc, held.gyr, held.mag, held.orientation())
