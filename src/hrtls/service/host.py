@@ -53,6 +53,7 @@ DECODERS: dict[str, Decoder] = {"batch": decode_batch, "sensorlogger": decode_se
 
 REPLAY_PAGE = 200
 KEEP_SNAPSHOTS = 20
+GOLDEN_FRACTION = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 class Busy(Exception):
@@ -530,7 +531,12 @@ class TrackerHost:
         spans = [b.time_span() for b in batches]
         live.t_fed = max([live.t_fed, *(s[1] for s in spans if s is not None)])
         self._store(live, rows)
-        if live.t_fed - live.t_snap >= self.params.snapshot_every_s:
+        if rows.provisional is None:   # no tracker yet (or no new row): nothing to keep
+            return
+        period = self.params.snapshot_every_s
+        if live.t_snap == -math.inf:
+            live.t_snap = live.t_fed - period * snapshot_phase(live.agent_id)
+        elif live.t_fed - live.t_snap >= period:
             self._snapshot(live)
 
     def _store(self, live: AgentLive, rows: Rows) -> None:
@@ -562,6 +568,17 @@ class TrackerHost:
                "created_unix": self.clock(), "state": state}
         self.raw_log.defer(lambda db: _write_snapshot(db, row))
         live.t_snap = live.t_fed
+
+
+def snapshot_phase(agent_id: int) -> float:
+    """Where in the snapshot period an agent's snapshots fall, in [0, 1).
+
+    Agents that start together would otherwise all snapshot in the same tick (a burst of
+    tracker states to serialise and write every period); the golden-ratio sequence spreads any
+    run of agent ids evenly over the period. The first snapshot comes after at most one period
+    of data, as without the phase.
+    """
+    return (agent_id * GOLDEN_FRACTION) % 1.0
 
 
 def _write_estimates(db: DbSession, values: list[dict[str, Any]]) -> None:
