@@ -238,6 +238,7 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
 
         await asyncio.gather(*(checkin(aid, k) for aid, _, k in agents))
     lat: list[float] = []
+    lat_at: list[float] = []   # when each latency was seen, s after the start
     lag: list[float] = []
     stop = asyncio.Event()
 
@@ -257,6 +258,7 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
                     t_data = a["status"]["last_data_t"]
                     if t_data is not None:
                         lat.append(now - (t0_unix + t_data))
+                        lat_at.append(now - start_wall)
                 lag.extend(now - (t0_unix + e["t"]) for e in msg["estimates"])
 
     ctx = mp.get_context("fork")
@@ -286,7 +288,8 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
                                                             "samples")}
     client_cpu_s = sum(r["cpu_s"] for r in results) + time.process_time() - cpu0
     expected = sum(len(streams[k][1]) for _, _, k in agents)
-    return {"mission": mid, "lat": np.array(lat), "lag": np.array(lag), "wall_s": wall,
+    return {"mission": mid, "lat": np.array(lat), "lat_at": np.array(lat_at),
+            "lag": np.array(lag), "wall_s": wall,
             "expected": expected, "client_cpu_pct": 100.0 * client_cpu_s / wall, **counts}
 
 
@@ -315,6 +318,18 @@ def warm_up(tmp: Path, streams: list, args: argparse.Namespace) -> float:
             proc.kill()
             proc.wait(timeout=60)
     return time.time() - start
+
+
+WINDOW_S = 5.0
+
+
+def _windows(lat: np.ndarray, at: np.ndarray) -> str:
+    """The largest latency in each ``WINDOW_S`` of the level (where the slow deltas were)."""
+    if not len(lat):
+        return "-"
+    k = (at // WINDOW_S).astype(int)
+    return " ".join(f"{lat[k == i].max():.1f}" if np.any(k == i) else "-"
+                    for i in range(k.min(), k.max() + 1))
 
 
 def _row(r: tuple) -> str:
@@ -382,7 +397,8 @@ def main() -> None:
                          res["samples"] / args.duration_s, (rss1 - rss0) / n / 1024.0, ok,
                          os.getloadavg()[0], 100.0 * (cpu1 - cpu0) / res["wall_s"],
                          res["client_cpu_pct"]))
-            print(_row(rows[-1]) + f"  ({res['wall_s']:.0f} s)", flush=True)
+            print(_row(rows[-1]) + f"  ({res['wall_s']:.0f} s; latency max per "
+                  f"{WINDOW_S:.0f} s: {_windows(res['lat'], res['lat_at'])})", flush=True)
     print()
     print("(server CPU % and MiB/agent: the server process and its descendants, i.e. its "
           "tracker processes; % of one core)")
