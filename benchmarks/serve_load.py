@@ -103,8 +103,9 @@ def start_server(db: str, port: int, args: argparse.Namespace
                  ) -> tuple[subprocess.Popen[str], str]:
     env = {**os.environ}
     log: Path | None = args.server_log
-    runner = ["--engine", args.engine, "--ray-shards", str(args.ray_shards),
-              "--process-shards", str(args.process_shards)]
+    shards = {"ray": ["--ray-shards", str(args.ray_shards)],
+              "processes": ["--process-shards", str(args.process_shards)]}
+    runner = ["--engine", args.engine, *shards.get(args.engine, [])]
     proc = subprocess.Popen([*HRTLS, "serve", "--db", db, "--port", str(port),
                              "--rate-per-agent", "20", "--queue-batches", "256", *runner],
                             stdout=subprocess.PIPE, text=True,
