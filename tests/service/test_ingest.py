@@ -31,6 +31,15 @@ def wait_idle(live: Live, timeout_s: float = 120.0) -> None:
 IMU = {"t": [1.0, 1.01], "acc": [[0, 0, 9.8], [0, 0, 9.8]]}
 
 
+def post_json(agent: AgentClient, batch: dict[str, Any]) -> httpx.Response:
+    """POST a batch; after a 429 (rate limit or full queue) wait as told and send it again."""
+    while True:
+        r = agent.http.post(f"{API}/ingest", json=batch)
+        if r.status_code != 429:
+            return r
+        time.sleep(float(r.headers["retry-after"]))
+
+
 def test_ingest_acks_duplicates_and_gaps(live: Live, commander: httpx.Client) -> None:
     mid = new_mission(commander)["id"]
     a = new_agent(commander, mid)
@@ -159,15 +168,15 @@ def test_backfill_after_gap_reruns_and_marks_stale(live: Live, commander: httpx.
         agent.checkin(start_pose(session))
         for seq, b in enumerate(batches):
             if seq not in gap:
-                r = agent.http.post(f"{API}/ingest", json={**b, "seq": seq})
-                assert r.status_code == 200
+                r = post_json(agent, {**b, "seq": seq})
+                assert r.status_code == 200, r.text
         wait_idle(live, timeout_s=60)
         snap = commander.get(f"{API}/missions/{mid}/snapshot").json()
         assert snap["estimates"][0]["stale"] is True
         status = snap["agents"][0]["status"]
         assert status["missing"] == [[gap.start, gap.stop - 1]]
         for seq in gap:
-            agent.http.post(f"{API}/ingest", json={**batches[seq], "seq": seq})
+            assert post_json(agent, {**batches[seq], "seq": seq}).status_code == 200
     wait_idle(live)
     got = stored(commander, mid, aid)
     ref = offline_rows()

@@ -6,6 +6,7 @@ import threading
 
 import httpx
 from sqlalchemy import func, select
+from sqlalchemy.orm import Session
 
 from hrtls.service.db import make_engine, session_factory
 from hrtls.service.models import RawBatch
@@ -67,4 +68,45 @@ def test_stopped_writer_stores_directly(live: Live, commander: httpx.Client) -> 
                 RawBatch.agent_id == agent_id))
         assert n == 1
     finally:
+        engine.dispose()
+
+
+def test_deferred_writes_commit_in_order_with_the_raw_rows(
+        live: Live, commander: httpx.Client) -> None:
+    mission = new_mission(commander)["id"]
+    agent_id = new_agent(commander, mission)["agent"]["id"]
+    engine = make_engine(live.settings.db_url)
+    writer = RawLogWriter(session_factory(engine), max_group=8)
+    seen: list[int] = []   # raw rows committed before each deferred write ran
+
+    def count(db: Session) -> None:
+        seen.append(db.scalar(select(func.count()).select_from(RawBatch).where(
+            RawBatch.agent_id == agent_id)) or 0)
+
+    def fail(db: Session) -> None:
+        raise RuntimeError("a broken deferred write")
+
+    writer.start()
+    try:
+        futures = []
+        for seq in range(30):
+            futures.append(writer.submit(_row(agent_id, seq)))
+            if seq % 10 == 9:
+                writer.defer(count)
+        writer.flush()
+        assert writer.unwritten() == 0
+        assert [f.result() for f in futures] == [True] * 30
+        assert seen == [10, 20, 30]
+        # a failing write or a duplicate fails alone, its neighbours are stored
+        before = writer.submit(_row(agent_id, 30))
+        failing = writer.defer(fail)
+        duplicate = writer.submit(_row(agent_id, 3))
+        after = writer.submit(_row(agent_id, 31))
+        writer.defer(count)
+        writer.flush()
+        assert before.result() and after.result() and duplicate.result() is False
+        assert isinstance(failing.exception(), RuntimeError)
+        assert seen[-1] == 32
+    finally:
+        writer.stop()
         engine.dispose()

@@ -1,5 +1,5 @@
-"""The service with its trackers on Ray shard actors (issue 15, live): same rows as in-process,
-and an actor killed mid-stream loses nothing."""
+"""The service with its trackers on shard workers (Ray actors, issue 15, or local processes):
+same rows as in-process, and a worker killed mid-stream loses nothing."""
 
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ def _ray_available() -> bool:
     return True
 
 
-pytestmark = pytest.mark.skipif(not _ray_available() and os.environ.get("CI") != "true",
-                                reason="Ray is not installed (pip install 'hrtls[ray]')")
+NEEDS_RAY = pytest.mark.skipif(not _ray_available() and os.environ.get("CI") != "true",
+                               reason="Ray is not installed (pip install 'hrtls[ray]')")
 
 
 def _wait_idle(host, timeout_s: float = 180.0) -> None:
@@ -44,14 +44,15 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def test_ray_shard_killed_mid_stream_loses_nothing(tmp_path: Path) -> None:
-    from hrtls.runner.ray_live import RayShardRunner
+@pytest.mark.parametrize("engine", ["processes", pytest.param("ray", marks=NEEDS_RAY)])
+def test_shard_killed_mid_stream_loses_nothing(tmp_path: Path, engine: str) -> None:
+    from hrtls.runner.shards import ShardedRunner
 
-    live = start_live(Settings(db=str(tmp_path / "ray.db"), engine="ray", ray_shards=2,
-                               snapshot_every_s=5.0))
+    live = start_live(Settings(db=str(tmp_path / "shards.db"), engine=engine, ray_shards=2,
+                               process_shards=2, snapshot_every_s=5.0))
     host = live.server.config.app.state.services.host
     runner = host.runner
-    assert isinstance(runner, RayShardRunner) and runner.n_shards == 2
+    assert isinstance(runner, ShardedRunner) and runner.n_shards == 2
     try:
         session = office()
         with live.client(live.commander) as commander:
@@ -86,6 +87,7 @@ def test_ray_shard_killed_mid_stream_loses_nothing(tmp_path: Path) -> None:
     np.testing.assert_allclose(got["cov"], ref.cov_xy[:n], atol=1e-9)
 
 
+@NEEDS_RAY
 def test_serve_refuses_bad_ray_options() -> None:
     from typer.testing import CliRunner
 
@@ -95,3 +97,5 @@ def test_serve_refuses_bad_ray_options() -> None:
     assert r.exit_code != 0 and "--engine" in r.output
     r = CliRunner().invoke(app, ["serve", "--engine", "ray", "--ray-shards", "0"])
     assert r.exit_code != 0 and "--ray-shards" in r.output
+    r = CliRunner().invoke(app, ["serve", "--engine", "processes", "--process-shards", "0"])
+    assert r.exit_code != 0 and "--process-shards" in r.output

@@ -45,8 +45,12 @@ def serve(
     ssl_keyfile: Annotated[Path | None, typer.Option(
         "--ssl-keyfile", help="TLS private key (PEM).")] = None,
     engine: Annotated[str, typer.Option(
-        "--engine", help="Where the agents' trackers run: local (this process) or ray "
-        "(shard actors; pip install 'hrtls[ray]').")] = _D["engine"],
+        "--engine", help="Where the agents' trackers run: local (this process), processes "
+        "(local worker processes) or ray (shard actors; pip install 'hrtls[ray]').")
+    ] = _D["engine"],
+    process_shards: Annotated[int, typer.Option(
+        "--process-shards", help="Worker processes the agents are hashed onto "
+        "(--engine processes).")] = _D["process_shards"],
     ray_address: Annotated[str | None, typer.Option(
         "--ray-address", help="Join this Ray cluster (auto, ray://head:10001); "
         "default: start a local Ray.")] = None,
@@ -70,8 +74,9 @@ def serve(
                          rate_burst=2.0 * rate_per_agent, queue_batches=queue_batches,
                          session_hours=session_hours, token_cache_ttl_s=token_cache_ttl,
                          cors_origins=tuple(cors_origin or ()), tls=ssl_certfile is not None,
-                         engine=cast("Literal['local', 'ray']", engine),
-                         ray_address=ray_address, ray_shards=ray_shards,
+                         engine=cast("Literal['local', 'processes', 'ray']", engine),
+                         process_shards=process_shards, ray_address=ray_address,
+                         ray_shards=ray_shards,
                          basemap_url=basemap_url)
     _run(settings, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
          new_commander_token=new_commander_token)
@@ -99,6 +104,7 @@ def _run(settings: Settings, *, ssl_certfile: Path | None, ssl_keyfile: Path | N
     import uvicorn
 
     from hrtls.service.app import bootstrap, create_app
+    from hrtls.service.gcpolicy import collect_for_service
 
     host, port = settings.host, settings.port
     secret = bootstrap(settings, new_commander=new_commander_token)
@@ -108,6 +114,7 @@ def _run(settings: Settings, *, ssl_certfile: Path | None, ssl_keyfile: Path | N
     if secret is not None:
         typer.echo(f"commander token (shown once, keep it): {secret}")
     app = create_app(settings)
+    collect_for_service(settings.gc_young_objects)
     uvicorn.run(app, host=host, port=port, log_level="warning",
                 ssl_certfile=None if ssl_certfile is None else str(ssl_certfile),
                 ssl_keyfile=None if ssl_keyfile is None else str(ssl_keyfile),

@@ -10,6 +10,7 @@ same re-run restores every agent from its newest snapshot.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 import queue
@@ -52,6 +53,7 @@ DECODERS: dict[str, Decoder] = {"batch": decode_batch, "sensorlogger": decode_se
 
 REPLAY_PAGE = 200
 KEEP_SNAPSHOTS = 20
+GOLDEN_FRACTION = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 class Busy(Exception):
@@ -202,7 +204,8 @@ class TrackerHost:
         with self._lock:
             agents = list(self._agents.values())
         return all(not a.pending and not a.busy and not a.scheduled
-                   and a.backfill_from == math.inf for a in agents)
+                   and a.backfill_from == math.inf for a in agents) \
+            and self.raw_log.unwritten() == 0
 
     # ------------------------------------------------------------------ agents
     def agent(self, agent_id: int) -> AgentLive | None:
@@ -266,32 +269,58 @@ class TrackerHost:
         ``assigned``: the service numbered the batch (:meth:`next_assigned_seq`); client seqs
         are below ``ASSIGNED_SEQ_BASE``, so both kinds of source can feed one agent.
         """
-        if (batch.seq >= ASSIGNED_SEQ_BASE) != assigned:
-            raise BatchError(422, f"seq must be below {ASSIGNED_SEQ_BASE} (higher seqs are "
-                                  "numbered by the service)")
         live = self.agent(agent_id)
         if live is None:
             raise KeyError(agent_id)
-        book, key = (live.assigned, batch.seq - ASSIGNED_SEQ_BASE) if assigned else \
-            (live.book, batch.seq)
+        admitted = self._admit(live, batch, body=body, content_type=content_type,
+                               source=source, assigned=assigned)
+        if isinstance(admitted, dict):
+            return admitted
+        return self._accepted(live, batch, admitted, self.raw_log.append(admitted),
+                              assigned=assigned)
+
+    async def accept_async(self, agent_id: int, batch: Batch, *, body: bytes,
+                           content_type: str, source: str) -> dict[str, Any]:
+        """:meth:`accept` for the event loop: waits for the raw log without holding a thread."""
+        live = self._agents.get(agent_id)
+        if live is None:
+            live = await asyncio.to_thread(self.agent, agent_id)
+        if live is None:
+            raise KeyError(agent_id)
+        admitted = self._admit(live, batch, body=body, content_type=content_type,
+                               source=source, assigned=False)
+        if isinstance(admitted, dict):
+            return admitted
+        stored = await asyncio.wrap_future(self.raw_log.submit(admitted))
+        return self._accepted(live, batch, admitted, stored, assigned=False)
+
+    def _admit(self, live: AgentLive, batch: Batch, *, body: bytes, content_type: str,
+               source: str, assigned: bool) -> RawRow | dict[str, Any]:
+        """The raw row to store, or the ack of a duplicate (:class:`Busy`: queue full)."""
+        if (batch.seq >= ASSIGNED_SEQ_BASE) != assigned:
+            raise BatchError(422, f"seq must be below {ASSIGNED_SEQ_BASE} (higher seqs are "
+                                  "numbered by the service)")
+        book, key = self._book(live, batch.seq)
         with live.lock:
             if key in book:
                 return self._ack(live, batch.seq, "duplicate")
             if len(live.pending) >= self.params.queue_batches:
                 raise Busy(1.0)
-        now = self.clock()
         span = batch.time_span()
-        stored = self.raw_log.append(RawRow(
-            agent_id=agent_id, seq=batch.seq, received_unix=now,
-            t_first=None if span is None else span[0], t_last=None if span is None else span[1],
-            source=source, content_type=content_type, body=body))
-        if not stored:
-            with live.lock:
-                book.add(key)
-                return self._ack(live, batch.seq, "duplicate")
+        return RawRow(agent_id=live.agent_id, seq=batch.seq, received_unix=self.clock(),
+                      t_first=None if span is None else span[0],
+                      t_last=None if span is None else span[1],
+                      source=source, content_type=content_type, body=body)
+
+    def _accepted(self, live: AgentLive, batch: Batch, row: RawRow, stored: bool, *,
+                  assigned: bool) -> dict[str, Any]:
+        """Queue a batch the raw log has stored (``stored`` False: it had it already)."""
+        book, key = self._book(live, batch.seq)
         with live.lock:
             book.add(key)
-            live.last_receive_unix = now
+            if not stored:
+                return self._ack(live, batch.seq, "duplicate")
+            live.last_receive_unix = row.received_unix
             if batch.status is not None and batch.status.battery is not None:
                 live.battery = batch.status.battery
             if batch.sos:
@@ -301,6 +330,13 @@ class TrackerHost:
             ack = self._ack(live, batch.seq, "accepted")
         self._schedule(live)
         return ack
+
+    @staticmethod
+    def _book(live: AgentLive, seq: int) -> tuple[SeqBook, int]:
+        """The seq book a seq is kept in and its key there."""
+        if seq >= ASSIGNED_SEQ_BASE:
+            return live.assigned, seq - ASSIGNED_SEQ_BASE
+        return live.book, seq
 
     def duplicate_ack(self, agent_id: int, seq: int) -> dict[str, Any]:
         """The ack of a batch stored before as ``seq``."""
@@ -447,6 +483,7 @@ class TrackerHost:
     def _rebuild(self, live: AgentLive, t_from: float) -> None:
         """Restore the newest snapshot before ``t_from`` and replay the raw log after it."""
         aid = live.agent_id
+        self.raw_log.flush()   # the agent's estimates and snapshots handed in so far
         with self.sessions() as db, db.begin():
             if math.isfinite(t_from):
                 db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid,
@@ -494,7 +531,12 @@ class TrackerHost:
         spans = [b.time_span() for b in batches]
         live.t_fed = max([live.t_fed, *(s[1] for s in spans if s is not None)])
         self._store(live, rows)
-        if live.t_fed - live.t_snap >= self.params.snapshot_every_s:
+        if rows.provisional is None:   # no tracker yet (or no new row): nothing to keep
+            return
+        period = self.params.snapshot_every_s
+        if live.t_snap == -math.inf:
+            live.t_snap = live.t_fed - period * snapshot_phase(live.agent_id)
+        elif live.t_fed - live.t_snap >= period:
             self._snapshot(live)
 
     def _store(self, live: AgentLive, rows: Rows) -> None:
@@ -502,10 +544,9 @@ class TrackerHost:
         received_t = now - live.t0_unix
         stale = live.stale(now)
         if rows.final is not None and len(rows.final):
-            with self.sessions() as db, db.begin():
-                db.execute(insert(EstimateRow), _rows_to_db(
-                    live.mission_id, live.agent_id, rows.final, stale=stale,
-                    received_t=received_t))
+            values = _rows_to_db(live.mission_id, live.agent_id, rows.final, stale=stale,
+                                 received_t=received_t)
+            self.raw_log.defer(lambda db: _write_estimates(db, values))
         live.t_final = rows.t_final
         latest_rows = rows.provisional if rows.provisional is not None else rows.final
         if latest_rows is not None and len(latest_rows):
@@ -519,16 +560,36 @@ class TrackerHost:
                 self.events.emit(live.mission_id, live.agent_id, raised, est)
 
     def _snapshot(self, live: AgentLive) -> None:
+        """Take the tracker's state now; it is written after the estimates before it."""
         state = self.runner.snapshot(live.agent_id)
         if state is None:
             return
-        aid = live.agent_id
-        with self.sessions() as db, db.begin():
-            db.add(TrackerSnapshot(agent_id=aid, t_data=live.t_fed, t_final=live.t_final,
-                                   created_unix=self.clock(), state=state))
-            old = list(db.scalars(select(TrackerSnapshot.id).where(
-                TrackerSnapshot.agent_id == aid).order_by(TrackerSnapshot.t_data.desc())
-                .offset(KEEP_SNAPSHOTS)))
-            if old:
-                db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.id.in_(old)))
+        row = {"agent_id": live.agent_id, "t_data": live.t_fed, "t_final": live.t_final,
+               "created_unix": self.clock(), "state": state}
+        self.raw_log.defer(lambda db: _write_snapshot(db, row))
         live.t_snap = live.t_fed
+
+
+def snapshot_phase(agent_id: int) -> float:
+    """Where in the snapshot period an agent's snapshots fall, in [0, 1).
+
+    Agents that start together would otherwise all snapshot in the same tick (a burst of
+    tracker states to serialise and write every period); the golden-ratio sequence spreads any
+    run of agent ids evenly over the period. The first snapshot comes after at most one period
+    of data, as without the phase.
+    """
+    return (agent_id * GOLDEN_FRACTION) % 1.0
+
+
+def _write_estimates(db: DbSession, values: list[dict[str, Any]]) -> None:
+    db.execute(insert(EstimateRow), values)
+
+
+def _write_snapshot(db: DbSession, row: dict[str, Any]) -> None:
+    """Store a snapshot and drop the agent's snapshots beyond the newest ``KEEP_SNAPSHOTS``."""
+    aid = row["agent_id"]
+    db.execute(insert(TrackerSnapshot), [row])
+    old = list(db.scalars(select(TrackerSnapshot.id).where(TrackerSnapshot.agent_id == aid)
+                          .order_by(TrackerSnapshot.t_data.desc()).offset(KEEP_SNAPSHOTS)))
+    if old:
+        db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.id.in_(old)))

@@ -77,9 +77,13 @@ class TrackerRunner(Protocol):
 
 
 def make_runner(settings: Settings) -> TrackerRunner:
-    """The runner ``settings.engine`` names: in-process, or Ray shard actors (``hrtls[ray]``)."""
+    """The runner ``settings.engine`` names: here, worker processes or Ray (``hrtls[ray]``)."""
     if settings.engine == "local":
         return InProcessRunner()
+    if settings.engine == "processes":
+        from hrtls.runner.proc_live import ProcessShardRunner
+
+        return ProcessShardRunner(n_shards=settings.process_shards)
     from hrtls.runner.ray_live import RayShardRunner
 
     return RayShardRunner.connect(n_shards=settings.ray_shards, address=settings.ray_address)

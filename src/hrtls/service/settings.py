@@ -39,7 +39,10 @@ class Settings(BaseModel):
     tls: bool = False
     ws_auth_timeout_s: float = Field(default=5.0, gt=0.0)
     web_root: Path | None = None
-    engine: Literal["local", "ray"] = "local"
+    gc_young_objects: int = Field(default=20_000, ge=700, le=10_000_000)
+    """Net allocations between young-generation collections (:mod:`hrtls.service.gcpolicy`)."""
+    engine: Literal["local", "processes", "ray"] = "local"
+    process_shards: int = Field(default=2, ge=1, le=64)
     ray_address: str | None = None
     ray_shards: int = Field(default=2, ge=1, le=4096)
     basemap_url: str | None = None

@@ -100,10 +100,11 @@ def checkin(mission_id: int, agent_id: int, body: schemas.StartPoseIn,
     agent = agent_or_404(db, mission_id, agent_id)
     if agent.start_pose is not None:
         raise HTTPException(409, f"agent {agent_id} has checked in already")
+    mission = mission_or_404(db, mission_id)
     agent.start_pose = body.model_dump()
     db.commit()
+    db.close()   # the host and the event log use connections of their own: never hold two
     services.host.checked_in(agent_id)
-    mission = mission_or_404(db, mission_id)
     t = body.t if body.t is not None else services.clock() - mission.t0_unix
     services.events.emit(mission_id, agent_id, [Raised("checkin", "info", t, {})],
                          {"x": body.x, "y": body.y,

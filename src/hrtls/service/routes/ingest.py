@@ -36,14 +36,14 @@ def check_rate(services: Services, who: Principal) -> None:
                             headers=retry_after_header(wait))
 
 
-def store(services: Services, who: Principal, value: dict[str, Any], *, body: bytes,
-          content_type: str, source: str) -> dict[str, Any]:
-    """Validate and accept one batch of the calling agent; the ack."""
+async def store(services: Services, who: Principal, value: dict[str, Any], *, body: bytes,
+                content_type: str) -> dict[str, Any]:
+    """Validate and accept one batch of the calling agent; the ack once the raw log has it."""
     assert who.agent_id is not None
     batch = parse_batch(value)
     try:
-        return services.host.accept(who.agent_id, batch, body=body, content_type=content_type,
-                                    source=source)
+        return await services.host.accept_async(who.agent_id, batch, body=body,
+                                                content_type=content_type, source="batch")
     except KeyError:
         raise HTTPException(404, f"agent {who.agent_id} no longer exists") from None
 
@@ -56,9 +56,8 @@ async def ingest(request: Request, who: AgentCaller, services: ServicesDep) -> J
     body = await request.body()
     try:
         value = decode_body(body, content_type)
-        ack = await run_in_threadpool(store, services, who, value, body=body,
-                                      content_type=content_type.split(";")[0].strip(),
-                                      source="batch")
+        ack = await store(services, who, value, body=body,
+                          content_type=content_type.split(";")[0].strip())
     except BatchError as exc:
         return JSONResponse({"detail": exc.detail}, status_code=exc.status)
     except Busy as exc:
@@ -127,9 +126,8 @@ async def _ws_batch(services: Services, who: Principal, value: dict[str, Any],
     binary = message.get("bytes") is not None
     body = msgpack.packb(value) if binary else json.dumps(value).encode()
     try:
-        ack = await run_in_threadpool(store, services, who, value, body=body,
-                                      content_type="application/msgpack" if binary
-                                      else "application/json", source="batch")
+        ack = await store(services, who, value, body=body,
+                          content_type="application/msgpack" if binary else "application/json")
     except BatchError as exc:
         return {"type": "error", "seq": seq, "status": exc.status, "detail": exc.detail}
     except Busy as exc:
