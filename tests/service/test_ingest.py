@@ -32,12 +32,16 @@ IMU = {"t": [1.0, 1.01], "acc": [[0, 0, 9.8], [0, 0, 9.8]]}
 
 
 def post_json(agent: AgentClient, batch: dict[str, Any]) -> httpx.Response:
-    """POST a batch; after a 429 (rate limit or full queue) wait as told and send it again."""
-    while True:
+    """POST a batch; after a 429 (rate limit or full queue) wait as told and send it again.
+
+    Bounded: a service that keeps refusing for 300 tries fails the test.
+    """
+    for _ in range(300):
         r = agent.http.post(f"{API}/ingest", json=batch)
         if r.status_code != 429:
             return r
         time.sleep(float(r.headers["retry-after"]))
+    raise AssertionError(f"still 429 after 300 tries: {r.text}")
 
 
 def test_ingest_acks_duplicates_and_gaps(live: Live, commander: httpx.Client) -> None:
