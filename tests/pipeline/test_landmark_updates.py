@@ -141,3 +141,13 @@ def test_updates_need_a_time_not_in_the_past(ring: Session) -> None:
 def test_landmark_rejects_an_unknown_status() -> None:
     with pytest.raises(ValueError, match="status"):
         Landmark.model_validate({"id": "x", "position": [0, 0, 0], "status": "lost"})
+
+
+def test_a_landmark_destroyed_from_the_start_corrects_nothing(ring: Session) -> None:
+    g = ring.tags
+    assert g is not None
+    gone = ring.landmarks["T5"].model_copy(update={"status": "destroyed"})
+    got = _plain(ring.with_parts(landmarks={**ring.landmarks, "T5": gone}))
+    no_t5 = _plain(ring.with_parts(landmarks={k: v for k, v in ring.landmarks.items()
+                                              if k != "T5"}))
+    _assert_same(got, no_t5)

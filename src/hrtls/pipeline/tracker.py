@@ -594,7 +594,7 @@ class Tracker:
 
 
 def _resolved(landmarks: dict[str, Landmark], meta: SessionMeta) -> dict[str, Landmark]:
-    """The landmarks with their positions in the session's local frame (where one is known)."""
+    """The landmarks with their local positions (where known); destroyed ones are left out."""
     geo = None if meta.georeference is None else meta.georeference.to_georeference()
     return {k: lm.resolved(geo) if (lm.position is not None or geo is not None) else lm
-            for k, lm in landmarks.items()}
+            for k, lm in landmarks.items() if lm.status != "destroyed"}
