@@ -36,7 +36,13 @@ from hrtls.data import Session
 from hrtls.data.clocks import check_session_clocks
 from hrtls.data.landmarks import Landmark
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
-from hrtls.io.session import is_session, landmarks_from_json, pydantic_problem, read_session
+from hrtls.io.session import (
+    is_session,
+    landmark_list,
+    landmarks_from_json,
+    pydantic_problem,
+    read_session,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -259,25 +265,14 @@ def _read_landmark_updates(path: Path, nodes: Sequence[str]) -> tuple[Landmark, 
     """The versions of ``landmark_updates.json`` by time (none without the file)."""
     if not path.is_file():
         return ()
-    items = _load_json(path)
-    if not isinstance(items, list):
-        raise FormatError(f"top level is {type(items).__name__}", where=str(path),
-                          expected="a JSON list of location messages with 'updated' (s)")
-    out = []
-    for i, item in enumerate(items):
-        try:
-            lm = Landmark.model_validate(item)
-        except ValidationError as exc:
-            raise FormatError(pydantic_problem(exc), where=f"{path} item {i}",
-                              expected="a location message (id, position or wgs84, ...)"
-                              ) from None
+    out = landmark_list(_load_json(path), where=str(path))
+    for i, lm in enumerate(out):
         if lm.updated is None:
             raise FormatError("no field 'updated'", where=f"{path} item {i}",
                               expected="the time (s, session clock) the version holds from")
         if lm.id in nodes:
             raise FormatError(f"id {lm.id!r} is a dropped node", where=f"{path} item {i}",
                               expected="a landmark id (nodes are localized by the mission)")
-        out.append(lm)
     return tuple(sorted(out, key=lambda v: float(v.updated or 0.0)))
 
 

@@ -211,19 +211,26 @@ def _read_landmarks(src: _SessionFiles) -> dict[str, Landmark]:
     return landmarks_from_json(_json(src, "landmarks.json"), where="landmarks.json")
 
 
-def landmarks_from_json(items: Any, *, where: str) -> dict[str, Landmark]:
-    """The location messages of a parsed ``landmarks.json`` (``where``: its name in errors)."""
+def landmark_list(items: Any, *, where: str) -> list[Landmark]:
+    """The location messages of a parsed JSON list (``where``: its name in errors)."""
     if not isinstance(items, list):
         raise FormatError(f"top level is {type(items).__name__}", where=where,
                           expected="a JSON list of location messages")
-    out: dict[str, Landmark] = {}
+    out = []
     for i, item in enumerate(items):
         try:
-            landmark = Landmark.model_validate(item)
+            out.append(Landmark.model_validate(item))
         except ValidationError as exc:
             raise FormatError(pydantic_problem(exc), where=f"{where} item {i}",
                               expected="a location message (id, kind, position or wgs84, ...)"
                               ) from None
+    return out
+
+
+def landmarks_from_json(items: Any, *, where: str) -> dict[str, Landmark]:
+    """The location messages of a parsed ``landmarks.json`` by id (ids unique)."""
+    out: dict[str, Landmark] = {}
+    for i, landmark in enumerate(landmark_list(items, where=where)):
         if landmark.id in out:
             raise FormatError(f"duplicate id {landmark.id!r}", where=f"{where} item {i}",
                               expected="unique landmark ids")
