@@ -151,3 +151,18 @@ def test_a_landmark_destroyed_from_the_start_corrects_nothing(ring: Session) -> 
     no_t5 = _plain(ring.with_parts(landmarks={k: v for k, v in ring.landmarks.items()
                                               if k != "T5"}))
     _assert_same(got, no_t5)
+
+
+def test_a_cut_for_an_update_changes_nothing_else(ring: Session) -> None:
+    """A new landmark nothing reads, added mid-chunk, leaves the track as it was, also with a
+    magnetometer on its own (slower, offset) clock: the cut pieces are aligned first."""
+    from hrtls.data import ImuStream, SensorSeries
+
+    imu = ring.imu
+    assert imu is not None and imu.mag is not None
+    t_mag = imu.mag.t[::2] + 0.003
+    mag = SensorSeries(t_mag, np.array([np.interp(t_mag, imu.mag.t, imu.mag.values[:, k])
+                                        for k in range(3)]).T, "magnetometer")
+    s = ring.with_parts(imu=ImuStream(imu.accel, imu.gyro, mag, check_units=False))
+    new = Landmark(id="Z", kind="rfid", position=(0.0, 0.0, 0.0), updated=U_S + 0.0037)
+    _assert_same(_run(s, [new]), _plain(s))

@@ -185,14 +185,6 @@ def _lda_study(seed: int) -> list[float]:
     return [bench_studies.activity_cross_validation(seed)]
 
 
-def _loose_study(seed: int) -> list[float]:
-    return list(bench_studies.loose_cooperation(seed))
-
-
-def _tight_study(seed: int) -> list[float]:
-    return list(bench_studies.tight_cooperation(seed))
-
-
 def _study_cases() -> list[Case]:
     """Inderst Sec. 6.2 (activity recognition) and Sec. 6.4 (range-node network) studies."""
     return [
@@ -210,7 +202,7 @@ def _study_cases() -> list[Case]:
                  MetricSpec("connected networks fully localized with the planner [share]", None,
                             "all (Fig. 6.11c, Sec. 5.4)", (">=", 1.0),
                             higher_is_better=True)],
-             quick=False, study=_loose_study),
+             quick=False, study=bench_studies.loose_cooperation),
         Case(f"wsn_tight ({bench_studies.TIGHT_NETWORKS} networks of 50 nodes, no anchors)",
              "wsn", {}, "robot + Algorithm 1", [
                  MetricSpec("networks fully localized [share]", None,
@@ -218,7 +210,7 @@ def _study_cases() -> list[Case]:
                             higher_is_better=True),
                  MetricSpec("position RMSE after refinement [rho]", None,
                             "- (not reported)")],
-             quick=False, study=_tight_study)]
+             quick=False, study=bench_studies.tight_cooperation)]
 
 
 def fixes_every(tp: float) -> Callable[[TrackerConfig], TrackerConfig]:

@@ -22,10 +22,10 @@ import numpy as np
 
 from hrtls.attitude.registry import DEFAULT_FILTER, make_filter
 from hrtls.data import Activity
-from hrtls.evaluate.metrics import class_weighted_error
+from hrtls.evaluate.metrics import class_weighted_error, hold_previous
 from hrtls.gait.activity_lda import train_lda
 from hrtls.gait.features import window_labels
-from hrtls.gait.session_analysis import activity_windows
+from hrtls.gait.session_analysis import activity_windows, session_inputs
 from hrtls.sim.devices import get_device
 from hrtls.sim.motion_truth import MotionParams, Waypoint
 from hrtls.sim.person import simulate_person
@@ -94,24 +94,19 @@ def _labelled_windows(seed: int, *, window_s: float, cutoff_hz: float
     """LDA features (W, 7) and true labels (W,) of one user's :func:`activity_course`.
 
     The features are those the tracker computes: attitude from the default filter, the
-    session's mounting, :func:`~hrtls.gait.analyzer.activity_windows`. A window is labelled
-    only when every sample in it has one true activity.
+    session's (declared) mounting, :func:`~hrtls.gait.session_analysis.activity_windows`. A
+    window is labelled only when every sample in it has one true activity.
     """
     sim = activity_course(seed)
     imu = sim.session.imu
     assert imu is not None
+    t, acc, _, mount, rate = session_inputs(sim.session)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         q_nd = make_filter(DEFAULT_FILTER).run(imu).q
-    t, acc = imu.accel.t, imu.accel.values
-    rate = float(1.0 / np.median(np.diff(t)))
-    mount = sim.session.meta.mounting_q_bd
-    wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd,
-                          mounting_q_bd=None if mount is None else np.asarray(mount),
+    wf = activity_windows(t, acc, rate_hz=rate, q_nd=q_nd, mounting_q_bd=mount,
                           window_s=window_s, cutoff_hz=cutoff_hz)
-    row = np.clip(np.searchsorted(sim.activity_t, t, side="right") - 1, 0,
-                  len(sim.activity) - 1)
-    labels = window_labels(np.asarray(sim.activity, dtype=np.int64)[row],
+    labels = window_labels(hold_previous(sim.activity_t, sim.activity, t),
                            max(4, round(window_s * rate)))
     n = min(len(labels), len(wf.lda))
     return wf.lda[:n], labels[:n]

@@ -24,7 +24,7 @@ from typing import Any
 
 from hrtls.data import Landmark, Session
 from hrtls.errors import InputError
-from hrtls.pipeline.chunks import session_window
+from hrtls.pipeline.chunks import aligned_imu, session_window
 
 __all__ = ["LandmarkVersions"]
 
@@ -57,6 +57,11 @@ class LandmarkVersions:
         empty) and the versions to apply after it; the last piece comes with no versions.
         """
         rest: Session | None = chunk
+        if self.pending and float(self.pending[0].updated or 0.0) <= t_end \
+                and chunk.imu is not None:
+            # gyroscope / magnetometer on the accelerometer's times before cutting, as the
+            # uncut chunk is consumed (interpolating inside each piece differs at the cut)
+            rest = chunk.with_parts(imu=aligned_imu(chunk.imu))
         while self.pending and float(self.pending[0].updated or 0.0) <= t_end and rest:
             t_u = float(self.pending[0].updated or 0.0)
             due = [v for v in self.pending if float(v.updated or 0.0) == t_u]
@@ -79,21 +84,22 @@ class LandmarkVersions:
             text += f" (moved {math.dist(version.position, previous.position):.2f} m)"
         return text + (f"; hazard nearby: {version.hazard}" if version.hazard else "")
 
-    def at(self, current: dict[str, Landmark], landmark_id: str, t: float) -> Landmark | None:
-        """The version of ``landmark_id`` in force at ``t`` (None: unknown or destroyed)."""
+    def _step(self, landmark_id: str, t: float) -> int | None:
+        """Index of the version in force at ``t`` in the landmark's history (None: none)."""
         steps = self.history.get(landmark_id)
         if steps is None:
-            return current.get(landmark_id)
-        k = bisect.bisect_right([s[0] for s in steps], t) - 1
-        return steps[max(k, 0)][1]
+            return None
+        return max(bisect.bisect_right(steps, t, key=lambda s: s[0]) - 1, 0)
+
+    def at(self, current: dict[str, Landmark], landmark_id: str, t: float) -> Landmark | None:
+        """The version of ``landmark_id`` in force at ``t`` (None: unknown or destroyed)."""
+        k = self._step(landmark_id, t)
+        return current.get(landmark_id) if k is None else self.history[landmark_id][k][1]
 
     def destroyed_at(self, landmark_id: str, t: float) -> bool:
         """Whether ``landmark_id`` was destroyed at ``t``."""
-        steps = self.history.get(landmark_id)
-        if steps is None:
-            return False
-        k = bisect.bisect_right([s[0] for s in steps], t) - 1
-        return k > 0 and steps[k][1] is None
+        k = self._step(landmark_id, t)
+        return bool(k) and self.history[landmark_id][k or 0][1] is None
 
     def state(self) -> dict[str, Any]:
         """Plain state for a snapshot."""
