@@ -4,8 +4,7 @@ Ingest allocates many small containers per batch (decoded lists, validated tuple
 that live for tens of milliseconds: longer than CPython's default young generation (700
 allocations, a few milliseconds at hundreds of batches per second), so they are promoted and
 the old generation grows fast. Each full collection then walks every object of the process
-(the trackers, the modules): at 300 agents, 600 batches/s, about 35 full collections of 0.3 s
-in 30 s, a third of the interpreter's time with 0.3 s stalls of the event loop. A young
+(the trackers, the modules) and stalls the event loop (measured in docs/scale-out.md). A young
 generation of tens of thousands of allocations lets those objects die young, and freezing what
 exists after start-up (modules, the application) keeps it out of every later collection.
 """
