@@ -50,6 +50,12 @@ class LandmarkVersions:
             self.pending.append(lm)
         self.pending.sort(key=lambda v: float(v.updated or 0.0))
 
+    def knows(self, version: Landmark) -> bool:
+        """Whether a version of that landmark at that time is pending or applied."""
+        t_u = version.updated
+        return any(v.id == version.id and v.updated == t_u for v in self.pending) \
+            or any(t == t_u for t, _ in self.history.get(version.id, ())[1:])
+
     def cut(self, chunk: Session, t_end: float) -> Iterator[tuple[Session | None, list[Landmark]]]:
         """The chunk cut at the pending update times before ``t_end`` (its last time, s).
 

@@ -18,7 +18,8 @@ from hrtls.data.observations import (
 from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.service.host import DECODERS
-from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch
+from hrtls.service.landmark_versions import versions_of
+from hrtls.service.models import Agent, EstimateRow, Mission, RawBatch
 
 
 def _cat(parts: list[Any], name: str) -> np.ndarray:
@@ -85,8 +86,8 @@ def agent_session(db: DbSession, mission: Mission, agent: Agent) -> Session | No
         "georeference": mission.georeference, "time_origin_unix_s": mission.t0_unix,
         "source": {"format": "hrtls service export", "mission": mission.id,
                    "agent": agent.id, "name": agent.name}})
-    landmarks = {r.key: Landmark.model_validate(r.data) for r in db.scalars(
-        select(LandmarkRow).where(LandmarkRow.mission_id == mission.id))}
+    start, _ = versions_of(db, mission.id)
+    landmarks = {d["id"]: Landmark.model_validate(d) for d in start}
     return Session(meta=meta, landmarks=landmarks, **parts)
 
 

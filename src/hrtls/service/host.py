@@ -24,17 +24,18 @@ from sqlalchemy.orm import Session as DbSession
 from sqlalchemy.orm import sessionmaker
 
 from hrtls.data.session import SessionMeta
-from hrtls.pipeline.output import Estimates
 from hrtls.service.adapters import decode_sensorlogger
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
 from hrtls.service.batches import Batch, BatchError, decode_body, parse_batch
 from hrtls.service.clock import Clock
+from hrtls.service.estimate_rows import estimate_dict, rows_to_db
 from hrtls.service.events import EventLog
-from hrtls.service.models import Agent, EstimateRow, LandmarkRow, Mission, RawBatch, TrackerSnapshot
+from hrtls.service.landmark_versions import versions_of
+from hrtls.service.models import Agent, EstimateRow, Mission, RawBatch, TrackerSnapshot
 from hrtls.service.positions import SOURCES as POSITION_SOURCES
 from hrtls.service.positions import decode_position
 from hrtls.service.rawlog import RawLogWriter, RawRow
-from hrtls.service.runner import AgentSpec, Rows, TrackerRunner, activity_label, finite_or_none
+from hrtls.service.runner import AgentSpec, Rows, StaleSnapshot, TrackerRunner
 from hrtls.service.seqbook import ASSIGNED_SEQ_BASE, SeqBook
 
 log = logging.getLogger(__name__)
@@ -94,6 +95,8 @@ class AgentLive:
     t_snap: float = -math.inf
     backfill_from: float = math.inf
     backfill_since: float = 0.0
+    rebuild_from: float = math.inf
+    """A landmark version holds from here: re-run the tracker from the snapshot before it."""
     latest: dict[str, Any] | None = None
     sent_stale: bool | None = None
     dirty: bool = True
@@ -123,40 +126,6 @@ class AgentLive:
                 "acked_through": None if self.book.through < 0 else self.book.through,
                 "missing": self.book.missing(), "battery": self.battery,
                 "connected": self.sockets > 0 or recent, "error": self.error}
-
-
-def estimate_dict(agent_id: int, e: Estimates, i: int, *, stale: bool,
-                  received_t: float) -> dict[str, Any]:
-    """Row ``i`` of ``e`` as the contract's Estimate."""
-    c = e.cov_xy[i]
-    return {"agent": agent_id, "t": float(e.t[i]), "x": float(e.xyz[i, 0]),
-            "y": float(e.xyz[i, 1]), "z": float(e.xyz[i, 2]), "floor": int(e.floor[i]),
-            "cov_xy": [[float(c[0, 0]), float(c[0, 1])], [float(c[1, 0]), float(c[1, 1])]],
-            "heading_rad": float(e.heading_rad[i]), "var_heading": float(e.var_heading[i]),
-            "activity": activity_label(int(e.activity[i])),
-            "since_correction_s": finite_or_none(float(e.since_correction_s[i])),
-            "stale": stale, "received_t": received_t}
-
-
-def row_dict(r: EstimateRow) -> dict[str, Any]:
-    """A stored estimate as the contract's Estimate."""
-    return {"agent": r.agent_id, "t": r.t, "x": r.x, "y": r.y, "z": r.z, "floor": r.floor,
-            "cov_xy": [[r.cxx, r.cxy], [r.cxy, r.cyy]], "heading_rad": r.heading_rad,
-            "var_heading": r.var_heading, "activity": r.activity,
-            "since_correction_s": r.since_correction_s, "stale": r.stale,
-            "received_t": r.received_t}
-
-
-def _rows_to_db(mission_id: int, agent_id: int, e: Estimates, *, stale: bool,
-                received_t: float) -> list[dict[str, Any]]:
-    out = []
-    for i in range(len(e)):
-        d = estimate_dict(agent_id, e, i, stale=stale, received_t=received_t)
-        c = d.pop("cov_xy")
-        d.pop("agent")
-        out.append({**d, "mission_id": mission_id, "agent_id": agent_id, "cxx": c[0][0],
-                    "cxy": c[0][1], "cyy": c[1][1]})
-    return out
 
 
 class TrackerHost:
@@ -260,6 +229,18 @@ class TrackerHost:
             live.stale_after_s = mission.stale_after_s
             if live.alarms is not None:
                 live.alarms.profile = AlarmProfile(**mission.alarm_profile)
+
+    def landmarks_changed(self, mission_id: int, t: float | None) -> None:
+        """A landmark version holds from mission time ``t`` (None: the start).
+
+        Every loaded agent of the mission re-runs from its snapshot before ``t`` (its later
+        snapshots lack the version), in its worker, as a back-fill does.
+        """
+        t_from = -math.inf if t is None else t
+        for live in self.agents_of(mission_id):
+            with live.lock:
+                live.rebuild_from = min(live.rebuild_from, t_from)
+                self._schedule_locked(live)
 
     # ------------------------------------------------------------------ ingest
     def accept(self, agent_id: int, batch: Batch, *, body: bytes, content_type: str,
@@ -443,8 +424,11 @@ class TrackerHost:
                 live.tracked = row is not None and row.start_pose is not None
             if not live.tracked:
                 return
-        if not live.opened:
-            self._rebuild(live, math.inf)
+        if not live.opened or live.rebuild_from < math.inf:
+            with live.lock:
+                t_from = min(live.rebuild_from, live.backfill_from) if live.opened else math.inf
+                live.rebuild_from = live.backfill_from = math.inf
+            self._rebuild(live, t_from)
             return
         timed = sorted((b for b in items if b.time_span() is not None),
                        key=lambda b: (b.time_span() or (0.0, 0.0))[0])
@@ -476,30 +460,50 @@ class TrackerHost:
             "mounting_q_bd": agent.mounting_q_bd, "user": agent.user,
             "floor_height_m": mission.floor_height_m, "channel": mission.channel,
             "georeference": mission.georeference})
-        landmarks = tuple(r.data for r in db.scalars(
-            select(LandmarkRow).where(LandmarkRow.mission_id == mission.id)))
-        return AgentSpec(agent_id, agent.preset, meta.model_dump(mode="json"), landmarks)
+        landmarks, versions = versions_of(db, mission.id)
+        return AgentSpec(agent_id, agent.preset, meta.model_dump(mode="json"), landmarks,
+                         versions)
+
+    def _restore(self, live: AgentLive, t_from: float) -> tuple[float, float]:
+        """Open the agent from its newest snapshot before ``t_from``; (t_data, t_final).
+
+        ``t_from`` -inf: from no snapshot; -inf is returned without one. Rows after the
+        snapshot are cut. A snapshot that lacks a landmark version from before its data
+        (written while the change was on its way) is dropped and the one before it taken.
+        """
+        aid = live.agent_id
+        self.raw_log.flush()   # the agent's estimates and snapshots handed in so far
+        while True:
+            with self.sessions() as db, db.begin():
+                if t_from < math.inf:
+                    old = delete(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid)
+                    if t_from > -math.inf:
+                        old = old.where(TrackerSnapshot.t_data >= t_from)
+                    db.execute(old)
+                snap = db.scalars(select(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid)
+                                  .order_by(TrackerSnapshot.t_data.desc())).first()
+                state = None if snap is None else snap.state
+                t_data = -math.inf if snap is None else snap.t_data
+                t_final = -math.inf if snap is None else snap.t_final
+                cut = delete(EstimateRow).where(EstimateRow.agent_id == aid)
+                if snap is not None:
+                    cut = cut.where(EstimateRow.t > t_final)
+                db.execute(cut)
+                spec = self._spec(db, aid)
+            self.runner.close(aid)
+            try:
+                self.runner.open(spec, state, t_final)
+            except StaleSnapshot:
+                log.warning("agent %s: snapshot at %.3f s lacks a landmark version; taking the "
+                            "one before", aid, t_data)
+                t_from = t_data
+                continue
+            return t_data, t_final
 
     def _rebuild(self, live: AgentLive, t_from: float) -> None:
         """Restore the newest snapshot before ``t_from`` and replay the raw log after it."""
         aid = live.agent_id
-        self.raw_log.flush()   # the agent's estimates and snapshots handed in so far
-        with self.sessions() as db, db.begin():
-            if math.isfinite(t_from):
-                db.execute(delete(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid,
-                                                         TrackerSnapshot.t_data >= t_from))
-            snap = db.scalars(select(TrackerSnapshot).where(TrackerSnapshot.agent_id == aid)
-                              .order_by(TrackerSnapshot.t_data.desc())).first()
-            state = None if snap is None else snap.state
-            t_data = -math.inf if snap is None else snap.t_data
-            t_final = -math.inf if snap is None else snap.t_final
-            cut = delete(EstimateRow).where(EstimateRow.agent_id == aid)
-            if snap is not None:
-                cut = cut.where(EstimateRow.t > t_final)
-            db.execute(cut)
-            spec = self._spec(db, aid)
-        self.runner.close(aid)
-        self.runner.open(spec, state, t_final)
+        t_data, t_final = self._restore(live, t_from)
         live.replaying = True
         live.opened = True
         live.t_fed = live.t_snap = t_data
@@ -511,7 +515,7 @@ class TrackerHost:
                 q = select(RawBatch.seq, RawBatch.source, RawBatch.content_type,
                            RawBatch.body).where(RawBatch.agent_id == aid,
                                                 RawBatch.t_first.is_not(None))
-                if snap is not None:
+                if t_data > -math.inf:
                     q = q.where(RawBatch.t_first > t_data)
                 page = db.execute(q.order_by(RawBatch.t_first, RawBatch.seq)
                                   .offset(done).limit(REPLAY_PAGE)).all()
@@ -544,7 +548,7 @@ class TrackerHost:
         received_t = now - live.t0_unix
         stale = live.stale(now)
         if rows.final is not None and len(rows.final):
-            values = _rows_to_db(live.mission_id, live.agent_id, rows.final, stale=stale,
+            values = rows_to_db(live.mission_id, live.agent_id, rows.final, stale=stale,
                                  received_t=received_t)
             self.raw_log.defer(lambda db: _write_estimates(db, values))
         live.t_final = rows.t_final

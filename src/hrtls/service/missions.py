@@ -153,15 +153,17 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     by ``hrtls mission track``): it lists the agents that sent data (named by their name when
     that is unique and usable as a folder name, else ``agent-<id>``); what the service knew
     (id, time origin, georeference, channel, floor height, events, orders) is under
-    ``"service"``.
+    ``"service"``. Sessions hold the landmarks of the mission's start; the versions written
+    later are in ``landmark_updates.json``, each from its time on, as the live trackers had them.
     """
     from sqlalchemy import select
 
-    from hrtls.io.mission import MISSION_FILE, mission_json
+    from hrtls.io.mission import LANDMARK_UPDATES_FILE, MISSION_FILE, mission_json
     from hrtls.io.session import write_session
     from hrtls.service.db import make_engine, session_factory
     from hrtls.service.events import event_dict, order_dict
     from hrtls.service.exporting import agent_session, estimates_csv
+    from hrtls.service.landmark_versions import versions_of
     from hrtls.service.models import Agent, EventRow, Mission, OrderRow
     from hrtls.service.views import agent_out
 
@@ -197,6 +199,9 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
                        "georeference": mission.georeference, "channel": mission.channel,
                        "floor_height_m": mission.floor_height_m, "events": events,
                        "orders": orders}
+            _, timed = versions_of(db, mission_id)
+            if timed:
+                (out_dir / LANDMARK_UPDATES_FILE).write_text(json.dumps(list(timed), indent=2))
             (out_dir / MISSION_FILE).write_text(mission_json(
                 _entries(agents, with_data), name=mission.name, service=service,
                 notes=[f"agent {a.name!r} (id {a.id}) sent no data" for a in agents

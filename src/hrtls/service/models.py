@@ -75,6 +75,23 @@ class LandmarkRow(Base):
     data: Mapped[dict[str, Any]] = mapped_column(JSON)
 
 
+class LandmarkVersionRow(Base):
+    """One written version of a landmark, with the mission time it holds from.
+
+    ``t`` NULL: a landmark of the mission's start (written before any agent's data); otherwise
+    the version holds for readings from ``t`` on and running trackers re-run from there.
+    """
+
+    __tablename__ = "landmark_versions"
+    __table_args__ = (Index("ix_landmark_version_mission", "mission_id", "t"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    mission_id: Mapped[int] = mapped_column(ForeignKey("missions.id", ondelete="CASCADE"))
+    key: Mapped[str] = mapped_column(String(200))
+    t: Mapped[float | None] = mapped_column(Float, nullable=True)
+    data: Mapped[dict[str, Any]] = mapped_column(JSON)
+
+
 class Agent(Base):
     """A rescuer or robot of a mission."""
 

@@ -8,8 +8,9 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from hrtls.service.estimate_rows import row_dict
 from hrtls.service.events import event_dict, order_dict
-from hrtls.service.host import TrackerHost, row_dict
+from hrtls.service.host import TrackerHost
 from hrtls.service.hub import for_floor
 from hrtls.service.models import Agent, EstimateRow, EventRow, Mission, OrderRow
 from hrtls.service.views import agent_out

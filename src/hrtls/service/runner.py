@@ -19,6 +19,7 @@ import numpy as np
 from hrtls.data import Landmark, Session
 from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.data.session import SessionMeta
+from hrtls.errors import InputError
 from hrtls.pipeline import Tracker, preset
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.tracker import RATE_SAMPLES
@@ -28,12 +29,17 @@ from hrtls.service.settings import Settings
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """What a tracker of one agent is built from: preset, session metadata, landmarks (JSON)."""
+    """What a tracker of one agent is built from: preset, session metadata, landmarks (JSON).
+
+    ``landmarks`` hold from the start; ``versions`` (each with its ``updated`` time, in time
+    order) from their times on (:mod:`hrtls.service.landmark_versions`).
+    """
 
     agent_id: int
     preset: str
     meta: dict[str, Any]
     landmarks: tuple[dict[str, Any], ...] = ()
+    versions: tuple[dict[str, Any], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -43,6 +49,10 @@ class Rows:
     final: Estimates | None
     provisional: Estimates | None
     t_final: float
+
+
+class StaleSnapshot(Exception):
+    """A snapshot lacks a landmark version from before the data it had consumed."""
 
 
 START_WITHOUT_IMU_S = 30.0
@@ -55,6 +65,7 @@ class _Agent:
     preset: str
     meta: SessionMeta
     landmarks: dict[str, Landmark]
+    versions: list[Landmark]
     t_final: float = -math.inf
     held: list[Session] = field(default_factory=list)
     carried: Estimates | None = None
@@ -104,6 +115,7 @@ class InProcessRunner:
         """Fresh tracker (started by the first chunk with a motion source) or restored."""
         meta = SessionMeta.model_validate(spec.meta)
         landmarks = {d["id"]: Landmark.model_validate(d) for d in spec.landmarks}
+        versions = [Landmark.model_validate(d) for d in spec.versions]
         preset(spec.preset)  # an unknown name fails here, not at the first batch
         tracker, carried = None, None
         if state is not None:
@@ -112,8 +124,13 @@ class InProcessRunner:
             tracker.keep_attitude = False
             t_final = d["t_final"]
             carried = None if d["carried"] is None else _unpack_rows(d["carried"])
-        self._agents[spec.agent_id] = _Agent(tracker, spec.preset, meta, landmarks, t_final,
-                                             carried=carried)
+            new = [v for v in versions if not tracker.engine.versions.knows(v)]
+            try:
+                tracker.update_landmarks(new)
+            except InputError as exc:
+                raise StaleSnapshot(f"agent {spec.agent_id}: {exc}") from exc
+        self._agents[spec.agent_id] = _Agent(tracker, spec.preset, meta, landmarks, versions,
+                                             t_final, carried=carried)
 
     def feed(self, agent_id: int, batches: list[Batch]) -> Rows:
         """Feed the chunks of ``batches``; rows after the last final row.
@@ -133,6 +150,7 @@ class InProcessRunner:
             if _ready(a.held):
                 a.tracker = Tracker(preset(a.preset), keep_attitude=False)
                 a.tracker.start_session(_start_session(a.held))
+                a.tracker.update_landmarks(a.versions)
                 for held in a.held:
                     a.tracker.update(held)
                 a.held = []

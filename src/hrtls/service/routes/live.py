@@ -22,7 +22,7 @@ from hrtls.service.deps import (
     bearer_secret,
     mission_or_404,
 )
-from hrtls.service.host import row_dict
+from hrtls.service.estimate_rows import row_dict
 from hrtls.service.models import EstimateRow, Mission
 from hrtls.service.picture import evenly, trail
 from hrtls.service.security import COOKIE_NAME, Principal, Role

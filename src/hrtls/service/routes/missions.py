@@ -11,6 +11,12 @@ from sqlalchemy.orm import Session, undefer
 from hrtls.service import schemas
 from hrtls.service.deps import Commander, DbDep, Reader, ServicesDep, mission_or_404
 from hrtls.service.floor_image import IMAGE_TYPES, check_floor_image
+from hrtls.service.landmark_versions import (
+    VersionConflict,
+    remove_landmark,
+    versions_of,
+    write_version,
+)
 from hrtls.service.models import Floor, LandmarkRow, Mission, OrderRow
 from hrtls.service.views import floor_out, mission_out, mission_summaries
 
@@ -148,10 +154,6 @@ def delete_floor_image(mission_id: int, index: int, who: Commander, db: DbDep) -
     db.commit()
 
 
-def _landmark_json(body: schemas.LandmarkIn) -> dict[str, Any]:
-    return body.model_dump(mode="json")
-
-
 def landmarks_of(db: DbDep, mission_id: int) -> list[dict[str, Any]]:
     """The landmarks of a mission as JSON objects, by id."""
     rows = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id)
@@ -159,58 +161,75 @@ def landmarks_of(db: DbDep, mission_id: int) -> list[dict[str, Any]]:
     return [r.data for r in rows]
 
 
+def _landmark_or_none(db: DbDep, mission_id: int, landmark_id: str) -> LandmarkRow | None:
+    return db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id,
+                                                LandmarkRow.key == landmark_id)).first()
+
+
+def _write(db: DbDep, services: ServicesDep, mission: Mission,
+           body: schemas.LandmarkIn) -> dict[str, Any]:
+    """Store a version (:mod:`hrtls.service.landmark_versions`); trackers re-run from its time."""
+    try:
+        t = write_version(db, mission.id, body.model_dump(mode="json"),
+                          now_t=services.clock() - mission.t0_unix)
+    except VersionConflict as exc:
+        raise HTTPException(409, str(exc)) from exc
+    db.commit()
+    services.host.landmarks_changed(mission.id, t)
+    row = _landmark_or_none(db, mission.id, body.id)
+    assert row is not None
+    return row.data
+
+
 @router.post("/missions/{mission_id}/landmarks", status_code=201)
-def create_landmark(mission_id: int, body: schemas.LandmarkIn, who: Commander,
-                    db: DbDep) -> dict[str, Any]:
+def create_landmark(mission_id: int, body: schemas.LandmarkIn, who: Commander, db: DbDep,
+                    services: ServicesDep) -> dict[str, Any]:
     """Add a landmark; 409 when its id exists."""
-    mission_or_404(db, mission_id)
-    exists = db.scalars(select(LandmarkRow.id).where(LandmarkRow.mission_id == mission_id,
-                                                     LandmarkRow.key == body.id)).first()
-    if exists is not None:
+    mission = mission_or_404(db, mission_id)
+    if _landmark_or_none(db, mission_id, body.id) is not None:
         raise HTTPException(409, f"landmark {body.id!r} exists in mission {mission_id} "
                                  "(PUT replaces it)")
-    data = _landmark_json(body)
-    db.add(LandmarkRow(mission_id=mission_id, key=body.id, data=data))
-    db.commit()
-    return data
+    return _write(db, services, mission, body)
 
 
 @router.get("/missions/{mission_id}/landmarks")
 def list_landmarks(mission_id: int, who: Reader, db: DbDep) -> list[dict[str, Any]]:
-    """The landmarks of a mission."""
+    """The landmarks of a mission (each in its current version)."""
     mission_or_404(db, mission_id)
     return landmarks_of(db, mission_id)
 
 
+@router.get("/missions/{mission_id}/landmark-versions")
+def list_landmark_versions(mission_id: int, who: Reader, db: DbDep) -> list[dict[str, Any]]:
+    """Every stored version: the start landmarks (``t`` null), then the later ones by time."""
+    mission_or_404(db, mission_id)
+    start, timed = versions_of(db, mission_id)
+    return [{"t": None, "landmark": d} for d in start] \
+        + [{"t": d["updated"], "landmark": d} for d in timed]
+
+
 @router.put("/missions/{mission_id}/landmarks/{landmark_id}")
 def put_landmark(mission_id: int, landmark_id: str, body: schemas.LandmarkIn, who: Commander,
-                 db: DbDep) -> dict[str, Any]:
+                 db: DbDep, services: ServicesDep) -> dict[str, Any]:
     """Create or replace a landmark (the path id must equal the body id)."""
-    mission_or_404(db, mission_id)
+    mission = mission_or_404(db, mission_id)
     if body.id != landmark_id:
         raise HTTPException(422, f"body id {body.id!r} differs from the path id "
                                  f"{landmark_id!r}")
-    row = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id,
-                                               LandmarkRow.key == landmark_id)).first()
-    data = _landmark_json(body)
-    if row is None:
-        db.add(LandmarkRow(mission_id=mission_id, key=landmark_id, data=data))
-    else:
-        row.data = data
-    db.commit()
-    return data
+    return _write(db, services, mission, body)
 
 
 @router.delete("/missions/{mission_id}/landmarks/{landmark_id}", status_code=204)
-def delete_landmark(mission_id: int, landmark_id: str, who: Commander, db: DbDep) -> None:
-    """Remove a landmark."""
-    mission_or_404(db, mission_id)
-    row = db.scalars(select(LandmarkRow).where(LandmarkRow.mission_id == mission_id,
-                                               LandmarkRow.key == landmark_id)).first()
+def delete_landmark(mission_id: int, landmark_id: str, who: Commander, db: DbDep,
+                    services: ServicesDep) -> None:
+    """Remove a landmark: from the start before any data, else destroyed from now on."""
+    mission = mission_or_404(db, mission_id)
+    row = _landmark_or_none(db, mission_id, landmark_id)
     if row is None:
         raise HTTPException(404, f"landmark {landmark_id!r} not found in mission {mission_id}")
-    db.delete(row)
+    t = remove_landmark(db, row, now_t=services.clock() - mission.t0_unix)
     db.commit()
+    services.host.landmarks_changed(mission_id, t)
 
 
 @router.get("/missions/{mission_id}/infrastructure", response_model=schemas.InfrastructureOut)
