@@ -197,6 +197,8 @@ def main() -> None:
     ap.add_argument("--rescuers", type=int, default=3)
     ap.add_argument("--robots", type=int, default=0)
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
+    ap.add_argument("--range-sigma-fraction", type=float, default=0.0,
+                    help="range noise proportional to the distance (0.02: the issue's 2 %%)")
     ap.add_argument("--node-failure", type=float, default=0.0)
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
@@ -208,6 +210,7 @@ def main() -> None:
     batch = Batch.of(args)
     opts = MissionOptions(n_rescuers=args.rescuers, n_robots=args.robots, n_nodes=args.nodes,
                           range_sigma_m=args.range_sigma_m,
+                          range_sigma_fraction=args.range_sigma_fraction,
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],

@@ -36,6 +36,7 @@ from hrtls.sim.infrastructure import (
     rss_readings,
 )
 from hrtls.sim.magnetic import EarthField, MagneticAnomaly, MagneticEnvironment
+from hrtls.sim.mission import MissionOptions
 from hrtls.sim.motion_truth import (
     Waypoint,
     build_geometry,
@@ -308,6 +309,25 @@ def test_ranges_max_range_and_nlos_bias():
     assert np.all(r.range_m >= d - 1e-6)
     assert np.any(r.range_m > d + 0.1)  # blocked by the wall somewhere
     assert np.all(np.isfinite(r.sigma_m))
+
+
+def test_proportional_range_noise_grows_with_distance_and_is_reported() -> None:
+    """2 % noise: the spread of (range - distance) / distance is 0.02 at every distance."""
+    t = np.arange(0.0, 2000.0, 0.01)
+    x = np.where(t < 1000.0, 1.0, 9.0)
+    track = TrackSample(t, np.column_stack([x, np.zeros_like(t), np.zeros_like(t)]),
+                        np.zeros_like(t), np.zeros_like(t))
+    model = RangeModel(rate_hz=20.0, sigma_m=0.0, sigma_fraction=0.02, max_range_m=20.0,
+                       dropout_probability=0.0, agent_height_m=0.0)
+    r = range_measurements({"N": (0.0, 0.0, 0.0)}, model, track, np.random.default_rng(3))
+    d = np.where(r.t < 1000.0, 1.0, 9.0)
+    for near in (True, False):
+        m = (d == 1.0) if near else (d == 9.0)
+        assert m.sum() > 10_000
+        assert abs(np.std((r.range_m[m] - d[m]) / d[m]) - 0.02) < 0.001
+    np.testing.assert_allclose(r.sigma_m, 0.02 * r.range_m)
+    with pytest.raises(InputError, match="fraction"):
+        MissionOptions(range_sigma_fraction=-0.1)
 
 
 def test_random_wsn_links_and_json():

@@ -299,7 +299,10 @@ class RangeModel:
     Attributes
     ----------
     rate_hz: ranging attempts per node per second.
-    sigma_m: 1-sigma Gaussian range noise, m (reported in ``ranges.csv``).
+    sigma_m: 1-sigma Gaussian range noise independent of the distance, m.
+    sigma_fraction: 1-sigma Gaussian range noise proportional to the true distance (0.02: 2 %);
+        the two add in variance. ``ranges.csv`` reports ``sqrt(sigma_m^2 + (sigma_fraction
+        r)^2)`` of the measured range ``r`` (what a radio's data sheet lets the agent compute).
     max_range_m: no measurement beyond this distance.
     nlos_bias_mean_m: mean of the exponential positive bias when the line of sight is blocked.
     walls: obstacles (shapely geometry); a segment crossing them is NLOS. None: always LOS.
@@ -309,6 +312,7 @@ class RangeModel:
 
     rate_hz: float = 1.0
     sigma_m: float = 0.3
+    sigma_fraction: float = 0.0
     max_range_m: float = 5.0
     nlos_bias_mean_m: float = 1.0
     walls: BaseGeometry | None = None
@@ -333,7 +337,8 @@ def range_measurements(nodes: Mapping[str, Sequence[float]], model: RangeModel,
         keep = (d <= model.max_range_m) & (rng.random(len(d)) >= model.dropout_probability)
         if not np.any(keep):
             continue
-        rng_m = d[keep] + rng.normal(0.0, model.sigma_m, int(keep.sum()))
+        sd = np.hypot(model.sigma_m, model.sigma_fraction * d[keep])
+        rng_m = d[keep] + sd * rng.standard_normal(int(keep.sum()))
         if model.walls is not None and model.nlos_bias_mean_m > 0:
             segs = shapely.linestrings(np.stack([
                 np.column_stack([xyz[keep, 0], xyz[keep, 1]]),
@@ -347,8 +352,9 @@ def range_measurements(nodes: Mapping[str, Sequence[float]], model: RangeModel,
         return None
     t = np.concatenate(t_all)
     order = np.argsort(t, kind="stable")
-    return RangeMeasurements(t[order], np.asarray(ids)[np.concatenate(n_all)[order]],
-                             np.concatenate(r_all)[order], np.full(len(t), model.sigma_m))
+    r = np.concatenate(r_all)[order]
+    return RangeMeasurements(t[order], np.asarray(ids)[np.concatenate(n_all)[order]], r,
+                             np.hypot(model.sigma_m, model.sigma_fraction * r))
 
 
 # --------------------------------------------------------------------------------------------

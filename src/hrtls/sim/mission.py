@@ -5,7 +5,8 @@ radio line of sight), RFID tags at the entrance doors with known positions, and 
 nodes dropped at random in the corridors without positions. ``n_rescuers`` rescuers with a waist
 IMU enter one after the other (``stagger_s`` apart) from the entrance and walk random routes
 through the corridors, ranging to every node within ``max_range_m`` (Gaussian noise
-``range_sigma_m``, exponential NLOS bias behind walls, dropouts, failed nodes never answer).
+``range_sigma_m`` plus ``range_sigma_fraction`` of the distance, exponential NLOS bias behind
+walls, dropouts, failed nodes never answer).
 
 The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
@@ -67,6 +68,8 @@ class MissionOptions:
     walk_s: float = 300.0
     stagger_s: float = 60.0
     range_sigma_m: float = 0.1
+    range_sigma_fraction: float = 0.0
+    """Range noise proportional to the distance (0.02: 2 %), in variance added to the above."""
     max_range_m: float = 10.0
     nlos_bias_mean_m: float = 1.0
     node_failure_fraction: float = 0.0
@@ -77,6 +80,10 @@ class MissionOptions:
         if self.n_rescuers < 1 or self.n_nodes < 1:
             raise InputError(f"{self.n_rescuers} rescuers, {self.n_nodes} nodes",
                              where="MissionOptions", expected=">= 1 each")
+        if not (0.0 <= self.range_sigma_fraction < 1.0 and self.range_sigma_m >= 0.0):
+            raise InputError(f"range_sigma_m = {self.range_sigma_m}, range_sigma_fraction = "
+                             f"{self.range_sigma_fraction}", where="MissionOptions",
+                             expected="sigma >= 0 m and a fraction in [0, 1)")
         if not 0.0 <= self.node_failure_fraction < 1.0:
             raise InputError(f"node_failure_fraction = {self.node_failure_fraction}",
                              where="MissionOptions", expected="in [0, 1)")
@@ -118,7 +125,8 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     tags = [RfidTag(id="T1", position=(1.5, 0.2, 2.2), lobe_orientation_rad=np.pi / 2, floor=0),
             RfidTag(id="T2", position=(0.2, 1.5, 2.2), lobe_orientation_rad=0.0, floor=0)]
     sites = np.column_stack([r[7].uniform(0, 60, 15), r[7].uniform(0, 30, 15), np.full(15, 0.8)])
-    model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m, max_range_m=o.max_range_m,
+    model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m,
+                       sigma_fraction=o.range_sigma_fraction, max_range_m=o.max_range_m,
                        nlos_bias_mean_m=o.nlos_bias_mean_m, walls=ROOMS)
     agents: dict[str, Session] = {}
     sims: dict[str, SimulationResult] = {}
