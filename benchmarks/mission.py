@@ -247,7 +247,8 @@ def main() -> None:
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots, "
           f"{args.nodes} nodes, range sigma "
-          f"{args.range_sigma_m} m, node failure {args.node_failure}, agent covariance scale "
+          f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
+          f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
