@@ -132,7 +132,8 @@ def prepare_session(session: Session, *, mounting: Mounting = "handheld",
         first sample).
     mounting:
         ``"handheld"``: set ``meta.mounting_q_bd`` from :func:`handheld_mounting_q_bd`;
-        ``"unknown"``: leave it unset (headings then follow the device x axis).
+        ``"unknown"``: leave it unset (headings then come from the walking motion,
+        :mod:`hrtls.gait.walking_direction`).
     rss_floors:
         ``"same"``: keep only readings of beacons on the start floor; ``"all"``: keep all.
     declination_rad:
