@@ -125,7 +125,7 @@ def main() -> None:
         e = np.concatenate(parts)
         table.add_row(f"pooled {kind}", kind, "", "", "",
                       f"{np.median(e):.1f} / {np.percentile(e, 90):.1f}")
-    Console().print(table)
+    Console(width=130).print(table)
 
 
 if __name__ == "__main__":

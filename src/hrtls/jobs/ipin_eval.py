@@ -311,6 +311,8 @@ def standard_cases(weinberg_k: float | None = None) -> list[IpinCase]:
     return [
         IpinCase("PDR quat-EKF, mounting unknown",
                  cfg("pdr-qekf-unknown", attitude="quat-ekf"), mounting="unknown"),
+        IpinCase("PDR device AHRS, mounting unknown", cfg("pdr-device-unknown"),
+                 mounting="unknown"),
         IpinCase("PDR device + Fourier heading, mounting unknown",
                  cfg("pdr-device-fourier", heading="fourier"), mounting="unknown"),
         IpinCase("PDR device + Fourier + RSS tight, mounting unknown",
