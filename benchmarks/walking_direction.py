@@ -13,11 +13,11 @@ the mounting unknown the first steps get none, ``settle_steps``).
 Known mountings: mobgap lower back (the reader's: x up, z forward); IPIN 2023 and the Oxford
 ``hand`` file (a phone held in front: the top edge made horizontal,
 :func:`hrtls.pipeline.mounting.handheld_mounting_q_bd` over the whole file). The Oxford file
-has no gyroscope: its attitude is the tilt alone (gravity from a 0.3 Hz low-pass, yaw fixed to
-the device), which is all the gait stage needs here.
+has no gyroscope: its attitude is the tilt alone (gravity from a causal 0.3 Hz low-pass, yaw
+fixed to the device), which is all the gait stage needs here.
 
-Development data (the lag and forgetting factor were chosen on it): mobgap HA/001. Held out:
-HA/002, MS/001, IPIN, Oxford.
+Development data (the lag rule, forgetting factor, ``max_step_s`` and ``settle_steps`` were
+chosen on it): mobgap HA/001. Held out: HA/002, MS/001, IPIN, Oxford.
 
 Needs ``../shared/data``. Run: ``python benchmarks/walking_direction.py [--seeds 1 2 3]``.
 """
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 from rich.table import Table
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfilt, sosfilt_zi
 from scipy.spatial.transform import Rotation
 
 from hrtls.attitude.registry import make_filter
@@ -66,9 +66,9 @@ def recordings() -> Iterator[tuple[str, ImuStream, np.ndarray]]:
 
 
 def tilt_attitude(t: np.ndarray, acc: np.ndarray) -> np.ndarray:
-    """Tilt-only ``q_nd`` from low-passed gravity (yaw of device x kept at 0 where possible)."""
+    """Tilt-only ``q_nd`` from causally low-passed gravity (device x kept at yaw 0)."""
     sos = butter(2, 0.3, fs=1.0 / float(np.median(np.diff(t))), output="sos")
-    up = sosfiltfilt(sos, acc, axis=0)
+    up = sosfilt(sos, acc, axis=0, zi=sosfilt_zi(sos)[:, :, None] * acc[0])[0]
     up /= np.linalg.norm(up, axis=1, keepdims=True)
     x = np.array([1.0, 0.0, 0.0]) - up[:, :1] * up   # device x made horizontal
     x /= np.linalg.norm(x, axis=1, keepdims=True)

@@ -292,11 +292,10 @@ class GaitAnalyzer:
                  if self.mounting_known else self._unknown_mounting_forward(q_nd))
         head = self._step_headings(tt, lev, q_nd, det, fwd_d)
         held = head   # mounting unknown: the yaw of fwd_d plus the walking direction from it
-        if not self.mounting_known:
+        if self._offset_yaw:
             psi_r = np.zeros(len(tt)) if q_nd is None else heading_of(q_nd, fwd_d)
-            delta = self.direction.update(tt, lev.horizontal_m_s2, psi_r, lev.vertical_m_s2,
-                                          det.t_start, det.t_end)
-            held = wrap_angle(head + delta) if self._offset_yaw else head
+            held = wrap_angle(head + self.direction.update(
+                tt, lev.horizontal_m_s2, psi_r, lev.vertical_m_s2, det.t_start, det.t_end))
         psi_held = held_heading(self._pending, tt, det.t_end, held)
         vel_t, vel_v = self._walking_velocity(tt, lev, q_nd, fwd_d, psi_held)
 

@@ -34,8 +34,11 @@ larger than the forward one (docs/real-data.md).
 Steps longer than ``max_step_s`` are not folded in. The offset applied to the step headings is
 ``delta*``, the estimate when ``settle_steps`` steps have been folded, kept from then on: the
 first steps of a walk (gait initiation) often point ``c_k`` backwards, and a later change of
-the applied offset would enter the tracker as a turn (it adds heading *changes*). Before it,
-the steps get no heading (NaN). The running estimate stays in the state as a check.
+the applied offset would enter the tracker as a turn (it adds heading *changes*). The gait
+analyzer holds the steps that end at most ``wait_s`` before ``delta*`` is fixed and gives them
+``delta*`` too (:class:`~hrtls.gait.step_release.HeadingOffset`); earlier steps, and all of
+them when it is never fixed, get no heading (NaN). The running estimate ``atan2(c_y, c_x)``
+stays in the state.
 
 The state (``c``, the steps folded, ``delta*`` and the last seconds of samples) restores exactly,
 and a recording processed in chunks gets the same offsets as in one call.
@@ -70,8 +73,8 @@ class WalkingDirectionParams:
     forgetting_per_step: ``lambda``, weight kept by the past at each step (0 < lambda <= 1).
     prior_m2_s4: ``c0``, prior cross-moment along the reference direction, m^2/s^4.
     max_step_s: longest step used, s.
-    settle_steps: steps folded in before an offset is given (NaN before: the first steps
-        of a walk, gait initiation, often point the cross-moment backwards).
+    settle_steps: steps folded in before the applied offset ``delta*`` is fixed (the first
+        steps of a walk, gait initiation, often point the cross-moment backwards).
     wait_s: the gait analyzer holds a step up to this long after its end for ``delta*``, s.
     """
 
@@ -178,11 +181,6 @@ class WalkingDirection:
         """Back to the prior (``delta = 0``)."""
         self.state = WalkingDirectionState(
             c=np.array([self.params.prior_m2_s4, 0.0, 0.0, np.nan, np.nan]))
-
-    @property
-    def delta_rad(self) -> float:
-        """The running estimate ``atan2(c_y, c_x)``, rad (a check on the applied offset)."""
-        return math.atan2(float(self.state.c[1]), float(self.state.c[0]))
 
     def heading_offset(self) -> HeadingOffset:
         """``delta*`` for the held steps: those ending at most ``wait_s`` before it was set."""
