@@ -79,11 +79,16 @@ def test_handheld_pdr_with_device_ahrs_beats_target(sessions: dict[str, Session]
     assert error_stats(np.concatenate(pooled)).p75 < 3.3
 
 
-def test_unknown_mounting_loses_the_heading(sessions: dict[str, Session]) -> None:
-    """Without the hand-held mounting the start heading follows device x: far off."""
-    case = IpinCase("pdr-unknown", make_config(attitude="quat-ekf"), mounting="unknown")
-    for name, s in sessions.items():
-        assert np.percentile(_run(s, case), 75) > 8.0, name
+def test_unknown_mounting_walking_direction_from_the_motion(sessions: dict[str, Session]
+                                                           ) -> None:
+    """Without the hand-held mounting the walking direction comes from the walking motion
+    (hrtls.gait.walking_direction; nothing tuned on these files): p75 below the target with
+    the phone's AHRS, below 6 m with the quaternion EKF. Before, the start heading followed a
+    device axis: p75 21-27 m."""
+    for attitude, bound in (("device", TARGET_P75_M), ("quat-ekf", 6.0)):
+        case = IpinCase("pdr-unknown", make_config(attitude=attitude), mounting="unknown")
+        for name, s in sessions.items():
+            assert np.percentile(_run(s, case), 75) < bound, (attitude, name)
 
 
 def test_benchmark_config_below_target(sessions: dict[str, Session]) -> None:

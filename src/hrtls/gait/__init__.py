@@ -12,6 +12,7 @@ One module per algorithm (see ``docs``/ARCHITECTURE):
 :mod:`~hrtls.gait.pll` (Basso II-C), :mod:`~hrtls.gait.peak_steps` (Inderst 4.3.1, Tarrio III-B),
 :mod:`~hrtls.gait.step_length` and :mod:`~hrtls.gait.step_length_fit` (Weinberg, Basso II-D,
 Inderst eq. 4.25), :mod:`~hrtls.gait.fourier_heading` (Basso III),
+:mod:`~hrtls.gait.walking_direction` (walking direction from the motion, mounting unknown),
 :mod:`~hrtls.gait.velocity_automaton` (Colombo III-C), :mod:`~hrtls.gait.vertical` (levelling)
 and :mod:`~hrtls.gait.analyzer` (:class:`GaitAnalyzer`, composing them, with its parts
 :mod:`~hrtls.gait.step_heading`, :mod:`~hrtls.gait.step_release`,

@@ -25,6 +25,7 @@ running oscillator, gates steps and gives the activity when no classifier is set
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any, Literal
 
 import numpy as np
@@ -32,7 +33,7 @@ from numpy.typing import NDArray
 
 from hrtls.data import Activity, StepEvents
 from hrtls.errors import DegradedInputWarning, InputError
-from hrtls.frames import quat_conjugate, quat_rotate
+from hrtls.frames import quat_conjugate, quat_rotate, wrap_angle
 from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
 from hrtls.gait.activity_lda import LdaModel
 from hrtls.gait.activity_tree import TreeThresholds
@@ -71,6 +72,7 @@ from hrtls.gait.vertical import (
     rotate,
 )
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
+from hrtls.gait.walking_direction import WalkingDirection, WalkingDirectionParams
 from hrtls.gait.window_activity import classify_windows, feature_axes, windows_features
 
 __all__ = ["TURNING_STEP_RAD", "GaitAnalyzer", "GaitResult", "HeadingSource", "StepYaw"]
@@ -152,6 +154,8 @@ class GaitAnalyzer:
         Compute the activity features of every window even when ``activity`` is None (they
         are returned in :attr:`GaitResult.features`, e.g. for training); False skips them
         when nothing uses them (the features are then NaN).
+    walking_direction:
+        Mounting unknown: walking direction from the motion (:mod:`hrtls.gait.walking_direction`).
     """
 
     def __init__(self, *, rate_hz: float, step_detector: PeakStepDetector | PllStepDetector
@@ -168,7 +172,8 @@ class GaitAnalyzer:
                  pll_enable_m_s2: float | None = None,
                  walking_bouts: WalkingBoutParams | None = None,
                  missed_steps: MissedStepParams | None = None,
-                 step_yaw: StepYaw = "endpoints", window_features: bool = True) -> None:
+                 step_yaw: StepYaw = "endpoints", window_features: bool = True,
+                 walking_direction: WalkingDirectionParams | None = None) -> None:
         check_positive(rate_hz, "rate_hz")
         self.window_features = bool(window_features)
         if step_yaw not in ("endpoints", "mean", "turns"):
@@ -199,9 +204,8 @@ class GaitAnalyzer:
         self.window_samples = max(4, round(window_s * rate_hz))
         self._act_filter = StreamingButterworth(order=5, cutoff_hz=min(cutoff, 0.45 * rate_hz),
                                                 rate_hz=rate_hz)
-        self._step_filter = StreamingButterworth(order=4, cutoff_hz=min(step_cutoff_hz,
-                                                                        0.45 * rate_hz),
-                                                 rate_hz=rate_hz)
+        self._step_filter = StreamingButterworth(
+            order=4, cutoff_hz=min(step_cutoff_hz, 0.45 * rate_hz), rate_hz=rate_hz)
         self.gate_steps_with_motion = gate_steps_with_motion
         if not (math.isfinite(gate_lookahead_s) and gate_lookahead_s >= 0):
             raise InputError(f"gate_lookahead_s = {gate_lookahead_s}", where="gate_lookahead_s",
@@ -219,6 +223,8 @@ class GaitAnalyzer:
         self.bouts = None if walking_bouts is None else WalkingBoutDetector(
             walking_bouts, history_s=window_s + 2.0 * walking_bouts.max_gap_s + 2.0)
         self.filler = None if missed_steps is None else MissedStepFiller(missed_steps)
+        self.direction = WalkingDirection(walking_direction)
+        self._offset_yaw = not self.mounting_known and heading == "yaw"
         # windows wait for the bout decision when the bouts give the activity
         self._bout_labels = self.bouts is not None and activity is None
         self.reset()
@@ -227,6 +233,7 @@ class GaitAnalyzer:
         """Start over (all estimators reset)."""
         self.step_detector.reset()
         self.fourier.reset()
+        self.direction.reset()
         if self.velocity is not None:
             self.velocity.reset()
         self.motion.reset()
@@ -247,9 +254,7 @@ class GaitAnalyzer:
     # ------------------------------------------------------------------ helpers
     def _level(self, t: FloatArray, acc: FloatArray,
                q_nd: FloatArray | None) -> LevelledAcceleration:
-        if q_nd is None:
-            return self._levelling.update(t, acc)
-        return from_orientation(t, acc, q_nd)
+        return self._levelling.update(t, acc) if q_nd is None else from_orientation(t, acc, q_nd)
 
     def _steps_complete_s(self) -> float:
         """Time before which the step detector has reported all its steps (reported times)."""
@@ -286,7 +291,12 @@ class GaitAnalyzer:
         fwd_d = (quat_rotate(quat_conjugate(self.q_bd), np.array([1.0, 0.0, 0.0]))
                  if self.mounting_known else self._unknown_mounting_forward(q_nd))
         head = self._step_headings(tt, lev, q_nd, det, fwd_d)
-        psi_held = held_heading(self._pending, tt, det.t_end, head)
+        held = head   # mounting unknown: the yaw of fwd_d plus the walking direction from it
+        if self._offset_yaw:
+            psi_r = np.zeros(len(tt)) if q_nd is None else heading_of(q_nd, fwd_d)
+            held = wrap_angle(head + self.direction.update(
+                tt, lev.horizontal_m_s2, psi_r, lev.vertical_m_s2, det.t_start, det.t_end))
+        psi_held = held_heading(self._pending, tt, det.t_end, held)
         vel_t, vel_v = self._walking_velocity(tt, lev, q_nd, fwd_d, psi_held)
 
         # --- activity windows
@@ -447,7 +457,8 @@ class GaitAnalyzer:
         return release_steps(self._pending, final=final, t_last=self._t_last,
                              gate_lookahead_s=self.gate_lookahead_s if self._gate else None,
                              bouts=self.bouts, step_model=self.step_model, stairs=self.stairs,
-                             keep_s=EXCURSION_BUFFER_S)
+                             keep_s=EXCURSION_BUFFER_S,
+                             offset=self.direction.heading_offset() if self._offset_yaw else None)
 
     def flush(self) -> GaitResult:
         """End of the recording: release held steps and label the last partial window."""
@@ -477,12 +488,10 @@ class GaitAnalyzer:
                           step_excursion_m=h)
 
     def _unknown_mounting_forward(self, q_nd: FloatArray | None) -> FloatArray:
-        """The device axis whose yaw stands for the walking direction, mounting unknown.
+        """The reference axis, mounting unknown (its yaw plus the offset is the walking direction).
 
         :func:`~hrtls.gait.step_heading.level_forward_axis` at the first sample with an
-        attitude (device x only when it is that axis; one sample, so any split into chunks
-        chooses alike), kept for the whole recording. A lower-back sensor strapped with x up
-        made the yaw of x noise (turns off by 30-120 deg).
+        attitude (one sample: any split into chunks chooses alike), kept for the recording.
         """
         if self._forward_d is None and q_nd is not None and len(q_nd):
             self._forward_d = level_forward_axis(q_nd[0])
@@ -513,6 +522,7 @@ class GaitAnalyzer:
                 "kind": "pll" if isinstance(self.step_detector, PllStepDetector) else "peak",
                 "state": self.step_detector.state.to_dict()},
             "fourier": self.fourier.state.to_dict(),
+            "walking_direction": self.direction.to_dict(),
             "velocity": None if self.velocity is None else self.velocity.state.to_dict(),
             "act_filter_zi": None if self._act_filter.zi is None else self._act_filter.zi.tolist(),
             "step_filter_zi": (None if self._step_filter.zi is None
@@ -556,6 +566,7 @@ class GaitAnalyzer:
             else:
                 self.step_detector.state = PeakStepState.from_dict(d["step_detector"]["state"])
             self.fourier.state = FourierHeadingState.from_dict(d["fourier"])
+            self.direction.from_dict(d.get("walking_direction"))
             if self.velocity is not None:
                 self.velocity.state = AutomatonState.from_dict(d["velocity"])
             self._act_filter.zi = (None if d["act_filter_zi"] is None
@@ -577,8 +588,6 @@ class GaitAnalyzer:
         """Whole recording: reset, one update, flush; returns the joined result."""
         self.reset()
         if q_nd is None:
-            import warnings
-
             warnings.warn("no orientation: accelerometer-only levelling, headings are "
                           "relative to the device", DegradedInputWarning, stacklevel=2)
         first = self.update(t, acc_d_m_s2, q_nd)

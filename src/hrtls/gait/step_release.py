@@ -8,30 +8,56 @@ decided (it is kept only inside a bout).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from hrtls.data import Activity, StepEvents
+from hrtls.frames import wrap_angle
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
 from hrtls.gait.pll import StepDetection
+from hrtls.gait.step_heading import HEADING_HOLD_DELAY_S
 from hrtls.gait.step_length import StairsModel, StepModel, displacements
 from hrtls.gait.walking_bouts import WalkingBoutDetector
 
-__all__ = ["release_steps"]
+__all__ = ["HeadingOffset", "release_steps"]
+
+
+@dataclass(frozen=True, slots=True)
+class HeadingOffset:
+    """A heading offset that becomes known at a time (``known_at_s``, data time).
+
+    It is added to the headings of the steps that end at most ``wait_s`` before it (NaN to the
+    others); those steps are held until it is known or ``wait_s + HEADING_HOLD_DELAY_S`` after
+    their end (by then a step that sets it is reported), so that chunks and one call release
+    the same headings.
+    """
+
+    offset_rad: float
+    known_at_s: float
+    wait_s: float
+
+    def per_step(self, t_end: FloatArray) -> FloatArray:
+        """The offset of each step (NaN where it does not apply)."""
+        ok = np.isfinite(self.offset_rad) & (self.known_at_s <= t_end + self.wait_s)
+        return np.where(ok, self.offset_rad, np.nan)
 
 
 def release_steps(pend: PendingGait, *, final: bool, t_last: float,
                   gate_lookahead_s: float | None, bouts: WalkingBoutDetector | None,
-                  step_model: StepModel, stairs: StairsModel,
-                  keep_s: float) -> tuple[StepEvents, FloatArray]:
+                  step_model: StepModel, stairs: StairsModel, keep_s: float,
+                  offset: HeadingOffset | None = None) -> tuple[StepEvents, FloatArray]:
     """The steps of ``pend`` that are final (all when ``final``) and their excursions.
 
-    ``gate_lookahead_s`` None: no step gate. The released steps leave ``pend``, and so do the
-    windows and the gate's motion history (older than ``keep_s`` before ``t_last``) that the
-    steps still held no longer need.
+    ``gate_lookahead_s`` None: no step gate. ``offset``: added to the held headings (see
+    :class:`HeadingOffset`). The released steps leave ``pend``, and so do the windows and the
+    gate's motion history (older than ``keep_s`` before ``t_last``) that the steps still held
+    no longer need.
     """
     det = StepDetection.concat(pend.steps)
-    head = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
+    raw = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
+    head = raw
     exc = np.concatenate(pend.excursions) if pend.excursions else np.zeros(0)
     ends = np.asarray(pend.win_end)
     labels = np.asarray(pend.win_label, dtype=np.int64)
@@ -43,6 +69,12 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
             ready &= det.t_end + gate_lookahead_s <= t_last
     if bouts is not None and not final:
         ready &= bouts.decided(det.t_end)
+    if offset is not None:
+        off = offset.per_step(det.t_end)
+        head = wrap_angle(raw + off)
+        if not final:
+            ready &= np.isfinite(off) | (det.t_end + offset.wait_s + HEADING_HOLD_DELAY_S
+                                         <= t_last)
     sel = np.flatnonzero(ready)
     rest = np.flatnonzero(~ready)
     if gate_lookahead_s is not None:
@@ -56,7 +88,7 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
     length, dz = displacements(released, act, step_model, stairs, exc[sel])
     pend.steps = [StepDetection(det.t_start[rest], det.t_end[rest], det.frequency_hz[rest],
                                 det.acc_max[rest], det.acc_min[rest])]
-    pend.headings = [head[rest]]
+    pend.headings = [raw[rest]]
     pend.excursions = [exc[rest]]
     # keep only windows that pending steps may still need
     if ends.size > 1:

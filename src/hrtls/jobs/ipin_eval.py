@@ -132,7 +132,8 @@ def prepare_session(session: Session, *, mounting: Mounting = "handheld",
         first sample).
     mounting:
         ``"handheld"``: set ``meta.mounting_q_bd`` from :func:`handheld_mounting_q_bd`;
-        ``"unknown"``: leave it unset (headings then follow the device x axis).
+        ``"unknown"``: leave it unset (headings then come from the walking motion,
+        :mod:`hrtls.gait.walking_direction`).
     rss_floors:
         ``"same"``: keep only readings of beacons on the start floor; ``"all"``: keep all.
     declination_rad:
@@ -310,6 +311,8 @@ def standard_cases(weinberg_k: float | None = None) -> list[IpinCase]:
     return [
         IpinCase("PDR quat-EKF, mounting unknown",
                  cfg("pdr-qekf-unknown", attitude="quat-ekf"), mounting="unknown"),
+        IpinCase("PDR device AHRS, mounting unknown", cfg("pdr-device-unknown"),
+                 mounting="unknown"),
         IpinCase("PDR device + Fourier heading, mounting unknown",
                  cfg("pdr-device-fourier", heading="fourier"), mounting="unknown"),
         IpinCase("PDR device + Fourier + RSS tight, mounting unknown",

@@ -184,8 +184,9 @@ def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
         window_features=g.activity != "motion",
     )
     if meta.mounting_q_bd is None and g.heading == "yaw":
-        notes.add("device mounting unknown: step headings follow the device x axis; only "
-                  "their changes are used (heading in the state)")
+        notes.add("device mounting unknown: step headings are the yaw of a level device axis "
+                  "plus the walking direction found from the walking motion (none for the "
+                  "first steps)")
     return gait
 
 
