@@ -51,6 +51,7 @@ from hrtls.gait.motion_detector import (
 )
 from hrtls.gait.peak_steps import PeakStepDetector, PeakStepState
 from hrtls.gait.pll import PllState, PllStepDetector, StepDetection
+from hrtls.gait.stairs_climb import ClimbParams, climb_heights
 from hrtls.gait.step_heading import (
     TURNING_STEP_RAD,
     StepYaw,
@@ -152,6 +153,9 @@ class GaitAnalyzer:
         Compute the activity features of every window even when ``activity`` is None (they
         are returned in :attr:`GaitResult.features`, e.g. for training); False skips them
         when nothing uses them (the features are then NaN).
+    climb:
+        With ``activity`` None: label walking steps that climb up/downstairs
+        (:mod:`hrtls.gait.stairs_climb`); None: off.
     """
 
     def __init__(self, *, rate_hz: float, step_detector: PeakStepDetector | PllStepDetector
@@ -168,7 +172,8 @@ class GaitAnalyzer:
                  pll_enable_m_s2: float | None = None,
                  walking_bouts: WalkingBoutParams | None = None,
                  missed_steps: MissedStepParams | None = None,
-                 step_yaw: StepYaw = "endpoints", window_features: bool = True) -> None:
+                 step_yaw: StepYaw = "endpoints", window_features: bool = True,
+                 climb: ClimbParams | None = None) -> None:
         check_positive(rate_hz, "rate_hz")
         self.window_features = bool(window_features)
         if step_yaw not in ("endpoints", "mean", "turns"):
@@ -183,6 +188,7 @@ class GaitAnalyzer:
         self.step_model: StepModel = step_model or WeinbergModel()
         self.stairs = stairs or StairsModel()
         self.activity = activity
+        self.climb = climb if activity is None else None
         self.heading: HeadingSource = heading
         self.fourier = fourier or FourierHeading()
         self.velocity = velocity
@@ -358,9 +364,9 @@ class GaitAnalyzer:
         vb_t = np.concatenate([pm.vb_t, tt])
         vb_a = np.concatenate([pm.vb_a, lev.vertical_m_s2])
         exc = vertical_excursion(vb_t, vb_a, det.t_start, det.t_end)
+        pm.climbs.append(climb_heights(pm, vb_t, tt, lev.vertical_m_s2, det, self.climb))
         recent = vb_t >= tt[-1] - EXCURSION_BUFFER_S
-        pm.vb_t = vb_t[recent]
-        pm.vb_a = vb_a[recent]
+        pm.vb_t, pm.vb_a, pm.vb_h = vb_t[recent], vb_a[recent], pm.vb_h[recent]
         if self._gate:
             pm.mt = np.concatenate([pm.mt, tt])
             pm.mv = np.concatenate([pm.mv, (motion.state != STILL).astype(np.int64)])
@@ -447,7 +453,7 @@ class GaitAnalyzer:
         return release_steps(self._pending, final=final, t_last=self._t_last,
                              gate_lookahead_s=self.gate_lookahead_s if self._gate else None,
                              bouts=self.bouts, step_model=self.step_model, stairs=self.stairs,
-                             keep_s=EXCURSION_BUFFER_S)
+                             keep_s=EXCURSION_BUFFER_S, climb=self.climb)
 
     def flush(self) -> GaitResult:
         """End of the recording: release held steps and label the last partial window."""

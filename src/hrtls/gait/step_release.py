@@ -14,6 +14,7 @@ from hrtls.data import Activity, StepEvents
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
 from hrtls.gait.pll import StepDetection
+from hrtls.gait.stairs_climb import ClimbParams, climb_labels
 from hrtls.gait.step_length import StairsModel, StepModel, displacements
 from hrtls.gait.walking_bouts import WalkingBoutDetector
 
@@ -23,16 +24,19 @@ __all__ = ["release_steps"]
 def release_steps(pend: PendingGait, *, final: bool, t_last: float,
                   gate_lookahead_s: float | None, bouts: WalkingBoutDetector | None,
                   step_model: StepModel, stairs: StairsModel,
-                  keep_s: float) -> tuple[StepEvents, FloatArray]:
+                  keep_s: float, climb: ClimbParams | None = None
+                  ) -> tuple[StepEvents, FloatArray]:
     """The steps of ``pend`` that are final (all when ``final``) and their excursions.
 
-    ``gate_lookahead_s`` None: no step gate. The released steps leave ``pend``, and so do the
+    ``gate_lookahead_s`` None: no step gate; ``climb``: label the walking steps that climb
+    (:mod:`hrtls.gait.stairs_climb`). The released steps leave ``pend``, and so do the
     windows and the gate's motion history (older than ``keep_s`` before ``t_last``) that the
     steps still held no longer need.
     """
     det = StepDetection.concat(pend.steps)
     head = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
     exc = np.concatenate(pend.excursions) if pend.excursions else np.zeros(0)
+    dh = np.concatenate(pend.climbs) if pend.climbs else np.zeros(0)
     ends = np.asarray(pend.win_end)
     labels = np.asarray(pend.win_label, dtype=np.int64)
     if final:
@@ -53,11 +57,13 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
     act = _step_activity(det.t_end[sel], ends, labels, pend.last_label)
     released = StepDetection(det.t_start[sel], det.t_end[sel], det.frequency_hz[sel],
                              det.acc_max[sel], det.acc_min[sel])
+    act = climb_labels(act, released, dh[sel], pend.climb, climb)
     length, dz = displacements(released, act, step_model, stairs, exc[sel])
     pend.steps = [StepDetection(det.t_start[rest], det.t_end[rest], det.frequency_hz[rest],
                                 det.acc_max[rest], det.acc_min[rest])]
     pend.headings = [head[rest]]
     pend.excursions = [exc[rest]]
+    pend.climbs = [dh[rest]]
     # keep only windows that pending steps may still need
     if ends.size > 1:
         keep_from = ends.size - 1

@@ -29,6 +29,7 @@ from hrtls.errors import FormatError, InputError
 from hrtls.fusion.channel import ChannelEstimatorParams
 from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.random_walk import RandomWalkParams
+from hrtls.gait.stairs_climb import ClimbParams
 from hrtls.pipeline.step_scale import StepScaleParams
 
 
@@ -149,6 +150,14 @@ class GaitConfig(_Section):
     vs standing. Adds up to about 4 s of step latency."""
     fill_missed_steps: bool = False
     """insert one step in a gap of 1.6-2.4 local step periods (:mod:`hrtls.gait.missed_steps`)"""
+    climb_stairs: bool = False
+    """with activity = "motion": label walking steps whose vertical climb is a stair's
+    upstairs / downstairs (:mod:`hrtls.gait.stairs_climb`); off by default: it labels stairs
+    on real flat walks (docs/real-data.md, issue 19)"""
+    climb: dict[str, Any] = _table(ClimbParams)
+    """The climb detector (:class:`hrtls.gait.stairs_climb.ClimbParams`)."""
+
+    _complete_climb = field_validator("climb")(lambda v: _complete(ClimbParams, v))
 
 
 class PredictionConfig(_Section):
