@@ -14,6 +14,7 @@ from tests.gait._chunks import run_with_restarts
 from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.gait.analyzer import GaitAnalyzer
+from hrtls.gait.analyzer_state import PendingGait
 from hrtls.gait.pll import StepDetection
 from hrtls.gait.stairs_climb import ClimbParams, climb_height_kernel, climb_labels
 from hrtls.gait.synthetic import SimPerson, random_mounting, simulate
@@ -44,7 +45,7 @@ def climb_profile() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def test_climb_per_step_hand_computed() -> None:
     t, a, bounds = climb_profile()
-    st = np.array([np.nan, 0.0, np.nan, 0.0, 0.0, np.nan, 0.0, 0.0, -np.inf])
+    st = PendingGait().climb
     h = np.empty_like(t)
     p = ClimbParams()
     climb_height_kernel(t, a, st, p.bias_s, p.leak_s, p.max_gap_s, h)
@@ -104,39 +105,71 @@ def test_two_floor_mission_without_barometer() -> None:
     from hrtls.sim.scenarios import run_scenario
 
     session = run_scenario("inderst_multifloor", 101).session
-    cfg = preset("default")
-    cfg = cfg.model_copy(update={"barometer": False, "gait": cfg.gait.model_copy(
-        update={"climb_stairs": True})})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = Tracker(cfg).run(session)
-    f = floor_detection(result.trajectory, session.truth, session.checkpoints,
-                        floor_height_m=session.meta.floor_height_m)
-    assert f is not None and f["time_share_correct_on_floors"] >= 0.95
-    # off (the default): the motion activity labels no stairs and the floor never changes
-    plain = preset("default").model_copy(update={"barometer": False})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        act = Tracker(plain).run(session).steps.activity
-    assert not np.any((act == Activity.UPSTAIRS) | (act == Activity.DOWNSTAIRS))
+    assert session.meta.placement in preset("default").gait.climb_placements
+    for climb in (True, False):
+        cfg = preset("default")
+        cfg = cfg.model_copy(update={"barometer": False, "gait": cfg.gait.model_copy(
+            update={"climb_stairs": climb})})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = Tracker(cfg).run(session)
+        f = floor_detection(result.trajectory, session.truth, session.checkpoints,
+                            floor_height_m=session.meta.floor_height_m)
+        assert f is not None
+        act = result.steps.activity
+        stairs = (act == Activity.UPSTAIRS) | (act == Activity.DOWNSTAIRS)
+        if climb:
+            assert f["time_share_correct_on_floors"] >= 0.95
+            assert 30 <= np.sum(stairs) <= 50  # 40 stairs: two flights of 10 up, two down
+        else:  # the motion activity alone labels no stairs: the floor never changes
+            assert not np.any(stairs)
+            assert f["time_share_correct_on_floors"] < 0.6
 
 
-def test_flat_real_walks_have_no_stair_step(shared_data: Path) -> None:
+def longest_run(flags: np.ndarray) -> int:
+    run = best = 0
+    for v in flags:
+        run = run + 1 if v else 0
+        best = max(best, run)
+    return best
+
+
+def test_flat_real_walks_change_no_floor(shared_data: Path) -> None:
+    """Mobilise-D lab trials (lower back, flat; straight walks and simulated daily life)."""
     from hrtls.datasets.mobgap import list_trials, load_trial
+    from hrtls.fusion.floors import floor_index
 
     root = shared_data / "mobgap_lab"
     if not root.exists():
         pytest.skip("mobgap recordings not available")
-    cfg = preset("default")
-    cfg = cfg.model_copy(update={"barometer": False, "gait": cfg.gait.model_copy(
-        update={"climb_stairs": True})})
-    walks = [tr for tr in list_trials(root) if tr.test == "Test5"]
-    assert len(walks) >= 6
-    for trial in walks:
+    cfg = preset("default").model_copy(update={"barometer": False})
+    trials = list_trials(root)
+    assert len(trials) >= 9
+    for trial in trials:
         session = load_trial(root, trial.participant, trial.test, trial.trial).session
+        assert session.meta.placement in cfg.gait.climb_placements
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             result = Tracker(cfg).run(session)
         act = result.steps.activity
-        assert not np.any((act == Activity.UPSTAIRS) | (act == Activity.DOWNSTAIRS)), trial
-        assert np.ptp(result.trajectory.xyz[:, 2]) == 0.0, trial
+        stairs = (act == Activity.UPSTAIRS) | (act == Activity.DOWNSTAIRS)
+        floors = floor_index(result.trajectory.xyz[:, 2], session.meta.floor_height_m or 3.0)
+        assert np.all(floors == floors[0]), trial
+        if trial.test == "Test5":  # straight walks: no stair step
+            assert not np.any(stairs), trial
+        assert longest_run(stairs) <= 3, trial
+
+
+def test_hand_held_phone_has_no_climb_detector(shared_data: Path) -> None:
+    path = shared_data / "ipin2023" / "IPIN2023_T3_TrainingTrial04_repetition01.txt"
+    if not path.exists():
+        pytest.skip("ipin2023 recordings not available")
+    from hrtls.recordings import read_any
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = read_any(path)
+        cfg = preset("default").model_copy(update={"barometer": False})
+        act = Tracker(cfg).run(session).steps.activity
+    assert session.meta.placement == "hand"
+    assert not np.any((act == Activity.UPSTAIRS) | (act == Activity.DOWNSTAIRS))

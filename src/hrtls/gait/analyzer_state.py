@@ -68,7 +68,7 @@ class PendingGait:
     # (hrtls.gait.stairs_climb)
     vb_h: FloatArray = field(default_factory=lambda: np.zeros(0))
     climb: FloatArray = field(default_factory=lambda: np.array(
-        [math.nan, 0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, -math.inf]))
+        [math.nan, 0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, -math.inf, -math.inf]))
     climbs: list[FloatArray] = field(default_factory=list)
     # recent unwrapped yaw of the body forward axis (heading="yaw"): times and values
     yb_t: FloatArray = field(default_factory=lambda: np.zeros(0))
@@ -128,7 +128,7 @@ class PendingGait:
         pend.vb_h = np.asarray(pd.get("vb_h", [math.nan] * pend.vb_t.shape[0]),
                                dtype=np.float64).reshape(-1)
         if "climb" in pd:
-            pend.climb = np.asarray(pd["climb"], dtype=np.float64).reshape(9)
+            pend.climb = np.asarray(pd["climb"], dtype=np.float64).reshape(10)
         pend.climbs = [np.asarray(pd.get("climbs", [math.nan] * pend.excursions[0].shape[0]),
                                   dtype=np.float64).reshape(-1)]
         pend.yb_t = np.asarray(pd["yb_t"], dtype=np.float64).reshape(-1)

@@ -15,8 +15,11 @@ oscillation has the step's period, so it cancels between two heel strikes and ``
 mean climb (a riser per step on stairs, none on a floor). What is left of the integration drift
 varies slowly, and is removed by a *baseline* ``beta`` (:func:`climb_labels_kernel`): a
 first-order low-pass of ``u`` over the steps, with time constant ``baseline_s``, that
-is not updated on the steps of a flight (while the climb differs from it), for at most
-``max_flight_s``. The climb of a step is ``c = (u - beta) T``: a walking step is upstairs when
+is not updated on steps that climb (a flight: while the climb differs from it), for at most
+``max_flight_s``. Only walking steps of at most ``max_step_s`` count: standing up from a
+chair, sitting down or shuffling move the waist up or down without stairs. After ``rest_s`` without a step (the person
+stood or sat, and the integral drifted or moved with them) it starts again at the next step's
+``u``. The climb of a step is ``c = (u - beta) T``: a walking step is upstairs when
 ``c > threshold_m``, downstairs when ``c < -threshold_m`` (a stair rise is 0.15-0.18 m).
 A flight does not turn round: a step that climbs against the last stair step, within
 ``settle_s`` of its end, is labelled walking and restarts the baseline at its ``u`` (the
@@ -46,12 +49,12 @@ from hrtls.gait.pll import StepDetection
 __all__ = ["CLIMB_STATE", "ClimbParams", "climb_heights", "climb_labels"]
 
 CLIMB_STATE = ("t_last", "elapsed_s", "bias_m_s2", "velocity_m_s", "height_m", "baseline_m_s",
-               "flight_s", "direction", "stair_end_s")
+               "flight_s", "direction", "stair_end_s", "step_end_s")
 """The detector's state: last sample time (NaN before the first), time integrated, vertical
 bias, velocity and relative height (:func:`climb_height_kernel`); the steps' baseline vertical
 velocity (NaN before the first step), the time since the flight started, the direction of
-the last stair step (+1 up, -1 down, 0 none yet) and its end time (:func:`climb_labels_kernel`).
-Kept in ``PendingGait.climb``."""
+the last stair step (+1 up, -1 down, 0 none yet) and its end time, the last step's end
+(:func:`climb_labels_kernel`). Kept in ``PendingGait.climb``."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -67,6 +70,9 @@ class ClimbParams:
     leak_s: time constant of the leak of the integrated vertical velocity, s.
     max_gap_s: a longer gap between samples restarts the velocity at zero, s.
     settle_s: a climb against the last stair step within this time after it is drift, s.
+    rest_s: after a pause between steps longer than this the baseline starts again, s.
+    max_step_s: longest stair step; longer steps (shuffling, turning on the spot, standing up)
+        are neither stairs nor part of the baseline, s.
     """
 
     threshold_m: float = 0.07
@@ -76,10 +82,12 @@ class ClimbParams:
     leak_s: float = 60.0
     max_gap_s: float = 0.5
     settle_s: float = 5.0
+    rest_s: float = 3.0
+    max_step_s: float = 0.9
 
     def __post_init__(self) -> None:
         for name in ("threshold_m", "baseline_s", "max_flight_s", "bias_s", "leak_s",
-                     "max_gap_s", "settle_s"):
+                     "max_gap_s", "settle_s", "rest_s", "max_step_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InputError(f"{value!r}", where=f"ClimbParams.{name}",
@@ -111,14 +119,24 @@ def climb_height_kernel(t: FloatArray, a: FloatArray, st: FloatArray, bias_s: fl
 @numba.njit(cache=True, error_model="numpy")
 def climb_labels_kernel(t_start: FloatArray, t_end: FloatArray, dh_m: FloatArray,
                         act: FloatArray, st: FloatArray, threshold_m: float, baseline_s: float,
-                        max_flight_s: float, settle_s: float, walking: float, up: float,
-                        down: float) -> None:  # pragma: no cover - compiled
-    """Stairs labels of the walking steps of ``act`` (in place), baseline ``st[5:9]``."""
+                        max_flight_s: float, settle_s: float, rest_s: float,
+                        max_step_s: float, walking: float,
+                        up: float, down: float) -> None:  # pragma: no cover - compiled
+    """Stairs labels of the walking steps of ``act`` (in place), baseline ``st[5:10]``."""
     for k in range(act.shape[0]):
         dur = t_end[k] - t_start[k]
-        if not (dur > 0.0 and math.isfinite(dh_m[k])):
-            continue
+        if t_start[k] - st[9] > rest_s:
+            st[5] = math.nan            # after a rest the baseline starts again
+            st[6] = st[7] = 0.0
+        st[9] = t_end[k]
+        if not (0.0 < dur <= max_step_s and math.isfinite(dh_m[k])):
+            continue                    # standing up, sitting down, shuffling: no stairs
         u = dh_m[k] / dur
+        if act[k] != walking:
+            # not a stair step; the baseline follows it unless it climbs twice a stair's
+            if math.isfinite(st[5]) and abs(u - st[5]) * dur <= 2.0 * threshold_m:
+                st[5] += (1.0 - math.exp(-dur / baseline_s)) * (u - st[5])
+            continue
         if not math.isfinite(st[5]):
             st[5] = u
         c = (u - st[5]) * dur
@@ -126,15 +144,13 @@ def climb_labels_kernel(t_start: FloatArray, t_end: FloatArray, dh_m: FloatArray
         if sign != 0.0 and sign == -st[7] and t_end[k] - st[8] <= settle_s:
             st[5] = u                   # against the flight: drift, restart the baseline
             sign = 0.0
-        stair = act[k] == walking and sign != 0.0
-        if stair:
+        if sign != 0.0:
             act[k] = up if sign > 0.0 else down
-        if not stair or st[6] > max_flight_s:
-            st[5] += (1.0 - math.exp(-dur / baseline_s)) * (u - st[5])
-        st[6] = st[6] + dur if stair else 0.0
-        if stair:
             st[7] = sign
             st[8] = t_end[k]
+        if sign == 0.0 or st[6] > max_flight_s:
+            st[5] += (1.0 - math.exp(-dur / baseline_s)) * (u - st[5])
+        st[6] = st[6] + dur if sign != 0.0 else 0.0
 
 
 def climb_heights(pend: PendingGait, vb_t: FloatArray, t: FloatArray, a: FloatArray,
@@ -166,6 +182,7 @@ def climb_labels(act: np.ndarray, steps: StepDetection, dh_m: FloatArray, st: Fl
     out = act.astype(np.float64)
     climb_labels_kernel(steps.t_start, steps.t_end, np.asarray(dh_m, dtype=np.float64), out,
                         st, params.threshold_m, params.baseline_s, params.max_flight_s,
-                        params.settle_s, float(Activity.WALKING), float(Activity.UPSTAIRS),
+                        params.settle_s, params.rest_s, params.max_step_s,
+                        float(Activity.WALKING), float(Activity.UPSTAIRS),
                         float(Activity.DOWNSTAIRS))
     return out.astype(np.int64)

@@ -183,7 +183,8 @@ def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
         missed_steps=MissedStepParams() if g.fill_missed_steps else None,
         step_yaw=g.step_yaw,
         window_features=g.activity != "motion",
-        climb=params_of(ClimbParams, g.climb) if g.climb_stairs else None,
+        climb=(params_of(ClimbParams, g.climb) if g.climb_stairs
+               and meta.placement in g.climb_placements else None),
     )
     if meta.mounting_q_bd is None and g.heading == "yaw":
         notes.add("device mounting unknown: step headings follow the device x axis; only "

@@ -150,10 +150,13 @@ class GaitConfig(_Section):
     vs standing. Adds up to about 4 s of step latency."""
     fill_missed_steps: bool = False
     """insert one step in a gap of 1.6-2.4 local step periods (:mod:`hrtls.gait.missed_steps`)"""
-    climb_stairs: bool = False
+    climb_stairs: bool = True
     """with activity = "motion": label walking steps whose vertical climb is a stair's
-    upstairs / downstairs (:mod:`hrtls.gait.stairs_climb`); off by default: it labels stairs
-    on real flat walks (docs/real-data.md, issue 19)"""
+    upstairs / downstairs (:mod:`hrtls.gait.stairs_climb`), when the device's placement is one
+    of ``climb_placements``"""
+    climb_placements: list[str] = ["belt", "waist", "lower back"]
+    """placements fixed to the trunk: a phone in a hand, pocket or bag moves on its own, and
+    its vertical motion labelled stairs on real flat walks (docs/real-data.md)"""
     climb: dict[str, Any] = _table(ClimbParams)
     """The climb detector (:class:`hrtls.gait.stairs_climb.ClimbParams`)."""
 
