@@ -14,18 +14,21 @@ A step's mean vertical velocity is ``u = (h(t_end) - h(t_start)) / T``: the body
 oscillation has the step's period, so it cancels between two heel strikes and ``u`` keeps the
 mean climb (a riser per step on stairs, none on a floor). What is left of the integration drift
 varies slowly, and is removed by a *baseline* ``beta`` (:func:`climb_labels_kernel`): a
-first-order low-pass of ``u`` over the steps, with time constant ``baseline_s``, that
-is not updated on steps that climb (a flight: while the climb differs from it), for at most
-``max_flight_s``. Only walking steps of at most ``max_step_s`` count: standing up from a
-chair, sitting down or shuffling move the waist up or down without stairs. After ``rest_s`` without a step (the person
-stood or sat, and the integral drifted or moved with them) it starts again at the next step's
-``u``. The climb of a step is ``c = (u - beta) T``: a walking step is upstairs when
-``c > threshold_m``, downstairs when ``c < -threshold_m`` (a stair rise is 0.15-0.18 m).
-A flight does not turn round: a step that climbs against the last stair step, within
-``settle_s`` of its end, is labelled walking and restarts the baseline at its ``u`` (the
-attitude's errors on a flight, e.g. a filter levelled by the accelerometer while the body
-accelerates, leave some velocity in the integral, which shows as a climb the other way once
-the flight ends).
+first-order low-pass of ``u`` over the steps, with time constant ``baseline_s``, started at
+the first walking step (again after ``rest_s`` without a step: the person stood or sat, and
+the integral drifted or moved with them). The climb of a step is ``c = (u - beta) T``:
+
+* a walking step is upstairs when ``c > threshold_m``, downstairs when ``c < -threshold_m``
+  (a stair rise is 0.15-0.18 m); the baseline is not updated on such steps (a flight), for
+  at most ``max_flight_s``;
+* steps longer than ``max_step_s`` are left out (shuffling, turning on the spot, standing up);
+  steps that are not walking are never stairs, and update the baseline unless they climb more
+  than twice ``threshold_m`` (standing up from a chair, sitting down);
+* a flight does not turn round: a step that climbs against the last stair step, within
+  ``settle_s`` of its end, is labelled walking and restarts the baseline at its ``u`` (the
+  attitude's errors on a flight, e.g. a filter levelled by the accelerometer while the body
+  accelerates, leave some velocity in the integral, which shows as a climb the other way once
+  the flight ends).
 
 The vertical velocity at a flight's start and end changes by the climb rate (0.3 m/s on
 stairs taken at 0.55 m/s): that change is what the accelerometer sees. The flight rule
