@@ -64,6 +64,12 @@ class PendingGait:
     # recent vertical acceleration for the step excursions: times and values
     vb_t: FloatArray = field(default_factory=lambda: np.zeros(0))
     vb_a: FloatArray = field(default_factory=lambda: np.zeros(0))
+    # relative heights at vb_t, the climb detector's state and the held steps' height changes
+    # (hrtls.gait.stairs_climb)
+    vb_h: FloatArray = field(default_factory=lambda: np.zeros(0))
+    climb: FloatArray = field(default_factory=lambda: np.array(
+        [math.nan, 0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, -math.inf, -math.inf]))
+    climbs: list[FloatArray] = field(default_factory=list)
     # recent unwrapped yaw of the body forward axis (heading="yaw"): times and values
     yb_t: FloatArray = field(default_factory=lambda: np.zeros(0))
     yb_y: FloatArray = field(default_factory=lambda: np.zeros(0))
@@ -92,6 +98,8 @@ class PendingGait:
             "excursions": (np.concatenate(self.excursions) if self.excursions
                            else np.zeros(0)).tolist(),
             "vb_t": self.vb_t.tolist(), "vb_a": self.vb_a.tolist(),
+            "vb_h": self.vb_h.tolist(), "climb": self.climb.tolist(),
+            "climbs": (np.concatenate(self.climbs) if self.climbs else np.zeros(0)).tolist(),
             "yb_t": self.yb_t.tolist(), "yb_y": self.yb_y.tolist(),
             "win_end": list(self.win_end),
             "win_label": [int(v) for v in self.win_label],
@@ -116,6 +124,13 @@ class PendingGait:
         pend.excursions = [np.asarray(pd["excursions"], dtype=np.float64).reshape(-1)]
         pend.vb_t = np.asarray(pd["vb_t"], dtype=np.float64).reshape(-1)
         pend.vb_a = np.asarray(pd["vb_a"], dtype=np.float64).reshape(-1)
+        # states written before the climb detector: heights and held steps' climbs unknown
+        pend.vb_h = np.asarray(pd.get("vb_h", [math.nan] * pend.vb_t.shape[0]),
+                               dtype=np.float64).reshape(-1)
+        if "climb" in pd:
+            pend.climb = np.asarray(pd["climb"], dtype=np.float64).reshape(10)
+        pend.climbs = [np.asarray(pd.get("climbs", [math.nan] * pend.excursions[0].shape[0]),
+                                  dtype=np.float64).reshape(-1)]
         pend.yb_t = np.asarray(pd["yb_t"], dtype=np.float64).reshape(-1)
         pend.yb_y = np.asarray(pd["yb_y"], dtype=np.float64).reshape(-1)
         pend.win_end = [float(v) for v in pd["win_end"]]

@@ -17,6 +17,7 @@ from hrtls.frames import wrap_angle
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
 from hrtls.gait.pll import StepDetection
+from hrtls.gait.stairs_climb import ClimbParams, climb_labels
 from hrtls.gait.step_heading import HEADING_HOLD_DELAY_S
 from hrtls.gait.step_length import StairsModel, StepModel, displacements
 from hrtls.gait.walking_bouts import WalkingBoutDetector
@@ -47,10 +48,12 @@ class HeadingOffset:
 def release_steps(pend: PendingGait, *, final: bool, t_last: float,
                   gate_lookahead_s: float | None, bouts: WalkingBoutDetector | None,
                   step_model: StepModel, stairs: StairsModel, keep_s: float,
-                  offset: HeadingOffset | None = None) -> tuple[StepEvents, FloatArray]:
+                  climb: ClimbParams | None = None, offset: HeadingOffset | None = None
+                  ) -> tuple[StepEvents, FloatArray]:
     """The steps of ``pend`` that are final (all when ``final``) and their excursions.
 
-    ``gate_lookahead_s`` None: no step gate. ``offset``: added to the held headings (see
+    ``gate_lookahead_s`` None: no step gate; ``climb``: label the walking steps that climb
+    (:mod:`hrtls.gait.stairs_climb`); ``offset``: added to the held headings (see
     :class:`HeadingOffset`). The released steps leave ``pend``, and so do the windows and the
     gate's motion history (older than ``keep_s`` before ``t_last``) that the steps still held
     no longer need.
@@ -59,6 +62,7 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
     raw = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
     head = raw
     exc = np.concatenate(pend.excursions) if pend.excursions else np.zeros(0)
+    dh = np.concatenate(pend.climbs) if pend.climbs else np.zeros(0)
     ends = np.asarray(pend.win_end)
     labels = np.asarray(pend.win_label, dtype=np.int64)
     if final:
@@ -85,11 +89,13 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
     act = _step_activity(det.t_end[sel], ends, labels, pend.last_label)
     released = StepDetection(det.t_start[sel], det.t_end[sel], det.frequency_hz[sel],
                              det.acc_max[sel], det.acc_min[sel])
+    act = climb_labels(act, released, dh[sel], pend.climb, climb)
     length, dz = displacements(released, act, step_model, stairs, exc[sel])
     pend.steps = [StepDetection(det.t_start[rest], det.t_end[rest], det.frequency_hz[rest],
                                 det.acc_max[rest], det.acc_min[rest])]
     pend.headings = [raw[rest]]
     pend.excursions = [exc[rest]]
+    pend.climbs = [dh[rest]]
     # keep only windows that pending steps may still need
     if ends.size > 1:
         keep_from = ends.size - 1

@@ -33,6 +33,7 @@ from hrtls.gait.analyzer import GaitAnalyzer
 from hrtls.gait.missed_steps import MissedStepParams
 from hrtls.gait.peak_steps import PeakStepDetector
 from hrtls.gait.pll import PllStepDetector
+from hrtls.gait.stairs_climb import ClimbParams
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
@@ -182,6 +183,8 @@ def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
         missed_steps=MissedStepParams() if g.fill_missed_steps else None,
         step_yaw=g.step_yaw,
         window_features=g.activity != "motion",
+        climb=(params_of(ClimbParams, g.climb) if g.climb_stairs
+               and meta.placement in g.climb_placements else None),
     )
     if meta.mounting_q_bd is None and g.heading == "yaw":
         notes.add("device mounting unknown: step headings are the yaw of a level device axis "

@@ -29,6 +29,7 @@ from hrtls.errors import FormatError, InputError
 from hrtls.fusion.channel import ChannelEstimatorParams
 from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.random_walk import RandomWalkParams
+from hrtls.gait.stairs_climb import ClimbParams
 from hrtls.pipeline.step_scale import StepScaleParams
 
 
@@ -149,6 +150,17 @@ class GaitConfig(_Section):
     vs standing. Adds up to about 4 s of step latency."""
     fill_missed_steps: bool = False
     """insert one step in a gap of 1.6-2.4 local step periods (:mod:`hrtls.gait.missed_steps`)"""
+    climb_stairs: bool = True
+    """with activity = "motion": label walking steps whose vertical climb is a stair's
+    upstairs / downstairs (:mod:`hrtls.gait.stairs_climb`), when the device's placement is one
+    of ``climb_placements``"""
+    climb_placements: list[str] = ["belt", "waist", "lower back"]
+    """placements fixed to the trunk: a phone in a hand, pocket or bag moves on its own, and
+    its vertical motion labelled stairs on real flat walks (docs/real-data.md)"""
+    climb: dict[str, Any] = _table(ClimbParams)
+    """The climb detector (:class:`hrtls.gait.stairs_climb.ClimbParams`)."""
+
+    _complete_climb = field_validator("climb")(lambda v: _complete(ClimbParams, v))
 
 
 class PredictionConfig(_Section):

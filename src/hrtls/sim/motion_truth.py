@@ -83,6 +83,8 @@ class MotionParams:
     stair_riser_m: height of one stair, m.
     min_turn_s: shortest duration of a turn on the spot, s.
     heading_smoothing_s: standard deviation of the Gaussian that smooths the body heading, s.
+    vertical_smoothing_s: standard deviation of the Gaussian that smooths the height, s: the
+        vertical velocity changes over about a step where a flight starts or ends.
     """
 
     accel_m_s2: float = 1.0
@@ -92,6 +94,7 @@ class MotionParams:
     stair_riser_m: float = 0.17
     min_turn_s: float = 0.4
     heading_smoothing_s: float = 0.15
+    vertical_smoothing_s: float = 0.15
 
 
 @dataclass(frozen=True, slots=True)
@@ -412,6 +415,9 @@ def simulate_motion(waypoints: Sequence[Waypoint], *, rate_hz: float,
     t = np.asarray(t0_s + np.arange(len(s_all)) * dt, dtype=np.float64)
     xyz, heading = _body_pose(geo, line, s_all=s_all, run_id=run_id, boundaries=boundaries,
                               smoothing_samples=p.heading_smoothing_s / dt)
+    if np.ptp(xyz[:, 2]) > 0:
+        # an instant change of vertical velocity would be an acceleration impulse
+        xyz[:, 2] = gaussian_filter1d(xyz[:, 2], p.vertical_smoothing_s / dt, mode="nearest")
     moving = run_id >= 0
     leg_idx = geo.leg_at(s_all)
     gait = np.where(moving, leg_gait[leg_idx], GAIT_WALK)
