@@ -22,13 +22,16 @@ scipy's :class:`~scipy.spatial.transform.Rotation` uses scalar-last quaternions:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from hrtls.errors import InputError
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 GRAVITY_M_S2 = 9.80665
 """Standard gravity, m/s^2 (used for unit conversion from g and as the default local gravity)."""
@@ -137,6 +140,8 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
 
 def quat_to_rotation(q: ArrayLike) -> Rotation:
     """Convert scalar-first quaternions to a scipy :class:`Rotation` (which is scalar last)."""
+    from scipy.spatial.transform import Rotation  # imported when used: it is slow to import
+
     arr = as_quat_array(q)
     return Rotation.from_quat(arr[..., [1, 2, 3, 0]])
 
