@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pymap3d
 from numpy.typing import ArrayLike, NDArray
 
 from hrtls.errors import InputError
@@ -241,6 +240,8 @@ class Georeference:
         p = np.atleast_2d(np.asarray(xyz, dtype=np.float64))
         z = p[:, 2] if p.shape[1] > 2 else np.zeros(len(p))
         e, n = self._rotate(p[:, 0], p[:, 1], self.rotation_rad)
+        import pymap3d  # imported for a georeference only
+
         lat, lon, h = pymap3d.enu2geodetic(e, n, z, self.lat_deg, self.lon_deg, self.height_m)
         return np.column_stack([lat, lon, h])
 
@@ -251,6 +252,8 @@ class Georeference:
         lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))
         h = (np.full_like(lat, self.height_m) if height_m is None
              else np.atleast_1d(np.asarray(height_m, dtype=np.float64)))
+        import pymap3d  # imported for a georeference only
+
         e, n, u = pymap3d.geodetic2enu(lat, lon, h, self.lat_deg, self.lon_deg, self.height_m)
         x, y = self._rotate(np.asarray(e), np.asarray(n), -self.rotation_rad)
         return np.column_stack([x, y, u])
