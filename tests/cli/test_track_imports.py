@@ -30,5 +30,5 @@ def test_track_of_a_csv_session_leaves_unused_modules_alone(tmp_path: Path) -> N
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "out" / "trajectory.csv").exists()
     loaded = set(json.loads(run.stdout.split("LOADED", 1)[1]))
-    assert "hrtls.gait.butterworth" in loaded and "numba" in loaded  # it did track
+    assert "hrtls.gait.features" in loaded and "numba" in loaded  # it did track
     assert not [m for m in UNUSED if m in loaded]

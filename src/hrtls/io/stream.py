@@ -89,7 +89,7 @@ class _TableFile:
                 import pyarrow.parquet as pq  # imported for Parquet files only
 
                 return pq.read_table(fh, columns=columns)
-            return pacsv.read_csv(fh, read_options=self._read_options(_BLOCK_BYTES),
+            return pacsv.read_csv(fh, read_options=self._read_options(1 << 24),
                                   convert_options=self._convert(columns))
 
     def pieces(self, rows: int) -> Generator[pa.Table, None, None]:
