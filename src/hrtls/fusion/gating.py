@@ -72,7 +72,9 @@ def chi2_threshold(dof: int, probability: float = DEFAULT_GATE_PROBABILITY) -> f
                          expected="a probability in (0, 1)")
     from scipy.special import gammaincinv  # scipy.stats is much slower to import
 
-    return float(2.0 * gammaincinv(0.5 * dof, probability))  # chi2.ppf of scipy.stats
+    # chi2.ppf of scipy.stats: 2 P^-1(dof / 2, probability), P the regularized lower
+    # incomplete gamma function
+    return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
 def symmetrize(p: FloatArray) -> FloatArray:

@@ -1,10 +1,11 @@
 """Digital Butterworth low-pass as second-order sections, and the kernel that runs them.
 
-Written here rather than taken from ``scipy.signal``, whose import costs more than a whole
-``hrtls track`` of a short recording spends tracking; ``tests/gait/test_butterworth.py`` checks
-the design, the steady state and the filtered output against ``scipy.signal`` (the reference).
+Written here rather than taken from ``scipy.signal``, whose import is slow (it pulls in
+``scipy.stats``): ``hrtls track`` does not import it. ``tests/gait/test_butterworth.py`` checks
+the design, the steady state, the response and the filtered output against ``scipy.signal``
+(the reference), to the bit.
 
-Design (bilinear transform with pre-warping, Oppenheim & Schafer Sec. 7.1-7.2): the analog
+Design (bilinear transform with pre-warping, Oppenheim & Schafer Sec. 7.2): the analog
 prototype of order ``N`` with unit cutoff has the poles ``s_m = -exp(i pi m / (2 N))``,
 ``m = -N+1, -N+3, ..., N-1``; scaled to the pre-warped cutoff ``W = 4 tan(pi f_c / f_s)``
 (sampling period 1/2, so ``K = 2 / T = 4``) and mapped by ``z = (K + s) / (K - s)``; the
