@@ -22,13 +22,15 @@ scipy's :class:`~scipy.spatial.transform.Rotation` uses scalar-last quaternions:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pymap3d
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from hrtls.errors import InputError
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 GRAVITY_M_S2 = 9.80665
 """Standard gravity, m/s^2 (used for unit conversion from g and as the default local gravity)."""
@@ -137,6 +139,8 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
 
 def quat_to_rotation(q: ArrayLike) -> Rotation:
     """Convert scalar-first quaternions to a scipy :class:`Rotation` (which is scalar last)."""
+    from scipy.spatial.transform import Rotation  # imported when used: it is slow to import
+
     arr = as_quat_array(q)
     return Rotation.from_quat(arr[..., [1, 2, 3, 0]])
 
@@ -236,6 +240,8 @@ class Georeference:
         p = np.atleast_2d(np.asarray(xyz, dtype=np.float64))
         z = p[:, 2] if p.shape[1] > 2 else np.zeros(len(p))
         e, n = self._rotate(p[:, 0], p[:, 1], self.rotation_rad)
+        import pymap3d  # imported for a georeference only
+
         lat, lon, h = pymap3d.enu2geodetic(e, n, z, self.lat_deg, self.lon_deg, self.height_m)
         return np.column_stack([lat, lon, h])
 
@@ -246,6 +252,8 @@ class Georeference:
         lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))
         h = (np.full_like(lat, self.height_m) if height_m is None
              else np.atleast_1d(np.asarray(height_m, dtype=np.float64)))
+        import pymap3d  # imported for a georeference only
+
         e, n, u = pymap3d.geodetic2enu(lat, lon, h, self.lat_deg, self.lon_deg, self.height_m)
         x, y = self._rotate(np.asarray(e), np.asarray(n), -self.rotation_rad)
         return np.column_stack([x, y, u])

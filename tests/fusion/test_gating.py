@@ -63,6 +63,9 @@ def test_gate_rejects_20_sigma_outlier() -> None:
 
 def test_chi2_threshold_and_nis() -> None:
     assert chi2_threshold(2, 0.99) == pytest.approx(chi2.ppf(0.99, 2))
+    for dof in range(1, 7):  # scipy.stats' quantile, to the bit (the gates are unchanged)
+        for p in (0.9, 0.95, 0.99, 0.997, 0.999, 0.9999):
+            assert chi2_threshold(dof, p) == chi2.ppf(p, dof)
     s = np.array([[2.0, 0.5], [0.5, 1.0]])
     nu = np.array([1.0, -1.0])
     assert nis(nu, s) == pytest.approx(nu @ np.linalg.solve(s, nu))

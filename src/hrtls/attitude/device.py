@@ -17,7 +17,6 @@ from typing import ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial.transform import Slerp
 
 from hrtls.attitude import _kernels as K
 from hrtls.attitude.base import AttitudeResult
@@ -134,5 +133,7 @@ class DeviceOrientation:
             return self._finish(tq, q, np.abs(tq - orientation.t[0]) < 1e-9)
         valid = (tq >= orientation.t[0]) & (tq <= orientation.t[-1])
         clipped = np.clip(tq, orientation.t[0], orientation.t[-1])
+        from scipy.spatial.transform import Slerp  # slow to import: only when used
+
         slerp = Slerp(orientation.t, quat_to_rotation(orientation.q))
         return self._finish(tq, quat_from_rotation(slerp(clipped)), valid)

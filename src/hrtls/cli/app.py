@@ -273,5 +273,11 @@ def convert(
 
 
 def main() -> None:
-    """Entry point of the ``hrtls`` console script."""
-    app()
+    """Entry point of the ``hrtls`` console script (see :mod:`hrtls.cli.process`)."""
+    from hrtls.cli import process
+
+    process.own()
+    try:
+        app()
+    finally:
+        process.exiting()

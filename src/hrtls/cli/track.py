@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from hrtls.cli.errors import reports_errors
+from hrtls.cli.process import imports_done
 from hrtls.jobs.warmup import mark_compiled
 
 if TYPE_CHECKING:
@@ -79,6 +80,7 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
         write_track_outputs,
     )
 
+    imports_done()
     if format_out not in ("csv", "parquet"):
         raise InputError(f"{format_out!r}", where="--format-out", expected="csv or parquet")
     if not session.exists():

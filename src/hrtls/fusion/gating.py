@@ -33,8 +33,6 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numba
 import numpy as np
-from scipy import linalg
-from scipy.stats import chi2
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray
@@ -72,7 +70,11 @@ def chi2_threshold(dof: int, probability: float = DEFAULT_GATE_PROBABILITY) -> f
     if not 0.0 < probability < 1.0:
         raise InputError(f"probability = {probability}", where="chi2_threshold",
                          expected="a probability in (0, 1)")
-    return float(chi2.ppf(probability, dof))
+    from scipy.special import gammaincinv  # scipy.stats is much slower to import
+
+    # chi2.ppf of scipy.stats: 2 P^-1(dof / 2, probability), P the regularized lower
+    # incomplete gamma function
+    return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
 def symmetrize(p: FloatArray) -> FloatArray:
@@ -93,6 +95,8 @@ def is_spd(p: FloatArray) -> bool:
 
 def nis(innovation: FloatArray, s: FloatArray) -> float:
     """Normalized innovation squared ``nu^T S^-1 nu`` (S must be positive definite)."""
+    from scipy import linalg
+
     c = linalg.cho_factor(s, lower=True)
     return float(innovation @ linalg.cho_solve(c, innovation))
 

@@ -20,10 +20,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import butter, sosfilt, sosfilt_zi, sosfreqz
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_matrix, check_positive
+from hrtls.gait.butterworth import (
+    butter_lowpass_sos,
+    sos_kernel,
+    sos_response,
+    sos_steady_state,
+)
 
 TREE_FEATURES = ("vertical_variance", "vertical_dynamics_index", "ml_amplitude")
 LDA_FEATURES = ("std_ml", "std_v", "std_ap", "dft_ml", "dft_v", "dft_ap", "range_ml")
@@ -35,8 +40,8 @@ def _butter_sos(order: int, cutoff_hz: float, rate_hz: float) -> tuple[FloatArra
 
     A restore rebuilds every filter; the cached arrays are read-only and each filter copies them.
     """
-    sos = butter(order, cutoff_hz, fs=rate_hz, output="sos")
-    zi = sosfilt_zi(sos)
+    sos = butter_lowpass_sos(order, cutoff_hz, rate_hz)
+    zi = sos_steady_state(sos)
     sos.flags.writeable = False
     zi.flags.writeable = False
     return sos, zi
@@ -46,7 +51,7 @@ def _butter_sos(order: int, cutoff_hz: float, rate_hz: float) -> tuple[FloatArra
 def _group_delay_s(order: int, cutoff_hz: float, rate_hz: float, frequency_hz: float) -> float:
     df = 0.01
     f = np.array([max(frequency_hz - df, 1e-3), frequency_hz + df])
-    _, h = sosfreqz(_butter_sos(order, cutoff_hz, rate_hz)[0], worN=f, fs=rate_hz)
+    h = sos_response(_butter_sos(order, cutoff_hz, rate_hz)[0], f, rate_hz)
     ph = np.unwrap(np.angle(h))
     return float(-(ph[1] - ph[0]) / (2.0 * np.pi * (f[1] - f[0])))
 
@@ -91,8 +96,12 @@ class StreamingButterworth:
             # steady state for the first sample avoids the start-up transient
             first = arr[0]
             self.zi = np.multiply.outer(self._zi_unit, np.ones(arr.shape[1:])) * first
-        y, self.zi = sosfilt(self.sos, arr, axis=0, zi=self.zi)
-        return np.asarray(y, dtype=np.float64)
+        columns = np.ascontiguousarray(arr.reshape(len(arr), -1))
+        zi = np.ascontiguousarray(self.zi.reshape(len(self.sos), 2, -1))
+        y = np.empty_like(columns)
+        sos_kernel(self.sos, columns, zi, y)
+        self.zi = zi.reshape(self.zi.shape)
+        return y.reshape(arr.shape)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -29,7 +29,6 @@ from typing import IO, Any, NoReturn
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
-import pyarrow.parquet as pq
 
 from hrtls.data import GroundTruth, ImuStream, Landmark, SensorSeries, Session, SessionMeta
 from hrtls.data.session import SESSION_PARTS
@@ -87,6 +86,8 @@ class _TableFile:
         """Some columns, whole (float64)."""
         with self.open() as fh:
             if self.parquet:
+                import pyarrow.parquet as pq  # imported for Parquet files only
+
                 return pq.read_table(fh, columns=columns)
             return pacsv.read_csv(fh, read_options=self._read_options(1 << 24),
                                   convert_options=self._convert(columns))
@@ -100,6 +101,8 @@ class _TableFile:
         """
         with self.open() as fh:
             if self.parquet:
+                import pyarrow.parquet as pq  # imported for Parquet files only
+
                 parquet = pq.ParquetFile(fh, buffer_size=_BLOCK_BYTES, pre_buffer=False)
                 for batch in parquet.iter_batches(batch_size=rows, use_threads=False):
                     yield pa.Table.from_batches([batch])
@@ -408,6 +411,8 @@ def _table_file(source: Source, src: _SessionFiles, name: str) -> _TableFile | N
     """The table's file, or None when its header is not on the first line (read it whole)."""
     member = src.member(name)
     if name.endswith(".parquet"):
+        import pyarrow.parquet as pq  # imported for Parquet files only
+
         try:
             with source.open(member) as fh:
                 parquet = pq.ParquetFile(fh)

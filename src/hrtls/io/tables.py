@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
 from hrtls.data import StepEvents, Trajectory, activity_codes, activity_labels
@@ -118,6 +117,8 @@ def parquet_bytes(arrow: pa.Table) -> bytes:
 def write_parquet(arrow: pa.Table, sink: pa.NativeFile) -> None:
     """``arrow`` as a compressed Parquet file into ``sink``."""
     floats = [f.name for f in arrow.schema if pa.types.is_floating(f.type)]
+    import pyarrow.parquet as pq  # imported for Parquet files only
+
     pq.write_table(arrow, sink, compression=PARQUET_COMPRESSION,
                    use_dictionary=[c for c in arrow.column_names if c not in floats],
                    column_encoding=dict.fromkeys(floats, "BYTE_STREAM_SPLIT"))
@@ -131,6 +132,8 @@ def read_parquet(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
     FormatError
         For a file that is not Parquet, and as :func:`from_arrow`.
     """
+    import pyarrow.parquet as pq  # imported for Parquet files only
+
     try:
         # the file reader, not the dataset reader of pq.read_table: one chunk per row group
         arrow = pq.ParquetFile(pa.BufferReader(data)).read()

@@ -13,7 +13,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from hrtls.errors import InputError
 from hrtls.frames import quat_from_rotation
@@ -109,4 +108,6 @@ def handheld_mounting_q_bd(acc_d_m_s2: ArrayLike, *,
     x_b = x_raw / np.linalg.norm(x_raw)
     y_b = np.cross(z_b, x_b)
     r_bd = np.vstack([x_b, y_b, z_b])  # rows: body axes in device coordinates
+    from scipy.spatial.transform import Rotation  # slow to import: only when used
+
     return np.asarray(quat_from_rotation(Rotation.from_matrix(r_bd)), dtype=np.float64)
