@@ -66,8 +66,8 @@ from hrtls.gait.vertical import (
     GravityLevelling,
     LevelledAcceleration,
     LevellingState,
-    from_orientation,
     heading_of,
+    levelled,
     rotate,
 )
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
@@ -249,7 +249,7 @@ class GaitAnalyzer:
                q_nd: FloatArray | None) -> LevelledAcceleration:
         if q_nd is None:
             return self._levelling.update(t, acc)
-        return from_orientation(t, acc, q_nd)
+        return levelled(t, acc, q_nd)   # checked by update()
 
     def _steps_complete_s(self) -> float:
         """Time before which the step detector has reported all its steps (reported times)."""
