@@ -124,10 +124,12 @@ class RunningHardIron:
         k = (n - pos) // bs
         if k:
             end = pos + k * bs
-            mb = mag_ut[pos:end].reshape(k, bs, 3)
-            ab = acc_m_s2[pos:end].reshape(k, bs, 3)
-            good = np.all(np.isfinite(mb), axis=(1, 2)) & np.all(np.isfinite(ab), axis=(1, 2))
-            self._close_blocks(mb.mean(axis=1), ab.mean(axis=1), good,
+            m_mean, a_mean = np.empty((k, 3)), np.empty((k, 3))
+            good = np.empty(k, dtype=np.bool_)
+            block_means_kernel(np.ascontiguousarray(mag_ut[pos:end], dtype=np.float64),
+                               np.ascontiguousarray(acc_m_s2[pos:end], dtype=np.float64), bs,
+                               m_mean, a_mean, good)
+            self._close_blocks(m_mean, a_mean, good,
                                np.ascontiguousarray(t[pos + bs - 1:end:bs]), out[pos:end])
             pos = end
         if pos < n:
@@ -165,6 +167,33 @@ class RunningHardIron:
         st.n_kept, st.n_good, st.n_closed, st.stride, st.n_used, st.n_fits = \
             (int(v) for v in ints)
         st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted = (float(v) for v in fl)
+
+
+@numba.njit(cache=True)
+def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: FloatArray,
+                       acc_mean: FloatArray, good: np.ndarray) -> None:
+    # pragma: no cover - compiled
+    """Means of consecutive blocks of ``bs`` rows, summed in row order as numpy's ``mean``.
+
+    ``good``: every value of the block is finite (else its means are left unset).
+    """
+    for b in range(mag_mean.shape[0]):
+        i0 = b * bs
+        ok = True
+        for i in range(i0, i0 + bs):
+            for a in range(3):
+                ok = ok and math.isfinite(mag[i, a]) and math.isfinite(acc[i, a])
+        good[b] = ok
+        if not ok:
+            continue
+        for a in range(3):
+            sm = mag[i0, a]
+            sa = acc[i0, a]
+            for i in range(i0 + 1, i0 + bs):
+                sm += mag[i, a]
+                sa += acc[i, a]
+            mag_mean[b, a] = sm / bs
+            acc_mean[b, a] = sa / bs
 
 
 @numba.njit(cache=True)
