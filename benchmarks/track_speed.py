@@ -1,7 +1,7 @@
 """Speed of ``hrtls track``: IMU samples per second per preset on an hour-long simulated walk.
 
 Usage: ``python benchmarks/track_speed.py [--duration-s 3600] [--repeat 2]
-[--presets default tarrio2011] [--baseline REV | --no-baseline] [--wall-time]``.
+[--presets default tarrio2011] [--baseline REV | --no-baseline] [--wall-time] [--parts]``.
 
 The session is ``office_random_walk`` (cameras, 8 BLE beacons, RFID tags, range nodes), so every
 correction runs. It is written once as a session folder and read back, and each preset tracks
@@ -12,11 +12,15 @@ corrections, event loop, result assembly). Times are process CPU time unless ``-
 Side by side, the same session is tracked by the code of ``--baseline`` (a git revision of this
 repository, default: the main branch before issue 12, the causal / restorable tracker), in a
 subprocess that imports that revision's ``src``; the ratio is baseline time / our time.
+
+``--parts`` also splits each preset's run into the tracker's parts (:data:`PARTS`, exclusive
+times: a part's time without the parts it calls; best of the runs per part).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import subprocess
@@ -24,7 +28,8 @@ import sys
 import tempfile
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from rich.console import Console
@@ -39,6 +44,17 @@ BASELINE_REV = "29f96f6"
 """Main before issue 12 (whole-recording hard iron and mounting, one tracker class)."""
 TARGET_SAMPLES_S = 2_000_000
 TARGET_RATIO = 1.6
+PARTS = (("IMU alignment", "hrtls.data.series", "ImuStream", "aligned"),
+         ("attitude (without hard iron)", "hrtls.pipeline.imu_stage", "AttitudeStage", "update"),
+         ("running hard-iron fit", "hrtls.calibration.hard_iron_running", "RunningHardIron",
+          "update"),
+         ("gait stage", "hrtls.gait.analyzer", "GaitAnalyzer", "update"),
+         ("event loop scheduling", "hrtls.pipeline.engine", "FusionEngine", "drain"),
+         ("compiled runs (with their Python)", "hrtls.pipeline.engine", "FusionEngine",
+          "_run_kernel"),
+         ("fixes, tag groups (Python)", "hrtls.pipeline.engine", "", "apply_observation"),
+         ("result (finish)", "hrtls.pipeline.tracker", "Tracker", "finish"))
+"""(label, module, class ('' for a module function), function) of the timed parts."""
 
 _BASELINE_RUN = """
 import json, sys, time, warnings
@@ -95,6 +111,7 @@ def main() -> None:
     ap.add_argument("--baseline", default=BASELINE_REV,
                     help=f"git revision to compare with (default {BASELINE_REV})")
     ap.add_argument("--no-baseline", action="store_true", help="time this code only")
+    ap.add_argument("--parts", action="store_true", help="also time the tracker's parts")
     ap.add_argument("--wall-time", action="store_true",
                     help="time with the wall clock (default: process CPU time, steadier on a "
                          "shared machine)")
@@ -135,6 +152,61 @@ def main() -> None:
         console.print(base)
     console.print(f"targets (issue 12, default preset): >= {TARGET_SAMPLES_S:,} samples/s, "
                   f"ratio >= {TARGET_RATIO}")
+    if args.parts:
+        parts = Table("part", *args.presets, title="exclusive time per part, ms (best of runs)")
+        times = [_time_parts(s, name, args.repeat, clock) for name in args.presets]
+        for label in [*(p[0] for p in PARTS), "rest", "total"]:
+            parts.add_row(label, *(f"{t[label] * 1e3:.1f}" for t in times))
+        console.print(parts)
+
+
+@contextmanager
+def _timed_parts(clock: Callable[[], float], acc: dict[str, float]) -> Iterator[None]:
+    """Wrap the functions of :data:`PARTS` to add their exclusive times to ``acc``."""
+    stack: list[float] = []    # time spent in the callees of each open call
+    saved = []
+    for label, module, cls, name in PARTS:
+        owner = getattr(importlib.import_module(module), cls) if cls else \
+            importlib.import_module(module)
+        func = getattr(owner, name)
+        saved.append((owner, name, func))
+
+        def timed(*a: object, _f: Callable[..., object] = func, _label: str = label,
+                  **k: object) -> object:
+            stack.append(0.0)
+            t0 = clock()
+            try:
+                return _f(*a, **k)
+            finally:
+                dt = clock() - t0
+                inner = stack.pop()
+                acc[_label] = acc.get(_label, 0.0) + dt - inner
+                if stack:
+                    stack[-1] += dt
+        setattr(owner, name, timed)
+    try:
+        yield
+    finally:
+        for owner, name, func in saved:
+            setattr(owner, name, func)
+
+
+def _time_parts(s: Session, name: str, repeat: int, clock: Callable[[], float]
+                ) -> dict[str, float]:
+    """Best exclusive time of each part over ``repeat`` runs (and the rest, the total)."""
+    cfg = preset(name)
+    best: dict[str, float] = {}
+    for _ in range(max(1, repeat)):
+        acc: dict[str, float] = {}
+        with _timed_parts(clock, acc):
+            t0 = clock()
+            Tracker(cfg).run(s)
+            total = clock() - t0
+        acc["rest"] = total - sum(acc.values())
+        acc["total"] = total
+        for k, v in acc.items():
+            best[k] = min(best.get(k, float("inf")), v)
+    return {label: best.get(label, 0.0) for label in [*(p[0] for p in PARTS), "rest", "total"]}
 
 
 def _time_preset(s: Session, name: str, repeat: int, clock: Callable[[], float]

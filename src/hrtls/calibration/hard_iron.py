@@ -45,6 +45,9 @@ __all__ = ["HardIronFit", "fit_hard_iron"]
 
 _GATE_PASSES = 3
 """Refits after dropping the samples off the circle (sphere)."""
+FIT_OK, FIT_FAILED, FIT_NARROW, FIT_SHORT_ARC = 0, 1, 2, 3
+"""Outcomes of :func:`checked_fit_kernel`: accepted; a fit gave ``r^2 <= 0``; radius below
+``min_field_ut`` or samples spanning less than one radius; too little turning."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,16 +258,52 @@ def _plane_basis(up_d: ArrayLike | None) -> FloatArray:
     if not (math.isfinite(norm) and norm > 0.0):
         raise InputError(f"up_d = {up_d!r}", where="hard-iron fit",
                          expected="a finite non-zero 3-vector")
-    up = up / norm
-    e1 = _cross3(up, np.eye(3)[int(np.argmin(np.abs(up)))])  # up x its least aligned axis
-    e1 /= math.sqrt(float(e1 @ e1))
-    return np.array([e1, _cross3(up, e1)])
+    return plane_basis_kernel(up)
 
 
-def _cross3(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a x b`` of two 3-vectors (np.cross costs more than the fit kernel on 3 numbers)."""
+@numba.njit(cache=True)
+def plane_basis_kernel(up_d: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Rows (2, 3) spanning the plane perpendicular to ``up_d`` (finite, non-zero)."""
+    up = up_d / math.sqrt(up_d[0] * up_d[0] + up_d[1] * up_d[1] + up_d[2] * up_d[2])
+    axis = np.zeros(3)
+    axis[np.argmin(np.abs(up))] = 1.0
+    e1 = _cross3(up, axis)            # up x its least aligned axis
+    e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    out = np.empty((2, 3))
+    out[0] = e1
+    out[1] = _cross3(up, e1)
+    return out
+
+
+@numba.njit(cache=True)
+def _cross3(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """``a x b`` of two 3-vectors."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
                      a[0] * b[1] - a[1] * b[0]])
+
+
+@numba.njit(cache=True)
+def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
+                       min_samples: int, min_field_ut: float, min_arc_deg: float
+                       ) -> tuple[int, FloatArray, float, float, float, float, int]:
+    # pragma: no cover - compiled
+    """:func:`_fit_kernel` and the acceptance tests of :func:`fit_hard_iron`.
+
+    Returns ``(code, c, r, residual, arc_deg, extent, n_used)``: ``code`` one of ``FIT_*``,
+    ``c`` the offset in the device frame (``centre @ basis``, valid with ``FIT_OK``).
+    """
+    ok, cp, r, resid, arc, extent, n_used = _fit_kernel(m, basis, gate_fraction, min_samples,
+                                                        _GATE_PASSES)
+    c = np.zeros(3)
+    if not ok:
+        return FIT_FAILED, c, r, resid, arc, extent, n_used
+    for j in range(3):
+        for a in range(basis.shape[0]):
+            c[j] += cp[a] * basis[a, j]
+    # samples that hardly move (no turning) fit a small circle around their own noise
+    code = (FIT_NARROW if r < min_field_ut or extent < r
+            else FIT_SHORT_ARC if arc < min_arc_deg else FIT_OK)
+    return code, c, r, resid, arc, extent, n_used
 
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
@@ -298,22 +337,22 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         raise InputError(f"{len(m)} finite samples", where="hard-iron fit",
                          expected=f"at least {min_samples}")
     basis = _plane_basis(up_d)
-    ok, c, r, resid, arc, extent, n_used = _fit_kernel(
-        np.ascontiguousarray(m), basis, float(gate_fraction), int(min_samples), _GATE_PASSES)
-    if not ok:
+    code, c, r, resid, arc, extent, n_used = checked_fit_kernel(
+        np.ascontiguousarray(m), basis, float(gate_fraction), int(min_samples),
+        float(min_field_ut), float(min_arc_deg))
+    if code == FIT_FAILED:
         raise InputError("circle fit failed", where="hard-iron fit",
                          expected="field samples from a device that turned")
-    if r < min_field_ut or extent < r:
-        # samples that hardly move (no turning) fit a small circle around their own noise
+    if code == FIT_NARROW:
         raise InputError(f"the field samples span {extent:.1f} uT around a fitted "
                          f"{r:.1f} uT circle", where="hard-iron fit",
                          expected=f"a field of at least {min_field_ut:.0f} uT seen from many "
                                   "headings", hint="walk a loop or turn around")
-    if arc < min_arc_deg:
+    if code == FIT_SHORT_ARC:
         raise InputError(f"the field turned through {arc:.0f} deg", where="hard-iron fit",
                          expected=f"at least {min_arc_deg:.0f} deg of turning",
                          hint="walk a loop or turn around; or calibrate with a figure of eight")
-    return HardIronFit(hard_iron_ut=c @ basis, field_ut=r, residual_ut=resid, arc_deg=arc,
+    return HardIronFit(hard_iron_ut=c, field_ut=r, residual_ut=resid, arc_deg=arc,
                        n_used=n_used)
 
 

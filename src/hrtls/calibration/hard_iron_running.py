@@ -2,7 +2,8 @@
 
 The raw field is averaged over consecutive blocks of ``block_samples`` samples (about one second,
 see the fit's module notes), together with the accelerometer (the device's up direction). Every
-``refit_blocks`` completed blocks, :func:`~hrtls.calibration.hard_iron.fit_hard_iron` is run on
+``refit_blocks`` completed blocks, the fit and the acceptance tests of
+:func:`~hrtls.calibration.hard_iron.fit_hard_iron` (one compiled pass per chunk) are run on
 the block means kept so far, with the mean accelerometer reading of those blocks as up
 direction. A successful fit is *accepted* and applied to the samples after the block that
 completed it; before the first accepted fit the offset is unknown (NaN, the field is used raw);
@@ -20,9 +21,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from hrtls.calibration.hard_iron import HardIronFit, fit_hard_iron
+from hrtls.calibration.hard_iron import FIT_OK, checked_fit_kernel, plane_basis_kernel
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
@@ -115,25 +117,20 @@ class RunningHardIron:
             self._add_partial(mag_ut[:pos], acc_m_s2[:pos])
             out[:pos] = st.c_ut
             if st.part_n == bs:
-                ok = not st.part_bad
-                self._close(st.part_mag / bs if ok else None, st.part_acc / bs, float(t[pos - 1]))
+                self._close_blocks((st.part_mag / bs)[None], (st.part_acc / bs)[None],
+                                   np.array([not st.part_bad]), np.array([float(t[pos - 1])]),
+                                   np.empty((0, 3)))
                 self._clear_partial()
         k = (n - pos) // bs
         if k:
             end = pos + k * bs
-            mb = mag_ut[pos:end].reshape(k, bs, 3)
-            ab = acc_m_s2[pos:end].reshape(k, bs, 3)
-            good = np.all(np.isfinite(mb), axis=(1, 2)) & np.all(np.isfinite(ab), axis=(1, 2))
-            m_mean = mb.mean(axis=1)
-            a_mean = ab.mean(axis=1)
-            t_end = t[pos + bs - 1:end:bs]
-            b = 0
-            while b < k:   # runs of blocks that end where a refit may be due
-                e = min(k, b + self.params.refit_blocks
-                        - st.n_closed % self.params.refit_blocks)
-                out[pos + b * bs:pos + e * bs] = st.c_ut
-                self._close_run(m_mean[b:e], a_mean[b:e], good[b:e], float(t_end[e - 1]))
-                b = e
+            m_mean, a_mean = np.empty((k, 3)), np.empty((k, 3))
+            good = np.empty(k, dtype=np.bool_)
+            block_means_kernel(np.ascontiguousarray(mag_ut[pos:end], dtype=np.float64),
+                               np.ascontiguousarray(acc_m_s2[pos:end], dtype=np.float64), bs,
+                               m_mean, a_mean, good)
+            self._close_blocks(m_mean, a_mean, good,
+                               np.ascontiguousarray(t[pos + bs - 1:end:bs]), out[pos:end])
             pos = end
         if pos < n:
             self._add_partial(mag_ut[pos:], acc_m_s2[pos:])
@@ -156,60 +153,95 @@ class RunningHardIron:
         st.part_n = 0
         st.part_bad = False
 
-    def _close_run(self, mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
-                   t_end: float) -> None:
-        """Completed blocks of which only the last may be due for a refit (``good``: no gap).
-
-        Equal to :meth:`_close` block by block; the kept means are appended at once unless the
-        run would thin the kept set.
-        """
+    def _close_blocks(self, mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
+                      t_end: FloatArray, out: FloatArray) -> None:
+        """Completed blocks (``good``: no gap) in one compiled pass; ``out``: their samples."""
         st, prm = self.state, self.params
-        n_good = int(good.sum())
-        slot = (st.n_good + np.arange(n_good)) % st.stride == 0
-        n_new = int(slot.sum())
-        if st.n_kept + n_new > prm.max_blocks:
-            for j in range(len(good)):
-                self._close(mag_mean[j] if good[j] else None, acc_mean[j], t_end)
-            return
-        st.blocks_mag[st.n_kept:st.n_kept + n_new] = mag_mean[good][slot]
-        st.n_kept += n_new
-        # block by block, as :meth:`_close` adds them (the same rounding)
-        st.acc_sum = np.cumsum(np.vstack([st.acc_sum, acc_mean[good]]), axis=0)[-1]
-        st.n_good += n_good
-        st.n_closed += len(good)
-        if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
-            self._refit(t_end)
+        ints = np.array([st.n_kept, st.n_good, st.n_closed, st.stride, st.n_used, st.n_fits])
+        fl = np.array([st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted])
+        st.acc_sum = st.acc_sum.copy()
+        st.c_ut = st.c_ut.copy()
+        close_blocks_kernel(mag_mean, acc_mean, good, t_end, st.blocks_mag, st.acc_sum, st.c_ut,
+                            ints, fl, out, prm.refit_blocks, prm.max_blocks, prm.min_samples,
+                            prm.gate_fraction, prm.min_field_ut, prm.min_arc_deg)
+        st.n_kept, st.n_good, st.n_closed, st.stride, st.n_used, st.n_fits = \
+            (int(v) for v in ints)
+        st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted = (float(v) for v in fl)
 
-    def _close(self, mag_mean: FloatArray | None, acc_mean: FloatArray, t_end: float) -> None:
-        """One completed block (``mag_mean`` None: it had a gap); refit when one is due."""
-        st, prm = self.state, self.params
-        st.n_closed += 1
-        if mag_mean is not None:
-            if st.n_good % st.stride == 0:
-                st.blocks_mag[st.n_kept] = mag_mean
-                st.n_kept += 1
-                if st.n_kept > prm.max_blocks:
-                    half = st.blocks_mag[:st.n_kept:2].copy()
-                    st.blocks_mag[:len(half)] = half
-                    st.n_kept = len(half)
-                    st.stride *= 2
-            st.acc_sum = st.acc_sum + acc_mean
-            st.n_good += 1
-        if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
-            self._refit(t_end)
 
-    def _refit(self, t_end: float) -> None:
-        st, prm = self.state, self.params
-        try:
-            fit: HardIronFit = fit_hard_iron(
-                st.blocks_mag[:st.n_kept], up_d=st.acc_sum / max(st.n_good, 1), block_samples=1,
-                min_arc_deg=prm.min_arc_deg, gate_fraction=prm.gate_fraction,
-                min_field_ut=prm.min_field_ut, min_samples=prm.min_samples)
-        except InputError:
-            return
-        if not self.accepted:
-            st.t_accepted = t_end
-        st.c_ut = np.asarray(fit.hard_iron_ut, dtype=np.float64)
-        st.field_ut, st.residual_ut = fit.field_ut, fit.residual_ut
-        st.arc_deg, st.n_used = fit.arc_deg, fit.n_used
-        st.n_fits += 1
+@numba.njit(cache=True)
+def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: FloatArray,
+                       acc_mean: FloatArray, good: np.ndarray) -> None:
+    # pragma: no cover - compiled
+    """Means of consecutive blocks of ``bs`` rows, summed in row order as numpy's ``mean``.
+
+    ``good``: every value of the block is finite (else its means are left unset).
+    """
+    for b in range(mag_mean.shape[0]):
+        i0 = b * bs
+        ok = True
+        for i in range(i0, i0 + bs):
+            for a in range(3):
+                ok = ok and math.isfinite(mag[i, a]) and math.isfinite(acc[i, a])
+        good[b] = ok
+        if not ok:
+            continue
+        for a in range(3):
+            sm = mag[i0, a]
+            sa = acc[i0, a]
+            for i in range(i0 + 1, i0 + bs):
+                sm += mag[i, a]
+                sa += acc[i, a]
+            mag_mean[b, a] = sm / bs
+            acc_mean[b, a] = sa / bs
+
+
+@numba.njit(cache=True)
+def close_blocks_kernel(mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
+                        t_end: FloatArray, blocks_mag: FloatArray, acc_sum: FloatArray,
+                        c_ut: FloatArray, ints: np.ndarray, fl: FloatArray, out: FloatArray,
+                        refit_blocks: int, max_blocks: int, min_samples: int,
+                        gate_fraction: float, min_field_ut: float,
+                        min_arc_deg: float) -> None:  # pragma: no cover - compiled
+    """Close blocks in order, keeping their means and refitting when due (state in place).
+
+    ``ints``: ``[n_kept, n_good, n_closed, stride, n_used, n_fits]``; ``fl``: ``[field_ut,
+    residual_ut, arc_deg, t_accepted]`` of :class:`RunningHardIronState`. ``out`` (``k bs``,
+    3) gets, for the samples of each block, the offset in force before the block closed
+    (``out`` may be empty: not written).
+    """
+    n_kept, n_good, n_closed, stride = ints[0], ints[1], ints[2], ints[3]
+    bs = out.shape[0] // mag_mean.shape[0]
+    for b in range(mag_mean.shape[0]):
+        for i in range(b * bs, (b + 1) * bs):
+            out[i] = c_ut
+        n_closed += 1
+        if good[b]:
+            if n_good % stride == 0:
+                blocks_mag[n_kept] = mag_mean[b]
+                n_kept += 1
+                if n_kept > max_blocks:   # thin evenly: every second kept mean
+                    half = blocks_mag[:n_kept:2].copy()
+                    blocks_mag[:half.shape[0]] = half
+                    n_kept = half.shape[0]
+                    stride *= 2
+            acc_sum += acc_mean[b]
+            n_good += 1
+        if n_closed % refit_blocks != 0 or n_kept < min_samples:
+            continue
+        up = acc_sum / max(n_good, 1)
+        norm2 = up[0] * up[0] + up[1] * up[1] + up[2] * up[2]
+        if not (math.isfinite(norm2) and norm2 > 0.0):
+            continue
+        code, c, r, resid, arc, _, n_used = checked_fit_kernel(
+            blocks_mag[:n_kept], plane_basis_kernel(up), gate_fraction, min_samples,
+            min_field_ut, min_arc_deg)
+        if code != FIT_OK:
+            continue   # a refused refit keeps the last accepted offset
+        if not np.all(np.isfinite(c_ut)):
+            fl[3] = t_end[b]
+        c_ut[:] = c
+        fl[0], fl[1], fl[2] = r, resid, arc
+        ints[4] = n_used
+        ints[5] += 1
+    ints[0], ints[1], ints[2], ints[3] = n_kept, n_good, n_closed, stride

@@ -99,8 +99,16 @@ class SensorSeries:
 
     def interpolate(self, t_new: ArrayLike) -> FloatArray:
         """Linear interpolation onto ``t_new`` (held constant outside the recorded span)."""
-        tq = np.asarray(t_new, dtype=np.float64)
-        return np.column_stack([np.interp(tq, self.t, col) for col in self.values.T])
+        from hrtls.data._interp_kernel import interp_columns_kernel  # numba: on first use
+
+        tq = np.ascontiguousarray(t_new, dtype=np.float64)
+        out = np.empty((tq.shape[0], self.values.shape[1]))
+        if len(self.t):
+            interp_columns_kernel(tq, np.ascontiguousarray(self.t, dtype=np.float64),
+                                  np.ascontiguousarray(self.values, dtype=np.float64), out)
+        else:   # as np.interp: nothing to interpolate from
+            raise ValueError("array of sample points is empty")
+        return out
 
     def between(self, t_start_s: float, t_end_s: float) -> SensorSeries:
         """Samples with ``t_start_s <= t < t_end_s``."""

@@ -115,15 +115,17 @@ class FilterState:
         symmetrized) and the heading wrapped; only finiteness is checked here (NaN never
         leaves a filter).
         """
-        # a sum is finite only when every term is (one reduction per array, not two)
-        if not (math.isfinite(float(np.sum(x)) + float(np.sum(p))) and math.isfinite(t)
-                and math.isfinite(input_heading_rad)):
+        x = np.array(x, dtype=np.float64)
+        p = np.array(p, dtype=np.float64)
+        # a sum is finite only when every term is (20 numbers: summed as Python floats)
+        if not math.isfinite(sum(x.tolist()) + sum(p.ravel().tolist()) + t
+                             + input_heading_rad):
             raise InputError("non-finite state from the compiled loop", where="filter state",
                              expected="finite x, P and t")
         state = object.__new__(cls)
         object.__setattr__(state, "t", float(t))
-        object.__setattr__(state, "x", np.array(x, dtype=np.float64))
-        object.__setattr__(state, "P", np.array(p, dtype=np.float64))
+        object.__setattr__(state, "x", x)
+        object.__setattr__(state, "P", p)
         object.__setattr__(state, "input_heading_rad", float(input_heading_rad))
         object.__setattr__(state, "has_input_heading", bool(has_input_heading))
         object.__setattr__(state, "reference_pending", bool(reference_pending))

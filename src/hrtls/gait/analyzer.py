@@ -69,8 +69,8 @@ from hrtls.gait.vertical import (
     GravityLevelling,
     LevelledAcceleration,
     LevellingState,
-    from_orientation,
     heading_of,
+    levelled,
     rotate,
 )
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
@@ -259,7 +259,7 @@ class GaitAnalyzer:
     # ------------------------------------------------------------------ helpers
     def _level(self, t: FloatArray, acc: FloatArray,
                q_nd: FloatArray | None) -> LevelledAcceleration:
-        return self._levelling.update(t, acc) if q_nd is None else from_orientation(t, acc, q_nd)
+        return self._levelling.update(t, acc) if q_nd is None else levelled(t, acc, q_nd)
 
     def _steps_complete_s(self) -> float:
         """Time before which the step detector has reported all its steps (reported times)."""

@@ -71,6 +71,38 @@ class CadenceParams:
 
 
 @numba.njit(cache=True)
+def _lagged_products(y: FloatArray, lag: int, n_lags: int,
+                     out: FloatArray) -> None:  # pragma: no cover - compiled
+    """``out[l] = sum_k y[k] y[k - l]`` (k from l up) for ``n_lags`` (1 or 4) lags from ``lag``.
+
+    Four lags share one pass with four independent sums, each added in the order of ``k``.
+    """
+    n = y.shape[0]
+    if n_lags == 1:
+        s = 0.0
+        for k in range(lag, n):
+            s += y[k] * y[k - lag]
+        out[lag] = s
+        return
+    s0 = s1 = s2 = s3 = 0.0
+    for k in range(lag, lag + 3):   # terms before the fourth lag's first one
+        s0 += y[k] * y[k - lag]
+        if k >= lag + 1:
+            s1 += y[k] * y[k - lag - 1]
+        if k >= lag + 2:
+            s2 += y[k] * y[k - lag - 2]
+    for k in range(lag + 3, n):
+        s0 += y[k] * y[k - lag]
+        s1 += y[k] * y[k - lag - 1]
+        s2 += y[k] * y[k - lag - 2]
+        s3 += y[k] * y[k - lag - 3]
+    out[lag] = s0
+    out[lag + 1] = s1
+    out[lag + 2] = s2
+    out[lag + 3] = s3
+
+
+@numba.njit(cache=True)
 def cadence_kernel(x: FloatArray, sigma: FloatArray, ipars: IntArray, fpars: FloatArray,
                    buf: FloatArray, ist: IntArray, fst: FloatArray, walk_out: IntArray,
                    freq_out: FloatArray, r_out: FloatArray,
@@ -125,16 +157,19 @@ def cadence_kernel(x: FloatArray, sigma: FloatArray, ipars: IntArray, fpars: Flo
                     cum[k + 1] = cum[k] + y[k] * y[k]
                 best = -1
                 rbest = -1.0
-                for lag in range(lmin - 1, lmax + 2):
+                lag = lmin - 1
+                while lag < lmax + 2:
                     if lag < 1 or lag >= wn - 2:
                         rr[lag] = 0.0
+                        lag += 1
                         continue
-                    s = 0.0
-                    for k in range(lag, wn):
-                        s += y[k] * y[k - lag]
-                    s0 = cum[wn] - cum[lag]
-                    s1 = cum[wn - lag]
-                    rr[lag] = s / np.sqrt(s0 * s1) if s0 > 0.0 and s1 > 0.0 else 0.0
+                    n_lags = 4 if lag + 3 < min(lmax + 2, wn - 2) else 1
+                    _lagged_products(y, lag, n_lags, rr)
+                    for j in range(lag, lag + n_lags):
+                        s0 = cum[wn] - cum[j]
+                        s1 = cum[wn - j]
+                        rr[j] = rr[j] / np.sqrt(s0 * s1) if s0 > 0.0 and s1 > 0.0 else 0.0
+                    lag += n_lags
                 for lag in range(lmin, lmax + 1):
                     if lag < wn - 2 and rr[lag] > rbest:
                         rbest = rr[lag]

@@ -45,6 +45,7 @@ def running_std_kernel(t: FloatArray, x: FloatArray, window_s: float, buf_t: Flo
     cap = buf_t.shape[0]
     head = ints[0]
     count = ints[1]
+    oldest = (head - count) % cap   # ring index of the oldest sample (no modulo per sample)
     offset = sums[0]
     s1 = sums[1]
     s2 = sums[2]
@@ -54,12 +55,14 @@ def running_std_kernel(t: FloatArray, x: FloatArray, window_s: float, buf_t: Flo
             offset = x[i]
         # drop samples that left the window (t_k < t - window) or overflow the buffer
         while count > 0:
-            oldest = (head - count) % cap
             if buf_t[oldest] < ti - window_s or count == cap:
                 v = buf_x[oldest] - offset
                 s1 -= v
                 s2 -= v * v
                 count -= 1
+                oldest += 1
+                if oldest == cap:
+                    oldest = 0
             else:
                 break
         if count == 0:
@@ -69,7 +72,9 @@ def running_std_kernel(t: FloatArray, x: FloatArray, window_s: float, buf_t: Flo
         v = x[i] - offset
         buf_t[head] = ti
         buf_x[head] = x[i]
-        head = (head + 1) % cap
+        head += 1
+        if head == cap:
+            head = 0
         count += 1
         s1 += v
         s2 += v * v

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from typing import Literal
 
+import numba
 import numpy as np
 
 from hrtls.frames import quat_to_matrix, wrap_angle
@@ -23,6 +24,15 @@ HEADING_HOLD_DELAY_S = 0.5
 """a step heading takes effect on the held walking direction this long after the step end"""
 TURNING_STEP_RAD = math.radians(20.0)
 """step_yaw="turns": a step turning more than this uses the time-averaged yaw"""
+
+
+@numba.njit(cache=True)
+def trapezoid_area_kernel(t: FloatArray, y: FloatArray,
+                          area: FloatArray) -> None:  # pragma: no cover - compiled
+    """``area[i]``: integral of ``y`` over ``[t[0], t[i]]`` by the trapezoid rule (one pass)."""
+    area[0] = 0.0
+    for i in range(1, t.shape[0]):
+        area[i] = area[i - 1] + 0.5 * (y[i] + y[i - 1]) * (t[i] - t[i - 1])
 
 
 def yaw_step_headings(pend: PendingGait, tt: FloatArray, yaw: FloatArray, t_start: FloatArray,
@@ -44,8 +54,8 @@ def yaw_step_headings(pend: PendingGait, tt: FloatArray, yaw: FloatArray, t_star
     head = np.arctan2(np.sin(y_start) + np.sin(y_end), np.cos(y_start) + np.cos(y_end))
     if step_yaw != "endpoints" and yb_t.size > 1:
         # time average of the unwrapped yaw over [t_start, t_end] (trapezoid rule)
-        area = np.concatenate([[0.0], np.cumsum(0.5 * (yb_y[1:] + yb_y[:-1])
-                                                * np.diff(yb_t))])
+        area = np.empty(yb_t.size)
+        trapezoid_area_kernel(yb_t, yb_y, area)
         span = t_end - t_start
         mean = (np.interp(t_end, yb_t, area)
                 - np.interp(t_start, yb_t, area)) / np.where(span > 0, span, 1.0)

@@ -32,6 +32,9 @@ from hrtls.gait._state import (
     state_to_dict,
 )
 
+UNIT_QUAT_TOL = 2e-3
+"""Largest ``| |q|^2 - 1 |`` of an attitude quaternion accepted as unit."""
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class LevelledAcceleration:
@@ -52,6 +55,18 @@ class LevelledAcceleration:
     frame: str
 
 
+@numba.njit(cache=True, inline="always")
+def _rotated(w: float, x: float, y: float, z: float, vx: float, vy: float,
+             vz: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """``q v conj(q)`` of one unit quaternion ``[w, x, y, z]`` and vector ``v``."""
+    # t = 2 q_vec x v ; v' = v + w t + q_vec x t
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
+            vz + w * tz + (x * ty - y * tx))
+
+
 @numba.njit(cache=True)
 def rotate_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pragma: no cover
     """``out[i] = q[i] * v[i] * conj(q[i])`` for unit quaternions [w, x, y, z] (row-wise).
@@ -60,16 +75,27 @@ def rotate_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pra
     """
     const = v.shape[0] == 1
     for i in range(q.shape[0]):
-        w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
         j = 0 if const else i
-        vx, vy, vz = v[j, 0], v[j, 1], v[j, 2]
-        # t = 2 q_vec x v ; v' = v + w t + q_vec x t
-        tx = 2.0 * (y * vz - z * vy)
-        ty = 2.0 * (z * vx - x * vz)
-        tz = 2.0 * (x * vy - y * vx)
-        out[i, 0] = vx + w * tx + (y * tz - z * ty)
-        out[i, 1] = vy + w * ty + (z * tx - x * tz)
-        out[i, 2] = vz + w * tz + (x * ty - y * tx)
+        out[i, 0], out[i, 1], out[i, 2] = _rotated(q[i, 0], q[i, 1], q[i, 2], q[i, 3],
+                                                   v[j, 0], v[j, 1], v[j, 2])
+
+
+@numba.njit(cache=True)
+def level_kernel(q: FloatArray, acc: FloatArray, gravity_m_s2: float, vertical: FloatArray,
+                 horizontal: FloatArray) -> int:  # pragma: no cover - compiled
+    """:func:`from_orientation` in one pass: first row whose quaternion is not unit, or -1.
+
+    ``vertical[i] = (q f conj(q))_z - g``, ``horizontal[i] = (q f conj(q))_xy``.
+    """
+    for i in range(q.shape[0]):
+        w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+        if abs(w * w + x * x + y * y + z * z - 1.0) > UNIT_QUAT_TOL:
+            return i
+        fx, fy, fz = _rotated(w, x, y, z, acc[i, 0], acc[i, 1], acc[i, 2])
+        horizontal[i, 0] = fx
+        horizontal[i, 1] = fy
+        vertical[i] = fz - gravity_m_s2
+    return -1
 
 
 def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
@@ -92,11 +118,8 @@ def heading_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pr
     off = 0.0
     prev = 0.0
     for i in range(q.shape[0]):
-        w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-        tx = 2.0 * (y * vz - z * vy)
-        ty = 2.0 * (z * vx - x * vz)
-        tz = 2.0 * (x * vy - y * vx)
-        a = math.atan2(vy + w * ty + (z * tx - x * tz), vx + w * tx + (y * tz - z * ty))
+        ex, ey, _ = _rotated(q[i, 0], q[i, 1], q[i, 2], q[i, 3], vx, vy, vz)
+        a = math.atan2(ey, ex)
         if i > 0:
             d = a - prev
             if d > math.pi:
@@ -127,17 +150,22 @@ def from_orientation(t: FloatArray, acc_d_m_s2: FloatArray, q_nd: FloatArray, *,
     gravity_m_s2: local gravity removed from the vertical axis, m/s^2.
     """
     tt = as_time(t, where="acceleration time")
-    acc = as_matrix(acc_d_m_s2, where="acceleration", columns=3, length=tt.shape[0])
+    acc = as_matrix(acc_d_m_s2, where="accelerometer", columns=3, length=tt.shape[0])
     q = as_matrix(q_nd, where="orientation q_nd", columns=4, length=tt.shape[0])
-    n2 = np.einsum("ij,ij->i", q, q)
-    bad = np.abs(n2 - 1.0) > 2e-3
-    if np.any(bad):
-        idx = int(np.flatnonzero(bad)[0])
-        raise InputError(f"quaternion norm {np.sqrt(n2[idx]):.4f}",
-                         where=f"orientation q_nd row {idx}", expected="unit quaternions")
-    f_n = rotate(q, acc)
-    return LevelledAcceleration(tt, f_n[:, 2] - gravity_m_s2, np.ascontiguousarray(f_n[:, :2]),
-                                "enu")
+    return levelled(tt, acc, q, gravity_m_s2=gravity_m_s2)
+
+
+def levelled(t: FloatArray, acc: FloatArray, q: FloatArray, *,
+             gravity_m_s2: float = GRAVITY_M_S2) -> LevelledAcceleration:
+    """:func:`from_orientation` of inputs already checked (contiguous, finite, N rows)."""
+    vert = np.empty(t.shape[0])
+    horiz = np.empty((t.shape[0], 2))
+    bad = level_kernel(q, acc, float(gravity_m_s2), vert, horiz)
+    if bad >= 0:
+        n2 = float(q[bad] @ q[bad])
+        raise InputError(f"quaternion norm {math.sqrt(n2):.4f}",
+                         where=f"orientation q_nd row {bad}", expected="unit quaternions")
+    return LevelledAcceleration(t, vert, horiz, "enu")
 
 
 @numba.njit(cache=True)

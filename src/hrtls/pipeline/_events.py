@@ -202,27 +202,19 @@ def loop_state(state: FilterState, *, path_loss: PathLossModel, channel: Channel
 
     ``channel`` None: the tight readings use ``path_loss`` (and the covariance is unused).
     """
-    rec = np.zeros(1, dtype=LOOP_STATE_DTYPE)
-    rec["t"] = state.t
-    rec["input_heading_rad"] = state.input_heading_rad
-    rec["has_input_heading"] = state.has_input_heading
-    rec["reference_pending"] = state.reference_pending
-    rec["last_activity"] = last_activity
-    rec["last_step_end_s"] = last_step_end_s
-    rec["step_scale"] = step_scale
-    rec["running_multiplier"] = running_multiplier
-    rec["yaw_offset_rad"] = yaw_offset_rad
-    rec["scan_base"] = scan_base
-    rec["flight"] = np.asarray(flight, dtype=np.float64)
     if channel is not None:
-        rec["channel"] = channel.record()
-        rec["sigma_db"] = math.sqrt(channel.residual_var_db2)
-        return rec, channel.cov.copy()
-    rec["channel"]["a_dbm"] = path_loss.a_dbm
-    rec["channel"]["eta"] = path_loss.eta
-    rec["channel"]["residual_var_db2"] = path_loss.sigma_db**2
-    rec["sigma_db"] = path_loss.sigma_db
-    return rec, np.eye(2)
+        chan = (float(channel.theta[0]), float(channel.theta[1]), channel.residual_var_db2,
+                channel.count)
+        sigma_db, cov = math.sqrt(channel.residual_var_db2), channel.cov.copy()
+    else:
+        chan = (path_loss.a_dbm, path_loss.eta, path_loss.sigma_db**2, 0)
+        sigma_db, cov = path_loss.sigma_db, np.eye(2)
+    # one tuple in the order of LOOP_STATE_DTYPE (counts and path start at zero)
+    rec = np.array([(state.t, state.input_heading_rad, state.has_input_heading,
+                     state.reference_pending, last_activity, last_step_end_s, chan, sigma_db,
+                     step_scale, running_multiplier, yaw_offset_rad, scan_base, 0.0, 0.0, 0, 0,
+                     0, 0, 0, flight)], dtype=LOOP_STATE_DTYPE)
+    return rec, cov
 
 
 @numba.njit(cache=True, error_model="numpy")

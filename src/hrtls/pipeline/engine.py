@@ -218,7 +218,7 @@ class FusionEngine:
         self.last_activity = int(sc["last_activity"])
         self.last_step_end = float(sc["last_step_end_s"])
         self.yaw_offset = float(sc["yaw_offset_rad"])
-        self.flight = tuple(float(v) for v in sc["flight"])
+        self.flight = tuple(sc["flight"].tolist())
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
