@@ -102,9 +102,8 @@ def finite3(v0: float, v1: float, v2: float) -> bool:
 
 
 @numba.njit(inline="always", **JIT)
-def gyro_ok(prm: FloatArray, g0: float, g1: float, g2: float) -> bool:
-    """Gyro sample finite and inside the measurement range."""
-    r = prm[PRM_GYR_RANGE]
+def gyro_ok(r: float, g0: float, g1: float, g2: float) -> bool:
+    """Gyro sample finite and inside the measurement range ``r``, rad/s."""
     return finite3(g0, g1, g2) and abs(g0) < r and abs(g1) < r and abs(g2) < r
 
 
@@ -122,42 +121,63 @@ def rest_and_bias(
     exponential average with time constant ``PRM_BIAS_TAU_S``.
     ``a`` must be finite.
     """
-    k = dt / (0.5 + dt)
-    aux[AUX_LP] += k * (g0 - aux[AUX_LP])
-    aux[AUX_LP + 1] += k * (g1 - aux[AUX_LP + 1])
-    aux[AUX_LP + 2] += k * (g2 - aux[AUX_LP + 2])
-    aux[AUX_ALP] += k * (a0 - aux[AUX_ALP])
-    aux[AUX_ALP + 1] += k * (a1 - aux[AUX_ALP + 1])
-    aux[AUX_ALP + 2] += k * (a2 - aux[AUX_ALP + 2])
-    d0 = g0 - aux[AUX_LP]
-    d1 = g1 - aux[AUX_LP + 1]
-    d2 = g2 - aux[AUX_LP + 2]
-    e0 = aux[AUX_LP] - aux[AUX_BIAS]
-    e1 = aux[AUX_LP + 1] - aux[AUX_BIAS + 1]
-    e2 = aux[AUX_LP + 2] - aux[AUX_BIAS + 2]
-    f0 = a0 - aux[AUX_ALP]
-    f1 = a1 - aux[AUX_ALP + 1]
-    f2 = a2 - aux[AUX_ALP + 2]
-    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    # arrays read first, written last (see read_sample)
+    lp0 = aux[AUX_LP]
+    lp1 = aux[AUX_LP + 1]
+    lp2 = aux[AUX_LP + 2]
+    al0 = aux[AUX_ALP]
+    al1 = aux[AUX_ALP + 1]
+    al2 = aux[AUX_ALP + 2]
+    b0 = aux[AUX_BIAS]
+    b1 = aux[AUX_BIAS + 1]
+    b2 = aux[AUX_BIAS + 2]
+    rest_t = aux[AUX_REST_T]
     thr = prm[PRM_REST_GYR]
     thr_a = prm[PRM_REST_ACC]
+    gravity = prm[PRM_GRAVITY]
+    rest_s = prm[PRM_REST_S]
+    bias_est = prm[PRM_BIAS_EST] > 0.5
+    bias_tau = prm[PRM_BIAS_TAU_S]
+    k = dt / (0.5 + dt)
+    lp0 += k * (g0 - lp0)
+    lp1 += k * (g1 - lp1)
+    lp2 += k * (g2 - lp2)
+    al0 += k * (a0 - al0)
+    al1 += k * (a1 - al1)
+    al2 += k * (a2 - al2)
+    d0 = g0 - lp0
+    d1 = g1 - lp1
+    d2 = g2 - lp2
+    e0 = lp0 - b0
+    e1 = lp1 - b1
+    e2 = lp2 - b2
+    f0 = a0 - al0
+    f1 = a1 - al1
+    f2 = a2 - al2
+    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
     still = (d0 * d0 + d1 * d1 + d2 * d2 < thr * thr
              and e0 * e0 + e1 * e1 + e2 * e2 < 4.0 * thr * thr
              and f0 * f0 + f1 * f1 + f2 * f2 < thr_a * thr_a
-             and abs(an - prm[PRM_GRAVITY]) < thr_a)
-    if not still:
-        aux[AUX_REST_T] = 0.0
-        return False
-    aux[AUX_REST_T] += dt
-    if aux[AUX_REST_T] < prm[PRM_REST_S]:
-        return False
-    if prm[PRM_BIAS_EST] > 0.5:
+             and abs(an - gravity) < thr_a)
+    rest_t = rest_t + dt if still else 0.0
+    at_rest = still and rest_t >= rest_s
+    if at_rest and bias_est:
         # running mean over the rest so far, then exponential with PRM_BIAS_TAU_S
-        kb = dt / min(prm[PRM_BIAS_TAU_S] + dt, aux[AUX_REST_T] - prm[PRM_REST_S] + dt)
-        aux[AUX_BIAS] += kb * e0
-        aux[AUX_BIAS + 1] += kb * e1
-        aux[AUX_BIAS + 2] += kb * e2
-    return True
+        kb = dt / min(bias_tau + dt, rest_t - rest_s + dt)
+        b0 += kb * e0
+        b1 += kb * e1
+        b2 += kb * e2
+    aux[AUX_LP] = lp0
+    aux[AUX_LP + 1] = lp1
+    aux[AUX_LP + 2] = lp2
+    aux[AUX_ALP] = al0
+    aux[AUX_ALP + 1] = al1
+    aux[AUX_ALP + 2] = al2
+    aux[AUX_REST_T] = rest_t
+    aux[AUX_BIAS] = b0
+    aux[AUX_BIAS + 1] = b1
+    aux[AUX_BIAS + 2] = b2
+    return at_rest
 
 
 @numba.njit(**JIT)
@@ -180,10 +200,12 @@ def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
     The given reference (``PRM_MAG_REF_*``) wins where it is finite; the candidate starts at
     the sample. Returns True when this was the first sample (nothing changes otherwise).
     """
+    ref_n = prm[PRM_MAG_REF_N]  # read outside the branches (see read_sample)
+    ref_dip = prm[PRM_MAG_REF_DIP]
     if aux[AUX_MREF_SET] > 0.5:
         return False
-    aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
-    aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
+    aux[AUX_MREF_N] = ref_n if math.isfinite(ref_n) else n
+    aux[AUX_MREF_DIP] = ref_dip if math.isfinite(ref_dip) else dip
     aux[AUX_MCAND_N] = n
     aux[AUX_MCAND_DIP] = dip
     aux[AUX_MCAND_T] = 0.0
@@ -282,27 +304,34 @@ def read_sample(
     and magnetometer values, and per sensor whether the value is usable (finite, inside the
     measurement range). Counts the sample and, when a sensor value is not usable, a bad sample.
     """
+    # the arrays are read first and written last, outside any branch: an array used across
+    # the branches of an inlined helper costs reference counting on every sample
     ti = t[i]
     tp = aux[AUX_T_PREV]
-    dt = ti - tp if math.isfinite(tp) else 0.0
-    aux[AUX_T_PREV] = ti
-    aux[AUX_N] += 1.0
     a0 = acc[i, 0]
     a1 = acc[i, 1]
     a2 = acc[i, 2]
-    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-    acc_fin = math.isfinite(an) and 1e-6 < an < prm[PRM_ACC_RANGE]
     g0 = gyr[i, 0]
     g1 = gyr[i, 1]
     g2 = gyr[i, 2]
-    gyr_fin = has_gyr and gyro_ok(prm, g0, g1, g2)
     m0 = mag[i, 0]
     m1 = mag[i, 1]
     m2 = mag[i, 2]
+    acc_range = prm[PRM_ACC_RANGE]
+    gyr_range = prm[PRM_GYR_RANGE]
+    gravity = prm[PRM_GRAVITY]
+    n_bad = aux[AUX_N_BAD]
+    dt = ti - tp if math.isfinite(tp) else 0.0
+    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    acc_fin = math.isfinite(an) and 1e-6 < an < acc_range
+    gyr_fin = has_gyr and gyro_ok(gyr_range, g0, g1, g2)
     mag_fin = has_mag and finite3(m0, m1, m2)
     if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
-        aux[AUX_N_BAD] += 1.0
-    acc_dev = abs(an - prm[PRM_GRAVITY]) if acc_fin else math.inf
+        n_bad += 1.0
+    acc_dev = abs(an - gravity) if acc_fin else math.inf
+    aux[AUX_T_PREV] = ti
+    aux[AUX_N] += 1.0
+    aux[AUX_N_BAD] = n_bad
     return Sample(dt, a0, a1, a2, an, acc_fin, acc_dev, g0, g1, g2, gyr_fin, m0, m1, m2,
                   mag_fin)
 
@@ -342,13 +371,16 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) when the sample is usable and the gap is
     at most ``PRM_MAX_DT``; else 0 (counted as not integrated when a gyro exists).
     """
-    flags = 0
-    if s.gyr_fin and 0.0 < s.dt <= prm[PRM_MAX_DT]:
-        flags = FLAG_GYR
-        if s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
+    max_dt = prm[PRM_MAX_DT]  # read outside the conditions (see read_sample)
+    n_rej = aux[AUX_N_GYR_REJ]
+    use = s.gyr_fin and 0.0 < s.dt <= max_dt
+    flags = FLAG_GYR if use else 0
+    if use and s.acc_fin:
+        if rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
             flags |= FLAG_REST
-    elif has_gyr:
-        aux[AUX_N_GYR_REJ] += 1.0
+    if has_gyr and not use:
+        n_rej += 1.0
+    aux[AUX_N_GYR_REJ] = n_rej
     return flags
 
 
