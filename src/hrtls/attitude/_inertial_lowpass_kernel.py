@@ -395,10 +395,10 @@ def inertial_lowpass_kernel(
                                  aux[K.AUX_LP + 2] - bx2, wr, wr, wr, clip)
                 elif use_a:
                     wm = _steady_noise(prm[B_SIG_MOT] ** 2, p_grow * dt)
-                    _bias_update(P, aux, hh, -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2),
-                                 -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2),
-                                 lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2), wm, wm,
-                                 wm / prm[B_VERT], clip)
+                    y0 = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
+                    y1 = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
+                    y2 = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
+                    _bias_update(P, aux, hh, y0, y1, y2, wm, wm, wm / prm[B_VERT], clip)
         # ---- 3. heading [3.3] with 5. disturbance rejection [3.5]
         use_m = False
         k_head = 0.0

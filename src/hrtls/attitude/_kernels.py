@@ -375,9 +375,8 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     n_rej = aux[AUX_N_GYR_REJ]
     use = s.gyr_fin and 0.0 < s.dt <= max_dt
     flags = FLAG_GYR if use else 0
-    if use and s.acc_fin:
-        if rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
-            flags |= FLAG_REST
+    if use and s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
+        flags |= FLAG_REST
     if has_gyr and not use:
         n_rej += 1.0
     aux[AUX_N_GYR_REJ] = n_rej
