@@ -41,6 +41,8 @@ HEAD_SIG = K.PRM_SPECIFIC + 17
 WALK = K.PRM_SPECIFIC + 18
 
 BIAS_GROWTH_RAD2_S2 = float(np.deg2rad(0.1)) ** 2  # bias variance growth per bias_forgetting_s
+Mat3 = tuple[float, float, float, float, float, float, float, float, float]  # row-major 3 x 3
+EYE3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 # ---- state layout
 QG = 0  # 0..3 q_gyr (d -> I)
@@ -152,17 +154,18 @@ def _steady_noise(var: float, growth: float) -> float:
 
 
 @numba.njit(inline="always", **JIT)
-def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y0: float, y1: float,
-                 y2: float, w0: float, w1: float, w2: float, clip: float) -> None:
+def _bias_update(P: FloatArray, aux: FloatArray, H: Mat3, y0: float, y1: float, y2: float,
+                 w0: float, w1: float, w2: float, clip: float) -> None:
     """Kalman update of the bias, ``b`` clipped.
 
     ``S = H P H^T + diag(w)``, ``K = P H^T S^-1``, ``b += K y``, ``P -= K H P`` (``H``
     row-major 3 x 3, ``P`` symmetric). The arrays are read first and written last, outside any
-    branch (see :func:`hrtls.attitude._kernels.read_sample`).
+    branch (see :func:`hrtls.attitude._kernels.read_sample`); ``S`` not positive definite
+    changes nothing.
     """
     p00, p01, p02, p11, p12, p22 = P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]
     b0, b1, b2 = aux[K.AUX_BIAS], aux[K.AUX_BIAS + 1], aux[K.AUX_BIAS + 2]
-    h0, h1, h2, h3, h4, h5, h6, h7, h8 = H[0], H[1], H[2], H[3], H[4], H[5], H[6], H[7], H[8]
+    h0, h1, h2, h3, h4, h5, h6, h7, h8 = H
     # M = P H^T (m_ar = M[a, r])
     m00, m01, m02 = p00 * h0 + p01 * h1 + p02 * h2, p00 * h3 + p01 * h4 + p02 * h5, \
         p00 * h6 + p01 * h7 + p02 * h8
@@ -174,20 +177,23 @@ def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y0: float, y1: f
         h0 * m00 + h1 * m10 + h2 * m20 + w0, h0 * m01 + h1 * m11 + h2 * m21,
         h0 * m02 + h1 * m12 + h2 * m22, h3 * m01 + h4 * m11 + h5 * m21 + w1,
         h3 * m02 + h4 * m12 + h5 * m22, h6 * m02 + h7 * m12 + h8 * m22 + w2)
-    if not ok:
-        return
     k00, k01, k02 = _row_times_sym3(m00, m01, m02, i00, i01, i02, i11, i12, i22)
     k10, k11, k12 = _row_times_sym3(m10, m11, m12, i00, i01, i02, i11, i12, i22)
     k20, k21, k22 = _row_times_sym3(m20, m21, m22, i00, i01, i02, i11, i12, i22)
-    aux[K.AUX_BIAS] = _clipped_step(b0, k00 * y0 + k01 * y1 + k02 * y2, clip)
-    aux[K.AUX_BIAS + 1] = _clipped_step(b1, k10 * y0 + k11 * y1 + k12 * y2, clip)
-    aux[K.AUX_BIAS + 2] = _clipped_step(b2, k20 * y0 + k21 * y1 + k22 * y2, clip)
-    P[0, 0] = p00 - (k00 * m00 + k01 * m01 + k02 * m02)
-    P[1, 1] = p11 - (k10 * m10 + k11 * m11 + k12 * m12)
-    P[2, 2] = p22 - (k20 * m20 + k21 * m21 + k22 * m22)
-    P[0, 1] = P[1, 0] = p01 - (k00 * m10 + k01 * m11 + k02 * m12)
-    P[0, 2] = P[2, 0] = p02 - (k00 * m20 + k01 * m21 + k02 * m22)
-    P[1, 2] = P[2, 1] = p12 - (k10 * m20 + k11 * m21 + k12 * m22)
+    b0 = _clipped_step(b0, k00 * y0 + k01 * y1 + k02 * y2, clip) if ok else b0
+    b1 = _clipped_step(b1, k10 * y0 + k11 * y1 + k12 * y2, clip) if ok else b1
+    b2 = _clipped_step(b2, k20 * y0 + k21 * y1 + k22 * y2, clip) if ok else b2
+    p00 = p00 - (k00 * m00 + k01 * m01 + k02 * m02) if ok else p00
+    p11 = p11 - (k10 * m10 + k11 * m11 + k12 * m12) if ok else p11
+    p22 = p22 - (k20 * m20 + k21 * m21 + k22 * m22) if ok else p22
+    p01 = p01 - (k00 * m10 + k01 * m11 + k02 * m12) if ok else p01
+    p02 = p02 - (k00 * m20 + k01 * m21 + k02 * m22) if ok else p02
+    p12 = p12 - (k10 * m20 + k11 * m21 + k12 * m22) if ok else p12
+    aux[K.AUX_BIAS], aux[K.AUX_BIAS + 1], aux[K.AUX_BIAS + 2] = b0, b1, b2
+    P[0, 0], P[1, 1], P[2, 2] = p00, p11, p22
+    P[0, 1] = P[1, 0] = p01
+    P[0, 2] = P[2, 0] = p02
+    P[1, 2] = P[2, 1] = p12
 
 
 @numba.njit(inline="always", **JIT)
@@ -288,7 +294,6 @@ def inertial_lowpass_kernel(
     n = t.shape[0]
     rr = np.empty(9)  # R_6 of this sample
     hh = np.empty(9)  # lp(R_6)
-    eye = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
     sig0 = prm[B_SIG0]
     p_max = sig0 * sig0
     p_grow = BIAS_GROWTH_RAD2_S2 / prm[B_FORGET]
@@ -388,17 +393,23 @@ def inertial_lowpass_kernel(
             lrb0 = _biquad(x, RBLP, rr[0] * bx0 + rr[1] * bx1 + rr[2] * bx2, b0, a1, a2)
             lrb1 = _biquad(x, RBLP + 2, rr[3] * bx0 + rr[4] * bx1 + rr[5] * bx2, b0, a1, a2)
             lrb2 = _biquad(x, RBLP + 4, rr[6] * bx0 + rr[7] * bx1 + rr[8] * bx2, b0, a1, a2)
-            if bias_on and (gflags & K.FLAG_GYR):
-                if gflags & K.FLAG_REST:
+            rest = (gflags & K.FLAG_REST) != 0
+            if bias_on and (gflags & K.FLAG_GYR) and (rest or use_a):
+                if rest:
                     wr = _steady_noise(prm[B_SIG_REST] ** 2, p_grow * dt)
-                    _bias_update(P, aux, eye, aux[K.AUX_LP] - bx0, aux[K.AUX_LP + 1] - bx1,
-                                 aux[K.AUX_LP + 2] - bx2, wr, wr, wr, clip)
-                elif use_a:
+                    hk = EYE3
+                    y0 = aux[K.AUX_LP] - bx0
+                    y1 = aux[K.AUX_LP + 1] - bx1
+                    y2 = aux[K.AUX_LP + 2] - bx2
+                    w0, w1, w2 = wr, wr, wr
+                else:
                     wm = _steady_noise(prm[B_SIG_MOT] ** 2, p_grow * dt)
+                    hk = (hh[0], hh[1], hh[2], hh[3], hh[4], hh[5], hh[6], hh[7], hh[8])
                     y0 = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
                     y1 = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
                     y2 = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
-                    _bias_update(P, aux, hh, y0, y1, y2, wm, wm, wm / prm[B_VERT], clip)
+                    w0, w1, w2 = wm, wm, wm / prm[B_VERT]
+                _bias_update(P, aux, hk, y0, y1, y2, w0, w1, w2, clip)
         # ---- 3. heading [3.3] with 5. disturbance rejection [3.5]
         use_m = False
         k_head = 0.0

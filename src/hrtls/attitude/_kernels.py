@@ -110,7 +110,7 @@ def gyro_ok(r: float, g0: float, g1: float, g2: float) -> bool:
 @numba.njit(inline="always", **JIT)
 def rest_and_bias(
     aux: FloatArray, prm: FloatArray, g0: float, g1: float, g2: float,
-    a0: float, a1: float, a2: float, dt: float,
+    a0: float, a1: float, a2: float, dt: float, active: bool = True,
 ) -> bool:
     """Rest detection and gyro-bias update at rest; returns True when at rest.
 
@@ -118,19 +118,14 @@ def rest_and_bias(
     stays within ``2 PRM_REST_GYR`` of the current bias, and the specific force stays within
     ``PRM_REST_ACC`` of its low-pass and of g in norm, all for ``PRM_REST_S``. While at rest
     the bias follows the low-passed rate: a running mean from the start of the rest, then an
-    exponential average with time constant ``PRM_BIAS_TAU_S``.
-    ``a`` must be finite.
+    exponential average with time constant ``PRM_BIAS_TAU_S``. Nothing changes unless
+    ``active`` (then ``g`` and ``a`` may be anything); when active, ``g`` and ``a`` must be
+    finite.
     """
-    # arrays read first, written last (see read_sample)
-    lp0 = aux[AUX_LP]
-    lp1 = aux[AUX_LP + 1]
-    lp2 = aux[AUX_LP + 2]
-    al0 = aux[AUX_ALP]
-    al1 = aux[AUX_ALP + 1]
-    al2 = aux[AUX_ALP + 2]
-    b0 = aux[AUX_BIAS]
-    b1 = aux[AUX_BIAS + 1]
-    b2 = aux[AUX_BIAS + 2]
+    # arrays read first, written last and the call is unconditional (see read_sample)
+    lp0, lp1, lp2 = aux[AUX_LP], aux[AUX_LP + 1], aux[AUX_LP + 2]
+    al0, al1, al2 = aux[AUX_ALP], aux[AUX_ALP + 1], aux[AUX_ALP + 2]
+    b0, b1, b2 = aux[AUX_BIAS], aux[AUX_BIAS + 1], aux[AUX_BIAS + 2]
     rest_t = aux[AUX_REST_T]
     thr = prm[PRM_REST_GYR]
     thr_a = prm[PRM_REST_ACC]
@@ -139,44 +134,40 @@ def rest_and_bias(
     bias_est = prm[PRM_BIAS_EST] > 0.5
     bias_tau = prm[PRM_BIAS_TAU_S]
     k = dt / (0.5 + dt)
-    lp0 += k * (g0 - lp0)
-    lp1 += k * (g1 - lp1)
-    lp2 += k * (g2 - lp2)
-    al0 += k * (a0 - al0)
-    al1 += k * (a1 - al1)
-    al2 += k * (a2 - al2)
-    d0 = g0 - lp0
-    d1 = g1 - lp1
-    d2 = g2 - lp2
-    e0 = lp0 - b0
-    e1 = lp1 - b1
-    e2 = lp2 - b2
-    f0 = a0 - al0
-    f1 = a1 - al1
-    f2 = a2 - al2
+    n0 = lp0 + k * (g0 - lp0)
+    n1 = lp1 + k * (g1 - lp1)
+    n2 = lp2 + k * (g2 - lp2)
+    c0 = al0 + k * (a0 - al0)
+    c1 = al1 + k * (a1 - al1)
+    c2 = al2 + k * (a2 - al2)
+    d0 = g0 - n0
+    d1 = g1 - n1
+    d2 = g2 - n2
+    e0 = n0 - b0
+    e1 = n1 - b1
+    e2 = n2 - b2
+    f0 = a0 - c0
+    f1 = a1 - c1
+    f2 = a2 - c2
     an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
     still = (d0 * d0 + d1 * d1 + d2 * d2 < thr * thr
              and e0 * e0 + e1 * e1 + e2 * e2 < 4.0 * thr * thr
              and f0 * f0 + f1 * f1 + f2 * f2 < thr_a * thr_a
              and abs(an - gravity) < thr_a)
-    rest_t = rest_t + dt if still else 0.0
-    at_rest = still and rest_t >= rest_s
+    new_t = rest_t + dt if still else 0.0
+    at_rest = active and still and new_t >= rest_s
     if at_rest and bias_est:
         # running mean over the rest so far, then exponential with PRM_BIAS_TAU_S
-        kb = dt / min(bias_tau + dt, rest_t - rest_s + dt)
+        kb = dt / min(bias_tau + dt, new_t - rest_s + dt)
         b0 += kb * e0
         b1 += kb * e1
         b2 += kb * e2
-    aux[AUX_LP] = lp0
-    aux[AUX_LP + 1] = lp1
-    aux[AUX_LP + 2] = lp2
-    aux[AUX_ALP] = al0
-    aux[AUX_ALP + 1] = al1
-    aux[AUX_ALP + 2] = al2
+    if active:
+        lp0, lp1, lp2, al0, al1, al2, rest_t = n0, n1, n2, c0, c1, c2, new_t
+    aux[AUX_LP], aux[AUX_LP + 1], aux[AUX_LP + 2] = lp0, lp1, lp2
+    aux[AUX_ALP], aux[AUX_ALP + 1], aux[AUX_ALP + 2] = al0, al1, al2
     aux[AUX_REST_T] = rest_t
-    aux[AUX_BIAS] = b0
-    aux[AUX_BIAS + 1] = b1
-    aux[AUX_BIAS + 2] = b2
+    aux[AUX_BIAS], aux[AUX_BIAS + 1], aux[AUX_BIAS + 2] = b0, b1, b2
     return at_rest
 
 
@@ -371,16 +362,11 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) when the sample is usable and the gap is
     at most ``PRM_MAX_DT``; else 0 (counted as not integrated when a gyro exists).
     """
-    max_dt = prm[PRM_MAX_DT]  # read outside the conditions (see read_sample)
-    n_rej = aux[AUX_N_GYR_REJ]
+    max_dt = prm[PRM_MAX_DT]  # arrays outside the conditions (see read_sample)
     use = s.gyr_fin and 0.0 < s.dt <= max_dt
-    flags = FLAG_GYR if use else 0
-    if use and s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
-        flags |= FLAG_REST
-    if has_gyr and not use:
-        n_rej += 1.0
-    aux[AUX_N_GYR_REJ] = n_rej
-    return flags
+    rest = rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt, use and s.acc_fin)
+    aux[AUX_N_GYR_REJ] += 1.0 if has_gyr and not use else 0.0
+    return (FLAG_GYR if use else 0) | (FLAG_REST if rest else 0)
 
 
 @numba.njit(inline="always", **JIT)
@@ -422,15 +408,10 @@ def unbiased_rate(aux: FloatArray, s: Any) -> tuple[float, float, float]:
 @numba.njit(inline="always", **JIT)
 def count_used(aux: FloatArray, flags: int, use_a: bool, use_m: bool, has_mag: bool) -> int:
     """Flags of the static sensors that corrected the attitude; count the others."""
-    if use_a:
-        flags |= FLAG_ACC
-    else:
-        aux[AUX_N_ACC_REJ] += 1.0
-    if use_m:
-        flags |= FLAG_MAG
-    elif has_mag:
-        aux[AUX_N_MAG_REJ] += 1.0
-    return flags
+    # written outside the branches (see read_sample)
+    aux[AUX_N_ACC_REJ] += 0.0 if use_a else 1.0
+    aux[AUX_N_MAG_REJ] += 1.0 if has_mag and not use_m else 0.0
+    return flags | (FLAG_ACC if use_a else 0) | (FLAG_MAG if use_m else 0)
 
 
 @numba.njit(inline="always", **JIT)
