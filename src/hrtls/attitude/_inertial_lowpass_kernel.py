@@ -41,6 +41,8 @@ HEAD_SIG = K.PRM_SPECIFIC + 17
 WALK = K.PRM_SPECIFIC + 18
 
 BIAS_GROWTH_RAD2_S2 = float(np.deg2rad(0.1)) ** 2  # bias variance growth per bias_forgetting_s
+Mat3 = tuple[float, float, float, float, float, float, float, float, float]  # row-major 3 x 3
+EYE3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 # ---- state layout
 QG = 0  # 0..3 q_gyr (d -> I)
@@ -152,41 +154,60 @@ def _steady_noise(var: float, growth: float) -> float:
 
 
 @numba.njit(inline="always", **JIT)
-def _bias_update(P: FloatArray, aux: FloatArray, H: FloatArray, y: FloatArray,
-                 wv: FloatArray, clip: float, M: FloatArray, k: FloatArray) -> None:
+def _bias_update(P: FloatArray, aux: FloatArray, H: Mat3, y0: float, y1: float, y2: float,
+                 w0: float, w1: float, w2: float, clip: float) -> None:
     """Kalman update of the bias, ``b`` clipped.
 
-    ``S = H P H^T + diag(wv)``, ``K = P H^T S^-1``, ``b += K y``, ``P -= K H P`` (``H``
-    row-major 3 x 3, ``M`` and ``k`` work space).
+    ``S = H P H^T + diag(w)``, ``K = P H^T S^-1``, ``b += K y``, ``P -= K H P`` (``H``
+    row-major 3 x 3, ``P`` symmetric). The arrays are read first and written last, outside any
+    branch (see :func:`hrtls.attitude._kernels.read_sample`); ``S`` not positive definite
+    changes nothing.
     """
-    for a in range(3):
-        for r in range(3):
-            M[a, r] = P[a, 0] * H[3 * r] + P[a, 1] * H[3 * r + 1] + P[a, 2] * H[3 * r + 2]
-    s00 = H[0] * M[0, 0] + H[1] * M[1, 0] + H[2] * M[2, 0] + wv[0]
-    s01 = H[0] * M[0, 1] + H[1] * M[1, 1] + H[2] * M[2, 1]
-    s02 = H[0] * M[0, 2] + H[1] * M[1, 2] + H[2] * M[2, 2]
-    s11 = H[3] * M[0, 1] + H[4] * M[1, 1] + H[5] * M[2, 1] + wv[1]
-    s12 = H[3] * M[0, 2] + H[4] * M[1, 2] + H[5] * M[2, 2]
-    s22 = H[6] * M[0, 2] + H[7] * M[1, 2] + H[8] * M[2, 2] + wv[2]
-    ok, i00, i01, i02, i11, i12, i22 = EK.sym3_inverse(s00, s01, s02, s11, s12, s22)
-    if not ok:
-        return
-    for a in range(3):
-        m0 = M[a, 0]
-        m1 = M[a, 1]
-        m2 = M[a, 2]
-        k[a, 0] = m0 * i00 + m1 * i01 + m2 * i02
-        k[a, 1] = m0 * i01 + m1 * i11 + m2 * i12
-        k[a, 2] = m0 * i02 + m1 * i12 + m2 * i22
-    for a in range(3):
-        db = k[a, 0] * y[0] + k[a, 1] * y[1] + k[a, 2] * y[2]
-        if math.isfinite(db):
-            aux[K.AUX_BIAS + a] = min(clip, max(-clip, aux[K.AUX_BIAS + a] + db))
-    for a in range(3):
-        for b in range(a, 3):
-            v = P[a, b] - (k[a, 0] * M[b, 0] + k[a, 1] * M[b, 1] + k[a, 2] * M[b, 2])
-            P[a, b] = v
-            P[b, a] = v
+    p00, p01, p02, p11, p12, p22 = P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]
+    b0, b1, b2 = aux[K.AUX_BIAS], aux[K.AUX_BIAS + 1], aux[K.AUX_BIAS + 2]
+    h0, h1, h2, h3, h4, h5, h6, h7, h8 = H
+    # M = P H^T (m_ar = M[a, r])
+    m00, m01, m02 = p00 * h0 + p01 * h1 + p02 * h2, p00 * h3 + p01 * h4 + p02 * h5, \
+        p00 * h6 + p01 * h7 + p02 * h8
+    m10, m11, m12 = p01 * h0 + p11 * h1 + p12 * h2, p01 * h3 + p11 * h4 + p12 * h5, \
+        p01 * h6 + p11 * h7 + p12 * h8
+    m20, m21, m22 = p02 * h0 + p12 * h1 + p22 * h2, p02 * h3 + p12 * h4 + p22 * h5, \
+        p02 * h6 + p12 * h7 + p22 * h8
+    ok, i00, i01, i02, i11, i12, i22 = EK.sym3_inverse(
+        h0 * m00 + h1 * m10 + h2 * m20 + w0, h0 * m01 + h1 * m11 + h2 * m21,
+        h0 * m02 + h1 * m12 + h2 * m22, h3 * m01 + h4 * m11 + h5 * m21 + w1,
+        h3 * m02 + h4 * m12 + h5 * m22, h6 * m02 + h7 * m12 + h8 * m22 + w2)
+    k00, k01, k02 = _row_times_sym3(m00, m01, m02, i00, i01, i02, i11, i12, i22)
+    k10, k11, k12 = _row_times_sym3(m10, m11, m12, i00, i01, i02, i11, i12, i22)
+    k20, k21, k22 = _row_times_sym3(m20, m21, m22, i00, i01, i02, i11, i12, i22)
+    b0 = _clipped_step(b0, k00 * y0 + k01 * y1 + k02 * y2, clip) if ok else b0
+    b1 = _clipped_step(b1, k10 * y0 + k11 * y1 + k12 * y2, clip) if ok else b1
+    b2 = _clipped_step(b2, k20 * y0 + k21 * y1 + k22 * y2, clip) if ok else b2
+    p00 = p00 - (k00 * m00 + k01 * m01 + k02 * m02) if ok else p00
+    p11 = p11 - (k10 * m10 + k11 * m11 + k12 * m12) if ok else p11
+    p22 = p22 - (k20 * m20 + k21 * m21 + k22 * m22) if ok else p22
+    p01 = p01 - (k00 * m10 + k01 * m11 + k02 * m12) if ok else p01
+    p02 = p02 - (k00 * m20 + k01 * m21 + k02 * m22) if ok else p02
+    p12 = p12 - (k10 * m20 + k11 * m21 + k12 * m22) if ok else p12
+    aux[K.AUX_BIAS], aux[K.AUX_BIAS + 1], aux[K.AUX_BIAS + 2] = b0, b1, b2
+    P[0, 0], P[1, 1], P[2, 2] = p00, p11, p22
+    P[0, 1] = P[1, 0] = p01
+    P[0, 2] = P[2, 0] = p02
+    P[1, 2] = P[2, 1] = p12
+
+
+@numba.njit(inline="always", **JIT)
+def _row_times_sym3(m0: float, m1: float, m2: float, i00: float, i01: float, i02: float,
+                    i11: float, i12: float, i22: float) -> tuple[float, float, float]:
+    """The row ``m`` times the symmetric matrix with upper triangle ``i``."""
+    return (m0 * i00 + m1 * i01 + m2 * i02, m0 * i01 + m1 * i11 + m2 * i12,
+            m0 * i02 + m1 * i12 + m2 * i22)
+
+
+@numba.njit(inline="always", **JIT)
+def _clipped_step(b: float, db: float, clip: float) -> float:
+    """``b + db`` clipped to ``[-clip, clip]``; ``b`` unchanged when ``db`` is not finite."""
+    return min(clip, max(-clip, b + db)) if math.isfinite(db) else b
 
 
 @numba.njit(inline="always", **JIT)
@@ -225,36 +246,41 @@ def _mag_disturbance(x: FloatArray, aux: FloatArray, prm: FloatArray, mn: float,
     the reference while undisturbed, and makes a candidate field that stays stable while the
     device turns (``rate``, rad/s) the new reference.
     """
-    x[MN] += x[KCUR] * (mn - x[MN])
-    x[MDIP] += x[KCUR] * (dip - x[MDIP])
-    cn = x[MN]
-    cd = x[MDIP]
-    if abs(cn - aux[K.AUX_MREF_N]) < gn and abs(cd - aux[K.AUX_MREF_DIP]) < gd:
-        x[MUND_T] += dt
-        if x[MUND_T] >= prm[M_UNDIST]:
-            x[MDIST] = 0.0
-            aux[K.AUX_MREF_N] += x[KREF] * (cn - aux[K.AUX_MREF_N])
-            aux[K.AUX_MREF_DIP] += x[KREF] * (cd - aux[K.AUX_MREF_DIP])
+    # arrays read first, written last (see _bias_update)
+    k_cur, k_ref, und_t, dist, first = x[KCUR], x[KREF], x[MUND_T], x[MDIST], x[MFIRST]
+    ref_n, ref_dip = aux[K.AUX_MREF_N], aux[K.AUX_MREF_DIP]
+    cand_n, cand_dip, cand_t = aux[K.AUX_MCAND_N], aux[K.AUX_MCAND_DIP], aux[K.AUX_MCAND_T]
+    und_min, new_rate, new_s, new_first = prm[M_UNDIST], prm[M_NEW_RATE], prm[K.PRM_MAG_NEW_S], \
+        prm[M_NEW_FIRST]
+    cn = x[MN] + k_cur * (mn - x[MN])
+    cd = x[MDIP] + k_cur * (dip - x[MDIP])
+    if abs(cn - ref_n) < gn and abs(cd - ref_dip) < gd:
+        und_t += dt
+        if und_t >= und_min:
+            dist = 0.0
+            ref_n += k_ref * (cn - ref_n)
+            ref_dip += k_ref * (cd - ref_dip)
     else:
-        x[MUND_T] = 0.0
-        x[MDIST] = 1.0
-    if abs(cn - aux[K.AUX_MCAND_N]) < gn and abs(cd - aux[K.AUX_MCAND_DIP]) < gd:
-        if rate >= prm[M_NEW_RATE]:
-            aux[K.AUX_MCAND_T] += dt
-            aux[K.AUX_MCAND_N] += x[KREF] * (cn - aux[K.AUX_MCAND_N])
-            aux[K.AUX_MCAND_DIP] += x[KREF] * (cd - aux[K.AUX_MCAND_DIP])
-            if x[MDIST] > 0.5 and (
-                    aux[K.AUX_MCAND_T] >= prm[K.PRM_MAG_NEW_S]
-                    or (x[MFIRST] > 0.5 and aux[K.AUX_MCAND_T] >= prm[M_NEW_FIRST])):
-                aux[K.AUX_MREF_N] = aux[K.AUX_MCAND_N]
-                aux[K.AUX_MREF_DIP] = aux[K.AUX_MCAND_DIP]
-                x[MUND_T] = prm[M_UNDIST]
-                x[MDIST] = 0.0
-                x[MFIRST] = 0.0
+        und_t = 0.0
+        dist = 1.0
+    if abs(cn - cand_n) < gn and abs(cd - cand_dip) < gd:
+        if rate >= new_rate:
+            cand_t += dt
+            cand_n += k_ref * (cn - cand_n)
+            cand_dip += k_ref * (cd - cand_dip)
+            if dist > 0.5 and (cand_t >= new_s or (first > 0.5 and cand_t >= new_first)):
+                ref_n = cand_n
+                ref_dip = cand_dip
+                und_t = und_min
+                dist = 0.0
+                first = 0.0
     else:
-        aux[K.AUX_MCAND_N] = cn
-        aux[K.AUX_MCAND_DIP] = cd
-        aux[K.AUX_MCAND_T] = 0.0
+        cand_n = cn
+        cand_dip = cd
+        cand_t = 0.0
+    x[MN], x[MDIP], x[MUND_T], x[MDIST], x[MFIRST] = cn, cd, und_t, dist, first
+    aux[K.AUX_MREF_N], aux[K.AUX_MREF_DIP] = ref_n, ref_dip
+    aux[K.AUX_MCAND_N], aux[K.AUX_MCAND_DIP], aux[K.AUX_MCAND_T] = cand_n, cand_dip, cand_t
 
 
 @numba.njit(**JIT)
@@ -268,11 +294,6 @@ def inertial_lowpass_kernel(
     n = t.shape[0]
     rr = np.empty(9)  # R_6 of this sample
     hh = np.empty(9)  # lp(R_6)
-    yv = np.empty(3)
-    wv = np.empty(3)
-    M = np.empty((3, 3))
-    kw = np.empty((3, 3))
-    eye = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
     sig0 = prm[B_SIG0]
     p_max = sig0 * sig0
     p_grow = BIAS_GROWTH_RAD2_S2 / prm[B_FORGET]
@@ -372,25 +393,23 @@ def inertial_lowpass_kernel(
             lrb0 = _biquad(x, RBLP, rr[0] * bx0 + rr[1] * bx1 + rr[2] * bx2, b0, a1, a2)
             lrb1 = _biquad(x, RBLP + 2, rr[3] * bx0 + rr[4] * bx1 + rr[5] * bx2, b0, a1, a2)
             lrb2 = _biquad(x, RBLP + 4, rr[6] * bx0 + rr[7] * bx1 + rr[8] * bx2, b0, a1, a2)
-            if bias_on and (gflags & K.FLAG_GYR):
-                if gflags & K.FLAG_REST:
-                    yv[0] = aux[K.AUX_LP] - bx0
-                    yv[1] = aux[K.AUX_LP + 1] - bx1
-                    yv[2] = aux[K.AUX_LP + 2] - bx2
+            rest = (gflags & K.FLAG_REST) != 0
+            if bias_on and (gflags & K.FLAG_GYR) and (rest or use_a):
+                if rest:
                     wr = _steady_noise(prm[B_SIG_REST] ** 2, p_grow * dt)
-                    wv[0] = wr
-                    wv[1] = wr
-                    wv[2] = wr
-                    _bias_update(P, aux, eye, yv, wv, clip, M, kw)
-                elif use_a:
-                    yv[0] = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
-                    yv[1] = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
-                    yv[2] = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
+                    hk = EYE3
+                    y0 = aux[K.AUX_LP] - bx0
+                    y1 = aux[K.AUX_LP + 1] - bx1
+                    y2 = aux[K.AUX_LP + 2] - bx2
+                    w0, w1, w2 = wr, wr, wr
+                else:
                     wm = _steady_noise(prm[B_SIG_MOT] ** 2, p_grow * dt)
-                    wv[0] = wm
-                    wv[1] = wm
-                    wv[2] = wm / prm[B_VERT]
-                    _bias_update(P, aux, hh, yv, wv, clip, M, kw)
+                    hk = (hh[0], hh[1], hh[2], hh[3], hh[4], hh[5], hh[6], hh[7], hh[8])
+                    y0 = -wc0 + lrb0 - (hh[0] * bx0 + hh[1] * bx1 + hh[2] * bx2)
+                    y1 = -wc1 + lrb1 - (hh[3] * bx0 + hh[4] * bx1 + hh[5] * bx2)
+                    y2 = lrb2 - (hh[6] * bx0 + hh[7] * bx1 + hh[8] * bx2)
+                    w0, w1, w2 = wm, wm, wm / prm[B_VERT]
+                _bias_update(P, aux, hk, y0, y1, y2, w0, w1, w2, clip)
         # ---- 3. heading [3.3] with 5. disturbance rejection [3.5]
         use_m = False
         k_head = 0.0

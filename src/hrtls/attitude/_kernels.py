@@ -102,16 +102,15 @@ def finite3(v0: float, v1: float, v2: float) -> bool:
 
 
 @numba.njit(inline="always", **JIT)
-def gyro_ok(prm: FloatArray, g0: float, g1: float, g2: float) -> bool:
-    """Gyro sample finite and inside the measurement range."""
-    r = prm[PRM_GYR_RANGE]
+def gyro_ok(r: float, g0: float, g1: float, g2: float) -> bool:
+    """Gyro sample finite and inside the measurement range ``r``, rad/s."""
     return finite3(g0, g1, g2) and abs(g0) < r and abs(g1) < r and abs(g2) < r
 
 
 @numba.njit(inline="always", **JIT)
 def rest_and_bias(
     aux: FloatArray, prm: FloatArray, g0: float, g1: float, g2: float,
-    a0: float, a1: float, a2: float, dt: float,
+    a0: float, a1: float, a2: float, dt: float, active: bool = True,
 ) -> bool:
     """Rest detection and gyro-bias update at rest; returns True when at rest.
 
@@ -119,45 +118,57 @@ def rest_and_bias(
     stays within ``2 PRM_REST_GYR`` of the current bias, and the specific force stays within
     ``PRM_REST_ACC`` of its low-pass and of g in norm, all for ``PRM_REST_S``. While at rest
     the bias follows the low-passed rate: a running mean from the start of the rest, then an
-    exponential average with time constant ``PRM_BIAS_TAU_S``.
-    ``a`` must be finite.
+    exponential average with time constant ``PRM_BIAS_TAU_S``. Nothing changes unless
+    ``active`` (then ``g`` and ``a`` may be anything); when active, ``g`` and ``a`` must be
+    finite.
     """
-    k = dt / (0.5 + dt)
-    aux[AUX_LP] += k * (g0 - aux[AUX_LP])
-    aux[AUX_LP + 1] += k * (g1 - aux[AUX_LP + 1])
-    aux[AUX_LP + 2] += k * (g2 - aux[AUX_LP + 2])
-    aux[AUX_ALP] += k * (a0 - aux[AUX_ALP])
-    aux[AUX_ALP + 1] += k * (a1 - aux[AUX_ALP + 1])
-    aux[AUX_ALP + 2] += k * (a2 - aux[AUX_ALP + 2])
-    d0 = g0 - aux[AUX_LP]
-    d1 = g1 - aux[AUX_LP + 1]
-    d2 = g2 - aux[AUX_LP + 2]
-    e0 = aux[AUX_LP] - aux[AUX_BIAS]
-    e1 = aux[AUX_LP + 1] - aux[AUX_BIAS + 1]
-    e2 = aux[AUX_LP + 2] - aux[AUX_BIAS + 2]
-    f0 = a0 - aux[AUX_ALP]
-    f1 = a1 - aux[AUX_ALP + 1]
-    f2 = a2 - aux[AUX_ALP + 2]
-    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    # arrays read first, written last and the call is unconditional (see read_sample)
+    lp0, lp1, lp2 = aux[AUX_LP], aux[AUX_LP + 1], aux[AUX_LP + 2]
+    al0, al1, al2 = aux[AUX_ALP], aux[AUX_ALP + 1], aux[AUX_ALP + 2]
+    b0, b1, b2 = aux[AUX_BIAS], aux[AUX_BIAS + 1], aux[AUX_BIAS + 2]
+    rest_t = aux[AUX_REST_T]
     thr = prm[PRM_REST_GYR]
     thr_a = prm[PRM_REST_ACC]
+    gravity = prm[PRM_GRAVITY]
+    rest_s = prm[PRM_REST_S]
+    bias_est = prm[PRM_BIAS_EST] > 0.5
+    bias_tau = prm[PRM_BIAS_TAU_S]
+    k = dt / (0.5 + dt)
+    n0 = lp0 + k * (g0 - lp0)
+    n1 = lp1 + k * (g1 - lp1)
+    n2 = lp2 + k * (g2 - lp2)
+    c0 = al0 + k * (a0 - al0)
+    c1 = al1 + k * (a1 - al1)
+    c2 = al2 + k * (a2 - al2)
+    d0 = g0 - n0
+    d1 = g1 - n1
+    d2 = g2 - n2
+    e0 = n0 - b0
+    e1 = n1 - b1
+    e2 = n2 - b2
+    f0 = a0 - c0
+    f1 = a1 - c1
+    f2 = a2 - c2
+    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
     still = (d0 * d0 + d1 * d1 + d2 * d2 < thr * thr
              and e0 * e0 + e1 * e1 + e2 * e2 < 4.0 * thr * thr
              and f0 * f0 + f1 * f1 + f2 * f2 < thr_a * thr_a
-             and abs(an - prm[PRM_GRAVITY]) < thr_a)
-    if not still:
-        aux[AUX_REST_T] = 0.0
-        return False
-    aux[AUX_REST_T] += dt
-    if aux[AUX_REST_T] < prm[PRM_REST_S]:
-        return False
-    if prm[PRM_BIAS_EST] > 0.5:
+             and abs(an - gravity) < thr_a)
+    new_t = rest_t + dt if still else 0.0
+    at_rest = active and still and new_t >= rest_s
+    if at_rest and bias_est:
         # running mean over the rest so far, then exponential with PRM_BIAS_TAU_S
-        kb = dt / min(prm[PRM_BIAS_TAU_S] + dt, aux[AUX_REST_T] - prm[PRM_REST_S] + dt)
-        aux[AUX_BIAS] += kb * e0
-        aux[AUX_BIAS + 1] += kb * e1
-        aux[AUX_BIAS + 2] += kb * e2
-    return True
+        kb = dt / min(bias_tau + dt, new_t - rest_s + dt)
+        b0 += kb * e0
+        b1 += kb * e1
+        b2 += kb * e2
+    if active:
+        lp0, lp1, lp2, al0, al1, al2, rest_t = n0, n1, n2, c0, c1, c2, new_t
+    aux[AUX_LP], aux[AUX_LP + 1], aux[AUX_LP + 2] = lp0, lp1, lp2
+    aux[AUX_ALP], aux[AUX_ALP + 1], aux[AUX_ALP + 2] = al0, al1, al2
+    aux[AUX_REST_T] = rest_t
+    aux[AUX_BIAS], aux[AUX_BIAS + 1], aux[AUX_BIAS + 2] = b0, b1, b2
+    return at_rest
 
 
 @numba.njit(**JIT)
@@ -180,10 +191,12 @@ def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
     The given reference (``PRM_MAG_REF_*``) wins where it is finite; the candidate starts at
     the sample. Returns True when this was the first sample (nothing changes otherwise).
     """
+    ref_n = prm[PRM_MAG_REF_N]  # read outside the branches (see read_sample)
+    ref_dip = prm[PRM_MAG_REF_DIP]
     if aux[AUX_MREF_SET] > 0.5:
         return False
-    aux[AUX_MREF_N] = prm[PRM_MAG_REF_N] if math.isfinite(prm[PRM_MAG_REF_N]) else n
-    aux[AUX_MREF_DIP] = prm[PRM_MAG_REF_DIP] if math.isfinite(prm[PRM_MAG_REF_DIP]) else dip
+    aux[AUX_MREF_N] = ref_n if math.isfinite(ref_n) else n
+    aux[AUX_MREF_DIP] = ref_dip if math.isfinite(ref_dip) else dip
     aux[AUX_MCAND_N] = n
     aux[AUX_MCAND_DIP] = dip
     aux[AUX_MCAND_T] = 0.0
@@ -282,27 +295,34 @@ def read_sample(
     and magnetometer values, and per sensor whether the value is usable (finite, inside the
     measurement range). Counts the sample and, when a sensor value is not usable, a bad sample.
     """
+    # the arrays are read first and written last, outside any branch: an array used across
+    # the branches of an inlined helper costs reference counting on every sample
     ti = t[i]
     tp = aux[AUX_T_PREV]
-    dt = ti - tp if math.isfinite(tp) else 0.0
-    aux[AUX_T_PREV] = ti
-    aux[AUX_N] += 1.0
     a0 = acc[i, 0]
     a1 = acc[i, 1]
     a2 = acc[i, 2]
-    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-    acc_fin = math.isfinite(an) and 1e-6 < an < prm[PRM_ACC_RANGE]
     g0 = gyr[i, 0]
     g1 = gyr[i, 1]
     g2 = gyr[i, 2]
-    gyr_fin = has_gyr and gyro_ok(prm, g0, g1, g2)
     m0 = mag[i, 0]
     m1 = mag[i, 1]
     m2 = mag[i, 2]
+    acc_range = prm[PRM_ACC_RANGE]
+    gyr_range = prm[PRM_GYR_RANGE]
+    gravity = prm[PRM_GRAVITY]
+    n_bad = aux[AUX_N_BAD]
+    dt = ti - tp if math.isfinite(tp) else 0.0
+    an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    acc_fin = math.isfinite(an) and 1e-6 < an < acc_range
+    gyr_fin = has_gyr and gyro_ok(gyr_range, g0, g1, g2)
     mag_fin = has_mag and finite3(m0, m1, m2)
     if (not acc_fin) or (has_gyr and not gyr_fin) or (has_mag and not mag_fin):
-        aux[AUX_N_BAD] += 1.0
-    acc_dev = abs(an - prm[PRM_GRAVITY]) if acc_fin else math.inf
+        n_bad += 1.0
+    acc_dev = abs(an - gravity) if acc_fin else math.inf
+    aux[AUX_T_PREV] = ti
+    aux[AUX_N] += 1.0
+    aux[AUX_N_BAD] = n_bad
     return Sample(dt, a0, a1, a2, an, acc_fin, acc_dev, g0, g1, g2, gyr_fin, m0, m1, m2,
                   mag_fin)
 
@@ -342,14 +362,11 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     Returns ``FLAG_GYR`` (with ``FLAG_REST`` at rest) when the sample is usable and the gap is
     at most ``PRM_MAX_DT``; else 0 (counted as not integrated when a gyro exists).
     """
-    flags = 0
-    if s.gyr_fin and 0.0 < s.dt <= prm[PRM_MAX_DT]:
-        flags = FLAG_GYR
-        if s.acc_fin and rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt):
-            flags |= FLAG_REST
-    elif has_gyr:
-        aux[AUX_N_GYR_REJ] += 1.0
-    return flags
+    max_dt = prm[PRM_MAX_DT]  # arrays outside the conditions (see read_sample)
+    use = s.gyr_fin and 0.0 < s.dt <= max_dt
+    rest = rest_and_bias(aux, prm, s.g0, s.g1, s.g2, s.a0, s.a1, s.a2, s.dt, use and s.acc_fin)
+    aux[AUX_N_GYR_REJ] += 1.0 if has_gyr and not use else 0.0
+    return (FLAG_GYR if use else 0) | (FLAG_REST if rest else 0)
 
 
 @numba.njit(inline="always", **JIT)
@@ -391,15 +408,10 @@ def unbiased_rate(aux: FloatArray, s: Any) -> tuple[float, float, float]:
 @numba.njit(inline="always", **JIT)
 def count_used(aux: FloatArray, flags: int, use_a: bool, use_m: bool, has_mag: bool) -> int:
     """Flags of the static sensors that corrected the attitude; count the others."""
-    if use_a:
-        flags |= FLAG_ACC
-    else:
-        aux[AUX_N_ACC_REJ] += 1.0
-    if use_m:
-        flags |= FLAG_MAG
-    elif has_mag:
-        aux[AUX_N_MAG_REJ] += 1.0
-    return flags
+    # written outside the branches (see read_sample)
+    aux[AUX_N_ACC_REJ] += 0.0 if use_a else 1.0
+    aux[AUX_N_MAG_REJ] += 1.0 if has_mag and not use_m else 0.0
+    return flags | (FLAG_ACC if use_a else 0) | (FLAG_MAG if use_m else 0)
 
 
 @numba.njit(inline="always", **JIT)
