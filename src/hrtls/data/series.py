@@ -101,13 +101,12 @@ class SensorSeries:
         """Linear interpolation onto ``t_new`` (held constant outside the recorded span)."""
         from hrtls.data._interp_kernel import interp_columns_kernel  # numba: on first use
 
+        if not len(self.t):   # as np.interp: nothing to interpolate from
+            raise ValueError("array of sample points is empty")
         tq = np.ascontiguousarray(t_new, dtype=np.float64)
         out = np.empty((tq.shape[0], self.values.shape[1]))
-        if len(self.t):
-            interp_columns_kernel(tq, np.ascontiguousarray(self.t, dtype=np.float64),
-                                  np.ascontiguousarray(self.values, dtype=np.float64), out)
-        else:   # as np.interp: nothing to interpolate from
-            raise ValueError("array of sample points is empty")
+        interp_columns_kernel(tq, np.ascontiguousarray(self.t, dtype=np.float64),
+                              np.ascontiguousarray(self.values, dtype=np.float64), out)
         return out
 
     def between(self, t_start_s: float, t_end_s: float) -> SensorSeries:

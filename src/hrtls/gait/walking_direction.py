@@ -6,6 +6,9 @@ attitude, the levelled device axes, ``psi_r = 0``),
 
     h(t) = R(-psi_r(t)) a_h(t),
 
+(``a_h`` in the levelled navigation frame, x east and y north; yaws counter-clockwise from x,
+docs/conventions.md; ``h`` has its x along the reference direction and its y to its left)
+
 so that the walking direction is a constant offset ``delta`` in it however the walker turns:
 ``psi_walk = psi_r + delta``.
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hrtls.data import Session, Trajectory
 from hrtls.evaluate.floors import floor_detection
@@ -114,39 +115,43 @@ def basso_ime(result: TrackResult, sim: SimulationResult) -> float:
     return 100.0 * frac
 
 
-def p90_error(result: TrackResult, sim: SimulationResult) -> float:
-    """90th percentile of the horizontal error (m)."""
+def _horizontal_errors(result: TrackResult, sim: SimulationResult) -> NDArray[np.float64]:
+    """Horizontal error at every truth sample (m)."""
     truth = sim.session.truth
     assert truth is not None
-    return float(np.percentile(position_errors(result.trajectory, truth)[1], 90.0))
+    return position_errors(result.trajectory, truth)[1]
+
+
+def _checkpoint_errors(result: TrackResult, sim: SimulationResult) -> NDArray[np.float64]:
+    """Inderst eq. 6.1: error at every checkpoint (m)."""
+    cps = sim.session.checkpoints
+    assert cps is not None
+    return checkpoint_errors(result.trajectory, cps)[1]
+
+
+def p90_error(result: TrackResult, sim: SimulationResult) -> float:
+    """90th percentile of the horizontal error (m)."""
+    return float(np.percentile(_horizontal_errors(result, sim), 90.0))
 
 
 def mean_error(result: TrackResult, sim: SimulationResult) -> float:
     """Mean horizontal error (m)."""
-    truth = sim.session.truth
-    assert truth is not None
-    return float(np.mean(position_errors(result.trajectory, truth)[1]))
+    return float(np.mean(_horizontal_errors(result, sim)))
 
 
 def max_error(result: TrackResult, sim: SimulationResult) -> float:
     """Maximum horizontal error (m)."""
-    truth = sim.session.truth
-    assert truth is not None
-    return float(np.max(position_errors(result.trajectory, truth)[1]))
+    return float(np.max(_horizontal_errors(result, sim)))
 
 
 def checkpoint_max(result: TrackResult, sim: SimulationResult) -> float:
     """Inderst eq. 6.1: maximum checkpoint error (m)."""
-    cps = sim.session.checkpoints
-    assert cps is not None
-    return float(np.max(checkpoint_errors(result.trajectory, cps)[1]))
+    return float(np.max(_checkpoint_errors(result, sim)))
 
 
 def checkpoint_mean(result: TrackResult, sim: SimulationResult) -> float:
     """Inderst eq. 6.1: mean checkpoint error (m)."""
-    cps = sim.session.checkpoints
-    assert cps is not None
-    return float(np.mean(checkpoint_errors(result.trajectory, cps)[1]))
+    return float(np.mean(_checkpoint_errors(result, sim)))
 
 
 def rss_alone_session(session: Session) -> Session:
