@@ -76,6 +76,8 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     (Gaussian elimination with partial pivoting); ``r^2 = k + |c|^2``.
     """
     dim = p.shape[1]
+    if dim == 2:
+        return _solve_plane(p, keep)
     n = 0
     mean = np.zeros(dim)
     for i in range(p.shape[0]):
@@ -103,6 +105,17 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     for a in range(dim + 1):    # A^T A is symmetric: the lower triangle from the upper
         for b in range(a):
             m[a, b] = m[b, a]
+    return _eliminate(m, mean)
+
+
+@numba.njit(cache=True)
+def _eliminate(m: FloatArray, mean: FloatArray) -> tuple[FloatArray, float]:
+    # pragma: no cover - compiled
+    """Centre and ``r^2`` from the normal equations ``m = [A^T A | A^T b]`` of the rows ``u``.
+
+    Gaussian elimination with partial pivoting (``m`` is overwritten).
+    """
+    dim = mean.shape[0]
     k = dim + 1
     for col in range(k):
         piv = col
@@ -130,6 +143,44 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
         r2 += x[a] * x[a]
         centre[a] = mean[a] + x[a]
     return centre, r2
+
+
+@numba.njit(cache=True)
+def _solve_plane(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
+    # pragma: no cover - compiled
+    """:func:`_solve_kernel` for 2-D rows, its sums in scalars (the same order of operations)."""
+    n = 0
+    m0 = 0.0
+    m1 = 0.0
+    for i in range(p.shape[0]):
+        if keep[i]:
+            n += 1
+            m0 += p[i, 0]
+            m1 += p[i, 1]
+    m0 /= n
+    m1 /= n
+    a00 = a01 = a02 = a11 = a12 = a22 = b0 = b1 = b2 = 0.0
+    for i in range(p.shape[0]):
+        if not keep[i]:
+            continue
+        u0 = p[i, 0] - m0
+        u1 = p[i, 1] - m1
+        r0 = 2.0 * u0
+        r1 = 2.0 * u1
+        bb = 0.0 + u0 * u0
+        bb += u1 * u1
+        a00 += r0 * r0
+        a01 += r0 * r1
+        a02 += r0
+        b0 += r0 * bb
+        a11 += r1 * r1
+        a12 += r1
+        b1 += r1 * bb
+        a22 += 1.0
+        b2 += bb
+    m = np.array([[a00, a01, a02, b0], [a01, a11, a12, b1], [a02, a12, a22, b2]])
+    mean = np.array([m0, m1])
+    return _eliminate(m, mean)
 
 
 @numba.njit(cache=True)
