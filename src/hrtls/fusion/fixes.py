@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -228,13 +229,21 @@ def partial_step(t: float, *, t_start: float, t_end: float, length_m: float,
     A step-driven prediction stands at the end of the last finished step; a fix taken during
     the next step measures a position up to one step further (our addition: at 1.5-2 m/s on
     Colombo's 1 m circle that is up to 0.7 m and 40 deg of arc). The fix is compared with
-    the state plus this displacement.
+    the state plus this displacement (:func:`partial_step_xy`).
     """
-    dur = float(t_end - t_start)
+    return np.array(partial_step_xy(float(t), float(t_start), float(t_end), float(length_m),
+                                    float(heading_rad)))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def partial_step_xy(t: float, t_start: float, t_end: float, length_m: float,
+                    heading_rad: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """:func:`partial_step` as two floats (east, north), callable from compiled code."""
+    dur = t_end - t_start
     if not (dur > 0.0 and t_start <= t <= t_end):
-        return np.zeros(2)
-    a = (t - t_start) / dur * float(length_m)
-    return np.array([a * math.cos(heading_rad), a * math.sin(heading_rad)])
+        return 0.0, 0.0
+    a = (t - t_start) / dur * length_m
+    return a * math.cos(heading_rad), a * math.sin(heading_rad)
 
 
 @dataclass(frozen=True, slots=True)

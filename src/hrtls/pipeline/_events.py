@@ -11,8 +11,8 @@ the Python API calls too (:func:`~hrtls.fusion.step_prediction.predict_step`,
 :func:`~hrtls.fusion.random_walk.random_walk_covariance`,
 :func:`~hrtls.fusion.channel.channel_update`, :func:`~hrtls.fusion.rss.rss_db_correction`,
 :func:`~hrtls.fusion.ranges.range_correction`, :func:`~hrtls.fusion.rss_scans.scan_fix`,
-:func:`~hrtls.fusion.gating.position_update`). Rare events (fixes, tags, bearings, velocity
-segments) stay in Python.
+:func:`~hrtls.fusion.gating.position_update`) and position fixes (:mod:`._fix_events`). Rare
+events (tags, bearings, velocity segments, the fixes the loop hands back) stay in Python.
 
 What the loop adds is the tracker's bookkeeping: the step length scale, running factor and yaw
 offset applied to each step, the attitude yaw variance at each step, the known start heading,
@@ -55,16 +55,25 @@ from hrtls.fusion.rss import rss_db_correction
 from hrtls.fusion.rss_scans import scan_fix
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import STEP_PREDICTION_DTYPE, StepPredictionParams, predict_step
+from hrtls.pipeline._fix_events import (
+    FIX_IN_LOOP,
+    FIX_IN_PYTHON,
+    FIX_SERVED,
+    fix_due_code,
+    fix_event,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 # event kinds of the kernel
-EV_STEP, EV_RSS, EV_RANGE, EV_SKIP, EV_SCAN = 0, 1, 2, 3, 4
+EV_STEP, EV_RSS, EV_RANGE, EV_SKIP, EV_SCAN, EV_FIX = 0, 1, 2, 3, 4, 5
 # outcome codes: those of hrtls.fusion.gating, then the loop's own (ST_FEW: a scan with fewer
-# than 3 known anchors, reported as skipped)
+# than 3 known anchors, reported as skipped; ST_FIX_SERVED / ST_FIX_OFF: fixes skipped by the
+# slot policy, see hrtls.pipeline._fix_events.SKIP_REASONS)
 ST_ACCEPTED, ST_GATE, ST_NEAR, ST_SPD = ACCEPTED, GATED, TOO_NEAR, NOT_SPD
 ST_SKIPPED, ST_NONE, ST_COLLINEAR, ST_WLS, ST_FEW = 4, 5, 6, 7, 8
+ST_FIX_SERVED, ST_FIX_OFF = 9, 10
 # scan store columns: anchor x, anchor y, mean RSS (dBm), number of readings averaged
 SC_X, SC_Y, SC_RSS, SC_COUNT = 0, 1, 2, 3
 N_RECENT = 16
@@ -321,11 +330,12 @@ def _interp(xp: FloatArray, fp: FloatArray, x: float) -> float:  # pragma: no co
 @numba.njit(cache=True, error_model="numpy")
 def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.ndarray,
                  state: np.ndarray, chan_cov: FloatArray, x: FloatArray, p: FloatArray,
-                 t_out: FloatArray, x_out: FloatArray, p_out: FloatArray, act_out: IntArray,
-                 status: IntArray, nis_out: FloatArray, s_out: FloatArray,
+                 t_out: FloatArray, x_out: FloatArray, cov_out: FloatArray, var_h_out: FloatArray,
+                 act_out: IntArray, status: IntArray, nis_out: FloatArray, s_out: FloatArray,
                  nu_out: FloatArray, scan: FloatArray, aux_out: FloatArray,
-                 var_t: FloatArray, var_v: FloatArray,
-                 recent: FloatArray) -> None:  # pragma: no cover - compiled
+                 var_t: FloatArray, var_v: FloatArray, recent: FloatArray,
+                 fix_params: np.ndarray, fix_state: np.ndarray, lead: FloatArray,
+                 jump_out: FloatArray) -> None:  # pragma: no cover - compiled
     """Process a run of events in order; ``x``, ``p``, ``state``, ``chan_cov`` change in place.
 
     ``params``: a :data:`LOOP_PARAMS_DTYPE` record (one-element array); ``state``: a
@@ -334,23 +344,52 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
     running multiplier and yaw offset of ``state``; the heading variance is interpolated in
     ``(var_t, var_v)`` when ``var_t`` is not empty); rss ``[ax, ay, az, rss_dbm]``; range
     ``[nx, ny, nz, range, sigma (NaN: default)]``; scan ``[first row in scan, number of rows]``
-    with ``scan`` (M, 4) the anchors heard (``SC_*`` columns). ``aux_out`` (n, 5): innovation
-    (2) and ``S`` (``S00, S01, S11``) of the 2-D scan updates (NaN otherwise). ``recent``
-    (``N_RECENT``, 2): ring of the last steps' ``(t, heading)`` with a finite heading (before
-    the yaw offset); row ``i`` of the ring is the ``i + N_RECENT j``-th such step of the run
-    (``n_headings`` counts them).
+    with ``scan`` (M, 4) the anchors heard (``SC_*`` columns); fix ``[x, y, z, sigma, row of
+    lead]`` with ``lead`` (F, 5) the step in progress at each fix
+    (:mod:`hrtls.pipeline._fix_events`, whose ``fix_params`` / ``fix_state`` records the fixes
+    use). Output rows: time, state, horizontal covariance ``cov_out`` (n, 2, 2) and heading
+    variance. ``aux_out`` (n, 5): innovation (2) and ``S`` (``S00, S01, S11``) of the 2-D
+    scan and fix updates (NaN otherwise); ``jump_out`` (n, 2): the position change of an
+    accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
+    ``(t, heading)`` with a finite heading (before the yaw offset); row ``i`` of the ring is the
+    ``i + N_RECENT j``-th such step of the run (``n_headings`` counts them). The loop stops
+    before a fix that Python must apply (``fix_state.stop``: its row, else -1); the rows
+    before it are done.
     """
     prm = params[0]
     s = state[0]
+    fp = fix_params[0]
+    fs = fix_state[0]
+    fs.stop = -1
     for k in range(kind.shape[0]):
         ev = kind[k]
         status[k] = ST_NONE
         nis_out[k] = math.nan
         s_out[k] = math.nan
         nu_out[k] = math.nan
+        jump_out[k, 0] = math.nan
+        jump_out[k, 1] = math.nan
         for i in range(aux_out.shape[1]):
             aux_out[k, i] = math.nan
-        if ev == EV_STEP:
+        if ev == EV_FIX:
+            # the path walked so far counts for the fix (the learner's stretch)
+            fs.path_since_anchor_m += s.path_m
+            fs.run_since_anchor_m += s.running_path_m
+            s.path_m = 0.0
+            s.running_path_m = 0.0
+            code = fix_due_code(fp, fs, t[k], data[k])
+            if code == FIX_IN_PYTHON:
+                fs.stop = k
+                return
+            _advance(prm, s, p, t[k])
+            if code == FIX_IN_LOOP:
+                st, nis = fix_event(fp, fs, s, x, p, t[k], data[k], lead[int(data[k, 4])],
+                                    prm.gate_2d, aux_out[k], jump_out[k])
+                status[k] = st
+                nis_out[k] = nis
+            else:
+                status[k] = ST_FIX_SERVED if code == FIX_SERVED else ST_FIX_OFF
+        elif ev == EV_STEP:
             act = int(data[k, 3])
             length = data[k, 0] * s.step_scale
             if act == _RUNNING:
@@ -365,6 +404,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                 recent[r, 0] = t[k]
                 recent[r, 1] = data[k, 1]
                 s.n_headings += 1
+                fs.last_heading_rad = data[k, 1]
             _step(prm, s, x, p, t[k], length, data[k, 1] + s.yaw_offset_rad, data[k, 2], act,
                   var_h)
         else:
@@ -379,6 +419,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                 s.n_scans += 1
                 if st == ST_ACCEPTED:
                     s.n_scan_accepted += 1
+                    fs.corrected_since_fix = True
             elif ev in (EV_RSS, EV_RANGE):
                 if ev == EV_RSS:
                     if prm.estimate_channel:
@@ -399,13 +440,19 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                         prm.range_min_distance_m, prm.gate_1d, True, False)
                 if st == ST_ACCEPTED:
                     s.n_soft += 1
+                    fs.corrected_since_fix = True
+                    fs.soft_since_anchor = True
                 status[k] = st
                 nis_out[k] = nis
                 s_out[k] = sv
                 nu_out[k] = nu
         t_out[k] = s.t
+        fs.last_row_t = s.t
         for i in range(4):
             x_out[k, i] = x[i]
-            for j in range(4):
-                p_out[k, i, j] = p[i, j]
+        cov_out[k, 0, 0] = p[0, 0]
+        cov_out[k, 0, 1] = p[0, 1]
+        cov_out[k, 1, 0] = p[1, 0]
+        cov_out[k, 1, 1] = p[1, 1]
+        var_h_out[k] = p[3, 3]
         act_out[k] = s.last_activity

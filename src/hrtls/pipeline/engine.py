@@ -26,12 +26,13 @@ from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.tags import TagMemory
 from hrtls.gait.analyzer import GaitResult
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline import _fix_events as fx
 from hrtls.pipeline.build import Corrections
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
 from hrtls.pipeline.landmark_updates import LandmarkVersions
-from hrtls.pipeline.observations import apply_observation
+from hrtls.pipeline.observations import apply_fix, apply_observation, step_at
 from hrtls.pipeline.output import TrackRows
 from hrtls.pipeline.schedule import EventSchedule, PoseGate
 from hrtls.pipeline.step_scale import StepScaleLearner
@@ -162,6 +163,8 @@ class FusionEngine:
         """Accepted fixes: time of the output row holding the corrected state, position change
         (east, north) made by the fix, m."""
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
+        self.fix_params = fx.fix_params(config, parts.fix_corrector.params, scale.params,
+                                        running_factor=running_factor)
 
     # ------------------------------------------------------------------ event loop
     def drain(self, horizon: float) -> None:
@@ -182,7 +185,26 @@ class FusionEngine:
             self.velocity_to(horizon)
 
     def _run_kernel(self, b0: int, b1: int) -> None:
-        """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges) in the compiled loop.
+        """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges, fixes) in the loop.
+
+        The loop hands back the fixes it does not apply (:mod:`hrtls.pipeline._fix_events`):
+        each goes through :func:`~hrtls.pipeline.observations.apply_fix`, then the loop
+        continues after it.
+        """
+        while b0 < b1:
+            stop = self._kernel_part(b0, b1)
+            if stop < 0:
+                return
+            sched = self.schedule
+            t = float(sched.bulk_t[stop])
+            row = sched.bulk_data[stop]
+            self.advance_without_steps(t)
+            apply_fix(self, t, (row[:3].copy(), float(row[3]), False))
+            self.track.add(self.state, self.last_activity)
+            b0 = stop + 1
+
+    def _kernel_part(self, b0: int, b1: int) -> int:
+        """The loop on rows ``b0:b1``; the row it stopped before (a fix for Python) or -1.
 
         The step scale, running factor, yaw offset and the yaw variance at each step are
         applied inside the kernel (``step_scale``, ``running_multiplier``, ``yaw_offset_rad`` of
@@ -203,15 +225,21 @@ class FusionEngine:
             last_step_end_s=self.last_step_end, step_scale=sc_.step_scale,
             running_multiplier=self.running_factor * sc_.run_scale / sc_.step_scale,
             yaw_offset_rad=self.yaw_offset, scan_base=sched.scan_base, flight=self.flight)
+        fixes = np.flatnonzero(kind == ev.EV_FIX)
+        lead = _leads(self.gait.steps, tt, data, fixes)
+        fst = self._fix_state()
         out = _KernelOut(n)
         recent = np.empty((ev.N_RECENT, 2))
         att = self.attitude
         var_t = att.var_t if att is not None else np.zeros(0)
         var_v = att.var_v if att is not None else np.zeros(0)
-        ev.event_kernel(kind, tt, data, self.params, rec, chan_cov, x, p, out.t, out.x, out.p,
-                        out.act, out.status, out.nis, out.s, out.nu, sched.scan_rows, out.aux,
-                        var_t, var_v, recent)
+        ev.event_kernel(kind, tt, data, self.params, rec, chan_cov, x, p, out.t, out.x, out.cov,
+                        out.var_h, out.act, out.status, out.nis, out.s, out.nu, sched.scan_rows,
+                        out.aux, var_t, var_v, recent, self.fix_params, fst, lead, out.jump)
         sc = rec[0]
+        f = fst[0]
+        stop = int(f["stop"])
+        m = n if stop < 0 else stop
         self.state = FilterState.from_kernel(float(sc["t"]), x, p, float(sc["input_heading_rad"]),
                                              bool(sc["has_input_heading"]),
                                              bool(sc["reference_pending"]))
@@ -219,12 +247,16 @@ class FusionEngine:
         self.last_step_end = float(sc["last_step_end_s"])
         self.yaw_offset = float(sc["yaw_offset_rad"])
         self.flight = tuple(sc["flight"].tolist())
+        # corrections since the last fix and soft corrections since the learner's anchor:
+        # an accepted scan (Kalman mode) counts for the first only, the WLS jump for neither
+        self.corrected_since_fix = bool(f["corrected_since_fix"])
+        sc_.soft_since_anchor = bool(f["soft_since_anchor"])
+        if len(fixes):
+            self._fixes_back(f, float(sc["step_scale"]), out, m)
         sc_.walked(float(sc["path_m"]), float(sc["running_path_m"]))
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
-        # copies: views would keep the whole (n, 4, 4) covariances alive with the track
-        self.track.add_block(out.t, out.x, out.p[:, :2, :2].copy(), out.p[:, IH, IH].copy(),
-                             out.act)
+        self.track.add_block(out.t[:m], out.x[:m], out.cov[:m], out.var_h[:m], out.act[:m])
         n_steps = int(sc["n_steps"])
         n_head = int(sc["n_headings"])
         if n_head:
@@ -235,18 +267,52 @@ class FusionEngine:
                 last = last[cut:] + last[:cut]
             self.recent_heading.extend(
                 (float(ts), float(hd)) for ts, hd in last[:min(n_head, ev.N_RECENT)])
-        if n_steps < n:
-            n_soft, n_scan_ok = int(sc["n_soft"]), int(sc["n_scan_accepted"])
-            # an accepted scan (Kalman mode) counts as a correction since the last fix; the
-            # WLS jump does not, and scans do not stop the step-scale learning
-            self.corrected_since_fix = self.corrected_since_fix or n_soft + n_scan_ok > 0
-            sc_.soft_since_anchor = sc_.soft_since_anchor or n_soft > 0
-            obs = np.flatnonzero(kind != ev.EV_STEP) if n_steps else np.arange(n)
-            self._kernel_diagnostics(b0, obs, out, sc["n_scans"] > 0)
+        if n_steps < m:
+            obs = np.flatnonzero(kind[:m] != ev.EV_STEP) if n_steps else np.arange(m)
+            self._kernel_diagnostics(b0, obs, out, sc["n_scans"] > 0 or len(fixes) > 0)
             sched.trim_scan_rows()
+        return -1 if stop < 0 else b0 + stop
+
+    def _fix_state(self) -> np.ndarray:
+        """The loop's fix state (:data:`hrtls.pipeline._fix_events.FIX_STATE_DTYPE`)."""
+        sc_ = self.scale
+        return fx.fix_state(
+            phase_s=self.parts.fix_corrector.params.phase_s if self.fix_phase_set else None,
+            last_slot=self.fix_schedule.last_slot, rejections=self.fix_schedule.rejections,
+            corrected_since_fix=self.corrected_since_fix, has_memory=self.stretch is not None,
+            run_scale=sc_.run_scale, anchor_xy=sc_.anchor_xy,
+            path_since_anchor_m=sc_.path_since_anchor, run_since_anchor_m=sc_.run_since_anchor,
+            soft_since_anchor=sc_.soft_since_anchor,
+            last_heading_rad=self.recent_heading[-1][1] if self.recent_heading else math.nan,
+            last_row_t=(math.nan if (lt := self.track.last_time()) is None else lt))
+
+    def _fixes_back(self, f: np.void, step_scale: float, out: _KernelOut, m: int) -> None:
+        """What the loop's fix rows changed: the fix policy, the stretching memory, the
+        step-scale learner and the accepted fixes' jumps."""
+        if bool(f["phase_set"]) and not self.fix_phase_set:
+            self.fix_phase_set = True
+            prm = self.parts.fix_corrector.params
+            self.parts.fix_corrector = FixCorrector(replace(prm, phase_s=float(f["phase_s"])))
+        self.fix_schedule = FixSchedule(int(f["last_slot"]) if f["has_last_slot"] else None,
+                                        int(f["rejections"]))
+        if f["memory_new"]:
+            mem = f["memory"].tolist()
+            empty = np.zeros(0)
+            self.stretch = StretchMemory(mem[0], np.array(mem[1:3]), np.array(mem[3:5]), mem[5],
+                                         empty, empty, empty)
+        sc_ = self.scale
+        sc_.step_scale = step_scale
+        sc_.run_scale = float(f["run_scale"])
+        if f["has_anchor"]:
+            sc_.anchor_xy = f["anchor_xy"].copy()
+        sc_.path_since_anchor = float(f["path_since_anchor_m"])
+        sc_.run_since_anchor = float(f["run_since_anchor_m"])
+        done = np.flatnonzero(np.isfinite(out.jump[:m, 0]))
+        self.fix_jumps.extend(zip(out.t[done].tolist(), out.jump[done, 0].tolist(),
+                                  out.jump[done, 1].tolist(), strict=True))
 
     def _kernel_diagnostics(self, b0: int, obs: np.ndarray, out: _KernelOut,
-                            has_scans: bool) -> None:
+                            has_2d: bool) -> None:
         """One diagnostics block for the observation rows ``obs`` (relative to ``b0``)."""
         sched = self.schedule
         rows = obs + b0
@@ -254,14 +320,18 @@ class FusionEngine:
         reasons = sched.label_reason[labels]
         code = out.status[obs]
         dof = nu2 = s2 = None
-        if has_scans:
-            is_scan = sched.bulk_ev[rows] == ev.EV_SCAN
-            dof = np.where(is_scan, 2, 1)
+        if has_2d:
+            evk = sched.bulk_ev[rows]
+            dof = np.where((evk == ev.EV_SCAN) | (evk == ev.EV_FIX), 2, 1)
             # a scan with < 3 anchors is "skipped" (its reason was set when it was queued)
-            code = np.where(code == ev.ST_FEW, ev.ST_SKIPPED, code)
             reasons = np.where(code == ev.ST_COLLINEAR, "anchors are collinear",
                                np.where(code == ev.ST_WLS, "WLS position (RSS alone)",
                                         reasons))
+            for st_code, fix_code in ((ev.ST_FIX_SERVED, fx.FIX_SERVED),
+                                      (ev.ST_FIX_OFF, fx.FIX_OFF_PERIOD)):
+                reasons = np.where(code == st_code, fx.SKIP_REASONS[fix_code], reasons)
+            code = np.where((code == ev.ST_FEW) | (code == ev.ST_FIX_SERVED)
+                            | (code == ev.ST_FIX_OFF), ev.ST_SKIPPED, code)
             nu2 = out.aux[obs, :2]
             s2 = out.aux[obs, 2:5]
         self.diagnostics.add_block(DiagnosticsBlock(
@@ -378,13 +448,28 @@ class FusionEngine:
                                                             phase_s=state["fix_phase_s"]))
 
 
+def _leads(steps: list[StepEvents], t: np.ndarray, data: np.ndarray,
+           fixes: np.ndarray) -> np.ndarray:
+    """The step in progress at each fix row (``_fix_events.LEAD_*`` columns, NaN: none); the
+    fix rows of ``data`` get their row of it."""
+    lead = np.full((len(fixes), 5), np.nan)
+    for j, r in enumerate(fixes.tolist()):
+        step = step_at(steps, float(t[r]))
+        if step is not None:
+            lead[j] = step
+    data[fixes, 4] = np.arange(len(fixes))
+    return lead
+
+
 class _KernelOut:
     """Output arrays of one run of the compiled loop (n rows)."""
 
     def __init__(self, n: int) -> None:
         self.t = np.empty(n)
         self.x = np.empty((n, 4))
-        self.p = np.empty((n, 4, 4))
+        self.cov = np.empty((n, 2, 2))
+        self.var_h = np.empty(n)
+        self.jump = np.empty((n, 2))
         self.act = np.empty(n, dtype=np.int64)
         self.status = np.empty(n, dtype=np.int64)
         self.nis = np.empty(n)

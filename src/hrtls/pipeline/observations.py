@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hrtls.data import Activity, Landmark
+from hrtls.data import Activity, Landmark, StepEvents
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
 from hrtls.fusion.fixes import (
@@ -147,22 +147,31 @@ def recent_turn(eng: FusionEngine, t_from: float, t_to: float) -> float:
     return float(np.max(np.abs(d)))
 
 
-def _step_lead(eng: FusionEngine, t: float) -> np.ndarray:
-    """Part of the step in progress at ``t`` (``fixes.partial_step``, our addition), m."""
-    for st in reversed(eng.gait.steps):
+def step_at(steps: list[StepEvents], t: float) -> tuple[float, float, float, float, int] | None:
+    """The step in progress at ``t`` with a finite heading: ``(t_start, t_end, length_m,
+    heading_rad, activity)`` as detected (before scale and yaw offset), or None."""
+    for st in reversed(steps):
         if len(st) == 0 or st.t_start[0] > t:
             continue
         k = step_in_progress(t, st.t_start, st.t_end)
-        if k >= 0 and st.t_end[k] > eng.state.t and math.isfinite(st.heading_rad[k]):
-            h_k = float(st.heading_rad[k])
-            h_last = eng.recent_heading[-1][1] if eng.recent_heading else h_k
-            scale = (eng.running_factor * eng.scale.run_scale
-                     if st.activity[k] == int(Activity.RUNNING) else eng.scale.step_scale)
-            return partial_step(t, t_start=float(st.t_start[k]), t_end=float(st.t_end[k]),
-                                length_m=float(st.length_m[k]) * scale,
-                                heading_rad=float(eng.state.x[IH] + wrap_angle(h_k - h_last)))
+        if k >= 0 and math.isfinite(st.heading_rad[k]):
+            return (float(st.t_start[k]), float(st.t_end[k]), float(st.length_m[k]),
+                    float(st.heading_rad[k]), int(st.activity[k]))
         break
-    return np.zeros(2)
+    return None
+
+
+def _step_lead(eng: FusionEngine, t: float) -> np.ndarray:
+    """Part of the step in progress at ``t`` (``fixes.partial_step``, our addition), m."""
+    step = step_at(eng.gait.steps, t)
+    if step is None or not step[1] > eng.state.t:
+        return np.zeros(2)
+    t_start, t_end, length, h_k, activity = step
+    h_last = eng.recent_heading[-1][1] if eng.recent_heading else h_k
+    scale = (eng.running_factor * eng.scale.run_scale
+             if activity == int(Activity.RUNNING) else eng.scale.step_scale)
+    return partial_step(t, t_start=t_start, t_end=t_end, length_m=length * scale,
+                        heading_rad=float(eng.state.x[IH] + wrap_angle(h_k - h_last)))
 
 
 def apply_fix(eng: FusionEngine, t: float, payload: Any) -> None:

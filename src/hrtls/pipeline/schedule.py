@@ -30,6 +30,7 @@ from hrtls.data.observations import (
 from hrtls.fusion.rss_scans import average_rss_per_anchor, scan_table
 from hrtls.fusion.tags import group_detections
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline._fix_events import fixes_in_loop
 from hrtls.pipeline.build import Notes
 from hrtls.pipeline.config import TrackerConfig
 
@@ -99,6 +100,9 @@ class EventSchedule:
              "scan_t", "scan_a", "scan_v", "scan_rows", "scan_base", "avg_t", "avg_a",
              "avg_v", "seen_obs", "rss_note")
     """Plain attributes of the schedule's state (snapshot); plus the buffer from ``i``."""
+    fixes_in_loop = True
+    """Position fixes as rows of the compiled loop where it can apply them
+    (:func:`hrtls.pipeline._fix_events.fixes_in_loop`); False: every fix through Python."""
     BULK = ("bulk_t", "bulk_k", "bulk_seq", "bulk_ev", "bulk_data", "bulk_src", "bulk_label")
 
     def __init__(self, config: TrackerConfig, landmarks: dict[str, Landmark], *, t0: float,
@@ -151,8 +155,17 @@ class EventSchedule:
             part is not None for part in (chunk.fixes, chunk.rss, chunk.tags, chunk.ranges))
         if chunk.fixes is not None and cfg.fixes.enabled:
             f = chunk.fixes
-            for i in range(len(f)):
-                self.push(float(f.t[i]), FIX, (f.xyz[i], float(f.sigma_m[i]), f.has_z))
+            if self.fixes_in_loop and fixes_in_loop(cfg, slow_only=self.slow_only):
+                n = len(f)
+                data = np.full((n, 5), np.nan)
+                data[:, :3] = f.xyz
+                data[:, 3] = f.sigma_m
+                self.add_rows(FIX, np.asarray(f.t, dtype=np.float64),
+                              np.full(n, ev.EV_FIX, dtype=np.int64), data,
+                              np.full(n, "", dtype=str))
+            else:
+                for i in range(len(f)):
+                    self.push(float(f.t[i]), FIX, (f.xyz[i], float(f.sigma_m[i]), f.has_z))
         if chunk.rss is not None and cfg.rss.mode != "off":
             if not has_channel and not self.rss_note:
                 self.rss_note = True
@@ -253,7 +266,7 @@ class EventSchedule:
         """
         n = len(t)
         i0 = self.i
-        name = "rss" if kind == RSS else ("range" if kind == RANGE else "")
+        name = {RSS: "rss", RANGE: "range", FIX: "fix"}.get(kind, "")
         label = np.full(n, self._label(name, ""), dtype=np.int64)
         if reason is None:
             skip = ev_kind == ev.EV_SKIP
