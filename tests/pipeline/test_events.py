@@ -27,8 +27,12 @@ from hrtls.fusion.rss import rss_update
 from hrtls.fusion.rss_scans import RssScan, scan_position
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
+from hrtls.fusion.fixes import FixParams
 from hrtls.pipeline import _events as ev
+from hrtls.pipeline import _fix_events as fx
 from hrtls.pipeline import preset
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.step_scale import StepScaleParams
 from hrtls.pipeline.tracker import Tracker
 
 ACTS = [int(Activity.WALKING), int(Activity.STANDING), int(Activity.UPSTAIRS),
@@ -60,21 +64,34 @@ def state_record(start: FilterState, **kw: object) -> tuple[np.ndarray, np.ndarr
     return ev.loop_state(start, **kw)  # type: ignore[arg-type]
 
 
+def _no_fix_state() -> np.ndarray:
+    """Fix state of a run without fixes."""
+    return fx.fix_state(phase_s=None, last_slot=None, rejections=0, corrected_since_fix=False,
+                        has_memory=False, run_scale=1.0, anchor_xy=None,
+                        path_since_anchor_m=0.0, run_since_anchor_m=0.0,
+                        soft_since_anchor=False, last_heading_rad=math.nan,
+                        last_row_t=math.nan)
+
+
 def run_kernel(kind: np.ndarray, t: np.ndarray, data: np.ndarray, prm: np.ndarray,
                sc: np.ndarray, chan_cov: np.ndarray, x: np.ndarray, p: np.ndarray, *,
                scan: np.ndarray | None = None, var_t: np.ndarray | None = None,
                var_v: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Call the kernel with fresh output arrays; returns them by name."""
     n = len(kind)
-    out = {"t": np.empty(n), "x": np.empty((n, 4)), "p": np.empty((n, 4, 4)),
+    out = {"t": np.empty(n), "x": np.empty((n, 4)), "cov": np.empty((n, 2, 2)),
+           "var_h": np.empty(n), "jump": np.empty((n, 2)),
            "act": np.empty(n, dtype=np.int64), "status": np.empty(n, dtype=np.int64),
            "nis": np.empty(n), "s": np.empty(n), "nu": np.empty(n), "aux": np.empty((n, 5)),
            "recent": np.empty((ev.N_RECENT, 2))}
-    ev.event_kernel(kind, t, data, prm, sc, chan_cov, x, p, out["t"], out["x"], out["p"],
-                    out["act"], out["status"], out["nis"], out["s"], out["nu"],
+    ev.event_kernel(kind, t, data, prm, sc, chan_cov, x, p, out["t"], out["x"], out["cov"],
+                    out["var_h"], out["act"], out["status"], out["nis"], out["s"], out["nu"],
                     np.zeros((0, 4)) if scan is None else scan, out["aux"],
                     np.zeros(0) if var_t is None else var_t,
-                    np.zeros(0) if var_v is None else var_v, out["recent"])
+                    np.zeros(0) if var_v is None else var_v, out["recent"],
+                    fx.fix_params(TrackerConfig(), FixParams(), StepScaleParams(),
+                                  running_factor=1.0), _no_fix_state(), np.zeros((0, 5)),
+                    out["jump"])
     return out
 
 
@@ -125,7 +142,7 @@ def test_step_kernel_equals_predict(steps: list[tuple[float, float, float, int, 
     np.testing.assert_allclose(x[:3], state.x[:3], atol=1e-12)
     assert abs(math.remainder(x[3] - state.x[3], 2 * math.pi)) < 1e-12
     np.testing.assert_allclose(p, state.P, atol=1e-12)
-    np.testing.assert_allclose(out["p"], np.transpose(out["p"], (0, 2, 1)), atol=0)
+    np.testing.assert_allclose(out["cov"], np.transpose(out["cov"], (0, 2, 1)), atol=0)
 
 
 def test_relative_input_yaw_is_aligned_to_the_start_heading() -> None:
