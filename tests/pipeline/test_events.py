@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.fusion.channel import ChannelEstimator
+from hrtls.fusion.fixes import FixParams
 from hrtls.fusion.floors import FlightParams, flight_step, floor_level_update
 from hrtls.fusion.gating import kalman_update
 from hrtls.fusion.path_loss import PathLossModel
@@ -27,7 +28,6 @@ from hrtls.fusion.rss import rss_update
 from hrtls.fusion.rss_scans import RssScan, scan_position
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
-from hrtls.fusion.fixes import FixParams
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline import _fix_events as fx
 from hrtls.pipeline import preset

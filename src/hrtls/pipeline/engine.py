@@ -22,7 +22,7 @@ from hrtls.frames import quat_conjugate, quat_multiply, wrap_angle
 from hrtls.fusion.channel import ChannelState
 from hrtls.fusion.fixes import FixCorrector, FixSchedule, StretchMemory, YawPseudoMeasurement
 from hrtls.fusion.random_walk import predict_random_walk
-from hrtls.fusion.state import IH, FilterState
+from hrtls.fusion.state import FilterState
 from hrtls.fusion.tags import TagMemory
 from hrtls.gait.analyzer import GaitResult
 from hrtls.pipeline import _events as ev
@@ -287,8 +287,10 @@ class FusionEngine:
             last_row_t=(math.nan if (lt := self.track.last_time()) is None else lt))
 
     def _fixes_back(self, f: np.void, step_scale: float, out: _KernelOut, m: int) -> None:
-        """What the loop's fix rows changed: the fix policy, the stretching memory, the
-        step-scale learner and the accepted fixes' jumps."""
+        """Take back what the loop's fix rows changed.
+
+        The fix policy, the stretching memory, the step-scale learner, the accepted jumps.
+        """
         if bool(f["phase_set"]) and not self.fix_phase_set:
             self.fix_phase_set = True
             prm = self.parts.fix_corrector.params
@@ -450,8 +452,10 @@ class FusionEngine:
 
 def _leads(steps: list[StepEvents], t: np.ndarray, data: np.ndarray,
            fixes: np.ndarray) -> np.ndarray:
-    """The step in progress at each fix row (``_fix_events.LEAD_*`` columns, NaN: none); the
-    fix rows of ``data`` get their row of it."""
+    """The step in progress at each fix row (``_fix_events.LEAD_*`` columns, NaN: none).
+
+    The fix rows of ``data`` get the index of their row of it.
+    """
     lead = np.full((len(fixes), 5), np.nan)
     for j, r in enumerate(fixes.tolist()):
         step = step_at(steps, float(t[r]))

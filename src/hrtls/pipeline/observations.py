@@ -148,8 +148,11 @@ def recent_turn(eng: FusionEngine, t_from: float, t_to: float) -> float:
 
 
 def step_at(steps: list[StepEvents], t: float) -> tuple[float, float, float, float, int] | None:
-    """The step in progress at ``t`` with a finite heading: ``(t_start, t_end, length_m,
-    heading_rad, activity)`` as detected (before scale and yaw offset), or None."""
+    """The step in progress at ``t`` with a finite heading, or None.
+
+    ``(t_start, t_end, length_m, heading_rad, activity)`` as detected (before the step scale
+    and the yaw offset).
+    """
     for st in reversed(steps):
         if len(st) == 0 or st.t_start[0] > t:
             continue
