@@ -98,6 +98,17 @@ def test_fixes_in_loop_equal_python_path(office_long: SimulationResult, case: st
     assert_same(fast, a, ref, b)
 
 
+def test_fixes_in_loop_without_imu_equal_python_path(office_long: SimulationResult) -> None:
+    """Without an IMU the loop grows the covariance by the random walk before each fix."""
+    session = office_long.session.with_parts(imu=None)
+    cfg = preset("default")
+    fast, ref = Tracker(cfg), PythonFixTracker(cfg)
+    a, b = _run(fast, session), _run(ref, session)
+    assert ("fix", "") in fast.schedule.labels
+    assert a.report["corrections"]["fix"]["accepted"] > 10
+    assert_same(fast, a, ref, b)
+
+
 def test_fixes_in_loop_learn_the_step_scale(office_long: SimulationResult) -> None:
     """The case without stretching changes the step scale in the loop (the test can fail)."""
     cfg = preset("default")
