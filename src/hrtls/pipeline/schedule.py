@@ -2,10 +2,10 @@
 
 Two queues hold the events not yet applied, in the order (time, kind, arrival):
 
-- a heap of *slow* events handled one at a time in Python (fixes, tag groups, bearings, and
-  with the velocity-driven prediction every observation);
+- a heap of *slow* events handled one at a time in Python (tag groups, bearings, fixes the
+  loop cannot apply, and with the velocity-driven prediction every observation);
 - sorted columns of *fast* rows for the compiled loop (:mod:`hrtls.pipeline._events`): steps,
-  tight RSS readings or scans, ranges.
+  tight RSS readings or scans, ranges, position fixes.
 
 Tag reads and RSS readings wait until their grouping window has closed (windows run from the
 session start, so a chunked run closes the same windows as an offline run); events wait until

@@ -11,11 +11,11 @@ samples and observations, see :mod:`hrtls.pipeline.chunks`) and gets the same re
 
 Per-sample work (attitude, gait, velocity prediction) runs in the compiled kernels of those
 stages. The position filter then handles *events* in time order -- steps, position fixes, RSS
-readings or scans, tag reads, ranges. Runs of consecutive steps, RSS readings or scans and
-ranges go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the
-Python fusion parts, tested equal); fixes, tags, bearings and velocity segments (and, with the
-velocity-driven prediction, every observation) are handled one at a time in Python (a few per
-second at most). Observations are held back until
+readings or scans, tag reads, ranges. Runs of consecutive steps, RSS readings or scans,
+ranges and fixes go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as
+the Python fusion parts, tested equal); tags, bearings, velocity segments, the fixes the loop
+hands back (and, with the velocity-driven prediction, every observation) are handled one at a
+time in Python (a few per second at most). Observations are held back until
 the gait stage can no longer release a step before them (``LIVE_LATENCY_S``), tag reads and RSS
 scans until their grouping window has closed, so a chunked run processes events in exactly the
 order of an offline run.
