@@ -3,8 +3,8 @@
 Runs of fast rows (steps, tight RSS readings or scans, ranges, fixes) go through the compiled
 loop of :mod:`hrtls.pipeline._events`; slow events (tag groups, bearings, the fixes the loop
 hands back, and with the velocity-driven prediction every observation) are applied one at a
-time by :mod:`hrtls.pipeline.observations`. With ``prediction.model = "velocity"`` the buffered speed
-and yaw samples (Colombo eq. 16-17) are integrated up to each event.
+time by :mod:`hrtls.pipeline.observations`. With ``prediction.model = "velocity"`` the
+buffered speed and yaw samples (Colombo eq. 16-17) are integrated up to each event.
 """
 
 from __future__ import annotations
