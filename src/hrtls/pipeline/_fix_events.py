@@ -191,26 +191,14 @@ def fix_state(*, phase_s: float | None, last_slot: int | None, rejections: int,
               run_since_anchor_m: float, soft_since_anchor: bool, last_heading_rad: float,
               last_row_t: float) -> np.ndarray:
     """The :data:`FIX_STATE_DTYPE` record (one-element array); ``None``: not set yet."""
-    rec = np.zeros(1, dtype=FIX_STATE_DTYPE)
-    r = rec[0]
-    r["phase_set"] = phase_s is not None
-    r["phase_s"] = 0.0 if phase_s is None else phase_s
-    r["has_last_slot"] = last_slot is not None
-    r["last_slot"] = 0 if last_slot is None else last_slot
-    r["rejections"] = rejections
-    r["corrected_since_fix"] = corrected_since_fix
-    r["has_memory"] = has_memory
-    r["run_scale"] = run_scale
-    r["has_anchor"] = anchor_xy is not None
-    if anchor_xy is not None:
-        r["anchor_xy"] = anchor_xy
-    r["path_since_anchor_m"] = path_since_anchor_m
-    r["run_since_anchor_m"] = run_since_anchor_m
-    r["soft_since_anchor"] = soft_since_anchor
-    r["last_heading_rad"] = last_heading_rad
-    r["last_row_t"] = last_row_t
-    r["stop"] = -1
-    return rec
+    # one tuple in the order of FIX_STATE_DTYPE (a new stretching memory starts empty)
+    return np.array([(phase_s is not None, 0.0 if phase_s is None else phase_s,
+                      last_slot is not None, 0 if last_slot is None else last_slot, rejections,
+                      corrected_since_fix, has_memory, False, (0.0,) * 6, run_scale,
+                      anchor_xy is not None,
+                      (0.0, 0.0) if anchor_xy is None else tuple(anchor_xy.tolist()),
+                      path_since_anchor_m, run_since_anchor_m, soft_since_anchor,
+                      last_heading_rad, last_row_t, -1)], dtype=FIX_STATE_DTYPE)
 
 
 @numba.njit(cache=True, error_model="numpy")

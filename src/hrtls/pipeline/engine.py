@@ -457,6 +457,8 @@ def _leads(steps: list[StepEvents], t: np.ndarray, data: np.ndarray,
     The fix rows of ``data`` get the index of their row of it.
     """
     lead = np.full((len(fixes), 5), np.nan)
+    if not len(fixes):
+        return lead
     for j, r in enumerate(fixes.tolist()):
         step = step_at(steps, float(t[r]))
         if step is not None:
