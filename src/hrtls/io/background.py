@@ -95,6 +95,10 @@ class Background(Generic[T]):
         self._thread = threading.Thread(target=run, name=name, daemon=True)
         self._thread.start()
 
+    def join(self) -> None:
+        """Wait for ``fn()`` to end, whatever it gave."""
+        self._thread.join()
+
     def result(self) -> T:
         """The value of ``fn()`` once computed; its exception, unchanged, if it raised."""
         self._thread.join()

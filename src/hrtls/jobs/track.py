@@ -266,19 +266,26 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
     check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     geo = session.georeference
-    written = [
+    # the tables are written on a thread (Arrow's writer lets go of the GIL) while the GeoJSON
+    # text is made here
+    tables = Background(lambda: [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
                          georeference=geo),
-        write_steps(result.steps, out_dir / f"steps.{table_format}"),
-        write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                      landmarks=session.resolved_landmarks(), georeference=geo,
-                      time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
-        if geo is not None else
-        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
-                            landmarks=session.landmarks,
-                            time_origin_unix_s=session.meta.time_origin_unix_s,
-                            overwrite=True),
-    ]
+        write_steps(result.steps, out_dir / f"steps.{table_format}")], name="write tables")
+    try:
+        geojson = (
+            write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
+                          landmarks=session.resolved_landmarks(), georeference=geo,
+                          time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
+            if geo is not None else
+            write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                                landmarks=session.landmarks,
+                                time_origin_unix_s=session.meta.time_origin_unix_s,
+                                overwrite=True))
+    except BaseException:
+        tables.join()
+        raise
+    written = [*tables.result(), geojson]
     report = dict(result.report)
     if evaluation is not None:
         report["evaluation"] = evaluation
