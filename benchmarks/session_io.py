@@ -26,7 +26,8 @@ The readers run interleaved, ``--repeat`` rounds, so each round compares them un
 load; the table shows the best round (CPU seconds of all threads, and wall seconds) and the
 spread of the per-round ratio (min / median / max). Run: ``python benchmarks/session_io.py
 [--rows N] [--repeat 5] [--track-repeat 3] [--hours-track 2] [--hours-memory 8] [--skip-track]
-[--skip-read] [--no-bytecode] [--baseline-src PATH]``; simulated sessions are cached under ``--work``.
+[--skip-read] [--no-bytecode] [--baseline-src PATH]``; simulated sessions are cached under
+``--work``.
 """
 
 from __future__ import annotations

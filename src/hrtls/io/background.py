@@ -8,6 +8,7 @@ caller takes the item or the value.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -60,10 +61,8 @@ def read_ahead(items: Iterable[T], *, depth: int = 1, name: str = "hrtls-read-ah
     finally:
         stop.set()
         while thread.is_alive():  # let a producer blocked on a full queue finish
-            try:
+            with contextlib.suppress(queue.Empty):
                 ready.get(timeout=0.05)
-            except queue.Empty:
-                pass
         thread.join()
 
 
@@ -79,8 +78,7 @@ def _put(ready: queue.Queue[object], item: object, stop: threading.Event) -> boo
 
 
 class Background(Generic[T]):
-    """``fn()`` computed on a thread from now; :meth:`result` waits for it (or raises its error).
-    """
+    """``fn()`` computed on a thread from now; :meth:`result` waits for it or raises its error."""
 
     def __init__(self, fn: Callable[[], T], *, name: str = "hrtls-background") -> None:
         self._value: list[T] = []
