@@ -85,7 +85,8 @@ def imu_session(tmp_path_factory):
     return root, imu
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(chunk_rows=st.integers(2, 3500), name=st.sampled_from(["csv", "pq.zip"]),
        depth=st.integers(1, 3))
 def test_read_ahead_chunks_lose_no_row_at_their_borders(imu_session, chunk_rows, name, depth):

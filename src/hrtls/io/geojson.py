@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference
-from hrtls.io.jsonstream import Rows, materialized, write_json
+from hrtls.io.jsonstream import Rows, materialized, numbers_text, write_json
 from hrtls.io.tables import activity_text
 
 FloatArray = NDArray[np.float64]
@@ -190,9 +190,14 @@ def _geometry(coords: FloatArray) -> dict[str, Any] | None:
     return {"type": "LineString", "coordinates": [_rows(coords)]}
 
 
-def _rows(values: np.ndarray, convert: Callable[[list[Any]], list[Any]] = list) -> Rows:
-    """The items of ``values`` (rows become lists), made a slice at a time."""
-    return Rows(len(values), lambda i, j: convert(values[i:j].tolist()))
+def _rows(values: np.ndarray) -> Rows:
+    """The items of ``values`` (rows become lists), made a slice at a time.
+
+    Their text is made by Arrow when they are finite floats (else ``json.dumps`` refuses them).
+    """
+    fast = values.dtype.kind == "f" and bool(np.isfinite(values).all())
+    return Rows(len(values), lambda i, j: values[i:j].tolist(),
+                (lambda i, j: numbers_text(values[i:j])) if fast else None)
 
 
 def _number_rows(values: FloatArray) -> Rows:
@@ -200,13 +205,15 @@ def _number_rows(values: FloatArray) -> Rows:
     def make(i: int, j: int) -> list[float | None]:
         part = values[i:j]
         return part.tolist() if np.isfinite(part).all() else nan_to_none(part.tolist())
-    return Rows(len(values), make)
+    return Rows(len(values), make, lambda i, j: numbers_text(values[i:j]))
 
 
 def _label_rows(codes: NDArray[np.integer]) -> Rows:
     """Activity labels of ``codes``, made a slice at a time."""
     index, labels = activity_text(codes)
-    return Rows(len(index), lambda i, j: [labels[k] for k in index[i:j].tolist()])
+    quoted = np.array([json.dumps(label) for label in labels] or [""], dtype=object)
+    return Rows(len(index), lambda i, j: [labels[k] for k in index[i:j].tolist()],
+                lambda i, j: ", ".join(quoted[index[i:j]].tolist()))
 
 
 def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
