@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,7 +34,14 @@ from numpy.typing import NDArray
 from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference
-from hrtls.io.jsonstream import Rows, materialized, numbers_text, write_json
+from hrtls.io.jsonstream import (
+    Rows,
+    float_text,
+    materialized,
+    numbers_text,
+    row_text,
+    write_json,
+)
 from hrtls.io.tables import activity_text
 
 FloatArray = NDArray[np.float64]
@@ -249,7 +256,7 @@ def _document(trajectory: Trajectory, *, steps: StepEvents | None,
         step_coords = to_output_coordinates(trajectory.position_at(steps.t_end), georeference)
         labels = _label_rows(steps.activity)
         features.append(Rows(len(steps), lambda i, j: _step_features(
-            steps, step_coords, labels.make(i, j), i, j)))
+            steps, step_coords, labels.make(i, j), i, j), _step_text(steps, step_coords)))
     for landmark in landmark_list(landmarks):
         position = landmark_output_position(landmark, georeference)
         features.append({
@@ -280,6 +287,30 @@ def _step_features(steps: StepEvents, coords: FloatArray, labels: list[str], i: 
                             "activity": label}}
             for k, xyz, (t_start, t_end, length, heading, dz, label)
             in zip(range(i, j), where, columns, strict=True)]
+
+
+def _step_text(steps: StepEvents, coords: FloatArray) -> Callable[[int, int], str] | None:
+    """The text of :func:`_step_features` made by Arrow; None if a number (not a heading) is NaN."""
+    numbers = [coords, steps.t_start, steps.t_end, steps.length_m, steps.dz_m]
+    if not all(np.isfinite(v).all() for v in numbers):
+        return None
+    index, labels = activity_text(steps.activity)
+    quoted = np.array([json.dumps(label) for label in labels] or [""], dtype=object)
+
+    def text(i: int, j: int) -> str:
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        rows = pc.binary_join_element_wise(
+            '{"type": "Feature", "geometry": {"type": "Point", "coordinates": ',
+            row_text(coords[i:j]), '}, "properties": {"kind": "step", "index": ',
+            pc.cast(pa.array(np.arange(i, j, dtype=np.int64)), pa.string()), ', "t_start_s": ',
+            float_text(steps.t_start[i:j]), ', "t_end_s": ', float_text(steps.t_end[i:j]),
+            ', "length_m": ', float_text(steps.length_m[i:j]), ', "heading_rad": ',
+            float_text(steps.heading_rad[i:j]), ', "dz_m": ', float_text(steps.dz_m[i:j]),
+            ', "activity": ', pa.array(quoted[index[i:j]].tolist(), pa.string()), "}}", "")
+        return ", ".join(rows.to_pylist())
+    return text
 
 
 def write_geojson(trajectory: Trajectory, path: str | Path, *, steps: StepEvents | None = None,

@@ -105,9 +105,9 @@ def float_text(values: np.ndarray) -> pa.Array:
     """Arrow strings: the JSON text of each float (``json.dumps``'s), ``null`` if not finite.
 
     Arrow's cast gives the same shortest round-trip digits as ``repr`` but places them
-    otherwise (``1`` for ``1.0``, ``1e-7`` for ``1e-07``, exponents from 1e15 on): where both
-    write them without an exponent its text is taken (``.0`` added to whole numbers), the few
-    others are formatted by ``repr``.
+    otherwise (``1`` for ``1.0``, ``1e-7`` for ``1e-07``, exponents from 1e15 on, none down to
+    1e-6): where both write an exponent, or both none, its text is taken (``.0`` added to whole
+    numbers, exponents of two digits at least), the few others are formatted by ``repr``.
     """
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -116,8 +116,10 @@ def float_text(values: np.ndarray) -> pa.Array:
     size = np.abs(v)
     text = pc.cast(pa.array(v), pa.string())
     point, sci = pc.match_substring(text, "."), pc.match_substring(text, "e")
-    same = np.asarray(pc.invert(sci)) & (((size >= 1e-4) & (size < 1e16)) | (v == 0))
+    decimal = ((size >= 1e-4) & (size < 1e16)) | (v == 0)  # repr's choice
+    same = np.where(np.asarray(sci), ~decimal, decimal)
     text = pc.if_else(pc.or_(point, sci), text, pc.binary_join_element_wise(text, ".0", ""))
+    text = pc.replace_substring_regex(text, pattern=r"e([-+])(\d)$", replacement=r"e\10\2")
     odd = np.flatnonzero(~same)
     if len(odd):
         other = np.full(len(v), None, dtype=object)
@@ -131,11 +133,14 @@ def numbers_text(values: np.ndarray) -> str:
 
     NaN and infinities are written ``null``.
     """
+    text = float_text(values) if values.ndim == 1 else row_text(values)
+    return ", ".join(text.to_pylist())
+
+
+def row_text(values: np.ndarray) -> pa.Array:
+    """Arrow strings: the JSON text of each row of floats (``[1.0, 2.5]``; not finite: null)."""
     import pyarrow.compute as pc
 
-    if values.ndim == 1:
-        return ", ".join(float_text(values).to_pylist())
     columns = [float_text(values[:, k]) for k in range(values.shape[1])]
-    rows = pc.binary_join_element_wise("[", pc.binary_join_element_wise(*columns, ", "), "]",
+    return pc.binary_join_element_wise("[", pc.binary_join_element_wise(*columns, ", "), "]",
                                        "")
-    return ", ".join(rows.to_pylist())
