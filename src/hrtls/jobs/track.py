@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from hrtls.data import ImuStream, Session
+from hrtls.data import GroundTruth, ImuStream, Session
 from hrtls.data.clocks import ClockStream, check_clocks
 from hrtls.errors import InputError, RepairWarning
 from hrtls.evaluate.report import EvaluationInputs, build_report
@@ -196,7 +196,14 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         has fewer than two rows.
     """
     tracker = Tracker(config, keep_attitude=False)
-    chunks = read_ahead(stream.chunks(), name=f"read {stream.path.name}")
+    truth: list[GroundTruth | None] = []
+
+    def chunks_then_truth() -> Iterator[Session]:
+        yield from stream.chunks()
+        # the ground truth, for the evaluation, is read while the last chunks are tracked
+        truth.append(stream.truth())
+
+    chunks = read_ahead(chunks_then_truth(), name=f"read {stream.path.name}")
     held: list[Session] = []
     # the nominal rate is the median spacing of the leading samples, as in Tracker.run
     for chunk in chunks:
@@ -210,8 +217,6 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
                   has_mag=stream.has_mag, has_orientation=stream.parts["orientation"] is not None,
                   rate_hz=leading_rate_hz(t), t0=stream.t0(float(t[0])))
-    # the ground truth, for the evaluation, is read meanwhile beside the IMU
-    truth = Background(stream.truth, name=f"read {stream.path.name} truth")
     first: ImuStream | None = None
     seconds = 0.0
     rows = 0
@@ -235,7 +240,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     result = tracker.finish()
     seconds += time.perf_counter() - start
     del tracker
-    session = stream.session(first).with_parts(truth=truth.result())
+    session = stream.session(first).with_parts(truth=truth[0])
     result = widen_over_gaps(widen_unobservable_heading(result, session), session,
                              imu_t=stream.imu_t)
     return TrackRun(result, session, rows, seconds, streamed=True)
