@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import queue
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
@@ -27,7 +27,7 @@ class _Failed:
 
 
 def read_ahead(items: Iterable[T], *, depth: int = 1, name: str = "hrtls-read-ahead"
-               ) -> Iterator[T]:
+               ) -> Generator[T, None, None]:
     """The items of ``items``, produced on a thread up to ``depth`` ahead of the caller.
 
     The order is kept. An exception of ``items`` is raised here, at the item it failed on;

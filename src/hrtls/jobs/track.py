@@ -213,6 +213,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     t = np.concatenate([c.imu.accel.t for c in held if c.imu is not None] or
                        [np.zeros(0)])[:RATE_SAMPLES]
     if len(t) < 2:
+        chunks.close()
         raise NotStreamable(str(stream.path))
     tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
                   has_mag=stream.has_mag, has_orientation=stream.parts["orientation"] is not None,
