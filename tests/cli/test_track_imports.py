@@ -11,9 +11,9 @@ from pathlib import Path
 from hrtls.io.session import write_session
 from hrtls.sim.scenarios import run_scenario
 
-UNUSED = ("scipy.stats", "scipy.signal", "scipy.spatial", "scipy.optimize", "scipy.interpolate",
-          "scipy.integrate", "scipy.ndimage", "pyarrow.parquet", "pymap3d", "matplotlib",
-          "networkx", "sklearn", "pandas", "fastapi", "sqlalchemy", "ray")
+UNUSED = ("scipy.stats", "scipy.special", "scipy.signal", "scipy.spatial", "scipy.optimize",
+          "scipy.interpolate", "scipy.integrate", "scipy.ndimage", "pyarrow.parquet", "pymap3d",
+          "matplotlib", "networkx", "sklearn", "pandas", "fastapi", "sqlalchemy", "ray")
 """Modules the command must not import for a CSV session folder without a georeference."""
 
 

@@ -17,7 +17,6 @@ from hrtls.io.geojson import geojson_document
 from hrtls.io.jsonstream import SLICE
 from hrtls.io.schema import TABLES
 from hrtls.io.session import read_session, write_session
-from hrtls.io.stream import open_stream
 from hrtls.io.tables import activity_text, from_arrow, read_parquet, to_arrow
 
 # values that test the one-pass sum: non-finite ones, nulls, and finite ones whose sum overflows
@@ -146,33 +145,6 @@ def test_geojson_headings_and_labels_across_slices():
     step_props = [f["properties"] for f in doc["features"][1:3]]
     assert [p["activity"] for p in step_props] == ["walking", "running"]
     assert [p["heading_rad"] for p in step_props] == [None, 0.2]
-
-
-@pytest.mark.parametrize("name", ["csv", "pq.zip"])
-def test_chunks_after_start_imu_equal_chunks_read_from_the_file(tmp_path, name):
-    rng = np.random.default_rng(4)
-    n = 5000
-    t = np.arange(n) / 100.0
-    imu = ImuStream(SensorSeries(t, rng.normal([0, 0, 9.81], 0.3, (n, 3))),
-                    SensorSeries(t, rng.normal(0, 0.1, (n, 3))),
-                    SensorSeries(t, rng.normal([20, 0, -40], 1.0, (n, 3))))
-    fmt = "parquet" if name.startswith("pq") else "csv"
-    write_session(Session(imu=imu), tmp_path / name, table_format=fmt)
-    started = open_stream(tmp_path / name, chunk_rows=700)
-    fresh = open_stream(tmp_path / name, chunk_rows=700)
-    assert started is not None and fresh is not None
-    start = started.start_imu()
-    np.testing.assert_array_equal(start.accel.values, imu.accel.values)
-    np.testing.assert_array_equal(start.mag.values, imu.mag.values)
-    for again in range(2):  # the second pass reads the file again
-        a, b = list(started.chunks()), list(fresh.chunks())
-        assert len(a) == len(b) == -(-n // 700)
-        for x, y in zip(a, b, strict=True):
-            np.testing.assert_array_equal(x.imu.accel.t, y.imu.accel.t)
-            np.testing.assert_array_equal(x.imu.accel.values, y.imu.accel.values)
-            np.testing.assert_array_equal(x.imu.gyro.values, y.imu.gyro.values)
-            np.testing.assert_array_equal(x.imu.mag.values, y.imu.mag.values)
-        assert not started._whole, again
 
 
 def test_convert_to_parquet_and_back_to_csv(tmp_path):

@@ -87,6 +87,13 @@ def position_errors(estimate: Trajectory, truth: GroundTruth, *, horizontal: boo
     return truth.t, np.sqrt(np.sum(d * d, axis=1))
 
 
+def position_errors_2d_3d(estimate: Trajectory, truth: GroundTruth
+                          ) -> tuple[FloatArray, FloatArray]:
+    """Horizontal and 3-D errors at every truth sample (ends held), the estimate placed once."""
+    d = estimate_at(estimate, truth.t) - truth.xyz
+    return np.sqrt(np.sum(d[:, :2] * d[:, :2], axis=1)), np.sqrt(np.sum(d * d, axis=1))
+
+
 def axis_errors(estimate: Trajectory, truth: GroundTruth) -> FloatArray:
     """Absolute east / north errors (N, 2) at every truth sample (ends held)."""
     return np.asarray(np.abs(estimate_at(estimate, truth.t)[:, :2] - truth.xyz[:, :2]),

@@ -20,7 +20,7 @@ from hrtls.evaluate.metrics import (
     error_stats,
     heading_errors,
     integral_mean_error,
-    position_errors,
+    position_errors_2d_3d,
     velocity_rmse,
 )
 
@@ -79,7 +79,7 @@ def build_report(inputs: EvaluationInputs) -> dict[str, Any]:
     truth = inputs.truth
     if truth is not None:
         total = float(cumulative_distance(truth.xyz)[-1]) if len(truth) else 0.0
-        _, err = position_errors(est, truth)
+        err, zerr = position_errors_2d_3d(est, truth)
         stats = error_stats(err)
         final = float(err[-1]) if err.size else float("nan")
         out["truth"] = {"samples": len(truth), "distance_m": total}
@@ -89,7 +89,6 @@ def build_report(inputs: EvaluationInputs) -> dict[str, Any]:
             "mean_fraction_of_distance": stats.mean / total if total > 0 else float("nan"),
             "cdf": _cdf_points(err),
         }
-        _, zerr = position_errors(est, truth, horizontal=False)
         out["position_3d"] = error_stats(zerr).to_dict()
         if truth.heading_rad is not None:
             _, herr = heading_errors(est, truth)

@@ -53,6 +53,13 @@ N_FILTER_STATE = 4
 DEFAULT_GATE_PROBABILITY = 0.999
 """Default gate: an observation is rejected when its NIS exceeds the 99.9 % chi-square quantile."""
 
+KNOWN_CHI2_QUANTILES: dict[tuple[int, float], float] = {
+    (1, 0.997): 8.807468393511947, (2, 0.997): 11.618285980628052,
+    (3, 0.997): 13.931422665512084, (1, 0.999): 10.827566170662733,
+    (2, 0.999): 13.815510557964274, (3, 0.999): 16.26623619623813}
+"""``chi2_threshold`` of the gates the configurations use, the values scipy computes (tested):
+starting a tracker then imports no ``scipy.special``."""
+
 
 @lru_cache(maxsize=64)
 def chi2_threshold(dof: int, probability: float = DEFAULT_GATE_PROBABILITY) -> float:
@@ -70,6 +77,9 @@ def chi2_threshold(dof: int, probability: float = DEFAULT_GATE_PROBABILITY) -> f
     if not 0.0 < probability < 1.0:
         raise InputError(f"probability = {probability}", where="chi2_threshold",
                          expected="a probability in (0, 1)")
+    known = KNOWN_CHI2_QUANTILES.get((dof, probability))
+    if known is not None:
+        return known
     from scipy.special import gammaincinv  # scipy.stats is much slower to import
 
     # chi2.ppf of scipy.stats: 2 P^-1(dof / 2, probability), P the regularized lower

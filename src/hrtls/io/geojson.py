@@ -34,7 +34,14 @@ from numpy.typing import NDArray
 from hrtls.data import Landmark, StepEvents, Trajectory, activity_codes
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import Georeference
-from hrtls.io.jsonstream import Rows, materialized, write_json
+from hrtls.io.jsonstream import (
+    Rows,
+    float_text,
+    materialized,
+    numbers_text,
+    row_text,
+    write_json,
+)
 from hrtls.io.tables import activity_text
 
 FloatArray = NDArray[np.float64]
@@ -190,9 +197,14 @@ def _geometry(coords: FloatArray) -> dict[str, Any] | None:
     return {"type": "LineString", "coordinates": [_rows(coords)]}
 
 
-def _rows(values: np.ndarray, convert: Callable[[list[Any]], list[Any]] = list) -> Rows:
-    """The items of ``values`` (rows become lists), made a slice at a time."""
-    return Rows(len(values), lambda i, j: convert(values[i:j].tolist()))
+def _rows(values: np.ndarray) -> Rows:
+    """The items of ``values`` (rows become lists), made a slice at a time.
+
+    Their text is made by Arrow when they are finite floats (else ``json.dumps`` refuses them).
+    """
+    fast = values.dtype.kind == "f" and bool(np.isfinite(values).all())
+    return Rows(len(values), lambda i, j: values[i:j].tolist(),
+                (lambda i, j: numbers_text(values[i:j])) if fast else None)
 
 
 def _number_rows(values: FloatArray) -> Rows:
@@ -200,13 +212,15 @@ def _number_rows(values: FloatArray) -> Rows:
     def make(i: int, j: int) -> list[float | None]:
         part = values[i:j]
         return part.tolist() if np.isfinite(part).all() else nan_to_none(part.tolist())
-    return Rows(len(values), make)
+    return Rows(len(values), make, lambda i, j: numbers_text(values[i:j]))
 
 
 def _label_rows(codes: NDArray[np.integer]) -> Rows:
     """Activity labels of ``codes``, made a slice at a time."""
     index, labels = activity_text(codes)
-    return Rows(len(index), lambda i, j: [labels[k] for k in index[i:j].tolist()])
+    quoted = np.array([json.dumps(label) for label in labels] or [""], dtype=object)
+    return Rows(len(index), lambda i, j: [labels[k] for k in index[i:j].tolist()],
+                lambda i, j: ", ".join(quoted[index[i:j]].tolist()))
 
 
 def geojson_document(trajectory: Trajectory, *, steps: StepEvents | None = None,
@@ -242,7 +256,7 @@ def _document(trajectory: Trajectory, *, steps: StepEvents | None,
         step_coords = to_output_coordinates(trajectory.position_at(steps.t_end), georeference)
         labels = _label_rows(steps.activity)
         features.append(Rows(len(steps), lambda i, j: _step_features(
-            steps, step_coords, labels.make(i, j), i, j)))
+            steps, step_coords, labels.make(i, j), i, j), _step_text(steps, step_coords)))
     for landmark in landmark_list(landmarks):
         position = landmark_output_position(landmark, georeference)
         features.append({
@@ -273,6 +287,30 @@ def _step_features(steps: StepEvents, coords: FloatArray, labels: list[str], i: 
                             "activity": label}}
             for k, xyz, (t_start, t_end, length, heading, dz, label)
             in zip(range(i, j), where, columns, strict=True)]
+
+
+def _step_text(steps: StepEvents, coords: FloatArray) -> Callable[[int, int], str] | None:
+    """The text of :func:`_step_features` made by Arrow; None if a number (not a heading) is NaN."""
+    numbers = [coords, steps.t_start, steps.t_end, steps.length_m, steps.dz_m]
+    if not all(np.isfinite(v).all() for v in numbers):
+        return None
+    index, labels = activity_text(steps.activity)
+    quoted = np.array([json.dumps(label) for label in labels] or [""], dtype=object)
+
+    def text(i: int, j: int) -> str:
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        rows = pc.binary_join_element_wise(
+            '{"type": "Feature", "geometry": {"type": "Point", "coordinates": ',
+            row_text(coords[i:j]), '}, "properties": {"kind": "step", "index": ',
+            pc.cast(pa.array(np.arange(i, j, dtype=np.int64)), pa.string()), ', "t_start_s": ',
+            float_text(steps.t_start[i:j]), ', "t_end_s": ', float_text(steps.t_end[i:j]),
+            ', "length_m": ', float_text(steps.length_m[i:j]), ', "heading_rad": ',
+            float_text(steps.heading_rad[i:j]), ', "dz_m": ', float_text(steps.dz_m[i:j]),
+            ', "activity": ', pa.array(quoted[index[i:j]].tolist(), pa.string()), "}}", "")
+        return ", ".join(rows.to_pylist())
+    return text
 
 
 def write_geojson(trajectory: Trajectory, path: str | Path, *, steps: StepEvents | None = None,

@@ -4,7 +4,8 @@ A document is plain JSON data (dicts, lists, numbers, text) in which a list may 
 :class:`Rows`: items made on demand, ``SLICE`` at a time, and spliced into that list. Writing
 it (:func:`write_json`) gives exactly the text of ``json.dumps(doc, allow_nan=False)`` of the
 document with every :class:`Rows` made (:func:`materialized`), but neither the text nor the
-long lists are ever held whole.
+long lists are ever held whole. A :class:`Rows` may give its text directly (``text``): numbers
+are then formatted by Arrow (:func:`float_text`), not one by one by Python.
 """
 
 from __future__ import annotations
@@ -13,7 +14,12 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 SLICE = 4096
 """Items made and encoded at a time."""
@@ -25,6 +31,9 @@ class Rows:
 
     n: int
     make: Callable[[int, int], list[Any]]
+    text: Callable[[int, int], str] | None = None
+    """The JSON text of items ``i`` to ``j - 1`` joined by ``", "``: what ``json.dumps`` of
+    ``make(i, j)`` writes between its brackets, made without it."""
 
 
 def materialized(value: Any) -> Any:
@@ -80,8 +89,58 @@ def _encode(value: Any, fh: TextIO) -> None:
             first = False
             continue
         for i in range(0, item.n, SLICE):
-            part = item.make(i, min(i + SLICE, item.n))
+            j = min(i + SLICE, item.n)
+            if item.text is not None:
+                fh.write(("" if first else ", ") + item.text(i, j))
+                first = False
+                continue
+            part = item.make(i, j)
             if part:
                 fh.write(("" if first else ", ") + json.dumps(part, allow_nan=False)[1:-1])
                 first = False
     fh.write("]")
+
+
+def float_text(values: np.ndarray) -> pa.Array:
+    """Arrow strings: the JSON text of each float (``json.dumps``'s), ``null`` if not finite.
+
+    Arrow's cast gives the same shortest round-trip digits as ``repr`` but places them
+    otherwise (``1`` for ``1.0``, ``1e-7`` for ``1e-07``, exponents from 1e15 on, none down to
+    1e-6): where both write an exponent, or both none, its text is taken (``.0`` added to whole
+    numbers, exponents of two digits at least), the few others are formatted by ``repr``.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    v = np.ascontiguousarray(values, dtype=np.float64)
+    size = np.abs(v)
+    text = pc.cast(pa.array(v), pa.string())
+    point, sci = pc.match_substring(text, "."), pc.match_substring(text, "e")
+    decimal = ((size >= 1e-4) & (size < 1e16)) | (v == 0)  # repr's choice
+    same = np.where(np.asarray(sci), ~decimal, decimal)
+    text = pc.if_else(pc.or_(point, sci), text, pc.binary_join_element_wise(text, ".0", ""))
+    text = pc.replace_substring_regex(text, pattern=r"e([-+])(\d)$", replacement=r"e\10\2")
+    odd = np.flatnonzero(~same)
+    if len(odd):
+        other = np.full(len(v), None, dtype=object)
+        other[odd] = [repr(x) if np.isfinite(x) else "null" for x in v[odd].tolist()]
+        text = pc.if_else(pa.array(same), text, pa.array(other, pa.string()))
+    return text
+
+
+def numbers_text(values: np.ndarray) -> str:
+    """The JSON text of a list of floats (1-D) or of float rows (2-D), without its brackets.
+
+    NaN and infinities are written ``null``.
+    """
+    text = float_text(values) if values.ndim == 1 else row_text(values)
+    return ", ".join(text.to_pylist())
+
+
+def row_text(values: np.ndarray) -> pa.Array:
+    """Arrow strings: the JSON text of each row of floats (``[1.0, 2.5]``; not finite: null)."""
+    import pyarrow.compute as pc
+
+    columns = [float_text(values[:, k]) for k in range(values.shape[1])]
+    return pc.binary_join_element_wise("[", pc.binary_join_element_wise(*columns, ", "), "]",
+                                       "")

@@ -166,7 +166,6 @@ class SessionStream:
     _check_units: bool = field(repr=False)
     _max_bytes: int = field(repr=False)
     _times: list[np.ndarray] = field(default_factory=list, repr=False)
-    _whole: list[pa.Table] = field(default_factory=list, repr=False)
 
     @property
     def imu_t(self) -> np.ndarray:
@@ -230,36 +229,6 @@ class SessionStream:
         pa.default_memory_pool().release_unused()
         return truth
 
-    def start_imu(self) -> ImuStream:
-        """What :meth:`hrtls.pipeline.Tracker.start_session` looks at, without the whole IMU.
-
-        The accelerometer and magnetometer of the whole recording (for the hand-held mounting
-        and the hard-iron fit) and the gyroscope's first chunk only (it is only checked for).
-        The IMU table is parsed whole once for them and kept, as Arrow columns, for the next
-        pass of :meth:`chunks`, which slices it instead of parsing the file again (it is let
-        go of at the end of that pass).
-        """
-        name = self._imu.name
-        try:
-            whole = self._imu.columns(self._imu.header)
-            checked = _checked(whole.select(
-                [c for c in self._imu.header if c == "t" or c[0] in "am"]))
-        except (_Fallback, pa.ArrowException):
-            self._explain()
-            raise
-        self._whole[:] = [whole]
-        t = checked.float("t")
-        _check_time(t, -math.inf, self._explain)
-        acc = _group(checked, tuple("a" + a for a in _AXES), name=name)
-        mag = _group(checked, tuple("m" + a for a in _AXES), name=name)
-        assert acc is not None
-        gyro = self._gyro
-        if gyro is None and self.has_gyro:
-            gyro = next(self._imu_chunks()).gyro
-        return ImuStream(SensorSeries(t, acc, f"{name} accelerometer"), gyro,
-                         self._mag if mag is None else SensorSeries(t, mag, name),
-                         check_units=False)
-
     def chunks(self) -> Iterator[Session]:
         """Consecutive chunks: about ``chunk_rows`` IMU rows and the observations of their span.
 
@@ -296,25 +265,10 @@ class SessionStream:
         read_session(self.path, max_bytes=self._max_bytes)
         raise NotStreamable(str(self.path))
 
-    def _pieces(self) -> Iterator[pa.Table]:
-        """The IMU table in pieces: slices of the table :meth:`start_imu` parsed, or the file's.
-
-        The parsed table is let go of at the end of the pass.
-        """
-        if not self._whole:
-            yield from self._imu.pieces(self._chunk_rows)
-            return
-        whole = self._whole[0]
-        for start in range(0, whole.num_rows, self._chunk_rows):
-            yield whole.slice(start, self._chunk_rows)
-        self._whole.clear()
-        del whole
-        pa.default_memory_pool().release_unused()
-
     def _imu_chunks(self) -> Iterator[ImuStream]:
         t_last = -math.inf
         try:
-            for piece in self._pieces():
+            for piece in self._imu.pieces(self._chunk_rows):
                 if not piece.num_rows:
                     continue
                 imu = self._imu_of(_checked(piece))

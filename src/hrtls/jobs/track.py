@@ -12,10 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from hrtls.data import ImuStream, Session
+from hrtls.data import GroundTruth, ImuStream, Session
 from hrtls.data.clocks import ClockStream, check_clocks
 from hrtls.errors import InputError, RepairWarning
 from hrtls.evaluate.report import EvaluationInputs, build_report
+from hrtls.io.background import Background, read_ahead
 from hrtls.io.geojson import write_geojson, write_local_geojson
 from hrtls.io.session import TableFormat
 from hrtls.io.stream import DEFAULT_CHUNK_ROWS, NotStreamable, SessionStream, open_stream
@@ -24,7 +25,7 @@ from hrtls.pipeline.build import RATE_SAMPLES, leading_rate_hz
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
 from hrtls.pipeline.gap_uncertainty import widen_over_gaps
-from hrtls.pipeline.mounting import declared_handheld, uses_handheld_mounting
+from hrtls.pipeline.mounting import declared_handheld
 from hrtls.pipeline.tracker import Tracker, TrackResult
 from hrtls.pipeline.unobservable_heading import widen_unobservable_heading
 
@@ -50,14 +51,14 @@ class TrackRun:
     streamed: bool
 
 
-def streams(config: TrackerConfig, placement: str | None) -> bool:
-    """True when ``config`` needs no samples at :meth:`Tracker.start`.
+def streams(config: TrackerConfig) -> bool:
+    """True when a session folder or zip is tracked chunk by chunk with ``config``.
 
-    The hand-held mounting and the hard-iron fit need the accelerometer and magnetometer over
-    their windows.
+    :meth:`Tracker.start` looks at no samples (the hand-held mounting and the hard iron are
+    estimated as the samples arrive); only ``[offline] two_pass`` fits them on the whole
+    recording first, which :meth:`Tracker.run` does on the session read whole.
     """
-    return (not uses_handheld_mounting(config.attitude.mounting, placement)
-            and config.attitude.mag_hard_iron != "fit")
+    return not config.offline.two_pass
 
 
 def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
@@ -104,7 +105,7 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     stream = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        if not repair and beacons is None and fmt == "hrtls-session":
+        if not repair and beacons is None and fmt == "hrtls-session" and streams(config):
             stream = open_stream(path, chunk_rows=chunk_rows)
         session = None if stream is not None else read_any(path, fmt=fmt, repair=repair,
                                                            beacons=beacons, **options)
@@ -195,26 +196,28 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         has fewer than two rows.
     """
     tracker = Tracker(config, keep_attitude=False)
-    chunks = stream.chunks()
+    truth: list[GroundTruth | None] = []
+
+    def chunks_then_truth() -> Iterator[Session]:
+        yield from stream.chunks()
+        # the ground truth, for the evaluation, is read while the last chunks are tracked
+        truth.append(stream.truth())
+
+    chunks = read_ahead(chunks_then_truth(), name=f"read {stream.path.name}")
     held: list[Session] = []
-    if streams(config, stream.meta.placement):
-        # the nominal rate is the median spacing of the leading samples, as in Tracker.run
-        for chunk in chunks:
-            held.append(chunk)
-            if sum(_rows(c) for c in held) >= RATE_SAMPLES:
-                break
-        t = np.concatenate([c.imu.accel.t for c in held if c.imu is not None] or
-                           [np.zeros(0)])[:RATE_SAMPLES]
-        if len(t) < 2:
-            raise NotStreamable(str(stream.path))
-        tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
-                      has_mag=stream.has_mag,
-                      has_orientation=stream.parts["orientation"] is not None,
-                      rate_hz=leading_rate_hz(t), t0=stream.t0(float(t[0])))
-    else:
-        # the hand-held mounting and the hard-iron fit look at the whole accelerometer and
-        # magnetometer: read those columns alone, once
-        tracker.start_session(stream.session(stream.start_imu()))
+    # the nominal rate is the median spacing of the leading samples, as in Tracker.run
+    for chunk in chunks:
+        held.append(chunk)
+        if sum(_rows(c) for c in held) >= RATE_SAMPLES:
+            break
+    t = np.concatenate([c.imu.accel.t for c in held if c.imu is not None] or
+                       [np.zeros(0)])[:RATE_SAMPLES]
+    if len(t) < 2:
+        chunks.close()
+        raise NotStreamable(str(stream.path))
+    tracker.start(stream.meta, stream.landmarks, has_imu=True, has_gyro=stream.has_gyro,
+                  has_mag=stream.has_mag, has_orientation=stream.parts["orientation"] is not None,
+                  rate_hz=leading_rate_hz(t), t0=stream.t0(float(t[0])))
     first: ImuStream | None = None
     seconds = 0.0
     rows = 0
@@ -238,8 +241,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     result = tracker.finish()
     seconds += time.perf_counter() - start
     del tracker
-    # the ground truth is read only now, for the evaluation: it is not held while tracking
-    session = stream.session(first).with_parts(truth=stream.truth())
+    session = stream.session(first).with_parts(truth=truth[0])
     result = widen_over_gaps(widen_unobservable_heading(result, session), session,
                              imu_t=stream.imu_t)
     return TrackRun(result, session, rows, seconds, streamed=True)
@@ -270,19 +272,26 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
     check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     geo = session.georeference
-    written = [
+    # the tables are written on a thread (Arrow's writer lets go of the GIL) while the GeoJSON
+    # text is made here
+    tables = Background(lambda: [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
                          georeference=geo),
-        write_steps(result.steps, out_dir / f"steps.{table_format}"),
-        write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                      landmarks=session.resolved_landmarks(), georeference=geo,
-                      time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
-        if geo is not None else
-        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
-                            landmarks=session.landmarks,
-                            time_origin_unix_s=session.meta.time_origin_unix_s,
-                            overwrite=True),
-    ]
+        write_steps(result.steps, out_dir / f"steps.{table_format}")], name="write tables")
+    try:
+        geojson = (
+            write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
+                          landmarks=session.resolved_landmarks(), georeference=geo,
+                          time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
+            if geo is not None else
+            write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                                landmarks=session.landmarks,
+                                time_origin_unix_s=session.meta.time_origin_unix_s,
+                                overwrite=True))
+    except BaseException:
+        tables.join()
+        raise
+    written = [*tables.result(), geojson]
     report = dict(result.report)
     if evaluation is not None:
         report["evaluation"] = evaluation
