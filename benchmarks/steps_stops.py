@@ -13,6 +13,8 @@ Run ``PYTHONPATH=src python benchmarks/steps_stops.py`` (about 2 min). Prints on
   the detector was tuned on, also for this change), and a leave-one-placement-out choice of
   ``rhythm_relative_threshold`` from a grid.
 
+"no rhythm rule" is the peak detector before the rhythm threshold
+(``rhythm_relative_threshold`` equal to ``relative_threshold``) and without the walk filter;
 "before" is the tracker without the walk filter (``gait.drop_weak_walks = false``,
 :mod:`hrtls.gait.walk_steps`), "after" the default; "closing 0.55" adds the closing-step rule
 that was measured and not shipped (``WalkStepParams(closing_ratio=0.55)``). The walk filter's
@@ -40,8 +42,10 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 GRID = (0.2, 0.3, 0.4, 0.5)
 DEFAULT_WALK = WalkStepParams()
 CLOSING = WalkStepParams(closing_ratio=0.55)
-RULES: tuple[tuple[str, WalkStepParams | None], ...] = (
-    ("before", None), ("after", DEFAULT_WALK), ("closing 0.55", CLOSING))
+OLD = PeakStepParams(rhythm_relative_threshold=PeakStepParams().relative_threshold)
+RULES: tuple[tuple[str, PeakStepParams | None, WalkStepParams | None], ...] = (
+    ("no rhythm rule", OLD, None), ("before", None, None), ("after", None, DEFAULT_WALK),
+    ("closing 0.55", None, CLOSING))
 ROWS: list[tuple[str, str, str]] = []
 
 
@@ -75,13 +79,13 @@ def matched(det: np.ndarray, ref: np.ndarray, tol: float = 0.45) -> tuple[np.nda
 
 
 def sim_rows(seeds: range, label: str) -> None:
-    for name, walk in RULES:
+    for name, params, walk in RULES:
         n_det = n_true = extra = 0
         where = {"first 2": 0, "last 2": 0, "turn": 0, "other": 0}
         per_walk = []
         for seed in seeds:
             w = short_walk_u_turn(seed)
-            ga = GaitAnalyzer(rate_hz=100.0, step_detector=PeakStepDetector(),
+            ga = GaitAnalyzer(rate_hz=100.0, step_detector=PeakStepDetector(params),
                               heading="yaw", step_yaw="turns", window_features=False,
                               walk_steps=walk)
             with warnings.catch_warnings():
@@ -111,7 +115,7 @@ def mobgap_rows() -> None:
     from hrtls.pipeline.tracker import Tracker
 
     root = DATA / "mobgap_lab"
-    for name, walk in RULES:
+    for name, params, walk in RULES:
         tot = np.zeros(4, dtype=int)  # ours, INDIP, Stereophoto, union
         for tid in mobgap.list_trials(root):
             if tid.test != "Test5":
@@ -123,7 +127,7 @@ def mobgap_rows() -> None:
                    for r in refs]
             if trial.reference.indip is None or ics[0].size == 0:
                 continue
-            with tracker_rule(walk=walk), warnings.catch_warnings():
+            with tracker_rule(params, walk), warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = Tracker(preset("default")).run(trial.session)
             te = res.steps.t_end - trial.session.imu.accel.t[0]
@@ -151,14 +155,14 @@ def mobgap_daily_rows() -> None:
     root = DATA / "mobgap_lab"
     trials = [mobgap.load_trial(root, tid.participant, tid.test, tid.trial)
               for tid in mobgap.list_trials(root) if tid.test == "Test11"]
-    for name, walk in RULES:
+    for name, params, walk in RULES:
         where = {"first 2": 0, "last 2": 0, "turn >= 45 deg": 0, "other": 0}
         n_ref = n_in = 0
         for trial in trials:
             ref = trial.reference.indip
             if ref is None:
                 continue
-            with tracker_rule(walk=walk), warnings.catch_warnings():
+            with tracker_rule(params, walk), warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = Tracker(preset("default")).run(trial.session)
             te = res.steps.t_end - trial.session.imu.accel.t[0]
@@ -190,7 +194,7 @@ def oxford_rows() -> None:
 
     err: dict[object, dict[str, float]] = {}
     runs = [(rr, PeakStepParams(rhythm_relative_threshold=rr), WalkStepParams()) for rr in GRID]
-    runs += [(name, None, walk) for name, walk in RULES if name != "after"]
+    runs += [(name, params, walk) for name, params, walk in RULES if name != "after"]
     for key, params, walk in runs:
         err[key] = {}
         for path in oxford.list_recordings(DATA / "oxford_step"):
@@ -205,7 +209,9 @@ def oxford_rows() -> None:
         others = {rr: np.mean([abs(v) for k, v in err[rr].items() if k != place])
                   for rr in GRID}
         pick = min(GRID, key=lambda rr: (others[rr], -rr))
-        ROWS.append((f"Oxford {place} ({role})", "before / after / closing 0.55 / rhythm LOO",
+        ROWS.append((f"Oxford {place} ({role})",
+                     "no rhythm rule / before / after / closing 0.55 / rhythm LOO",
+                     f"{err['no rhythm rule'][place]:+.1f}% / "
                      f"{err['before'][place]:+.1f}% / {err[default][place]:+.1f}% / "
                      f"{err['closing 0.55'][place]:+.1f}% / {err[pick][place]:+.1f}% "
                      f"(rhythm grid choice {pick} without this file)"))
