@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import warnings
@@ -80,7 +81,7 @@ def test_batches_equal_whole_and_strong_walks_are_kept(gaps: list[float], peaks:
     whole = walk_steps(t, a, p)
     s = WalkStepState()
     bounds = sorted({0, t.size, *[min(c, t.size) for c in cuts]})
-    for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
+    for i0, i1 in itertools.pairwise(bounds):
         # the detector has reported every step before the next batch's first one
         done = t[i1] if i1 < t.size else t[-1]
         add_steps(s, p, t[i0:i1], a[i0:i1], complete_s=float(done))
