@@ -182,7 +182,8 @@ def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
         gate_steps_with_motion=g.gate_steps_with_motion,
         walking_bouts=WalkingBoutParams() if g.walking_bouts else None,
         missed_steps=MissedStepParams() if g.fill_missed_steps else None,
-        walk_steps=WalkStepParams() if g.drop_weak_walks else None,
+        walk_steps=(WalkStepParams() if g.drop_weak_walks and g.step_detector == "peak"
+                    else None),
         step_yaw=g.step_yaw,
         window_features=g.activity != "motion",
         climb=(params_of(ClimbParams, g.climb) if g.climb_stairs
