@@ -95,7 +95,8 @@ def as_time(t: Any, *, where: str = "time", after: float = -np.inf) -> FloatArra
     return arr
 
 
-def check_positive(value: float, name: str) -> None:
-    """Raise :class:`InputError` unless ``value`` is finite and > 0."""
-    if not (np.isfinite(value) and value > 0):
-        raise InputError(f"{name} = {value}", where=name, expected="a finite value > 0")
+def check_positive(value: float, name: str, *, zero_ok: bool = False) -> None:
+    """Raise :class:`InputError` unless ``value`` is finite and > 0 (>= 0 with ``zero_ok``)."""
+    if not (np.isfinite(value) and (value > 0 or (zero_ok and value == 0))):
+        raise InputError(f"{name} = {value}", where=name,
+                         expected=f"a finite value {'>=' if zero_ok else '>'} 0")

@@ -57,6 +57,7 @@ from hrtls.gait.stairs_climb import ClimbParams, climb_heights
 from hrtls.gait.step_heading import (
     TURNING_STEP_RAD,
     StepYaw,
+    check_heading_choice,
     held_heading,
     level_forward_axis,
     yaw_step_headings,
@@ -73,6 +74,7 @@ from hrtls.gait.vertical import (
     levelled,
     rotate,
 )
+from hrtls.gait.walk_steps import WalkStepParams
 from hrtls.gait.walking_bouts import WalkingBoutDetector, WalkingBoutParams
 from hrtls.gait.walking_direction import WalkingDirection, WalkingDirectionParams
 from hrtls.gait.window_activity import classify_windows, feature_axes, windows_features
@@ -145,6 +147,8 @@ class GaitAnalyzer:
     missed_steps:
         Insert one step into a gap of about two step periods within a walk
         (:mod:`hrtls.gait.missed_steps`); None (default): off.
+    walk_steps:
+        Hold steps until their walk is confirmed (:mod:`hrtls.gait.walk_steps`); None: off.
     step_yaw:
         With ``heading="yaw"``: a step's heading is the circular mean of the yaw at its start
         and end (``"endpoints"``) or the time average of the yaw over the step (``"mean"``,
@@ -175,18 +179,14 @@ class GaitAnalyzer:
                  pll_enable_m_s2: float | None = None,
                  walking_bouts: WalkingBoutParams | None = None,
                  missed_steps: MissedStepParams | None = None,
+                 walk_steps: WalkStepParams | None = None,
                  step_yaw: StepYaw = "endpoints", window_features: bool = True,
                  walking_direction: WalkingDirectionParams | None = None,
                  climb: ClimbParams | None = None) -> None:
         check_positive(rate_hz, "rate_hz")
         self.window_features = bool(window_features)
-        if step_yaw not in ("endpoints", "mean", "turns"):
-            raise InputError(f"step_yaw {step_yaw!r}", where="step_yaw",
-                             expected="'endpoints', 'mean' or 'turns'")
+        check_heading_choice(heading=heading, step_yaw=step_yaw)
         self.step_yaw: StepYaw = step_yaw
-        if heading not in ("fourier", "yaw", "none"):
-            raise InputError(f"heading {heading!r}", where="heading",
-                             expected="'fourier', 'yaw' or 'none'")
         self.rate_hz = float(rate_hz)
         self.step_detector = step_detector or PeakStepDetector()
         self.step_model: StepModel = step_model or WeinbergModel()
@@ -212,9 +212,7 @@ class GaitAnalyzer:
         self._step_filter = StreamingButterworth(
             order=4, cutoff_hz=min(step_cutoff_hz, 0.45 * rate_hz), rate_hz=rate_hz)
         self.gate_steps_with_motion = gate_steps_with_motion
-        if not (math.isfinite(gate_lookahead_s) and gate_lookahead_s >= 0):
-            raise InputError(f"gate_lookahead_s = {gate_lookahead_s}", where="gate_lookahead_s",
-                             expected="a finite value >= 0 (s)")
+        check_positive(gate_lookahead_s, "gate_lookahead_s", zero_ok=True)
         self.gate_lookahead_s = float(gate_lookahead_s)
         self.cadence = None if cadence is None else CadenceDetector(cadence, rate_hz=rate_hz)
         if pll_enable_m_s2 is not None:
@@ -228,6 +226,7 @@ class GaitAnalyzer:
         self.bouts = None if walking_bouts is None else WalkingBoutDetector(
             walking_bouts, history_s=window_s + 2.0 * walking_bouts.max_gap_s + 2.0)
         self.filler = None if missed_steps is None else MissedStepFiller(missed_steps)
+        self.walk_steps = walk_steps
         self.direction = WalkingDirection(walking_direction)
         self._offset_yaw = not self.mounting_known and heading == "yaw"
         # windows wait for the bout decision when the bouts give the activity
@@ -462,8 +461,9 @@ class GaitAnalyzer:
         return release_steps(self._pending, final=final, t_last=self._t_last,
                              gate_lookahead_s=self.gate_lookahead_s if self._gate else None,
                              bouts=self.bouts, step_model=self.step_model, stairs=self.stairs,
-                             keep_s=EXCURSION_BUFFER_S, climb=self.climb,
-                             offset=self.direction.heading_offset() if self._offset_yaw else None)
+                             keep_s=EXCURSION_BUFFER_S, climb=self.climb, walk=self.walk_steps,
+                             offset=self.direction.heading_offset() if self._offset_yaw else None,
+                             complete_s=self._steps_complete_s())
 
     def flush(self) -> GaitResult:
         """End of the recording: release held steps and label the last partial window."""

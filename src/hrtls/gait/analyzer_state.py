@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from hrtls.data import Activity
 from hrtls.gait._state import FloatArray
 from hrtls.gait.pll import StepDetection
+from hrtls.gait.walk_steps import WalkStepState
 
 __all__ = ["STATE_FORMAT", "PendingGait", "decode_nonfinite", "encode_nonfinite"]
 
@@ -84,6 +85,8 @@ class PendingGait:
     # step headings waiting to take effect on the held walking direction: times and values
     hq_t: FloatArray = field(default_factory=lambda: np.zeros(0))
     hq_h: FloatArray = field(default_factory=lambda: np.zeros(0))
+    # decisions of the walk filter (hrtls.gait.walk_steps)
+    walk: WalkStepState = field(default_factory=WalkStepState)
 
     def to_dict(self) -> dict[str, Any]:
         """The held samples, steps and memories as plain values (non-finite floats kept)."""
@@ -106,7 +109,7 @@ class PendingGait:
             "last_label": int(self.last_label), "yaw_last": self.yaw_last,
             "heading_last": self.heading_last, "mt": self.mt.tolist(),
             "mv": self.mv.tolist(), "hq_t": self.hq_t.tolist(),
-            "hq_h": self.hq_h.tolist()}
+            "hq_h": self.hq_h.tolist(), "walk": self.walk.to_dict()}
 
     @classmethod
     def from_dict(cls, pd: dict[str, Any]) -> PendingGait:
@@ -142,4 +145,7 @@ class PendingGait:
         pend.mv = np.asarray(pd["mv"], dtype=np.int64).reshape(-1)
         pend.hq_t = np.asarray(pd["hq_t"], dtype=np.float64).reshape(-1)
         pend.hq_h = np.asarray(pd["hq_h"], dtype=np.float64).reshape(-1)
+        # states written before the walk filter: its held steps are added again
+        if pd.get("walk") is not None:
+            pend.walk = WalkStepState.from_dict(pd["walk"])
         return pend

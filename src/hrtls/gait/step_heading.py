@@ -12,12 +12,13 @@ from typing import Literal
 import numba
 import numpy as np
 
+from hrtls.errors import InputError
 from hrtls.frames import quat_to_matrix, wrap_angle
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
 
-__all__ = ["HEADING_HOLD_DELAY_S", "TURNING_STEP_RAD", "StepYaw", "held_heading",
-           "level_forward_axis", "yaw_step_headings"]
+__all__ = ["HEADING_HOLD_DELAY_S", "TURNING_STEP_RAD", "StepYaw", "check_heading_choice",
+           "held_heading", "level_forward_axis", "yaw_step_headings"]
 
 StepYaw = Literal["endpoints", "mean", "turns"]
 HEADING_HOLD_DELAY_S = 0.5
@@ -34,6 +35,16 @@ def trapezoid_area_kernel(t: FloatArray, y: FloatArray,
     for i in range(1, t.shape[0]):
         area[i] = area[i - 1] + 0.5 * (y[i] + y[i - 1]) * (t[i] - t[i - 1])
 
+
+
+def check_heading_choice(*, heading: str, step_yaw: str) -> None:
+    """Raise :class:`InputError` for an unknown heading source or step yaw."""
+    if step_yaw not in ("endpoints", "mean", "turns"):
+        raise InputError(f"step_yaw {step_yaw!r}", where="step_yaw",
+                         expected="'endpoints', 'mean' or 'turns'")
+    if heading not in ("fourier", "yaw", "none"):
+        raise InputError(f"heading {heading!r}", where="heading",
+                         expected="'fourier', 'yaw' or 'none'")
 
 def yaw_step_headings(pend: PendingGait, tt: FloatArray, yaw: FloatArray, t_start: FloatArray,
                       t_end: FloatArray, *, step_yaw: StepYaw, keep_s: float) -> FloatArray:

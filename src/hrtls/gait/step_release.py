@@ -3,7 +3,8 @@
 A step is held until the activity of the window containing its end is known; with the step
 gate until ``gate_lookahead_s`` after its end (it is kept only when some sample of
 ``[t_end, t_end + gate_lookahead_s]`` is moving), and with walking bouts until its bout is
-decided (it is kept only inside a bout).
+decided (it is kept only inside a bout); with the walk filter until its walk decision is known
+(:mod:`hrtls.gait.walk_steps`: kept only in a confirmed walk, not as a closing step).
 """
 
 from __future__ import annotations
@@ -20,6 +21,14 @@ from hrtls.gait.pll import StepDetection
 from hrtls.gait.stairs_climb import ClimbParams, climb_labels
 from hrtls.gait.step_heading import HEADING_HOLD_DELAY_S
 from hrtls.gait.step_length import StairsModel, StepModel, displacements
+from hrtls.gait.walk_steps import (
+    KEEP,
+    UNDECIDED,
+    WalkStepParams,
+    add_steps,
+    forget_before,
+    step_status,
+)
 from hrtls.gait.walking_bouts import WalkingBoutDetector
 
 __all__ = ["HeadingOffset", "release_steps"]
@@ -48,15 +57,18 @@ class HeadingOffset:
 def release_steps(pend: PendingGait, *, final: bool, t_last: float,
                   gate_lookahead_s: float | None, bouts: WalkingBoutDetector | None,
                   step_model: StepModel, stairs: StairsModel, keep_s: float,
-                  climb: ClimbParams | None = None, offset: HeadingOffset | None = None
+                  climb: ClimbParams | None = None, offset: HeadingOffset | None = None,
+                  walk: WalkStepParams | None = None, complete_s: float = -np.inf
                   ) -> tuple[StepEvents, FloatArray]:
     """The steps of ``pend`` that are final (all when ``final``) and their excursions.
 
     ``gate_lookahead_s`` None: no step gate; ``climb``: label the walking steps that climb
     (:mod:`hrtls.gait.stairs_climb`); ``offset``: added to the held headings (see
-    :class:`HeadingOffset`). The released steps leave ``pend``, and so do the windows and the
-    gate's motion history (older than ``keep_s`` before ``t_last``) that the steps still held
-    no longer need.
+    :class:`HeadingOffset`); ``walk``: keep only the steps of confirmed walks
+    (:mod:`hrtls.gait.walk_steps`, state in ``pend.walk``; ``complete_s``: the step detector
+    has reported every step ending before this time). The released steps leave ``pend``, and
+    so do the windows and the gate's motion history (older than ``keep_s`` before ``t_last``)
+    that the steps still held no longer need.
     """
     det = StepDetection.concat(pend.steps)
     raw = np.concatenate(pend.headings) if pend.headings else np.zeros(0)
@@ -73,6 +85,11 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
             ready &= det.t_end + gate_lookahead_s <= t_last
     if bouts is not None and not final:
         ready &= bouts.decided(det.t_end)
+    if walk is not None:
+        add_steps(pend.walk, walk, det.t_end, det.acc_max,
+                  complete_s=np.inf if final else complete_s)
+        kept = step_status(pend.walk, det.t_end)
+        ready &= kept != UNDECIDED
     if offset is not None:
         off = offset.per_step(det.t_end)
         head = wrap_angle(raw + off)
@@ -86,6 +103,9 @@ def release_steps(pend: PendingGait, *, final: bool, t_last: float,
                     first_needed=t_last - keep_s)
     if bouts is not None:
         sel = sel[bouts.in_bout(det.t_end[sel])]
+    if walk is not None:
+        sel = sel[kept[sel] == KEEP]
+        forget_before(pend.walk, float(det.t_end[rest[0]]) if rest.size else np.inf)
     act = _step_activity(det.t_end[sel], ends, labels, pend.last_label)
     released = StepDetection(det.t_start[sel], det.t_end[sel], det.frequency_hz[sel],
                              det.acc_max[sel], det.acc_min[sel])

@@ -37,6 +37,7 @@ from hrtls.gait.stairs_climb import ClimbParams
 from hrtls.gait.step_length import FrequencyLawModel, StepModel, WeinbergModel, step_model_from_dict
 from hrtls.gait.step_length_pendulum import PendulumModel
 from hrtls.gait.velocity_automaton import VelocityAutomaton
+from hrtls.gait.walk_steps import WalkStepParams
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline.config import GaitConfig, TrackerConfig, params_of
@@ -181,6 +182,8 @@ def gait_analyzer(config: TrackerConfig, *, rate_hz: float, model: StepModel,
         gate_steps_with_motion=g.gate_steps_with_motion,
         walking_bouts=WalkingBoutParams() if g.walking_bouts else None,
         missed_steps=MissedStepParams() if g.fill_missed_steps else None,
+        walk_steps=(WalkStepParams() if g.drop_weak_walks and g.step_detector == "peak"
+                    else None),
         step_yaw=g.step_yaw,
         window_features=g.activity != "motion",
         climb=(params_of(ClimbParams, g.climb) if g.climb_stairs
