@@ -60,9 +60,9 @@ class GridParams:
 
     cell_m: float = 0.25
     margin_m: float = 2.0
-    sigma_speed_m_s: float = 0.6
+    sigma_speed_m_s: float = 0.8
     scan_s: float = 0.5
-    average_s: float = 2.0
+    average_s: float = 1.0
     outlier_probability: float = 0.05
     offset_gain: float = 0.0
     offset_max_db: float = 10.0

@@ -18,10 +18,9 @@ import math
 import numpy as np
 
 from hrtls.data import Session, Trajectory
+from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.pipeline.tracker import TrackResult
 
-UNIFORM_ANGLE_VAR_RAD2 = math.pi**2 / 3.0
-"""Variance of an angle uniform on [-pi, pi), rad^2."""
 
 
 def heading_observable(session: Session) -> bool:

@@ -1,0 +1,142 @@
+"""The tracker's stage for sessions with beacon RSS but no IMU: the grid filter.
+
+With ``[prediction] no_imu = "grid"`` (the default) and at least three positioned anchors, the
+RSS readings of each chunk go to :class:`~hrtls.fusion.rss_grid.RssGridFilter` (settings:
+``[prediction.grid]``, path loss: the tracker's); its rows (one per scan: mean and covariance
+of the position density) replace the random-walk Kalman filter's trajectory. Readings are
+buffered until their scan window has closed, so chunks give the rows of one call.
+``no_imu = "random-walk"`` keeps the Kalman filter with
+:class:`~hrtls.fusion.random_walk.RandomWalkParams`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from hrtls.data import Activity, Landmark, RssReadings, Trajectory
+from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
+from hrtls.fusion.path_loss import PathLossModel
+from hrtls.fusion.rss_grid import GridParams, GridRows, GridState, RssGridFilter, causal_scans
+from hrtls.pipeline.build import Notes
+from hrtls.pipeline.config import TrackerConfig, params_of
+
+MIN_ANCHORS = 3
+"""Fewer positioned anchors than this: no grid (the random walk is used)."""
+
+
+class GridStage:
+    """Buffered RSS readings, the grid filter's state and its rows so far.
+
+    Without anchors (``anchors`` empty) the stage is off: it ignores readings, and
+    :meth:`finish_trajectory` returns the Kalman filter's trajectory.
+    """
+
+    def __init__(self, anchors: dict[str, Landmark], *, model: PathLossModel,
+                 params: GridParams, t0: float) -> None:
+        self.ids = sorted(anchors)
+        xy = np.array([anchors[a].xyz()[:2] for a in self.ids], dtype=np.float64)
+        self.filter = RssGridFilter(xy, model=model, params=params) if self.ids else None
+        self.params = params
+        self.t0 = t0
+        self.state = GridState(-math.inf, np.zeros((0, 0)), np.zeros(0)) if self.filter is None \
+            else self.filter.start()
+        self._buf_t = np.zeros(0)
+        self._buf_a = np.zeros(0, dtype=np.int64)
+        self._buf_r = np.zeros(0)
+        self._rows: list[GridRows] = []
+
+    @classmethod
+    def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], *,
+              model: PathLossModel, has_imu: bool, t0: float, notes: Notes) -> GridStage:
+        """The stage, on when the session has no IMU and the configuration asks for it."""
+        params = params_of(GridParams, config.prediction.grid)
+        off = cls({}, model=model, params=params, t0=t0)
+        if has_imu:
+            return off
+        anchors = {k: lm for k, lm in landmarks.items()
+                   if lm.kind in ("anchor", "beacon") and lm.position is not None}
+        if config.prediction.no_imu != "grid" or config.rss.mode == "off" or \
+                len(anchors) < MIN_ANCHORS:
+            notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
+                      "walk between observations")
+            return off
+        notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
+                  f"{len(anchors)} anchors ({params.cell_m} m cells), starting from the first "
+                  "scan's likelihood; heading not observed")
+        return cls(anchors, model=model, params=params, t0=t0)
+
+    def add(self, rss: RssReadings | None, *, horizon: float) -> None:
+        """Buffer the readings of known anchors; run the scans whose window ended by ``horizon``."""
+        if self.filter is None:
+            return
+        if rss is not None and len(rss):
+            index = {a: i for i, a in enumerate(self.ids)}
+            a = np.array([index.get(str(x), -1) for x in rss.anchor.tolist()], dtype=np.int64)
+            keep = a >= 0
+            self._buf_t = np.concatenate([self._buf_t, rss.t[keep]])
+            self._buf_a = np.concatenate([self._buf_a, a[keep]])
+            self._buf_r = np.concatenate([self._buf_r, rss.rss_dbm[keep]])
+        self._run(horizon)
+
+    def _run(self, horizon: float) -> None:
+        w = self.params.scan_s
+        closed = self.t0 + w * math.floor((horizon - self.t0) / w) if math.isfinite(horizon) \
+            else math.inf
+        upto = int(np.searchsorted(self._buf_t, closed, side="left"))
+        if upto == 0 or self.filter is None:
+            return
+        scans = causal_scans(self._buf_t[:upto], self._buf_a[:upto], self._buf_r[:upto],
+                             n_anchors=len(self.ids), scan_s=w, average_s=self.params.average_s,
+                             t_origin=self.t0, t_from=self.state.t)
+        rows, self.state = self.filter.update(self.state, scans)
+        if len(rows.t):
+            self._rows.append(rows)
+        # readings older than the averaging window of the next scan are no longer needed
+        drop = int(np.searchsorted(self._buf_t, self.state.t - self.params.average_s,
+                                   side="right"))
+        self._buf_t, self._buf_a, self._buf_r = (self._buf_t[drop:], self._buf_a[drop:],
+                                                 self._buf_r[drop:])
+
+    def finish(self) -> None:
+        """Run every buffered scan (end of the recording)."""
+        self._run(math.inf)
+
+    def finish_trajectory(self, kalman: Trajectory) -> Trajectory:
+        """End of the recording: every buffered scan run, the rows as a trajectory.
+
+        Height from the Kalman filter's rows ``kalman``; heading not observed (variance of a
+        uniform angle). ``kalman`` itself when there was no scan.
+        """
+        self.finish()
+        if not self._rows:
+            return kalman
+        t = np.concatenate([r.t for r in self._rows])
+        xy = np.concatenate([r.mean_xy for r in self._rows])
+        cov = np.concatenate([r.cov_xy for r in self._rows])
+        z = np.interp(t, kalman.t, kalman.xyz[:, 2]) if len(kalman) else np.zeros(len(t))
+        return Trajectory(t, np.column_stack([xy, z]), np.zeros(len(t)), cov,
+                          np.full(len(t), UNIFORM_ANGLE_VAR_RAD2),
+                          np.full(len(t), int(Activity.UNKNOWN), dtype=np.int64))
+
+    def state_dict(self) -> dict[str, Any] | None:
+        """What the stage needs to continue (snapshot; rows already produced are not kept)."""
+        if self.filter is None:
+            return None
+        s = self.state
+        return {"t": s.t, "density": s.density, "offsets_db": s.offsets_db,
+                "started": s.started, "buf_t": self._buf_t, "buf_a": self._buf_a,
+                "buf_r": self._buf_r}
+
+    def restore(self, d: dict[str, Any] | None) -> None:
+        """Continue from :meth:`state_dict` (None: the stage was off)."""
+        if d is None or self.filter is None:
+            return
+        self.state = GridState(float(d["t"]), np.asarray(d["density"], dtype=np.float64),
+                               np.asarray(d["offsets_db"], dtype=np.float64),
+                               bool(d["started"]))
+        self._buf_t = np.asarray(d["buf_t"], dtype=np.float64)
+        self._buf_a = np.asarray(d["buf_a"], dtype=np.int64)
+        self._buf_r = np.asarray(d["buf_r"], dtype=np.float64)
