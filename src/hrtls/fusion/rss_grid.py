@@ -176,7 +176,7 @@ def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
     """
     if sigma_cells <= 1e-6:
         return
-    h = int(math.ceil(3.0 * sigma_cells))
+    h = math.ceil(3.0 * sigma_cells)
     w = np.empty(2 * h + 1)
     for k in range(-h, h + 1):
         w[k + h] = math.exp(-0.5 * (k / sigma_cells) ** 2)
@@ -277,8 +277,8 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             density /= density.sum()
         moments(density, x0, y0, cell, out[k])
         if prm.offset_gain > 0.0:
-            ci = min(max(int(round((out[k, 1] - y0) / cell)), 0), ny - 1)
-            cj = min(max(int(round((out[k, 0] - x0) / cell)), 0), nx - 1)
+            ci = min(max(round((out[k, 1] - y0) / cell), 0), ny - 1)
+            cj = min(max(round((out[k, 0] - x0) / cell), 0), nx - 1)
             for r in range(a, b):
                 an = anchor[r]
                 mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[an, ci, cj])
@@ -292,10 +292,10 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
 def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anchors: int,
                  scan_s: float, average_s: float, t_origin: float,
                  t_from: float = -math.inf) -> GridScans:
-    """Scans at the end of each ``scan_s`` window with readings (the time of its last reading),
-    after ``t_from``; per anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS.
+    """Scans of the readings ``t`` (s), ``anchor`` (index) and ``rss_dbm`` after ``t_from``.
 
-    ``t`` sorted; bins start at ``t_origin``. Weight of a row: the share of its readings that
+    A scan ends each ``scan_s`` window with readings (at its last reading); its rows: per
+    anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start at ``t_origin``. Weight of a row: the share of its readings that
     are new in this scan (not in the previous scan's window of that anchor).
     """
     tt = np.asarray(t, dtype=np.float64)
