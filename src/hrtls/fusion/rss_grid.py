@@ -60,9 +60,9 @@ class GridParams:
 
     cell_m: float = 0.25
     margin_m: float = 2.0
-    sigma_speed_m_s: float = 0.8
+    sigma_speed_m_s: float = 1.5
     scan_s: float = 0.5
-    average_s: float = 1.0
+    average_s: float = 2.0
     outlier_probability: float = 0.05
     offset_gain: float = 0.0
     offset_max_db: float = 10.0
@@ -115,8 +115,8 @@ class GridGeometry:
 
     def centres(self) -> tuple[FloatArray, FloatArray]:
         """Cell centre coordinates: x (nx,), y (ny,), m."""
-        return (self.x0_m + self.cell_m * np.arange(self.nx),
-                self.y0_m + self.cell_m * np.arange(self.ny))
+        return (self.x0_m + self.cell_m * np.arange(self.nx, dtype=np.float64),
+                self.y0_m + self.cell_m * np.arange(self.ny, dtype=np.float64))
 
     def distances(self, anchors_xy: FloatArray, d0_m: float) -> FloatArray:
         """Horizontal distance of every cell to every anchor, at least ``d0_m``: (A, ny, nx)."""
@@ -295,8 +295,9 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
     """Scans of the readings ``t`` (s), ``anchor`` (index) and ``rss_dbm`` after ``t_from``.
 
     A scan ends each ``scan_s`` window with readings (at its last reading); its rows: per
-    anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start at ``t_origin``. Weight of a row: the share of its readings that
-    are new in this scan (not in the previous scan's window of that anchor).
+    anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start
+    at ``t_origin``. Weight of a row: the share of its readings that are new in this scan (not
+    in the previous scan's window of that anchor).
     """
     tt = np.asarray(t, dtype=np.float64)
     if tt.size == 0:

@@ -23,7 +23,6 @@ plot's title marks it (``plot_note``).
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from hrtls.data import Session, Trajectory
