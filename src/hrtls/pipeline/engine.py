@@ -29,6 +29,7 @@ from hrtls.pipeline import _events as ev
 from hrtls.pipeline.build import Corrections
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
+from hrtls.pipeline.grid_stage import GridStage
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
 from hrtls.pipeline.landmark_updates import LandmarkVersions
 from hrtls.pipeline.observations import apply_observation
@@ -155,6 +156,8 @@ class FusionEngine:
         self.fix_schedule = FixSchedule()
         self.fix_phase_set = False
         self.tag_memory = TagMemory()
+        self.grid = GridStage.off(parts.path_loss)
+        """RSS without an IMU (:mod:`hrtls.pipeline.grid_stage`; set by the tracker)."""
         self.channel_state: ChannelState | None = (
             None if parts.channel_estimator is None
             else parts.channel_estimator.start(parts.path_loss))
@@ -355,6 +358,7 @@ class FusionEngine:
         out["last_row"] = last_row
         out["fix_phase_s"] = self.parts.fix_corrector.params.phase_s
         out["landmark_versions"] = self.versions.state()
+        out["grid"] = self.grid.state_dict()
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -367,6 +371,7 @@ class FusionEngine:
                     else state[name])
         if "landmark_versions" in state:   # snapshots from before landmark updates have none
             self.versions.restore(state["landmark_versions"])
+        self.grid.restore(state.get("grid"))
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]

@@ -20,7 +20,7 @@ from hrtls.data import Activity, Landmark, RssReadings, Trajectory
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss_grid import GridParams, GridRows, GridState, RssGridFilter, causal_scans
-from hrtls.pipeline.build import Notes
+from hrtls.pipeline.build import Notes, Sensors
 from hrtls.pipeline.config import TrackerConfig, params_of
 
 MIN_ANCHORS = 3
@@ -49,12 +49,18 @@ class GridStage:
         self._rows: list[GridRows] = []
 
     @classmethod
-    def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], *,
-              model: PathLossModel, has_imu: bool, t0: float, notes: Notes) -> GridStage:
+    def off(cls, model: PathLossModel) -> GridStage:
+        """A stage that is off."""
+        return cls({}, model=model, params=GridParams(), t0=0.0)
+
+    @classmethod
+    def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], model: PathLossModel,
+              sensors: Sensors, notes: Notes) -> GridStage:
         """The stage, on when the session has no IMU and the configuration asks for it."""
         params = params_of(GridParams, config.prediction.grid)
-        off = cls({}, model=model, params=params, t0=t0)
-        if has_imu:
+        t0 = sensors.t0
+        off = cls.off(model)
+        if sensors.has_imu:
             return off
         anchors = {k: lm for k, lm in landmarks.items()
                    if lm.kind in ("anchor", "beacon") and lm.position is not None}

@@ -9,36 +9,36 @@ front end, :mod:`~hrtls.pipeline.schedule` buffers and groups the events,
 service calls ``update`` with successive chunks (a :class:`~hrtls.data.Session` holding the new
 samples and observations, see :mod:`hrtls.pipeline.chunks`) and gets the same result.
 
-Per-sample work (attitude, gait, velocity prediction) runs in the compiled kernels of those stages.
-The position filter then handles *events* in time order -- steps, position fixes, RSS readings or
-scans, tag reads, ranges. Runs of consecutive steps, RSS readings or scans and ranges go through
-one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the Python fusion parts, tested
-equal); fixes, tags, bearings and velocity segments (and, with the velocity-driven prediction,
-every observation) are handled one at a time in Python (a few per second at most). Observations are
-held back until the gait stage can no longer release a step before them (``LIVE_LATENCY_S``), tag
-reads and RSS scans until their grouping window has closed, so a chunked run processes events in
-exactly the order of an offline run.
+Per-sample work (attitude, gait, velocity prediction) runs in the compiled kernels of those
+stages. The position filter then handles *events* in time order -- steps, position fixes, RSS
+readings or scans, tag reads, ranges. Runs of consecutive steps, RSS readings or scans and
+ranges go through one compiled loop (:mod:`hrtls.pipeline._events`, the same maths as the
+Python fusion parts, tested equal); fixes, tags, bearings and velocity segments (and, with the
+velocity-driven prediction, every observation) are handled one at a time in Python (a few per
+second at most). Observations are held back until
+the gait stage can no longer release a step before them (``LIVE_LATENCY_S``), tag reads and RSS
+scans until their grouping window has closed, so a chunked run processes events in exactly the
+order of an offline run.
 
-Prediction ``model = "velocity"`` (Colombo eq. 15-17): the hybrid-automaton speed and the attitude
-yaw are buffered and integrated up to each event; an accepted fix triggers the yaw stretching of
-eq. 24-28 over the samples since the previous fix (:class:`StretchMemory`, chord-rotation reading
-of :mod:`hrtls.fusion.yaw_stretch`). Reading of "fed back as the yaw pseudo-measurement of the
-attitude filter": the attitude filter has already run over the chunk when the fix is processed, so
-the correction is applied as a yaw offset to all later yaw inputs (and to the state heading), which
-is what the Euler EKF's ``yaw_rad`` input would converge to for a constant bias; the pseudo-
-measurements are kept in ``Tracker.yaw_pseudo`` (count in the report). With ``model = "step"`` the
-same stretching uses the dead-reckoned chord between the two fixes. Our additions (documented at
-the code): the step-length scale learned from absolute corrections
-(``prediction.learn_step_scale``; walking and running steps separately), a running factor from the
-user's profile (``k_running``), the compass correction of the device orientation's yaw wander
-(``attitude.compass_yaw``, :mod:`hrtls.pipeline.compass`), the fall-back to the thesis' tag
-strategies when every lobe of a read fails the Kalman gate, slots of eq. 19 anchored at the first
-fix, and, without an IMU, the random-walk prediction or the grid filter of beacon RSS
-(:mod:`hrtls.pipeline.grid_stage`).
+Prediction ``model = "velocity"`` (Colombo eq. 15-17): the hybrid-automaton speed and the
+attitude yaw are buffered and integrated up to each event; an accepted fix triggers the yaw
+stretching of eq. 24-28 over the samples since the previous fix (:class:`StretchMemory`,
+chord-rotation reading of :mod:`hrtls.fusion.yaw_stretch`). Reading of "fed back as the yaw
+pseudo-measurement of the attitude filter": the attitude filter has already run over the chunk
+when the fix is processed, so the correction is applied as a yaw offset to all later yaw inputs
+(and to the state heading), which is what the Euler EKF's ``yaw_rad`` input would converge to
+for a constant bias; the pseudo-measurements are kept in ``Tracker.yaw_pseudo`` (count in the
+report). With ``model = "step"`` the same stretching uses the dead-reckoned chord between the
+two fixes. Our additions (documented at the code): the step-length scale learned from absolute
+corrections (``prediction.learn_step_scale``; walking and running steps separately), a running
+factor from the user's profile (``k_running``), the compass correction of the device
+orientation's yaw wander (``attitude.compass_yaw``, :mod:`hrtls.pipeline.compass`), the
+fall-back to the thesis' tag strategies when every lobe of a read fails the Kalman gate, slots
+of eq. 19 anchored at the first fix, and without an IMU a random walk or a grid filter.
 
-Start pose time (``StartPose.t``): attitude and gait run from the first sample so the filters have
-converged, the position starts at the pose's time; steps, velocity samples and observations before
-it are ignored for position (counted in ``report["notes"]``).
+Start pose time (``StartPose.t``): attitude and gait run from the first sample so the filters
+have converged, the position starts at the pose's time; steps, velocity samples and
+observations before it are ignored for position (counted in ``report["notes"]``).
 """
 
 from __future__ import annotations
@@ -153,9 +153,9 @@ class Tracker:
         arrived, the hard iron (``mag_hard_iron = "fit"``) by a running fit applied from the
         time it is accepted.
         """
-        self._begin(meta, landmarks, Sensors(has_imu=has_imu, has_gyro=has_gyro, has_mag=has_mag,
-                                             has_orientation=has_orientation, rate_hz=rate_hz,
-                                             t0=t0))
+        self._begin(meta, landmarks, Sensors(has_imu=has_imu, has_gyro=has_gyro,
+                                             has_mag=has_mag, has_orientation=has_orientation,
+                                             rate_hz=rate_hz, t0=t0))
 
     def _begin(self, meta: SessionMeta, landmarks: dict[str, Landmark], sensors: Sensors, *,
                fixed_mounting_acc: np.ndarray | None = None,
@@ -198,8 +198,6 @@ class Tracker:
                 self._build_gait()
         # --- position filter
         parts = build.corrections(cfg, meta, has_imu=s.has_imu, notes=notes)
-        self.grid = GridStage.build(cfg, self.landmarks, model=parts.path_loss,
-                                    has_imu=s.has_imu, t0=s.t0, notes=notes)
         velocity_mode = cfg.prediction.model == "velocity" and s.has_imu
         self.schedule = self.schedule_class(cfg, self.landmarks, t0=s.t0, slow_only=velocity_mode,
                                       tag_window_s=parts.tag_corrector.params.group_window_s)
@@ -216,6 +214,7 @@ class Tracker:
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
             t0=s.t0)
         self.engine.attitude = self.attitude
+        self.engine.grid = GridStage.build(cfg, self.landmarks, parts.path_loss, s, notes)
         # --- heights and floors from the barometer (when the chunks bring pressure)
         self.baro = (BaroStage(floor_height_m=meta.floor_height_m, t_pose=self._pose.t_pose,
                                z_pose_m=float(state.x[2])) if cfg.barometer else None)
@@ -386,7 +385,7 @@ class Tracker:
                 self._process_imu(t, acc, gyr, mag, chunk.orientation)
         elif not self.has_imu:
             sched.horizon = max(sched.horizon, chunk_end(chunk))
-            self.grid.add(chunk.rss, horizon=sched.horizon)
+            self.engine.grid.add(chunk.rss, horizon=sched.horizon)
         if self.baro is not None:
             if chunk.pressure is not None:
                 self.baro.add_pressure(chunk.pressure.t, chunk.pressure.values[:, 0])
@@ -407,7 +406,7 @@ class Tracker:
         eng.drain(math.inf)
         if eng.velocity_mode:
             eng.track.add(eng.state, eng.last_activity)
-        trajectory = self.grid.finish_trajectory(eng.track.trajectory())
+        trajectory = eng.grid.finish_trajectory(eng.track.trajectory())
         shown = self.history.steps[self.history.hidden:]
         steps = StepEvents.empty()
         if shown:
@@ -488,7 +487,6 @@ class Tracker:
             "attitude": None if self.attitude is None else self.attitude.state(),
             "held": {k: getattr(self._held, k) for k in HeldImu.STATE},
             "baro": None if self.baro is None else self.baro.state(),
-            "grid": self.grid.state_dict(),
             "diag": rep.carried(eng, self._base),
         }
         return snap.pack(out)
@@ -529,7 +527,6 @@ class Tracker:
                 setattr(tr._held, k, v)
             if tr.baro is not None:
                 tr.baro.restore(d["baro"])
-            tr.grid.restore(d.get("grid"))
             tr._base = d["diag"]
         except (KeyError, TypeError, ValueError) as exc:
             raise FormatError(f"incomplete or foreign snapshot ({exc!r})", where="snapshot",
