@@ -4,7 +4,9 @@ With ``[prediction] no_imu = "grid"`` (the default) and at least three positione
 RSS readings of each chunk go to :class:`~hrtls.fusion.rss_grid.RssGridFilter` (settings:
 ``[prediction.grid]``, path loss: the tracker's); its rows (one per scan: mean and covariance
 of the position density) replace the random-walk Kalman filter's trajectory. Readings are
-buffered until their scan window has closed, so chunks give the rows of one call.
+buffered until their scan window has closed, so chunks give the rows of one call. The grid
+uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a note) and the
+Kalman filter's track, which uses them all, is kept.
 ``no_imu = "random-walk"`` keeps the Kalman filter with
 :class:`~hrtls.fusion.random_walk.RandomWalkParams`.
 """
@@ -16,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from hrtls.data import Activity, Landmark, RssReadings, Trajectory
+from hrtls.data import Activity, Landmark, Session, Trajectory
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss_grid import GridParams, GridRows, GridState, RssGridFilter, causal_scans
@@ -47,6 +49,7 @@ class GridStage:
         self._buf_a = np.zeros(0, dtype=np.int64)
         self._buf_r = np.zeros(0)
         self._rows: list[GridRows] = []
+        self.notes: Notes | None = None
 
     @classmethod
     def off(cls, model: PathLossModel) -> GridStage:
@@ -72,12 +75,24 @@ class GridStage:
         notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
                   f"{len(anchors)} anchors ({params.cell_m} m cells), starting from the first "
                   "scan's likelihood; heading not observed")
-        return cls(anchors, model=model, params=params, t0=t0)
+        stage = cls(anchors, model=model, params=params, t0=t0)
+        stage.notes = notes
+        return stage
 
-    def add(self, rss: RssReadings | None, *, horizon: float) -> None:
-        """Buffer the readings of known anchors; run the scans whose window ended by ``horizon``."""
+    def add(self, chunk: Session, *, horizon: float) -> None:
+        """Buffer the RSS of known anchors, run the scans whose window ended by ``horizon``.
+
+        Other observations in ``chunk`` (fixes, tags, ranges) turn the stage off.
+        """
         if self.filter is None:
             return
+        others = [name for name in ("fixes", "tags", "ranges")
+                  if getattr(chunk, name) is not None and len(getattr(chunk, name))]
+        if others:
+            self._turn_off(f"no IMU and {others[0]} besides the RSS: the Kalman filter's track "
+                           "is kept (the grid filter uses RSS only)")
+            return
+        rss = chunk.rss
         if rss is not None and len(rss):
             index = {a: i for i, a in enumerate(self.ids)}
             a = np.array([index.get(str(x), -1) for x in rss.anchor.tolist()], dtype=np.int64)
@@ -105,6 +120,12 @@ class GridStage:
                                    side="right"))
         self._buf_t, self._buf_a, self._buf_r = (self._buf_t[drop:], self._buf_a[drop:],
                                                  self._buf_r[drop:])
+
+    def _turn_off(self, why: str) -> None:
+        self.filter = None
+        self._rows = []
+        if self.notes is not None:
+            self.notes.add(why)
 
     def finish(self) -> None:
         """Run every buffered scan (end of the recording)."""
@@ -137,7 +158,9 @@ class GridStage:
                 "buf_r": self._buf_r}
 
     def restore(self, d: dict[str, Any] | None) -> None:
-        """Continue from :meth:`state_dict` (None: the stage was off)."""
+        """Continue from :meth:`state_dict` (None: the stage was off, and stays off)."""
+        if d is None:
+            self.filter = None
         if d is None or self.filter is None:
             return
         self.state = GridState(float(d["t"]), np.asarray(d["density"], dtype=np.float64),

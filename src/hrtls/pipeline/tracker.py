@@ -385,7 +385,7 @@ class Tracker:
                 self._process_imu(t, acc, gyr, mag, chunk.orientation)
         elif not self.has_imu:
             sched.horizon = max(sched.horizon, chunk_end(chunk))
-            self.engine.grid.add(chunk.rss, horizon=sched.horizon)
+            self.engine.grid.add(chunk, horizon=sched.horizon)
         if self.baro is not None:
             if chunk.pressure is not None:
                 self.baro.add_pressure(chunk.pressure.t, chunk.pressure.values[:, 0])
