@@ -19,7 +19,7 @@ def _config(no_imu: str) -> TrackerConfig:
 
 
 def test_rss_alone_runs_the_grid_one_row_per_scan(office: SimulationResult) -> None:
-    s = office.session.with_parts(**{k: None for k in NO_IMU})
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
     res = Tracker().run(s)
     assert any("grid filter" in n for n in res.report["notes"])
     tr = res.trajectory
@@ -28,7 +28,9 @@ def test_rss_alone_runs_the_grid_one_row_per_scan(office: SimulationResult) -> N
     np.testing.assert_allclose(tr.var_heading, UNIFORM_ANGLE_VAR_RAD2)
     grid = position_errors(tr, s.truth)[1]
     walk = position_errors(Tracker(_config("random-walk")).run(s).trajectory, s.truth)[1]
-    assert np.percentile(grid, 75) < np.percentile(walk, 75) + 0.5
+    # office_random_walk seed 3: p75 6.4 m against 10.5 m, p95 9.6 m against 34.0 m
+    assert np.percentile(grid, 75) < 0.8 * np.percentile(walk, 75)
+    assert np.percentile(grid, 95) < 0.5 * np.percentile(walk, 95)
 
 
 def test_other_observations_keep_the_kalman_track(office: SimulationResult) -> None:
