@@ -39,3 +39,26 @@ def test_other_observations_keep_the_kalman_track(office: SimulationResult) -> N
     assert any("grid filter uses RSS only" in n for n in res.report["notes"])
     ref = Tracker(_config("random-walk")).run(s)
     np.testing.assert_allclose(res.trajectory.xyz, ref.trajectory.xyz)
+
+
+def test_live_rows_are_the_final_rows(office: SimulationResult) -> None:
+    from hrtls.pipeline.chunks import split_session
+
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    tr = Tracker()
+    tr.start_session(s)
+    live_t, live_xy = [], []
+    t_seen = -np.inf
+    for chunk in split_session(s, 10.0):
+        tr.update(chunk)
+        est = tr.estimates_since(t_seen)
+        live_t.append(est.t)
+        live_xy.append(est.xyz[:, :2])
+        if len(est.t):
+            t_seen = float(est.t[-1])
+    final = tr.finish().trajectory
+    t = np.concatenate(live_t)
+    assert len(t) > 100 and np.all(np.diff(t) > 0)
+    k = np.searchsorted(final.t, t)
+    np.testing.assert_allclose(final.t[k], t)
+    np.testing.assert_allclose(final.xyz[k, :2], np.concatenate(live_xy), atol=1e-9)

@@ -26,7 +26,7 @@ from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.tags import TagMemory
 from hrtls.gait.analyzer import GaitResult
 from hrtls.pipeline import _events as ev
-from hrtls.pipeline.build import Corrections
+from hrtls.pipeline.build import Corrections, Notes
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.grid_stage import GridStage
@@ -121,7 +121,8 @@ class FusionEngine:
     def __init__(self, config: TrackerConfig, parts: Corrections, *, state: FilterState,
                  landmarks: dict[str, Landmark], schedule: EventSchedule, pose: PoseGate,
                  scale: StepScaleLearner, gait: GaitHistory, params: np.ndarray,
-                 has_imu: bool, velocity_mode: bool, running_factor: float, t0: float) -> None:
+                 has_imu: bool, velocity_mode: bool, running_factor: float, t0: float,
+                 notes: Notes) -> None:
         self.config = config
         self.parts = parts
         self.landmarks = landmarks
@@ -156,8 +157,9 @@ class FusionEngine:
         self.fix_schedule = FixSchedule()
         self.fix_phase_set = False
         self.tag_memory = TagMemory()
-        self.grid = GridStage.off(parts.path_loss)
-        """RSS without an IMU (:mod:`hrtls.pipeline.grid_stage`; set by the tracker)."""
+        self.grid = GridStage.build(config, landmarks, parts.path_loss, has_imu=has_imu, t0=t0,
+                                    z_m=float(state.x[2]), notes=notes)
+        """RSS without an IMU (:mod:`hrtls.pipeline.grid_stage`)."""
         self.channel_state: ChannelState | None = (
             None if parts.channel_estimator is None
             else parts.channel_estimator.start(parts.path_loss))
@@ -183,6 +185,12 @@ class FusionEngine:
             self._run_kernel(*sched.fast_run(horizon))
         if self.velocity_mode:
             self.velocity_to(horizon)
+        if horizon == math.inf:
+            self.grid.finish()
+
+    def output_rows(self) -> TrackRows:
+        """The rows of the track: the grid filter's when it runs, else the Kalman filter's."""
+        return self.grid.rows if self.grid.filter is not None else self.track
 
     def _run_kernel(self, b0: int, b1: int) -> None:
         """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges) in the compiled loop.

@@ -3,10 +3,11 @@
 With ``[prediction] no_imu = "grid"`` (the default) and at least three positioned anchors, the
 RSS readings of each chunk go to :class:`~hrtls.fusion.rss_grid.RssGridFilter` (settings:
 ``[prediction.grid]``, path loss: the tracker's); its rows (one per scan: mean and covariance
-of the position density) replace the random-walk Kalman filter's trajectory. Readings are
-buffered until their scan window has closed, so chunks give the rows of one call. The grid
-uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a note) and the
-Kalman filter's track, which uses them all, is kept.
+of the position density, height of the start, heading not observed: the variance of a uniform
+angle) are the track's rows, live and offline, instead of the random-walk Kalman filter's.
+Readings are buffered until their scan window has closed, so chunks give the rows of one call.
+The grid uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a
+note) and the Kalman filter's track, which uses them all, is the track.
 ``no_imu = "random-walk"`` keeps the Kalman filter with
 :class:`~hrtls.fusion.random_walk.RandomWalkParams`.
 """
@@ -18,66 +19,62 @@ from typing import Any
 
 import numpy as np
 
-from hrtls.data import Activity, Landmark, Session, Trajectory
+from hrtls.data import Activity, Landmark, Session
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
-from hrtls.fusion.rss_grid import GridParams, GridRows, GridState, RssGridFilter, causal_scans
-from hrtls.pipeline.build import Notes, Sensors
+from hrtls.fusion.rss_grid import GridParams, GridState, RssGridFilter, causal_scans
+from hrtls.pipeline.build import Notes
 from hrtls.pipeline.config import TrackerConfig, params_of
+from hrtls.pipeline.output import TrackRows
 
 MIN_ANCHORS = 3
 """Fewer positioned anchors than this: no grid (the random walk is used)."""
 
 
 class GridStage:
-    """Buffered RSS readings, the grid filter's state and its rows so far.
+    """Buffered RSS readings, the grid filter's state and its rows.
 
-    Without anchors (``anchors`` empty) the stage is off: it ignores readings, and
-    :meth:`finish_trajectory` returns the Kalman filter's trajectory.
+    ``filter`` is None when the stage is off (an IMU, ``no_imu = "random-walk"``, RSS off, too
+    few anchors, or other observations than RSS): it then ignores readings.
     """
 
     def __init__(self, anchors: dict[str, Landmark], *, model: PathLossModel,
-                 params: GridParams, t0: float) -> None:
+                 params: GridParams, t0: float, z_m: float, notes: Notes) -> None:
         self.ids = sorted(anchors)
         xy = np.array([anchors[a].xyz()[:2] for a in self.ids], dtype=np.float64)
         self.filter = RssGridFilter(xy, model=model, params=params) if self.ids else None
         self.params = params
         self.t0 = t0
+        self.z_m = z_m
+        self.notes = notes
         self.state = GridState(-math.inf, np.zeros((0, 0)), np.zeros(0)) if self.filter is None \
             else self.filter.start()
         self._buf_t = np.zeros(0)
         self._buf_a = np.zeros(0, dtype=np.int64)
         self._buf_r = np.zeros(0)
-        self._rows: list[GridRows] = []
-        self.notes: Notes | None = None
-
-    @classmethod
-    def off(cls, model: PathLossModel) -> GridStage:
-        """A stage that is off."""
-        return cls({}, model=model, params=GridParams(), t0=0.0)
+        self.rows = TrackRows()
 
     @classmethod
     def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], model: PathLossModel,
-              sensors: Sensors, notes: Notes) -> GridStage:
-        """The stage, on when the session has no IMU and the configuration asks for it."""
+              *, has_imu: bool, t0: float, z_m: float, notes: Notes) -> GridStage:
+        """The stage, on when the session has no IMU and the configuration asks for it.
+
+        ``t0``: first sample time (scan windows start there), s; ``z_m``: height of the rows.
+        """
         params = params_of(GridParams, config.prediction.grid)
-        t0 = sensors.t0
-        off = cls.off(model)
-        if sensors.has_imu:
-            return off
         anchors = {k: lm for k, lm in landmarks.items()
                    if lm.kind in ("anchor", "beacon") and lm.position is not None}
-        if config.prediction.no_imu != "grid" or config.rss.mode == "off" or \
-                len(anchors) < MIN_ANCHORS:
+        on = not has_imu and config.prediction.no_imu == "grid" and \
+            config.rss.mode != "off" and len(anchors) >= MIN_ANCHORS
+        if not has_imu and on:
+            notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
+                      f"{len(anchors)} anchors ({params.cell_m} m cells), starting from the "
+                      "first scan's likelihood; heading not observed")
+        elif not has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
                       "walk between observations")
-            return off
-        notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
-                  f"{len(anchors)} anchors ({params.cell_m} m cells), starting from the first "
-                  "scan's likelihood; heading not observed")
-        stage = cls(anchors, model=model, params=params, t0=t0)
-        stage.notes = notes
-        return stage
+        return cls(anchors if on else {}, model=model, params=params, t0=t0, z_m=z_m,
+                   notes=notes)
 
     def add(self, chunk: Session, *, horizon: float) -> None:
         """Buffer the RSS of known anchors, run the scans whose window ended by ``horizon``.
@@ -89,7 +86,8 @@ class GridStage:
         others = [name for name in ("fixes", "tags", "ranges")
                   if getattr(chunk, name) is not None and len(getattr(chunk, name))]
         if others:
-            self._turn_off(f"no IMU and {others[0]} besides the RSS: the Kalman filter's track "
+            self.filter = None
+            self.notes.add(f"no IMU and {others[0]} besides the RSS: the Kalman filter's track "
                            "is kept (the grid filter uses RSS only)")
             return
         rss = chunk.rss
@@ -113,40 +111,19 @@ class GridStage:
                              n_anchors=len(self.ids), scan_s=w, average_s=self.params.average_s,
                              t_origin=self.t0, t_from=self.state.t)
         rows, self.state = self.filter.update(self.state, scans)
-        if len(rows.t):
-            self._rows.append(rows)
+        n = len(rows.t)
+        x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
+        self.rows.add_block(rows.t, x, rows.cov_xy, np.full(n, UNIFORM_ANGLE_VAR_RAD2),
+                            np.full(n, int(Activity.UNKNOWN)))
         # readings older than the averaging window of the next scan are no longer needed
         drop = int(np.searchsorted(self._buf_t, self.state.t - self.params.average_s,
                                    side="right"))
         self._buf_t, self._buf_a, self._buf_r = (self._buf_t[drop:], self._buf_a[drop:],
                                                  self._buf_r[drop:])
 
-    def _turn_off(self, why: str) -> None:
-        self.filter = None
-        self._rows = []
-        if self.notes is not None:
-            self.notes.add(why)
-
     def finish(self) -> None:
         """Run every buffered scan (end of the recording)."""
         self._run(math.inf)
-
-    def finish_trajectory(self, kalman: Trajectory) -> Trajectory:
-        """End of the recording: every buffered scan run, the rows as a trajectory.
-
-        Height from the Kalman filter's rows ``kalman``; heading not observed (variance of a
-        uniform angle). ``kalman`` itself when there was no scan.
-        """
-        self.finish()
-        if not self._rows:
-            return kalman
-        t = np.concatenate([r.t for r in self._rows])
-        xy = np.concatenate([r.mean_xy for r in self._rows])
-        cov = np.concatenate([r.cov_xy for r in self._rows])
-        z = np.interp(t, kalman.t, kalman.xyz[:, 2]) if len(kalman) else np.zeros(len(t))
-        return Trajectory(t, np.column_stack([xy, z]), np.zeros(len(t)), cov,
-                          np.full(len(t), UNIFORM_ANGLE_VAR_RAD2),
-                          np.full(len(t), int(Activity.UNKNOWN), dtype=np.int64))
 
     def state_dict(self) -> dict[str, Any] | None:
         """What the stage needs to continue (snapshot; rows already produced are not kept)."""

@@ -78,7 +78,6 @@ from hrtls.pipeline.build import leading_rate_hz as leading_rate_hz
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
-from hrtls.pipeline.grid_stage import GridStage
 from hrtls.pipeline.imu_stage import (
     AttitudeStage,
     HeldImu,
@@ -212,9 +211,8 @@ class Tracker:
                                                          and s.has_mag),
                                        has_imu=s.has_imu),
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
-            t0=s.t0)
+            t0=s.t0, notes=notes)
         self.engine.attitude = self.attitude
-        self.engine.grid = GridStage.build(cfg, self.landmarks, parts.path_loss, s, notes)
         # --- heights and floors from the barometer (when the chunks bring pressure)
         self.baro = (BaroStage(floor_height_m=meta.floor_height_m, t_pose=self._pose.t_pose,
                                z_pose_m=float(state.x[2])) if cfg.barometer else None)
@@ -406,7 +404,7 @@ class Tracker:
         eng.drain(math.inf)
         if eng.velocity_mode:
             eng.track.add(eng.state, eng.last_activity)
-        trajectory = eng.grid.finish_trajectory(eng.track.trajectory())
+        trajectory = eng.output_rows().trajectory()
         shown = self.history.steps[self.history.hidden:]
         steps = StepEvents.empty()
         if shown:
@@ -444,7 +442,7 @@ class Tracker:
         base = np.asarray(self._base["accepted_t"], dtype=np.float64)
         if len(base):
             acc = np.concatenate([base, acc])
-        est = self.engine.track.since(t_after_s, acc, self.meta.floor_height_m)
+        est = self.engine.output_rows().since(t_after_s, acc, self.meta.floor_height_m)
         if self.baro is None or not self.baro.active or not len(est):
             return est
         xyz, activity = self.baro.rows(est.t, est.xyz, est.activity)
