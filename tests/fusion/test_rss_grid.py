@@ -30,11 +30,12 @@ def _model(**kw: float) -> np.record:
 
 
 def test_geometry_covers_the_anchors_plus_margin() -> None:
-    g = GridGeometry.around(np.array([[0.0, 0.0], [4.0, 2.0]]), cell_m=1.0, margin_m=1.0)
+    g = GridGeometry.around(np.array([[0.0, 0.0], [4.0, 2.0]]), cell_m=1.0, margin_m=1.0,
+                            max_cells=1000)
     x, y = g.centres()
     assert (x[0], x[-1], y[0], y[-1]) == (-1.0, 5.0, -1.0, 3.0)
     with pytest.raises(InputError, match="anchor"):
-        GridGeometry.around(np.zeros((0, 2)), cell_m=1.0, margin_m=1.0)
+        GridGeometry.around(np.zeros((0, 2)), cell_m=1.0, margin_m=1.0, max_cells=1000)
 
 
 def test_blur_of_a_point_is_the_normalised_gaussian() -> None:
@@ -121,3 +122,11 @@ def test_params_refuse_nonsense() -> None:
         GridParams(scan_s=1.0, average_s=0.5)
     with pytest.raises(InputError, match="cell_m"):
         GridParams(cell_m=0.0)
+
+
+def test_a_large_site_gets_larger_cells_within_max_cells() -> None:
+    anchors = np.array([[0.0, 0.0], [300.0, 200.0]])
+    g = GridGeometry.around(anchors, cell_m=0.25, margin_m=2.0, max_cells=10_000)
+    assert g.nx * g.ny <= 10_000 and g.cell_m > 2.0
+    x, y = g.centres()
+    assert x[0] <= -2.0 + 1e-9 and x[-1] >= 302.0 - 1e-9 and y[-1] >= 202.0 - 1e-9

@@ -48,7 +48,8 @@ class GridParams:
 
     Attributes
     ----------
-    cell_m: grid cell size, m.
+    cell_m: grid cell size, m (larger when needed to keep within ``max_cells``).
+    max_cells: most cells of the grid (the cost of a scan is cells x anchors heard).
     margin_m: grid extent beyond the anchors' bounding box, m.
     sigma_speed_m_s: per-axis diffusion of the motion model, m/sqrt(s).
     scan_s: scan period: readings are grouped into windows of this length, s.
@@ -59,6 +60,7 @@ class GridParams:
     """
 
     cell_m: float = 0.25
+    max_cells: int = 40_000
     margin_m: float = 2.0
     sigma_speed_m_s: float = 1.5
     scan_s: float = 0.5
@@ -68,7 +70,7 @@ class GridParams:
     offset_max_db: float = 10.0
 
     def __post_init__(self) -> None:
-        for name in ("cell_m", "scan_s", "average_s"):
+        for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
         for name in ("margin_m", "sigma_speed_m_s", "offset_gain", "offset_max_db",
                      "outlier_probability"):
@@ -87,8 +89,8 @@ class GridParams:
 
 
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
-    "cell_m", "margin_m", "sigma_speed_m_s", "scan_s", "average_s", "outlier_probability",
-    "offset_gain", "offset_max_db")])
+    "cell_m", "max_cells", "margin_m", "sigma_speed_m_s", "scan_s", "average_s",
+    "outlier_probability", "offset_gain", "offset_max_db")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -103,13 +105,18 @@ class GridGeometry:
     ny: int
 
     @classmethod
-    def around(cls, anchors_xy: FloatArray, *, cell_m: float, margin_m: float) -> GridGeometry:
-        """The anchors' bounding box plus ``margin_m`` on every side."""
+    def around(cls, anchors_xy: FloatArray, *, cell_m: float, margin_m: float,
+               max_cells: int) -> GridGeometry:
+        """The anchors' bounding box plus ``margin_m`` on every side, at most ``max_cells``."""
         a = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
         if len(a) == 0 or not np.all(np.isfinite(a)):
             raise InputError(f"{len(a)} anchors", where="rss grid",
                              expected="at least one anchor with a finite position")
         lo, hi = a.min(axis=0) - margin_m, a.max(axis=0) + margin_m
+        span = np.maximum(hi - lo, 1e-9)
+        cell_m = max(cell_m, float(np.sqrt(np.prod(span) / max_cells)))
+        while np.prod(np.ceil(span / cell_m) + 1) > max_cells:
+            cell_m *= 1.05
         n = np.maximum(np.ceil((hi - lo) / cell_m).astype(np.int64), 1) + 1
         return cls(float(lo[0]), float(lo[1]), float(cell_m), int(n[0]), int(n[1]))
 
@@ -339,7 +346,8 @@ class RssGridFilter:
         self.model = model
         self.anchors_xy = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
         self.geometry = GridGeometry.around(self.anchors_xy, cell_m=self.params.cell_m,
-                                            margin_m=self.params.margin_m)
+                                            margin_m=self.params.margin_m,
+                                            max_cells=self.params.max_cells)
         self.dist = self.geometry.distances(self.anchors_xy, model.d0_m)
         self._prm = self.params.record()[0]
         self._model = np.zeros(1, dtype=PATH_LOSS_DTYPE)

@@ -66,15 +66,16 @@ class GridStage:
                    if lm.kind in ("anchor", "beacon") and lm.position is not None}
         on = not has_imu and config.prediction.no_imu == "grid" and \
             config.rss.mode != "off" and len(anchors) >= MIN_ANCHORS
-        if not has_imu and on:
+        stage = cls(anchors if on else {}, model=model, params=params, t0=t0, z_m=z_m,
+                    notes=notes)
+        if stage.filter is not None:
             notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
-                      f"{len(anchors)} anchors ({params.cell_m} m cells), starting from the "
-                      "first scan's likelihood; heading not observed")
+                      f"{len(anchors)} anchors ({stage.filter.geometry.cell_m:.2f} m cells), "
+                      "starting from the first scan's likelihood; heading not observed")
         elif not has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
                       "walk between observations")
-        return cls(anchors if on else {}, model=model, params=params, t0=t0, z_m=z_m,
-                   notes=notes)
+        return stage
 
     def add(self, chunk: Session, *, horizon: float) -> None:
         """Buffer the RSS of known anchors, run the scans whose window ended by ``horizon``.
