@@ -70,3 +70,27 @@ def test_no_imu_keeps_the_positions_and_reports_the_heading_unknown() -> None:
     np.testing.assert_allclose(out.trajectory.var_heading, UNIFORM_ANGLE_VAR_RAD2)
     assert out.report["heading"]["observable"] is False
     assert out.report["heading"]["plot_note"].startswith("no IMU")
+
+
+def test_simulated_gyroscope_only_walk_through_the_tracker() -> None:
+    from hrtls.pipeline import Tracker
+    from hrtls.pipeline.finish import finish_track
+    from hrtls.sim.scenarios import run_scenario
+
+    s = run_scenario("colombo_circle", seed=0, laps=1).session
+    assert s.imu is not None and s.meta.start_pose is not None
+    pose = s.meta.start_pose
+    gyro_only = s.with_parts(
+        imu=ImuStream(s.imu.accel, s.imu.gyro), orientation=None, fixes=None, rss=None,
+        tags=None, ranges=None, pressure=None,
+        meta=s.meta.model_copy(update={"start_pose": StartPose(x=pose.x, y=pose.y)}))
+    tracker = Tracker()
+    res = finish_track(tracker.run(gyro_only), gyro_only, tracker.config)
+    assert res.report["heading"]["observable"] is False
+    tr = res.trajectory
+    r = np.linalg.norm(tr.xyz[:, :2] - tr.xyz[:1, :2], axis=1)
+    assert r.max() > 5.0
+    np.testing.assert_array_less(r**2 / 2 - 1e-9, tr.cov_xy[:, 0, 0])
+    # with its start heading the same walk is observable and left as the filter made it
+    with_heading = gyro_only.with_parts(meta=s.meta)
+    assert heading_observable(with_heading)
