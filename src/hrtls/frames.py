@@ -35,6 +35,9 @@ if TYPE_CHECKING:
 GRAVITY_M_S2 = 9.80665
 """Standard gravity, m/s^2 (used for unit conversion from g and as the default local gravity)."""
 
+UNIFORM_ANGLE_VAR_RAD2 = float(np.pi**2 / 3.0)
+"""Variance of an angle uniform on [-pi, pi), rad^2 (a heading nothing observes)."""
+
 FloatArray = NDArray[np.float64]
 
 

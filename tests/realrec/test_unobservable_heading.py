@@ -35,10 +35,12 @@ def test_hand_computed_straight_walk() -> None:
     np.testing.assert_allclose(out.trajectory.cov_xy[:, 1, 1], 0.01 + t**2 / 2)
     np.testing.assert_allclose(out.trajectory.var_heading, math.pi**2 / 3)
     assert out.report["heading"]["observable"] is False
-    assert out.report["heading"]["position_sigma_at_end_m"] == pytest.approx(10 / math.sqrt(2))
+    assert out.report["heading"]["position_sigma_at_end_m"] == pytest.approx(math.sqrt(0.01 + 50))
     gyro = SensorSeries(t, np.zeros((11, 3)), "gyro")
     with_gyro = acc_only.with_parts(imu=ImuStream(acc_only.imu.accel, gyro))
-    assert heading_observable(with_gyro) and not heading_observable(acc_only)
+    with_mag = acc_only.with_parts(imu=ImuStream(acc_only.imu.accel, gyro, gyro))
+    assert heading_observable(with_mag) and not heading_observable(acc_only)
+    assert not heading_observable(with_gyro)   # the start heading is unknown
 
 
 def test_oxford_accelerometer_only_track(shared_data: Path, tmp_path: Path) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -23,6 +24,16 @@ LN10 = math.log(10.0)
 PATH_LOSS_DTYPE = np.dtype([("a_dbm", np.float64), ("eta", np.float64),
                             ("sigma_db", np.float64), ("d0_m", np.float64)])
 """Record of :class:`PathLossModel` for compiled code (same field names)."""
+
+
+@numba.njit(cache=True, error_model="numpy")
+def mean_rss_dbm(a_dbm: float, eta: float, d0_m: float, distance_m: FloatArray | float
+                 ) -> FloatArray | float:   # pragma: no cover - compiled
+    """Mean RSS at ``distance_m`` (m; a scalar or an array), dBm: ``A - 10 eta log10(d/d0)``.
+
+    The one definition of the law for Python and compiled callers.
+    """
+    return a_dbm - 10.0 * eta * np.log10(distance_m / d0_m)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,7 +76,7 @@ class PathLossModel:
     def expected_rss(self, distance_m: ArrayLike) -> FloatArray:
         """Mean RSS at a distance, dBm."""
         d = np.asarray(distance_m, dtype=np.float64)
-        return np.asarray(self.a_dbm - 10.0 * self.eta * np.log10(d / self.d0_m))
+        return np.asarray(mean_rss_dbm(self.a_dbm, self.eta, self.d0_m, d))
 
     def distance(self, rss_dbm: ArrayLike) -> FloatArray:
         """Distance estimate (the median of the log-normal distance), m."""

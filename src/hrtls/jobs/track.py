@@ -308,7 +308,7 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
             fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
             title=f"hrtls track ({result.report['config']['name']})"
             + ("" if result.report.get("heading", {}).get("observable", True)
-               else ", heading unobservable: shape only"), ellipses=25))
+               else ", " + result.report["heading"]["plot_note"]), ellipses=25))
     return written
 
 

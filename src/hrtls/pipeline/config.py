@@ -29,6 +29,7 @@ from hrtls.errors import FormatError, InputError
 from hrtls.fusion.channel import ChannelEstimatorParams
 from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.random_walk import RandomWalkParams
+from hrtls.fusion.rss_grid import GridParams
 from hrtls.gait.stairs_climb import ClimbParams
 from hrtls.pipeline.step_scale import StepScaleParams
 
@@ -180,13 +181,19 @@ class PredictionConfig(_Section):
         default=True, description="learn a step-length scale from absolute corrections")
     step_scale: dict[str, Any] = _table(StepScaleParams)
     """How the step-length scale is learned (:class:`hrtls.pipeline.step_scale.StepScaleParams`)."""
+    no_imu: Literal["grid", "random-walk"] = "grid"
+    """Sessions with beacon RSS but no IMU: the grid filter (:mod:`hrtls.pipeline.grid_stage`)
+    or the Kalman filter with a random-walk prediction"""
     random_walk: dict[str, Any] = _table(RandomWalkParams)
     """Prediction without an IMU (:class:`hrtls.fusion.random_walk.RandomWalkParams`)."""
+    grid: dict[str, Any] = _table(GridParams)
+    """The grid filter without an IMU (:class:`hrtls.fusion.rss_grid.GridParams`)."""
 
     _complete_step_scale = field_validator("step_scale")(
         lambda v: _complete(StepScaleParams, v))
     _complete_random_walk = field_validator("random_walk")(
         lambda v: _complete(RandomWalkParams, v))
+    _complete_grid = field_validator("grid")(lambda v: _complete(GridParams, v))
 
 
 class FixesConfig(_Section):

@@ -27,9 +27,10 @@ from hrtls.fusion.tags import TagMemory
 from hrtls.gait.analyzer import GaitResult
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline import _fix_events as fx
-from hrtls.pipeline.build import Corrections
+from hrtls.pipeline.build import Corrections, Notes
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
+from hrtls.pipeline.grid_stage import GridStage
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
 from hrtls.pipeline.landmark_updates import LandmarkVersions
 from hrtls.pipeline.observations import apply_fix, apply_observation, step_at
@@ -121,7 +122,8 @@ class FusionEngine:
     def __init__(self, config: TrackerConfig, parts: Corrections, *, state: FilterState,
                  landmarks: dict[str, Landmark], schedule: EventSchedule, pose: PoseGate,
                  scale: StepScaleLearner, gait: GaitHistory, params: np.ndarray,
-                 has_imu: bool, velocity_mode: bool, running_factor: float, t0: float) -> None:
+                 has_imu: bool, velocity_mode: bool, running_factor: float, t0: float,
+                 notes: Notes) -> None:
         self.config = config
         self.parts = parts
         self.landmarks = landmarks
@@ -156,6 +158,9 @@ class FusionEngine:
         self.fix_schedule = FixSchedule()
         self.fix_phase_set = False
         self.tag_memory = TagMemory()
+        self.grid = GridStage.build(config, landmarks, parts.path_loss, has_imu=has_imu, t0=t0,
+                                    z_m=float(state.x[2]), notes=notes)
+        """RSS without an IMU (:mod:`hrtls.pipeline.grid_stage`)."""
         self.channel_state: ChannelState | None = (
             None if parts.channel_estimator is None
             else parts.channel_estimator.start(parts.path_loss))
@@ -183,6 +188,12 @@ class FusionEngine:
             self._run_kernel(*sched.fast_run(horizon))
         if self.velocity_mode:
             self.velocity_to(horizon)
+        if horizon == math.inf:
+            self.grid.finish()
+
+    def output_rows(self) -> TrackRows:
+        """The rows of the track: the grid filter's when it runs, else the Kalman filter's."""
+        return self.grid.rows if self.grid.filter is not None else self.track
 
     def _run_kernel(self, b0: int, b1: int) -> None:
         """Buffer rows ``b0:b1`` (steps, RSS readings or scans, ranges, fixes) in the loop.
@@ -427,6 +438,7 @@ class FusionEngine:
         out["last_row"] = last_row
         out["fix_phase_s"] = self.parts.fix_corrector.params.phase_s
         out["landmark_versions"] = self.versions.state()
+        out["grid"] = self.grid.state_dict()
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -439,6 +451,7 @@ class FusionEngine:
                     else state[name])
         if "landmark_versions" in state:   # snapshots from before landmark updates have none
             self.versions.restore(state["landmark_versions"])
+        self.grid.restore(state.get("grid"))
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]

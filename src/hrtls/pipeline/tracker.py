@@ -34,7 +34,7 @@ corrections (``prediction.learn_step_scale``; walking and running steps separate
 factor from the user's profile (``k_running``), the compass correction of the device
 orientation's yaw wander (``attitude.compass_yaw``, :mod:`hrtls.pipeline.compass`), the
 fall-back to the thesis' tag strategies when every lobe of a read fails the Kalman gate, slots
-of eq. 19 anchored at the first fix, and the random-walk prediction without an IMU.
+of eq. 19 anchored at the first fix, and without an IMU a random walk or a grid filter.
 
 Start pose time (``StartPose.t``): attitude and gait run from the first sample so the filters
 have converged, the position starts at the pose's time; steps, velocity samples and
@@ -180,9 +180,6 @@ class Tracker:
         self.meta = meta
         self.landmarks = _resolved(landmarks, meta)
         self.has_imu = s.has_imu
-        if not s.has_imu:
-            notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
-                      "walk between observations")
         pose = meta.start_pose or build.unknown_start(cfg, self.landmarks, notes)
         # the agent is placed at the start pose's time; attitude and gait run from t0 so the
         # filters have converged by then, and earlier steps/observations are ignored for
@@ -214,7 +211,7 @@ class Tracker:
                                                          and s.has_mag),
                                        has_imu=s.has_imu),
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
-            t0=s.t0)
+            t0=s.t0, notes=notes)
         self.engine.attitude = self.attitude
         # --- heights and floors from the barometer (when the chunks bring pressure)
         self.baro = (BaroStage(floor_height_m=meta.floor_height_m, t_pose=self._pose.t_pose,
@@ -386,6 +383,7 @@ class Tracker:
                 self._process_imu(t, acc, gyr, mag, chunk.orientation)
         elif not self.has_imu:
             sched.horizon = max(sched.horizon, chunk_end(chunk))
+            self.engine.grid.add(chunk, horizon=sched.horizon)
         if self.baro is not None:
             if chunk.pressure is not None:
                 self.baro.add_pressure(chunk.pressure.t, chunk.pressure.values[:, 0])
@@ -406,7 +404,7 @@ class Tracker:
         eng.drain(math.inf)
         if eng.velocity_mode:
             eng.track.add(eng.state, eng.last_activity)
-        trajectory = eng.track.trajectory()
+        trajectory = eng.output_rows().trajectory()
         shown = self.history.steps[self.history.hidden:]
         steps = StepEvents.empty()
         if shown:
@@ -444,7 +442,7 @@ class Tracker:
         base = np.asarray(self._base["accepted_t"], dtype=np.float64)
         if len(base):
             acc = np.concatenate([base, acc])
-        est = self.engine.track.since(t_after_s, acc, self.meta.floor_height_m)
+        est = self.engine.output_rows().since(t_after_s, acc, self.meta.floor_height_m)
         if self.baro is None or not self.baro.active or not len(est):
             return est
         xyz, activity = self.baro.rows(est.t, est.xyz, est.activity)

@@ -1,0 +1,123 @@
+"""BLE RSS alone (no IMU, no start pose) on the position-annotated BLE RSSI set, leave one out.
+
+Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
+development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
+averaging window, per-anchor offset gain) and optionally the channel (``A``, ``eta``, ``sigma``
+fitted by least squares to the development tracks' readings against their true distances, as
+a site survey would) are chosen there by the mean p75 of the horizontal error; the held-out
+track is then tracked once with that choice. Printed per track: p50 / p75 / p95 of the
+horizontal error at every truth sample for
+
+* ``random walk``: ``[prediction] no_imu = "random-walk"`` (the Kalman filter; before the grid);
+* ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
+* ``grid, held out``: the leave-one-out choice above;
+
+with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from hrtls.data import Session
+from hrtls.data.session import ChannelModel
+from hrtls.datasets.ble_rssi import BleRssiTrajectory, load_trajectory
+from hrtls.evaluate.metrics import position_errors
+from hrtls.pipeline import Tracker, TrackerConfig
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rssi"
+TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
+          "straight_02", "straight_03")
+GRID_CHOICES = {"sigma_speed_m_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
+                "offset_gain": (0.0, 0.01)}
+"""Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
+
+
+def config(no_imu: str, grid: dict[str, float] | None = None) -> TrackerConfig:
+    """The default configuration with ``no_imu`` and some ``[prediction.grid]`` keys."""
+    cfg = TrackerConfig()
+    table = {**cfg.prediction.grid, **(grid or {})}
+    return TrackerConfig.model_validate({**cfg.model_dump(), "prediction": {
+        **cfg.prediction.model_dump(), "no_imu": no_imu, "grid": table}})
+
+
+def errors(session: Session, cfg: TrackerConfig) -> np.ndarray:
+    """Horizontal error at every truth sample, m."""
+    res = Tracker(cfg).run(session)
+    return position_errors(res.trajectory, session.truth)[1]  # type: ignore[arg-type]
+
+
+def survey_channel(tracks: list[BleRssiTrajectory]) -> ChannelModel:
+    """``A``, ``eta`` and the residual sigma fitted to the readings of ``tracks`` (truth)."""
+    logd, rss = [], []
+    for tr in tracks:
+        pos = np.array([tr.receivers[a].xyz[:2] for a in tr.anchor.tolist()])
+        d = np.maximum(np.linalg.norm(tr.beacon_xyz[:, :2] - pos, axis=1), 1.0)
+        logd.append(-10.0 * np.log10(d))
+        rss.append(tr.rss_dbm)
+    x = np.column_stack([np.ones(sum(len(v) for v in logd)), np.concatenate(logd)])
+    y = np.concatenate(rss)
+    coef = np.linalg.lstsq(x, y, rcond=None)[0]
+    return ChannelModel(a_dbm=float(coef[0]), eta=float(coef[1]),
+                        sigma_db=float(np.std(y - x @ coef)))
+
+
+def _row(name: str, e: np.ndarray) -> list[str]:
+    return [name, *(f"{v:.2f}" for v in np.percentile(e, [50, 75, 95]))]
+
+
+def main() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loaded = {n: load_trajectory(DATA, n) for n in TRACKS}
+    candidates = [dict(zip(GRID_CHOICES, v, strict=True))
+                  for v in itertools.product(*GRID_CHOICES.values())]
+    # p75 of every candidate on every track, with the default channel and with each fold's
+    # surveyed channel (the survey of the four tracks other than the held-out one)
+    surveys = {h: survey_channel([loaded[n] for n in TRACKS if n != h]) for h in TRACKS}
+    p75: dict[tuple[Any, ...], float] = {}
+    for k, cand in enumerate(candidates):
+        cfg = config("grid", cand)
+        for n in TRACKS:
+            s = loaded[n].session
+            p75[(k, None, n)] = float(np.percentile(errors(s, cfg), 75))
+            for h in TRACKS:
+                if h != n:
+                    sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
+                    p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
+    table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
+    for col in ("track", "random walk", "grid, default", "grid, held out", "choice (dev)"):
+        table.add_column(col)
+    summary: dict[str, list[float]] = {"walk": [], "default": [], "held": []}
+    for h in TRACKS:
+        dev = [n for n in TRACKS if n != h]
+        score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])
+                 for k in range(len(candidates)) for ch in (False, True)}
+        k, ch = min(score, key=lambda kc: score[kc])
+        s = loaded[h].session
+        held = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]})) if ch \
+            else s
+        e = {"walk": errors(s, config("random-walk")), "default": errors(s, config("grid")),
+             "held": errors(held, config("grid", candidates[k]))}
+        for key, v in e.items():
+            summary[key].append(float(np.percentile(v, 75)))
+        cells = [" / ".join(f"{x:.2f}" for x in np.percentile(v, [50, 75, 95]))
+                 for v in e.values()]
+        choice = ", ".join(f"{a}={b}" for a, b in candidates[k].items()) + \
+            (f", channel A={surveys[h].a_dbm:.1f} eta={surveys[h].eta:.2f} "
+             f"sigma={surveys[h].sigma_db:.1f}" if ch else ", default channel")
+        table.add_row(h, *cells, f"{choice} (dev p75 {score[(k, ch)]:.2f})")
+    table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
+                                         for v in summary.values()), "")
+    Console(width=200).print(table)
+
+
+if __name__ == "__main__":
+    main()

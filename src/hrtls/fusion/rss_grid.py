@@ -1,0 +1,375 @@
+"""Grid point-mass filter of the position from beacon RSS alone (no motion sensors).
+
+Without an IMU nothing says where the walker went between two scans, and one scan of a few
+beacons is a multi-modal, far from Gaussian position density. The filter holds the density on
+a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding box plus
+``margin_m``) and alternates, for every scan:
+
+* **motion**: the density is convolved with a Gaussian of standard deviation
+  ``sigma_speed_m_s sqrt(dt)`` per axis (a walker of unknown direction; separable, truncated at
+  3 sigma; mass that leaves the grid is dropped and the rest renormalised);
+* **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
+  log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
+  least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
+  ``l = (1 - e) N(r; mu(d) + o_a, sigma) + e / RSS_SPAN_DB``, raised to the power ``w`` (the
+  share of the averaging window that is new in this scan, so a reading that enters several
+  overlapping windows counts once in all).
+
+``o_a`` is a per-anchor RSS offset, estimated causally after each update from the residual at
+the posterior mean (``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``);
+``offset_gain = 0`` keeps it at zero. The first scan starts from a uniform density, so the first
+row is what the first scan's likelihood says (no start at an arbitrary point). Each scan gives
+one row: the mean and covariance of the density. Forward only (causal).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.errors import InputError
+from hrtls.fusion._checks import FloatArray, finite_scalar
+from hrtls.fusion._records import to_record
+from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel, mean_rss_dbm
+
+IntArray = NDArray[np.int64]
+
+RSS_SPAN_DB = 60.0
+"""Width of the uniform outlier density of a reading, dB."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class GridParams:
+    """Grid filter settings.
+
+    Attributes
+    ----------
+    cell_m: grid cell size, m (larger when needed to keep within ``max_cells``).
+    max_cells: most cells of the grid (the cost of a scan is cells x anchors heard).
+    margin_m: grid extent beyond the anchors' bounding box, m.
+    sigma_speed_m_s: per-axis diffusion of the motion model, m/sqrt(s).
+    scan_s: scan period: readings are grouped into windows of this length, s.
+    average_s: causal window of the per-anchor mean RSS at a scan, s (>= scan_s).
+    outlier_probability: weight ``e`` of the uniform outlier density.
+    offset_gain: gain of the causal per-anchor RSS offset (0: no offsets).
+    offset_max_db: bound of the per-anchor offsets, dB.
+    """
+
+    cell_m: float = 0.25
+    max_cells: int = 40_000
+    margin_m: float = 2.0
+    sigma_speed_m_s: float = 1.5
+    scan_s: float = 0.5
+    average_s: float = 2.0
+    outlier_probability: float = 0.05
+    offset_gain: float = 0.0
+    offset_max_db: float = 10.0
+
+    def __post_init__(self) -> None:
+        for name in ("cell_m", "scan_s", "average_s", "max_cells"):
+            finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
+        for name in ("margin_m", "sigma_speed_m_s", "offset_gain", "offset_max_db",
+                     "outlier_probability"):
+            finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
+        if self.average_s < self.scan_s:
+            raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
+                             where="GridParams.average_s", expected="at least scan_s")
+        if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0):
+            raise InputError(f"outlier_probability = {self.outlier_probability}, offset_gain = "
+                             f"{self.offset_gain}", where="GridParams",
+                             expected="outlier_probability < 1 and offset_gain <= 1")
+
+    def record(self) -> np.ndarray:
+        """The settings as a one-element :data:`GRID_DTYPE` array."""
+        return to_record(GRID_DTYPE, self)
+
+
+GRID_DTYPE = np.dtype([(n, np.float64) for n in (
+    "cell_m", "max_cells", "margin_m", "sigma_speed_m_s", "scan_s", "average_s",
+    "outlier_probability", "offset_gain", "offset_max_db")])
+"""Record of :class:`GridParams` for compiled code (same field names)."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GridGeometry:
+    """The cells: centre of cell (0, 0) at ``(x0_m, y0_m)``; ``ny`` rows (y), ``nx`` columns."""
+
+    x0_m: float
+    y0_m: float
+    cell_m: float
+    nx: int
+    ny: int
+
+    @classmethod
+    def around(cls, anchors_xy: FloatArray, *, cell_m: float, margin_m: float,
+               max_cells: int) -> GridGeometry:
+        """The anchors' bounding box plus ``margin_m`` on every side, at most ``max_cells``."""
+        a = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
+        if len(a) == 0 or not np.all(np.isfinite(a)):
+            raise InputError(f"{len(a)} anchors", where="rss grid",
+                             expected="at least one anchor with a finite position")
+        lo, hi = a.min(axis=0) - margin_m, a.max(axis=0) + margin_m
+        span = np.maximum(hi - lo, 1e-9)
+        cell_m = max(cell_m, float(np.sqrt(np.prod(span) / max_cells)))
+        while np.prod(np.ceil(span / cell_m) + 1) > max_cells:
+            cell_m *= 1.05
+        n = np.maximum(np.ceil((hi - lo) / cell_m).astype(np.int64), 1) + 1
+        return cls(float(lo[0]), float(lo[1]), float(cell_m), int(n[0]), int(n[1]))
+
+    def centres(self) -> tuple[FloatArray, FloatArray]:
+        """Cell centre coordinates: x (nx,), y (ny,), m."""
+        return (self.x0_m + self.cell_m * np.arange(self.nx, dtype=np.float64),
+                self.y0_m + self.cell_m * np.arange(self.ny, dtype=np.float64))
+
+    def distances(self, anchors_xy: FloatArray, d0_m: float) -> FloatArray:
+        """Horizontal distance of every cell to every anchor, at least ``d0_m``: (A, ny, nx)."""
+        x, y = self.centres()
+        a = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
+        d = np.hypot(x[None, None, :] - a[:, 0, None, None], y[None, :, None] - a[:, 1, None, None])
+        return np.ascontiguousarray(np.maximum(d, d0_m))
+
+
+@dataclass(slots=True, eq=False)
+class GridState:
+    """Density (ny, nx; sums to 1, or all zero before the first scan), time and offsets."""
+
+    t: float
+    density: FloatArray
+    offsets_db: FloatArray
+    started: bool = False
+
+    @classmethod
+    def empty(cls, geometry: GridGeometry, n_anchors: int) -> GridState:
+        """Before the first scan (uniform prior)."""
+        d = np.full((geometry.ny, geometry.nx), 1.0 / (geometry.nx * geometry.ny))
+        return cls(-math.inf, d, np.zeros(n_anchors))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GridRows:
+    """One row per scan: time (S,), mean (S, 2) and covariance (S, 2, 2) of the position."""
+
+    t: FloatArray
+    mean_xy: FloatArray
+    cov_xy: FloatArray
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GridScans:
+    """Scans as rows: scan ``k`` holds rows ``first[k] : first[k] + count[k]``.
+
+    ``anchor`` indexes the anchors of the geometry's distance table; ``rss_dbm`` is the causal
+    mean over ``average_s``; ``weight`` the likelihood exponent of each row.
+    """
+
+    t: FloatArray
+    first: IntArray
+    count: IntArray
+    anchor: IntArray
+    rss_dbm: FloatArray
+    weight: FloatArray
+
+
+@numba.njit(cache=True, error_model="numpy")
+def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Convolve ``density`` (ny, nx) in place with a Gaussian of ``sigma_cells`` per axis.
+
+    Zero outside the grid; truncated at 3 sigma; renormalised to sum 1. ``tmp``: (ny, nx).
+    """
+    if sigma_cells <= 1e-6:
+        return
+    h = math.ceil(3.0 * sigma_cells)
+    w = np.empty(2 * h + 1)
+    for k in range(-h, h + 1):
+        w[k + h] = math.exp(-0.5 * (k / sigma_cells) ** 2)
+    w /= w.sum()
+    ny, nx = density.shape
+    for i in range(ny):
+        for j in range(nx):
+            s = 0.0
+            for k in range(max(-h, -j), min(h, nx - 1 - j) + 1):
+                s += w[k + h] * density[i, j + k]
+            tmp[i, j] = s
+    total = 0.0
+    for i in range(ny):
+        for j in range(nx):
+            s = 0.0
+            for k in range(max(-h, -i), min(h, ny - 1 - i) + 1):
+                s += w[k + h] * tmp[i + k, j]
+            density[i, j] = s
+            total += s
+    if total > 0.0:
+        density /= total
+
+
+@numba.njit(cache=True, error_model="numpy")
+def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
+                   offsets_db: FloatArray, model: np.record, outlier: float,
+                   out: FloatArray) -> None:   # pragma: no cover - compiled
+    """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring)."""
+    out[:] = 0.0
+    sig = model.sigma_db
+    norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
+    floor = outlier / RSS_SPAN_DB
+    ny, nx = out.shape
+    for r in range(anchor.shape[0]):
+        a = anchor[r]
+        for i in range(ny):
+            for j in range(nx):
+                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
+                z = (rss_dbm[r] - mu - offsets_db[a]) / sig
+                out[i, j] += weight[r] * math.log(norm * math.exp(-0.5 * z * z) + floor)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Mean (out[0:2]) and covariance xx, xy, yy (out[2:5]) of the density, m and m^2."""
+    ny, nx = density.shape
+    sx = sy = sxx = sxy = syy = 0.0
+    for i in range(ny):
+        y = y0 + cell * i
+        for j in range(nx):
+            p = density[i, j]
+            x = x0 + cell * j
+            sx += p * x
+            sy += p * y
+            sxx += p * x * x
+            sxy += p * x * y
+            syy += p * y * y
+    out[0], out[1] = sx, sy
+    out[2] = max(sxx - sx * sx, 0.0)
+    out[3] = sxy - sx * sy
+    out[4] = max(syy - sy * sy, 0.0)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
+                density: FloatArray, offsets_db: FloatArray, t_prev: float, started: bool,
+                t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
+                rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
+    # pragma: no cover - compiled
+    """Run the scans through the filter; ``density`` and ``offsets_db`` in place.
+
+    ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
+    """
+    ny, nx = density.shape
+    cell = prm.cell_m
+    tmp = np.empty((ny, nx))
+    ll = np.empty((ny, nx))
+    for k in range(t.shape[0]):
+        if started:
+            dt = max(t[k] - t_prev, 0.0)
+            blur(density, prm.sigma_speed_m_s * math.sqrt(dt) / cell, tmp)
+        a, b = first[k], first[k] + count[k]
+        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, model,
+                       prm.outlier_probability, ll)
+        top = ll.max()
+        total = 0.0
+        for i in range(ny):
+            for j in range(nx):
+                density[i, j] *= math.exp(ll[i, j] - top)
+                total += density[i, j]
+        if total > 0.0:
+            density /= total
+        else:   # the scan excludes the whole prior: restart from its likelihood
+            for i in range(ny):
+                for j in range(nx):
+                    density[i, j] = math.exp(ll[i, j] - top)
+            density /= density.sum()
+        moments(density, x0, y0, cell, out[k])
+        if prm.offset_gain > 0.0:
+            ci = min(max(round((out[k, 1] - y0) / cell), 0), ny - 1)
+            cj = min(max(round((out[k, 0] - x0) / cell), 0), nx - 1)
+            for r in range(a, b):
+                an = anchor[r]
+                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[an, ci, cj])
+                o = offsets_db[an] + prm.offset_gain * (rss_dbm[r] - mu - offsets_db[an])
+                offsets_db[an] = min(max(o, -prm.offset_max_db), prm.offset_max_db)
+        t_prev = t[k]
+        started = True
+    return t_prev
+
+
+def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anchors: int,
+                 scan_s: float, average_s: float, t_origin: float,
+                 t_from: float = -math.inf) -> GridScans:
+    """Scans of the readings ``t`` (s), ``anchor`` (index) and ``rss_dbm`` after ``t_from``.
+
+    A scan ends each ``scan_s`` window with readings (at its last reading); its rows: per
+    anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start
+    at ``t_origin``. Weight of a row: the share of its readings that are new in this scan (not
+    in the previous scan's window of that anchor).
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    if tt.size == 0:
+        z = np.zeros(0)
+        zi = np.zeros(0, dtype=np.int64)
+        return GridScans(z, zi, zi, zi, z, z)
+    bins = np.floor((tt - t_origin) / scan_s).astype(np.int64)
+    last = np.flatnonzero(np.append(np.diff(bins) != 0, True))
+    ts = tt[last]
+    ts = ts[ts > t_from]
+    s = len(ts)
+    means = np.full((s, n_anchors), np.nan)
+    weights = np.zeros((s, n_anchors))
+    for a in range(n_anchors):
+        sel = anchor == a
+        ta, ra = tt[sel], np.asarray(rss_dbm, dtype=np.float64)[sel]
+        cs = np.concatenate([[0.0], np.cumsum(ra)])
+        hi = np.searchsorted(ta, ts, side="right")
+        lo = np.searchsorted(ta, ts - average_s, side="right")
+        n = hi - lo
+        ok = n > 0
+        means[ok, a] = (cs[hi[ok]] - cs[lo[ok]]) / n[ok]
+        prev_hi = np.concatenate([[np.searchsorted(ta, t_from, side="right")], hi[:-1]])
+        weights[ok, a] = np.minimum(hi[ok] - np.maximum(prev_hi[ok], lo[ok]), n[ok]) / n[ok]
+    heard = np.isfinite(means)
+    count = heard.sum(axis=1).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+    rows, cols = np.nonzero(heard)
+    del rows
+    return GridScans(ts, first, count, cols.astype(np.int64), means[heard], weights[heard])
+
+
+class RssGridFilter:
+    """The grid filter over a fixed set of anchors (state in :class:`GridState`)."""
+
+    def __init__(self, anchors_xy: FloatArray, *, model: PathLossModel,
+                 params: GridParams | None = None) -> None:
+        self.params = params or GridParams()
+        self.model = model
+        self.anchors_xy = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
+        self.geometry = GridGeometry.around(self.anchors_xy, cell_m=self.params.cell_m,
+                                            margin_m=self.params.margin_m,
+                                            max_cells=self.params.max_cells)
+        self.dist = self.geometry.distances(self.anchors_xy, model.d0_m)
+        self._prm = self.params.record()[0]
+        self._model = np.zeros(1, dtype=PATH_LOSS_DTYPE)
+        self._model[0] = model.record()[0]
+
+    def start(self) -> GridState:
+        """The state before the first scan."""
+        return GridState.empty(self.geometry, len(self.anchors_xy))
+
+    def update(self, state: GridState, scans: GridScans) -> tuple[GridRows, GridState]:
+        """Rows of ``scans`` (after ``state.t``) and the new state (``state`` is unchanged)."""
+        s = len(scans.t)
+        out = np.zeros((s, 5))
+        density = state.density.copy()
+        offsets = state.offsets_db.copy()
+        g = self.geometry
+        t_last = state.t
+        if s:
+            t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
+                                 density, offsets, state.t, state.started, scans.t,
+                                 scans.first, scans.count, scans.anchor, scans.rss_dbm,
+                                 scans.weight, out)
+        cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
+        rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
+        return rows, GridState(float(t_last), density, offsets, state.started or s > 0)

@@ -1,0 +1,149 @@
+"""The tracker's stage for sessions with beacon RSS but no IMU: the grid filter.
+
+With ``[prediction] no_imu = "grid"`` (the default) and at least three positioned anchors, the
+RSS readings of each chunk go to :class:`~hrtls.fusion.rss_grid.RssGridFilter` (settings:
+``[prediction.grid]``, path loss: the tracker's); its rows (one per scan: mean and covariance
+of the position density, height of the start, heading not observed: the variance of a uniform
+angle) are the track's rows, live and offline, instead of the random-walk Kalman filter's.
+Readings are buffered until their scan window has closed, so chunks give the rows of one call.
+The grid uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a
+note) and the Kalman filter's track, which uses them all, is the track.
+``no_imu = "random-walk"`` keeps the Kalman filter with
+:class:`~hrtls.fusion.random_walk.RandomWalkParams`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from hrtls.data import Activity, Landmark, Session
+from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
+from hrtls.fusion.path_loss import PathLossModel
+from hrtls.fusion.rss_grid import GridParams, GridState, RssGridFilter, causal_scans
+from hrtls.pipeline.build import Notes
+from hrtls.pipeline.config import TrackerConfig, params_of
+from hrtls.pipeline.output import TrackRows
+
+MIN_ANCHORS = 3
+"""Fewer positioned anchors than this: no grid (the random walk is used)."""
+
+
+class GridStage:
+    """Buffered RSS readings, the grid filter's state and its rows.
+
+    ``filter`` is None when the stage is off (an IMU, ``no_imu = "random-walk"``, RSS off, too
+    few anchors, or other observations than RSS): it then ignores readings.
+    """
+
+    def __init__(self, anchors: dict[str, Landmark], *, model: PathLossModel,
+                 params: GridParams, t0: float, z_m: float, notes: Notes) -> None:
+        self.ids = sorted(anchors)
+        xy = np.array([anchors[a].xyz()[:2] for a in self.ids], dtype=np.float64)
+        self.filter = RssGridFilter(xy, model=model, params=params) if self.ids else None
+        self.params = params
+        self.t0 = t0
+        self.z_m = z_m
+        self.notes = notes
+        self.state = GridState(-math.inf, np.zeros((0, 0)), np.zeros(0)) if self.filter is None \
+            else self.filter.start()
+        self._buf_t = np.zeros(0)
+        self._buf_a = np.zeros(0, dtype=np.int64)
+        self._buf_r = np.zeros(0)
+        self.rows = TrackRows()
+
+    @classmethod
+    def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], model: PathLossModel,
+              *, has_imu: bool, t0: float, z_m: float, notes: Notes) -> GridStage:
+        """The stage, on when the session has no IMU and the configuration asks for it.
+
+        ``t0``: first sample time (scan windows start there), s; ``z_m``: height of the rows.
+        """
+        params = params_of(GridParams, config.prediction.grid)
+        anchors = {k: lm for k, lm in landmarks.items()
+                   if lm.kind in ("anchor", "beacon") and lm.position is not None}
+        on = not has_imu and config.prediction.no_imu == "grid" and \
+            config.rss.mode != "off" and len(anchors) >= MIN_ANCHORS
+        stage = cls(anchors if on else {}, model=model, params=params, t0=t0, z_m=z_m,
+                    notes=notes)
+        if stage.filter is not None:
+            notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
+                      f"{len(anchors)} anchors ({stage.filter.geometry.cell_m:.2f} m cells), "
+                      "starting from the first scan's likelihood; heading not observed")
+        elif not has_imu:
+            notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
+                      "walk between observations")
+        return stage
+
+    def add(self, chunk: Session, *, horizon: float) -> None:
+        """Buffer the RSS of known anchors, run the scans whose window ended by ``horizon``.
+
+        Other observations in ``chunk`` (fixes, tags, ranges) turn the stage off.
+        """
+        if self.filter is None:
+            return
+        others = [name for name in ("fixes", "tags", "ranges")
+                  if getattr(chunk, name) is not None and len(getattr(chunk, name))]
+        if others:
+            self.filter = None
+            self.notes.add(f"no IMU and {others[0]} besides the RSS: the Kalman filter's track "
+                           "is kept (the grid filter uses RSS only)")
+            return
+        rss = chunk.rss
+        if rss is not None and len(rss):
+            index = {a: i for i, a in enumerate(self.ids)}
+            a = np.array([index.get(str(x), -1) for x in rss.anchor.tolist()], dtype=np.int64)
+            keep = a >= 0
+            self._buf_t = np.concatenate([self._buf_t, rss.t[keep]])
+            self._buf_a = np.concatenate([self._buf_a, a[keep]])
+            self._buf_r = np.concatenate([self._buf_r, rss.rss_dbm[keep]])
+        self._run(horizon)
+
+    def _run(self, horizon: float) -> None:
+        w = self.params.scan_s
+        closed = self.t0 + w * math.floor((horizon - self.t0) / w) if math.isfinite(horizon) \
+            else math.inf
+        upto = int(np.searchsorted(self._buf_t, closed, side="left"))
+        if upto == 0 or self.filter is None:
+            return
+        scans = causal_scans(self._buf_t[:upto], self._buf_a[:upto], self._buf_r[:upto],
+                             n_anchors=len(self.ids), scan_s=w, average_s=self.params.average_s,
+                             t_origin=self.t0, t_from=self.state.t)
+        rows, self.state = self.filter.update(self.state, scans)
+        n = len(rows.t)
+        x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
+        self.rows.add_block(rows.t, x, rows.cov_xy, np.full(n, UNIFORM_ANGLE_VAR_RAD2),
+                            np.full(n, int(Activity.UNKNOWN)))
+        # readings older than the averaging window of the next scan are no longer needed
+        drop = int(np.searchsorted(self._buf_t, self.state.t - self.params.average_s,
+                                   side="right"))
+        self._buf_t, self._buf_a, self._buf_r = (self._buf_t[drop:], self._buf_a[drop:],
+                                                 self._buf_r[drop:])
+
+    def finish(self) -> None:
+        """Run every buffered scan (end of the recording)."""
+        self._run(math.inf)
+
+    def state_dict(self) -> dict[str, Any] | None:
+        """What the stage needs to continue (snapshot; rows already produced are not kept)."""
+        if self.filter is None:
+            return None
+        s = self.state
+        return {"t": s.t, "density": s.density, "offsets_db": s.offsets_db,
+                "started": s.started, "buf_t": self._buf_t, "buf_a": self._buf_a,
+                "buf_r": self._buf_r}
+
+    def restore(self, d: dict[str, Any] | None) -> None:
+        """Continue from :meth:`state_dict` (None: the stage was off, and stays off)."""
+        if d is None:
+            self.filter = None
+        if d is None or self.filter is None:
+            return
+        self.state = GridState(float(d["t"]), np.asarray(d["density"], dtype=np.float64),
+                               np.asarray(d["offsets_db"], dtype=np.float64),
+                               bool(d["started"]))
+        self._buf_t = np.asarray(d["buf_t"], dtype=np.float64)
+        self._buf_a = np.asarray(d["buf_a"], dtype=np.int64)
+        self._buf_r = np.asarray(d["buf_r"], dtype=np.float64)
