@@ -26,18 +26,54 @@ from hrtls.data.observations import (
 )
 from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.data.session import SessionMeta
-from hrtls.service.columns import ColumnError, block, numeric, strings
+from hrtls.service.columns import ColumnError, block, first_out_of_order, numeric, strings
 
 Column = np.ndarray
 
 
+def _pack(a: Column | None) -> Any:
+    """A column as cheap pickle input: float bytes and shape, or the list of strings."""
+    if a is None:
+        return None
+    if a.dtype.kind == "U":
+        return a.tolist()
+    return a.tobytes(), a.shape
+
+
+def _unpack(v: Any) -> Column | None:
+    if v is None:
+        return None
+    if type(v) is list:
+        return np.asarray(v) if v else np.zeros(0, dtype="<U1")
+    return np.frombuffer(v[0], dtype=np.float64).reshape(v[1])
+
+
+def _rebuild(cls: type[_Part], packed: tuple[Any, ...]) -> _Part:
+    return cls(*map(_unpack, packed))
+
+
 class _Part:
-    """Base of the parts: pickled as their field tuple."""
+    """Base of the parts: pickled as bytes of their columns (a float array pickles slowly)."""
 
     t: Column
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
-        return type(self), tuple(getattr(self, f.name) for f in fields(self))  # type: ignore[arg-type]
+        packed = tuple(_pack(getattr(self, f.name)) for f in fields(self))  # type: ignore[arg-type]
+        return _rebuild, (type(self), packed)
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and all(
+            _same(getattr(self, f.name), getattr(other, f.name))
+            for f in fields(self))  # type: ignore[arg-type]
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _same(a: Column | None, b: Column | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return a.shape == b.shape and a.dtype.kind == b.dtype.kind and bool(
+        np.array_equal(a, b, equal_nan=a.dtype.kind == "f"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +181,13 @@ class Batch:
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         return Batch, (self.seq, *(getattr(self, p) for p in PARTS), self.sos, self.status)
 
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Batch) and (self.seq, self.sos, self.status) == (
+            other.seq, other.sos, other.status) and all(
+            getattr(self, p) == getattr(other, p) for p in PARTS)
+
+    __hash__ = None  # type: ignore[assignment]
+
     def time_span(self) -> tuple[float, float] | None:
         """First and last sample time over all parts (None without samples)."""
         return self._span
@@ -217,14 +260,15 @@ def _check_part(name: str, value: Any) -> _Part:
 
 
 def _check_values(name: str, cols: dict[str, Column]) -> None:
-    dt = np.diff(cols["t"])
-    if name in _STRICT_TIMES:
-        if not (dt > 0).all():
-            i = int(np.flatnonzero(dt <= 0)[0]) + 1
-            raise ColumnError(f"{name}.t[{i}] = {cols['t'][i]} is not after t[{i - 1}] = "
-                              f"{cols['t'][i - 1]} (times must increase strictly)")
-    elif not (dt >= 0).all():
-        raise ColumnError(f"{name}.t must not decrease")
+    t = cols["t"]
+    strict = name in _STRICT_TIMES
+    i = first_out_of_order(t, strict)
+    if i >= 0:
+        if strict:
+            raise ColumnError(f"{name}.t[{i}] = {t[i]} is not after t[{i - 1}] = {t[i - 1]} "
+                              "(times must increase strictly)")
+        raise ColumnError(f"{name}.t[{i}] = {t[i]} is before t[{i - 1}] = {t[i - 1]} "
+                          "(times must not decrease)")
     if name == "baro" and not ((cols["p_pa"] >= 10_000.0) & (cols["p_pa"] <= 120_000.0)).all():
         raise ColumnError("baro.p_pa outside 10000..120000 Pa (hPa must be x 100)")
     if name in ("fixes", "odometry") and not (cols["sigma_m"] > 0).all():

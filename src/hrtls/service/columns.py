@@ -9,8 +9,10 @@ array (``n`` or ``n x 3``); a refusal is a :class:`ColumnError` naming the field
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+import numba
 import numpy as np
 
 MAX_SAMPLES = 2000
@@ -20,11 +22,29 @@ BLOCK_DTYPES: dict[str, np.dtype[Any]] = {"<f8": np.dtype("<f8"), "<f4": np.dtyp
 """Block dtypes accepted (float32 not for times: it cannot hold mission times to the ms)."""
 
 TIME_DTYPES = ("<f8",)
-_BLOCK_KEYS = frozenset(("dtype", "shape", "data"))
 
 
 class ColumnError(ValueError):
     """A column that cannot be read; the message names the field."""
+
+
+@numba.njit(cache=True)
+def _first_not_finite(a: np.ndarray, nan_ok: bool) -> int:  # pragma: no cover (compiled)
+    """Index of the first infinity (or NaN unless ``nan_ok``) in a flat array, -1 if none."""
+    for i in range(a.size):
+        v = a[i]
+        if math.isinf(v) or (not nan_ok and math.isnan(v)):
+            return i
+    return -1
+
+
+@numba.njit(cache=True)
+def first_out_of_order(t: np.ndarray, strict: bool) -> int:  # pragma: no cover (compiled)
+    """Index of the first time not after (``strict``) or before its predecessor, -1 if none."""
+    for i in range(1, t.size):
+        if t[i] < t[i - 1] or (strict and t[i] == t[i - 1]):
+            return i
+    return -1
 
 
 def numeric(value: Any, where: str, *, width: int | None, nan_ok: bool = False,
@@ -32,21 +52,22 @@ def numeric(value: Any, where: str, *, width: int | None, nan_ok: bool = False,
     """A checked float64 column: shape ``(n,)`` (``width`` None) or ``(n, width)``.
 
     ``nan_ok``: NaN (and, in rows, null) stands for unknown; infinities are always refused.
+    A column from a block is a read-only view of the received bytes.
     """
-    if isinstance(value, dict):
+    if type(value) is dict:
         a = _from_block(value, where, width=width, time=time)
-    elif isinstance(value, list):
+    elif type(value) is list:
         a = _from_rows(value, where, width=width, nan_ok=nan_ok)
     else:
         raise ColumnError(f"{where}: expected a list or a column block "
                           "{dtype, shape, data}, got " + type(value).__name__)
-    n = a.shape[0]
+    n = len(a)
     if n > MAX_SAMPLES:
         raise ColumnError(f"{where}: {n} samples, at most {MAX_SAMPLES} per part")
-    bad = np.isinf(a) if nan_ok else ~np.isfinite(a)
-    if bad.any():
-        i = int(np.flatnonzero(bad.reshape(n, -1).any(axis=1))[0])
-        raise ColumnError(f"{where}[{i}] is not a finite number")
+    bad = _first_not_finite(a.reshape(-1), nan_ok)
+    if bad >= 0:
+        raise ColumnError(f"{where}[{bad if width is None else bad // width}] is not a "
+                          "finite number")
     return a
 
 
@@ -64,37 +85,38 @@ def _from_rows(value: list[Any], where: str, *, width: int | None,
     if a.dtype.kind not in "iuf" or a.ndim != (1 if width is None else 2) \
             or (width is not None and a.shape[1] != width):
         raise ColumnError(f"{where}: expected {shape} numbers")
-    return a.astype(np.float64)
+    return a.astype(np.float64, copy=False)
 
 
 def _from_block(block: dict[str, Any], where: str, *, width: int | None,
                 time: bool) -> np.ndarray:
-    keys = set(block)
-    if keys != _BLOCK_KEYS:
-        wrong = sorted(keys - _BLOCK_KEYS) or sorted(_BLOCK_KEYS - keys)
-        raise ColumnError(f"{where}: a column block has exactly dtype, shape and data "
-                          f"({', '.join(map(repr, wrong))} wrong)")
+    if len(block) != 3 or "dtype" not in block or "shape" not in block or "data" not in block:
+        raise ColumnError(f"{where}: a column block has exactly the fields dtype, shape and "
+                          f"data (got {', '.join(map(repr, block))})")
     dtype, shape, data = block["dtype"], block["shape"], block["data"]
-    allowed = TIME_DTYPES if time else tuple(BLOCK_DTYPES)
+    allowed = TIME_DTYPES if time else BLOCK_DTYPES
     if dtype not in allowed:
         raise ColumnError(f"{where}.dtype {dtype!r}: one of {', '.join(allowed)}")
-    want = 1 if width is None else 2
-    if not isinstance(shape, list) or len(shape) != want \
-            or not all(type(k) is int and k >= 0 for k in shape) \
+    if type(shape) is not list or len(shape) != (1 if width is None else 2) \
+            or type(shape[0]) is not int or shape[0] < 0 \
             or (width is not None and shape[1] != width):
         expected = "[n]" if width is None else f"[n, {width}]"
         raise ColumnError(f"{where}.shape {shape!r}: expected {expected}")
-    if not isinstance(data, bytes):
+    if type(data) is not bytes:
         raise ColumnError(f"{where}.data: expected bytes (msgpack bin), got "
                           f"{type(data).__name__}")
-    if shape[0] > MAX_SAMPLES:
-        raise ColumnError(f"{where}: {shape[0]} samples, at most {MAX_SAMPLES} per part")
+    n = shape[0]
+    if n > MAX_SAMPLES:
+        raise ColumnError(f"{where}: {n} samples, at most {MAX_SAMPLES} per part")
     dt = BLOCK_DTYPES[dtype]
-    n_bytes = int(np.prod(shape)) * dt.itemsize
+    n_bytes = n * (width or 1) * dt.itemsize
     if len(data) != n_bytes:
         raise ColumnError(f"{where}.data has {len(data)} bytes, shape {shape} of {dtype} "
                           f"needs {n_bytes}")
-    return np.frombuffer(data, dtype=dt).reshape(shape).astype(np.float64)
+    a = np.frombuffer(data, dtype=dt)
+    if a.dtype != np.float64:
+        a = a.astype(np.float64)
+    return a if width is None else a.reshape(n, width)
 
 
 def strings(value: Any, where: str) -> np.ndarray:
