@@ -1,7 +1,9 @@
 """Load test of ``hrtls serve`` on loopback: N agents streaming 100 Hz IMU plus infrastructure.
 
 Each agent replays a simulated office walk (beacon RSS, RFID tags, radio ranges) in real time
-as 0.5 s msgpack batches over its ingest WebSocket, waiting for each ack. The load generator
+as 0.5 s msgpack batches over its ingest WebSocket, waiting for each ack; the numeric columns
+go as binary column blocks (``--format blocks``, what ``hrtls.service.client`` sends) or as
+lists (``--format rows``, the older format). The load generator
 is cheap per message (frames encoded before the start, ``--agents-per-process`` agents per
 process) so that the table measures the service, not the client; a dashboard WebSocket watches
 the mission. Per N the table gives:
@@ -26,6 +28,14 @@ after ``--time-limit-s``. Only loopback is used.
     python benchmarks/serve_load.py --agents 5,10,20,40 --duration-s 60 --engine ray
     python benchmarks/serve_load.py --agents 100,200,300 --duration-s 60 --engine processes
 
+The issue's figure (300 agents at 100 Hz for 5 minutes, trackers in two worker processes;
+run it on a quiet machine, about 25 minutes with the warm-up and the set-up of the agents)::
+
+    python benchmarks/serve_load.py --agents 300 --duration-s 300 --engine processes \
+        --process-shards 2 --time-limit-s 3600
+
+and the same with ``--format rows`` for the list format.
+
 The issue's Ray target compares the two: the Ray runner should sustain >= 90 % of the agents
 of the in-process runner on the same machine.
 """
@@ -49,7 +59,9 @@ import msgpack
 import numpy as np
 import websockets
 
+from hrtls.service.batches import PARTS, numeric_fields
 from hrtls.service.client import session_batches
+from hrtls.service.columns import block
 from hrtls.sim.scenarios import run_scenario
 
 API = "/api/v1"
@@ -146,25 +158,34 @@ SETUP_CONCURRENCY = 8
 """Agents created and checked in at once while a level is set up (not measured)."""
 
 
-def _frames(batches: list[tuple[float, dict]], t_start: float) -> list[tuple[float, bytes, int]]:
+def _as_blocks(part: str, cols: dict) -> dict:
+    numeric = numeric_fields(part)
+    return {k: block(np.asarray(v, dtype=np.float64)) if k in numeric and v is not None else v
+            for k, v in cols.items()}
+
+
+def _frames(batches: list[tuple[float, dict]], t_start: float,
+            fmt: str) -> list[tuple[float, bytes, int]]:
     """``(t_end, msgpack frame, IMU samples)`` of each batch, times shifted by ``t_start``."""
     out = []
     for seq, (t_end, b) in enumerate(batches):
         b2 = {**b, "seq": seq}
-        for part in ("imu", "rss", "tags", "ranges", "fixes", "baro"):
+        for part in PARTS:
             if part in b2 and b2[part] is not None:
                 b2[part] = {**b2[part], "t": [x + t_start for x in b2[part]["t"]]}
+                if fmt == "blocks":
+                    b2[part] = _as_blocks(part, b2[part])
         out.append((t_end, msgpack.packb({"type": "batch", "batch": b2}),
                     len(b.get("imu", {}).get("t", []))))
     return out
 
 
 async def _stream_agents(ws_url: str, agents: list[tuple[int, str, int]], streams: list,
-                         start_wall: float, t_start: float) -> dict[str, float]:
+                         start_wall: float, t_start: float, fmt: str) -> dict[str, float]:
     """Stream every agent's batches over its ingest WebSocket, each when its last sample is
     due; resend after 429. The counts and this process's CPU time."""
     counts = {"sent": 0.0, "acked": 0.0, "dup": 0.0, "r429": 0.0, "samples": 0.0}
-    frames = {k: _frames(streams[k][1], t_start) for k in {k for _, _, k in agents}}
+    frames = {k: _frames(streams[k][1], t_start, fmt) for k in {k for _, _, k in agents}}
 
     async def agent(tok: str, k: int) -> None:
         async with websockets.connect(f"{ws_url}{API}/ingest/ws", max_size=2**24,
@@ -199,15 +220,16 @@ async def _stream_agents(ws_url: str, agents: list[tuple[int, str, int]], stream
 
 
 def _agent_process(ws_url: str, agents: list[tuple[int, str, int]], streams: list,
-                   start_wall: float, t_start: float, out: mp.Queue) -> None:
+                   start_wall: float, t_start: float, fmt: str, out: mp.Queue) -> None:
     try:
-        out.put(asyncio.run(_stream_agents(ws_url, agents, streams, start_wall, t_start)))
+        out.put(asyncio.run(_stream_agents(ws_url, agents, streams, start_wall, t_start,
+                                           fmt)))
     except Exception as exc:   # reported by the parent
         out.put({"error": f"{type(exc).__name__}: {exc}"})
 
 
 async def run_level(url: str, token: str, n: int, streams: list, duration_s: float,
-                    per_process: int) -> dict:
+                    per_process: int, fmt: str) -> dict:
     h = {"Authorization": f"Bearer {token}"}
     async with httpx.AsyncClient(base_url=url, headers=h, timeout=60) as c:
         meta0 = streams[0][0]
@@ -267,7 +289,7 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
     shards = [agents[i:i + per_process] for i in range(0, n, per_process)]
     procs = [ctx.Process(target=_agent_process, daemon=True,
                          args=(url.replace("http", "ws"), shard, streams, start_wall, t_start,
-                               out)) for shard in shards]
+                               fmt, out)) for shard in shards]
     cpu0 = time.process_time()
     dash = asyncio.create_task(dashboard())
     t_run = time.time()
@@ -310,7 +332,7 @@ def warm_up(tmp: Path, streams: list, args: argparse.Namespace) -> float:
     proc, token = start_server(str(tmp / "warm-up.db"), port, args)
     try:
         asyncio.run(run_level(f"http://127.0.0.1:{port}", token, 2, short, WARM_UP_S,
-                              args.agents_per_process))
+                              args.agents_per_process, args.format))
     finally:
         proc.terminate()
         try:
@@ -339,8 +361,18 @@ def _row(r: tuple) -> str:
             f"{'yes' if r[11] else 'no'} | {r[12]:.1f} | {r[13]:.0f} | {r[14]:.0f} |")
 
 
+ISSUE_RUN = """the issue's figure (300 agents at 100 Hz for 5 minutes, trackers in two worker
+processes; on a quiet machine, about 25 minutes with the warm-up and the agents' set-up):
+
+  python benchmarks/serve_load.py --agents 300 --duration-s 300 --engine processes \\
+      --process-shards 2 --time-limit-s 3600
+
+and the same with --format rows for the list format."""
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=ISSUE_RUN,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--agents", default="5,10,20,40")
     ap.add_argument("--duration-s", type=float, default=60.0)
     ap.add_argument("--time-limit-s", type=float, default=1200.0)
@@ -353,6 +385,9 @@ def main() -> None:
     ap.add_argument("--ray-shards", type=int, default=2, help="shard actors with --engine ray")
     ap.add_argument("--agents-per-process", type=int, default=50,
                     help="agents one load-generator process streams")
+    ap.add_argument("--format", choices=("blocks", "rows"), default="blocks",
+                    help="numeric columns as binary column blocks (what the Python client "
+                         "sends) or as lists (the older format)")
     ap.add_argument("--server-log", type=Path, default=None, help="append the server's stderr here")
     args = ap.parse_args()
     levels = [int(x) for x in args.agents.split(",")]
@@ -371,7 +406,8 @@ def main() -> None:
                 rss0, cpu0 = rss_kib(proc.pid), cpu_s(proc.pid)
                 try:
                     res = asyncio.run(run_level(f"http://127.0.0.1:{port}", token, n, streams,
-                                                args.duration_s, args.agents_per_process))
+                                                args.duration_s, args.agents_per_process,
+                                                args.format))
                 except (httpx.HTTPError, OSError, TimeoutError, RuntimeError) as exc:
                     print(f"| {n} | failed: {type(exc).__name__}: {exc} |",
                           flush=True)
@@ -410,7 +446,7 @@ def main() -> None:
     for r in rows:
         print(_row(r))
     best = max((r[0] for r in rows if r[11]), default=0)
-    print(f"\nengine {args.engine}"
+    print(f"\nformat {args.format}, engine {args.engine}"
           + (f" ({args.ray_shards} shard actors)" if args.engine == "ray" else "")
           + (f" ({args.process_shards} processes)" if args.engine == "processes" else "")
           + f": largest sustained N: {best} (duration {args.duration_s:.0f} s per level, "

@@ -12,7 +12,7 @@ from tests.service.streams import API
 from websockets.sync.client import connect
 
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
-from hrtls.service.batches import Batch
+from hrtls.service.batches import parse_batch
 
 
 def imu_batch(seq: int, t0: float, n: int, *, moving: bool, rate_hz: float = 100.0,
@@ -32,21 +32,21 @@ def test_pass_prealarm_alarm_and_clear_from_imu() -> None:
     raised = []
     seq = 0
     for k in range(5):   # 5 s walking
-        raised += alarms.on_batch(Batch.model_validate(imu_batch(seq, k, 100, moving=True)))
+        raised += alarms.on_batch(parse_batch(imu_batch(seq, k, 100, moving=True)))
         seq += 1
     assert raised == []
     for k in range(5, 40):   # 35 s still
-        raised += alarms.on_batch(Batch.model_validate(imu_batch(seq, k, 100, moving=False)))
+        raised += alarms.on_batch(parse_batch(imu_batch(seq, k, 100, moving=False)))
         seq += 1
     kinds = [(r.kind, r.clears) for r in raised]
     assert kinds == [("pass_prealarm", None), ("pass_prealarm", "pass_prealarm"),
                      ("pass_alarm", None)]
     # last motion window ends at 4.99 s: pre-alarm at still >= 20 s, alarm at >= 30 s
     assert 24.9 <= raised[0].t <= 26.0 and 34.9 <= raised[2].t <= 36.0
-    raised = alarms.on_batch(Batch.model_validate(imu_batch(seq, 40, 100, moving=True)))
+    raised = alarms.on_batch(parse_batch(imu_batch(seq, 40, 100, moving=True)))
     assert [(r.kind, r.clears) for r in raised] == [("pass_alarm", "pass_alarm")]
     # back-filled (older) data are not judged again
-    assert alarms.on_batch(Batch.model_validate(imu_batch(seq + 1, 10, 100,
+    assert alarms.on_batch(parse_batch(imu_batch(seq + 1, 10, 100,
                                                           moving=True))) == []
 
 
@@ -54,19 +54,19 @@ def test_fall_is_impact_then_no_motion() -> None:
     alarms = AgentAlarms(AlarmProfile())
     raised = []
     for k in range(3):
-        raised += alarms.on_batch(Batch.model_validate(imu_batch(k, k, 100, moving=True)))
-    raised += alarms.on_batch(Batch.model_validate(imu_batch(3, 3, 100, moving=False,
+        raised += alarms.on_batch(parse_batch(imu_batch(k, k, 100, moving=True)))
+    raised += alarms.on_batch(parse_batch(imu_batch(3, 3, 100, moving=False,
                                                              impact=True)))
     for k in range(4, 12):
-        raised += alarms.on_batch(Batch.model_validate(imu_batch(k, k, 100, moving=False)))
+        raised += alarms.on_batch(parse_batch(imu_batch(k, k, 100, moving=False)))
     falls = [r for r in raised if r.kind == "fall"]
     assert len(falls) == 1 and falls[0].clears is None
     assert abs(falls[0].detail["impact_t"] - 3.5) < 0.02 and falls[0].t >= 8.5
     # an impact followed by walking is no fall
     alarms = AgentAlarms(AlarmProfile())
-    out = alarms.on_batch(Batch.model_validate(imu_batch(0, 0, 100, moving=False, impact=True)))
+    out = alarms.on_batch(parse_batch(imu_batch(0, 0, 100, moving=False, impact=True)))
     for k in range(1, 10):
-        out += alarms.on_batch(Batch.model_validate(imu_batch(k, k, 100, moving=True)))
+        out += alarms.on_batch(parse_batch(imu_batch(k, k, 100, moving=True)))
     assert not [r for r in out if r.kind == "fall"]
 
 

@@ -44,8 +44,17 @@ class _ProcessShard:
         child.close()
 
     def call(self, method: str, *args: Any) -> Any:
+        self.submit(method, *args)
+        return self.result()
+
+    def submit(self, method: str, *args: Any) -> None:
         try:
             self._conn.send((method, args))
+        except (EOFError, OSError) as exc:
+            raise ShardDied(f"shard process {self._proc.pid} is gone: {exc!r}") from exc
+
+    def result(self) -> Any:
+        try:
             ok, result = self._conn.recv()
         except (EOFError, OSError) as exc:
             raise ShardDied(f"shard process {self._proc.pid} is gone: {exc!r}") from exc

@@ -19,10 +19,19 @@ class _RayShard:
     def __init__(self, ray: Any, actor_class: Any) -> None:
         self._ray = ray
         self._actor = actor_class.remote()
+        self._pending: Any = None
 
     def call(self, method: str, *args: Any) -> Any:
+        self.submit(method, *args)
+        return self.result()
+
+    def submit(self, method: str, *args: Any) -> None:
+        self._pending = getattr(self._actor, method).remote(*args)
+
+    def result(self) -> Any:
+        ref, self._pending = self._pending, None
         try:
-            return self._ray.get(getattr(self._actor, method).remote(*args))
+            return self._ray.get(ref)
         except self._ray.exceptions.RayActorError as exc:
             raise ShardDied(str(exc)) from exc
 

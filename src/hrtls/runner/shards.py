@@ -18,6 +18,7 @@ and snapshots, which survive the service itself).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 from collections.abc import Callable
@@ -51,6 +52,10 @@ class ShardBody:
         """Feed an agent; its new rows."""
         return self._runner.feed(agent_id, batches)
 
+    def feed_many(self, feeds: dict[int, list[Batch]]) -> dict[int, Rows | Exception]:
+        """Feed several agents; per agent its rows or what its tracker raised."""
+        return self._runner.feed_many(feeds)
+
     def replay(self, agent_id: int, feeds: list[list[Batch]]) -> None:
         """Feed again what an agent was fed since its snapshot (rows dropped)."""
         for batches in feeds:
@@ -74,6 +79,12 @@ class Shard(Protocol):
 
     def call(self, method: str, *args: Any) -> Any:
         """Run ``ShardBody.method(*args)`` on the worker; :class:`ShardDied` when it is gone."""
+
+    def submit(self, method: str, *args: Any) -> None:
+        """Start ``ShardBody.method(*args)`` on the worker (one call at a time)."""
+
+    def result(self) -> Any:
+        """The result of the submitted call (:class:`ShardDied` when the worker is gone)."""
 
     def kill(self) -> None:
         """End the worker at once (no clean-up)."""
@@ -118,6 +129,45 @@ class ShardedRunner:
         rows: Rows = self._call(agent_id, "feed", agent_id, batches)
         self._agents[agent_id].feeds.append(batches)
         return rows
+
+    def feed_many(self, feeds: dict[int, list[Batch]]) -> dict[int, Rows | Exception]:
+        """Feed several agents with one call per shard, the shards working in parallel.
+
+        Each feed that produced rows is kept for recovery, as with :meth:`feed`.
+        """
+        by_shard: dict[int, dict[int, list[Batch]]] = {}
+        for agent_id, batches in feeds.items():
+            by_shard.setdefault(self.shard_of(agent_id), {})[agent_id] = batches
+        out: dict[int, Rows | Exception] = {}
+        with contextlib.ExitStack() as held:
+            for shard in sorted(by_shard):   # one lock order: no deadlock between callers
+                held.enter_context(self._locks[shard])
+            submitted = {}
+            for shard, sub in by_shard.items():
+                try:
+                    self._shards[shard].submit("feed_many", sub)
+                    submitted[shard] = True
+                except ShardDied:
+                    submitted[shard] = False
+            for shard, sub in by_shard.items():
+                out.update(self._shard_result(shard, sub, submitted=submitted[shard]))
+        for agent_id, rows in out.items():
+            if not isinstance(rows, Exception):
+                self._agents[agent_id].feeds.append(feeds[agent_id])
+        return out
+
+    def _shard_result(self, shard: int, sub: dict[int, list[Batch]], *,
+                      submitted: bool) -> dict[int, Rows | Exception]:
+        """The submitted ``feed_many`` of a shard; recovered and repeated if its worker died."""
+        try:
+            if submitted:
+                result: dict[int, Rows | Exception] = self._shards[shard].result()
+                return result
+        except ShardDied:
+            pass
+        self._recover(shard)
+        again: dict[int, Rows | Exception] = self._shards[shard].call("feed_many", sub)
+        return again
 
     def snapshot(self, agent_id: int) -> bytes | None:
         """The agent's state; it becomes the recovery point (earlier feeds are dropped)."""

@@ -45,9 +45,14 @@ class SendStats:
     order: list[int] = field(default_factory=list)
 
 
+FORMATS = ("msgpack", "msgpack-rows", "json")
+"""Batch formats of the client: msgpack with numeric columns as binary column blocks (the
+default, cheapest for the service), msgpack with lists, JSON (lists)."""
+
+
 def encode(batch: dict[str, Any], fmt: str) -> tuple[bytes, str]:
     """Body and content type of a batch."""
-    if fmt == "msgpack":
+    if fmt in ("msgpack", "msgpack-rows"):
         return msgpack.packb(batch), "application/msgpack"
     return json.dumps(batch).encode(), "application/json"
 
@@ -58,9 +63,11 @@ class AgentClient:
     def __init__(self, server: str, token: str, *, fmt: str = "msgpack", timeout_s: float = 30.0,
                  first_seq: int = 0, sleep: Sleep = time.sleep,
                  transport: httpx.BaseTransport | None = None) -> None:
-        if fmt not in ("msgpack", "json"):
-            raise ValueError(f"fmt {fmt!r}: msgpack or json")
+        if fmt not in FORMATS:
+            raise ValueError(f"fmt {fmt!r}: one of {', '.join(FORMATS)}")
         self.fmt = fmt
+        self.blocks = fmt == "msgpack"
+        """Whether :func:`replay` sends numeric columns as column blocks."""
         self.http = httpx.Client(base_url=server.rstrip("/"), timeout=timeout_s,
                                  headers={"Authorization": f"Bearer {token}"},
                                  transport=transport)
@@ -165,11 +172,14 @@ def _detail(r: httpx.Response) -> str:
         return r.text
 
 
-def session_batches(session: Session, *, chunk_s: float = 0.5,
-                    t_offset_s: float = 0.0) -> Iterator[tuple[float, dict[str, Any]]]:
-    """``(t_end, batch)`` per ``chunk_s`` window of a session, times shifted by ``t_offset_s``."""
+def session_batches(session: Session, *, chunk_s: float = 0.5, t_offset_s: float = 0.0,
+                    blocks: bool = False) -> Iterator[tuple[float, dict[str, Any]]]:
+    """``(t_end, batch)`` per ``chunk_s`` window of a session, times shifted by ``t_offset_s``.
+
+    ``blocks``: numeric columns as binary column blocks (msgpack only).
+    """
     for chunk in split_session(session, chunk_s):
-        batch = from_chunk(chunk, seq=0, t_offset_s=t_offset_s)
+        batch = from_chunk(chunk, seq=0, t_offset_s=t_offset_s, blocks=blocks)
         del batch["seq"]
         yield _chunk_end(chunk) + t_offset_s, batch
 
@@ -193,7 +203,8 @@ def replay(client: AgentClient, session: Session, *, speed: float, t_offset_s: f
     """
     start_wall = clock()
     t_start = None
-    for t_end, batch in session_batches(session, chunk_s=chunk_s, t_offset_s=t_offset_s):
+    for t_end, batch in session_batches(session, chunk_s=chunk_s, t_offset_s=t_offset_s,
+                                        blocks=client.blocks):
         if t_start is None:
             t_start = t_end - chunk_s
         if speed != float("inf"):

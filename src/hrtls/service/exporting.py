@@ -59,9 +59,7 @@ def agent_session(db: DbSession, mission: Mission, agent: Agent) -> Session | No
         parts["tags"] = TagDetections(_cat(tags, "t"), _cat(tags, "tag").astype(str))
     ranges = [b.ranges for b in batches if b.ranges is not None]
     if ranges:
-        sigma = np.concatenate([np.asarray([np.nan if s is None else s for s in
-                                            (r.sigma_m or [None] * len(r.t))], dtype=float)
-                                for r in ranges])
+        sigma = _cat(ranges, "sigma_m")
         parts["ranges"] = RangeMeasurements(_cat(ranges, "t"), _cat(ranges, "node").astype(str),
                                             _cat(ranges, "range_m"), sigma)
     fixes = [b.fixes for b in batches if b.fixes is not None]

@@ -16,7 +16,6 @@ import math
 import queue
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from sqlalchemy import delete, insert, select
@@ -25,6 +24,7 @@ from sqlalchemy.orm import sessionmaker
 
 from hrtls.data.session import SessionMeta
 from hrtls.service.adapters import decode_sensorlogger
+from hrtls.service.agent_state import AgentLive, Busy, HostParams
 from hrtls.service.alarms import AgentAlarms, AlarmProfile
 from hrtls.service.batches import Batch, BatchError, decode_body, parse_batch
 from hrtls.service.clock import Clock
@@ -35,7 +35,7 @@ from hrtls.service.models import Agent, EstimateRow, Mission, RawBatch, TrackerS
 from hrtls.service.positions import SOURCES as POSITION_SOURCES
 from hrtls.service.positions import decode_position
 from hrtls.service.rawlog import RawLogWriter, RawRow
-from hrtls.service.runner import AgentSpec, Rows, StaleSnapshot, TrackerRunner
+from hrtls.service.runner import AgentSpec, FeedFailed, Rows, StaleSnapshot, TrackerRunner
 from hrtls.service.seqbook import ASSIGNED_SEQ_BASE, SeqBook
 
 log = logging.getLogger(__name__)
@@ -53,79 +53,10 @@ DECODERS: dict[str, Decoder] = {"batch": decode_batch, "sensorlogger": decode_se
 """Raw-log ``source`` -> how its stored bodies become batches (replay, export)."""
 
 REPLAY_PAGE = 200
+FEED_MANY_MAX = 128
+"""Agents a worker takes from the queue and feeds in one runner call."""
 KEEP_SNAPSHOTS = 20
 GOLDEN_FRACTION = (math.sqrt(5.0) - 1.0) / 2.0
-
-
-class Busy(Exception):
-    """The agent's queue is full: answer 429 with ``retry_after_s``."""
-
-    def __init__(self, retry_after_s: float) -> None:
-        super().__init__(f"queue full, retry after {retry_after_s} s")
-        self.retry_after_s = retry_after_s
-
-
-@dataclass
-class HostParams:
-    """Tuning of the host (from :class:`hrtls.service.settings.Settings`)."""
-
-    queue_batches: int = 64
-    snapshot_every_s: float = 30.0
-    backfill_wait_s: float = 2.0
-    workers: int = 2
-
-
-@dataclass
-class AgentLive:
-    """In-memory state of one agent."""
-
-    agent_id: int
-    mission_id: int
-    t0_unix: float
-    stale_after_s: float
-    book: SeqBook
-    tracked: bool
-    assigned: SeqBook = field(default_factory=SeqBook)
-    """Seqs the service numbered (positions of apps without seqs), minus ``ASSIGNED_SEQ_BASE``."""
-    lock: threading.Lock = field(default_factory=threading.Lock)
-    pending: list[Batch] = field(default_factory=list)
-    opened: bool = False
-    t_fed: float = -math.inf
-    t_final: float = -math.inf
-    t_snap: float = -math.inf
-    backfill_from: float = math.inf
-    backfill_since: float = 0.0
-    rebuild_from: float = math.inf
-    """A landmark version holds from here: re-run the tracker from the snapshot before it."""
-    latest: dict[str, Any] | None = None
-    sent_stale: bool | None = None
-    dirty: bool = True
-    last_receive_unix: float | None = None
-    battery: float | None = None
-    sockets: int = 0
-    scheduled: bool = False
-    busy: bool = False
-    error: str | None = None
-    sos: bool = False
-    alarms: AgentAlarms | None = None
-    replaying: bool = False
-
-    def stale(self, now_unix: float) -> bool:
-        """Stale while a gap is open or nothing arrived for ``stale_after_s``."""
-        silent = (self.last_receive_unix is None
-                  or now_unix - self.last_receive_unix > self.stale_after_s)
-        return (self.book.gap_open or self.assigned.gap_open or self.backfill_from < math.inf
-                or silent)
-
-    def status(self, now_unix: float) -> dict[str, Any]:
-        """The ``Agent.status`` object of the contract."""
-        recent = (self.last_receive_unix is not None
-                  and now_unix - self.last_receive_unix <= self.stale_after_s)
-        return {"last_data_t": None if not math.isfinite(self.t_fed) else self.t_fed,
-                "last_seq": None if self.book.highest < 0 else self.book.highest,
-                "acked_through": None if self.book.through < 0 else self.book.through,
-                "missing": self.book.missing(), "battery": self.battery,
-                "connected": self.sockets > 0 or recent, "error": self.error}
 
 
 class TrackerHost:
@@ -386,33 +317,60 @@ class TrackerHost:
             self._work.put(live.agent_id)
 
     def _worker(self) -> None:
+        """Take the queued agents (up to ``FEED_MANY_MAX``), prepare each, feed them together."""
         while True:
             agent_id = self._work.get()
             if agent_id is None:
                 return
-            live = self._agents.get(agent_id)
-            if live is None:
-                continue
-            with live.lock:
-                if live.busy:   # another worker has it; it re-schedules when done
-                    live.scheduled = False
+            ids = [agent_id]
+            while len(ids) < FEED_MANY_MAX:
+                try:
+                    more = self._work.get_nowait()
+                except queue.Empty:
+                    break
+                if more is None:   # stop: leave it for the next get (this or another worker)
+                    self._work.put(None)
+                    break
+                ids.append(more)
+            claimed = [c for c in map(self._claim, ids) if c is not None]
+            feeds: dict[int, tuple[AgentLive, list[Batch]]] = {}
+            for live, items in claimed:
+                try:
+                    fresh = self._process(live, items)
+                except Exception as exc:
+                    self._failed(live, exc)
                     continue
-                live.busy = True
-                live.scheduled = False
-                items, live.pending = live.pending, []
-            try:
-                self._process(live, items)
-            except Exception as exc:
-                log.exception("tracker of agent %s failed", agent_id)
-                live.error = f"{type(exc).__name__}: {exc}"
-                live.dirty = True
-            finally:
+                if fresh:
+                    feeds[live.agent_id] = (live, fresh)
+            if feeds:
+                self._feed_all(feeds)
+            for live, _ in claimed:
                 with live.lock:
                     live.busy = False
                     if live.pending:
                         self._schedule_locked(live)
 
-    def _process(self, live: AgentLive, items: list[Batch]) -> None:
+    def _claim(self, agent_id: int) -> tuple[AgentLive, list[Batch]] | None:
+        """The agent and its queued batches, now busy (None: gone or another worker has it)."""
+        live = self._agents.get(agent_id)
+        if live is None:
+            return None
+        with live.lock:
+            live.scheduled = False
+            if live.busy:   # another worker has it; it re-schedules when done
+                return None
+            live.busy = True
+            items, live.pending = live.pending, []
+        return live, items
+
+    @staticmethod
+    def _failed(live: AgentLive, exc: Exception) -> None:
+        log.error("tracker of agent %s failed", live.agent_id, exc_info=exc)
+        live.error = str(exc) if isinstance(exc, FeedFailed) else f"{type(exc).__name__}: {exc}"
+        live.dirty = True
+
+    def _process(self, live: AgentLive, items: list[Batch]) -> list[Batch] | None:
+        """Judge the batches, re-run the tracker if needed; the fresh batches to feed."""
         if live.alarms is not None:
             raised = []
             for b in sorted(items, key=lambda b: (b.time_span() or (math.inf, 0.0))[0]):
@@ -423,13 +381,13 @@ class TrackerHost:
                 row = db.get(Agent, live.agent_id)
                 live.tracked = row is not None and row.start_pose is not None
             if not live.tracked:
-                return
+                return None
         if not live.opened or live.rebuild_from < math.inf:
             with live.lock:
                 t_from = min(live.rebuild_from, live.backfill_from) if live.opened else math.inf
                 live.rebuild_from = live.backfill_from = math.inf
             self._rebuild(live, t_from)
-            return
+            return None
         timed = sorted((b for b in items if b.time_span() is not None),
                        key=lambda b: (b.time_span() or (0.0, 0.0))[0])
         fresh = []
@@ -446,9 +404,8 @@ class TrackerHost:
                 t_from = live.backfill_from
                 live.backfill_from = math.inf
                 self._rebuild(live, t_from)
-                return
-        if fresh:
-            self._feed(live, fresh)
+                return None
+        return fresh
 
     def _spec(self, db: DbSession, agent_id: int) -> AgentSpec:
         agent = db.get(Agent, agent_id)
@@ -530,8 +487,28 @@ class TrackerHost:
             live.pending = [b for b in live.pending if b.seq not in replayed]
             live.replaying = False
 
+    def _feed_all(self, feeds: dict[int, tuple[AgentLive, list[Batch]]]) -> None:
+        """Feed several agents through one runner call (one message per shard)."""
+        try:
+            results = self.runner.feed_many({aid: b for aid, (_, b) in feeds.items()})
+        except Exception as exc:
+            for live, _ in feeds.values():
+                self._failed(live, exc)
+            return
+        for aid, (live, batches) in feeds.items():
+            rows = results[aid]
+            try:
+                if isinstance(rows, Exception):
+                    raise rows
+                self._fed(live, batches, rows)
+            except Exception as exc:
+                self._failed(live, exc)
+
     def _feed(self, live: AgentLive, batches: list[Batch]) -> None:
-        rows = self.runner.feed(live.agent_id, batches)
+        self._fed(live, batches, self.runner.feed(live.agent_id, batches))
+
+    def _fed(self, live: AgentLive, batches: list[Batch], rows: Rows) -> None:
+        """Keep what a feed of ``batches`` produced: rows, estimate, the next snapshot."""
         spans = [b.time_span() for b in batches]
         live.t_fed = max([live.t_fed, *(s[1] for s in spans if s is not None)])
         self._store(live, rows)

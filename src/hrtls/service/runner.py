@@ -10,6 +10,7 @@ actor per agent) behind the same methods.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -51,6 +52,10 @@ class Rows:
     t_final: float
 
 
+class FeedFailed(RuntimeError):
+    """An agent's tracker raised in :meth:`TrackerRunner.feed_many` (the message names it)."""
+
+
 class StaleSnapshot(Exception):
     """A snapshot lacks a landmark version from before the data it had consumed."""
 
@@ -79,6 +84,9 @@ class TrackerRunner(Protocol):
 
     def feed(self, agent_id: int, batches: list[Batch]) -> Rows:
         """Consume ``batches`` (in time order) and return the rows they produced."""
+
+    def feed_many(self, feeds: dict[int, list[Batch]]) -> dict[int, Rows | Exception]:
+        """:meth:`feed` for several agents at once: per agent its rows or what it raised."""
 
     def snapshot(self, agent_id: int) -> bytes | None:
         """The agent's tracker state (None before its tracker started)."""
@@ -172,6 +180,10 @@ class InProcessRunner:
             a.t_final = float(final.t[-1])
         return Rows(final, _slice(rows, slice(len(rows) - 1, None)), a.t_final)
 
+    def feed_many(self, feeds: dict[int, list[Batch]]) -> dict[int, Rows | Exception]:
+        """Feed each agent; its rows, or the exception its tracker raised (others go on)."""
+        return feed_each(self.feed, feeds)
+
     def snapshot(self, agent_id: int) -> bytes | None:
         """The tracker state with the rows not yet final, or None before the tracker started."""
         a = self._agents[agent_id]
@@ -188,6 +200,18 @@ class InProcessRunner:
     def close(self, agent_id: int) -> None:
         """Drop the agent's tracker."""
         self._agents.pop(agent_id, None)
+
+
+def feed_each(feed: Callable[[int, list[Batch]], Rows],
+              feeds: dict[int, list[Batch]]) -> dict[int, Rows | Exception]:
+    """``feed`` per agent; one whose tracker raises gets :class:`FeedFailed`, the rest go on."""
+    out: dict[int, Rows | Exception] = {}
+    for agent_id, batches in feeds.items():
+        try:
+            out[agent_id] = feed(agent_id, batches)
+        except Exception as exc:   # as text: any exception crosses a process boundary
+            out[agent_id] = FeedFailed(f"{type(exc).__name__}: {exc}")
+    return out
 
 
 _FIELDS = ("t", "xyz", "heading_rad", "cov_xy", "var_heading", "activity",
