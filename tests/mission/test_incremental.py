@@ -152,9 +152,11 @@ def continue_from(seed: int, state: bytes, cut: int) -> dict[str, Any]:
             "agents": {k: (r.trajectory.t, r.trajectory.xyz) for k, r in res.agents.items()}}
 
 
-@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=3, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(fraction=st.floats(min_value=0.05, max_value=0.95))
-def test_restored_in_a_new_process_the_mission_continues_identically(seed1, fraction: float) -> None:  # type: ignore[no-untyped-def]
+def test_restored_in_a_new_process_the_mission_continues_identically(  # type: ignore[no-untyped-def]
+        seed1, fraction: float) -> None:
     sessions, kinds = seed1
     want = MissionTracker(sessions, kinds=kinds).run()
     n_parts = len(_parts(sessions))

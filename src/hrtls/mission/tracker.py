@@ -47,8 +47,8 @@ from numpy.typing import NDArray
 
 from hrtls.data import Session
 from hrtls.data.landmarks import Landmark
-from hrtls.data.session import SessionMeta
 from hrtls.data.observations import RangeMeasurements
+from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
@@ -178,8 +178,11 @@ class AgentHeader:
 
 @dataclass(frozen=True)
 class Progress:
-    """What :meth:`MissionTracker.advance` did: windows processed, the processed horizon (end
-    of the last window, s) and the nodes re-localized in them."""
+    """What :meth:`MissionTracker.advance` did.
+
+    ``windows``: windows processed; ``horizon_s``: end of the last processed window, s;
+    ``changed``: the nodes re-localized in them.
+    """
 
     windows: int
     horizon_s: float
