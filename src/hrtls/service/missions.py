@@ -109,11 +109,16 @@ def create_mission(commander: AgentClient, name: str, members: list[TeamMember]
 
 
 def stream_agent(server: str, token: str, session: Session, *, speed: float,
-                 on_batch: Callable[[int], None] | None = None) -> AgentClient:
-    """Check in at the session's start pose and stream it live (session start = now)."""
+                 on_batch: Callable[[int], None] | None = None,
+                 t_offset_s: float | None = None) -> AgentClient:
+    """Check in at the session's start pose and stream it live.
+
+    The session's start is now, or its times are shifted by ``t_offset_s``.
+    """
     client = AgentClient(server, token)
     who = client.whoami()
-    offset = float(who["mission_t"]) - session.time_span()[0]
+    offset = float(who["mission_t"]) - session.time_span()[0] if t_offset_s is None \
+        else t_offset_s
     pose = (session.meta.start_pose.model_dump() if session.meta.start_pose is not None
             else {"x": 0.0, "y": 0.0})
     pose["t"] = (pose.get("t") or session.time_span()[0]) + offset
@@ -123,8 +128,13 @@ def stream_agent(server: str, token: str, session: Session, *, speed: float,
 
 
 def stream_team(server: str, agents: list[tuple[TeamMember, int, str]], *, speed: float,
-                on_batch: Callable[[str, int], None] | None = None) -> list[AgentClient]:
-    """Stream every agent in its own thread; the clients when all are done."""
+                on_batch: Callable[[str, int], None] | None = None,
+                t_offset_s: float | None = None) -> list[AgentClient]:
+    """Stream every agent in its own thread; the clients when all are done.
+
+    ``t_offset_s``: one time shift for every agent (their common timeline kept), else each
+    agent's start is now.
+    """
     clients: list[AgentClient] = []
     errors: list[BaseException] = []
 
@@ -132,7 +142,7 @@ def stream_team(server: str, agents: list[tuple[TeamMember, int, str]], *, speed
         try:
             cb = None if on_batch is None else (lambda seq: on_batch(member.name, seq))
             clients.append(stream_agent(server, token, member.session, speed=speed,
-                                        on_batch=cb))
+                                        on_batch=cb, t_offset_s=t_offset_s))
         except BaseException as exc:
             errors.append(exc)
 
