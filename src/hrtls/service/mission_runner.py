@@ -170,24 +170,29 @@ class MissionRunner:
     def _open(self, mission_id: int) -> LiveMission | None:
         """The mission's estimator from its newest snapshot, else new (None: no agents)."""
         with self.sessions() as db:
-            net = db.get(MissionNetwork, mission_id)
-            mission = db.get(Mission, mission_id)
-            if net is None or mission is None:
-                return None
-            agents = list(db.scalars(select(Agent).where(Agent.mission_id == mission_id)
-                                     .order_by(Agent.id)))
-            if not agents:
-                return None
             snap = db.scalars(select(MissionSnapshot).where(
                 MissionSnapshot.mission_id == mission_id)
                 .order_by(MissionSnapshot.horizon_s.desc(), MissionSnapshot.id.desc())).first()
+            names = {aid: str(aid) for aid in db.scalars(
+                select(Agent.id).where(Agent.mission_id == mission_id).order_by(Agent.id))}
+        if snap is not None:
+            tracker = MissionTracker.restore(snap.state)
+            if set(tracker.names) == set(names.values()):
+                return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
+                                   t_snap=snap.horizon_s)
+            log.warning("mission %s: snapshot agents differ; starting over", mission_id)
+        return self._open_new(mission_id)
+
+    def _open_new(self, mission_id: int) -> LiveMission | None:
+        """A new estimator of the mission's agents (None without a network or agents)."""
+        with self.sessions() as db:
+            net = db.get(MissionNetwork, mission_id)
+            mission = db.get(Mission, mission_id)
+            agents = list(db.scalars(select(Agent).where(Agent.mission_id == mission_id)
+                                     .order_by(Agent.id)))
+            if net is None or mission is None or not agents:
+                return None
             names = {a.id: str(a.id) for a in agents}
-            if snap is not None:
-                tracker = MissionTracker.restore(snap.state)
-                if set(tracker.names) == set(names.values()):
-                    return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
-                                       t_snap=snap.horizon_s)
-                log.warning("mission %s: snapshot agents differ; starting over", mission_id)
             start, timed = versions_of(db, mission_id)
             landmarks = {d["id"]: Landmark.model_validate(d) for d in start}
             kinds = {str(a.id): "robot" if a.kind == "robot" else "rescuer" for a in agents}
@@ -271,3 +276,18 @@ class MissionRunner:
             newest = db.scalars(select(RawBatch.id).where(RawBatch.agent_id.in_(list(lm.agents)))
                                 .order_by(RawBatch.id.desc()).limit(1)).first()
         return newest is None or newest <= lm.raw_id
+
+
+def offline_tracker(sessions: sessionmaker[DbSession], mission_id: int) -> MissionTracker:
+    """The mission's estimator fed the whole raw log at once (as offline), not yet run.
+
+    Every stored batch of the mission's agents, in raw-log order, with the agents' headers as
+    they are now; :meth:`MissionTracker.run` then gives what ``hrtls mission track`` gives on
+    the same data.
+    """
+    runner = MissionRunner(sessions=sessions, clock=lambda: 0.0, hub=Hub())
+    lm = runner._open_new(mission_id)
+    if lm is None:
+        raise KeyError(mission_id)
+    runner._consume(lm)
+    return lm.tracker
