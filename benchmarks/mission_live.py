@@ -2,7 +2,7 @@
 
 For each seed a service runs on loopback (a fresh SQLite file; ``--pg URL`` for PostgreSQL),
 ``inderst_hybrid_mission`` is streamed to it as ``hrtls mission simulate`` does (as fast as the
-service acknowledges), and once every agent is silent the service's mission estimator (fed
+service acknowledges) and closed, and then the service's mission estimator (fed
 batch by batch from the raw log, windows as they complete) is compared with
 :meth:`MissionTracker.run` on the same stored data fed at once (``offline_tracker``).
 Seed 1 has a robot; seed 2 runs the per-agent trackers in worker processes (``engine =
@@ -82,6 +82,7 @@ def live_vs_offline(url: str, commander_token: str, runner: MissionRunner, setti
         mid, agents = create_network_mission(commander, "inderst_hybrid_mission", mission,
                                              members, params=params)
         clients = stream_network(url, commander, mid, agents, speed=math.inf)
+        commander.request("PATCH", f"/missions/{mid}", json={"status": "closed"})
     for c in clients:
         c.close()
     tr = wait_done(runner, mid, timeout_s)

@@ -203,7 +203,9 @@ class MissionTracker:
     :class:`AgentHeader` (or sessions with the first data); :meth:`feed` buffers each agent's
     parts as they arrive and :meth:`advance` processes every complete window: one where every
     agent that is neither ended (:meth:`end`) nor silent (``silent_after_s``) has data at or
-    after its end. Windows start at the earliest data time of the first processed window.
+    after its end, and at least one agent has (when all are silent, nothing moves until one
+    speaks or the mission ends, ``final``). Windows start at the earliest data time of the
+    first processed window.
     """
 
     def __init__(self, agents: Mapping[str, Session | AgentHeader], *,
@@ -307,6 +309,8 @@ class MissionTracker:
 
     def _complete(self, t_end: float, clock: float) -> bool:
         """Whether every agent that holds the windows back has its data up to ``t_end``."""
+        if all(b.t_last < t_end for b in self.buffers.values()):
+            return False
         for name, buf in self.buffers.items():
             if buf.ended or clock - buf.heard_s > self.params.silent_after_s:
                 continue

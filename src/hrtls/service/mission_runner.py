@@ -15,6 +15,9 @@ Every ``snapshot_every_s`` of processed mission time the estimator's state is st
 newest snapshot is restored and the raw log replayed after that id, so every batch is fed
 exactly once. Without a snapshot the whole raw log of the mission is replayed.
 
+A closed mission (``PATCH /missions/{id}`` ``status: closed``) has ended: its last windows
+are processed.
+
 Limits: the agents are those of the mission when its estimator starts (an agent created later
 is not part of it); data older than the processed horizon (back-fill after a radio gap longer
 than the window wait) are late: counted, logged, not used.
@@ -159,9 +162,12 @@ class MissionRunner:
             if lm is None:
                 return
             self.missions[mission_id] = lm
+        with self.sessions() as db:
+            closed = db.scalar(select(Mission.status).where(Mission.id == mission_id)) \
+                == "closed"
         with lm.lock:
             self._consume(lm)
-            progress = lm.tracker.advance(now_s=self.clock())
+            progress = lm.tracker.advance(now_s=self.clock(), final=closed)
             if progress.changed:
                 self._publish(lm, progress.changed)
             if lm.tracker.horizon_s - lm.t_snap >= self.params.snapshot_every_s:
@@ -177,6 +183,8 @@ class MissionRunner:
                 select(Agent.id).where(Agent.mission_id == mission_id).order_by(Agent.id))}
         if snap is not None:
             tracker = MissionTracker.restore(snap.state)
+            for buf in tracker.buffers.values():   # the service was down, not the agents
+                buf.heard_s = max(buf.heard_s, self.clock())
             if set(tracker.names) == set(names.values()):
                 return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
                                    t_snap=snap.horizon_s)

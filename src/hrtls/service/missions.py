@@ -165,6 +165,8 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     (id, time origin, georeference, channel, floor height, events, orders) is under
     ``"service"``. Sessions hold the landmarks of the mission's start; the versions written
     later are in ``landmark_updates.json``, each from its time on, as the live trackers had them.
+    A mission with a declared sensor network gets ``network.json``: the node ids, each with the
+    mission estimator's newest estimate under ``"service"``.
     """
     from sqlalchemy import select
 
@@ -209,6 +211,7 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
                        "georeference": mission.georeference, "channel": mission.channel,
                        "floor_height_m": mission.floor_height_m, "events": events,
                        "orders": orders}
+            _write_network(db, mission_id, out_dir)
             _, timed = versions_of(db, mission_id)
             if timed:
                 (out_dir / LANDMARK_UPDATES_FILE).write_text(json.dumps(list(timed), indent=2))
@@ -219,6 +222,20 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     finally:
         engine.dispose()
     return written
+
+
+def _write_network(db: Any, mission_id: int, out_dir: Path) -> None:
+    """``network.json`` of a mission with a declared network: ids, each with its estimate."""
+    from hrtls.io.mission import NETWORK_FILE, NetworkModel, NodeEntry
+    from hrtls.service.mission_runner import network_nodes
+
+    nodes = network_nodes(db, mission_id)
+    if nodes is None:
+        return
+    model = NetworkModel(nodes=[NodeEntry(id=n["id"], service={k: v for k, v in n.items()
+                                                              if k != "id"}) for n in nodes])
+    (out_dir / NETWORK_FILE).write_text(model.model_dump_json(indent=2, exclude_none=True)
+                                        + "\n", encoding="utf-8")
 
 
 def _entries(agents: list[Any], with_data: set[int]) -> list[tuple[str, Any, str]]:
