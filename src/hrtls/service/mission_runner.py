@@ -75,6 +75,8 @@ class LiveMission:
     raw_id: int = 0
     t_snap: float = -math.inf
     late_samples: int = 0
+    restored_horizon_s: float | None = None
+    """Processed horizon of the snapshot it was restored from (None: started new)."""
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
@@ -187,7 +189,7 @@ class MissionRunner:
                 buf.heard_s = max(buf.heard_s, self.clock())
             if set(tracker.names) == set(names.values()):
                 return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
-                                   t_snap=snap.horizon_s)
+                                   t_snap=snap.horizon_s, restored_horizon_s=snap.horizon_s)
             log.warning("mission %s: snapshot agents differ; starting over", mission_id)
         return self._open_new(mission_id)
 
