@@ -106,8 +106,11 @@ class MissionFileModel(_Strict):
 
 
 class NodeEntry(_Strict):
-    """A dropped node of ``network.json``: an id, no position (``service``: what a live
-    service's mission estimator had estimated, ``hrtls mission export``; not read as input)."""
+    """A dropped node of ``network.json``: an id, no position.
+
+    ``service``: what a live service's mission estimator had estimated (``hrtls mission
+    export``); not an input of the tracker.
+    """
 
     id: str = Field(min_length=1)
     service: dict[str, Any] | None = None

@@ -54,7 +54,8 @@ from hrtls.mission.buffer import AgentBuffer, LateData
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.tracker import RATE_SAMPLES, Tracker, TrackResult
+from hrtls.pipeline.live import ready_to_start
+from hrtls.pipeline.tracker import Tracker, TrackResult
 
 FloatArray = NDArray[np.float64]
 
@@ -328,7 +329,9 @@ class MissionTracker:
             return True
         if self.kinds[name] == "robot":
             return data.fixes is not None and len(data.fixes.t) >= 2
-        return data.imu is None or len(data.imu.accel.t) >= RATE_SAMPLES
+        a, b = data.time_span()
+        return ready_to_start(accel_samples=0 if data.imu is None else len(data.imu.accel.t),
+                              span_s=b - a)
 
     def _part(self, name: str, t_start: float, t_end: float) -> Session | None:
         """The agent's data in the window; its tracker starts at its first data."""
