@@ -230,3 +230,21 @@ def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: 
         np.testing.assert_array_equal(r.trajectory.t[i:], t)
         np.testing.assert_allclose(r.trajectory.xyz[i:], got.agents[k].trajectory.xyz,
                                    atol=1e-12, rtol=0)
+
+
+def test_cli_streams_a_networked_mission(live: Live, commander: httpx.Client) -> None:
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+
+    args = ["mission", "simulate", "inderst_hybrid_mission", "--server", live.url, "--token",
+            live.commander, "--speed", "0", "--seed", "4", "-O", "walk_s=30", "-O", "n_nodes=8",
+            "-O", "silent_after_s=5"]
+    out = CliRunner().invoke(app, args)
+    assert out.exit_code == 0, out.output
+    assert "8 nodes" in out.output and "unacknowledged: 0" in out.output
+    mid = commander.get(f"{API}/missions").json()[-1]["id"]
+    net = commander.get(f"{API}/missions/{mid}/network").json()
+    assert net["params"]["silent_after_s"] == 5.0 and len(net["nodes"]) >= 8
+    bad = CliRunner().invoke(app, [*args[:9], "-O", "walk=30"])
+    assert bad.exit_code != 0 and "walk" in bad.output and "walk_s" in bad.output
