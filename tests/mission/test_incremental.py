@@ -4,6 +4,7 @@ snapshot and restore in another process."""
 from __future__ import annotations
 
 import concurrent.futures
+import itertools
 import math
 import multiprocessing
 from typing import Any
@@ -15,9 +16,9 @@ from hypothesis import strategies as st
 
 from hrtls.data import Session
 from hrtls.errors import FormatError, InputError
-from hrtls.mission.buffer import LateData, merge, split_at
+from hrtls.mission.buffer import AgentBuffer, LateData, merge, split_at
 from hrtls.mission.tracker import AgentHeader, MissionResult, MissionTracker
-from hrtls.pipeline.chunks import split_session
+from hrtls.pipeline.chunks import session_window, split_session
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 
 PART_S = 0.5
@@ -125,6 +126,34 @@ def test_feed_refuses_an_unknown_agent_and_merge_keeps_time_order(seed1) -> None
     assert joined.imu is not None and want.imu is not None
     np.testing.assert_array_equal(joined.imu.accel.t, want.imu.accel.t[:len(joined.imu.accel.t)])
     assert joined.ranges is not None and np.all(np.diff(joined.ranges.t) >= 0)
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cuts=st.lists(st.floats(min_value=0.0, max_value=1.0), max_size=6),
+       order=st.randoms(use_true_random=False))
+def test_a_buffer_holds_the_same_data_whatever_the_parts_and_their_order(
+        seed1, cuts: list[float], order: Any) -> None:  # type: ignore[no-untyped-def]
+    sessions, _ = seed1
+    s = sessions["R1"]
+    a, b = s.time_span()
+    edges = [-math.inf, *sorted(a + c * (b - a) for c in cuts), math.inf]
+    parts = [p for lo, hi in itertools.pairwise(edges)
+             if (p := session_window(s, lo, hi)) is not None]
+    order.shuffle(parts)
+    buf = AgentBuffer("R1")
+    for p in parts:
+        assert buf.add(p, horizon_s=-math.inf, now_s=0.0) is None
+    assert (buf.t_first, buf.t_last) == (a, b)
+    got, want = buf.window(a, b + 1.0), split_at(s, b + 1.0)[0]
+    assert got is not None and want is not None
+    assert got.imu is not None and want.imu is not None
+    np.testing.assert_array_equal(got.imu.accel.t, want.imu.accel.t)
+    np.testing.assert_array_equal(got.imu.accel.values, want.imu.accel.values)
+    assert got.ranges is not None and want.ranges is not None
+    np.testing.assert_array_equal(got.ranges.t, want.ranges.t)
+    assert sorted(zip(got.ranges.t, got.ranges.node, got.ranges.range_m, strict=True)) == \
+        sorted(zip(want.ranges.t, want.ranges.node, want.ranges.range_m, strict=True))
 
 
 def test_a_foreign_snapshot_is_refused() -> None:
