@@ -111,8 +111,11 @@ def _setup(live: Live, seed: int) -> tuple[int, list[Any], float]:
 
 
 def test_live_mission_estimator_equals_offline_and_is_published(
-        make_live: Any, tmp_path: Path) -> None:
-    live = make_live()
+        make_live: Any, db_url: str, tmp_path: Path) -> None:
+    """Seed 1 (three rescuers, a robot); on PostgreSQL the per-agent trackers run in worker
+    processes (the mission estimator is in the service process either way)."""
+    engine = "processes" if db_url.startswith("postgresql") else "local"
+    live = make_live(engine=engine, process_shards=1)
     mid, agents, offset = _setup(live, 1)
     with live.client(live.commander) as c, connect(
             f"{live.ws_url}{API}/missions/{mid}/ws",
