@@ -12,6 +12,7 @@ as a live device delivers it; :class:`AgentBuffer` aligns a part that is not (wi
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Set
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ from hrtls.data.observations import (
 )
 from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.pipeline.chunks import aligned_imu, session_window
+from hrtls.pipeline.live import ready_to_start
 
 DATA_PARTS = ("imu", "pressure", "orientation", "fixes", "rss", "tags", "ranges")
 """Session parts a buffer merges (ground truth and checkpoints are kept from the first part)."""
@@ -176,3 +178,33 @@ class AgentBuffer:
     def window(self, t_start: float, t_end: float) -> Session | None:
         """The buffered data with ``t_start <= t < t_end``."""
         return None if self.data is None else session_window(self.data, t_start, t_end)
+
+
+def startable(buf: AgentBuffer, *, robot: bool) -> bool:
+    """Whether the buffer holds what the agent's tracker's start reads (rate, first poses)."""
+    data = buf.data
+    if buf.ended or data is None:
+        return True
+    if robot:
+        return data.fixes is not None and len(data.fixes.t) >= 2
+    a, b = data.time_span()
+    return ready_to_start(accel_samples=0 if data.imu is None else len(data.imu.accel.t),
+                          span_s=b - a)
+
+
+def window_complete(buffers: Mapping[str, AgentBuffer], t_end: float, *, clock_s: float,
+                    silent_after_s: float, unready: Set[str]) -> bool:
+    """Whether a window ending at ``t_end`` can be processed.
+
+    Every agent that is neither ended nor silent (last part more than ``silent_after_s`` before
+    ``clock_s``) has data at or after ``t_end`` and, if its tracker has not started, enough to
+    start it (not in ``unready``); and at least one agent has data at or after ``t_end``.
+    """
+    if all(b.t_last < t_end for b in buffers.values()):
+        return False
+    for name, buf in buffers.items():
+        if buf.ended or clock_s - buf.heard_s > silent_after_s:
+            continue
+        if buf.t_last < t_end or (name in unready and buf.t_first < t_end):
+            return False
+    return True

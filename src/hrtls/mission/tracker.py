@@ -50,11 +50,10 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
-from hrtls.mission.buffer import AgentBuffer, LateData
+from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.live import ready_to_start
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
 FloatArray = NDArray[np.float64]
@@ -309,29 +308,10 @@ class MissionTracker:
         return Progress(n, self.horizon_s, changed)
 
     def _complete(self, t_end: float, clock: float) -> bool:
-        """Whether every agent that holds the windows back has its data up to ``t_end``."""
-        if all(b.t_last < t_end for b in self.buffers.values()):
-            return False
-        for name, buf in self.buffers.items():
-            if buf.ended or clock - buf.heard_s > self.params.silent_after_s:
-                continue
-            if buf.t_last < t_end:
-                return False
-            if name not in self.started and buf.t_first < t_end and not self._startable(name):
-                return False
-        return True
-
-    def _startable(self, name: str) -> bool:
-        """The agent's buffer holds what its tracker's start reads (rate, first poses)."""
-        buf = self.buffers[name]
-        data = buf.data
-        if buf.ended or data is None:
-            return True
-        if self.kinds[name] == "robot":
-            return data.fixes is not None and len(data.fixes.t) >= 2
-        a, b = data.time_span()
-        return ready_to_start(accel_samples=0 if data.imu is None else len(data.imu.accel.t),
-                              span_s=b - a)
+        unready = {k for k in self.names if k not in self.started
+                   and not startable(self.buffers[k], robot=self.kinds[k] == "robot")}
+        return window_complete(self.buffers, t_end, clock_s=clock, unready=unready,
+                               silent_after_s=self.params.silent_after_s)
 
     def _part(self, name: str, t_start: float, t_end: float) -> Session | None:
         """The agent's data in the window; its tracker starts at its first data."""
