@@ -5,6 +5,8 @@ For each seed a service runs on loopback (a fresh SQLite file; ``--pg URL`` for 
 service acknowledges) and closed, and then the service's mission estimator (fed
 batch by batch from the raw log, windows as they complete) is compared with
 :meth:`MissionTracker.run` on the same stored data fed at once (``offline_tracker``).
+``vs_simulated_sessions``: the same against :meth:`MissionTracker.run` on the simulator's
+sessions themselves (their own times and metadata, not what the service received).
 Seed 1 has a robot; seed 2 runs the per-agent trackers in worker processes (``engine =
 processes``; the mission estimator is in the service process either way).
 
@@ -29,8 +31,13 @@ from hrtls.service.network_sim import create_network_mission, network_team, stre
 from hrtls.service.settings import Settings
 
 
-def result_diff(live: MissionResult, offline: MissionResult) -> dict[str, Any]:
-    """Largest differences: node positions (m), node covariances (m^2), agent positions (m)."""
+def result_diff(live: MissionResult, offline: MissionResult, *, shift_s: float = 0.0
+                ) -> dict[str, Any]:
+    """Largest differences: node positions (m), node covariances (m^2), agent positions (m).
+
+    ``shift_s``: the live times are the offline ones plus this (agent rows are matched by
+    count and their times to 1e-6 s, else exactly).
+    """
     nodes = sorted(n for n, e in offline.nodes.items() if e.localized)
     same = nodes == sorted(n for n, e in live.nodes.items() if e.localized)
     d_node = max((float(np.max(np.abs(live.nodes[n].position_m - offline.nodes[n].position_m)))
@@ -42,7 +49,9 @@ def result_diff(live: MissionResult, offline: MissionResult) -> dict[str, Any]:
     rows = 0
     for k, r in offline.agents.items():
         a, b = r.trajectory, live.agents[k].trajectory
-        if len(a.t) != len(b.t) or not np.array_equal(a.t, b.t):
+        same_t = np.array_equal(a.t, b.t) if shift_s == 0.0 else \
+            len(a.t) == len(b.t) and bool(np.allclose(a.t + shift_s, b.t, rtol=0, atol=1e-6))
+        if len(a.t) != len(b.t) or not same_t:
             d_agent = math.inf
             continue
         rows += len(a.t)
@@ -94,8 +103,22 @@ def live_vs_offline(url: str, commander_token: str, runner: MissionRunner, setti
     finally:
         engine.dispose()
     late = runner.missions[mid].late_samples
+    sim = MissionTracker({k: m.session for k, m in zip(tr.names, members, strict=True)},
+                         kinds={k: m.kind for k, m in zip(tr.names, members, strict=True)}
+                         ).run()
+    shift = tr.t0 - min(m.session.time_span()[0] for m in members) if tr.t0 is not None else 0.0
+    vs_sim = result_diff(live, _renamed(sim, tr.names), shift_s=shift)
     return {"seed": seed, "mission": mid, "late_samples": late, "stream_s": seconds,
-            **result_diff(live, offline)}
+            **result_diff(live, offline),
+            "vs_simulated_sessions": {k: vs_sim.get(k) for k in ("same_localized", "node_m",
+                                                                 "agent_m")}}
+
+
+def _renamed(res: MissionResult, names: list[str]) -> MissionResult:
+    """``res`` with its agents named as the service's (same order)."""
+    agents = dict(zip(names, res.agents.values(), strict=True))
+    return MissionResult(agents, res.nodes, res.node_history, res.contributors, res.readings,
+                         res.closures)
 
 
 def main() -> None:
