@@ -11,7 +11,7 @@ from sqlalchemy import select
 
 from hrtls.errors import InputError
 from hrtls.mission.tracker import MissionParams
-from hrtls.service.deps import Commander, DbDep, Reader, mission_or_404
+from hrtls.service.deps import Commander, DbDep, Reader, ServicesDep, mission_or_404
 from hrtls.service.mission_runner import network_nodes
 from hrtls.service.models import MissionNetwork, MissionSnapshot
 from hrtls.service.schemas import Strict
@@ -49,10 +49,11 @@ def _params(values: dict[str, float | bool]) -> dict[str, Any]:
 
 
 @router.put("/missions/{mission_id}/network")
-def put_network(mission_id: int, body: NetworkIn, who: Commander, db: DbDep) -> dict[str, Any]:
+def put_network(mission_id: int, body: NetworkIn, who: Commander, db: DbDep,
+                services: ServicesDep) -> dict[str, Any]:
     """Declare the mission's sensor network: its estimator runs in the service from now on.
 
-    Refused (409) once the estimator stored a snapshot (its windows have started).
+    Refused (409) once the estimator runs or stored a snapshot.
     """
     mission_or_404(db, mission_id)
     ids = [n.id for n in body.nodes]
@@ -62,7 +63,7 @@ def put_network(mission_id: int, body: NetworkIn, who: Commander, db: DbDep) -> 
     params = _params(body.params)
     started = db.scalars(select(MissionSnapshot.id)
                          .where(MissionSnapshot.mission_id == mission_id).limit(1)).first()
-    if started is not None:
+    if started is not None or mission_id in services.missions.missions:
         raise HTTPException(409, f"mission {mission_id}: the network estimator has started")
     net = db.get(MissionNetwork, mission_id)
     if net is None:
