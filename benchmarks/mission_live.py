@@ -142,7 +142,7 @@ def main() -> None:
                 out = live_vs_offline(
                     live.url, live.commander, runner, live.settings, seed=seed,
                     options={"walk_s": args.walk_s, "n_robots": 1 if seed == 1 else 0},
-                    params={"silent_after_s": 3.0})
+                    params={})
             finally:
                 live.stop()
         print(out)

@@ -3,7 +3,8 @@
 The simulator's mission (:mod:`hrtls.sim.mission`: rescuers, robots, dropped range nodes) becomes
 a service mission with its agents, the known tags as landmarks and the nodes declared as its
 sensor network (``PUT /missions/{id}/network``), so the service runs the mission estimator.
-Every agent streams with one common time shift (their relative timing is the simulator's).
+Every agent streams with one common time shift (their relative timing is the simulator's;
+for a fresh mission no shift: the mission's time is the simulator's).
 The agents get their sessions without ground truth.
 """
 
@@ -40,10 +41,21 @@ def create_network_mission(commander: AgentClient, name: str, mission: Mission,
     return mid, agents
 
 
+MAX_LAG_S = 60.0
+"""The simulator's own times are kept when its start is at most this behind the mission's now."""
+
+
 def common_offset(commander: AgentClient, mission_id: int, members: list[TeamMember]) -> float:
-    """The time shift putting the team's earliest sample at the mission's now (whole s)."""
+    """The time shift of the team, s.
+
+    None when the simulator's start is at most ``MAX_LAG_S`` behind the mission's now (a fresh
+    mission: the service gets the very times the simulated mission folder has), else the shift
+    putting its earliest sample at now (whole seconds).
+    """
     now_t = float(commander.request("GET", f"/missions/{mission_id}")["now_t"])
     t_min = min(m.session.time_span()[0] for m in members)
+    if 0.0 <= now_t - t_min <= MAX_LAG_S:
+        return 0.0
     return float(math.ceil(now_t - t_min))
 
 
