@@ -15,7 +15,7 @@ from sqlalchemy import func, select
 from websockets.sync.client import connect
 
 from hrtls.io.mission import read_mission
-from hrtls.mission.tracker import MissionResult
+from hrtls.mission.tracker import MissionResult, MissionTracker
 from hrtls.service.client import AgentClient, session_batches
 from hrtls.service.db import make_engine, session_factory
 from hrtls.service.mission_runner import MissionRunner, offline_tracker
@@ -136,6 +136,11 @@ def test_live_mission_estimator_equals_offline_and_is_published(
         want = _offline(live, mid)
         loc = _same_nodes(got, want)
         assert loc, "no node localized"
+        assert offset == 0.0        # a fresh mission keeps the simulator's times: the live
+        sim = MissionTracker(       # estimates are those of the simulated mission offline
+            {str(aid): m.session for m, aid, _ in agents},
+            kinds={str(aid): m.kind for m, aid, _ in agents}).run()
+        assert _same_nodes(got, sim) == loc
         for k, r in want.agents.items():
             np.testing.assert_array_equal(r.trajectory.t, got.agents[k].trajectory.t)
             np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz,
