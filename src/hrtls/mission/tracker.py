@@ -205,7 +205,8 @@ class MissionTracker:
     agent that is neither ended (:meth:`end`) nor silent (``silent_after_s``) has data at or
     after its end, and at least one agent has (when all are silent, nothing moves until one
     speaks or the mission ends, ``final``). Windows start at the earliest data time of the
-    first processed window.
+    first processed window. ``now_s``: the clock at creation (an agent not heard from yet
+    holds the windows back until ``silent_after_s`` after it).
     """
 
     def __init__(self, agents: Mapping[str, Session | AgentHeader], *,
