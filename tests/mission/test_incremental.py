@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hrtls.data import Session
+from hrtls.data import Landmark, Session
 from hrtls.errors import FormatError, InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, merge, split_at
 from hrtls.mission.tracker import AgentHeader, MissionResult, MissionTracker
@@ -154,6 +154,41 @@ def test_a_buffer_holds_the_same_data_whatever_the_parts_and_their_order(
     np.testing.assert_array_equal(got.ranges.t, want.ranges.t)
     assert sorted(zip(got.ranges.t, got.ranges.node, got.ranges.range_m, strict=True)) == \
         sorted(zip(want.ranges.t, want.ranges.node, want.ranges.range_m, strict=True))
+
+
+def test_landmark_versions_given_live_act_as_given_at_the_start(seed1) -> None:  # type: ignore[no-untyped-def]
+    """A node known from the start (a range anchor of every agent) moved at 30 s."""
+    m = inderst_hybrid_mission(1, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15,
+                                                 n_robots=1))
+    base, kinds = seed1
+    heard = np.concatenate([s.ranges.node[s.ranges.t > 30.0] for s in base.values()
+                            if s.ranges is not None])
+    names, counts = np.unique(heard, return_counts=True)
+    node = str(names[np.argmax(counts)])
+    x, y = m.node_truth_m[node]
+    anchor = Landmark(id=node, kind="node", position=(float(x), float(y), 0.5))
+    sessions = {k: s.with_parts(landmarks={**s.landmarks, node: anchor})
+                for k, s in base.items()}
+    moved = anchor.model_copy(update={"position": (float(x) + 3.0, float(y), 0.5),
+                                      "updated": 30.0})
+    want = MissionTracker(sessions, kinds=kinds, landmark_updates=[moved]).run()
+    plain = MissionTracker(sessions, kinds=kinds).run()
+    assert any(len(r.trajectory.t) != len(plain.agents[k].trajectory.t)   # the version
+               or np.max(np.abs(r.trajectory.xyz - plain.agents[k].trajectory.xyz)) > 1e-3
+               for k, r in want.agents.items())                          # changes the mission
+    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    given = False
+    for j, (name, part) in enumerate(_parts(sessions)):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+        if not given and mt.horizon_s >= 10.0:
+            assert mt.add_landmark_updates([moved]) == []
+            given = True
+    late = moved.model_copy(update={"updated": mt.horizon_s - 1.0})
+    assert mt.add_landmark_updates([late]) == [late]
+    for k in sessions:
+        mt.end(k)
+    assert _max_diff(want, mt.run()) <= 1e-12
 
 
 def test_a_foreign_snapshot_is_refused() -> None:

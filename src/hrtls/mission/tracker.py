@@ -274,6 +274,23 @@ class MissionTracker:
         clock = part.time_span()[1] if now_s is None else now_s
         return buf.add(part, horizon_s=self.horizon_s, now_s=clock)
 
+    def add_landmark_updates(self, versions: Sequence[Landmark]) -> list[Landmark]:
+        """Landmark versions written during a live mission, each holding from ``updated`` on.
+
+        Used as if given at the start; versions older than the processed horizon are returned
+        unused (the windows before it are not processed again).
+        """
+        late = [v for v in versions if float(v.updated or 0.0) < self.horizon_s]
+        due = [v for v in versions if float(v.updated or 0.0) >= self.horizon_s]
+        self.landmark_updates += tuple(due)
+        self._robot_updates = sorted([*self._robot_updates, *due],
+                                     key=lambda v: float(v.updated or 0.0))
+        for name in self.started:
+            tr = self.trackers[name]
+            if isinstance(tr, Tracker):
+                tr.update_landmarks(due)
+        return late
+
     def end(self, agent: str) -> None:
         """``agent`` sends no more data: it no longer holds the windows back."""
         self.buffers[agent].ended = True

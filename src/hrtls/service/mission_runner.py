@@ -18,6 +18,10 @@ exactly once. Without a snapshot the whole raw log of the mission is replayed.
 A closed mission (``PATCH /missions/{id}`` ``status: closed``) has ended: its last windows
 are processed.
 
+Landmark versions written during the mission (``hrtls.service.landmark_versions``) are given to
+the estimator at the next poll, each from its time on; one older than the processed horizon is
+counted and logged, not used (the host's per-agent trackers re-run instead).
+
 Limits: the agents are those of the mission when its estimator starts (an agent created later
 is not part of it); data older than the processed horizon (back-fill after a radio gap longer
 than the window wait) are late: counted, logged, not used.
@@ -75,6 +79,8 @@ class LiveMission:
     raw_id: int = 0
     t_snap: float = -math.inf
     late_samples: int = 0
+    late_versions: set[tuple[str, float | None]] = field(default_factory=set)
+    """Landmark versions (id, time) older than the horizon when they came: not used."""
     restored_horizon_s: float | None = None
     """Processed horizon of the snapshot it was restored from (None: started new)."""
     lock: threading.Lock = field(default_factory=threading.Lock)
@@ -167,7 +173,9 @@ class MissionRunner:
         with self.sessions() as db:
             closed = db.scalar(select(Mission.status).where(Mission.id == mission_id)) \
                 == "closed"
+            _, timed = versions_of(db, mission_id)
         with lm.lock:
+            self._versions(lm, timed)
             self._consume(lm)
             progress = lm.tracker.advance(now_s=self.clock(), final=closed)
             if progress.changed:
@@ -214,6 +222,20 @@ class MissionRunner:
                 landmark_updates=[Landmark.model_validate(d) for d in timed],
                 now_s=self.clock())
         return LiveMission(mission_id, tracker, names)
+
+    def _versions(self, lm: LiveMission, timed: tuple[dict[str, Any], ...]) -> None:
+        """Give the estimator the landmark versions written since it started."""
+        seen = {(v.id, v.updated) for v in lm.tracker.landmark_updates} | lm.late_versions
+        new = [lm_ for d in timed if ((lm_ := Landmark.model_validate(d)).id, lm_.updated)
+               not in seen]
+        if not new:
+            return
+        late = lm.tracker.add_landmark_updates(new)
+        lm.late_versions |= {(v.id, v.updated) for v in late}
+        for v in late:
+            log.warning("mission %s: landmark %s version of %.1f s is before the processed "
+                        "horizon %.1f s; not used", lm.mission_id, v.id, v.updated or 0.0,
+                        lm.tracker.horizon_s)
 
     def _consume(self, lm: LiveMission) -> None:
         """Feed the batches stored since the last poll, in raw-log order."""
