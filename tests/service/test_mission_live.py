@@ -256,3 +256,34 @@ def test_cli_streams_a_networked_mission(live: Live, commander: httpx.Client) ->
     assert net["params"]["silent_after_s"] == 5.0 and len(net["nodes"]) >= 8
     bad = CliRunner().invoke(app, [*args[:9], "-O", "walk=30"])
     assert bad.exit_code != 0 and "walk" in bad.output and "walk_s" in bad.output
+
+
+def test_a_landmark_version_written_live_reaches_the_mission_estimator(make_live: Any) -> None:
+    live = make_live()
+    mid, agents, offset = _setup(live, 0)
+    seqs = _stream(live, agents, offset, t_to=offset + 12.0)
+    runner = _runner(live)
+    _wait(runner, mid, done=False)
+    with live.client(live.commander) as c:
+        tag = c.get(f"{API}/missions/{mid}/landmarks").json()[0]
+        x, y, z = tag["position"]
+        moved = {**tag, "position": [x + 2.0, y, z], "updated": offset + 30.0}
+        r = c.put(f"{API}/missions/{mid}/landmarks/{tag['id']}", json=moved)
+        assert r.status_code == 200, r.text
+    deadline = time.monotonic() + 30
+    lm = runner.missions[mid]
+    while not lm.tracker.landmark_updates:
+        assert time.monotonic() < deadline, "the version did not reach the estimator"
+        time.sleep(0.1)
+    assert lm.tracker.horizon_s < offset + 30.0 and not lm.late_versions
+    _stream(live, agents, offset, t_from=offset + 12.0, first_seq=seqs)
+    _wait(runner, mid, done=False)
+    _close(live, mid)
+    _wait(runner, mid, done=True)
+    with lm.lock:
+        got = lm.tracker.result()
+    want = _offline(live, mid)               # the version given at the start
+    _same_nodes(got, want)
+    for k, r in want.agents.items():
+        np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz, atol=1e-12,
+                                   rtol=0)
