@@ -71,16 +71,30 @@ def agent_replay(
 @mission_app.command("simulate")
 @reports_errors
 def mission_simulate(
-    name: Annotated[str, typer.Argument(help="inderst_two_users, inderst_multifloor or office.")],
+    name: Annotated[str, typer.Argument(help="inderst_two_users, inderst_multifloor, office "
+                                        "or inderst_hybrid_mission (with a sensor network).")],
     server: ServerOption,
     token: Annotated[str, typer.Option("--token", help="A commander token.")],
     speed: SpeedOption = 1.0,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of a networked mission.")] = 0,
+    options: Annotated[list[str] | None, typer.Option(
+        "--option", "-O", help="Networked mission: a simulator option or a mission estimator "
+        "parameter (chunk_s, silent_after_s, cooperate, ...), key=value (repeatable).")] = None,
 ) -> None:
     """Create a simulated mission with its agents and stream them all live."""
     from hrtls.service.client import AgentClient
     from hrtls.service.missions import create_mission, stream_team, team
+    from hrtls.sim.mission import MISSIONS
 
     pace = _speed(speed)
+    if name in MISSIONS:
+        _simulate_network(name, server, token, pace, seed, options or [])
+        return
+    if options:
+        from hrtls.errors import InputError
+
+        raise InputError(f"-O {options[0]}", where=f"hrtls mission simulate {name}",
+                         expected="options only for " + ", ".join(MISSIONS))
     members = team(name)
     with AgentClient(server, token) as commander:
         mid, agents = create_mission(commander, name, members)
@@ -91,6 +105,43 @@ def mission_simulate(
     total = sum(c.stats.acked for c in clients)
     left = sum(len(c.outbox) for c in clients)
     typer.echo(f"streamed {total} batches of {len(clients)} agents; unacknowledged: {left}")
+    for c in clients:
+        c.close()
+
+
+def _simulate_network(name: str, server: str, token: str, pace: float, seed: int,
+                      items: list[str]) -> None:
+    """``mission simulate`` of a networked mission: the service runs its mission estimator."""
+    import dataclasses
+
+    from hrtls.cli.sim import parse_options
+    from hrtls.errors import InputError
+    from hrtls.service.client import AgentClient
+    from hrtls.service.network_sim import create_network_mission, network_team, stream_network
+    from hrtls.service.routes.network import LIVE_PARAMS
+    from hrtls.sim.mission import MissionOptions
+
+    values = parse_options(items)
+    sim_keys = {f.name for f in dataclasses.fields(MissionOptions)}
+    bad = sorted(set(values) - sim_keys - set(LIVE_PARAMS))
+    if bad:
+        raise InputError(f"unknown option {bad[0]!r}", where="--option",
+                         expected="one of " + ", ".join(sorted(sim_keys | set(LIVE_PARAMS))))
+    mission, members = network_team(name, seed=seed, options={
+        k: v for k, v in values.items() if k in sim_keys})
+    with AgentClient(server, token) as commander:
+        mid, agents = create_network_mission(commander, name, mission, members, params={
+            k: v for k, v in values.items() if k in LIVE_PARAMS})
+        typer.echo(f"mission {mid} '{name}' seed {seed}: {len(mission.node_truth_m)} nodes; "
+                   + ", ".join(f"{m.name} (agent {aid}, {m.kind})" for m, aid, _ in agents))
+        typer.echo(f"dashboard: {server.rstrip('/')}/?mission={mid}")
+        clients = stream_network(server, commander, mid, agents, speed=pace)
+        net = commander.request("GET", f"/missions/{mid}/network")
+    localized = sum(1 for n in net["nodes"] if n["localized"])
+    typer.echo(f"streamed {sum(c.stats.acked for c in clients)} batches of {len(clients)} "
+               f"agents; unacknowledged: {sum(len(c.outbox) for c in clients)}; nodes "
+               f"localized so far: {localized} of {len(net['nodes'])} (the last windows follow "
+               "once every agent is silent)")
     for c in clients:
         c.close()
 

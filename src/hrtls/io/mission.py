@@ -4,7 +4,8 @@
 
 * ``mission.json``: ``{"format": "hrtls-mission", "version": 1, "name": ..., "agents":
   [{"name", "kind" (rescuer | robot), "session" (session folder or zip, relative)}]}``;
-* ``network.json`` (optional): ``{"nodes": [{"id": ...}]}``, the dropped range nodes, ids only;
+* ``network.json`` (optional): ``{"nodes": [{"id": ...}]}``, the dropped range nodes, ids only
+  (an export of the service adds each node's live estimate under ``"service"``);
 * ``landmarks.json`` (optional): the mission's known location messages (session format), given
   to every agent (an agent's own landmark of the same id wins);
 * ``landmark_updates.json`` (optional): new versions of location messages during the mission
@@ -105,9 +106,14 @@ class MissionFileModel(_Strict):
 
 
 class NodeEntry(_Strict):
-    """A dropped node of ``network.json``: an id, no position."""
+    """A dropped node of ``network.json``: an id, no position.
+
+    ``service``: what a live service's mission estimator had estimated (``hrtls mission
+    export``); not an input of the tracker.
+    """
 
     id: str = Field(min_length=1)
+    service: dict[str, Any] | None = None
 
 
 class NetworkModel(_Strict):
@@ -359,8 +365,8 @@ def write_mission(path: Path | str, *, agents: Sequence[tuple[str, AgentKind, Se
         write_session(session, root / "agents" / n, overwrite=overwrite)
     if nodes:
         (root / NETWORK_FILE).write_text(
-            NetworkModel(nodes=[NodeEntry(id=n) for n in nodes]).model_dump_json(indent=2)
-            + "\n", encoding="utf-8")
+            NetworkModel(nodes=[NodeEntry(id=n) for n in nodes]).model_dump_json(
+                indent=2, exclude_none=True) + "\n", encoding="utf-8")
     if landmarks:
         items = [lm.model_dump(mode="json", exclude_none=True) for lm in landmarks.values()]
         (root / LANDMARKS_FILE).write_text(json.dumps(items, indent=2) + "\n", encoding="utf-8")

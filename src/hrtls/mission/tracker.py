@@ -48,10 +48,11 @@ from numpy.typing import NDArray
 from hrtls.data import Session
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
+from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
+from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.robot import RobotTracker
-from hrtls.pipeline.chunks import aligned_imu, session_window
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
@@ -76,6 +77,10 @@ class MissionParams:
     loop_closure_ratio:
         A contributor uses a node once its covariance trace is this many times the smallest it
         had at its readings of the node (module doc; ``inf``: contributors never use it).
+    silent_after_s:
+        Live (:meth:`MissionTracker.advance`): an agent whose latest part arrived longer ago
+        than this (on the clock given to :meth:`MissionTracker.feed`) no longer holds the
+        windows back; its data older than the processed horizon are then late, s.
     nodes:
         Node estimator parameters.
     """
@@ -85,10 +90,11 @@ class MissionParams:
     refresh_fraction: float = 0.2
     cooperate: bool = True
     loop_closure_ratio: float = 4.0
+    silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
 
     def __post_init__(self) -> None:
-        for name in ("chunk_s", "pass_gap_s"):
+        for name in ("chunk_s", "pass_gap_s", "silent_after_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="MissionParams", expected="> 0 s")
@@ -162,38 +168,76 @@ class MissionResult:
     closures: list[LoopClosure] = field(default_factory=list)
 
 
-def _known_ids(session: Session) -> list[str]:
-    """Ids of the session's landmarks with a position (local, or WGS-84 with a georeference)."""
-    geo = session.georeference is not None
-    return sorted(k for k, lm in session.landmarks.items()
+@dataclass(frozen=True, eq=False)
+class AgentHeader:
+    """What a mission knows of an agent before its data: metadata and landmarks."""
+
+    meta: SessionMeta
+    landmarks: dict[str, Landmark] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What :meth:`MissionTracker.advance` did.
+
+    ``windows``: windows processed; ``horizon_s``: end of the last processed window, s;
+    ``changed``: the nodes re-localized in them.
+    """
+
+    windows: int
+    horizon_s: float
+    changed: tuple[str, ...]
+
+
+def _known_ids(header: AgentHeader) -> list[str]:
+    """Ids of the agent's landmarks with a position (local, or WGS-84 with a georeference)."""
+    geo = header.meta.georeference is not None
+    return sorted(k for k, lm in header.landmarks.items()
                   if lm.position is not None or (geo and lm.wgs84 is not None))
 
 
 class MissionTracker:
-    """All agents of a mission and the dropped nodes as one causal loop (see module doc)."""
+    """All agents of a mission and the dropped nodes as one causal loop (see module doc).
 
-    def __init__(self, agents: dict[str, Session], *, config: TrackerConfig | None = None,
-                 params: MissionParams | None = None, kinds: Mapping[str, str] | None = None,
-                 landmark_updates: Sequence[Landmark] = ()) -> None:
+    Offline, ``agents`` are whole sessions and :meth:`run` processes them. Live, ``agents`` are
+    :class:`AgentHeader` (or sessions with the first data); :meth:`feed` buffers each agent's
+    parts as they arrive and :meth:`advance` processes every complete window: one where every
+    agent that is neither ended (:meth:`end`) nor silent (``silent_after_s``) has data at or
+    after its end, and at least one agent has (when all are silent, nothing moves until one
+    speaks or the mission ends, ``final``). Windows start at the earliest data time of the
+    first processed window. ``now_s``: the clock at creation (an agent not heard from yet
+    holds the windows back until ``silent_after_s`` after it).
+    """
+
+    def __init__(self, agents: Mapping[str, Session | AgentHeader], *,
+                 config: TrackerConfig | None = None, params: MissionParams | None = None,
+                 kinds: Mapping[str, str] | None = None,
+                 landmark_updates: Sequence[Landmark] = (), now_s: float = -math.inf) -> None:
         if not agents:
             raise InputError("no agents", where="mission", expected="at least one session")
         self.params = params or MissionParams()
+        self.config = config
         self.names = list(agents)
         self.kinds = {k: (kinds or {}).get(k, "rescuer") for k in self.names}
         bad = [k for k, v in self.kinds.items() if v not in ("rescuer", "robot")]
         if bad:
             raise InputError(f"agent {bad[0]!r} is a {self.kinds[bad[0]]!r}", where="mission kinds",
                              expected="rescuer or robot")
-        self.sessions = {k: (s.with_parts(imu=aligned_imu(s.imu)) if s.imu is not None else s)
-                         for k, s in agents.items()}
-        self.known = [_known_ids(self.sessions[k]) for k in self.names]
+        self.headers = {k: (AgentHeader(a.meta, dict(a.landmarks)) if isinstance(a, Session)
+                            else a) for k, a in agents.items()}
+        self.known = [_known_ids(self.headers[k]) for k in self.names]
         self.trackers: dict[str, Tracker | RobotTracker] = {
             k: RobotTracker() if self.kinds[k] == "robot" else Tracker(config)
             for k in self.names}
-        for k, tr in self.trackers.items():
-            tr.start_session(self.sessions[k])
-            if isinstance(tr, Tracker):
-                tr.update_landmarks(landmark_updates)
+        self.landmark_updates = tuple(landmark_updates)
+        self.buffers = {k: AgentBuffer(k) for k in self.names}
+        for buf in self.buffers.values():
+            buf.heard_s = now_s
+        self.started: set[str] = set()
+        self._deferred: dict[str, list[tuple[str, object]]] = {k: [] for k in self.names}
+        self.t0: float | None = None
+        self.horizon_s = -math.inf
+        self._k = 0
         # robots take a version at the first window starting at or after its time
         self._robot_updates = sorted(landmark_updates, key=lambda v: float(v.updated or 0.0))
         self.estimator = NodeEstimator(self.params.nodes)
@@ -211,24 +255,141 @@ class MissionTracker:
         self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
         self._contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
+        for k, a in agents.items():
+            if isinstance(a, Session):
+                self.feed(k, a, now_s=now_s)
+
+    # ------------------------------------------------------------------ incremental
+    def feed(self, agent: str, part: Session, *, now_s: float | None = None) -> LateData | None:
+        """Buffer a part of ``agent``'s data (any order within the unprocessed time).
+
+        ``now_s``: the clock of its arrival (silence, ``silent_after_s``; default its last data
+        time). Its samples before the processed horizon are not used: they come back as
+        :class:`~hrtls.mission.buffer.LateData` (None when nothing was late).
+        """
+        buf = self.buffers.get(agent)
+        if buf is None:
+            raise InputError(f"unknown agent {agent!r}", where="MissionTracker.feed",
+                             expected="one of " + ", ".join(self.names))
+        clock = part.time_span()[1] if now_s is None else now_s
+        return buf.add(part, horizon_s=self.horizon_s, now_s=clock)
+
+    def add_landmark_updates(self, versions: Sequence[Landmark]) -> list[Landmark]:
+        """Landmark versions written during a live mission, each holding from ``updated`` on.
+
+        Used as if given at the start; versions older than the processed horizon are returned
+        unused (the windows before it are not processed again).
+        """
+        late = [v for v in versions if float(v.updated or 0.0) < self.horizon_s]
+        due = [v for v in versions if float(v.updated or 0.0) >= self.horizon_s]
+        self.landmark_updates += tuple(due)
+        self._robot_updates = sorted([*self._robot_updates, *due],
+                                     key=lambda v: float(v.updated or 0.0))
+        for name in self.started:
+            tr = self.trackers[name]
+            if isinstance(tr, Tracker):
+                tr.update_landmarks(due)
+        return late
+
+    def end(self, agent: str) -> None:
+        """``agent`` sends no more data: it no longer holds the windows back."""
+        self.buffers[agent].ended = True
+
+    def advance(self, t_s: float = math.inf, *, now_s: float | None = None,
+                final: bool = False) -> Progress:
+        """Process every complete window ending at or before ``t_s`` (class doc).
+
+        ``now_s``: the clock that judges silence (default: the latest data time fed);
+        ``final``: every agent has ended (the mission's end: the last windows are processed).
+        """
+        with_data = [b for b in self.buffers.values() if b.t_first < math.inf]
+        if not with_data:
+            return Progress(0, self.horizon_s, ())
+        if self.t0 is None:
+            self.t0 = min(b.t_first for b in with_data)
+        t_data = max(b.t_last for b in with_data)
+        clock = t_data if now_s is None else now_s
+        before = dict(self._version)
+        n = 0
+        c = self.params.chunk_s
+        while True:
+            t_start, t_end = self.t0 + self._k * c, self.t0 + (self._k + 1) * c
+            if t_start > t_data or t_end > t_s:
+                break
+            if not final and not self._complete(t_end, clock):
+                break
+            self.step(t_start, t_end)
+            self._k += 1
+            self.horizon_s = t_end
+            n += 1
+        changed = tuple(sorted(k for k, v in self._version.items() if before.get(k) != v))
+        return Progress(n, self.horizon_s, changed)
+
+    def _complete(self, t_end: float, clock: float) -> bool:
+        unready = {k for k in self.names if k not in self.started
+                   and not startable(self.buffers[k], robot=self.kinds[k] == "robot")}
+        return window_complete(self.buffers, t_end, clock_s=clock, unready=unready,
+                               silent_after_s=self.params.silent_after_s)
+
+    def _part(self, name: str, t_start: float, t_end: float) -> Session | None:
+        """The agent's data in the window; its tracker starts at its first data."""
+        part = self.buffers[name].window(t_start, t_end)
+        if part is None or name in self.started:
+            return part
+        data = self.buffers[name].data
+        assert data is not None
+        h = self.headers[name]
+        tr = self.trackers[name]
+        tr.start_session(data.with_parts(meta=h.meta, landmarks=h.landmarks))
+        if isinstance(tr, Tracker):
+            tr.update_landmarks(self.landmark_updates)
+        self.started.add(name)
+        for method, arg in self._deferred.pop(name, []):
+            getattr(tr, method)(arg)
+        return part
+
+    def _apply(self, name: str, method: str, arg: object) -> None:
+        """Call ``method(arg)`` on the agent's tracker now, or right after its start."""
+        if name in self.started:
+            getattr(self.trackers[name], method)(arg)
+        else:
+            self._deferred.setdefault(name, []).append((method, arg))
 
     def windows(self) -> list[tuple[float, float]]:
-        """The common windows ``(t_start, t_end)`` covering every agent's session."""
-        spans = [s.time_span() for s in self.sessions.values()]
-        t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
+        """The common windows ``(t_start, t_end)`` covering every agent's data fed so far."""
+        spans = [(b.t_first, b.t_last) for b in self.buffers.values() if b.t_first < math.inf]
+        if not spans:
+            return []
+        t0 = self.t0 if self.t0 is not None else min(a for a, _ in spans)
+        t1 = max(b for _, b in spans)
+        if self.t0 is None:
+            self.t0 = t0
         n = math.floor((t1 - t0) / self.params.chunk_s) + 1
         return [(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
                 for k in range(n)]
 
     def run(self) -> MissionResult:
-        """Process every agent's session to its end."""
-        for t_start, t_end in self.windows():
-            self.step(t_start, t_end)
+        """Process every agent's data fed so far to its end (offline: the whole sessions)."""
+        self.advance(math.inf, final=True)
         return self.result()
+
+    def snapshot(self) -> bytes:
+        """The mission's state as bytes (:mod:`hrtls.mission.snapshot`)."""
+        from hrtls.mission.snapshot import mission_snapshot
+
+        return mission_snapshot(self)
+
+    @classmethod
+    def restore(cls, data: bytes) -> MissionTracker:
+        """A mission tracker continuing from :meth:`snapshot` bytes."""
+        from hrtls.mission.snapshot import restore_mission
+
+        return restore_mission(data)
 
     def result(self) -> MissionResult:
         """Finish every agent's tracker; the mission's result (after the last window)."""
-        results = {name: tr.finish() for name, tr in self.trackers.items()}
+        results = {name: tr.finish() for name, tr in self.trackers.items()
+                   if name in self.started}
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
@@ -242,11 +403,11 @@ class MissionTracker:
         due = [v for v in self._robot_updates if float(v.updated or 0.0) <= t_start]
         if due:
             self._robot_updates = self._robot_updates[len(due):]
-            for tr in self.trackers.values():
+            for name, tr in self.trackers.items():
                 if isinstance(tr, RobotTracker):
-                    tr.update_landmarks(due)
+                    self._apply(name, "update_landmarks", due)
         for i, name in enumerate(self.names):
-            part = session_window(self.sessions[name], t_start, t_end)
+            part = self._part(name, t_start, t_end)
             if part is None:
                 continue
             use, keep = self._split_ranges(i, part.ranges)
@@ -408,5 +569,5 @@ class MissionTracker:
             for i, name in enumerate(self.names):
                 if self.given[i].get(node) == v:
                     continue
-                self.trackers[name].set_landmarks({node: lm})
+                self._apply(name, "set_landmarks", {node: lm})
                 self.given[i][node] = v

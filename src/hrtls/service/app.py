@@ -26,6 +26,7 @@ from hrtls.service.headers import SecurityHeaders, content_security_policy
 from hrtls.service.host import HostParams, TrackerHost
 from hrtls.service.hub import Hub
 from hrtls.service.limits import BodyLimit, RateLimiter
+from hrtls.service.mission_runner import MissionRunner, MissionRunnerParams
 from hrtls.service.runner import TrackerRunner, make_runner
 from hrtls.service.security import has_commander, issue
 from hrtls.service.settings import Settings
@@ -83,6 +84,7 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         await run_in_threadpool(services.host.start)
+        services.missions.start()
         publisher = asyncio.create_task(_publish_loop(services))
         try:
             yield
@@ -90,6 +92,7 @@ def create_app(settings: Settings, *, clock: Clock = wall_clock,
             publisher.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await publisher
+            await run_in_threadpool(services.missions.stop)
             await run_in_threadpool(services.host.stop)
             services.engine.dispose()
 
@@ -128,6 +131,9 @@ def _services(settings: Settings, *, clock: Clock, runner: TrackerRunner | None)
                     agent_rate=RateLimiter(rate_hz=settings.rate_per_agent_hz,
                                            burst=settings.rate_burst, clock=clock),
                     host=host, hub=hub, events=events,
+                    missions=MissionRunner(sessions=sessions, clock=clock, hub=hub,
+                                           params=MissionRunnerParams(
+                                               snapshot_every_s=settings.snapshot_every_s)),
                     tokens=TokenCache(ttl_s=settings.token_cache_ttl_s,
                                       max_entries=settings.token_cache_entries))
 
@@ -155,13 +161,15 @@ def _add_routes(app: FastAPI, settings: Settings) -> None:
         ingest,
         live,
         missions,
+        network,
         orders,
         positions,
     )
     from hrtls.service.routes import events as event_routes
 
     for router in (auth.router, missions.router, agents.router, ingest.router, positions.router,
-                   live.router, event_routes.router, orders.router, dashboard.router):
+                   live.router, event_routes.router, orders.router, dashboard.router,
+                   network.router):
         app.include_router(router, prefix=API_PREFIX)
 
     @app.get(f"{API_PREFIX}/health", response_model=schemas.HealthOut, tags=["health"])

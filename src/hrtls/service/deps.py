@@ -14,8 +14,9 @@ from sqlalchemy.orm import Session, sessionmaker
 from hrtls.service.clock import Clock
 from hrtls.service.events import EventLog
 from hrtls.service.host import TrackerHost
-from hrtls.service.hub import Hub
+from hrtls.service.hub import KINDS, Hub
 from hrtls.service.limits import RateLimiter
+from hrtls.service.mission_runner import MissionRunner, network_nodes
 from hrtls.service.models import Agent, Mission
 from hrtls.service.security import COOKIE_NAME, Principal, Role
 from hrtls.service.settings import Settings
@@ -35,6 +36,7 @@ class Services:
     hub: Hub
     events: EventLog
     tokens: TokenCache
+    missions: MissionRunner
     order_versions: dict[int, int] = field(default_factory=dict)
     _t0: dict[int, float] = field(default_factory=dict)
 
@@ -64,8 +66,12 @@ class Services:
         """Live snapshot (``t`` None) or replay at ``t``."""
         from hrtls.service.picture import picture
 
-        return picture(db, mission, host=self.host, now_unix=self.clock(), t=t, floor=floor,
-                       trail_s=trail_s)
+        out = picture(db, mission, host=self.host, now_unix=self.clock(), t=t, floor=floor,
+                      trail_s=trail_s)
+        nodes = network_nodes(db, mission.id)
+        if nodes is not None:
+            out["nodes"] = nodes
+        return out
 
     def publish_once(self) -> list[tuple[int, dict[str, Any]]]:
         """The deltas of every mission with changes since the last call (worker thread)."""
@@ -75,8 +81,7 @@ class Services:
         per: dict[int, dict[str, dict[Any, dict[str, Any]]]] = {}
 
         def slot(mission_id: int) -> dict[str, dict[Any, dict[str, Any]]]:
-            return per.setdefault(mission_id, {"agents": {}, "estimates": {}, "events": {},
-                                               "orders": {}})
+            return per.setdefault(mission_id, {k: {} for k in KINDS})
 
         changed: dict[int, int] = {}
         for live, est in self.host.take_changes():

@@ -7,7 +7,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
-KINDS = ("agents", "estimates", "events", "orders")
+KINDS = ("agents", "estimates", "events", "orders", "nodes")
 QUEUE_MESSAGES = 256
 
 

@@ -109,11 +109,16 @@ def create_mission(commander: AgentClient, name: str, members: list[TeamMember]
 
 
 def stream_agent(server: str, token: str, session: Session, *, speed: float,
-                 on_batch: Callable[[int], None] | None = None) -> AgentClient:
-    """Check in at the session's start pose and stream it live (session start = now)."""
+                 on_batch: Callable[[int], None] | None = None,
+                 t_offset_s: float | None = None) -> AgentClient:
+    """Check in at the session's start pose and stream it live.
+
+    The session's start is now, or its times are shifted by ``t_offset_s``.
+    """
     client = AgentClient(server, token)
     who = client.whoami()
-    offset = float(who["mission_t"]) - session.time_span()[0]
+    offset = float(who["mission_t"]) - session.time_span()[0] if t_offset_s is None \
+        else t_offset_s
     pose = (session.meta.start_pose.model_dump() if session.meta.start_pose is not None
             else {"x": 0.0, "y": 0.0})
     pose["t"] = (pose.get("t") or session.time_span()[0]) + offset
@@ -123,8 +128,13 @@ def stream_agent(server: str, token: str, session: Session, *, speed: float,
 
 
 def stream_team(server: str, agents: list[tuple[TeamMember, int, str]], *, speed: float,
-                on_batch: Callable[[str, int], None] | None = None) -> list[AgentClient]:
-    """Stream every agent in its own thread; the clients when all are done."""
+                on_batch: Callable[[str, int], None] | None = None,
+                t_offset_s: float | None = None) -> list[AgentClient]:
+    """Stream every agent in its own thread; the clients when all are done.
+
+    ``t_offset_s``: one time shift for every agent (their common timeline kept), else each
+    agent's start is now.
+    """
     clients: list[AgentClient] = []
     errors: list[BaseException] = []
 
@@ -132,7 +142,7 @@ def stream_team(server: str, agents: list[tuple[TeamMember, int, str]], *, speed
         try:
             cb = None if on_batch is None else (lambda seq: on_batch(member.name, seq))
             clients.append(stream_agent(server, token, member.session, speed=speed,
-                                        on_batch=cb))
+                                        on_batch=cb, t_offset_s=t_offset_s))
         except BaseException as exc:
             errors.append(exc)
 
@@ -155,6 +165,8 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     (id, time origin, georeference, channel, floor height, events, orders) is under
     ``"service"``. Sessions hold the landmarks of the mission's start; the versions written
     later are in ``landmark_updates.json``, each from its time on, as the live trackers had them.
+    A mission with a declared sensor network gets ``network.json``: the node ids, each with the
+    mission estimator's newest estimate under ``"service"``.
     """
     from sqlalchemy import select
 
@@ -199,6 +211,7 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
                        "georeference": mission.georeference, "channel": mission.channel,
                        "floor_height_m": mission.floor_height_m, "events": events,
                        "orders": orders}
+            _write_network(db, mission_id, out_dir)
             _, timed = versions_of(db, mission_id)
             if timed:
                 (out_dir / LANDMARK_UPDATES_FILE).write_text(json.dumps(list(timed), indent=2))
@@ -209,6 +222,20 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     finally:
         engine.dispose()
     return written
+
+
+def _write_network(db: Any, mission_id: int, out_dir: Path) -> None:
+    """``network.json`` of a mission with a declared network: ids, each with its estimate."""
+    from hrtls.io.mission import NETWORK_FILE, NetworkModel, NodeEntry
+    from hrtls.service.mission_runner import network_nodes
+
+    nodes = network_nodes(db, mission_id)
+    if nodes is None:
+        return
+    model = NetworkModel(nodes=[NodeEntry(id=n["id"], service={k: v for k, v in n.items()
+                                                              if k != "id"}) for n in nodes])
+    (out_dir / NETWORK_FILE).write_text(model.model_dump_json(indent=2, exclude_none=True)
+                                        + "\n", encoding="utf-8")
 
 
 def _entries(agents: list[Any], with_data: set[int]) -> list[tuple[str, Any, str]]:

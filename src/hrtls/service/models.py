@@ -229,3 +229,39 @@ class OrderRow(Base):
     delivered_at: Mapped[float | None] = mapped_column(Float, nullable=True)
     answered_at: Mapped[float | None] = mapped_column(Float, nullable=True)
     answer_text: Mapped[str | None] = mapped_column(Text, nullable=True)
+
+
+class MissionNetwork(Base):
+    """The sensor network a mission declared: its node ids and the mission estimator's state.
+
+    ``params``: fields of :class:`hrtls.mission.tracker.MissionParams` set for this mission;
+    ``estimates``: the newest node estimates (``id -> {position, covariance, localized,
+    reason, readings}``) at the processed horizon ``horizon_s``.
+    """
+
+    __tablename__ = "mission_networks"
+
+    mission_id: Mapped[int] = mapped_column(ForeignKey("missions.id", ondelete="CASCADE"),
+                                            primary_key=True)
+    nodes: Mapped[list[str]] = mapped_column(JSON)
+    params: Mapped[dict[str, Any]] = mapped_column(JSON)
+    estimates: Mapped[dict[str, Any]] = mapped_column(JSON)
+    horizon_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+
+
+class MissionSnapshot(Base):
+    """A mission estimator's state.
+
+    After its windows up to ``horizon_s`` and the raw log up to ``raw_id`` (the newest raw
+    batch it had consumed).
+    """
+
+    __tablename__ = "mission_snapshots"
+    __table_args__ = (Index("ix_mission_snapshot_horizon", "mission_id", "horizon_s"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    mission_id: Mapped[int] = mapped_column(ForeignKey("missions.id", ondelete="CASCADE"))
+    horizon_s: Mapped[float] = mapped_column(Float)
+    raw_id: Mapped[int] = mapped_column(Integer)
+    created_unix: Mapped[float] = mapped_column(Float)
+    state: Mapped[bytes] = mapped_column(LargeBinary)

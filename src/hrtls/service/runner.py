@@ -22,8 +22,8 @@ from hrtls.data.series import ImuStream, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.pipeline import Tracker, preset
+from hrtls.pipeline.live import ready_to_start
 from hrtls.pipeline.output import Estimates
-from hrtls.pipeline.tracker import RATE_SAMPLES
 from hrtls.service.batches import Batch, to_chunk
 from hrtls.service.settings import Settings
 
@@ -60,8 +60,6 @@ class StaleSnapshot(Exception):
     """A snapshot lacks a landmark version from before the data it had consumed."""
 
 
-START_WITHOUT_IMU_S = 30.0
-"""Without accelerometer samples the tracker starts once its first chunks span this long."""
 
 
 @dataclass
@@ -143,7 +141,8 @@ class InProcessRunner:
     def feed(self, agent_id: int, batches: list[Batch]) -> Rows:
         """Feed the chunks of ``batches``; rows after the last final row.
 
-        The tracker starts once ``RATE_SAMPLES`` accelerometer samples are in (its nominal rate
+        The tracker starts once ``RATE_SAMPLES`` accelerometer samples are in
+        (:func:`hrtls.pipeline.live.ready_to_start`; its nominal rate
         is their median spacing, as offline); the chunks until then are held and then fed.
         """
         a = self._agents[agent_id]
@@ -234,11 +233,8 @@ def _unpack_rows(d: dict[str, Any]) -> Estimates:
 
 def _ready(held: list[Session]) -> bool:
     n_acc = sum(len(c.imu.accel.t) for c in held if c.imu is not None)
-    if n_acc >= RATE_SAMPLES:
-        return True
-    if n_acc == 0:
-        return held[-1].time_span()[1] - held[0].time_span()[0] >= START_WITHOUT_IMU_S
-    return False
+    return ready_to_start(accel_samples=n_acc,
+                          span_s=held[-1].time_span()[1] - held[0].time_span()[0])
 
 
 def _start_session(held: list[Session]) -> Session:

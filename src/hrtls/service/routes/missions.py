@@ -17,6 +17,7 @@ from hrtls.service.landmark_versions import (
     versions_of,
     write_version,
 )
+from hrtls.service.mission_runner import network_nodes
 from hrtls.service.models import Floor, LandmarkRow, Mission, OrderRow
 from hrtls.service.views import floor_out, mission_out, mission_summaries
 
@@ -234,12 +235,15 @@ def delete_landmark(mission_id: int, landmark_id: str, who: Commander, db: DbDep
 
 @router.get("/missions/{mission_id}/infrastructure", response_model=schemas.InfrastructureOut)
 def infrastructure(mission_id: int, who: Reader, db: DbDep) -> schemas.InfrastructureOut:
-    """Landmarks, sensor nodes and the way points of open go-to orders."""
+    """Landmarks, sensor nodes (the declared network's, live estimates) and go-to way points."""
     mission_or_404(db, mission_id)
     orders = db.scalars(select(OrderRow).where(
         OrderRow.mission_id == mission_id, OrderRow.kind == "goto",
         OrderRow.status.in_(("pending", "delivered", "accepted"))).order_by(OrderRow.id))
     waypoints = [schemas.WaypointOut(agent=o.agent_id, order=o.id, status=o.status,
                                      **(o.waypoint or {})) for o in orders if o.waypoint]
-    return schemas.InfrastructureOut(landmarks=landmarks_of(db, mission_id), nodes=[],
+    nodes = [schemas.NodeOut(id=n["id"], position=n["position"], floor=n["floor"],
+                             sigma_m=n["sigma_m"], seed=n["seed"], localized=n["localized"])
+             for n in network_nodes(db, mission_id) or []]
+    return schemas.InfrastructureOut(landmarks=landmarks_of(db, mission_id), nodes=nodes,
                                      waypoints=waypoints)

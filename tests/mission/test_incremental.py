@@ -1,0 +1,248 @@
+"""MissionTracker live: feed / advance in parts gives run()'s result; late data; silence;
+snapshot and restore in another process."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import itertools
+import math
+import multiprocessing
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hrtls.data import Landmark, Session
+from hrtls.errors import FormatError, InputError
+from hrtls.mission.buffer import AgentBuffer, LateData, merge, split_at
+from hrtls.mission.tracker import AgentHeader, MissionResult, MissionTracker
+from hrtls.pipeline.chunks import session_window, split_session
+from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
+
+PART_S = 0.5
+
+
+def _mission(seed: int) -> tuple[dict[str, Session], dict[str, str]]:
+    """A short mission (seed 1 with a robot); sessions without ground truth."""
+    m = inderst_hybrid_mission(seed, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15,
+                                                    n_robots=1 if seed == 1 else 0))
+    return ({k: s.with_parts(truth=None, checkpoints=None) for k, s in m.agents.items()},
+            dict(m.kinds))
+
+
+def _headers(sessions: dict[str, Session]) -> dict[str, AgentHeader]:
+    return {k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()}
+
+
+def _parts(sessions: dict[str, Session]) -> list[tuple[str, Session]]:
+    """Every agent's parts of ``PART_S``, interleaved by their end time (as they arrive)."""
+    out = [(k, p) for k, s in sessions.items() for p in split_session(s, PART_S)]
+    return sorted(out, key=lambda kp: kp[1].time_span()[1])
+
+
+def _live(sessions: dict[str, Session], kinds: dict[str, str], *, cut: int | None = None
+          ) -> tuple[MissionTracker, int]:
+    """Feed the parts in arrival order, advancing after each; stop before part ``cut``."""
+    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    parts = _parts(sessions)
+    for j, (name, part) in enumerate(parts[:cut]):
+        assert mt.feed(name, part, now_s=float(j)) is None
+        mt.advance(now_s=float(j))
+    return mt, len(parts)
+
+
+def _max_diff(a: MissionResult, b: MissionResult, *, tail: bool = False) -> float:
+    """Largest difference of node estimates, node history and agent rows (``tail``: ``b``
+    holds each agent's rows from some time on)."""
+    assert {n: e.localized for n, e in a.nodes.items()} == \
+        {n: e.localized for n, e in b.nodes.items()}
+    d = 0.0
+    for n, e in a.nodes.items():
+        if e.localized:
+            d = max(d, float(np.max(np.abs(e.position_m - b.nodes[n].position_m))),
+                    float(np.max(np.abs(e.covariance_m2 - b.nodes[n].covariance_m2))))
+    assert set(a.node_history) == set(b.node_history)
+    for n, h in a.node_history.items():
+        np.testing.assert_array_equal(h.t, b.node_history[n].t)
+        d = max(d, float(np.max(np.abs(h.position_m - b.node_history[n].position_m))))
+    for k, r in a.agents.items():
+        ta, tb = r.trajectory, b.agents[k].trajectory
+        i = int(np.searchsorted(ta.t, tb.t[0])) if tail else 0
+        assert len(ta.t) - i == len(tb.t), k
+        d = max(d, float(np.max(np.abs(ta.xyz[i:] - tb.xyz))),
+                float(np.max(np.abs(ta.cov_xy[i:] - tb.cov_xy))))
+    return d
+
+
+@pytest.fixture(scope="module")
+def seed1() -> tuple[dict[str, Session], dict[str, str]]:
+    return _mission(1)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_parts_fed_live_give_the_offline_run(seed: int) -> None:
+    sessions, kinds = _mission(seed)
+    want = MissionTracker(sessions, kinds=kinds).run()
+    assert sum(e.localized for e in want.nodes.values()) >= 1
+    mt, _ = _live(sessions, kinds)
+    assert mt.horizon_s < max(s.time_span()[1] for s in sessions.values())
+    for k in sessions:
+        mt.end(k)
+    got = mt.run()
+    assert _max_diff(want, got) <= 1e-12
+
+
+def test_a_window_waits_for_every_agent_and_no_longer_than_silent_after_s(seed1) -> None:  # type: ignore[no-untyped-def]
+    sessions, kinds = seed1
+    mt = MissionTracker(_headers(sessions), kinds=kinds, now_s=0.0)
+    first, *others = list(sessions)
+    for p in split_session(sessions[first], PART_S):
+        mt.feed(first, p, now_s=1.0)
+    assert mt.advance(now_s=1.0).windows == 0            # the others hold the windows back
+    silent = mt.params.silent_after_s
+    assert mt.advance(now_s=silent - 1.0).windows == 0
+    done = mt.advance(now_s=silent + 2.0)                 # the others are silent now
+    assert done.windows > 0 and done.horizon_s == mt.horizon_s
+    late = mt.feed(others[0], sessions[others[0]], now_s=silent + 3.0)
+    assert isinstance(late, LateData) and late.agent == others[0]
+    assert late.horizon_s == mt.horizon_s and late.t_last_s < mt.horizon_s
+    before, _ = split_at(sessions[others[0]], mt.horizon_s)
+    assert before is not None and late.samples > 0
+    assert late.samples == (len(before.imu.accel.t) if before.imu is not None else 0) + sum(
+        len(getattr(before, k).t) for k in ("ranges", "tags", "fixes", "rss", "pressure")
+        if getattr(before, k) is not None)
+
+
+def test_feed_refuses_an_unknown_agent_and_merge_keeps_time_order(seed1) -> None:  # type: ignore[no-untyped-def]
+    sessions, kinds = seed1
+    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    with pytest.raises(InputError, match="unknown agent"):
+        mt.feed("nobody", sessions["R1"])
+    parts = list(split_session(sessions["R1"], 7.0))
+    joined = merge(merge(parts[2], parts[0]), parts[1])
+    want = split_session(sessions["R1"], 1e6).__next__()
+    assert joined.imu is not None and want.imu is not None
+    np.testing.assert_array_equal(joined.imu.accel.t, want.imu.accel.t[:len(joined.imu.accel.t)])
+    assert joined.ranges is not None and np.all(np.diff(joined.ranges.t) >= 0)
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cuts=st.lists(st.floats(min_value=0.0, max_value=1.0), max_size=6),
+       order=st.randoms(use_true_random=False))
+def test_a_buffer_holds_the_same_data_whatever_the_parts_and_their_order(
+        seed1, cuts: list[float], order: Any) -> None:  # type: ignore[no-untyped-def]
+    sessions, _ = seed1
+    s = sessions["R1"]
+    a, b = s.time_span()
+    edges = [-math.inf, *sorted(a + c * (b - a) for c in cuts), math.inf]
+    parts = [p for lo, hi in itertools.pairwise(edges)
+             if (p := session_window(s, lo, hi)) is not None]
+    order.shuffle(parts)
+    buf = AgentBuffer("R1")
+    for p in parts:
+        assert buf.add(p, horizon_s=-math.inf, now_s=0.0) is None
+    assert (buf.t_first, buf.t_last) == (a, b)
+    got, want = buf.window(a, b + 1.0), split_at(s, b + 1.0)[0]
+    assert got is not None and want is not None
+    assert got.imu is not None and want.imu is not None
+    np.testing.assert_array_equal(got.imu.accel.t, want.imu.accel.t)
+    np.testing.assert_array_equal(got.imu.accel.values, want.imu.accel.values)
+    assert got.ranges is not None and want.ranges is not None
+    np.testing.assert_array_equal(got.ranges.t, want.ranges.t)
+    assert sorted(zip(got.ranges.t, got.ranges.node, got.ranges.range_m, strict=True)) == \
+        sorted(zip(want.ranges.t, want.ranges.node, want.ranges.range_m, strict=True))
+
+
+def test_landmark_versions_given_live_act_as_given_at_the_start(seed1) -> None:  # type: ignore[no-untyped-def]
+    """A node known from the start (a range anchor of every agent) moved at 30 s."""
+    m = inderst_hybrid_mission(1, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15,
+                                                 n_robots=1))
+    base, kinds = seed1
+    heard = np.concatenate([s.ranges.node[s.ranges.t > 30.0] for s in base.values()
+                            if s.ranges is not None])
+    names, counts = np.unique(heard, return_counts=True)
+    node = str(names[np.argmax(counts)])
+    x, y = m.node_truth_m[node]
+    anchor = Landmark(id=node, kind="node", position=(float(x), float(y), 0.5))
+    sessions = {k: s.with_parts(landmarks={**s.landmarks, node: anchor})
+                for k, s in base.items()}
+    moved = anchor.model_copy(update={"position": (float(x) + 3.0, float(y), 0.5),
+                                      "updated": 30.0})
+    want = MissionTracker(sessions, kinds=kinds, landmark_updates=[moved]).run()
+    plain = MissionTracker(sessions, kinds=kinds).run()
+    assert any(len(r.trajectory.t) != len(plain.agents[k].trajectory.t)   # the version
+               or np.max(np.abs(r.trajectory.xyz - plain.agents[k].trajectory.xyz)) > 1e-3
+               for k, r in want.agents.items())                          # changes the mission
+    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    given = False
+    for j, (name, part) in enumerate(_parts(sessions)):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+        if not given and mt.horizon_s >= 10.0:
+            assert mt.add_landmark_updates([moved]) == []
+            given = True
+    late = moved.model_copy(update={"updated": mt.horizon_s - 1.0})
+    assert mt.add_landmark_updates([late]) == [late]
+    for k in sessions:
+        mt.end(k)
+    assert _max_diff(want, mt.run()) <= 1e-12
+
+
+def test_a_foreign_snapshot_is_refused() -> None:
+    from hrtls.pipeline.snapshot import pack
+
+    with pytest.raises(FormatError):
+        MissionTracker.restore(b"not a snapshot")
+    with pytest.raises(FormatError, match="format"):
+        MissionTracker.restore(pack({"format": "other"}))
+
+
+def continue_from(seed: int, state: bytes, cut: int) -> dict[str, Any]:
+    """In a fresh process: restore, feed the parts from ``cut`` on, finish; plain results."""
+    sessions, _ = _mission(seed)
+    mt = MissionTracker.restore(state)
+    for j, (name, part) in enumerate(_parts(sessions)[cut:], start=cut):
+        assert mt.feed(name, part, now_s=float(j)) is None
+        mt.advance(now_s=float(j))
+    for k in sessions:
+        mt.end(k)
+    res = mt.run()
+    return {"nodes": {n: (e.localized, e.position_m, e.covariance_m2)
+                      for n, e in res.nodes.items()},
+            "history": {n: (h.t, h.position_m) for n, h in res.node_history.items()},
+            "agents": {k: (r.trajectory.t, r.trajectory.xyz) for k, r in res.agents.items()}}
+
+
+@settings(max_examples=3, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(fraction=st.floats(min_value=0.05, max_value=0.95))
+def test_restored_in_a_new_process_the_mission_continues_identically(  # type: ignore[no-untyped-def]
+        seed1, fraction: float) -> None:
+    sessions, kinds = seed1
+    want = MissionTracker(sessions, kinds=kinds).run()
+    n_parts = len(_parts(sessions))
+    cut = max(1, math.floor(fraction * n_parts))
+    mt, _ = _live(sessions, kinds, cut=cut)
+    state = mt.snapshot()
+    assert state.startswith(b"HRTLSNAP")
+    ctx = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        got = pool.submit(continue_from, 1, state, cut).result(timeout=600)
+    for n, e in want.nodes.items():
+        localized, pos, cov = got["nodes"][n]
+        assert localized == e.localized
+        if e.localized:
+            np.testing.assert_array_equal(pos, e.position_m)
+            np.testing.assert_array_equal(cov, e.covariance_m2)
+    assert set(got["history"]) == set(want.node_history)
+    for n, (t, pos) in got["history"].items():
+        np.testing.assert_array_equal(t, want.node_history[n].t)
+        np.testing.assert_array_equal(pos, want.node_history[n].position_m)
+    for k, (t, xyz) in got["agents"].items():
+        full = want.agents[k].trajectory
+        i = int(np.searchsorted(full.t, t[0]))
+        np.testing.assert_array_equal(t, full.t[i:])
+        np.testing.assert_array_equal(xyz, full.xyz[i:])
