@@ -9,7 +9,9 @@ process) so that the table measures the service, not the client; a dashboard Web
 the mission. Per N the table gives:
 
 * sensor-to-WebSocket latency: wall time from the sensing of a batch's newest sample to the
-  delta that reports it processed (the agent's ``status.last_data_t``), p50/p99/max;
+  first delta that reports it processed (the agent's ``status.last_data_t``; a later delta
+  repeating the same time, e.g. when the agent goes silent after its stream, is not counted
+  again), p50/p99/max;
 * estimate lag: wall time from an estimate's own time to its delta (includes the step
   detection of the tracker: a step is known when it ends);
 * lost (sent - acknowledged), duplicated (stored twice: the raw log's unique seq), 429 retries;
@@ -263,6 +265,7 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
     lat: list[float] = []
     lat_at: list[float] = []   # when each latency was seen, s after the start
     lag: list[float] = []
+    reported: dict[int, float] = {}   # agent id -> newest data time a delta reported
     stop = asyncio.Event()
 
     async def dashboard() -> None:
@@ -279,7 +282,10 @@ async def run_level(url: str, token: str, n: int, streams: list, duration_s: flo
                     continue
                 for a in msg["agents"]:
                     t_data = a["status"]["last_data_t"]
-                    if t_data is not None:
+                    # the first delta that reports new data; later deltas (a status change,
+                    # the agent gone silent after its stream ended) repeat an old time
+                    if t_data is not None and t_data != reported.get(a["id"]):
+                        reported[a["id"]] = t_data
                         lat.append(now - (t0_unix + t_data))
                         lat_at.append(now - start_wall)
                 lag.extend(now - (t0_unix + e["t"]) for e in msg["estimates"])
