@@ -143,6 +143,23 @@ for owner, name, label in [
 for owner, name, label in [(TR.Tracker, "update", "tracker"), (TR.Tracker, "finish", "tracker"),
                            (S.SessionStream, "truth", "read truth")]:
     timed_method(owner, name, label, time.thread_time)
+# within the phases above, not added to them: numba's kernels on their first call (the
+# compiled code loaded from the cache, numba's target set up on the first), by thread CPU
+import numba.core.caching as NC, numba.core.dispatcher as ND
+within = collections.defaultdict(float)
+def timed_within(owner, name, label, count=None):
+    fn = getattr(owner, name)
+    def wrapper(*a, **k):
+        c0 = time.thread_time()
+        out = fn(*a, **k)
+        within[label] += time.thread_time() - c0
+        if count:
+            within[count(out)] += 1
+        return out
+    setattr(owner, name, wrapper)
+timed_within(NC.Cache, "load_overload", "numba cache loads",
+             lambda out: "numba cache misses" if out is None else "numba cache hits")
+timed_within(ND.Dispatcher, "compile", "numba first calls")
 sys.argv = ["hrtls", "track", *sys.argv[1:]]
 shown = io.StringIO()
 with contextlib.redirect_stdout(shown):
@@ -160,6 +177,8 @@ spent["other (options, report on screen)"] = spent["total"] - sum(
     v for k, v in spent.items() if k != "total")
 for k, v in spent.items():
     print(f"PHASE {k}={v:.3f}")
+for k, v in within.items():
+    print(f"WITHIN {k}={v:.3f}")
 """
 """One ``hrtls track`` in a child, CPU seconds per phase: its functions are wrapped by timers
 only ("imports" is what the command imports before any work, a cost that does not grow with
@@ -175,6 +194,7 @@ def phases_child(session: Path, out: Path, src: str | None = None) -> Round:
     text, wall, cpu, peak_mb = _child([sys.executable, "-c", BREAKDOWN, str(session), "-o",
                                        str(out), "--overwrite"], src)
     phases = {k: float(v) for k, v in re.findall(r"PHASE (.+)=([0-9.]+)", text)}
+    phases |= {f"within {k}": float(v) for k, v in re.findall(r"WITHIN (.+)=([0-9.]+)", text)}
     found = re.search(r"IMU samples in ([0-9.]+) s", text)
     return phases, wall, cpu, float(found.group(1)) if found else float("nan"), peak_mb
 
@@ -264,9 +284,18 @@ def _track_row(label: str, rounds: list[Round], table: Table, target: bool) -> N
                   _spread(ratios), "<= 2x" if target else "",
                   ("yes" if cpu / tracker <= 2 else "NO") if target else "")
     phases["interpreter start and exit"] = cpu - phases.pop("total")
+    within = {k.removeprefix("within "): phases.pop(k) for k in list(phases)
+              if k.startswith("within ")}
     for name, value in phases.items():
         table.add_row(f"  {name}", f"{value:.2f}", "",
                       f"{value / tracker:.2f}x tracker, {value / cpu:.0%}", "", "", "")
+    if "numba first calls" in within:  # part of the tracker's and the readers' rows
+        first = within["numba first calls"]
+        table.add_row(
+            f"  within those: numba first calls ({within.get('numba cache hits', 0):.0f} "
+            f"loaded from the cache, {within.get('numba cache misses', 0):.0f} misses)",
+            f"{first:.2f}", "", f"{first / tracker:.2f}x tracker, {first / cpu:.0%}; loading "
+            f"{within.get('numba cache loads', 0.0):.2f} s", "", "", "")
 
 
 def tracking(args: argparse.Namespace, table: Table) -> None:
