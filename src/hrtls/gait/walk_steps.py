@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, check_positive
+from hrtls.gait.chains import chain_starts
 
 __all__ = ["DROP", "KEEP", "UNDECIDED", "WalkStepParams", "WalkStepState", "add_steps",
            "forget_before", "step_status", "walk_steps"]
@@ -139,9 +140,11 @@ def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
     times = s.t.tolist()
     level = s.level.tolist()
     held = [i for i, v in enumerate(status) if v == UNDECIDED]
-    for te, peak in zip(np.asarray(t_end)[new].tolist(),
-                        np.asarray(acc_max_m_s2)[new].tolist(), strict=True):
-        if te - s.t_last > p.max_gap_s:   # a new walk: the held steps end their walk
+    t_new = np.asarray(t_end, dtype=np.float64)[new]
+    starts = chain_starts(t_new, max_gap_s=p.max_gap_s, t_before_s=s.t_last).tolist()
+    for te, peak, start in zip(t_new.tolist(), np.asarray(acc_max_m_s2)[new].tolist(), starts,
+                               strict=True):
+        if start:   # a new walk: the held steps end their walk
             for i in held:
                 status[i] = DROP
             held, level, s.n_steps, s.confirmed = [], [], 0, False

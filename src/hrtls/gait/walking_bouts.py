@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_vector, check_positive
+from hrtls.gait.chains import chain_runs
 
 BoolArray = NDArray[np.bool_]
 UNDECIDED = -1
@@ -127,9 +128,7 @@ def decide_chains(t: FloatArray, status: NDArray[np.int64], complete_s: float, *
     n = t.shape[0]
     if n == 0:
         return out
-    brk = np.flatnonzero(np.diff(t) > max_gap_s) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [n]])
+    starts, ends = chain_runs(t, max_gap_s=max_gap_s)
     for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
         seg = out[a:b]
         if np.all(seg != UNDECIDED):
@@ -286,10 +285,8 @@ def walking_bouts(step_t: FloatArray, params: WalkingBoutParams | None = None
     if not yes.any():
         return yes, np.zeros((0, 2))
     ty = t[yes]
-    brk = np.flatnonzero(np.diff(ty) > p.max_gap_s) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [ty.size]]) - 1
-    return yes, np.column_stack([ty[starts], ty[ends]])
+    starts, ends = chain_runs(ty, max_gap_s=p.max_gap_s)
+    return yes, np.column_stack([ty[starts], ty[ends - 1]])
 
 
 __all__ = ["IN_BOUT", "NOT_IN_BOUT", "UNDECIDED", "WalkingBoutDetector", "WalkingBoutParams",
