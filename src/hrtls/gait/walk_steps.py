@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
-from hrtls.gait._state import FloatArray, check_positive
+from hrtls.gait._state import FloatArray, check_positive, decisions_from_dict
 from hrtls.gait.chains import chain_starts
 
 __all__ = ["DROP", "KEEP", "UNDECIDED", "WalkStepParams", "WalkStepState", "add_steps",
@@ -111,19 +111,14 @@ class WalkStepState:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> WalkStepState:
         """Inverse of :meth:`to_dict`."""
+        t, st = decisions_from_dict(data, where="WalkStepState")
         try:
-            t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
-            st = np.asarray(data["status"], dtype=np.int64).reshape(-1)
             tl = data["t_last"]
-            out = cls(t, st, -math.inf if tl is None else float(tl), int(data["n_steps"]),
-                      bool(data["confirmed"]), np.asarray(data["level"], dtype=np.float64))
+            return cls(t, st, -math.inf if tl is None else float(tl), int(data["n_steps"]),
+                       bool(data["confirmed"]), np.asarray(data["level"], dtype=np.float64))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed state ({exc!r})", where="WalkStepState",
                              expected="a dict written by to_dict()") from None
-        if t.shape != st.shape:
-            raise InputError(f"{t.shape[0]} times, {st.shape[0]} decisions",
-                             where="WalkStepState", expected="one decision per step")
-        return out
 
 
 def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
-from hrtls.gait._state import FloatArray, as_vector, check_positive
+from hrtls.gait._state import FloatArray, as_vector, check_positive, decisions_from_dict
 from hrtls.gait.chains import chain_runs
 
 BoolArray = NDArray[np.bool_]
@@ -103,16 +103,12 @@ class WalkingBoutState:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> WalkingBoutState:
         """Inverse of :meth:`to_dict`."""
+        t, st = decisions_from_dict(data, where="WalkingBoutState")
         try:
-            t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
-            st = np.asarray(data["status"], dtype=np.int64).reshape(-1)
             c = data["complete_s"]
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError) as exc:
             raise InputError(f"malformed state ({exc!r})", where="WalkingBoutState",
                              expected="a dict written by to_dict()") from None
-        if t.shape != st.shape:
-            raise InputError(f"{t.shape[0]} times, {st.shape[0]} decisions",
-                             where="WalkingBoutState", expected="one decision per step")
         return cls(t, st, -math.inf if c is None else float(c))  # float("inf") reads "inf"
 
 
