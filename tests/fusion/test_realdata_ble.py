@@ -70,7 +70,7 @@ def test_rss_positioning_room_level(ble: Path, name: str) -> None:
     s = FilterState.initial(xyz=(10.0, 9.0, 1.7), sigma_xy_m=8.0)
     ekf = []
     for i in range(len(rss)):
-        s = predict_random_walk(s, float(rss.t[i]), RandomWalkParams(sigma_speed_m_s=1.0))
+        s = predict_random_walk(s, float(rss.t[i]), RandomWalkParams(sigma_speed_m_per_sqrt_s=1.0))
         s, _, _ = update_rss_readings(s, rss, [i], lms, model, use_3d=True)
         if rss.t[i] > 5.0:
             ekf.append(np.linalg.norm(s.x[:2] - pos[i, :2]))

@@ -6,6 +6,7 @@ import itertools
 import json
 import math
 import warnings
+from typing import Any
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from hrtls.gait.walking_bouts import (
     UNDECIDED,
     WalkingBoutDetector,
     WalkingBoutParams,
+    WalkingBoutState,
     decide_chains,
     walking_bouts,
     walking_mask,
@@ -247,3 +249,15 @@ def test_real_mobgap_daily_life_walking_windows(shared_data) -> None:
     assert acc_w["bouts"] >= 0.9
     assert acc_w["bouts"] > acc_w["plain"] + 0.05
     assert n_steps["bouts"] <= n_steps["plain"]
+
+
+@pytest.mark.parametrize("data", [{"status": [], "complete_s": None, "t_last": None},
+                                  {"t": [1.0], "status": ["x"], "complete_s": None},
+                                  {"t": [1.0, 2.0], "status": [1]}])
+def test_bad_decision_states_name_their_class(data: dict[str, Any]) -> None:
+    from hrtls.gait.walk_steps import WalkStepState
+
+    with pytest.raises(InputError, match="WalkingBoutState"):
+        WalkingBoutState.from_dict(data)
+    with pytest.raises(InputError, match="WalkStepState"):
+        WalkStepState.from_dict(data)

@@ -177,7 +177,7 @@ def test_every_component_knob_reaches_its_component(tmp_path: Path,
         "[attitude.quat_ekf]\nacc_gate_m_s2 = 0.7\ngyro_bias_rad_s = [0.001, 0.0, 0.0]\n"
         "[prediction.step_scale]\ngain = 0.5\nmin_scale = 0.9\nmax_scale = 1.1\n"
         "min_baseline_m = 5.0\n"
-        "[prediction.random_walk]\nsigma_speed_m_s = 2.0\n"
+        "[prediction.random_walk]\nsigma_speed_m_per_sqrt_s = 2.0\n"
         "[rss]\nmin_distance_m = 1.5\n"
         "[rss.channel]\nforgetting = 0.99\neta_bounds = [1.5, 5.0]\n", encoding="utf-8")
     cfg = load_config(p)
@@ -190,7 +190,7 @@ def test_every_component_knob_reaches_its_component(tmp_path: Path,
     sc = tr.engine.scale.params
     assert (sc.gain, sc.min_scale, sc.max_scale, sc.min_baseline_m) == (0.5, 0.9, 1.1, 5.0)
     parts = tr.engine.parts
-    assert parts.random_walk.sigma_speed_m_s == 2.0
+    assert parts.random_walk.sigma_speed_m_per_sqrt_s == 2.0
     assert parts.channel_estimator is not None
     assert parts.channel_estimator.params.forgetting == 0.99
     assert tuple(parts.channel_estimator.params.eta_bounds) == (1.5, 5.0)
@@ -218,3 +218,22 @@ def test_bad_sub_table_key_is_named(tmp_path: Path, text: str, key: str) -> None
     p.write_text(text, encoding="utf-8")
     with pytest.raises(FormatError, match=key):
         load_config(p)
+
+
+@pytest.mark.parametrize("table", ["random_walk", "grid"])
+def test_renamed_diffusion_key_old_name_warns_new_name_reads(tmp_path: Path, table: str) -> None:
+    new = tmp_path / "new.toml"
+    new.write_text(f"[prediction.{table}]\nsigma_speed_m_per_sqrt_s = 2.5\n", encoding="utf-8")
+    old = tmp_path / "old.toml"
+    old.write_text(f"[prediction.{table}]\nsigma_speed_m_s = 2.5\n", encoding="utf-8")
+    cfg_new = load_config(new)
+    with pytest.warns(FutureWarning, match="sigma_speed_m_per_sqrt_s"):
+        cfg_old = load_config(old)
+    for cfg in (cfg_new, cfg_old):
+        assert getattr(cfg.prediction, table)["sigma_speed_m_per_sqrt_s"] == 2.5
+        assert "sigma_speed_m_s" not in getattr(cfg.prediction, table)
+    both = tmp_path / "both.toml"
+    both.write_text(f"[prediction.{table}]\nsigma_speed_m_s = 1.0\n"
+                    "sigma_speed_m_per_sqrt_s = 2.0\n", encoding="utf-8")
+    with pytest.raises(FormatError, match="sigma_speed_m_s"):
+        load_config(both)

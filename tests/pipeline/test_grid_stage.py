@@ -22,6 +22,11 @@ def test_rss_alone_runs_the_grid_one_row_per_scan(office: SimulationResult) -> N
     s = office.session.with_parts(**dict.fromkeys(NO_IMU))
     res = Tracker().run(s)
     assert any("grid filter" in n for n in res.report["notes"])
+    # without a start pose the note names the grid filter's start, not the anchors' centroid
+    unposed = s.with_parts(meta=s.meta.model_copy(update={"start_pose": None}))
+    notes = Tracker().run(unposed).report["notes"]
+    assert any("grid filter starts from the first scan" in n for n in notes)
+    assert not any("starting at the centroid" in n for n in notes)
     tr = res.trajectory
     assert s.rss is not None and s.truth is not None
     assert len(tr) <= int((s.rss.t[-1] - s.rss.t[0]) / 0.5) + 2   # one row per 0.5 s scan

@@ -76,6 +76,13 @@ def test_unknown_start_is_the_anchors_centroid_with_their_spread() -> None:
     off = preset("default").model_copy(update={
         "rss": preset("default").rss.model_copy(update={"mode": "off"})})
     assert build.unknown_start(off, lms, Notes()).sigma_xy_m == 0.5   # nothing places it
+    # without an IMU the grid stage publishes the rows: the note says so, the prior is the same
+    grid_notes = Notes()
+    grid_pose = build.unknown_start(preset("default"), lms, grid_notes, has_imu=False)
+    assert (grid_pose.x, grid_pose.y, grid_pose.sigma_xy_m) == (pose.x, pose.y, pose.sigma_xy_m)
+    assert any("grid filter starts from the first scan" in n for n in grid_notes.items)
+    assert not any("starting at the centroid" in n for n in grid_notes.items)
+    assert any("starting at the centroid of 4 anchors" in n for n in notes.items)
 
 
 @pytest.mark.realdata
@@ -96,6 +103,9 @@ def test_ble_track_without_start_pose_starts_among_the_anchors(shared_data) -> N
     tr = res.trajectory
     assert tr.cov_xy is not None
     _, err = position_errors(tr, s.truth)
+    notes = res.report["notes"]
+    assert any("grid filter starts from the first scan" in n for n in notes)
+    assert not any("starting at the centroid" in n for n in notes)
     # the first row is the first scan's estimate (grid filter), its spread covers the error
     assert err[0] < 3.0 * np.sqrt(np.trace(tr.cov_xy[0]) / 2.0)
     assert float(np.percentile(err, 75)) < 3.5

@@ -30,17 +30,18 @@ class RandomWalkParams:
 
     Attributes
     ----------
-    sigma_speed_m_s: horizontal, m/s (a walker: about 1 m/s).
+    sigma_speed_m_per_sqrt_s: horizontal diffusion, m/sqrt(s) (a walker: about 1).
     sigma_vertical_m_s: vertical, m/s.
     sigma_heading_rate_rad_s: heading, rad/s.
     """
 
-    sigma_speed_m_s: float = 1.0
+    sigma_speed_m_per_sqrt_s: float = 1.0
     sigma_vertical_m_s: float = 0.05
     sigma_heading_rate_rad_s: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("sigma_speed_m_s", "sigma_vertical_m_s", "sigma_heading_rate_rad_s"):
+        for name in ("sigma_speed_m_per_sqrt_s", "sigma_vertical_m_s",
+                     "sigma_heading_rate_rad_s"):
             finite_scalar(getattr(self, name), where=f"RandomWalkParams.{name}",
                           non_negative=True)
 
@@ -49,7 +50,7 @@ class RandomWalkParams:
         return to_record(RANDOM_WALK_DTYPE, self)
 
 
-RANDOM_WALK_DTYPE = np.dtype([("sigma_speed_m_s", np.float64),
+RANDOM_WALK_DTYPE = np.dtype([("sigma_speed_m_per_sqrt_s", np.float64),
                               ("sigma_vertical_m_s", np.float64),
                               ("sigma_heading_rate_rad_s", np.float64)])
 """Record of :class:`RandomWalkParams` for compiled code (same field names)."""
@@ -59,8 +60,8 @@ RANDOM_WALK_DTYPE = np.dtype([("sigma_speed_m_s", np.float64),
 def random_walk_covariance(prm: np.record, p: FloatArray, dt: float) -> None:
     # pragma: no cover - compiled
     """Grow the covariance ``p`` over ``dt`` seconds in place (``prm``: a random-walk record)."""
-    p[0, 0] += prm.sigma_speed_m_s ** 2 * dt
-    p[1, 1] += prm.sigma_speed_m_s ** 2 * dt
+    p[0, 0] += prm.sigma_speed_m_per_sqrt_s ** 2 * dt
+    p[1, 1] += prm.sigma_speed_m_per_sqrt_s ** 2 * dt
     p[2, 2] += prm.sigma_vertical_m_s ** 2 * dt
     p[3, 3] += prm.sigma_heading_rate_rad_s ** 2 * dt
 

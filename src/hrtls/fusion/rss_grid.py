@@ -6,8 +6,8 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
 ``margin_m``) and alternates, for every scan:
 
 * **motion**: the density is convolved with a Gaussian of standard deviation
-  ``sigma_speed_m_s sqrt(dt)`` per axis (a walker of unknown direction; separable, truncated at
-  3 sigma; mass that leaves the grid is dropped and the rest renormalised);
+  ``sigma_speed_m_per_sqrt_s sqrt(dt)`` per axis (a walker of unknown direction; separable,
+  truncated at 3 sigma; mass that leaves the grid is dropped and the rest renormalised);
 * **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
   log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
@@ -51,7 +51,7 @@ class GridParams:
     cell_m: grid cell size, m (larger when needed to keep within ``max_cells``).
     max_cells: most cells of the grid (the cost of a scan is cells x anchors heard).
     margin_m: grid extent beyond the anchors' bounding box, m.
-    sigma_speed_m_s: per-axis diffusion of the motion model, m/sqrt(s).
+    sigma_speed_m_per_sqrt_s: per-axis diffusion of the motion model, m/sqrt(s).
     scan_s: scan period: readings are grouped into windows of this length, s.
     average_s: causal window of the per-anchor mean RSS at a scan, s (>= scan_s).
     outlier_probability: weight ``e`` of the uniform outlier density.
@@ -62,7 +62,7 @@ class GridParams:
     cell_m: float = 0.25
     max_cells: int = 40_000
     margin_m: float = 2.0
-    sigma_speed_m_s: float = 1.5
+    sigma_speed_m_per_sqrt_s: float = 1.5
     scan_s: float = 0.5
     average_s: float = 2.0
     outlier_probability: float = 0.05
@@ -72,7 +72,7 @@ class GridParams:
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
-        for name in ("margin_m", "sigma_speed_m_s", "offset_gain", "offset_max_db",
+        for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
                      "outlier_probability"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
@@ -89,7 +89,7 @@ class GridParams:
 
 
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
-    "cell_m", "max_cells", "margin_m", "sigma_speed_m_s", "scan_s", "average_s",
+    "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
     "outlier_probability", "offset_gain", "offset_max_db")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
@@ -265,7 +265,7 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     for k in range(t.shape[0]):
         if started:
             dt = max(t[k] - t_prev, 0.0)
-            blur(density, prm.sigma_speed_m_s * math.sqrt(dt) / cell, tmp)
+            blur(density, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
         a, b = first[k], first[k] + count[k]
         log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, model,
                        prm.outlier_probability, ll)

@@ -100,3 +100,18 @@ def check_positive(value: float, name: str, *, zero_ok: bool = False) -> None:
     if not (np.isfinite(value) and (value > 0 or (zero_ok and value == 0))):
         raise InputError(f"{name} = {value}", where=name,
                          expected=f"a finite value {'>=' if zero_ok else '>'} 0")
+
+
+def decisions_from_dict(data: dict[str, Any], *, where: str
+                        ) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Step times ``t`` and their decisions ``status`` of a state's ``to_dict`` (checked)."""
+    try:
+        t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
+        st = np.asarray(data["status"], dtype=np.int64).reshape(-1)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"malformed state ({exc!r})", where=where,
+                         expected="a dict written by to_dict()") from None
+    if t.shape != st.shape:
+        raise InputError(f"{t.shape[0]} times, {st.shape[0]} decisions", where=where,
+                         expected="one decision per step")
+    return t, st

@@ -35,7 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
-from hrtls.gait._state import FloatArray, check_positive
+from hrtls.gait._state import FloatArray, check_positive, decisions_from_dict
+from hrtls.gait.chains import chain_starts
 
 __all__ = ["DROP", "KEEP", "UNDECIDED", "WalkStepParams", "WalkStepState", "add_steps",
            "forget_before", "step_status", "walk_steps"]
@@ -110,19 +111,14 @@ class WalkStepState:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> WalkStepState:
         """Inverse of :meth:`to_dict`."""
+        t, st = decisions_from_dict(data, where="WalkStepState")
         try:
-            t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
-            st = np.asarray(data["status"], dtype=np.int64).reshape(-1)
             tl = data["t_last"]
-            out = cls(t, st, -math.inf if tl is None else float(tl), int(data["n_steps"]),
-                      bool(data["confirmed"]), np.asarray(data["level"], dtype=np.float64))
+            return cls(t, st, -math.inf if tl is None else float(tl), int(data["n_steps"]),
+                       bool(data["confirmed"]), np.asarray(data["level"], dtype=np.float64))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed state ({exc!r})", where="WalkStepState",
                              expected="a dict written by to_dict()") from None
-        if t.shape != st.shape:
-            raise InputError(f"{t.shape[0]} times, {st.shape[0]} decisions",
-                             where="WalkStepState", expected="one decision per step")
-        return out
 
 
 def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
@@ -139,9 +135,11 @@ def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
     times = s.t.tolist()
     level = s.level.tolist()
     held = [i for i, v in enumerate(status) if v == UNDECIDED]
-    for te, peak in zip(np.asarray(t_end)[new].tolist(),
-                        np.asarray(acc_max_m_s2)[new].tolist(), strict=True):
-        if te - s.t_last > p.max_gap_s:   # a new walk: the held steps end their walk
+    t_new = np.asarray(t_end, dtype=np.float64)[new]
+    starts = chain_starts(t_new, max_gap_s=p.max_gap_s, t_before_s=s.t_last).tolist()
+    for te, peak, start in zip(t_new.tolist(), np.asarray(acc_max_m_s2)[new].tolist(), starts,
+                               strict=True):
+        if start:   # a new walk: the held steps end their walk
             for i in held:
                 status[i] = DROP
             held, level, s.n_steps, s.confirmed = [], [], 0, False

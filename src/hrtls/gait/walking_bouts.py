@@ -34,7 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
-from hrtls.gait._state import FloatArray, as_vector, check_positive
+from hrtls.gait._state import FloatArray, as_vector, check_positive, decisions_from_dict
+from hrtls.gait.chains import chain_runs
 
 BoolArray = NDArray[np.bool_]
 UNDECIDED = -1
@@ -102,16 +103,12 @@ class WalkingBoutState:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> WalkingBoutState:
         """Inverse of :meth:`to_dict`."""
+        t, st = decisions_from_dict(data, where="WalkingBoutState")
         try:
-            t = np.asarray(data["t"], dtype=np.float64).reshape(-1)
-            st = np.asarray(data["status"], dtype=np.int64).reshape(-1)
             c = data["complete_s"]
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError) as exc:
             raise InputError(f"malformed state ({exc!r})", where="WalkingBoutState",
                              expected="a dict written by to_dict()") from None
-        if t.shape != st.shape:
-            raise InputError(f"{t.shape[0]} times, {st.shape[0]} decisions",
-                             where="WalkingBoutState", expected="one decision per step")
         return cls(t, st, -math.inf if c is None else float(c))  # float("inf") reads "inf"
 
 
@@ -127,9 +124,7 @@ def decide_chains(t: FloatArray, status: NDArray[np.int64], complete_s: float, *
     n = t.shape[0]
     if n == 0:
         return out
-    brk = np.flatnonzero(np.diff(t) > max_gap_s) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [n]])
+    starts, ends = chain_runs(t, max_gap_s=max_gap_s)
     for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
         seg = out[a:b]
         if np.all(seg != UNDECIDED):
@@ -286,10 +281,8 @@ def walking_bouts(step_t: FloatArray, params: WalkingBoutParams | None = None
     if not yes.any():
         return yes, np.zeros((0, 2))
     ty = t[yes]
-    brk = np.flatnonzero(np.diff(ty) > p.max_gap_s) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [ty.size]]) - 1
-    return yes, np.column_stack([ty[starts], ty[ends]])
+    starts, ends = chain_runs(ty, max_gap_s=p.max_gap_s)
+    return yes, np.column_stack([ty[starts], ty[ends - 1]])
 
 
 __all__ = ["IN_BOUT", "NOT_IN_BOUT", "UNDECIDED", "WalkingBoutDetector", "WalkingBoutParams",

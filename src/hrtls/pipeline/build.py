@@ -250,14 +250,29 @@ def corrections(config: TrackerConfig, meta: SessionMeta, *, has_imu: bool,
     )
 
 
-def unknown_start(config: TrackerConfig, landmarks: dict[str, Landmark], notes: Notes
-                  ) -> StartPose:
+GRID_MIN_ANCHORS = 3
+"""Fewest positioned anchors the grid stage (:mod:`hrtls.pipeline.grid_stage`) runs with."""
+
+
+def grid_anchors(config: TrackerConfig, landmarks: dict[str, Landmark], *, has_imu: bool
+                 ) -> dict[str, Landmark]:
+    """The anchors of the grid stage; empty when the stage does not run for this session."""
+    anchors = {k: lm for k, lm in landmarks.items()
+               if lm.kind in ("anchor", "beacon") and lm.position is not None}
+    on = not has_imu and config.prediction.no_imu == "grid" and \
+        config.rss.mode != "off" and len(anchors) >= GRID_MIN_ANCHORS
+    return anchors if on else {}
+
+
+def unknown_start(config: TrackerConfig, landmarks: dict[str, Landmark], notes: Notes, *,
+                  has_imu: bool = True) -> StartPose:
     """The prior of a session without a start pose.
 
     With positioned anchors for an enabled RSS or range correction, the agent is somewhere
     among them: their centroid with a 1-sigma of their RMS spread (at least 1 m), so the
     infrastructure places it and the early rows show how little is known. Otherwise the
-    origin of the local frame with :class:`StartPose`'s default uncertainty.
+    origin of the local frame with :class:`StartPose`'s default uncertainty. ``has_imu``: when
+    False the grid stage may publish the rows instead (the note says which start is used).
     """
     kinds = (("anchor", "beacon") if config.rss.mode != "off" else ()) + \
         (("node",) if config.ranges.enabled else ())
@@ -267,9 +282,15 @@ def unknown_start(config: TrackerConfig, landmarks: dict[str, Landmark], notes: 
         return StartPose()
     centre = xy.mean(axis=0)
     spread = max(float(np.sqrt(np.mean(np.sum((xy - centre) ** 2, axis=1)))), 1.0)
-    notes.add(f"no start pose: starting at the centroid of {len(xy)} anchors "
-              f"({centre[0]:.1f}, {centre[1]:.1f}) m with 1-sigma {spread:.1f} m, until the "
-              "infrastructure places the agent")
+    prior = (f"the centroid of {len(xy)} anchors ({centre[0]:.1f}, {centre[1]:.1f}) m with "
+             f"1-sigma {spread:.1f} m")
+    if grid_anchors(config, landmarks, has_imu=has_imu):
+        notes.add(f"no start pose: the grid filter starts from the first scan's likelihood; "
+                  f"{prior} is the prior of the Kalman track, used only if the grid filter "
+                  "steps aside")
+    else:
+        notes.add(f"no start pose: starting at {prior}, until the infrastructure places the "
+                  "agent")
     return StartPose(x=float(centre[0]), y=float(centre[1]), sigma_xy_m=spread)
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import tomllib
+import warnings
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
@@ -44,10 +45,32 @@ def _adapter(params_type: type) -> TypeAdapter[Any]:
     return TypeAdapter(params_type)
 
 
+_RENAMED_KEYS: dict[type, dict[str, str]] = {
+    RandomWalkParams: {"sigma_speed_m_s": "sigma_speed_m_per_sqrt_s"},
+    GridParams: {"sigma_speed_m_s": "sigma_speed_m_per_sqrt_s"},
+}
+"""Old key -> new key of each parameter table (the old key still read, with a warning)."""
+
+
+def _renamed(params_type: type, value: dict[str, Any]) -> dict[str, Any]:
+    """``value`` with its deprecated keys under their new names (warns about each)."""
+    out = dict(value)
+    for old, new in _RENAMED_KEYS.get(params_type, {}).items():
+        if old not in out:
+            continue
+        if new in out:
+            raise ValueError(f"both {old!r} and {new!r} given (keep {new!r})")
+        warnings.warn(f"{params_type.__name__}: key {old!r} is deprecated, use {new!r}",
+                      FutureWarning, stacklevel=2)
+        out[new] = out.pop(old)
+    return out
+
+
 def _complete(params_type: type, value: object) -> dict[str, Any]:
     """Every field of ``params_type`` (defaults filled in), validated by the dataclass."""
     if not isinstance(value, dict):
         raise ValueError(f"a table of {params_type.__name__} keys expected")
+    value = _renamed(params_type, value)
     names = [f.name for f in dataclasses.fields(params_type) if f.init]
     unknown = sorted(set(value) - set(names))
     if unknown:

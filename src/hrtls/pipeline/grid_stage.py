@@ -23,12 +23,9 @@ from hrtls.data import Activity, Landmark, Session
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss_grid import GridParams, GridState, RssGridFilter, causal_scans
-from hrtls.pipeline.build import Notes
+from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.output import TrackRows
-
-MIN_ANCHORS = 3
-"""Fewer positioned anchors than this: no grid (the random walk is used)."""
 
 
 class GridStage:
@@ -62,11 +59,8 @@ class GridStage:
         ``t0``: first sample time (scan windows start there), s; ``z_m``: height of the rows.
         """
         params = params_of(GridParams, config.prediction.grid)
-        anchors = {k: lm for k, lm in landmarks.items()
-                   if lm.kind in ("anchor", "beacon") and lm.position is not None}
-        on = not has_imu and config.prediction.no_imu == "grid" and \
-            config.rss.mode != "off" and len(anchors) >= MIN_ANCHORS
-        stage = cls(anchors if on else {}, model=model, params=params, t0=t0, z_m=z_m,
+        anchors = grid_anchors(config, landmarks, has_imu=has_imu)
+        stage = cls(anchors, model=model, params=params, t0=t0, z_m=z_m,
                     notes=notes)
         if stage.filter is not None:
             notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "

@@ -180,7 +180,8 @@ class Tracker:
         self.meta = meta
         self.landmarks = _resolved(landmarks, meta)
         self.has_imu = s.has_imu
-        pose = meta.start_pose or build.unknown_start(cfg, self.landmarks, notes)
+        pose = meta.start_pose or build.unknown_start(cfg, self.landmarks, notes,
+                                                      has_imu=s.has_imu)
         # the agent is placed at the start pose's time; attitude and gait run from t0 so the
         # filters have converged by then, and earlier steps/observations are ignored for
         # position (counted in the notes at the end)
