@@ -232,9 +232,9 @@ class RssConfig(_Section):
     mode: Literal["off", "wls", "kalman", "tight"] = "tight"
     window_s: float = Field(default=2.0, gt=0.0, description="scan grouping window")
     average_s: float = Field(
-        default=4.0, ge=0.0, description="tight mode: mean RSS per beacon over windows of "
-        "this length before the update (readings of one beacon share their shadowing, so "
-        "each one as an independent update overweights the beacon); 0 = every reading")
+        default=0.0, ge=0.0, description="tight mode: mean RSS per beacon over windows of "
+        "this length before the update (readings of one beacon share their shadowing); "
+        "0 = every reading")
     estimate_channel: bool = True
     sensitivity_dbm: float = -100.0
     use_wls_covariance: bool = True
