@@ -9,10 +9,10 @@ position: the planner never sees the simulator's truth. :func:`next_waypoint` th
    node lies in every disc ``|q - a_i| <= r_i + 3 s_i`` of its readings (an NLOS range is only
    longer); the agent goes to the feasible point nearest to it that is at least ``new_view_m``
    from every reading position, so the next ranges come from a new direction (or rule the point
-   out); the nearest such node first;
+   out); the nearest such node first, none farther than ``heard_reach_m`` from the agent;
 2. for a localized node whose largest position sigma exceeds ``target_sigma_m``: its estimate
    (ranges from close and from a new side);
-3. otherwise exploration: the candidate farthest from every agent's estimated track (where
+3. otherwise (or first, while a gap wider than ``explore_gap_m`` is left) exploration: the candidate farthest from every agent's estimated track (where
    unheard nodes may be), less ``explore_distance_weight`` times its distance from the agent.
 
 A node is targeted at most ``max_visits_per_node`` times (the caller keeps ``visits``).
@@ -39,6 +39,9 @@ class WaypointParams:
     new_view_m: float = 3.0
     max_visits_per_node: int = 3
     explore_distance_weight: float = 0.2
+    heard_reach_m: float = float("inf")
+    explore_gap_m: float = 6.0
+    """Explore first while some candidate is farther than this from every agent's track."""
     max_readings: int = 60
     """Readings of a node used for its feasible set (the latest ones)."""
 
@@ -104,7 +107,7 @@ def _heard_choice(inp: PlannerInput, candidates_m: FloatArray, visits: dict[str,
         pts = candidates_m[feasible]
         dist = np.hypot(*(pts - inp.agent_m).T)
         i = int(np.argmin(dist))
-        if best is None or dist[i] < best[0]:
+        if dist[i] <= prm.heard_reach_m and (best is None or dist[i] < best[0]):
             best = (float(dist[i]), node, pts[i])
     return None if best is None else Choice(best[2], "heard", best[1])
 
@@ -116,6 +119,9 @@ def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[s
     if len(candidates_m) == 0:
         raise InputError("no candidate way points", where="next_waypoint",
                          expected="reachable points of the floor plan")
+    explore = _explore_choice(inp, candidates_m, prm)
+    if explore[1] > prm.explore_gap_m:
+        return explore[0]
     heard = _heard_choice(inp, candidates_m, visits, prm)
     if heard is not None:
         return heard
@@ -126,10 +132,17 @@ def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[s
     if wide:
         _, node, p = min(wide, key=lambda w: w[0])
         return Choice(np.asarray(p, dtype=np.float64), "refine", node)
+    return explore[0]
+
+
+def _explore_choice(inp: PlannerInput, candidates_m: FloatArray,
+                    prm: WaypointParams) -> tuple[Choice, float]:
+    """The exploration way point and its distance from every agent's track, m."""
     if len(inp.tracks_m):
         gap = np.min(np.linalg.norm(candidates_m[:, None, :] - inp.tracks_m[None, ::10], axis=2),
                      axis=1)
     else:
         gap = np.zeros(len(candidates_m))
     score = gap - prm.explore_distance_weight * np.hypot(*(candidates_m - inp.agent_m).T)
-    return Choice(candidates_m[int(np.argmax(score))].copy(), "explore", "")
+    i = int(np.argmax(score))
+    return Choice(candidates_m[i].copy(), "explore", ""), float(gap[i])

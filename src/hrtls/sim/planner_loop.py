@@ -1,7 +1,7 @@
 """Closed loop of a planner-driven robot: mission tracker <-> planner <-> simulator (issue 18).
 
-Period by period (the tracker's ``chunk_s``): the :class:`~hrtls.mission.tracker.MissionTracker`
-processes every agent's data up to now; the robot's estimated position is its tracker's last row
+Every ``control_period_s``: the :class:`~hrtls.mission.tracker.MissionTracker`
+processes every complete window of ``chunk_s`` up to now; the robot's estimated position is its tracker's last row
 moved on by the robot's own odometry since that row (``p = p_row + R(psi) (o_now - o_row)``,
 the odometry-frame rotation ``psi`` of :mod:`hrtls.mission.robot`); every ``plan_period_s``, or
 when the estimate reaches the way point, :func:`hrtls.mission.waypoints.next_waypoint` picks the
@@ -34,6 +34,8 @@ class LoopParams:
     """Closed-loop settings: planning period, s, and the planner's parameters."""
 
     plan_period_s: float = 15.0
+    control_period_s: float = 1.0
+    """The robot's position estimate is checked against its way point this often."""
     waypoints: WaypointParams = field(default_factory=WaypointParams)
     mission: MissionParams = field(default_factory=MissionParams)
 
@@ -91,7 +93,7 @@ def drive_robot(name: str, robot: DrivenRobot, rescuers: dict[str, Session], *,
                 visits[c.node] = visits.get(c.node, 0) + 1
             target, planned_s = c.position_m, robot.t_s
             choices.append((robot.t_s, c))
-        until = min(end_s, robot.t_s + mp.chunk_s)
+        until = min(end_s, robot.t_s + prm.control_period_s)
         part = robot.drive(estimate_m=est, target_m=target, until_s=until)
         parts.append(part)
         assert part.fixes is not None
