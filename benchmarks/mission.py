@@ -217,7 +217,8 @@ def main() -> None:
                           robot_driver=args.robot_driver)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
-            "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [], "n1": []}
+            "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
+            "n1": []}
         for m in ("off", "on")}
     nees_all: dict[str, list[float]] = {"off": [], "on": []}
     t0 = time.perf_counter()

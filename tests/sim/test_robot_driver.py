@@ -11,7 +11,7 @@ from shapely.geometry import Point, box
 from shapely.ops import unary_union
 
 from hrtls.data.session import SessionMeta, StartPose
-from hrtls.mission.waypoints import PlannerInput, next_waypoint, planner_input
+from hrtls.mission.waypoints import PlannerInput, WaypointParams, next_waypoint, planner_input
 from hrtls.sim.infrastructure import RangeModel
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 from hrtls.sim.robot_driver import CorridorRouter, DrivenRobot
@@ -69,7 +69,7 @@ def test_odometry_parts_continue_one_another() -> None:
 def test_planner_input_is_built_from_the_tracker_and_the_estimate_only() -> None:
     params = list(inspect.signature(planner_input).parameters)
     assert params == ["tracker", "agent_m"]
-    assert {f for f in PlannerInput.__dataclass_fields__} == {
+    assert set(PlannerInput.__dataclass_fields__) == {
         "agent_m", "localized", "heard", "tracks_m"}
 
 
@@ -98,12 +98,19 @@ def test_refine_goes_to_a_wide_localized_node_and_explore_to_the_gap() -> None:
                        localized={"A": (np.array([5.0, 0.0]), np.eye(2) * 0.01),
                                   "B": (np.array([15.0, 0.0]), np.eye(2) * 1.0)},
                        heard={}, tracks_m=np.array([[0.0, 0.0], [10.0, 0.0]]))
-    c = next_waypoint(inp, candidates_m=grid, visits={})
+    refine_first = WaypointParams(explore_gap_m=float("inf"))
+    c = next_waypoint(inp, candidates_m=grid, visits={}, params=refine_first)
     assert (c.kind, c.node) == ("refine", "B")
     np.testing.assert_allclose(c.position_m, [15.0, 0.0])
-    c = next_waypoint(inp, candidates_m=grid, visits={"B": 3})
+    c = next_waypoint(inp, candidates_m=grid, visits={"B": 3}, params=refine_first)
     assert c.kind == "explore"
     np.testing.assert_allclose(c.position_m, [20.0, 0.0])
+    # (20, 0) is 10 m from every track, wider than the default 6 m gap: explored first
+    c = next_waypoint(inp, candidates_m=grid, visits={})
+    assert c.kind == "explore"
+    # a 5 m gap (tracks to 15 m) is narrower: the wide node again
+    near = PlannerInput(inp.agent_m, inp.localized, {}, np.array([[0.0, 0.0], [15.0, 0.0]]))
+    assert next_waypoint(near, candidates_m=grid, visits={}).node == "B"
 
 
 @pytest.fixture(scope="module")

@@ -12,8 +12,9 @@ position: the planner never sees the simulator's truth. :func:`next_waypoint` th
    out); the nearest such node first, none farther than ``heard_reach_m`` from the agent;
 2. for a localized node whose largest position sigma exceeds ``target_sigma_m``: its estimate
    (ranges from close and from a new side);
-3. otherwise (or first, while a gap wider than ``explore_gap_m`` is left) exploration: the candidate farthest from every agent's estimated track (where
-   unheard nodes may be), less ``explore_distance_weight`` times its distance from the agent.
+3. otherwise, or first while a gap wider than ``explore_gap_m`` is left, exploration: the
+   candidate farthest from every agent's estimated track (where unheard nodes may be), less
+   ``explore_distance_weight`` times its distance from the agent.
 
 A node is targeted at most ``max_visits_per_node`` times (the caller keeps ``visits``).
 """
@@ -58,7 +59,7 @@ class PlannerInput:
 
     ``localized``: node -> (position, covariance); ``heard``: unlocalized node -> (reading
     positions ``(k, 2)``, ranges, range sigmas including the reading agent's position sigma);
-    ``tracks_m``: every agent's estimated positions so far ``(m, 2)``.
+    ``tracks_m``: every agent's estimated positions so far (every 10th row) ``(m, 2)``.
     """
 
     agent_m: FloatArray
@@ -87,7 +88,7 @@ def planner_input(tracker: MissionTracker, *, agent_m: FloatArray) -> PlannerInp
         xy, cov = np.asarray(rd.xy), np.asarray(rd.cov)
         s = np.sqrt(np.asarray(rd.s) ** 2 + np.trace(cov, axis1=1, axis2=2))
         heard[k] = (xy, np.asarray(rd.r), s)
-    rows = [tr.estimates_since().xyz[:, :2] for name, tr in tracker.trackers.items()
+    rows = [tr.estimates_since().xyz[::10, :2] for name, tr in tracker.trackers.items()
             if name in tracker.started]
     tracks = np.vstack(rows) if rows else np.zeros((0, 2))
     return PlannerInput(np.asarray(agent_m, dtype=np.float64), localized, heard, tracks)
@@ -139,7 +140,7 @@ def _explore_choice(inp: PlannerInput, candidates_m: FloatArray,
                     prm: WaypointParams) -> tuple[Choice, float]:
     """The exploration way point and its distance from every agent's track, m."""
     if len(inp.tracks_m):
-        gap = np.min(np.linalg.norm(candidates_m[:, None, :] - inp.tracks_m[None, ::10], axis=2),
+        gap = np.min(np.linalg.norm(candidates_m[:, None, :] - inp.tracks_m[None], axis=2),
                      axis=1)
     else:
         gap = np.zeros(len(candidates_m))

@@ -1,7 +1,7 @@
 """Closed loop of a planner-driven robot: mission tracker <-> planner <-> simulator (issue 18).
 
-Every ``control_period_s``: the :class:`~hrtls.mission.tracker.MissionTracker`
-processes every complete window of ``chunk_s`` up to now; the robot's estimated position is its tracker's last row
+Every ``control_period_s``: the :class:`~hrtls.mission.tracker.MissionTracker` processes every
+complete window of ``chunk_s`` up to now; the robot's estimated position is its tracker's last row
 moved on by the robot's own odometry since that row (``p = p_row + R(psi) (o_now - o_row)``,
 the odometry-frame rotation ``psi`` of :mod:`hrtls.mission.robot`); every ``plan_period_s``, or
 when the estimate reaches the way point, :func:`hrtls.mission.waypoints.next_waypoint` picks the

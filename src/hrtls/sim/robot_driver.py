@@ -61,7 +61,8 @@ class CorridorRouter:
         self.inner = free_space.buffer(-margin_m)
         shapely.prepare(self.inner)
         nodes, graph = _free_space_graph(self.inner, grid_m)
-        part = sorted(max(nx.connected_components(graph), key=len))
+        parts: list[set[int]] = [set(c) for c in nx.connected_components(graph)]
+        part = sorted(parts[int(np.argmax([len(c) for c in parts]))])
         self.graph = graph.subgraph(part)
         self.nodes = nodes
         self.index = np.asarray(part, dtype=np.int64)
@@ -102,7 +103,7 @@ class DrivenRobot:
         self.rng = rng
         self.t_s = start_t_s
         self.xy_m = np.asarray(start_xy_m, dtype=np.float64)
-        self.heading_rad = float(meta.start_pose.heading) if meta.start_pose else 0.0
+        self.heading_rad = float(meta.start_pose.heading or 0.0) if meta.start_pose else 0.0
         self.odo_m = self.xy_m.copy()
         self.odo_heading_err_rad = 0.0
         self.odo_scale = 1.0 + rng.normal(0.0, self.params.odometry_scale_sigma)
@@ -143,7 +144,7 @@ class DrivenRobot:
             raise InputError(f"until {until_s} s", where="DrivenRobot.drive",
                              expected=f"at least one odometry period after {self.t_s} s")
         xy, heading, speed = self._true_motion(np.asarray(estimate_m), np.asarray(target_m), n)
-        t = self.t_s + dt * np.arange(1, n + 1)
+        t = np.asarray(self.t_s + dt * np.arange(1, n + 1), dtype=np.float64)
         step = np.diff(np.vstack([self.xy_m[None], xy]), axis=0)
         odo = self._odometry(step)
         travelled = self.travelled_m + np.cumsum(np.hypot(*step.T))
