@@ -13,7 +13,10 @@ location messages, ranges to node ids); the nodes' true positions are in :class:
 for scoring only. ``n_robots`` robots (default none) enter ``stagger_s / 2`` after the first
 rescuer and drive random corridor routes at about 0.5 m/s; a robot's session holds its wheel
 odometry poses (:func:`hrtls.sim.team.odometry_poses`, 5 Hz) and its ranges to the nodes (the
-same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. One floor only (the
+same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
+``robot_driver="planner"`` the robots are instead driven in closed loop by the way-point planner
+on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
+unchanged). One floor only (the
 issue's two floors are not simulated here).
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
