@@ -146,3 +146,19 @@ def test_unknown_robot_driver_is_refused() -> None:
     from hrtls.errors import InputError
     with pytest.raises(InputError, match="robot_driver"):
         MissionOptions(robot_driver="teleport")
+
+
+def test_loop_estimate_reads_the_odometry_not_the_true_pose() -> None:
+    from hrtls.mission.tracker import AgentHeader, MissionTracker
+    from hrtls.sim.planner_loop import _estimate
+
+    robot = _robot((1.5, 1.5), seed=4)
+    part = robot.drive(estimate_m=robot.xy_m, target_m=np.array([15.0, 1.5]), until_s=4.0)
+    assert part.fixes is not None
+    tracker = MissionTracker({"B1": AgentHeader(robot.meta)}, kinds={"B1": "robot"})
+    before = _estimate(tracker, "B1", robot, [part.fixes])
+    robot.xy_m = np.array([100.0, -50.0])  # the truth moved: the estimate must not follow
+    after = _estimate(tracker, "B1", robot, [part.fixes])
+    np.testing.assert_array_equal(before, after)
+    # before the tracker's first row: start pose plus the odometry's displacement
+    np.testing.assert_allclose(before, [1.5, 1.5] + part.fixes.xyz[-1, :2] - [1.5, 1.5])
