@@ -199,6 +199,8 @@ def main() -> None:
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--range-sigma-fraction", type=float, default=0.0,
                     help="range noise proportional to the distance (0.02: the issue's 2 %%)")
+    ap.add_argument("--robot-driver", choices=("random", "planner"), default="random",
+                    help="robots on random routes or driven in closed loop by the planner")
     ap.add_argument("--node-failure", type=float, default=0.0)
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
@@ -211,10 +213,12 @@ def main() -> None:
     opts = MissionOptions(n_rescuers=args.rescuers, n_robots=args.robots, n_nodes=args.nodes,
                           range_sigma_m=args.range_sigma_m,
                           range_sigma_fraction=args.range_sigma_fraction,
-                          node_failure_fraction=args.node_failure, walk_s=args.walk_s)
+                          node_failure_fraction=args.node_failure, walk_s=args.walk_s,
+                          robot_driver=args.robot_driver)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
-            "rmse_true": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [], "n1": []}
+            "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
+            "n1": []}
         for m in ("off", "on")}
     nees_all: dict[str, list[float]] = {"off": [], "on": []}
     t0 = time.perf_counter()
@@ -234,6 +238,7 @@ def main() -> None:
             r["anees"].append(m.anees)
             r["rmse"].append(m.rmse)
             r["rmse_true"].append(m.rmse_true_agents)
+            r["robot_p90"].append(m.robot_p90)
             r["w0"].append(m.window_ms[0])
             r["w1"].append(m.window_ms[1])
             r["a0"].append(m.agent_ms[0])
@@ -245,7 +250,8 @@ def main() -> None:
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
-    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots, "
+    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots "
+          f"({args.robot_driver} driver), "
           f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
@@ -254,8 +260,8 @@ def main() -> None:
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     print("| cooperation | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
           "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) "
-          "| node RMSE from true agent positions, m |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| node RMSE from true agent positions, m | robot error p90, m |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for mode in ("off", "on"):
         r = rows[mode]
         n = len(nees_all[mode])
@@ -263,7 +269,7 @@ def main() -> None:
         nees = f"{np.mean(nees_all[mode]):.2f} ({lo:.2f}-{hi:.2f}, n={n})" if n else "-"
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
               f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} "
-              f"| {_stats(r['rmse_true'])} |")
+              f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} |")
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
     print("| cooperation | window | agents (trackers + collection) | node re-estimation |")
     print("|---|---|---|---|")

@@ -13,7 +13,10 @@ location messages, ranges to node ids); the nodes' true positions are in :class:
 for scoring only. ``n_robots`` robots (default none) enter ``stagger_s / 2`` after the first
 rescuer and drive random corridor routes at about 0.5 m/s; a robot's session holds its wheel
 odometry poses (:func:`hrtls.sim.team.odometry_poses`, 5 Hz) and its ranges to the nodes (the
-same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. One floor only (the
+same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
+``robot_driver="planner"`` the robots are instead driven in closed loop by the way-point planner
+on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
+unchanged). One floor only (the
 issue's two floors are not simulated here).
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
@@ -42,7 +45,7 @@ from hrtls.errors import InputError
 from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
-from hrtls.sim.motion_truth import random_floorplan_walk, simulate_motion
+from hrtls.sim.motion_truth import MotionTruth, random_floorplan_walk, simulate_motion
 from hrtls.sim.person import Infrastructure, simulate_person
 from hrtls.sim.scenario_options import scenario_rngs
 from hrtls.sim.simulation_result import SimulationResult
@@ -73,8 +76,14 @@ class MissionOptions:
     max_range_m: float = 10.0
     nlos_bias_mean_m: float = 1.0
     node_failure_fraction: float = 0.0
+    robot_driver: str = "random"
+    """``random``: fixed random corridor routes; ``planner``: driven in closed loop by the
+    way-point planner on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`)."""
 
     def __post_init__(self) -> None:
+        if self.robot_driver not in ("random", "planner"):
+            raise InputError(f"robot_driver = {self.robot_driver!r}", where="MissionOptions",
+                             expected="random or planner")
         if self.n_robots < 0:
             raise InputError(f"{self.n_robots} robots", where="MissionOptions", expected=">= 0")
         if self.n_rescuers < 1 or self.n_nodes < 1:
@@ -145,9 +154,13 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         agents[f"R{i + 1}"] = dataclasses.replace(sim.session, landmarks=known)
         sims[f"R{i + 1}"] = sim
     kinds: dict[str, Literal["rescuer", "robot"]] = dict.fromkeys(agents, "rescuer")
+    rescuers = dict(agents)
     for i in range(o.n_robots):
         name = f"B{i + 1}"
-        agents[name], sims[name] = _robot(seed, i, o, alive, model)
+        if o.robot_driver == "planner":
+            agents[name], sims[name] = _driven_robot(seed, i, o, alive, model, rescuers)
+        else:
+            agents[name], sims[name] = _robot(seed, i, o, alive, model)
         kinds[name] = "robot"
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
@@ -180,6 +193,50 @@ def _robot(seed: int, i: int, o: MissionOptions, nodes: dict[str, tuple[float, f
         true_steps=StepEvents(z, z, z, z, z, np.zeros(0, dtype=np.int64), z, z, z),
         activity_t=motion.t, activity=moving.astype(np.int64), motion=motion,
         description=f"hybrid mission, robot {i + 1} of {o.n_robots} (wheel odometry)")
+
+
+def _robot_meta(seed: int, i: int, xy: tuple[float, float], heading_rad: float) -> SessionMeta:
+    return SessionMeta(start_pose=StartPose(x=xy[0], y=xy[1], z=0.0, heading=heading_rad,
+                                            sigma_xy_m=0.1, sigma_heading_rad=0.02),
+                       source={"format": "hrtls-sim", "scenario": "inderst_hybrid_mission",
+                               "seed": seed, "robot": i},
+                       notes=["robot wheel odometry poses (fixes.csv) and ranges to nodes"])
+
+
+def _robot_result(seed: int, i: int, o: MissionOptions, session: Session,
+                  motion: MotionTruth | None) -> SimulationResult:
+    assert session.truth is not None
+    t = session.truth.t
+    speed = np.concatenate([[0.0], np.hypot(*np.diff(session.truth.xyz[:, :2], axis=0).T)
+                            / np.maximum(np.diff(t), 1e-9)])
+    z = np.zeros(0)
+    moving = np.where(speed > 0.05, int(Activity.WALKING), int(Activity.STANDING))
+    return SimulationResult(
+        scenario="inderst_hybrid_mission", seed=seed, options={"robot": i}, session=session,
+        true_steps=StepEvents(z, z, z, z, z, np.zeros(0, dtype=np.int64), z, z, z),
+        activity_t=t, activity=moving.astype(np.int64), motion=motion,
+        description=f"hybrid mission, robot {i + 1} of {o.n_robots} (wheel odometry, "
+                    f"{o.robot_driver} driver)")
+
+
+def _driven_robot(seed: int, i: int, o: MissionOptions,
+                  nodes: dict[str, tuple[float, float, float]], model: RangeModel,
+                  rescuers: dict[str, Session]) -> tuple[Session, SimulationResult]:
+    """Robot ``i`` driven by the planner in closed loop (:mod:`hrtls.sim.planner_loop`)."""
+    from hrtls.sim.planner_loop import drive_robot
+    from hrtls.sim.robot_driver import CorridorRouter, DrivenRobot, DriverParams
+
+    rr = scenario_rngs(seed * 1000 + 500 + 17 * (i + 1))
+    prm = DriverParams()
+    t0 = 3.0 + (i + 0.5) * o.stagger_s
+    robot = DrivenRobot(meta=_robot_meta(seed, i, ENTRANCE_XY, np.pi / 2),
+                        start_xy_m=np.array(ENTRANCE_XY), start_t_s=t0, nodes=nodes,
+                        model=model, rng=rr[1],
+                        router=CorridorRouter(FREE_SPACE, grid_m=prm.grid_m,
+                                              margin_m=prm.margin_m),
+                        params=prm)
+    out = drive_robot(f"B{i + 1}", robot, rescuers, end_s=t0 + o.walk_s)
+    return out.session, _robot_result(seed, i, o, out.session, None)
 
 
 def mission_summary(mission: Mission) -> dict[str, Any]:

@@ -1,0 +1,149 @@
+"""Way points for a mission agent from the mission tracker's current state (issue 18).
+
+:func:`planner_input` reads only a :class:`~hrtls.mission.tracker.MissionTracker` (its node
+estimates, the node readings it keeps, every agent's estimated track) and the agent's estimated
+position: the planner never sees the simulator's truth. :func:`next_waypoint` then picks, among
+``candidates_m`` (reachable points of the floor plan, map knowledge), in this order:
+
+1. for a node heard but not localized (the thesis' candidate visit, Sec. 5.3, Fig. 5.3): the
+   node lies in every disc ``|q - a_i| <= r_i + 3 s_i`` of its readings (an NLOS range is only
+   longer); the agent goes to the feasible point nearest to it that is at least ``new_view_m``
+   from every reading position, so the next ranges come from a new direction (or rule the point
+   out); the nearest such node first, none farther than ``heard_reach_m`` from the agent;
+2. for a localized node whose largest position sigma exceeds ``target_sigma_m``: its estimate
+   (ranges from close and from a new side);
+3. otherwise, or first while a gap wider than ``explore_gap_m`` is left, exploration: the
+   candidate farthest from every agent's estimated track (where unheard nodes may be), less
+   ``explore_distance_weight`` times its distance from the agent.
+
+A node is targeted at most ``max_visits_per_node`` times (the caller keeps ``visits``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.errors import InputError
+from hrtls.mission.tracker import MissionTracker
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class WaypointParams:
+    """Parameters of :func:`next_waypoint` (lengths m)."""
+
+    target_sigma_m: float = 0.25
+    new_view_m: float = 3.0
+    max_visits_per_node: int = 3
+    explore_distance_weight: float = 0.2
+    heard_reach_m: float = float("inf")
+    explore_gap_m: float = 6.0
+    """Explore first while some candidate is farther than this from every agent's track."""
+    max_readings: int = 60
+    """Readings of a node used for its feasible set (the latest ones)."""
+
+    def __post_init__(self) -> None:
+        if not (self.target_sigma_m > 0 and self.new_view_m >= 0 and self.max_visits_per_node >= 1
+                and self.max_readings >= 1):
+            raise InputError("invalid way-point parameters", where="WaypointParams",
+                             expected="sigma > 0, distance >= 0, visits and readings >= 1")
+
+
+@dataclass(frozen=True, eq=False)
+class PlannerInput:
+    """What the planner knows: estimates only (module doc).
+
+    ``localized``: node -> (position, covariance); ``heard``: unlocalized node -> (reading
+    positions ``(k, 2)``, ranges, range sigmas including the reading agent's position sigma);
+    ``tracks_m``: every agent's estimated positions so far (every 10th row) ``(m, 2)``.
+    """
+
+    agent_m: FloatArray
+    localized: dict[str, tuple[FloatArray, FloatArray]]
+    heard: dict[str, tuple[FloatArray, FloatArray, FloatArray]]
+    tracks_m: FloatArray
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A way point and why: ``kind`` is ``heard``, ``refine`` or ``explore``; ``node`` or ''."""
+
+    position_m: FloatArray
+    kind: str
+    node: str
+
+
+def planner_input(tracker: MissionTracker, *, agent_m: FloatArray) -> PlannerInput:
+    """The planner's input from the tracker's state and the agent's estimated position."""
+    localized = {k: (e.position_m, e.covariance_m2) for k, e in tracker.estimates.items()
+                 if e.localized}
+    heard: dict[str, tuple[FloatArray, FloatArray, FloatArray]] = {}
+    for k, rd in tracker.readings.items():
+        if k in localized or not rd.r:
+            continue
+        xy, cov = np.asarray(rd.xy), np.asarray(rd.cov)
+        s = np.sqrt(np.asarray(rd.s) ** 2 + np.trace(cov, axis1=1, axis2=2))
+        heard[k] = (xy, np.asarray(rd.r), s)
+    rows = [tr.estimates_since().xyz[::10, :2] for name, tr in tracker.trackers.items()
+            if name in tracker.started]
+    tracks = np.vstack(rows) if rows else np.zeros((0, 2))
+    return PlannerInput(np.asarray(agent_m, dtype=np.float64), localized, heard, tracks)
+
+
+def _heard_choice(inp: PlannerInput, candidates_m: FloatArray, visits: dict[str, int],
+                  prm: WaypointParams) -> Choice | None:
+    best: tuple[float, str, FloatArray] | None = None
+    for node, (a, r, s) in sorted(inp.heard.items()):
+        if visits.get(node, 0) >= prm.max_visits_per_node:
+            continue
+        a, r, s = a[-prm.max_readings:], r[-prm.max_readings:], s[-prm.max_readings:]
+        d = np.linalg.norm(candidates_m[:, None, :] - a[None], axis=2)
+        feasible = np.all(d <= r + 3.0 * s, axis=1) & np.all(d >= prm.new_view_m, axis=1)
+        if not feasible.any():
+            continue
+        pts = candidates_m[feasible]
+        dist = np.hypot(*(pts - inp.agent_m).T)
+        i = int(np.argmin(dist))
+        if dist[i] <= prm.heard_reach_m and (best is None or dist[i] < best[0]):
+            best = (float(dist[i]), node, pts[i])
+    return None if best is None else Choice(best[2], "heard", best[1])
+
+
+def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[str, int],
+                  params: WaypointParams | None = None) -> Choice:
+    """The agent's next way point (module doc); ``visits`` counts the nodes already targeted."""
+    prm = params or WaypointParams()
+    if len(candidates_m) == 0:
+        raise InputError("no candidate way points", where="next_waypoint",
+                         expected="reachable points of the floor plan")
+    explore = _explore_choice(inp, candidates_m, prm)
+    if explore[1] > prm.explore_gap_m:
+        return explore[0]
+    heard = _heard_choice(inp, candidates_m, visits, prm)
+    if heard is not None:
+        return heard
+    wide = [(float(np.hypot(*(p - inp.agent_m))), k, p) for k, (p, c) in
+            sorted(inp.localized.items())
+            if np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0)) > prm.target_sigma_m
+            and visits.get(k, 0) < prm.max_visits_per_node]
+    if wide:
+        _, node, p = min(wide, key=lambda w: w[0])
+        return Choice(np.asarray(p, dtype=np.float64), "refine", node)
+    return explore[0]
+
+
+def _explore_choice(inp: PlannerInput, candidates_m: FloatArray,
+                    prm: WaypointParams) -> tuple[Choice, float]:
+    """The exploration way point and its distance from every agent's track, m."""
+    if len(inp.tracks_m):
+        gap = np.min(np.linalg.norm(candidates_m[:, None, :] - inp.tracks_m[None], axis=2),
+                     axis=1)
+    else:
+        gap = np.zeros(len(candidates_m))
+    score = gap - prm.explore_distance_weight * np.hypot(*(candidates_m - inp.agent_m).T)
+    i = int(np.argmax(score))
+    return Choice(candidates_m[i].copy(), "explore", ""), float(gap[i])
