@@ -51,6 +51,7 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
+from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -255,6 +256,7 @@ class MissionTracker:
         self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
         self._contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
+        self.peers = PeerUses()
         for k, a in agents.items():
             if isinstance(a, Session):
                 self.feed(k, a, now_s=now_s)
@@ -410,8 +412,9 @@ class MissionTracker:
             part = self._part(name, t_start, t_end)
             if part is None:
                 continue
-            use, keep = self._split_ranges(i, part.ranges)
-            self.trackers[name].update(part.with_parts(ranges=use))
+            rest, peer = split_peer_ranges(self, i, part.ranges)
+            use, keep = self._split_ranges(i, rest)
+            self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
             if keep is not None:
                 touched |= self._collect(i, name, keep)
             self._trim_rows(name, t_end)
