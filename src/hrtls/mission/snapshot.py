@@ -183,7 +183,8 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     mt._pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
     mt._contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
-    mt.peers = PeerUses({(int(i), n): (float(t), int(c)) for i, n, t, c in d["peer_use"]})
+    mt.peers = PeerUses({(int(i), n): (float(t), int(c))
+                         for i, n, t, c in d.get("peer_use", [])})
 
 
 def mission_snapshot(mt: Any) -> bytes:

@@ -51,8 +51,8 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
-from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
