@@ -131,3 +131,21 @@ def test_peer_ranges_on_a_seed_lower_the_rescuers_error_without_blowing_nees(mis
     print(out)
     assert out["on"][1] < 2.0 * out["off"][1] + 2.0
     assert out["on"][0] < out["off"][0] + 0.05
+
+
+def test_cli_simulate_writes_peer_ranges_and_mission_track_reads_them(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+    from hrtls.io.tables import read_trajectory
+
+    root = tmp_path / "m"
+    res = CliRunner().invoke(app, ["simulate", "inderst_hybrid_mission", "-o", str(root),
+                                   "--seed", "3", "-O", "peer_ranges=true", "-O", "walk_s=40",
+                                   "-O", "stagger_s=5", "-O", "n_nodes=5"])
+    assert res.exit_code == 0, res.output
+    text = (root / "agents" / "R1" / "ranges.csv").read_text()
+    assert ",R2," in text
+    res = CliRunner().invoke(app, ["mission", "track", str(root), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert len(read_trajectory(tmp_path / "out" / "agents" / "R1" / "trajectory.csv").t) > 10
