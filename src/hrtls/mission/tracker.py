@@ -33,7 +33,8 @@ second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
 the agent's filter is decided here).
-With ``cooperate=False`` no node is ever given to an agent (each agent alone).
+With ``cooperate=False`` no node is ever given to an agent (each agent alone). Ranges to
+other agents (node id = an agent's name) go to :mod:`hrtls.mission.peers` (with cooperation).
 """
 
 from __future__ import annotations
