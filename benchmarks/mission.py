@@ -15,6 +15,9 @@ only) and prints, over the seeds, mean / p90 / worst of:
   collection, ``_collect``: flat when the per-agent cost does not grow with the mission's length)
   and the node re-estimation (grows with the readings of the nodes in range).
 
+``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
+(``MissionOptions.peer_ranges``, the rest of the mission identical).
+
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
     python benchmarks/mission.py --seeds 100-129 [--engine local|ray] [--workers N]
@@ -93,6 +96,13 @@ class SeedItem:
     seed: int
     options: MissionOptions
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
+    peers: bool = False
+    """Compare cooperation on without and with peer ranges instead of cooperation off / on."""
+
+
+def modes(peers: bool) -> tuple[str, str]:
+    """The two columns compared: cooperation off / on, or peer ranges off / on."""
+    return ("no peers", "peers") if peers else ("off", "on")
 
 
 @dataclass(frozen=True)
@@ -172,12 +182,12 @@ def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
 
 def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     """Scores of one seed with cooperation ``off`` and ``on``."""
-    mission = inderst_hybrid_mission(item.seed, item.options)
     out: dict[str, ModeScores] = {}
-    for mode in ("off", "on"):
-        tracker = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on",
-                                                                      nodes=item.nodes),
-                                 kinds=mission.kinds)
+    for mode in modes(item.peers):
+        peers = mode == "peers"
+        mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
+        tracker = MissionTracker(mission.agents, params=MissionParams(
+            cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes), kinds=mission.kinds)
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -203,6 +213,8 @@ def main() -> None:
                     help="robots on random routes or driven in closed loop by the planner")
     ap.add_argument("--node-failure", type=float, default=0.0)
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
+    ap.add_argument("--peer-ranges", action="store_true",
+                    help="cooperation on, without vs with inter-agent ranges")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
@@ -219,16 +231,16 @@ def main() -> None:
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
             "n1": []}
-        for m in ("off", "on")}
-    nees_all: dict[str, list[float]] = {"off": [], "on": []}
+        for m in modes(args.peer_ranges)}
+    nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges)}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
     for key in ("agent_cov_scale", "agent_correlation"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
-    items = [SeedItem(seed, opts, nodes) for seed in _seeds(args.seeds)]
+    items = [SeedItem(seed, opts, nodes, args.peer_ranges) for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
-        for mode in ("off", "on"):
+        for mode in modes(args.peer_ranges):
             m = scores[mode]
             r = rows[mode]
             r["mean"].append(m.mean)
@@ -246,7 +258,7 @@ def main() -> None:
             r["n0"].append(m.nodes_ms[0])
             r["n1"].append(m.nodes_ms[1])
             nees_all[mode].extend(m.node_nees)
-            print(f"seed {item.seed} {mode:>3}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
+            print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
@@ -258,11 +270,12 @@ def main() -> None:
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
-    print("| cooperation | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
+    head = "peer ranges" if args.peer_ranges else "cooperation"
+    print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
           "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) "
           "| node RMSE from true agent positions, m | robot error p90, m |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for mode in ("off", "on"):
+    for mode in modes(args.peer_ranges):
         r = rows[mode]
         n = len(nees_all[mode])
         lo, hi = (chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n) if n else (0, 0)
@@ -273,7 +286,7 @@ def main() -> None:
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
     print("| cooperation | window | agents (trackers + collection) | node re-estimation |")
     print("|---|---|---|---|")
-    for mode in ("off", "on"):
+    for mode in modes(args.peer_ranges):
         r = rows[mode]
         print(f"| {mode} | {np.mean(r['w0']):.1f} / {np.mean(r['w1']):.1f} "
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "

@@ -161,10 +161,12 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "pass_use": [[i, n, t, c] for (i, n), (t, c) in mt._pass_use.items()],
         "contrib_trace": [[i, n, v] for (i, n), v in mt._contrib_trace.items()],
         "closures": [dataclasses.astuple(c) for c in mt.closures],
+        "peer_use": [[i, n, t, c] for (i, n), (t, c) in mt.peers.uses.items()],
     }
 
 
 def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
+    from hrtls.mission.peers import PeerUses
     from hrtls.mission.tracker import LoopClosure, _NodeReadings
 
     for n, (a, t, xy, cov, r, s) in d["readings"].items():
@@ -181,6 +183,8 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     mt._pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
     mt._contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
+    mt.peers = PeerUses({(int(i), n): (float(t), int(c))
+                         for i, n, t, c in d.get("peer_use", [])})
 
 
 def mission_snapshot(mt: Any) -> bytes:

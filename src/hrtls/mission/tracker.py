@@ -33,7 +33,8 @@ second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
 the agent's filter is decided here).
-With ``cooperate=False`` no node is ever given to an agent (each agent alone).
+With ``cooperate=False`` no node is ever given to an agent (each agent alone). Ranges to
+other agents (node id = an agent's name) go to :mod:`hrtls.mission.peers` (with cooperation).
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -255,6 +257,7 @@ class MissionTracker:
         self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
         self._contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
+        self.peers = PeerUses()
         for k, a in agents.items():
             if isinstance(a, Session):
                 self.feed(k, a, now_s=now_s)
@@ -410,8 +413,9 @@ class MissionTracker:
             part = self._part(name, t_start, t_end)
             if part is None:
                 continue
-            use, keep = self._split_ranges(i, part.ranges)
-            self.trackers[name].update(part.with_parts(ranges=use))
+            rest, peer = split_peer_ranges(self, i, part.ranges)
+            use, keep = self._split_ranges(i, rest)
+            self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
             if keep is not None:
                 touched |= self._collect(i, name, keep)
             self._trim_rows(name, t_end)

@@ -6,7 +6,9 @@ nodes dropped at random in the corridors without positions. ``n_rescuers`` rescu
 IMU enter one after the other (``stagger_s`` apart) from the entrance and walk random routes
 through the corridors, ranging to every node within ``max_range_m`` (Gaussian noise
 ``range_sigma_m`` plus ``range_sigma_fraction`` of the distance, exponential NLOS bias behind
-walls, dropouts, failed nodes never answer).
+walls, dropouts, failed nodes never answer). With ``peer_ranges`` the agents also range to each
+other (:mod:`hrtls.sim.peers`: node id = the other agent's name, ``peer_rate_hz``,
+``peer_max_range_m``).
 
 The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
@@ -46,6 +48,7 @@ from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
 from hrtls.sim.motion_truth import MotionTruth, random_floorplan_walk, simulate_motion
+from hrtls.sim.peers import peer_ranges
 from hrtls.sim.person import Infrastructure, simulate_person
 from hrtls.sim.scenario_options import scenario_rngs
 from hrtls.sim.simulation_result import SimulationResult
@@ -79,6 +82,10 @@ class MissionOptions:
     robot_driver: str = "random"
     """``random``: fixed random corridor routes; ``planner``: driven in closed loop by the
     way-point planner on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`)."""
+    peer_ranges: bool = False
+    """Agents range to each other too (:mod:`hrtls.sim.peers`, the same radio model)."""
+    peer_max_range_m: float = 10.0
+    peer_rate_hz: float = 1.0
 
     def __post_init__(self) -> None:
         if self.robot_driver not in ("random", "planner"):
@@ -93,6 +100,9 @@ class MissionOptions:
             raise InputError(f"range_sigma_m = {self.range_sigma_m}, range_sigma_fraction = "
                              f"{self.range_sigma_fraction}", where="MissionOptions",
                              expected="sigma >= 0 m and a fraction in [0, 1)")
+        if not (self.peer_rate_hz > 0 and self.peer_max_range_m > 0):
+            raise InputError(f"peer_rate_hz = {self.peer_rate_hz}, peer_max_range_m = "
+                             f"{self.peer_max_range_m}", where="MissionOptions", expected="> 0")
         if not 0.0 <= self.node_failure_fraction < 1.0:
             raise InputError(f"node_failure_fraction = {self.node_failure_fraction}",
                              where="MissionOptions", expected="in [0, 1)")
@@ -162,6 +172,11 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         else:
             agents[name], sims[name] = _robot(seed, i, o, alive, model)
         kinds[name] = "robot"
+    if o.peer_ranges:
+        peer_model = dataclasses.replace(model, rate_hz=o.peer_rate_hz,
+                                         max_range_m=o.peer_max_range_m)
+        agents = peer_ranges(agents, peer_model, scenario_rngs(seed * 1000 + 999)[6])
+        sims = {k: dataclasses.replace(v, session=agents[k]) for k, v in sims.items()}
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
                    kinds=kinds)
@@ -262,6 +277,11 @@ def run_mission(name: str, seed: int, **options: Any) -> Mission:
             raise InputError(f"unknown option {key!r}", where=f"{name} options",
                              expected="one of " + ", ".join(fields))
         default = fields[key].default
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise InputError(f"{key} = {value!r}", where=f"{name} options",
+                                 expected=f"true or false (default {default})")
+            continue
         if isinstance(default, int | float) and (isinstance(value, bool)
                                                  or not isinstance(value, int | float)):
             raise InputError(f"{key} = {value!r}", where=f"{name} options",

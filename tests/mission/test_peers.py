@@ -1,0 +1,151 @@
+"""Inter-agent ranges: hand-computed exchange, simulator round trip, mission regression,
+offline == incremental, snapshot round trip of the peers' state."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hrtls.data import Session
+from hrtls.data.observations import PositionFixes, RangeMeasurements
+from hrtls.data.session import SessionMeta, StartPose
+from hrtls.io.session import read_session, write_session
+from hrtls.mission.peers import PEER_SPEED_M_S
+from hrtls.mission.tracker import MissionTracker
+from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission, run_mission
+
+
+def _robot(x: float, ranges: RangeMeasurements | None) -> Session:
+    """A robot standing at (x, 0) for 20 s, odometry at 5 Hz, start sigma 1 m."""
+    t = np.arange(0.0, 20.0, 0.2)
+    xyz = np.column_stack([np.full(len(t), x), np.zeros(len(t)), np.zeros(len(t))])
+    meta = SessionMeta(start_pose=StartPose(x=x, y=0.0, z=0.0, heading=0.0, sigma_xy_m=1.0,
+                                            sigma_heading_rad=0.01))
+    return Session(meta=meta, fixes=PositionFixes(t, xyz, np.full(len(t), 0.05)), ranges=ranges)
+
+
+def test_one_exact_range_pulls_a_toward_b_and_shrinks_its_covariance_along_the_line() -> None:
+    """A at (0, 0), B at (10, 0); A measures 9 m to B at t = 7 s (sigma 1 mm). Window [5, 10):
+    A goes first, B's latest row is t_B = 4.8 s. Eq. 4.35 with H = (-1, 0):
+    x_A += P_xx / (P_xx + s^2) * (9 - 10), P_xx *= s^2 / (P_xx + s^2),
+    s^2 = (1e-3)^2 + lambda_max(P_B) + (PEER_SPEED_M_S * (7 - 4.8))^2; P_yy unchanged."""
+    rg = RangeMeasurements(np.array([7.0]), np.array(["B"]), np.array([9.0]), np.array([1e-3]))
+    alone = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
+                           kinds={"A": "robot", "B": "robot"}).run()
+    res = MissionTracker({"A": _robot(0.0, rg), "B": _robot(10.0, None)},
+                         kinds={"A": "robot", "B": "robot"}).run()
+    before, after = alone.agents["A"].trajectory, res.agents["A"].trajectory
+    k = int(np.searchsorted(before.t, 7.0))
+    p = before.cov_xy[k]
+    pb = alone.agents["B"].trajectory.cov_xy[int(np.searchsorted(before.t, 4.8))]
+    s2 = 1e-6 + float(np.linalg.eigvalsh(pb)[-1]) + (PEER_SPEED_M_S * 2.2) ** 2
+    gain = p[0, 0] / (p[0, 0] + s2)
+    np.testing.assert_allclose(after.xyz[k, 0], before.xyz[k, 0] - gain * (9.0 - 10.0),
+                               rtol=1e-6)
+    assert after.xyz[k, 0] > before.xyz[k, 0]              # toward B
+    np.testing.assert_allclose(after.cov_xy[k, 0, 0], p[0, 0] * s2 / (p[0, 0] + s2), rtol=1e-6)
+    np.testing.assert_allclose(after.cov_xy[k, 1, 1], p[1, 1], rtol=1e-6)
+    np.testing.assert_allclose(res.agents["B"].trajectory.xyz,
+                               alone.agents["B"].trajectory.xyz)
+
+
+OPTIONS = MissionOptions(walk_s=90.0, stagger_s=10.0, n_nodes=15, n_robots=1, peer_ranges=True)
+
+
+@pytest.fixture(scope="module")
+def mission():  # type: ignore[no-untyped-def]
+    return inderst_hybrid_mission(3, OPTIONS)
+
+
+def test_simulated_peer_ranges_name_the_other_agents_and_round_trip(mission, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    plain = inderst_hybrid_mission(3, MissionOptions(**{**OPTIONS.__dict__,
+                                                        "peer_ranges": False}))
+    for name, s in mission.agents.items():
+        assert s.ranges is not None
+        peers = np.isin(s.ranges.node, list(mission.agents))
+        assert peers.any() and name not in set(s.ranges.node[peers].tolist())
+        assert np.all(np.diff(s.ranges.t) >= 0)
+        base = plain.agents[name].ranges
+        assert base is not None
+        np.testing.assert_array_equal(s.ranges.range_m[~peers], base.range_m)
+        back = read_session(write_session(s, tmp_path / name))
+        assert back.ranges is not None
+        np.testing.assert_array_equal(back.ranges.node, s.ranges.node)
+        np.testing.assert_allclose(back.ranges.range_m, s.ranges.range_m, atol=1e-6)
+        np.testing.assert_allclose(back.ranges.t, s.ranges.t, atol=1e-6)
+
+
+def test_run_mission_takes_a_boolean_peer_ranges_only() -> None:
+    from hrtls.errors import InputError
+
+    with pytest.raises(InputError, match="true or false"):
+        run_mission("inderst_hybrid_mission", 0, peer_ranges=1)
+
+
+def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission) -> None:  # type: ignore[no-untyped-def]
+    from hrtls.pipeline.chunks import split_session
+
+    sessions = {k: s.with_parts(truth=None, checkpoints=None) for k, s in mission.agents.items()}
+    want = MissionTracker(sessions, kinds=mission.kinds).run()
+    from hrtls.mission.tracker import AgentHeader
+
+    mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
+                        kinds=mission.kinds)
+    parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 2.0)),
+                   key=lambda kp: kp[1].time_span()[1])
+    for j, (name, part) in enumerate(parts):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+        if j == len(parts) // 2:
+            assert mt.peers.uses
+            mt = MissionTracker.restore(mt.snapshot())
+    for k in sessions:
+        mt.end(k)
+    got = mt.run()
+    for k, r in want.agents.items():
+        tail = got.agents[k].trajectory      # the restored tracker's rows: from the restore on
+        i = int(np.searchsorted(r.trajectory.t, tail.t[0]))
+        assert len(r.trajectory.t) - i == len(tail.t) > 0
+        np.testing.assert_allclose(tail.xyz, r.trajectory.xyz[i:], atol=1e-9)
+        np.testing.assert_allclose(tail.cov_xy, r.trajectory.cov_xy[i:], atol=1e-9)
+
+
+def test_peer_ranges_on_a_seed_lower_the_rescuers_error_without_blowing_nees(mission) -> None:  # type: ignore[no-untyped-def]
+    """Seeded regression (seed 3 of the short mission): error and NEES with and without."""
+    plain = inderst_hybrid_mission(3, MissionOptions(**{**OPTIONS.__dict__,
+                                                        "peer_ranges": False}))
+    out = {}
+    for key, m in (("off", plain), ("on", mission)):
+        res = MissionTracker(m.agents, kinds=m.kinds).run()
+        e, nees = [], []
+        for name, r in res.agents.items():
+            if m.kinds[name] != "rescuer":
+                continue
+            truth = m.simulations[name].session.truth
+            tr = r.trajectory
+            d = np.column_stack([tr.xyz[:, 0] - np.interp(tr.t, truth.t, truth.xyz[:, 0]),
+                                 tr.xyz[:, 1] - np.interp(tr.t, truth.t, truth.xyz[:, 1])])
+            e.append(np.hypot(d[:, 0], d[:, 1]))
+            nees.append(np.einsum("ki,kij,kj->k", d, np.linalg.inv(tr.cov_xy), d))
+        out[key] = (float(np.mean(np.concatenate(e))), float(np.mean(np.concatenate(nees))))
+    print(out)
+    assert out["on"][1] < 2.0 * out["off"][1] + 2.0
+    assert out["on"][0] < out["off"][0] + 0.05
+
+
+def test_cli_simulate_writes_peer_ranges_and_mission_track_reads_them(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+    from hrtls.io.tables import read_trajectory
+
+    root = tmp_path / "m"
+    res = CliRunner().invoke(app, ["simulate", "inderst_hybrid_mission", "-o", str(root),
+                                   "--seed", "3", "-O", "peer_ranges=true", "-O", "walk_s=40",
+                                   "-O", "stagger_s=5", "-O", "n_nodes=5"])
+    assert res.exit_code == 0, res.output
+    text = (root / "agents" / "R1" / "ranges.csv").read_text()
+    assert ",R2," in text
+    res = CliRunner().invoke(app, ["mission", "track", str(root), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert len(read_trajectory(tmp_path / "out" / "agents" / "R1" / "trajectory.csv").t) > 10
