@@ -243,6 +243,9 @@ def test_restored_in_a_new_process_the_mission_continues_identically(  # type: i
         np.testing.assert_array_equal(pos, want.node_history[n].position_m)
     for k, (t, xyz) in got["agents"].items():
         full = want.agents[k].trajectory
+        if not len(t):   # every row of this agent was made before the snapshot
+            assert full.t[-1] <= mt.horizon_s + mt.params.chunk_s
+            continue
         i = int(np.searchsorted(full.t, t[0]))
         np.testing.assert_array_equal(t, full.t[i:])
         np.testing.assert_array_equal(xyz, full.xyz[i:])
