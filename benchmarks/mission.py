@@ -15,6 +15,11 @@ only) and prints, over the seeds, mean / p90 / worst of:
   collection, ``_collect``: flat when the per-agent cost does not grow with the mission's length)
   and the node re-estimation (grows with the readings of the nodes in range).
 
+The rescuers' trackers run the default configuration with the step-and-heading prediction noise
+of ``--q-along`` / ``--heading-increment-rad`` (tuned on dev seeds 0-4 for a consistent agent
+NEES: the default ``q_along`` takes the step-length error as independent per step, while the
+simulated walkers' Weinberg constant is off by a per-person factor that persists).
+
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
     python benchmarks/mission.py --seeds 100-129 [--engine local|ray] [--workers N]
@@ -36,6 +41,7 @@ from scipy.stats import chi2
 from _engine import Batch, add_engine_options
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
+from hrtls.pipeline.config import TrackerConfig
 from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
 
 
@@ -93,6 +99,7 @@ class SeedItem:
     seed: int
     options: MissionOptions
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
+    prediction: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -177,7 +184,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     for mode in ("off", "on"):
         tracker = MissionTracker(mission.agents, params=MissionParams(cooperate=mode == "on",
                                                                       nodes=item.nodes),
-                                 kinds=mission.kinds)
+                                 kinds=mission.kinds, config=TrackerConfig.model_validate(
+                                     {"prediction": item.prediction}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -205,6 +213,11 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--q-along", type=float, default=0.04,
+                    help="rescuers' [prediction] q_along: per-step along-track variance per "
+                         "squared step; covers the unknown per-person step-length scale")
+    ap.add_argument("--heading-increment-rad", type=float, default=0.02,
+                    help="rescuers' [prediction] sigma_heading_increment_rad per step")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -222,7 +235,9 @@ def main() -> None:
     for key in ("agent_cov_scale", "agent_correlation"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
-    items = [SeedItem(seed, opts, nodes) for seed in _seeds(args.seeds)]
+    prediction = {"q_along": args.q_along,
+                  "sigma_heading_increment_rad": args.heading_increment_rad}
+    items = [SeedItem(seed, opts, nodes, prediction) for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in ("off", "on"):
             m = scores[mode]
@@ -249,7 +264,8 @@ def main() -> None:
           f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
-          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
+          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, rescuers' "
+          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     print("| cooperation | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
