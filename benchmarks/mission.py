@@ -16,9 +16,7 @@ only) and prints, over the seeds, mean / p90 / worst of:
   and the node re-estimation (grows with the readings of the nodes in range).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
-of ``--q-along`` / ``--heading-increment-rad`` (tuned on dev seeds 0-4 for a consistent agent
-NEES: the default ``q_along`` takes the step-length error as independent per step, while the
-simulated walkers' Weinberg constant is off by a per-person factor that persists).
+``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
 
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
@@ -42,7 +40,7 @@ from _engine import Batch, add_engine_options
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
+from hrtls.sim.mission import RESCUER_PREDICTION, Mission, MissionOptions, inderst_hybrid_mission
 
 
 def _seeds(text: str) -> list[int]:
@@ -213,11 +211,12 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
-    ap.add_argument("--q-along", type=float, default=0.04,
-                    help="rescuers' [prediction] q_along: per-step along-track variance per "
-                         "squared step; covers the unknown per-person step-length scale")
-    ap.add_argument("--heading-increment-rad", type=float, default=0.02,
-                    help="rescuers' [prediction] sigma_heading_increment_rad per step")
+    ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
+                    help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
+    ap.add_argument("--heading-increment-rad", type=float,
+                    default=RESCUER_PREDICTION["sigma_heading_increment_rad"],
+                    help="rescuers' [prediction] sigma_heading_increment_rad "
+                         "(default: RESCUER_PREDICTION)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
