@@ -4,9 +4,9 @@ A reading is a range from an agent to a node the agent does not use, stored with
 estimate (position and covariance) at the reading's time. The agent's estimate rows come out of
 its causal tracker with a lag (a step row is written once the step is detected), so a range near
 the end of a window can be later than the agent's latest row: such a range is held as *pending*
-for that agent until a later window's rows cover its time, or until the mission's end, where the
-agent's finished track (its last row for ranges later than it) gives the estimate. No range is
-dropped for lack of a row.
+for that agent until a later window's rows cover its time, or until the mission's end
+(``MissionTracker.advance(final=True)``), where the agent's latest row gives the estimate of the
+ranges later than it. No range is dropped for lack of a row.
 """
 
 from __future__ import annotations

@@ -299,6 +299,8 @@ class MissionTracker:
             self._k += 1
             self.horizon_s = t_end
             n += 1
+        if final:
+            self._flush()
         changed = tuple(sorted(k for k, v in self._version.items() if before.get(k) != v))
         return Progress(n, self.horizon_s, changed)
 
@@ -367,14 +369,6 @@ class MissionTracker:
         """Finish every agent's tracker; the mission's result (after the last window)."""
         results = {name: tr.finish() for name, tr in self.trackers.items()
                    if name in self.started}
-        touched: set[str] = set()
-        for i, name in enumerate(self.names):
-            if self._pending[name] is not None and name in results:
-                tj = results[name].trajectory
-                if len(tj.t):
-                    touched |= self._collect(i, name, None, (tj.t, tj.xyz[:, :2], tj.cov_xy),
-                                             final=True)
-        self._relocalize(touched, self.horizon_s, every=True)
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
@@ -403,6 +397,17 @@ class MissionTracker:
         changed = self._relocalize(touched, t_end)
         if self.params.cooperate:
             self._share(changed, t_end)
+
+    def _flush(self) -> None:
+        """The mission's end: the pending readings stored, their nodes estimated again.
+
+        A reading later than its agent's latest row takes that row's estimate.
+        """
+        touched: set[str] = set()
+        for i, name in enumerate(self.names):
+            if self._pending[name] is not None and name in self.started:
+                touched |= self._collect(i, name, None, self._agent_rows(name), final=True)
+        self._relocalize(touched, self.horizon_s, every=True)
 
     def _relocalize(self, touched: set[str], t_end: float, *, every: bool = False) -> list[str]:
         """Estimate again the touched nodes whose readings grew enough (``every``: any growth)."""
