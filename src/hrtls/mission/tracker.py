@@ -15,7 +15,8 @@ ways:
   the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
   of once per range);
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
-  as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator`.
+  as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator` (a range later than
+  the agent's latest row waits for it, :mod:`hrtls.mission.readings`).
 
 Double counting. The node's error and the error of an agent that contributed to it are
 correlated (the agent's error at its readings is inside the node's estimate), so by default an
