@@ -18,6 +18,9 @@ only) and prints, over the seeds, mean / p90 / worst of:
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical).
 
+The rescuers' trackers run the default configuration with the step-and-heading prediction noise
+``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
+
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 
     python benchmarks/mission.py --seeds 100-129 [--engine local|ray] [--workers N]
@@ -39,7 +42,8 @@ from scipy.stats import chi2
 from _engine import Batch, add_engine_options
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
-from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.sim.mission import RESCUER_PREDICTION, Mission, MissionOptions, inderst_hybrid_mission
 
 
 def _seeds(text: str) -> list[int]:
@@ -98,6 +102,7 @@ class SeedItem:
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peers: bool = False
     """Compare cooperation on without and with peer ranges instead of cooperation off / on."""
+    prediction: dict[str, float] = field(default_factory=dict)
 
 
 def modes(peers: bool) -> tuple[str, str]:
@@ -187,7 +192,9 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         peers = mode == "peers"
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
-            cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes), kinds=mission.kinds)
+            cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes),
+            kinds=mission.kinds,
+            config=TrackerConfig.model_validate({"prediction": item.prediction}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -219,6 +226,12 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
+                    help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
+    ap.add_argument("--heading-increment-rad", type=float,
+                    default=RESCUER_PREDICTION["sigma_heading_increment_rad"],
+                    help="rescuers' [prediction] sigma_heading_increment_rad "
+                         "(default: RESCUER_PREDICTION)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -238,7 +251,10 @@ def main() -> None:
     for key in ("agent_cov_scale", "agent_correlation"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
-    items = [SeedItem(seed, opts, nodes, args.peer_ranges) for seed in _seeds(args.seeds)]
+    prediction = {"q_along": args.q_along,
+                  "sigma_heading_increment_rad": args.heading_increment_rad}
+    items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction)
+             for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges):
             m = scores[mode]
@@ -267,7 +283,8 @@ def main() -> None:
           f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
-          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}; values are "
+          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, rescuers' "
+          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     head = "peer ranges" if args.peer_ranges else "cooperation"

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from hrtls.data import Landmark, Session
 from hrtls.errors import FormatError, InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, merge, split_at
-from hrtls.mission.tracker import AgentHeader, MissionResult, MissionTracker
+from hrtls.mission.tracker import AgentHeader, MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.chunks import session_window, split_session
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 
@@ -249,3 +249,57 @@ def test_restored_in_a_new_process_the_mission_continues_identically(  # type: i
         i = int(np.searchsorted(full.t, t[0]))
         np.testing.assert_array_equal(t, full.t[i:])
         np.testing.assert_array_equal(xyz, full.xyz[i:])
+
+
+def _ranges_to_unknown_nodes(sessions: dict[str, Session]) -> int:
+    """Ranges of every agent to nodes without a position in its session."""
+    n = 0
+    for s in sessions.values():
+        if s.ranges is not None:
+            known = [k for k, lm in s.landmarks.items() if lm.position is not None]
+            n += int(np.count_nonzero(~np.isin(s.ranges.node, known)))
+    return n
+
+
+def test_readings_later_than_the_agents_latest_row_are_kept(seed1) -> None:  # type: ignore[no-untyped-def]
+    sessions, kinds = seed1
+    mt = MissionTracker(_headers(sessions), kinds=kinds,
+                        params=MissionParams(cooperate=False))
+    held = 0
+    for j, (name, part) in enumerate(_parts(sessions)):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+        held = max(held, sum(len(r.t) for r in mt._pending.values() if r is not None))
+    for k in sessions:
+        mt.end(k)
+    res = mt.run()
+    assert held > 0           # some ranges waited for their agent's rows
+    assert all(r is None for r in mt._pending.values())
+    assert sum(res.readings.values()) == _ranges_to_unknown_nodes(sessions)
+
+
+def test_snapshot_holds_the_pending_readings(seed1) -> None:  # type: ignore[no-untyped-def]
+    sessions, kinds = seed1
+    parts = _parts(sessions)
+    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    j = 0
+    while not any(r is not None for r in mt._pending.values()):
+        mt.feed(parts[j][0], parts[j][1], now_s=float(j))
+        mt.advance(now_s=float(j))
+        j += 1
+    back = MissionTracker.restore(mt.snapshot())
+    for k, r in mt._pending.items():
+        got = back._pending[k]
+        assert (r is None) == (got is None)
+        if r is not None and got is not None:
+            np.testing.assert_array_equal(got.t, r.t)
+            np.testing.assert_array_equal(got.node, r.node)
+            np.testing.assert_array_equal(got.range_m, r.range_m)
+            np.testing.assert_array_equal(got.sigma_m, r.sigma_m)
+    for m in (mt, back):
+        for i, (name, part) in enumerate(parts[j:], start=j):
+            m.feed(name, part, now_s=float(i))
+            m.advance(now_s=float(i))
+        for k in sessions:
+            m.end(k)
+    assert _max_diff(mt.run(), back.run(), tail=True) == 0.0

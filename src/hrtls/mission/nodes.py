@@ -90,7 +90,7 @@ class NodeEstimatorParams:
     max_outlier_passes: int = 10
     max_consistency_passes: int = 2
     max_iterations: int = 30
-    agent_cov_scale: float = 2.5
+    agent_cov_scale: float = 2.0
     agent_correlation: float = 0.5
 
     def __post_init__(self) -> None:

@@ -6,7 +6,7 @@ msgpack of plain values and raw arrays; nothing is pickled) holding a mapping wi
 parameters, each agent's header (metadata, landmarks as JSON), each rescuer's
 :meth:`hrtls.pipeline.Tracker.snapshot` bytes, each robot's EKF state, the agents' buffered data
 not yet processed, and the node side (readings, estimates, history, who contributed and who
-uses which node, loop closures).
+uses which node, loop closures, each agent's ranges pending until its rows cover them).
 
 A restored mission continues exactly as the original would: the same windows, node estimates
 and agent rows. The agents' rows produced before the snapshot are not in it (the service stores
@@ -32,13 +32,14 @@ from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
+from hrtls.mission.readings import NodeReadings
 from hrtls.mission.robot import RobotTracker, RobotTrackerParams
 from hrtls.pipeline import snapshot as codec
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker
 
 FORMAT = "hrtls-mission"
-MISSION_VERSION = 1
+MISSION_VERSION = 2
 """Layout of the mission mapping written by :func:`mission_snapshot`."""
 
 _ROBOT_FIELDS = ("x", "p", "_last_odo", "_last_t", "_accepted", "_rejected", "_started")
@@ -162,15 +163,17 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "contrib_trace": [[i, n, v] for (i, n), v in mt._contrib_trace.items()],
         "closures": [dataclasses.astuple(c) for c in mt.closures],
         "peer_use": [[i, n, t, c] for (i, n), (t, c) in mt.peers.uses.items()],
+        "pending": {k: None if r is None else [r.t, r.node.astype(str), r.range_m, r.sigma_m]
+                    for k, r in mt._pending.items()},
     }
 
 
 def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     from hrtls.mission.peers import PeerUses
-    from hrtls.mission.tracker import LoopClosure, _NodeReadings
+    from hrtls.mission.tracker import LoopClosure
 
     for n, (a, t, xy, cov, r, s) in d["readings"].items():
-        mt.readings[n] = _NodeReadings(a.tolist(), t.tolist(), list(xy), list(cov),
+        mt.readings[n] = NodeReadings(a.tolist(), t.tolist(), list(xy), list(cov),
                                        r.tolist(), s.tolist())
     mt.estimates = {n: NodeEstimate(*v) for n, v in d["estimates"].items()}
     mt.contrib = {n: set(v) for n, v in d["contrib"].items()}
@@ -185,6 +188,8 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
     mt.peers = PeerUses({(int(i), n): (float(t), int(c))
                          for i, n, t, c in d.get("peer_use", [])})
+    mt._pending = {k: None if r is None else RangeMeasurements(*r)
+                   for k, r in d["pending"].items()}
 
 
 def mission_snapshot(mt: Any) -> bytes:

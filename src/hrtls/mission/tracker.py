@@ -15,7 +15,8 @@ ways:
   the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
   of once per range);
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
-  as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator`.
+  as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator` (a range later than
+  the agent's latest row waits for it, :mod:`hrtls.mission.readings`).
 
 Double counting. The node's error and the error of an agent that contributed to it are
 correlated (the agent's error at its readings is inside the node's estimate), so by default an
@@ -52,8 +53,9 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
-from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
+from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -103,31 +105,6 @@ class MissionParams:
         if not self.loop_closure_ratio >= 1.0:
             raise InputError(f"loop_closure_ratio = {self.loop_closure_ratio}",
                              where="MissionParams", expected=">= 1 (inf: never)")
-
-
-@dataclass
-class _NodeReadings:
-    """Readings of one node: agent index, time, agent xy and covariance, range, sigma."""
-
-    agent: list[int] = field(default_factory=list)
-    t: list[float] = field(default_factory=list)
-    xy: list[FloatArray] = field(default_factory=list)
-    cov: list[FloatArray] = field(default_factory=list)
-    r: list[float] = field(default_factory=list)
-    s: list[float] = field(default_factory=list)
-
-    def ranges(self, pass_gap_s: float) -> NodeRanges:
-        a = np.asarray(self.agent, dtype=np.int64)
-        t = np.asarray(self.t)
-        order = np.lexsort((t, a))
-        a, t = a[order], t[order]
-        new_pass = np.ones(len(t), dtype=bool)
-        new_pass[1:] = (a[1:] != a[:-1]) | (np.diff(t) > pass_gap_s)
-        group = np.empty(len(t), dtype=np.int64)
-        group[order] = np.cumsum(new_pass) - 1
-        return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
-                                range_m=self.r, range_sigma_m=self.s, group=group,
-                                chain=np.asarray(self.agent, dtype=np.int64))
 
 
 @dataclass(frozen=True)
@@ -243,15 +220,16 @@ class MissionTracker:
         # robots take a version at the first window starting at or after its time
         self._robot_updates = sorted(landmark_updates, key=lambda v: float(v.updated or 0.0))
         self.estimator = NodeEstimator(self.params.nodes)
-        self.readings: dict[str, _NodeReadings] = {}
+        self.readings: dict[str, NodeReadings] = {}
         self.estimates: dict[str, NodeEstimate] = {}
         self.contrib: dict[str, set[int]] = {}
         self.users: dict[str, set[int]] = {}
         self.given: dict[int, dict[str, int]] = {i: {} for i in range(len(self.names))}
         self.history: dict[str, list[tuple[float, FloatArray, FloatArray]]] = {}
         self._last_t = dict.fromkeys(self.names, -math.inf)
-        self._rows: dict[str, list[tuple[FloatArray, FloatArray, FloatArray]]] = {
-            k: [] for k in self.names}
+        self._rows: dict[str, list[Rows]] = {k: [] for k in self.names}
+        # ranges later than the agent's latest row, kept until rows cover them (readings.py)
+        self._pending: dict[str, RangeMeasurements | None] = dict.fromkeys(self.names)
         self._version: dict[str, int] = {}
         self._estimated_at: dict[str, int] = {}
         self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
@@ -325,6 +303,8 @@ class MissionTracker:
             self._k += 1
             self.horizon_s = t_end
             n += 1
+        if final:
+            self._flush()
         changed = tuple(sorted(k for k, v in self._version.items() if before.get(k) != v))
         return Progress(n, self.horizon_s, changed)
 
@@ -416,14 +396,33 @@ class MissionTracker:
             rest, peer = split_peer_ranges(self, i, part.ranges)
             use, keep = self._split_ranges(i, rest)
             self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
-            if keep is not None:
-                touched |= self._collect(i, name, keep)
+            if keep is not None or self._pending[name] is not None:
+                touched |= self._collect(i, name, keep, self._agent_rows(name))
             self._trim_rows(name, t_end)
+        changed = self._relocalize(touched, t_end)
+        if self.params.cooperate:
+            self._share(changed, t_end)
+
+    def _flush(self) -> None:
+        """The mission's end: the pending readings stored, their nodes estimated again.
+
+        A reading later than its agent's latest row takes that row's estimate.
+        """
+        touched: set[str] = set()
+        for i, name in enumerate(self.names):
+            if self._pending[name] is not None and name in self.started:
+                touched |= self._collect(i, name, None, self._agent_rows(name), final=True)
+        self._relocalize(touched, self.horizon_s, every=True)
+
+    def _relocalize(self, touched: set[str], t_end: float, *, every: bool = False) -> list[str]:
+        """Estimate again the touched nodes whose readings grew enough (``every``: any growth)."""
         changed: list[str] = []
         for node in sorted(touched):
             n_now = len(self.readings[node].r)
             n_then = self._estimated_at.get(node, 0)
-            if n_now - n_then < max(3, self.params.refresh_fraction * n_then):
+            grown = n_now > n_then if every else \
+                n_now - n_then >= max(3, self.params.refresh_fraction * n_then)
+            if not grown:
                 continue
             self._estimated_at[node] = n_now
             obs = self.readings[node].ranges(self.params.pass_gap_s)
@@ -438,8 +437,7 @@ class MissionTracker:
                 changed.append(node)
                 self.history.setdefault(node, []).append(
                     (t_end, est.position_m.copy(), est.covariance_m2.copy()))
-        if self.params.cooperate:
-            self._share(changed, t_end)
+        return changed
 
     def _split_ranges(self, i: int, ranges: RangeMeasurements | None
                       ) -> tuple[RangeMeasurements | None, RangeMeasurements | None]:
@@ -500,63 +498,46 @@ class MissionTracker:
     def _node_var(self, node: str) -> float:
         return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
 
-    def _agent_rows(self, name: str) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    def _agent_rows(self, name: str) -> Rows | None:
         """The agent's recent estimates (time, xy, covariance) with this window's new rows."""
         est = self.trackers[name].estimates_since(self._last_t[name])
-        if len(est):
-            self._rows[name].append((est.t, est.xyz[:, :2], est.cov_xy))
-            self._last_t[name] = float(est.t[-2]) if len(est) > 1 else self._last_t[name]
-        if not self._rows[name]:
-            return None
-        if len(self._rows[name]) > 1:
-            t = np.concatenate([r[0] for r in self._rows[name]])
-            xy = np.concatenate([r[1] for r in self._rows[name]])
-            cov = np.concatenate([r[2] for r in self._rows[name]])
-            t, idx = np.unique(t[::-1], return_index=True)      # the newest version of a row
-            self._rows[name] = [(t, xy[::-1][idx], cov[::-1][idx])]
-        return self._rows[name][0]
+        if len(est) > 1:
+            self._last_t[name] = float(est.t[-2])
+        rows = merge_rows(self._rows[name], (est.t, est.xyz[:, :2], est.cov_xy))
+        self._rows[name] = [] if rows is None else [rows]
+        return rows
 
     def _trim_rows(self, name: str, t_end: float) -> None:
-        """Drop the rows no later reading can need: all before the last one at or before t_end.
+        """Keep the per-window cost of :meth:`_collect` independent of the mission's length."""
+        if len(self._rows[name]) == 1:
+            self._rows[name] = [trim_rows(self._rows[name][0], t_end)]
 
-        Keeps the per-window cost of :meth:`_collect` independent of the mission's length.
+    def _collect(self, i: int, name: str, ranges: RangeMeasurements | None, rows: Rows | None,
+                 *, final: bool = False) -> set[str]:
+        """Store the readings the agent's rows cover; the nodes touched.
+
+        Each reading gets the agent's estimate at its time; the later ones (all before the
+        agent's first row) stay pending, none with ``final`` (:mod:`hrtls.mission.readings`).
         """
-        if len(self._rows[name]) != 1:
-            return
-        t, xy, cov = self._rows[name][0]
-        i = max(int(np.searchsorted(t, t_end, side="right")) - 2, 0)
-        if i > 0:
-            self._rows[name] = [(t[i:], xy[i:], cov[i:])]
-
-    def _collect(self, i: int, name: str, ranges: RangeMeasurements) -> set[str]:
-        """Store the readings with the agent's estimate at their times; the nodes touched."""
-        rows = self._agent_rows(name)
-        if rows is None:
+        ranges = join_ranges(self._pending[name], ranges)
+        self._pending[name] = None
+        if ranges is None:
             return set()
-        t, xy, cov = rows
+        if rows is None:
+            self._pending[name] = ranges
+            return set()
+        now, self._pending[name] = (ranges, None) if final else split_at(ranges, float(rows[0][-1]))
+        if now is None:
+            return set()
         touched: set[str] = set()
-        for n in np.unique(ranges.node).tolist():
+        for n in np.unique(now.node).tolist():
             node = str(n)
             if i in self.users.get(node, set()):
                 continue
-            m = ranges.node == n
-            tq = ranges.t[m]
-            ok = tq <= t[-1]
-            if not ok.any():
-                continue
-            tq = tq[ok]
-            ax = np.interp(tq, t, xy[:, 0])
-            ay = np.interp(tq, t, xy[:, 1])
-            j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
-            rd = self.readings.setdefault(node, _NodeReadings())
-            rd.agent.extend([i] * len(tq))
-            rd.t.extend(tq.tolist())
-            rd.xy.extend(np.column_stack([ax, ay]))
-            rd.cov.extend(cov[j])
-            rd.r.extend(ranges.range_m[m][ok].tolist())
-            rd.s.extend(ranges.sigma_m[m][ok].tolist())
+            m = now.node == n
+            tr = self.readings.setdefault(node, NodeReadings()).add(
+                agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m])
             self.contrib.setdefault(node, set()).add(i)
-            tr = float(np.min(np.trace(cov[j], axis1=1, axis2=2)))
             self._contrib_trace[(i, node)] = min(self._contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
