@@ -12,7 +12,13 @@ from hrtls.data.session import SessionMeta, StartPose
 from hrtls.io.session import read_session, write_session
 from hrtls.mission.peers import PEER_SPEED_M_S
 from hrtls.mission.tracker import MissionTracker
-from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission, run_mission
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.sim.mission import (
+    RESCUER_PREDICTION,
+    MissionOptions,
+    inderst_hybrid_mission,
+    run_mission,
+)
 
 
 def _robot(x: float, ranges: RangeMeasurements | None) -> Session:
@@ -116,7 +122,8 @@ def test_peer_ranges_on_a_seed_lower_the_rescuers_error_without_blowing_nees(mis
                                                         "peer_ranges": False}))
     out = {}
     for key, m in (("off", plain), ("on", mission)):
-        res = MissionTracker(m.agents, kinds=m.kinds).run()
+        res = MissionTracker(m.agents, kinds=m.kinds, config=TrackerConfig.model_validate(
+            {"prediction": RESCUER_PREDICTION})).run()
         e, nees = [], []
         for name, r in res.agents.items():
             if m.kinds[name] != "rescuer":
