@@ -3,6 +3,7 @@ the socket deltas, the infrastructure endpoint and the export; restart from a sn
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
@@ -287,3 +288,55 @@ def test_a_landmark_version_written_live_reaches_the_mission_estimator(make_live
     for k, r in want.agents.items():
         np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz, atol=1e-12,
                                    rtol=0)
+
+
+def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
+        make_live: Any) -> None:
+    """Seed 3 of a small mission: nodes heard but never localized, and N3 localized mid-way
+    then refused at the end (sigma above the limit); the network, the snapshot and the socket
+    must give each node's state as the estimator has it, not its last localized estimate."""
+    live = make_live()
+    mission, members = network_team("inderst_hybrid_mission", seed=3, options={
+        "walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2})
+    with AgentClient(live.url, live.commander) as commander:
+        mid, agents = create_network_mission(commander, "small", mission, members,
+                                             params=PARAMS)
+        offset = common_offset(commander, mid, members)
+    runner = _runner(live)
+    with live.client(live.commander) as c, connect(
+            f"{live.ws_url}{API}/missions/{mid}/ws",
+            additional_headers={"Authorization": f"Bearer {live.commander}"}) as dash:
+        assert json.loads(dash.recv(timeout=30))["type"] == "hello"
+        assert json.loads(dash.recv(timeout=30))["type"] == "snapshot"
+        _stream(live, agents, offset)
+        _wait(runner, mid, done=False)
+        _close(live, mid)
+        _wait(runner, mid, done=True)
+        tr = runner.missions[mid].tracker
+        with runner.missions[mid].lock:
+            history = {n: [h[0] for h in rows] for n, rows in tr.history.items()}
+            final = {n: (e.localized, len(tr.readings[n].r)) for n, e in tr.estimates.items()}
+            heard = {n: len(r.r) for n, r in tr.readings.items()}
+        assert any(not final[n][0] for n in history), "no node lost its localization"
+        assert any(n not in history for n in heard), "no node heard and never localized"
+        time.sleep(1.0)                     # the last poll's delta is pushed
+        pushed: dict[str, dict[str, Any]] = {}
+        with contextlib.suppress(TimeoutError):
+            while True:
+                for n in json.loads(dash.recv(timeout=2))["nodes"]:
+                    pushed[n["id"]] = n
+        net = c.get(f"{API}/missions/{mid}/network").json()
+        pic = c.get(f"{API}/missions/{mid}/snapshot").json()
+    by_id = {n["id"]: n for n in net["nodes"]}
+    assert {n["id"] for n in pic["nodes"]} == set(by_id)
+    assert {n for n, v in by_id.items() if v["declared"]} == set(mission.node_truth_m)
+    for n, v in by_id.items():
+        if n not in heard:
+            assert (v["readings"], v["passes"], v["t"], v["reason"]) == (0, 0, None, "never heard")
+            assert not v["localized"] and v["position"] is None
+            continue
+        assert v["readings"] == heard[n] and v["passes"] >= 1
+        assert v["localized"] == (n in final and final[n][0]), n
+        assert (v["position"] is None) == (not v["localized"]) == (v["reason"] != "")
+        assert pushed[n]["localized"] == v["localized"] and pushed[n]["readings"] == heard[n]
+        assert pushed[n]["declared"] == v["declared"]

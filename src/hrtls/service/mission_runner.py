@@ -6,9 +6,11 @@ One :class:`~hrtls.mission.tracker.MissionTracker` per mission that declared a s
 A thread polls the raw log every ``poll_s``: the batches stored since the last poll (in the
 order they were stored, the order the raw log commits them) are decoded into session parts
 (:mod:`hrtls.service.decoders`) and fed to the mission estimator, which then processes every
-complete window (:meth:`MissionTracker.advance`, silence judged on the wall clock). Re-localized
-nodes go to the mission's ``mission_networks`` row (the infrastructure endpoint, the live
-picture, ``hrtls mission export``) and to the dashboards' deltas (``nodes``).
+complete window (:meth:`MissionTracker.advance`, silence judged on the wall clock). The nodes
+re-localized, and every node whose readings grew (heard but not localized, or no longer
+localized), go to the mission's ``mission_networks`` row (the network and infrastructure
+endpoints, the live picture, ``hrtls mission export``) and to the dashboards' deltas
+(``nodes``), each with its state as the estimator has it now.
 
 Every ``snapshot_every_s`` of processed mission time the estimator's state is stored in
 ``mission_snapshots`` with the id of the newest raw batch it consumed; after a restart the
@@ -83,30 +85,49 @@ class LiveMission:
     """Landmark versions (id, time) older than the horizon when they came: not used."""
     restored_horizon_s: float | None = None
     """Processed horizon of the snapshot it was restored from (None: started new)."""
+    declared: frozenset[str] = frozenset()
+    """Ids of the declared network."""
+    published: dict[str, int] = field(default_factory=dict)
+    """Readings count of each node when its state was last published."""
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
-def node_json(node: str, est: NodeEstimate, readings: int) -> dict[str, Any]:
-    """A node estimate as stored and published (planar: floor 0, no z)."""
-    ok = bool(est.localized)
-    cov = np.asarray(est.covariance_m2)
-    return {"id": node, "localized": ok, "reason": est.reason, "readings": readings,
-            "position": [float(v) for v in est.position_m] if ok else None,
-            "covariance_m2": cov.tolist() if ok else None,
-            "sigma_m": float(np.sqrt(np.linalg.eigvalsh(cov)[-1])) if ok else None,
-            "floor": 0, "seed": False}
+def node_json(node: str, est: NodeEstimate | None, *, readings: int, passes: int,
+              t_s: float) -> dict[str, Any]:
+    """A node's state as stored and published (planar: floor 0, no z).
+
+    ``est`` None: heard, not yet estimated (too few readings); ``passes``: groups of readings
+    sharing one agent error (:meth:`NodeReadings.ranges`); ``t_s``: mission time of the window
+    end the state is from (for a localized node, that of its newest estimate).
+    """
+    ok = est is not None and bool(est.localized)
+    cov = None if est is None else np.asarray(est.covariance_m2)
+    return {"id": node, "localized": ok,
+            "reason": "too few readings to estimate" if est is None else est.reason,
+            "readings": readings, "passes": passes, "t": t_s,
+            "position": [float(v) for v in est.position_m] if ok and est is not None else None,
+            "covariance_m2": cov.tolist() if ok and cov is not None else None,
+            "sigma_m": float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+            if ok and cov is not None else None,
+            "floor": 0 if ok else None, "seed": False}
 
 
 def network_nodes(db: DbSession, mission_id: int) -> list[dict[str, Any]] | None:
-    """Declared and heard nodes with their newest estimates (None without a network)."""
+    """Declared and heard nodes with their newest states (None without a network).
+
+    ``declared``: the node is in the declared network (a heard one may not be); a declared
+    node never heard has ``readings`` 0 and ``t`` None.
+    """
     net = db.get(MissionNetwork, mission_id)
     if net is None:
         return None
     est = dict(net.estimates)
-    ids = list(net.nodes) + sorted(set(est) - set(net.nodes))
-    blank = {"localized": False, "reason": "never localized", "readings": 0, "position": None,
-             "covariance_m2": None, "sigma_m": None, "floor": None, "seed": False}
-    return [est.get(n, {"id": n, **blank}) for n in ids]
+    declared = set(net.nodes)
+    ids = list(net.nodes) + sorted(set(est) - declared)
+    blank = {"localized": False, "reason": "never heard", "readings": 0, "passes": 0,
+             "t": None, "position": None, "covariance_m2": None, "sigma_m": None,
+             "floor": None, "seed": False}
+    return [{**est.get(n, {"id": n, **blank}), "declared": n in declared} for n in ids]
 
 
 def _header(agent: Agent, mission: Mission, landmarks: dict[str, Landmark]) -> AgentHeader:
@@ -178,8 +199,7 @@ class MissionRunner:
             self._versions(lm, timed)
             self._consume(lm)
             progress = lm.tracker.advance(now_s=self.clock(), final=closed)
-            if progress.changed:
-                self._publish(lm, progress.changed)
+            self._publish(lm, progress.changed)
             if lm.tracker.horizon_s - lm.t_snap >= self.params.snapshot_every_s:
                 self._snapshot(lm)
 
@@ -191,13 +211,16 @@ class MissionRunner:
                 .order_by(MissionSnapshot.horizon_s.desc(), MissionSnapshot.id.desc())).first()
             names = {aid: str(aid) for aid in db.scalars(
                 select(Agent.id).where(Agent.mission_id == mission_id).order_by(Agent.id))}
+            net = db.get(MissionNetwork, mission_id)
+            declared = frozenset(net.nodes) if net is not None else frozenset()
         if snap is not None:
             tracker = MissionTracker.restore(snap.state)
             for buf in tracker.buffers.values():   # the service was down, not the agents
                 buf.heard_s = max(buf.heard_s, self.clock())
             if set(tracker.names) == set(names.values()):
                 return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
-                                   t_snap=snap.horizon_s, restored_horizon_s=snap.horizon_s)
+                                   t_snap=snap.horizon_s, restored_horizon_s=snap.horizon_s,
+                                   declared=declared)
             log.warning("mission %s: snapshot agents differ; starting over", mission_id)
         return self._open_new(mission_id)
 
@@ -221,7 +244,8 @@ class MissionRunner:
                 params=MissionParams(**net.params), kinds=kinds,
                 landmark_updates=[Landmark.model_validate(d) for d in timed],
                 now_s=self.clock())
-        return LiveMission(mission_id, tracker, names)
+            declared = frozenset(net.nodes)
+        return LiveMission(mission_id, tracker, names, declared=declared)
 
     def _versions(self, lm: LiveMission, timed: tuple[dict[str, Any], ...]) -> None:
         """Give the estimator the landmark versions written since it started."""
@@ -273,16 +297,28 @@ class MissionRunner:
                 return
 
     def _publish(self, lm: LiveMission, changed: tuple[str, ...]) -> None:
+        """Store and push the nodes re-localized, and every node whose readings changed."""
         tr = lm.tracker
-        items = {n: node_json(n, tr.estimates[n], len(tr.readings[n].r)) for n in changed}
+        counts = {n: len(r.r) for n, r in tr.readings.items()}
+        nodes = set(changed) | {n for n, k in counts.items() if lm.published.get(n) != k}
+        if not nodes:
+            return
+        items = {}
+        for n in sorted(nodes):
+            est = tr.estimates.get(n)
+            hist = tr.history.get(n)
+            t_s = hist[-1][0] if est is not None and est.localized and hist else tr.horizon_s
+            passes = len(np.unique(tr.readings[n].ranges(tr.params.pass_gap_s).group))
+            items[n] = node_json(n, est, readings=counts[n], passes=passes, t_s=t_s)
         with self.sessions() as db, db.begin():
             net = db.get(MissionNetwork, lm.mission_id)
             if net is None:
                 return
             net.estimates = {**net.estimates, **items}
             net.horizon_s = tr.horizon_s
-        for item in items.values():
-            self.hub.add(lm.mission_id, "nodes", {**item, "t": tr.horizon_s})
+        lm.published.update({n: counts[n] for n in items})
+        for n, item in items.items():
+            self.hub.add(lm.mission_id, "nodes", {**item, "declared": n in lm.declared})
 
     def _snapshot(self, lm: LiveMission) -> None:
         """Store the estimator's state; keep the newest ``keep_snapshots``."""
