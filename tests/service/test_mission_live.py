@@ -148,7 +148,7 @@ def test_live_mission_estimator_equals_offline_and_is_published(
                                        atol=1e-12, rtol=0)
         pushed: dict[str, dict[str, Any]] = {}
         deadline = time.monotonic() + 30
-        while set(pushed) < set(loc) and time.monotonic() < deadline:
+        while not set(loc) <= set(pushed) and time.monotonic() < deadline:
             msg = json.loads(dash.recv(timeout=30))
             for n in msg.get("nodes", []):
                 pushed[n["id"]] = n

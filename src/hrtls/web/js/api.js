@@ -46,12 +46,23 @@ export function orderOf(o) {
   return { ...o, id: String(o.id), agent: o.agent === null ? null : String(o.agent) };
 }
 
+// A node of the mission's sensor network (GET /missions/{m}/network shape) -> the node layer's.
+export function networkNodeOf(n) {
+  const [x, y] = n.position || [NaN, NaN];
+  return { id: String(n.id), localized: Boolean(n.localized), reason: n.reason || "",
+    readings: n.readings ?? 0, passes: n.passes ?? 0, t: n.t ?? null, x, y,
+    cov: n.covariance_m2 || null, sigma_m: n.sigma_m ?? null, floor: n.floor ?? null,
+    declared: n.declared !== false };
+}
+
+// A snapshot, replay picture or delta; nodes: null when the picture has none (no network).
 export function pictureOf(p) {
   const trails = {};
   for (const [id, pts] of Object.entries(p.trails || {})) trails[String(id)] = pts;
   return {
     t: p.t, agents: (p.agents || []).map(agentOf), estimates: (p.estimates || []).map(estimateOf),
     events: (p.events || []).map(eventOf), orders: (p.orders || []).map(orderOf), trails,
+    nodes: Array.isArray(p.nodes) ? p.nodes.map(networkNodeOf) : null,
   };
 }
 
@@ -59,12 +70,6 @@ function landmarkOf(l) {
   const [x, y] = l.position || [NaN, NaN];
   return { id: l.id, kind: l.kind, x, y, floor: l.floor ?? 0, accuracy_m: l.accuracy_m,
     message: [l.classification, l.updated].filter(Boolean).join(", ") };
-}
-
-function nodeOf(n) {
-  const role = n.seed ? "seed" : (n.localized ? "localized" : "unlocalized");
-  const [x, y] = n.position || [NaN, NaN];
-  return { id: n.id, role, x, y, floor: n.floor ?? 0, sigma_m: n.sigma_m };
 }
 
 // A floor's plan image: its URL and its bounds [[south, west], [north, east]] in local metres
@@ -130,8 +135,9 @@ export class Api {
 
   async infrastructure(id) {
     const i = await this.request("GET", `/missions/${id}/infrastructure`);
+    // the sensor nodes come with the snapshot and the deltas (js/nodes.js)
     return { landmarks: i.landmarks.filter((l) => l.position).map(landmarkOf),
-      nodes: i.nodes.filter((n) => n.position).map(nodeOf), waypoints: waypointsOf(i.waypoints) };
+      waypoints: waypointsOf(i.waypoints) };
   }
 
   async snapshot(id) { return pictureOf(await this.request("GET", `/missions/${id}/snapshot?trail_s=300`)); }

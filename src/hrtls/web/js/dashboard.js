@@ -2,6 +2,7 @@
 
 import { formatAge, formatClock, quality } from "./geometry.js";
 import { MapView } from "./mapview.js";
+import { NodeLayer } from "./nodes.js";
 
 const TRAIL_WINDOW_S = 300;
 const ALARM_KINDS = new Set(["pass_prealarm", "pass_alarm", "fall", "silent", "uncertainty", "sos"]);
@@ -52,7 +53,8 @@ export class Dashboard {
     this.agents = new Map();   // id -> {id, name, kind, est, trail: [], info, lastEvents}
     this.events = new Map();   // id -> event
     this.orders = new Map();   // id -> order
-    this.infra = { landmarks: [], nodes: [], waypoints: [] };
+    this.infra = { landmarks: [], waypoints: [] };
+    this.network = null;       // id -> node of the sensor network (null: none declared)
     this.selected = null;
     this.pendingGoto = null;
     this.replay = { active: false, playing: false, t: 0, speed: 1, timer: null, start: 0, end: 0 };
@@ -64,6 +66,8 @@ export class Dashboard {
       onMapClick: (p) => this.mapClicked(p),
       onAgentClick: (id) => this.select(id),
     });
+    this.nodes = new NodeLayer(this.map, { count: document.getElementById("node-count"),
+      list: document.getElementById("node-list") });
     this.bindControls();
   }
 
@@ -97,6 +101,7 @@ export class Dashboard {
     if (this.live) this.live.close();
     this.missionId = id;
     this.agents.clear(); this.events.clear(); this.orders.clear();
+    this.network = null;
     this.mission = await this.api.mission(id);
     this.map.setFrame(this.mission.georeference, this.config.basemap);
     this.map.setFloorplan(this.mission.floorplan, this.mission.floors);
@@ -145,7 +150,10 @@ export class Dashboard {
     this.events.clear();
     for (const ev of p.events) this.events.set(ev.id, ev);
     for (const o of p.orders) this.orders.set(o.id, o);
-    if (!replay) this.missionTime = Math.max(this.missionTime ?? 0, p.t);
+    if (!replay) {
+      this.missionTime = Math.max(this.missionTime ?? 0, p.t);
+      this.network = p.nodes === null ? null : new Map(p.nodes.map((n) => [n.id, n]));
+    }
   }
 
   applyDelta(d) {
@@ -153,6 +161,10 @@ export class Dashboard {
     for (const e of d.estimates) this.applyEstimate(e);
     for (const ev of d.events) this.events.set(ev.id, { ...this.events.get(ev.id), ...ev });
     for (const o of d.orders) this.orders.set(o.id, { ...this.orders.get(o.id), ...o });
+    if (d.nodes && d.nodes.length) {
+      this.network = this.network || new Map();
+      for (const n of d.nodes) this.network.set(n.id, n);
+    }
     if (d.orders.length) this.refreshInfrastructure();
     if (Number.isFinite(d.t)) this.missionTime = Math.max(this.missionTime ?? 0, d.t);
     this.scheduleRender();
@@ -341,9 +353,9 @@ export class Dashboard {
     const f = this.floor;
     this.map.renderInfrastructure({
       landmarks: this.infra.landmarks.filter((l) => (l.floor ?? 0) === f),
-      nodes: this.infra.nodes.filter((n) => (n.floor ?? 0) === f),
       waypoints: this.infra.waypoints.filter((w) => (w.floor ?? 0) === f),
     });
+    this.nodes.render(this.network ? [...this.network.values()] : null, f);
   }
 
   renderDetails() {

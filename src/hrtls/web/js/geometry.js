@@ -7,7 +7,9 @@ export const QUALITY_GOOD_M = 2.0;
 export const QUALITY_FAIR_M = 5.0;
 
 // Semi-axes (m) and orientation (rad from +x, counter-clockwise) of the k-sigma ellipse of the
-// 2x2 covariance [[varX, covXY], [covXY, varY]] (m^2).
+// 2x2 covariance [[varX, covXY], [covXY, varY]] (m^2): its eigenvalues
+// lambda = (varX + varY) / 2 +- sqrt(((varX - varY) / 2)^2 + covXY^2), semi-axes k sqrt(lambda),
+// the major axis at 0.5 atan2(2 covXY, varX - varY).
 export function ellipseAxes(varX, covXY, varY, k = 2) {
   const mean = (varX + varY) / 2;
   const diff = (varX - varY) / 2;
@@ -16,6 +18,20 @@ export function ellipseAxes(varX, covXY, varY, k = 2) {
   const minor = Math.max(mean - root, 0);
   const angle = 0.5 * Math.atan2(2 * covXY, varX - varY);
   return { a: k * Math.sqrt(major), b: k * Math.sqrt(minor), angle };
+}
+
+// Scale k of the ellipse holding probability p of a 2-D gaussian: the points d with
+// d^T C^-1 d <= k^2 have probability p when k^2 = -2 ln(1 - p) (the chi-square CDF with 2
+// degrees of freedom is 1 - exp(-x / 2)); p = 0.95 gives k = 2.4477.
+export function chi2Scale2d(p) {
+  return Math.sqrt(-2 * Math.log(1 - p));
+}
+
+// Semi-axes a >= b (m), orientation of a (rad from +x, counter-clockwise) and scale k of the
+// p-probability ellipse of the 2x2 covariance [[xx, xy], [yx, yy]] (m^2, symmetrized).
+export function covarianceEllipse(cov, p = 0.95) {
+  const k = chi2Scale2d(p);
+  return { ...ellipseAxes(cov[0][0], 0.5 * (cov[0][1] + cov[1][0]), cov[1][1], k), k };
 }
 
 // Outline of the k-sigma ellipse centred on (x, y) as n [y, x] vertices for Leaflet.

@@ -222,14 +222,13 @@ export class MapView {
     }
   }
 
-  // Landmarks [{id, kind, x, y, floor, message}], nodes [{id, role, x, y, sigma_m}],
-  // way points [{robot, points: [{x, y}]}], all of the shown floor.
-  renderInfrastructure({ landmarks, nodes, waypoints }) {
-    const key = JSON.stringify([landmarks, nodes, waypoints]);
+  // Landmarks [{id, kind, x, y, floor, message}] and way points [{robot, points: [{x, y}]}],
+  // of the shown floor (the sensor nodes: js/nodes.js, in nodeLayer).
+  renderInfrastructure({ landmarks, waypoints }) {
+    const key = JSON.stringify([landmarks, waypoints]);
     if (key === this.infraKey) return;
     this.infraKey = key;
     this.infraLayer.clearLayers();
-    this.nodeLayer.clearLayers();
     this.waypointLayer.clearLayers();
     for (const lm of landmarks) {
       const isTag = lm.kind === "rfid";
@@ -245,20 +244,6 @@ export class MapView {
       });
       m.bindTooltip(`${isTag ? "RFID tag" : lm.kind} ${lm.id}${lm.message ? `: ${lm.message}` : ""}`);
       m.addTo(this.infraLayer);
-    }
-    for (const n of nodes) {
-      const color = { seed: "#58a6ff", localized: "#3fb950", unlocalized: "#6e7681" }[n.role] || "#6e7681";
-      if (n.role !== "unlocalized" && n.sigma_m) {
-        L.circle([n.y, n.x], { radius: 2 * n.sigma_m, weight: 1, color, fillOpacity: 0.05,
-          interactive: false }).addTo(this.nodeLayer);
-      }
-      const marker = n.role === "seed"
-        ? L.rectangle([[n.y - 0.3, n.x - 0.3], [n.y + 0.3, n.x + 0.3]], { color, weight: 2,
-          className: `node node-${n.role}` })
-        : L.circleMarker([n.y, n.x], { radius: 3, color, weight: 1, fillOpacity: 0.9,
-          className: `node node-${n.role}` });
-      marker.bindTooltip(`node ${n.id} (${n.role}${n.sigma_m ? `, σ ${n.sigma_m.toFixed(2)} m` : ""})`);
-      marker.addTo(this.nodeLayer);
     }
     for (const w of waypoints) {
       const pts = w.points.map((p) => [p.y, p.x]);
