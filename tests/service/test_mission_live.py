@@ -146,12 +146,12 @@ def test_live_mission_estimator_equals_offline_and_is_published(
             np.testing.assert_array_equal(r.trajectory.t, got.agents[k].trajectory.t)
             np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz,
                                        atol=1e-12, rtol=0)
-        pushed: dict[str, dict[str, Any]] = {}
-        deadline = time.monotonic() + 30
-        while not set(loc) <= set(pushed) and time.monotonic() < deadline:
-            msg = json.loads(dash.recv(timeout=30))
-            for n in msg.get("nodes", []):
-                pushed[n["id"]] = n
+        pushed: dict[str, dict[str, Any]] = {}     # the newest state of each node pushed
+        deadline = time.monotonic() + 60
+        with contextlib.suppress(TimeoutError):     # until the deltas stop
+            while time.monotonic() < deadline:
+                for n in json.loads(dash.recv(timeout=3))["nodes"]:
+                    pushed[n["id"]] = n
         assert set(loc) <= set(pushed)
         for n in loc:
             assert pushed[n]["localized"]
