@@ -72,6 +72,19 @@ def _wait_network(service: Service, mid: int, done: Any, timeout_s: float = 60.0
         time.sleep(0.3)
 
 
+def _settled(service: Service, mid: int, quiet_s: float = 1.5) -> list[dict[str, Any]]:
+    """The network once it stayed the same for ``quiet_s`` (the estimator's polls are done)."""
+    nodes, since = _network(service, mid), time.monotonic()
+    deadline = since + 30.0
+    while time.monotonic() - since < quiet_s:
+        assert time.monotonic() < deadline, "the network keeps changing"
+        time.sleep(0.3)
+        now = _network(service, mid)
+        if now != nodes:
+            nodes, since = now, time.monotonic()
+    return nodes
+
+
 def _count_text(nodes: list[dict[str, Any]]) -> str:
     """The panel's line, from the API's nodes."""
     loc = sum(1 for n in nodes if n["localized"])
@@ -117,10 +130,9 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
         offset = common_offset(commander, mid, members)
     seqs = _stream(service, agents, offset, t_from=-math.inf, t_to=offset + CUT_S,
                    first_seq=None)
-    first = _wait_network(service, mid, lambda ns: any(n["localized"] for n in ns)
-                          and any(not n["localized"] and n["readings"] for n in ns))
-    time.sleep(1.0)                        # the estimator's poll after the last batch
-    first = _network(service, mid)
+    _wait_network(service, mid, lambda ns: any(n["localized"] for n in ns)
+                  and any(not n["localized"] and n["readings"] for n in ns))
+    first = _settled(service, mid)
 
     login(page, service)
     page.goto(f"{service.url}/?mission={mid}")
@@ -151,10 +163,8 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
     _stream(service, agents, offset, t_from=offset + CUT_S, t_to=math.inf, first_seq=seqs)
     status, _ = service.api("PATCH", f"/missions/{mid}", {"status": "closed"})
     assert status == 200
-    final = _wait_network(service, mid, lambda ns: len([n for n in ns if n["localized"]])
-                          > len(loc1))
-    time.sleep(1.0)
-    final = _network(service, mid)
+    _wait_network(service, mid, lambda ns: len([n for n in ns if n["localized"]]) > len(loc1))
+    final = _settled(service, mid)
     loc2 = _check_page(page, final)
     assert set(loc2) - set(loc1), "no newly localized node"
     assert page.evaluate("() => window.notReloaded === true")
