@@ -184,3 +184,11 @@ def test_cli_simulate_writes_peer_ranges_and_mission_track_reads_them(tmp_path) 
     res = CliRunner().invoke(app, ["mission", "track", str(root), "-o", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert len(read_trajectory(tmp_path / "out" / "agents" / "R1" / "trajectory.csv").t) > 10
+
+
+def test_the_peer_range_parameters_survive_a_snapshot() -> None:
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=False, velocity_window_s=3.5,
+                                                    accel_sigma_m_s2=0.7))
+    mt = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
+                        kinds={"A": "robot", "B": "robot"}, params=prm)
+    assert MissionTracker.restore(mt.snapshot()).params == prm
