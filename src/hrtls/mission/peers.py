@@ -75,7 +75,7 @@ class PeerRangeParams:
 
     extrapolate: bool = True
     velocity_window_s: float = 2.0
-    accel_sigma_m_s2: float = 0.3
+    accel_sigma_m_s2: float = 0.6
 
     def __post_init__(self) -> None:
         for name in ("velocity_window_s", "accel_sigma_m_s2"):
