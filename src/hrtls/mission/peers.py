@@ -3,9 +3,10 @@
 A range ``r`` from agent A to agent B (``ranges`` of A's session with node id ``B``) at time
 ``t`` corrects A's tracker through its range-to-landmark path (eq. 4.34-4.35): B is a temporary
 landmark at B's estimate at ``t``. When B's track covers ``t`` (B went first in the window) it
-is interpolated between B's rows; when ``t`` is later than B's latest row ``t_B`` (up to
-``chunk_s`` later) B's position is extrapolated from its rows at or before ``t_B`` (causal), see
-below. B's own ranges to A correct B the same way, so each exchange corrects both agents.
+is interpolated between B's rows; when ``t`` is later than B's latest row ``t_B`` (B goes
+later in the window, or made no row since) B's position is extrapolated from its rows at or
+before ``t_B`` (causal), see below. B's own ranges to A correct B the same way, so each
+exchange corrects both agents.
 
 Extrapolation (``PeerRangeParams.extrapolate``). B's velocity ``v`` is the chord of its rows
 over the last ``velocity_window_s`` before ``t_B``; the landmark is ``x_B(t_B) + v g``,
