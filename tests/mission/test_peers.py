@@ -192,3 +192,14 @@ def test_the_peer_range_parameters_survive_a_snapshot() -> None:
     mt = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
                         kinds={"A": "robot", "B": "robot"}, params=prm)
     assert MissionTracker.restore(mt.snapshot()).params == prm
+
+
+def test_rows_are_kept_for_the_velocity_window_only_when_extrapolating() -> None:
+    from hrtls.mission.readings import trim_rows
+
+    t = np.arange(0.0, 10.0, 0.5)
+    rows = (t, np.column_stack([t, t]), np.repeat(np.eye(2)[None], len(t), axis=0))
+    assert trim_rows(rows, 9.2)[0][0] == 8.5                    # the row before the last <= 9.2
+    kept = PeerRangeParams().rows_kept_s()
+    assert trim_rows(rows, 9.2, keep_s=kept)[0][0] == 9.0 - kept - 0.5
+    assert PeerRangeParams(extrapolate=False).rows_kept_s() == 0.0
