@@ -70,7 +70,7 @@ def test_extrapolation_of_a_peer_by_hand() -> None:
     later than the range and ignored. x = 4 + 1.5 = 5.5; s_ext^2 = 1 * 0.25 + 0.3^2 / 3."""
     t = np.array([0.0, 1.0, 2.0, 3.0, 5.0])
     xy = np.column_stack([[0.0, 1.0, 3.0, 4.0, 100.0], np.zeros(5)])
-    prm = PeerRangeParams(velocity_window_s=2.0, accel_sigma_m_s2=0.3)
+    prm = PeerRangeParams(extrapolate=True, velocity_window_s=2.0, accel_sigma_m_s2=0.3)
     got = extrapolate_peer(t_s=t, xy_m=xy, at_s=4.0, params=prm)
     np.testing.assert_allclose(got.xy_m, [5.5, 0.0])
     np.testing.assert_allclose(got.velocity_m_s, [1.5, 0.0])
@@ -116,15 +116,17 @@ def test_run_mission_takes_a_boolean_peer_ranges_only() -> None:
         run_mission("inderst_hybrid_mission", 0, peer_ranges=1)
 
 
-def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("extrapolate", [False, True])
+def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission, extrapolate) -> None:  # type: ignore[no-untyped-def]
     from hrtls.pipeline.chunks import split_session
 
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=extrapolate))
     sessions = {k: s.with_parts(truth=None, checkpoints=None) for k, s in mission.agents.items()}
-    want = MissionTracker(sessions, kinds=mission.kinds).run()
+    want = MissionTracker(sessions, kinds=mission.kinds, params=prm).run()
     from hrtls.mission.tracker import AgentHeader
 
     mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
-                        kinds=mission.kinds)
+                        kinds=mission.kinds, params=prm)
     parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 2.0)),
                    key=lambda kp: kp[1].time_span()[1])
     for j, (name, part) in enumerate(parts):
@@ -133,6 +135,7 @@ def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission) -> No
         if j == len(parts) // 2:
             assert mt.peers.uses
             mt = MissionTracker.restore(mt.snapshot())
+            assert mt.params == prm
     for k in sessions:
         mt.end(k)
     got = mt.run()
@@ -200,6 +203,6 @@ def test_rows_are_kept_for_the_velocity_window_only_when_extrapolating() -> None
     t = np.arange(0.0, 10.0, 0.5)
     rows = (t, np.column_stack([t, t]), np.repeat(np.eye(2)[None], len(t), axis=0))
     assert trim_rows(rows, 9.2)[0][0] == 8.5                    # the row before the last <= 9.2
-    kept = PeerRangeParams().rows_kept_s()
+    kept = PeerRangeParams(extrapolate=True).rows_kept_s()
     assert trim_rows(rows, 9.2, keep_s=kept)[0][0] == 9.0 - kept - 0.5
-    assert PeerRangeParams(extrapolate=False).rows_kept_s() == 0.0
+    assert PeerRangeParams().rows_kept_s() == 0.0              # the default holds the peer

@@ -4,22 +4,23 @@ A range ``r`` from agent A to agent B (``ranges`` of A's session with node id ``
 ``t`` corrects A's tracker through its range-to-landmark path (eq. 4.34-4.35): B is a temporary
 landmark at B's estimate at ``t``. When B's track covers ``t`` (B went first in the window) it
 is interpolated between B's rows; when ``t`` is later than B's latest row ``t_B`` (B goes
-later in the window, or made no row since) B's position is extrapolated from its rows at or
-before ``t_B`` (causal), see below. B's own ranges to A correct B the same way, so each
-exchange corrects both agents.
+later in the window, or made no row since) B is carried from its rows at or before ``t_B``
+(causal): by default held at its last row with the worst-case bound ``s_move^2 = (v_max g)^2``,
+``g = t - t_B`` (``PEER_SPEED_M_S``, a bound on an agent's speed), or extrapolated (below).
+B's own ranges to A correct B the same way, so each exchange corrects both agents.
 
-Extrapolation (``PeerRangeParams.extrapolate``). B's velocity ``v`` is the chord of its rows
-over the last ``velocity_window_s`` before ``t_B``; the landmark is ``x_B(t_B) + v g``,
-``g = t - t_B``, and its variance per axis is B's plus the extrapolation's::
+Extrapolation (``PeerRangeParams.extrapolate``; off by default: it made the held-out missions
+of ``benchmarks/mission.py --peer-ranges`` worse, README). B's velocity ``v`` is the chord of
+its rows over the last ``velocity_window_s`` before ``t_B``; the landmark is ``x_B(t_B) + v g``,
+and its variance per axis is B's plus the extrapolation's::
 
-    s_ext^2 = g^2 lambda_max(S_v) + q g^3 / 3
+    s_move^2 = g^2 lambda_max(S_v) + q g^3 / 3
 
 ``S_v`` the time-weighted spread of the row-to-row velocities around ``v`` in the window (how
 steady B moved), ``q g^3 / 3`` the position variance of a continuous white-noise acceleration of
 spectral density ``q = accel_sigma_m_s2^2`` over ``g`` (Bar-Shalom, Li, Kirubarajan 2001,
-Sec. 6.2.2, eq. 6.2.2-12): B may turn or stop after its last row. Fewer than two rows, or
-``extrapolate`` off: B held at its last row with the worst-case bound ``(v_max g)^2``
-(``PEER_SPEED_M_S``, a bound on an agent's speed).
+Sec. 6.2.2, eq. 6.2.2-12): B may turn or stop after its last row. With fewer than two rows B is
+held with the bound.
 
 Consistency. After a first exchange the two filters' errors are correlated, and a filter that
 takes the peer as an independent anchor over-counts. Rule chosen: the same widening as for the
@@ -32,12 +33,12 @@ the trackers' scalar range update unchanged and keeps the cross terms bounded by
 that ``sum 1/sigma_use^2`` over a pass, the information A takes from B's one (correlated) error,
 stays about that of a single range with B's variance, ``1 / lambda_max(P_B)``, however many ranges
 the pass holds; ``lambda_max`` makes the isotropic anchor variance at least B's in every
-direction; ``s_move^2`` covers B's move between its estimate and the range (``s_ext^2`` above,
-or the bound), and is zero when B's rows cover ``t``. The extrapolation error is taken as
-independent of B's estimate error (it comes from B's unknown manoeuvres, not from its sensors);
-it is counted ``n`` times like B's error, which over-covers it when the ranges of a pass have
-different gaps. At most one range per peer and window is used (the nearest in time to B's
-latest row): the landmark holds one position per window.
+direction; ``s_move^2`` covers B's move between its estimate and the range (the bound or the
+extrapolation's variance), and is zero when B's rows cover ``t``. The move is taken as
+independent of B's estimate error (B's unknown manoeuvres, not its sensors); it is counted ``n``
+times like B's error, which over-covers it when the ranges of a pass have different gaps. At
+most one range per peer and window is used (the nearest in time to B's latest row): the
+landmark holds one position per window.
 """
 
 from __future__ import annotations
@@ -68,13 +69,14 @@ class PeerRangeParams:
 
     Attributes
     ----------
-    extrapolate: extrapolate the peer with its estimated velocity (False: hold it, speed bound).
+    extrapolate: extrapolate the peer with its estimated velocity; False (default): hold it at
+        its last row with the speed bound (the extrapolation made held-out missions worse).
     velocity_window_s: span of the peer's latest rows its velocity is taken from, s.
     accel_sigma_m_s2: square root of the white-noise acceleration density ``q``, m/s^2/sqrt(Hz)
         (``q g^3 / 3``: position variance after ``g`` s).
     """
 
-    extrapolate: bool = True
+    extrapolate: bool = False
     velocity_window_s: float = 2.0
     accel_sigma_m_s2: float = 0.6
 
