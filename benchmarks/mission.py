@@ -16,7 +16,8 @@ only) and prints, over the seeds, mean / p90 / worst of:
   and the node re-estimation (grows with the readings of the nodes in range).
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
-(``MissionOptions.peer_ranges``, the rest of the mission identical).
+(``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
+the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
@@ -41,6 +42,7 @@ from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.sim.mission import RESCUER_PREDICTION, Mission, MissionOptions, inderst_hybrid_mission
@@ -103,6 +105,8 @@ class SeedItem:
     peers: bool = False
     """Compare cooperation on without and with peer ranges instead of cooperation off / on."""
     prediction: dict[str, float] = field(default_factory=dict)
+    peer_extrapolate: bool = False
+    """``PeerRangeParams.extrapolate``: peers carried to a range's time with their velocity."""
 
 
 def modes(peers: bool) -> tuple[str, str]:
@@ -192,7 +196,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         peers = mode == "peers"
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
-            cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes),
+            cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
+            peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate)),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
@@ -222,6 +227,8 @@ def main() -> None:
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
     ap.add_argument("--peer-ranges", action="store_true",
                     help="cooperation on, without vs with inter-agent ranges")
+    ap.add_argument("--peer-extrapolate", action="store_true",
+                    help="PeerRangeParams.extrapolate: a peer extrapolated with its velocity")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
@@ -253,7 +260,7 @@ def main() -> None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
-    items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction)
+    items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate)
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges):

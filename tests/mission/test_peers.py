@@ -9,9 +9,10 @@ import pytest
 from hrtls.data import Session
 from hrtls.data.observations import PositionFixes, RangeMeasurements
 from hrtls.data.session import SessionMeta, StartPose
+from hrtls.errors import InputError
 from hrtls.io.session import read_session, write_session
-from hrtls.mission.peers import PEER_SPEED_M_S
-from hrtls.mission.tracker import MissionTracker
+from hrtls.mission.peers import PEER_SPEED_M_S, PeerRangeParams, extrapolate_peer
+from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.sim.mission import (
     RESCUER_PREDICTION,
@@ -30,21 +31,28 @@ def _robot(x: float, ranges: RangeMeasurements | None) -> Session:
     return Session(meta=meta, fixes=PositionFixes(t, xyz, np.full(len(t), 0.05)), ranges=ranges)
 
 
-def test_one_exact_range_pulls_a_toward_b_and_shrinks_its_covariance_along_the_line() -> None:
+@pytest.mark.parametrize("extrapolate", [False, True])
+def test_one_exact_range_pulls_a_toward_b_and_shrinks_its_covariance_along_the_line(
+        extrapolate: bool) -> None:
     """A at (0, 0), B at (10, 0); A measures 9 m to B at t = 7 s (sigma 1 mm). Window [5, 10):
     A goes first, B's latest row is t_B = 4.8 s. Eq. 4.35 with H = (-1, 0):
     x_A += P_xx / (P_xx + s^2) * (9 - 10), P_xx *= s^2 / (P_xx + s^2),
-    s^2 = (1e-3)^2 + lambda_max(P_B) + (PEER_SPEED_M_S * (7 - 4.8))^2; P_yy unchanged."""
+    s^2 = (1e-3)^2 + lambda_max(P_B) + s_move^2; P_yy unchanged. B stands: its rows do not move,
+    so the extrapolated landmark stays at (10, 0) with s_move^2 = q g^3 / 3 (no velocity
+    spread), g = 2.2 s; held: s_move^2 = (PEER_SPEED_M_S g)^2."""
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=extrapolate))
     rg = RangeMeasurements(np.array([7.0]), np.array(["B"]), np.array([9.0]), np.array([1e-3]))
     alone = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
-                           kinds={"A": "robot", "B": "robot"}).run()
+                           kinds={"A": "robot", "B": "robot"}, params=prm).run()
     res = MissionTracker({"A": _robot(0.0, rg), "B": _robot(10.0, None)},
-                         kinds={"A": "robot", "B": "robot"}).run()
+                         kinds={"A": "robot", "B": "robot"}, params=prm).run()
     before, after = alone.agents["A"].trajectory, res.agents["A"].trajectory
     k = int(np.searchsorted(before.t, 7.0))
     p = before.cov_xy[k]
     pb = alone.agents["B"].trajectory.cov_xy[int(np.searchsorted(before.t, 4.8))]
-    s2 = 1e-6 + float(np.linalg.eigvalsh(pb)[-1]) + (PEER_SPEED_M_S * 2.2) ** 2
+    move = (prm.peer_ranges.accel_sigma_m_s2 ** 2 * 2.2 ** 3 / 3 if extrapolate
+            else (PEER_SPEED_M_S * 2.2) ** 2)
+    s2 = 1e-6 + float(np.linalg.eigvalsh(pb)[-1]) + move
     gain = p[0, 0] / (p[0, 0] + s2)
     np.testing.assert_allclose(after.xyz[k, 0], before.xyz[k, 0] - gain * (9.0 - 10.0),
                                rtol=1e-6)
@@ -53,6 +61,28 @@ def test_one_exact_range_pulls_a_toward_b_and_shrinks_its_covariance_along_the_l
     np.testing.assert_allclose(after.cov_xy[k, 1, 1], p[1, 1], rtol=1e-6)
     np.testing.assert_allclose(res.agents["B"].trajectory.xyz,
                                alone.agents["B"].trajectory.xyz)
+
+
+def test_extrapolation_of_a_peer_by_hand() -> None:
+    """Rows at 0, 1, 2, 3 s at x = 0, 1, 3, 4 m (y = 0), window 2 s, range at 4 s (g = 1 s).
+    Window rows 1..3 s: v = (4 - 1) / 2 = 1.5 m/s; segment velocities 2, 1 (1 s each) deviate
+    by +0.5, -0.5: S_v = diag(0.5 * 0.25 + 0.5 * 0.25, 0) = diag(0.25, 0); the row at 5 s is
+    later than the range and ignored. x = 4 + 1.5 = 5.5; s_ext^2 = 1 * 0.25 + 0.3^2 / 3."""
+    t = np.array([0.0, 1.0, 2.0, 3.0, 5.0])
+    xy = np.column_stack([[0.0, 1.0, 3.0, 4.0, 100.0], np.zeros(5)])
+    prm = PeerRangeParams(extrapolate=True, velocity_window_s=2.0, accel_sigma_m_s2=0.3)
+    got = extrapolate_peer(t_s=t, xy_m=xy, at_s=4.0, params=prm)
+    np.testing.assert_allclose(got.xy_m, [5.5, 0.0])
+    np.testing.assert_allclose(got.velocity_m_s, [1.5, 0.0])
+    np.testing.assert_allclose(got.var_m2, 0.25 + 0.09 / 3.0)
+    held = extrapolate_peer(t_s=t, xy_m=xy, at_s=4.0,
+                            params=PeerRangeParams(extrapolate=False))
+    np.testing.assert_allclose(held.xy_m, [4.0, 0.0])
+    np.testing.assert_allclose(held.var_m2, PEER_SPEED_M_S ** 2)
+    one = extrapolate_peer(t_s=t[:1], xy_m=xy[:1], at_s=2.0, params=prm)
+    np.testing.assert_allclose([*one.xy_m, one.var_m2], [0.0, 0.0, (2.0 * PEER_SPEED_M_S) ** 2])
+    with pytest.raises(InputError, match="velocity_window_s"):
+        PeerRangeParams(velocity_window_s=0.0)
 
 
 OPTIONS = MissionOptions(walk_s=90.0, stagger_s=10.0, n_nodes=15, n_robots=1, peer_ranges=True)
@@ -82,21 +112,21 @@ def test_simulated_peer_ranges_name_the_other_agents_and_round_trip(mission, tmp
 
 
 def test_run_mission_takes_a_boolean_peer_ranges_only() -> None:
-    from hrtls.errors import InputError
-
     with pytest.raises(InputError, match="true or false"):
         run_mission("inderst_hybrid_mission", 0, peer_ranges=1)
 
 
-def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("extrapolate", [False, True])
+def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission, extrapolate) -> None:  # type: ignore[no-untyped-def]
     from hrtls.pipeline.chunks import split_session
 
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=extrapolate))
     sessions = {k: s.with_parts(truth=None, checkpoints=None) for k, s in mission.agents.items()}
-    want = MissionTracker(sessions, kinds=mission.kinds).run()
+    want = MissionTracker(sessions, kinds=mission.kinds, params=prm).run()
     from hrtls.mission.tracker import AgentHeader
 
     mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
-                        kinds=mission.kinds)
+                        kinds=mission.kinds, params=prm)
     parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 2.0)),
                    key=lambda kp: kp[1].time_span()[1])
     for j, (name, part) in enumerate(parts):
@@ -105,6 +135,7 @@ def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission) -> No
         if j == len(parts) // 2:
             assert mt.peers.uses
             mt = MissionTracker.restore(mt.snapshot())
+            assert mt.params == prm
     for k in sessions:
         mt.end(k)
     got = mt.run()
@@ -156,3 +187,22 @@ def test_cli_simulate_writes_peer_ranges_and_mission_track_reads_them(tmp_path) 
     res = CliRunner().invoke(app, ["mission", "track", str(root), "-o", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert len(read_trajectory(tmp_path / "out" / "agents" / "R1" / "trajectory.csv").t) > 10
+
+
+def test_the_peer_range_parameters_survive_a_snapshot() -> None:
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=False, velocity_window_s=3.5,
+                                                    accel_sigma_m_s2=0.7))
+    mt = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
+                        kinds={"A": "robot", "B": "robot"}, params=prm)
+    assert MissionTracker.restore(mt.snapshot()).params == prm
+
+
+def test_rows_are_kept_for_the_velocity_window_only_when_extrapolating() -> None:
+    from hrtls.mission.readings import trim_rows
+
+    t = np.arange(0.0, 10.0, 0.5)
+    rows = (t, np.column_stack([t, t]), np.repeat(np.eye(2)[None], len(t), axis=0))
+    assert trim_rows(rows, 9.2)[0][0] == 8.5                    # the row before the last <= 9.2
+    kept = PeerRangeParams(extrapolate=True).rows_kept_s()
+    assert trim_rows(rows, 9.2, keep_s=kept)[0][0] == 9.0 - kept - 0.5
+    assert PeerRangeParams().rows_kept_s() == 0.0              # the default holds the peer

@@ -110,8 +110,12 @@ def merge_rows(rows: list[Rows], new: Rows | None) -> Rows | None:
     return t, xy[::-1][idx], cov[::-1][idx]
 
 
-def trim_rows(rows: Rows, t_end: float) -> Rows:
-    """Drop the rows no later reading can need: all before the last one at or before t_end."""
+def trim_rows(rows: Rows, t_end: float, *, keep_s: float = 0.0) -> Rows:
+    """Drop the rows no later reading can need: all before the last one at or before t_end.
+
+    ``keep_s``: rows of the last ``keep_s`` seconds before ``t_end`` are kept too (a peer's
+    velocity, :mod:`hrtls.mission.peers`).
+    """
     t, xy, cov = rows
-    i = max(int(np.searchsorted(t, t_end, side="right")) - 2, 0)
+    i = max(int(np.searchsorted(t, t_end - keep_s, side="right")) - 2, 0)
     return (t[i:], xy[i:], cov[i:]) if i > 0 else rows

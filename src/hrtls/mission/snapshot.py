@@ -217,6 +217,7 @@ def mission_snapshot(mt: Any) -> bytes:
 
 def restore_mission(data: bytes) -> Any:
     """The :class:`~hrtls.mission.tracker.MissionTracker` of :func:`mission_snapshot` bytes."""
+    from hrtls.mission.peers import PeerRangeParams
     from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
 
     d = codec.unpack(data)
@@ -229,6 +230,7 @@ def restore_mission(data: bytes) -> Any:
     try:
         prm = dict(d["params"])
         prm["nodes"] = NodeEstimatorParams(**prm["nodes"])
+        prm["peer_ranges"] = PeerRangeParams(**prm.get("peer_ranges", {}))
         config = None if d["config"] is None else TrackerConfig.model_validate(d["config"])
         headers = {k: AgentHeader(SessionMeta.model_validate(m),
                                   {i: Landmark.model_validate(v) for i, v in lms.items()})

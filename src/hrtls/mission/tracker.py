@@ -54,7 +54,7 @@ from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
-from hrtls.mission.peers import PeerUses, merge_ranges, split_peer_ranges
+from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -87,6 +87,8 @@ class MissionParams:
         windows back; its data older than the processed horizon are then late, s.
     nodes:
         Node estimator parameters.
+    peer_ranges:
+        How a peer's estimate is carried to the time of an inter-agent range.
     """
 
     chunk_s: float = 5.0
@@ -96,6 +98,7 @@ class MissionParams:
     loop_closure_ratio: float = 4.0
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
+    peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
 
     def __post_init__(self) -> None:
         for name in ("chunk_s", "pass_gap_s", "silent_after_s"):
@@ -510,7 +513,8 @@ class MissionTracker:
     def _trim_rows(self, name: str, t_end: float) -> None:
         """Keep the per-window cost of :meth:`_collect` independent of the mission's length."""
         if len(self._rows[name]) == 1:
-            self._rows[name] = [trim_rows(self._rows[name][0], t_end)]
+            self._rows[name] = [trim_rows(self._rows[name][0], t_end,
+                                          keep_s=self.params.peer_ranges.rows_kept_s())]
 
     def _collect(self, i: int, name: str, ranges: RangeMeasurements | None, rows: Rows | None,
                  *, final: bool = False) -> set[str]:

@@ -320,6 +320,52 @@ class RangeModel:
     agent_height_m: float = 1.0
 
 
+@dataclass(frozen=True, slots=True)
+class RangeDraw:
+    """Readings of ranging attempts.
+
+    Attributes
+    ----------
+    keep: which attempts gave a reading (eligible, within ``max_range_m``, not dropped), (N,).
+    range_m: measured ranges of the kept attempts, m. sigma_m: their reported 1-sigma, m.
+    """
+
+    keep: NDArray[np.bool_]
+    range_m: FloatArray
+    sigma_m: FloatArray
+
+
+def draw_ranges(*, distance_m: FloatArray, from_xy_m: FloatArray, to_xy_m: FloatArray,
+                model: RangeModel, rng: np.random.Generator,
+                eligible: NDArray[np.bool_] | None = None) -> RangeDraw:
+    """Radio model of :class:`RangeModel` applied to attempts at true distances ``distance_m``.
+
+    The one noise model of node ranges (:func:`range_measurements`) and inter-agent ranges
+    (:func:`hrtls.sim.peers.peer_ranges`). Draws, in this order (a seeded simulation depends on
+    it): a dropout uniform for every attempt; for the kept ones (if any) a standard normal,
+    ``r = d + sqrt(sigma_m^2 + (sigma_fraction d)^2) N(0, 1)``; with ``walls`` and a positive
+    ``nlos_bias_mean_m`` an exponential bias of that mean for each kept attempt, added where the
+    segment ``from_xy_m -> to_xy_m`` (rows (N, 2), or one (2,) point) crosses the walls. The
+    range is clipped at 0; the reported sigma is ``sqrt(sigma_m^2 + (sigma_fraction r)^2)``.
+    """
+    d = np.asarray(distance_m, dtype=np.float64)
+    keep = (d <= model.max_range_m) & (rng.random(len(d)) >= model.dropout_probability)
+    if eligible is not None:
+        keep &= eligible
+    n = int(keep.sum())
+    if n == 0:
+        return RangeDraw(keep, np.zeros(0), np.zeros(0))
+    sd = np.hypot(model.sigma_m, model.sigma_fraction * d[keep])
+    r = d[keep] + sd * rng.standard_normal(n)
+    if model.walls is not None and model.nlos_bias_mean_m > 0:
+        a = np.asarray(from_xy_m, dtype=np.float64)
+        b = np.broadcast_to(np.asarray(to_xy_m, dtype=np.float64), a.shape)
+        segs = shapely.linestrings(np.stack([a[keep], b[keep]], axis=1))
+        r = r + shapely.intersects(segs, model.walls) * rng.exponential(model.nlos_bias_mean_m, n)
+    r = np.maximum(r, 0.0)
+    return RangeDraw(keep, r, np.hypot(model.sigma_m, model.sigma_fraction * r))
+
+
 def range_measurements(nodes: Mapping[str, Sequence[float]], model: RangeModel,
                        track: TrackSample, rng: np.random.Generator
                        ) -> RangeMeasurements | None:
@@ -331,30 +377,23 @@ def range_measurements(nodes: Mapping[str, Sequence[float]], model: RangeModel,
     tq = _query_times(track, model.rate_hz, rng)
     xyz, _, _ = track.at(tq)
     xyz[:, 2] += model.agent_height_m
-    t_all, n_all, r_all = [], [], []
+    t_all, n_all, r_all, s_all = [], [], [], []
     for j in range(len(ids)):
         d = np.linalg.norm(xyz - pos[j], axis=1)
-        keep = (d <= model.max_range_m) & (rng.random(len(d)) >= model.dropout_probability)
-        if not np.any(keep):
+        got = draw_ranges(distance_m=d, from_xy_m=xyz[:, :2], to_xy_m=pos[j, :2], model=model,
+                          rng=rng)
+        if not np.any(got.keep):
             continue
-        sd = np.hypot(model.sigma_m, model.sigma_fraction * d[keep])
-        rng_m = d[keep] + sd * rng.standard_normal(int(keep.sum()))
-        if model.walls is not None and model.nlos_bias_mean_m > 0:
-            segs = shapely.linestrings(np.stack([
-                np.column_stack([xyz[keep, 0], xyz[keep, 1]]),
-                np.broadcast_to(pos[j, :2], (int(keep.sum()), 2))], axis=1))
-            blocked = shapely.intersects(segs, model.walls)
-            rng_m = rng_m + blocked * rng.exponential(model.nlos_bias_mean_m, len(rng_m))
-        t_all.append(tq[keep])
-        n_all.append(np.full(int(keep.sum()), j))
-        r_all.append(np.maximum(rng_m, 0.0))
+        t_all.append(tq[got.keep])
+        n_all.append(np.full(len(got.range_m), j))
+        r_all.append(got.range_m)
+        s_all.append(got.sigma_m)
     if not t_all:
         return None
     t = np.concatenate(t_all)
     order = np.argsort(t, kind="stable")
-    r = np.concatenate(r_all)[order]
-    return RangeMeasurements(t[order], np.asarray(ids)[np.concatenate(n_all)[order]], r,
-                             np.hypot(model.sigma_m, model.sigma_fraction * r))
+    return RangeMeasurements(t[order], np.asarray(ids)[np.concatenate(n_all)[order]],
+                             np.concatenate(r_all)[order], np.concatenate(s_all)[order])
 
 
 # --------------------------------------------------------------------------------------------

@@ -23,13 +23,13 @@ import numpy as np
 import shapely
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
-from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
 from hrtls.data import Activity
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
 from hrtls.sim._speed_profile import run_profile_kernel, run_speed_limits, still_headings
+from hrtls.sim.corridor_paths import free_space_graph, pull_string
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -470,48 +470,6 @@ def staircase_waypoints(*, start: tuple[float, float, float], heading_rad: float
                     speed_m_s=speed_m_s, corner_radius_m=0.3)
 
 
-def _free_space_graph(inner: BaseGeometry, spacing_m: float) -> tuple[FloatArray, nx.Graph]:
-    """Grid points inside ``inner`` joined to their 8 neighbours when the segment stays inside."""
-    minx, miny, maxx, maxy = inner.bounds
-    gx = np.arange(minx, maxx + 1e-9, spacing_m)
-    gy = np.arange(miny, maxy + 1e-9, spacing_m)
-    xx, yy = np.meshgrid(gx, gy, indexing="ij")
-    inside = shapely.contains_xy(inner, xx, yy)
-    index = -np.ones(xx.shape, dtype=np.int64)
-    index[inside] = np.arange(int(inside.sum()))
-    nodes = np.column_stack([xx[inside], yy[inside]])
-    graph = nx.Graph()
-    graph.add_nodes_from(range(len(nodes)))
-    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
-        i0, i1 = max(0, -di), xx.shape[0] - max(0, di)
-        j0, j1 = max(0, -dj), xx.shape[1] - max(0, dj)
-        a = index[i0:i1, j0:j1]
-        b = index[i0 + di:i1 + di, j0 + dj:j1 + dj]
-        ok = (a >= 0) & (b >= 0)
-        ia, ib = a[ok], b[ok]
-        if len(ia) == 0:
-            continue
-        segs = shapely.linestrings(np.stack([nodes[ia], nodes[ib]], axis=1))
-        good = shapely.contains(inner, segs)
-        w = float(np.hypot(di, dj) * spacing_m)
-        graph.add_weighted_edges_from((int(u), int(v), w)
-                                      for u, v in zip(ia[good], ib[good], strict=True))
-    return nodes, graph
-
-
-def _pull_string(points: FloatArray, inner: BaseGeometry) -> list[FloatArray]:
-    """Drop intermediate points while the straight segment stays inside (greedy)."""
-    out = [points[0]]
-    i = 0
-    while i < len(points) - 1:
-        j = len(points) - 1
-        while j > i + 1 and not inner.contains(LineString([points[i], points[j]])):
-            j -= 1
-        out.append(points[j])
-        i = j
-    return out
-
-
 def random_floorplan_walk(free_space: BaseGeometry, rng: np.random.Generator, *,
                           distance_m: float, start: tuple[float, float] | None = None,
                           speed_range_m_s: tuple[float, float] = (0.9, 1.5),
@@ -535,7 +493,7 @@ def random_floorplan_walk(free_space: BaseGeometry, rng: np.random.Generator, *,
     minx, miny, maxx, maxy = inner.bounds
     shapely.prepare(inner)
     spacing = grid_m or max(0.25, min(1.0, min(maxx - minx, maxy - miny) / 8.0))
-    nodes, graph = _free_space_graph(inner, spacing)
+    nodes, graph = free_space_graph(inner=inner, spacing_m=spacing)
     if len(nodes) < 2:
         raise InputError("floor plan too small for its grid", where="free_space",
                          expected="a larger area")
@@ -559,7 +517,7 @@ def random_floorplan_walk(free_space: BaseGeometry, rng: np.random.Generator, *,
         route = nx.shortest_path(graph, int(here), int(goal), weight="weight")
         route_pts = np.vstack([cur[None, :], nodes[route]])
         keep = np.concatenate([[True], np.hypot(*np.diff(route_pts, axis=0).T) > 1e-9])
-        straight = _pull_string(route_pts[keep], inner)
+        straight = pull_string(points_m=route_pts[keep], inner=inner)
         speed = float(rng.uniform(*speed_range_m_s))
         for k, p in enumerate(straight[1:], start=1):
             last = k == len(straight) - 1

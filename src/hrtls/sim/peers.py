@@ -2,7 +2,8 @@
 
 Each agent ranges to every other agent at ``rate_hz`` while both are in their sessions and
 within ``max_range_m``, with the node radio model of :class:`hrtls.sim.infrastructure.RangeModel`
-(Gaussian noise, exponential NLOS bias behind walls, dropouts). The readings go to the agent's
+(Gaussian noise, exponential NLOS bias behind walls, dropouts), drawn by the same
+:func:`hrtls.sim.infrastructure.draw_ranges` as node ranges. The readings go to the agent's
 ``ranges`` with the other agent's name as node id (``ranges.csv`` holds them like node ranges).
 """
 
@@ -11,11 +12,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import shapely
 
 from hrtls.data import Session
 from hrtls.data.observations import RangeMeasurements
-from hrtls.sim.infrastructure import RangeModel
+from hrtls.sim.infrastructure import RangeModel, draw_ranges
 
 
 def _truth_at(session: Session, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -41,20 +41,13 @@ def peer_ranges(agents: dict[str, Session], model: RangeModel, rng: np.random.Ge
                 continue
             xb, inside = _truth_at(sb, tq)
             d = np.linalg.norm(xa - xb, axis=1)
-            keep = inside & (d <= model.max_range_m) & (
-                rng.random(len(d)) >= model.dropout_probability)
-            n = int(keep.sum())
+            got = draw_ranges(distance_m=d, from_xy_m=xa, to_xy_m=xb, model=model, rng=rng,
+                              eligible=inside)
+            n = len(got.range_m)
             if n == 0:
                 continue
-            sd = np.hypot(model.sigma_m, model.sigma_fraction * d[keep])
-            r = d[keep] + sd * rng.standard_normal(n)
-            if model.walls is not None and model.nlos_bias_mean_m > 0:
-                segs = shapely.linestrings(np.stack([xa[keep], xb[keep]], axis=1))
-                r = r + shapely.intersects(segs, model.walls) * rng.exponential(
-                    model.nlos_bias_mean_m, n)
-            r = np.maximum(r, 0.0)
-            parts.append(RangeMeasurements(tq[keep], np.full(n, b, dtype=object), r,
-                                           np.hypot(model.sigma_m, model.sigma_fraction * r)))
+            parts.append(RangeMeasurements(tq[got.keep], np.full(n, b, dtype=object),
+                                           got.range_m, got.sigma_m))
         if len(parts) <= (sa.ranges is not None):
             out[a] = sa
             continue

@@ -2,14 +2,15 @@
 
 The controller plans on the robot's **estimated** position: :class:`CorridorRouter` finds the
 shortest corridor route from the estimate to the way point (grid of the free space shrunk by
-``margin_m``, straightened where the line of sight allows). The wheels execute that route, so
-the true path is the planned route shifted by the estimation error ``p_true - p_est`` at the
-planning time (each shifted corner is pulled back into the free space: the robot does not drive
-through walls). :class:`DrivenRobot` samples the true motion at the odometry rate
-(:func:`hrtls.sim.motion_truth.simulate_motion`, a unicycle along the route), integrates wheel
-odometry from it (the model of :func:`hrtls.sim.team.odometry_poses`, continued from part to
-part) and draws ranges to the nodes with the mission's radio model. Each :meth:`DrivenRobot.drive`
-returns the session part of one period, to be fed to the mission's tracker.
+``margin_m``, straightened where the line of sight allows: :mod:`hrtls.sim.corridor_paths`).
+The wheels execute that route, so the true path is the planned route shifted by the estimation
+error ``p_true - p_est`` at the planning time (each shifted corner is pulled back into the free
+space: the robot does not drive through walls). :class:`DrivenRobot` samples the true motion at
+the odometry rate (:func:`hrtls.sim.motion_truth.simulate_motion`, a unicycle along the route),
+integrates wheel odometry from it (the model of :func:`hrtls.sim.team.odometry_poses`, continued
+from part to part) and draws ranges to the nodes with the mission's radio model. Each
+:meth:`DrivenRobot.drive` returns the session part of one period, to be fed to the mission's
+tracker.
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ from hrtls.data import Session
 from hrtls.data.observations import GroundTruth, PositionFixes
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
+from hrtls.sim.corridor_paths import free_space_graph, pull_string
 from hrtls.sim.infrastructure import RangeModel, TrackSample, range_measurements
-from hrtls.sim.motion_truth import Waypoint, _free_space_graph, _pull_string, simulate_motion
+from hrtls.sim.motion_truth import Waypoint, simulate_motion
 from hrtls.sim.team import ROBOT_RATE_HZ
 
 FloatArray = NDArray[np.float64]
@@ -60,7 +62,7 @@ class CorridorRouter:
     def __init__(self, free_space: BaseGeometry, *, grid_m: float, margin_m: float) -> None:
         self.inner = free_space.buffer(-margin_m)
         shapely.prepare(self.inner)
-        nodes, graph = _free_space_graph(self.inner, grid_m)
+        nodes, graph = free_space_graph(inner=self.inner, spacing_m=grid_m)
         parts: list[set[int]] = [set(c) for c in nx.connected_components(graph)]
         part = sorted(parts[int(np.argmax([len(c) for c in parts]))])
         self.graph = graph.subgraph(part)
@@ -85,7 +87,7 @@ class CorridorRouter:
         path = self.nodes[nx.shortest_path(self.graph, ia, ib, weight="weight")]
         pts = np.vstack([a[None], path, b[None]])
         keep = np.concatenate([[True], np.hypot(*np.diff(pts, axis=0).T) > 1e-9])
-        return np.asarray(_pull_string(pts[keep], self.inner))
+        return np.asarray(pull_string(points_m=pts[keep], inner=self.inner))
 
 
 class DrivenRobot:
