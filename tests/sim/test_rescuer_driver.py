@@ -18,7 +18,6 @@ from hrtls.sim.infrastructure import RangeModel, RfidTag
 from hrtls.sim.magnetic import MagneticEnvironment
 from hrtls.sim.mission import (
     ENTRANCE_XY,
-    FREE_SPACE,
     RESCUER_PREDICTION,
     ROOMS,
     MissionOptions,

@@ -45,10 +45,10 @@ from hrtls.sim.errors import (
 )
 from hrtls.sim.gait_model import GaitParams, fill_step_extremes, simulate_gait
 from hrtls.sim.imu_model import IdealImu, _interp_quat, _interp_rows, body_kinematics, ideal_imu
+from hrtls.sim.infrastructure import TrackSample, range_measurements, rfid_detections
 from hrtls.sim.magnetic import MagneticEnvironment
 from hrtls.sim.motion_truth import GAIT_WALK, MotionParams, MotionTruth, Waypoint, simulate_motion
 from hrtls.sim.person import PERSON_STREAM, Infrastructure, _mountings
-from hrtls.sim.infrastructure import TrackSample, range_measurements, rfid_detections
 from hrtls.sim.robot_driver import CorridorRouter
 from hrtls.sim.simulation_result import SimulationResult
 
@@ -106,8 +106,9 @@ def _cut(route: FloatArray, length_m: float) -> FloatArray:
     return np.vstack([route[:j], route[j - 1] + f * (route[j] - route[j - 1])])
 
 
-def _still(t: FloatArray, xy: FloatArray, heading: FloatArray) -> MotionTruth:
-    """Standing (possibly turning on the spot) at ``xy`` at times ``t``."""
+def _still(t_s: NDArray[np.floating], xy: FloatArray, heading: FloatArray) -> MotionTruth:
+    """Standing (possibly turning on the spot) at ``xy`` at times ``t_s``."""
+    t = np.asarray(t_s, dtype=np.float64)
     n = len(t)
     return MotionTruth(t=t, s=np.zeros(n), xyz=np.column_stack([np.tile(xy, (n, 1)),
                                                                np.zeros(n)]),
@@ -164,7 +165,8 @@ class WalkingPerson:
             start_pose=StartPose(x=float(self.xy_m[0]), y=float(self.xy_m[1]), z=0.0,
                                  heading=self.heading_rad, sigma_xy_m=0.1,
                                  sigma_heading_rad=0.05),
-            placement="belt", mounting_q_bd=tuple(float(v) for v in q_declared),
+            placement="belt", mounting_q_bd=(float(q_declared[0]), float(q_declared[1]),
+                                                float(q_declared[2]), float(q_declared[3])),
             user=UserProfile(height_m=1.75), floor_height_m=3.0,
             source={"format": "hrtls-sim", "device": device.name, **(source or {})},
             notes=[description, f"device: {device.description}"])
@@ -172,6 +174,7 @@ class WalkingPerson:
 
     @property
     def dt_s(self) -> float:
+        """The device's sample period, s."""
         return 1.0 / self.device.rate_hz
 
     def stand_until(self, *, start_s: float, until_s: float) -> Session:
