@@ -2,11 +2,15 @@
 
 :class:`WalkingPerson` is :func:`hrtls.sim.person.simulate_person` cut into legs for a closed
 loop (issue 18): each :meth:`WalkingPerson.walk_to` starts from the person's **true** state (the
-person sees the building), turns on the spot toward the route, walks the shortest corridor route
-(:class:`hrtls.sim.robot_driver.CorridorRouter`, grid of the free space straightened where the
-line of sight allows) to the way point and stands there for a short pause; a route longer than
-``max_walk_s`` of walking is cut and the person stops on it (the caller gives the next way point
-then). Legs are joined at standstill, where the gait oscillation is zero
+person sees the building), turns on the spot toward the route, stands for a short pause, then
+walks the shortest corridor route (:class:`hrtls.sim.robot_driver.CorridorRouter`, grid of the
+free space straightened where the line of sight allows) to the way point and stops there (turn
+first, then stand: the order of :func:`hrtls.sim.motion_truth.simulate_motion` at a stop); a
+route longer than ``max_walk_s`` of walking is cut and the person stops on it (the caller gives
+the next way point then). The first walk starts with ``enter_m`` straight ahead in the start
+heading: the rescuer's tracker takes its start pose's heading as that of its first steps (turns
+before them are not integrated, :mod:`hrtls.fusion.state`), as in the pre-generated walks,
+whose start heading is that of their first leg. Legs are joined at standstill, where the gait oscillation is zero
 (:mod:`hrtls.sim.gait_model`: its envelope vanishes at zero speed), so the waist pose, its
 derivatives and the heading are continuous across a join; the gait phase of a leg starts at 0.
 
@@ -61,11 +65,13 @@ class LegParams:
 
     speed_range_m_s: tuple[float, float] = (0.9, 1.5)
     pause_range_s: tuple[float, float] = (1.0, 3.0)
-    """The stop at the end of a leg, drawn per leg."""
+    """The stop at the start of a leg, after the turn toward the route, drawn per leg."""
     corner_radius_range_m: tuple[float, float] = (0.0, 1.0)
     arrive_m: float = 0.5
     """A way point closer than this to the person: no walk, the person only stands."""
     turn_rate_rad_s: float = 2.0
+    enter_m: float = 2.0
+    """The first walk starts with this much straight ahead (module doc)."""
 
     def __post_init__(self) -> None:
         lo, hi = self.speed_range_m_s
@@ -93,6 +99,7 @@ class _Record:
     steps: list[StepEvents] = field(default_factory=list)
     activity_t: list[FloatArray] = field(default_factory=list)
     activity: list[NDArray[np.int64]] = field(default_factory=list)
+    walked: bool = False
 
 
 def _cut(route: FloatArray, length_m: float) -> FloatArray:
@@ -187,9 +194,9 @@ class WalkingPerson:
         return self._part(_still(t, self.xy_m, np.full(n, self.heading_rad)), first=True)
 
     def walk_to(self, target_m: FloatArray, *, max_walk_s: float, until_s: float) -> Session:
-        """Walk to ``target_m`` (at most ``max_walk_s`` of walking) and stop; the part.
+        """Turn toward ``target_m``, pause, walk there (at most ``max_walk_s``), stop; the part.
 
-        The part ends at the end of the stop or at ``until_s``, whichever is first.
+        The part ends on arrival or at ``until_s``, whichever is first.
         """
         if self.t_s == -np.inf:
             raise InputError("walk before the first part", where="WalkingPerson.walk_to",
@@ -208,8 +215,12 @@ class WalkingPerson:
         speed = float(rng.uniform(*prm.speed_range_m_s))
         pause = float(rng.uniform(*prm.pause_range_s))
         here = _still(np.array([self.t_s]), self.xy_m, np.array([self.heading_rad]))
-        route = self.router.route(self.xy_m, target_m)
-        pts = _cut(np.vstack([self.xy_m[None], route[1:]]), speed * max_walk_s)
+        start = [self.xy_m]
+        if not self.record.walked:  # the first steps go straight ahead (module doc)
+            c, s = np.cos(self.heading_rad), np.sin(self.heading_rad)
+            start.append(self.router.inside(self.xy_m + prm.enter_m * np.array([c, s])))
+        route = self.router.route(start[-1], target_m)
+        pts = _cut(np.vstack([*start, *route[1:]]), speed * max_walk_s)
         keep = np.concatenate([[True], np.hypot(*np.diff(pts, axis=0).T) > 1e-6])
         pts = pts[keep]
         length = float(np.sum(np.hypot(*np.diff(pts, axis=0).T)))
@@ -217,6 +228,7 @@ class WalkingPerson:
             n = max(1, round(pause / dt))
             t = self.t_s + dt * np.arange(1, n + 1)
             return _concat([here, _still(t, self.xy_m, np.full(n, self.heading_rad))])
+        self.record.walked = True
         wps = [Waypoint(x=float(p[0]), y=float(p[1]), speed_m_s=speed,
                         corner_radius_m=float(rng.uniform(*prm.corner_radius_range_m)))
                for p in pts]
@@ -229,9 +241,11 @@ class WalkingPerson:
         h = still_headings(duration_s=n_turn * dt, heading_rad=self.heading_rad, turn_rad=turn,
                            turn_rate_rad_s=prm.turn_rate_rad_s, dt_s=dt,
                            min_turn_s=self.motion_params.min_turn_s)
+        n_pause = max(1, round(pause / dt))
+        h = np.concatenate([h, np.full(n_pause, first)])
         turning = _still(self.t_s + dt * np.arange(1, len(h) + 1), self.xy_m, h)
         walk = simulate_motion(wps, rate_hz=self.device.rate_hz, params=self.motion_params,
-                               start_pause_s=0.0, end_pause_s=pause,
+                               start_pause_s=0.0, end_pause_s=0.0,
                                t0_s=self.t_s + dt * (len(h) + 1))
         return _concat([here, turning, walk])
 
