@@ -10,9 +10,11 @@ route longer than ``max_walk_s`` of walking is cut and the person stops on it (t
 the next way point then). The first walk starts with ``enter_m`` straight ahead in the start
 heading: the rescuer's tracker takes its start pose's heading as that of its first steps (turns
 before them are not integrated, :mod:`hrtls.fusion.state`), as in the pre-generated walks,
-whose start heading is that of their first leg. Legs are joined at standstill, where the gait oscillation is zero
-(:mod:`hrtls.sim.gait_model`: its envelope vanishes at zero speed), so the waist pose, its
-derivatives and the heading are continuous across a join; the gait phase of a leg starts at 0.
+whose start heading is that of their first leg. Legs are joined at rest, where the gait
+oscillation is zero (:mod:`hrtls.sim.gait_model`: its envelope vanishes at zero speed), so the
+waist pose, its velocity and the heading are continuous across a join (the acceleration steps
+as at any start or stop of :func:`~hrtls.sim.motion_truth.simulate_motion`); the gait phase of
+a leg starts at 0.
 
 One device for the whole walk: the mounting (declared belt clip plus its true tilt,
 :data:`hrtls.sim.person.BELT_TILT_SIGMA_RAD`) and each sensor's turn-on bias, scale and
