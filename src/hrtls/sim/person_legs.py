@@ -168,6 +168,8 @@ class WalkingPerson:
         self.heading_rad = float(start_heading_rad)
         self.t_s = -np.inf
         """Time of the last sample produced (``-inf`` before :meth:`stand_until`)."""
+        self.arrived = False
+        """The last :meth:`walk_to` ended at its way point (the person sees it is there)."""
         self.description = description
         self.record = _Record()
         self.meta = SessionMeta(
@@ -206,8 +208,11 @@ class WalkingPerson:
         if not until_s >= self.t_s + self.dt_s:
             raise InputError(f"until {until_s} s", where="WalkingPerson.walk_to",
                              expected=f"at least one sample after {self.t_s} s")
-        motion = self._leg_motion(np.asarray(target_m, dtype=np.float64), max_walk_s)
+        target = np.asarray(target_m, dtype=np.float64)
+        motion = self._leg_motion(target, max_walk_s)
         keep = motion.t <= until_s + 1e-9
+        end = motion.xyz[np.flatnonzero(keep)[-1], :2]
+        self.arrived = bool(np.hypot(*(end - self.router.inside(target))) < self.params.arrive_m)
         motion = MotionTruth(**{f: getattr(motion, f)[keep] for f in MotionTruth.__slots__})
         return self._part(motion, first=False)
 

@@ -11,6 +11,10 @@ start pose before the first row); :func:`hrtls.mission.waypoints.next_waypoint` 
 point from :func:`~hrtls.mission.waypoints.planner_input` (tracker state only, never the truth);
 the person walks there from its true position (it sees the building) and the leg's part is fed
 to the tracker. A node is targeted at most ``max_visits_per_node`` times by the whole team.
+A rescuer that reached its way point says so (it sees the building, as it sees the route): the
+candidates within ``explore_gap_m`` of a reached way point are no longer offered to the team
+(without this the planner, seeing the estimated track away from the point, sends the rescuer
+to where it already stands, again and again).
 Other agents (robots on fixed routes) are fed whole (the tracker is causal).
 """
 
@@ -73,6 +77,8 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         tracker.end(k)
     choices: dict[str, list[tuple[float, Choice]]] = {k: [] for k in persons}
     visits: dict[str, int] = {}
+    points = next(iter(persons.values())).router.points_m
+    open_ = np.ones(len(points), dtype=bool)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in set(persons) - set(busy):
@@ -83,11 +89,13 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         person = persons[name]
         tracker.advance(person.t_s)
         c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
-                          candidates_m=person.router.points_m, visits=visits,
-                          params=prm.waypoints)
+                          candidates_m=points[open_] if open_.any() else points,
+                          visits=visits, params=prm.waypoints)
         if c.node:
             visits[c.node] = visits.get(c.node, 0) + 1
         choices[name].append((person.t_s, c))
         tracker.feed(name, person.walk_to(c.position_m, max_walk_s=prm.plan_period_s,
                                           until_s=end_s[name]))
+        if person.arrived:
+            open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
     return RescuerLoopResult(tracker, choices)
