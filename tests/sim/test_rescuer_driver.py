@@ -162,6 +162,31 @@ def test_rescuers_reach_the_planners_way_points(loop: tuple) -> None:
         assert truth.t[-1] == pytest.approx({"R1": 63.0, "R2": 68.0}[name], abs=0.02)
 
 
+def test_a_reached_way_point_is_not_offered_again(loop: tuple) -> None:
+    persons, out, prm, _ = loop
+    gap = prm.waypoints.explore_gap_m
+    points = persons["R1"].router.points_m
+    events = []  # (time given, way point, kind, reached)
+    for name, p in persons.items():
+        truth = p.session().truth
+        ch = out.choices[name]
+        for j, (t, c) in enumerate(ch):
+            t_next = ch[j + 1][0] if j + 1 < len(ch) else truth.t[-1]
+            sel = (truth.t >= t) & (truth.t <= t_next)
+            end = truth.xyz[sel][-1, :2]
+            events.append((t, t_next, c, np.hypot(*(end - c.position_m)) < p.params.arrive_m))
+    checked = 0
+    for t, _, c, _ in events:
+        reached = [e[2].position_m for e in events if e[3] and e[1] <= t]
+        if not reached or c.kind == "refine":  # a refine way point is a node estimate
+            continue
+        d = np.min(np.linalg.norm(points[:, None] - np.array(reached)[None], axis=2), axis=1)
+        if np.any(d > gap):  # candidates left: the choice is one of them
+            assert np.min(np.hypot(*(np.array(reached) - c.position_m).T)) > gap
+            checked += 1
+    assert checked >= 1
+
+
 def test_offline_tracker_repeats_the_loops_estimates(loop: tuple) -> None:
     persons, out, prm, config = loop
     sessions = {k: p.session() for k, p in persons.items()}
