@@ -3,7 +3,7 @@
 The rescuer counterpart of :mod:`hrtls.sim.planner_loop` (issue 18 item 3). Each rescuer is a
 :class:`~hrtls.sim.person_legs.WalkingPerson`; every rescuer first stands at its start until its
 entry time, then walks leg after leg. Events are handled in time order: the rescuer whose data
-ends first (the end of its last leg: it stands at its way point, or on its route after
+ends first (the end of its last leg: it stopped at its way point, or on its route after
 ``plan_period_s`` of walking) is next; the :class:`~hrtls.mission.tracker.MissionTracker`
 processes every complete window up to that time (every agent has data until then); the
 rescuer's position for the planner is its tracker's latest row (at most ``chunk_s`` old; its
@@ -81,7 +81,7 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     open_ = np.ones(len(points), dtype=bool)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
-        for k in set(persons) - set(busy):
+        for k in sorted(set(persons) - set(busy)):
             tracker.end(k)
         if not busy:
             break
