@@ -50,11 +50,11 @@ from hrtls.sim.errors import (
     sample_times,
 )
 from hrtls.sim.gait_model import GaitParams, fill_step_extremes, simulate_gait
-from hrtls.sim.imu_model import IdealImu, _interp_quat, _interp_rows, body_kinematics, ideal_imu
+from hrtls.sim.imu_model import IdealImu, body_kinematics, ideal_imu, interp_quat, interp_rows
 from hrtls.sim.infrastructure import TrackSample, range_measurements, rfid_detections
 from hrtls.sim.magnetic import MagneticEnvironment
 from hrtls.sim.motion_truth import GAIT_WALK, MotionParams, MotionTruth, Waypoint, simulate_motion
-from hrtls.sim.person import PERSON_STREAM, Infrastructure, _mountings
+from hrtls.sim.person import PERSON_STREAM, Infrastructure, mountings
 from hrtls.sim.robot_driver import CorridorRouter
 from hrtls.sim.simulation_result import SimulationResult
 
@@ -156,7 +156,7 @@ class WalkingPerson:
         self.magnetic = magnetic
         self.rngs = rngs
         self.gait = GaitParams().drawn(np.random.default_rng([seed, PERSON_STREAM]))
-        q_declared, self.q_bd = _mountings("belt", rngs[7])
+        q_declared, self.q_bd = mountings("belt", rngs[7])
         assert q_declared is not None
         self.motion_params = MotionParams()
         sensors = {"accelerometer": device.accel, "gyroscope": device.gyro,
@@ -289,10 +289,10 @@ class WalkingPerson:
         dev, rng = self.device, self.rngs[2]
         t = sample_times(t0_s, t1_s, dev.rate_hz, dev.jitter_s, rng)
         f = self._errors("accelerometer", dev.accel,
-                         _interp_rows(t, ideal.t, ideal.specific_force), t)
-        w = self._errors("gyroscope", dev.gyro, _interp_rows(t, ideal.t, ideal.angular_rate), t)
-        q_nd = _interp_quat(t, ideal.t, ideal.q_nd)
-        m_n = self.magnetic.field_at(_interp_rows(t, ideal.t, ideal.device_position))
+                         interp_rows(t, ideal.t, ideal.specific_force), t)
+        w = self._errors("gyroscope", dev.gyro, interp_rows(t, ideal.t, ideal.angular_rate), t)
+        q_nd = interp_quat(t, ideal.t, ideal.q_nd)
+        m_n = self.magnetic.field_at(interp_rows(t, ideal.t, ideal.device_position))
         m = self._errors("magnetometer", dev.mag, quat_rotate(quat_conjugate(q_nd), m_n), t)
         self.dev.t_last_s = float(t[-1])
         return ImuStream(SensorSeries(t, f, "accelerometer"), SensorSeries(t, w, "gyroscope"),
