@@ -223,6 +223,9 @@ def main() -> None:
                     help="range noise proportional to the distance (0.02: the issue's 2 %%)")
     ap.add_argument("--robot-driver", choices=("random", "planner"), default="random",
                     help="robots on random routes or driven in closed loop by the planner")
+    ap.add_argument("--rescuer-driver", choices=("random", "planner"), default="random",
+                    help="rescuers on pre-generated random routes or walking to the planner's "
+                         "way points in closed loop")
     ap.add_argument("--node-failure", type=float, default=0.0)
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
     ap.add_argument("--peer-ranges", action="store_true",
@@ -246,7 +249,7 @@ def main() -> None:
                           range_sigma_m=args.range_sigma_m,
                           range_sigma_fraction=args.range_sigma_fraction,
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s,
-                          robot_driver=args.robot_driver)
+                          robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
@@ -285,7 +288,8 @@ def main() -> None:
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
-    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers, {args.robots} robots "
+    print(f"\nseeds {args.seeds}, {args.rescuers} rescuers ({args.rescuer_driver} driver), "
+          f"{args.robots} robots "
           f"({args.robot_driver} driver), "
           f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "

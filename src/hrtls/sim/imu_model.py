@@ -160,16 +160,17 @@ def ideal_imu(kin: BodyKinematics, *, q_bd: ArrayLike = (1.0, 0.0, 0.0, 0.0),
                     device_position=p_dev, accel_n=acc_n)
 
 
-def _interp_rows(t_new: FloatArray, t: FloatArray, x: FloatArray) -> FloatArray:
+def interp_rows(t_new: FloatArray, t: FloatArray, x: FloatArray) -> FloatArray:
+    """Each column of ``x`` (sampled at ``t``) linearly interpolated at ``t_new``."""
     return np.column_stack([np.interp(t_new, t, c) for c in x.T])
 
 
-def _interp_quat(t_new: FloatArray, t: FloatArray, q: FloatArray) -> FloatArray:
+def interp_quat(t_new: FloatArray, t: FloatArray, q: FloatArray) -> FloatArray:
     """Quaternions at ``t_new`` by normalized linear interpolation (sign-continuous)."""
     qq = q.copy()
     flip = np.cumsum(np.concatenate([[0], (np.sum(qq[1:] * qq[:-1], axis=1) < 0)]) % 2) % 2
     qq[flip.astype(bool)] *= -1
-    return quat_normalize(_interp_rows(t_new, t, qq))
+    return quat_normalize(interp_rows(t_new, t, qq))
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,8 +214,8 @@ def simulate_imu(kin: BodyKinematics, device: DeviceModel, rng: np.random.Genera
     jitter = 0.0 if noiseless else device.jitter_s
     t_acc = sample_times(t0, t1, device.rate_hz, jitter, rng)
     same_grid = len(t_acc) == len(t_grid) and np.allclose(t_acc, t_grid, atol=1e-12, rtol=0)
-    f = ideal.specific_force if same_grid else _interp_rows(t_acc, t_grid, ideal.specific_force)
-    w = ideal.angular_rate if same_grid else _interp_rows(t_acc, t_grid, ideal.angular_rate)
+    f = ideal.specific_force if same_grid else interp_rows(t_acc, t_grid, ideal.specific_force)
+    w = ideal.angular_rate if same_grid else interp_rows(t_acc, t_grid, ideal.angular_rate)
     realizations: dict[str, ErrorRealization] = {}
     if not noiseless:
         realizations["accelerometer"] = realize_errors(device.accel, rng)
@@ -230,8 +231,8 @@ def simulate_imu(kin: BodyKinematics, device: DeviceModel, rng: np.random.Genera
     if with_mag and magnetic is not None:
         rate = device.mag_rate_hz or device.rate_hz
         t_mag = t_acc if rate == device.rate_hz else sample_times(t0, t1, rate, jitter, rng)
-        q_nd = _interp_quat(t_mag, t_grid, ideal.q_nd)
-        pos = _interp_rows(t_mag, t_grid, ideal.device_position)
+        q_nd = interp_quat(t_mag, t_grid, ideal.q_nd)
+        pos = interp_rows(t_mag, t_grid, ideal.device_position)
         m_n = magnetic.field_at(pos)
         m_d = quat_rotate(quat_conjugate(q_nd), m_n)
         if not noiseless:
@@ -241,7 +242,7 @@ def simulate_imu(kin: BodyKinematics, device: DeviceModel, rng: np.random.Genera
     imu = ImuStream(accel, gyro, mag, check_units=False)
     orientation = None
     if with_orientation:
-        q = _interp_quat(t_acc, t_grid, ideal.q_nd)
+        q = interp_quat(t_acc, t_grid, ideal.q_nd)
         if not noiseless and orientation_heading_error_rad > 0:
             # slowly wandering heading error of the device's own AHRS (Basso Sec. IV)
             dt = 1.0 / device.rate_hz

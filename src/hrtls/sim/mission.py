@@ -18,8 +18,10 @@ odometry poses (:func:`hrtls.sim.team.odometry_poses`, 5 Hz) and its ranges to t
 same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
 ``robot_driver="planner"`` the robots are instead driven in closed loop by the way-point planner
 on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
-unchanged). One floor only (the
-issue's two floors are not simulated here).
+unchanged). With ``rescuer_driver="planner"`` the rescuers walk, leg by leg, to the way points
+the planner picks from their trackers' estimates (:mod:`hrtls.sim.rescuer_loop`; robots then on
+random routes; inter-agent ranges are added after the loop, which does not see them). One floor
+only (the issue's two floors are not simulated here).
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
@@ -87,6 +89,10 @@ class MissionOptions:
     robot_driver: str = "random"
     """``random``: fixed random corridor routes; ``planner``: driven in closed loop by the
     way-point planner on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`)."""
+    rescuer_driver: str = "random"
+    """``random``: pre-generated random corridor routes; ``planner``: each rescuer walks to the
+    way points the planner picks from the mission tracker's estimates, leg by leg
+    (:mod:`hrtls.sim.rescuer_loop`)."""
     peer_ranges: bool = False
     """Agents range to each other too (:mod:`hrtls.sim.peers`, the same radio model)."""
     peer_max_range_m: float = 10.0
@@ -96,6 +102,14 @@ class MissionOptions:
         if self.robot_driver not in ("random", "planner"):
             raise InputError(f"robot_driver = {self.robot_driver!r}", where="MissionOptions",
                              expected="random or planner")
+        if self.rescuer_driver not in ("random", "planner"):
+            raise InputError(f"rescuer_driver = {self.rescuer_driver!r}", where="MissionOptions",
+                             expected="random or planner")
+        if self.rescuer_driver == "planner" and self.robot_driver == "planner" and self.n_robots:
+            raise InputError("rescuer_driver = planner with robot_driver = planner",
+                             where="MissionOptions",
+                             expected="at most one planner-driven kind of agent (robots then "
+                                      "on random routes)")
         if self.n_robots < 0:
             raise InputError(f"{self.n_robots} robots", where="MissionOptions", expected=">= 0")
         if self.n_rescuers < 1 or self.n_nodes < 1:
@@ -152,6 +166,8 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m,
                        sigma_fraction=o.range_sigma_fraction, max_range_m=o.max_range_m,
                        nlos_bias_mean_m=o.nlos_bias_mean_m, walls=ROOMS)
+    if o.rescuer_driver == "planner":
+        return _driven_team(seed, o, nodes, alive, model, tags, r[7], sites)
     agents: dict[str, Session] = {}
     sims: dict[str, SimulationResult] = {}
     for i in range(o.n_rescuers):
@@ -177,6 +193,13 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         else:
             agents[name], sims[name] = _robot(seed, i, o, alive, model)
         kinds[name] = "robot"
+    return _finish(seed, o, nodes, model, agents, sims, kinds)
+
+
+def _finish(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
+            model: RangeModel, agents: dict[str, Session], sims: dict[str, SimulationResult],
+            kinds: dict[str, Literal["rescuer", "robot"]]) -> Mission:
+    """The mission, with the inter-agent ranges when asked (module doc)."""
     if o.peer_ranges:
         peer_model = dataclasses.replace(model, rate_hz=o.peer_rate_hz,
                                          max_range_m=o.peer_max_range_m)
@@ -185,6 +208,45 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
                    kinds=kinds)
+
+
+def _driven_team(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
+                 alive: dict[str, tuple[float, float, float]], model: RangeModel,
+                 tags: list[RfidTag], rng: np.random.Generator, sites: FloatArray) -> Mission:
+    """Planner-driven rescuers (:mod:`hrtls.sim.rescuer_loop`) and robots on random routes."""
+    from hrtls.pipeline.config import TrackerConfig
+    from hrtls.sim.person_legs import WalkingPerson
+    from hrtls.sim.rescuer_loop import drive_rescuers
+    from hrtls.sim.robot_driver import CorridorRouter, DriverParams
+
+    router = CorridorRouter(FREE_SPACE, grid_m=DriverParams().grid_m,
+                            margin_m=DriverParams().margin_m)
+    persons: dict[str, WalkingPerson] = {}
+    for i in range(o.n_rescuers):
+        name = f"R{i + 1}"
+        persons[name] = WalkingPerson(
+            name=name, seed=seed, device=get_device("inemo"), router=router,
+            start_xy_m=np.array(ENTRANCE_XY), start_heading_rad=np.pi / 2,
+            infra=Infrastructure(tags=tags, nodes=alive, range_model=model),
+            magnetic=MagneticEnvironment(anomalies=random_anomalies(rng, sites)),
+            rngs=scenario_rngs(seed * 1000 + 17 * (i + 1)),
+            source={"scenario": "inderst_hybrid_mission", "seed": seed,
+                    "options": {"rescuer": i, "driver": "planner"}},
+            description=f"hybrid mission, rescuer {i + 1} of {o.n_rescuers} (planner driver)")
+    robots = {f"B{i + 1}": _robot(seed, i, o, alive, model) for i in range(o.n_robots)}
+    enter = {k: 3.0 + i * o.stagger_s for i, k in enumerate(persons)}
+    drive_rescuers(persons, {k: s for k, (s, _) in robots.items()},
+                   kinds=dict.fromkeys(robots, "robot"), enter_s=enter,
+                   end_s={k: t + o.walk_s for k, t in enter.items()},
+                   config=TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION}))
+    sims = {k: p.result(scenario="inderst_hybrid_mission", seed=seed,
+                        options={"rescuer": i, "driver": "planner"})
+            for i, (k, p) in enumerate(persons.items())}
+    sims.update({k: sim for k, (_, sim) in robots.items()})
+    agents = {k: v.session for k, v in sims.items()}
+    kinds: dict[str, Literal["rescuer", "robot"]] = {
+        **dict.fromkeys(persons, "rescuer"), **dict.fromkeys(robots, "robot")}
+    return _finish(seed, o, nodes, model, agents, sims, kinds)
 
 
 def _robot(seed: int, i: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],

@@ -43,7 +43,7 @@ from hrtls.sim.simulation_result import SimulationResult
 
 __all__ = ["BELT_TILT_SIGMA_RAD", "CALIBRATION_LEG_M", "PERSON_STREAM", "Infrastructure",
            "calibration_summary", "calibration_waypoints", "checkpoint_passes",
-           "mounting_quaternion", "simulate_person"]
+           "mounting_quaternion", "mountings", "simulate_person"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -139,7 +139,7 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                              start_pause_s=start_pause_s, end_pause_s=end_pause_s)
     gres = simulate_gait(motion, gp, r[1])
     kin = body_kinematics(motion, gres)
-    q_declared, q_bd = _mountings(placement, r[7])
+    q_declared, q_bd = mountings(placement, r[7])
     sim = simulate_imu(kin, device, r[2], q_bd=q_bd, lever_arm_b=lever_arm_b,
                        magnetic=magnetic or MagneticEnvironment(), with_gyro=with_gyro,
                        with_mag=with_mag, with_orientation=with_orientation,
@@ -179,7 +179,7 @@ def simulate_person(name: str, seed: int, options: dict[str, Any], waypoints: li
                                                   for k, v in sim.realizations.items()}})
 
 
-def _mountings(placement: str, rng: np.random.Generator) -> tuple[FloatArray | None, FloatArray]:
+def mountings(placement: str, rng: np.random.Generator) -> tuple[FloatArray | None, FloatArray]:
     """The declared mounting of a placement (None for ``"random"``) and the true one.
 
     The true mounting of a fixed placement is off its nominal one by

@@ -1,0 +1,101 @@
+"""Closed loop of planner-driven rescuers: mission tracker <-> planner <-> walking persons.
+
+The rescuer counterpart of :mod:`hrtls.sim.planner_loop` (issue 18 item 3). Each rescuer is a
+:class:`~hrtls.sim.person_legs.WalkingPerson`; every rescuer first stands at its start until its
+entry time, then walks leg after leg. Events are handled in time order: the rescuer whose data
+ends first (the end of its last leg: it stopped at its way point, or on its route after
+``plan_period_s`` of walking) is next; the :class:`~hrtls.mission.tracker.MissionTracker`
+processes every complete window up to that time (every agent has data until then); the
+rescuer's position for the planner is its tracker's latest row (at most ``chunk_s`` old; its
+start pose before the first row); :func:`hrtls.mission.waypoints.next_waypoint` picks the way
+point from :func:`~hrtls.mission.waypoints.planner_input` (tracker state only, never the truth);
+the person walks there from its true position (it sees the building) and the leg's part is fed
+to the tracker. A node is targeted at most ``max_visits_per_node`` times by the whole team.
+A rescuer that reached its way point says so (it sees the building, as it sees the route): the
+candidates within ``explore_gap_m`` of a reached way point are no longer offered to the team
+(without this the planner, seeing the estimated track away from the point, sends the rescuer
+to where it already stands, again and again).
+Other agents (robots on fixed routes) are fed whole (the tracker is causal).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.data import Session
+from hrtls.mission.tracker import AgentHeader, MissionTracker
+from hrtls.mission.waypoints import Choice, next_waypoint, planner_input
+from hrtls.pipeline.config import TrackerConfig
+from hrtls.sim.person_legs import WalkingPerson
+from hrtls.sim.planner_loop import LoopParams
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class RescuerLoopResult:
+    """The tracker after the last leg and each rescuer's way points, in order."""
+
+    tracker: MissionTracker
+    choices: dict[str, list[tuple[float, Choice]]]
+
+
+def rescuer_estimate(tracker: MissionTracker, person: WalkingPerson) -> FloatArray:
+    """The rescuer's position for the planner: its tracker's latest row, else its start pose."""
+    name = person.name
+    rows = tracker.trackers[name].estimates_since() if name in tracker.started else None
+    if rows is None or len(rows.t) == 0:
+        sp = person.meta.start_pose
+        assert sp is not None
+        return np.array([sp.x, sp.y])
+    return np.asarray(rows.xyz[-1, :2], dtype=np.float64)
+
+
+def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Session], *,
+                   kinds: Mapping[str, str], enter_s: Mapping[str, float],
+                   end_s: Mapping[str, float], params: LoopParams | None = None,
+                   config: TrackerConfig | None = None,
+                   cooperate: bool = True) -> RescuerLoopResult:
+    """Run the loop (module doc): rescuer ``k`` stands until ``enter_s[k]``, walks to ``end_s[k]``.
+
+    ``others``: whole sessions of the other agents (their ``kinds``).
+    """
+    prm = params or LoopParams()
+    mp = dataclasses.replace(prm.mission, cooperate=cooperate)
+    headers: dict[str, Session | AgentHeader] = {
+        k: AgentHeader(p.meta, dict(p.landmarks)) for k, p in persons.items()}
+    tracker = MissionTracker({**headers, **others}, params=mp, config=config,
+                             kinds={**dict.fromkeys(persons, "rescuer"), **kinds})
+    for k, p in persons.items():
+        tracker.feed(k, p.stand_until(start_s=0.0, until_s=enter_s[k]))
+    for k in others:  # whole sessions: they hold no window back after their end
+        tracker.end(k)
+    choices: dict[str, list[tuple[float, Choice]]] = {k: [] for k in persons}
+    visits: dict[str, int] = {}
+    points = next(iter(persons.values())).router.points_m
+    open_ = np.ones(len(points), dtype=bool)
+    while True:
+        busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
+        for k in sorted(set(persons) - set(busy)):
+            tracker.end(k)
+        if not busy:
+            break
+        name = min(busy, key=lambda k: (persons[k].t_s, k))
+        person = persons[name]
+        tracker.advance(person.t_s)
+        c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
+                          candidates_m=points[open_] if open_.any() else points,
+                          visits=visits, params=prm.waypoints)
+        if c.node:
+            visits[c.node] = visits.get(c.node, 0) + 1
+        choices[name].append((person.t_s, c))
+        tracker.feed(name, person.walk_to(c.position_m, max_walk_s=prm.plan_period_s,
+                                          until_s=end_s[name]))
+        if person.arrived:
+            open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
+    return RescuerLoopResult(tracker, choices)
