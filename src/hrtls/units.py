@@ -38,6 +38,26 @@ def _norms(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
+def _median_outside(norms: NDArray[np.float64], bands: tuple[tuple[float, float], ...]) -> bool:
+    """True when the median of ``norms`` is surely in none of the closed ``bands``.
+
+    Decided by counting, without placing the median, when the middle values (one for an odd
+    count, two for an even count, whose mean numpy takes) lie on the same side of each band
+    edge; False (not sure: compute the median) otherwise. A NaN needs no care: numpy's median
+    is then NaN, in no band, and either answer leads to no message.
+    """
+    n = len(norms)
+    k = n // 2
+    for lo, hi in bands:
+        below = int(np.count_nonzero(norms < lo))  # rank of the first value >= lo
+        upto = int(np.count_nonzero(norms <= hi))
+        middle = (k,) if n % 2 else (k - 1, k)
+        if all(below > i for i in middle) or all(upto <= i for i in middle):
+            continue  # the middle values are all below lo, or all above hi
+        return False
+    return True
+
+
 def suspect_accelerometer_unit(values: NDArray[np.float64]) -> str | None:
     """Return a message when accelerometer samples (N, 3) look like g rather than m/s^2.
 
@@ -46,7 +66,10 @@ def suspect_accelerometer_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    median = float(np.median(_norms(values)))
+    norms = _norms(values)
+    if _median_outside(norms, ((0.4, 2.5), (400.0, 2500.0))):
+        return None
+    median = float(np.median(norms))
     if 0.4 <= median <= 2.5:
         return (f"median |a| = {median:.3g}, which is gravity in g, not m/s^2; "
                 f"multiply by {G_TO_M_S2} (readers: accel_unit='g')")
@@ -65,7 +88,10 @@ def suspect_gyroscope_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    p99 = float(np.percentile(_norms(values), 99))
+    norms = _norms(values)
+    if not (norms > 25.0).any():
+        return None  # no percentile exceeds the largest value (with a NaN: NaN, not > 25)
+    p99 = float(np.percentile(norms, 99))
     if p99 > 25.0:
         return (f"99th percentile of |w| = {p99:.4g}, which only makes sense in deg/s; "
                 f"multiply by pi/180 (readers: gyro_unit='deg/s')")
@@ -80,7 +106,10 @@ def suspect_magnetometer_unit(values: NDArray[np.float64]) -> str | None:
     """
     if len(values) < _MIN_SAMPLES_FOR_UNIT_CHECK:
         return None
-    median = float(np.median(_norms(values)))
+    norms = _norms(values)
+    if _median_outside(norms, ((0.05, 3.0), (5000.0, 300000.0))):
+        return None
+    median = float(np.median(norms))
     if 0.05 <= median <= 3.0:
         return (f"median |m| = {median:.3g}, which is gauss, not uT; multiply by 100 "
                 f"(readers: mag_unit='gauss')")

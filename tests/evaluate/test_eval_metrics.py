@@ -26,6 +26,7 @@ from hrtls.evaluate.metrics import (
     match_events,
     moving_speed_rmse,
     position_errors,
+    position_errors_2d_3d,
     velocity_rmse,
 )
 from hrtls.evaluate.plots import plot_cdf, plot_error_over_time, plot_trajectory
@@ -228,3 +229,31 @@ def test_plots_write_png(tmp_path):
                  plot_error_over_time(tmp_path / "b.png", t, e),
                  plot_cdf(tmp_path / "c.png", {"x": e})):
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.one_of(st.floats(0.0, 50.0), st.sampled_from([0.0, 1.0, math.nan])),
+                max_size=300))
+def test_report_cdf_points_are_those_of_the_sorted_errors(errors):
+    """The partial sort gives the points of the full CDF (ties and NaN, last, included)."""
+    from hrtls.evaluate.report import _cdf_points
+
+    e = np.array(errors, dtype=np.float64)
+    x, p = error_cdf(e)
+    idx = np.unique(np.linspace(0, e.size - 1, min(50, e.size)).round().astype(int))
+    got = _cdf_points(e)
+    assert np.array_equal(np.array(got["error_m"]), x[idx], equal_nan=True)
+    assert got["fraction"] == p[idx].tolist()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 200), st.integers(0, 2**16))
+def test_errors_2d_3d_are_the_norms_of_the_differences(n, seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.1
+    est = Trajectory.build(t=t, xyz=rng.normal(0, 30, (n, 3)))
+    truth = GroundTruth(t + 0.05, rng.normal(0, 30, (n, 3)), None)
+    h, d3 = position_errors_2d_3d(est, truth)
+    d = est.position_at(truth.t) - truth.xyz
+    assert np.array_equal(h, np.sqrt(np.sum(d[:, :2] * d[:, :2], axis=1)))
+    assert np.array_equal(d3, np.sqrt(np.sum(d * d, axis=1)))

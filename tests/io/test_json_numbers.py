@@ -67,3 +67,15 @@ def test_geojson_text_made_by_arrow_is_json_dumps(n, steps_n, scale, seed, tmp_p
         write_local_geojson(tr, path, steps=steps if steps_n else None)
     doc["type"] = LOCAL_TYPE
     assert path.read_text() == json.dumps(doc, allow_nan=False) + "\n"
+
+
+@settings(max_examples=200)
+@given(st.lists(st.floats(min_value=1e-4, max_value=1e9, exclude_max=True), max_size=200),
+       st.integers(0, 9), st.booleans())
+def test_float_text_without_exponents(values, digits, negative):
+    """The range the formatter takes without looking for exponents, rounded numbers too."""
+    sign = -1.0 if negative else 1.0
+    values = [sign * v for v in values] + [sign * round(v, -digits) for v in values]
+    values += [0.0, -0.0, 1e-4, float(np.nextafter(1e9, 0)), 1e8, 999999999.0]
+    values = [v for v in values if v == 0.0 or 1e-4 <= abs(v) < 1e9]
+    assert float_text(np.array(values)).to_pylist() == [_json(v) for v in values]

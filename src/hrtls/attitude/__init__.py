@@ -6,6 +6,8 @@ saveable state, ``update`` on chunks and ``run`` on a whole stream. Pick one by 
 ``device`` passes through an orientation the phone computed (:class:`DeviceOrientation`).
 """
 
+from typing import TYPE_CHECKING, Any
+
 from hrtls.attitude.base import AttitudeFilter, AttitudeResult, AttitudeState, CommonParams
 from hrtls.attitude.bias import GyroBiasEstimate, estimate_gyro_bias, rest_mask
 from hrtls.attitude.complementary import ComplementaryFilter, ComplementaryParams
@@ -15,7 +17,9 @@ from hrtls.attitude.fqa import fqa, fqa_quaternion
 from hrtls.attitude.inertial_lowpass import InertialLowpass, InertialLowpassParams
 from hrtls.attitude.quat_ekf import QuatEkf, QuatEkfParams
 from hrtls.attitude.registry import FILTERS, METHODS, make_filter
-from hrtls.evaluate.orientation import OrientationErrors, orientation_errors
+
+if TYPE_CHECKING:
+    from hrtls.evaluate.orientation import OrientationErrors, orientation_errors
 
 __all__ = [
     "FILTERS",
@@ -44,3 +48,12 @@ __all__ = [
     "orientation_errors",
     "rest_mask",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The orientation scores, imported when first asked for (tracking does not use them)."""
+    if name in ("OrientationErrors", "orientation_errors"):
+        from hrtls.evaluate import orientation
+
+        return getattr(orientation, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -91,7 +91,9 @@ def position_errors_2d_3d(estimate: Trajectory, truth: GroundTruth
                           ) -> tuple[FloatArray, FloatArray]:
     """Horizontal and 3-D errors at every truth sample (ends held), the estimate placed once."""
     d = estimate_at(estimate, truth.t) - truth.xyz
-    return np.sqrt(np.sum(d[:, :2] * d[:, :2], axis=1)), np.sqrt(np.sum(d * d, axis=1))
+    sq = d * d
+    horizontal = sq[:, 0] + sq[:, 1]  # summed in the order np.sum(axis=1) adds them
+    return np.sqrt(horizontal), np.sqrt(horizontal + sq[:, 2])
 
 
 def axis_errors(estimate: Trajectory, truth: GroundTruth) -> FloatArray:

@@ -37,6 +37,7 @@ from hrtls.frames import Georeference
 from hrtls.io.jsonstream import (
     Rows,
     float_text,
+    joined_text,
     materialized,
     numbers_text,
     row_text,
@@ -309,7 +310,7 @@ def _step_text(steps: StepEvents, coords: FloatArray) -> Callable[[int, int], st
             ', "length_m": ', float_text(steps.length_m[i:j]), ', "heading_rad": ',
             float_text(steps.heading_rad[i:j]), ', "dz_m": ', float_text(steps.dz_m[i:j]),
             ', "activity": ', pa.array(quoted[index[i:j]].tolist(), pa.string()), "}}", "")
-        return ", ".join(rows.to_pylist())
+        return joined_text(rows)
     return text
 
 

@@ -115,6 +115,13 @@ def float_text(values: np.ndarray) -> pa.Array:
     v = np.ascontiguousarray(values, dtype=np.float64)
     size = np.abs(v)
     text = pc.cast(pa.array(v), pa.string())
+    if (((size >= 1e-4) & (size < 1e9)) | (v == 0)).all():
+        # neither text has an exponent there (Arrow's first ones are whole numbers from 1e10
+        # on): only whole numbers (no point) need their ``.0``
+        point = pc.match_substring(text, ".")
+        if pc.all(point).as_py():
+            return text
+        return pc.if_else(point, text, pc.binary_join_element_wise(text, ".0", ""))
     point, sci = pc.match_substring(text, "."), pc.match_substring(text, "e")
     decimal = ((size >= 1e-4) & (size < 1e16)) | (v == 0)  # repr's choice
     same = np.where(np.asarray(sci), ~decimal, decimal)
@@ -134,7 +141,18 @@ def numbers_text(values: np.ndarray) -> str:
     NaN and infinities are written ``null``.
     """
     text = float_text(values) if values.ndim == 1 else row_text(values)
-    return ", ".join(text.to_pylist())
+    return joined_text(text)
+
+
+def joined_text(text: pa.Array) -> str:
+    """The strings of ``text`` joined by ``", "``, joined by Arrow (no Python string each)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if not len(text):
+        return ""
+    one_list = pa.ListArray.from_arrays(pa.array(np.array([0, len(text)], dtype=np.int32)), text)
+    return str(pc.binary_join(one_list, ", ")[0].as_py())
 
 
 def row_text(values: np.ndarray) -> pa.Array:

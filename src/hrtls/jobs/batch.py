@@ -14,10 +14,12 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hrtls.errors import InputError
-from hrtls.parallel import Engine, Outcome, ProgressCallback
+
+if TYPE_CHECKING:  # the engines (process pools) are imported by their users: not by `track`
+    from hrtls.parallel import Engine, Outcome, ProgressCallback
 
 SUMMARY_COLUMNS = ("recording", "status", "result", "steps", "distance_walked_m", "imu_samples",
                    "seconds", "checkpoint_mean_m", "checkpoint_max_m", "error_p90_m", "error")

@@ -70,7 +70,6 @@ from hrtls.gait.analyzer import GaitAnalyzer, GaitResult
 from hrtls.gait.step_length import StepModel
 from hrtls.pipeline import build
 from hrtls.pipeline import report as rep
-from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.baro_stage import BaroStage
 from hrtls.pipeline.build import RATE_SAMPLES as RATE_SAMPLES
 from hrtls.pipeline.build import Notes, Sensors
@@ -488,11 +487,13 @@ class Tracker:
             "baro": None if self.baro is None else self.baro.state(),
             "diag": rep.carried(eng, self._base),
         }
+        from hrtls.pipeline import snapshot as snap  # imported by the runs that snapshot
         return snap.pack(out)
 
     @classmethod
     def restore(cls, data: bytes) -> Tracker:
         """A tracker continuing from :meth:`snapshot` bytes (its configuration inside)."""
+        from hrtls.pipeline import snapshot as snap
         d = snap.unpack(data)
         try:
             tr = cls(TrackerConfig.model_validate(d["config"]))
