@@ -269,3 +269,63 @@ def test_random_walk_agent_errors_need_the_chain() -> None:
     lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
     assert lo <= float(np.mean(nees["chain"])) <= hi, (np.mean(nees["chain"]), lo, hi)
     assert float(np.mean(nees["independent"])) > hi
+
+
+def _corridor_and_side_pass(side_sigma_m: float) -> NodeRanges:
+    """A straight corridor pass past the node (0, 3) and a side pass with a vague agent error."""
+    node = np.array([0.0, 3.0])
+    s0, s1 = np.linspace(-8, 8, 17), np.linspace(4, 16, 13)
+    a = np.concatenate([np.column_stack([s0, np.zeros(17)]),
+                        np.column_stack([np.full(13, 6.0), s1])])
+    cov = np.concatenate([np.broadcast_to(0.04 * np.eye(2), (17, 2, 2)),
+                          np.broadcast_to(side_sigma_m ** 2 * np.eye(2), (13, 2, 2))])
+    return NodeRanges.build(agent_xy_m=a, agent_cov_m2=cov,
+                            range_m=np.linalg.norm(a - node, axis=1),
+                            range_sigma_m=np.full(30, 0.1), group=np.r_[np.zeros(17), np.ones(13)])
+
+
+def test_mirror_across_one_straight_pass_is_ambiguous() -> None:
+    # the side pass's agent error (5 m) absorbs its ranges: only the corridor pass places the node,
+    # on either side of it; all agents' best-fit line is not the corridor, so the reflection
+    # across it alone missed the mirror and the node was localized at (0, -3), sigma 0.2 m
+    obs = _corridor_and_side_pass(5.0)
+    for init in (None, np.array([0.0, -3.0])):
+        e = NodeEstimator(EXACT).estimate(obs, initial_m=init)
+        assert not e.localized
+        assert e.reason == "mirror ambiguity across pass 0"
+    e = NodeEstimator(replace(EXACT, max_mirror_passes=0)).estimate(
+        obs, initial_m=np.array([0.0, -3.0]))
+    assert e.localized and abs(e.position_m[1] + 3.0) < 0.1     # the failure the check catches
+
+
+def test_a_precise_side_pass_resolves_the_mirror() -> None:
+    e = NodeEstimator(EXACT).estimate(_corridor_and_side_pass(0.2))
+    assert e.localized, e.reason
+    np.testing.assert_allclose(e.position_m, [0.0, 3.0], atol=0.1)
+
+
+@pytest.mark.parametrize("offset_m", [(3.0, 0.0), (-3.0, 0.0)])
+def test_two_passes_that_disagree_beyond_their_covariance_fail_the_fit(
+        offset_m: tuple[float, float]) -> None:
+    # two passes (no leave-one-pass-out check), one agent lost by offset_m while claiming 0.2 m
+    rng = np.random.default_rng(2)
+    node = np.array([0.0, 3.0])
+    s0, s1 = np.linspace(-8, 8, 17), np.linspace(-4, 8, 13)
+    true = np.concatenate([np.column_stack([s0, np.zeros(17)]),
+                           np.column_stack([np.full(13, 5.0), s1])])
+    r = np.linalg.norm(true - node, axis=1) + rng.normal(0.0, 0.1, 30)
+    est = true.copy()
+    est[17:] += np.asarray(offset_m)
+    obs = NodeRanges.build(agent_xy_m=est,
+                           agent_cov_m2=np.broadcast_to(0.04 * np.eye(2), (30, 2, 2)), range_m=r,
+                           range_sigma_m=np.full(30, 0.1), group=np.r_[np.zeros(17), np.ones(13)])
+    e = NodeEstimator(EXACT).estimate(obs)
+    assert not e.localized
+    assert e.reason.startswith("ranges inconsistent with the solution")
+    # without the fit gate the solution was accepted, more than 1 m off with a 0.15 m sigma
+    loose = NodeEstimator(replace(EXACT, fit_gate_probability=1.0 - 1e-15)).estimate(obs)
+    assert loose.localized and np.linalg.norm(loose.position_m - node) > 1.0
+    honest = NodeRanges.build(agent_xy_m=true, agent_cov_m2=obs.agent_cov_m2, range_m=r,
+                              range_sigma_m=obs.range_sigma_m, group=obs.group)
+    good = NodeEstimator(EXACT).estimate(honest)
+    assert good.localized, good.reason

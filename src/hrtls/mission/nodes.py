@@ -30,6 +30,14 @@ Checks before a node counts as localized:
   chi-square gate on the covariance of that difference (``C_without - C_with``) is dropped;
 * mirror ambiguity: when the reflection of the estimate across the agents' best-fit line converges
   to a second solution that explains the ranges about as well, the node is left unlocalized;
+* fit: the kept readings' residuals at the solution, each whitened by its prior spread (range
+  noise plus its pass's agent error, ``s_k^2 + u_k^T S_g u_k``), must be explainable by the
+  agents' errors: their mean square ``z`` passes the chi-square gate ``J z <= chi2_J(p)``, ``J``
+  the kept passes (the readings of one pass share one agent error, so a pass counts as about one
+  independent sample, not as its ``n`` readings). A solution far from where the ranges put the
+  node (Gauss-Newton converged to another basin from a stale start, or the NLOS and pass checks
+  dropped the passes that disagreed with a wrong solution) fails here; the caller may solve
+  again from the linear initial position;
 * the position sigma must be below ``max_sigma_m``.
 """
 
@@ -64,8 +72,13 @@ class NodeEstimatorParams:
         Chi-square (1 dof) gate of one normalized range residual (NLOS gate).
     consistency_gate_probability:
         Chi-square (2 dof) gate of the leave-one-pass-out shift.
+    fit_gate_probability:
+        Chi-square (``J`` dof, ``J`` the kept passes) gate of the kept readings' fit (module doc).
     ambiguity_margin:
         A mirror solution whose cost is within this of the best one makes the node ambiguous.
+    max_mirror_passes:
+        A node with at most this many kept passes is also checked for a mirror solution across
+        each straight pass (spread below ``min_spread_m``), not only across all agents' line.
     max_outlier_passes:
         Readings dropped by the NLOS gate at most.
     max_consistency_passes:
@@ -86,7 +99,9 @@ class NodeEstimatorParams:
     max_sigma_m: float = 5.0
     outlier_gate_probability: float = 0.999
     consistency_gate_probability: float = 0.999
+    fit_gate_probability: float = 0.999
     ambiguity_margin: float = 9.0
+    max_mirror_passes: int = 2
     max_outlier_passes: int = 10
     max_consistency_passes: int = 2
     max_iterations: int = 30
@@ -97,7 +112,8 @@ class NodeEstimatorParams:
         if not 0.0 <= self.agent_correlation < 1.0:
             raise InputError(f"agent_correlation = {self.agent_correlation}",
                              where="NodeEstimatorParams", expected="in [0, 1)")
-        for name in ("outlier_gate_probability", "consistency_gate_probability"):
+        for name in ("outlier_gate_probability", "consistency_gate_probability",
+                     "fit_gate_probability"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:
                 raise InputError(f"{name} = {v}", where="NodeEstimatorParams",
@@ -356,6 +372,7 @@ class NodeEstimator:
         self.params = params or NodeEstimatorParams()
         self._gate1 = float(chi2.ppf(self.params.outlier_gate_probability, 1))
         self._gate2 = float(chi2.ppf(self.params.consistency_gate_probability, 2))
+        self._fit_gates: dict[int, float] = {}
 
     def estimate(self, obs: NodeRanges, *, initial_m: FloatArray | None = None) -> NodeEstimate:
         """Localize one node; ``initial_m`` (e.g. the previous estimate) seeds Gauss-Newton."""
@@ -398,20 +415,57 @@ class NodeEstimator:
             return fail("singular geometry", sol)
         if np.count_nonzero(use) < prm.min_ranges:
             return fail("too few ranges left after the NLOS gate", sol)
-        spread, centre, normal = _spread(obs.agent_xy_m[use])
-        if spread < prm.min_spread_m:
+        if _spread(obs.agent_xy_m[use])[0] < prm.min_spread_m:
             return fail("agents' positions are collinear", sol)
-        mirror = sol.p - 2.0 * float((sol.p - centre) @ normal) * normal
-        if np.linalg.norm(mirror - sol.p) > 1e-3:
-            alt = _solve(obs, use, mirror, prm)
-            if (np.linalg.norm(alt.p - sol.p) > 3.0 * np.sqrt(np.trace(sol.cov))
-                    and alt.cost - sol.cost < prm.ambiguity_margin):
-                return fail("mirror ambiguity across the agents' path", sol)
+        ambiguous = self._mirror(obs, use, sol)
+        if ambiguous:
+            return fail(ambiguous, sol)
+        n_pass = int(np.unique(obs.group[use]).size)
+        fit, fit_gate = float(np.mean(sol.whitened ** 2)), self._fit_gate(n_pass)
+        if fit > fit_gate:
+            return fail(f"ranges inconsistent with the solution (mean whitened residual^2 "
+                        f"{fit:.1f} above {fit_gate:.1f})", sol)
         sigma_max = float(np.sqrt(max(np.linalg.eigvalsh(sol.cov)[-1], 0.0)))
         if sigma_max > prm.max_sigma_m:
             return fail(f"sigma {sigma_max:.1f} m above {prm.max_sigma_m:g} m", sol)
         return NodeEstimate(sol.p, sol.cov, True, "", use.copy(), _rms(sol.whitened),
                             sol.iterations)
+
+    def _mirror(self, obs: NodeRanges, use: BoolArray, sol: _Solve) -> str:
+        """Why the solution is ambiguous (empty when it is not).
+
+        Ambiguous: a reflection of it across the best-fit line of all kept agent positions, or
+        of one straight pass (at most ``max_mirror_passes`` kept), converges to a distant second
+        solution that explains the ranges about as well.
+        """
+        lines = [("the agents' path", use)]
+        groups = np.unique(obs.group[use])
+        for grp in groups.tolist() if groups.size <= self.params.max_mirror_passes else []:
+            m = use & (obs.group == grp)
+            straight = _spread(obs.agent_xy_m[m])[0] < self.params.min_spread_m
+            if np.count_nonzero(m) >= 3 and straight:
+                lines.append((f"pass {grp}", m))
+        tried = [sol.p]
+        far = 3.0 * np.sqrt(np.trace(sol.cov))
+        for name, m in lines:
+            _, centre, normal = _spread(obs.agent_xy_m[m])
+            mirror = sol.p - 2.0 * float((sol.p - centre) @ normal) * normal
+            if min(float(np.linalg.norm(mirror - t)) for t in tried) < max(far, 1e-3):
+                continue
+            tried.append(mirror)
+            alt = _solve(obs, use, mirror, self.params)
+            if (np.linalg.norm(alt.p - sol.p) > far
+                    and alt.cost - sol.cost < self.params.ambiguity_margin):
+                return f"mirror ambiguity across {name}"
+        return ""
+
+    def _fit_gate(self, n_pass: int) -> float:
+        """Largest mean square whitened residual of ``n_pass`` passes: ``chi2_J(p) / J``."""
+        gate = self._fit_gates.get(n_pass)
+        if gate is None:
+            gate = float(chi2.ppf(self.params.fit_gate_probability, n_pass)) / n_pass
+            self._fit_gates[n_pass] = gate
+        return gate
 
     def _worst_pass(self, obs: NodeRanges, use: BoolArray, sol: _Solve) -> int | None:
         """The pass whose removal shifts the node beyond the gate, the largest such shift."""
