@@ -347,7 +347,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
     with ``scan`` (M, 4) the anchors heard (``SC_*`` columns); fix ``[x, y, z, sigma, row of
     lead]`` with ``lead`` (F, 5) the step in progress at each fix
     (:mod:`hrtls.pipeline._fix_events`, whose ``fix_params`` / ``fix_state`` records the fixes
-    use). Output rows: time, state, horizontal covariance ``cov_out`` (n, 2, 2) and heading
+    use); an rss row's fifth column is its information fraction
+    (:mod:`hrtls.fusion.shadowing`; NaN: 1). Output rows: time, state, horizontal covariance ``cov_out`` (n, 2, 2) and heading
     variance. ``aux_out`` (n, 5): innovation (2) and ``S`` (``S00, S01, S11``) of the 2-D
     scan and fix updates (NaN otherwise); ``jump_out`` (n, 2): the position change of an
     accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
@@ -432,7 +433,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                     st, nis, sv, nu = rss_db_correction(
                         x, p, data[k, 0], data[k, 1], data[k, 2], data[k, 3], s.channel.a_dbm,
                         s.channel.eta, prm.path_loss.d0_m, s.sigma_db, prm.rss_min_distance_m,
-                        prm.gate_1d, True, False)
+                        prm.gate_1d, True, False,
+                        data[k, 4] if np.isfinite(data[k, 4]) else 1.0)
                 else:
                     sig = data[k, 4] if np.isfinite(data[k, 4]) else prm.range_default_sigma_m
                     st, nis, sv, nu = range_correction(
