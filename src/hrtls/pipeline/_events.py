@@ -350,8 +350,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
     use); an rss row's fifth column is its information fraction
     (:mod:`hrtls.fusion.shadowing`; NaN: 1). Output rows: time, state, horizontal covariance
     ``cov_out`` (n, 2, 2) and heading variance. ``aux_out`` (n, 5): innovation (2) and ``S``
-    (``S00, S01, S11``) of the 2-D scan and fix updates (NaN otherwise); ``jump_out`` (n, 2): the position change of an
-    accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
+    (``S00, S01, S11``) of the 2-D scan and fix updates (NaN otherwise); ``jump_out`` (n, 2):
+    the position change of an accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
     ``(t, heading)`` with a finite heading (before the yaw offset); row ``i`` of the ring is the
     ``i + N_RECENT j``-th such step of the run (``n_headings`` counts them). The loop stops
     before a fix that Python must apply (``fix_state.stop``: its row, else -1); the rows
