@@ -273,7 +273,9 @@ def apply_rss(eng: FusionEngine, t: float, payload: Any) -> None:
     cfg = eng.config
     parts = eng.parts
     if payload[0] == "reading":
-        _, anchor, value, info_fraction = payload
+        anchor, value = payload[1], payload[2]
+        # (queued before the shadowing discount, e.g. in an older snapshot: independent)
+        info_fraction = payload[3] if len(payload) > 3 else 1.0
         lm = landmark_at(eng, anchor, t)
         if lm is None or lm.position is None:
             eng.diagnostics.append(skipped("rss", t, _why_not(eng, anchor, t, "anchor"), anchor))
