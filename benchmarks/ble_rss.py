@@ -13,11 +13,15 @@ horizontal error at every truth sample for
 * ``grid, held out``: the leave-one-out choice above;
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
+``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
+``[prediction.grid]`` keys over the defaults (all five tracks: a development look, not held out).
 """
 
 from __future__ import annotations
 
+import argparse
 import itertools
+import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -35,7 +39,7 @@ from hrtls.pipeline import Tracker, TrackerConfig
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rssi"
 TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
           "straight_02", "straight_03")
-GRID_CHOICES = {"sigma_speed_m_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
+GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
                 "offset_gain": (0.0, 0.01)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
 
@@ -73,10 +77,28 @@ def _row(name: str, e: np.ndarray) -> list[str]:
     return [name, *(f"{v:.2f}" for v in np.percentile(e, [50, 75, 95]))]
 
 
+def sweep(loaded: dict[str, BleRssiTrajectory], grids: list[str]) -> None:
+    """p75 per track (default channel) for each JSON object of ``[prediction.grid]`` keys."""
+    for text in grids:
+        p75 = [float(np.percentile(errors(loaded[n].session, config("grid", json.loads(text))),
+                                   75)) for n in TRACKS]
+        print(f"{text}: p75 " + " / ".join(f"{v:.2f}" for v in p75) +
+              f" m; mean {np.mean(p75):.2f}, worst {np.max(p75):.2f} m")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--grid", action="append", default=[],
+                    help="JSON object of [prediction.grid] keys: p75 per track, all five")
+    args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         loaded = {n: load_trajectory(DATA, n) for n in TRACKS}
+    if args.grid:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sweep(loaded, args.grid)
+        return
     candidates = [dict(zip(GRID_CHOICES, v, strict=True))
                   for v in itertools.product(*GRID_CHOICES.values())]
     # p75 of every candidate on every track, with the default channel and with each fold's

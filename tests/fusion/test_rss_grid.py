@@ -97,6 +97,12 @@ def test_causal_scans_average_only_the_past_window() -> None:
     late = causal_scans(t, anchor, rss, n_anchors=2, scan_s=0.5, average_s=1.0, t_origin=0.0,
                         t_from=0.7)
     np.testing.assert_allclose(late.t, [1.3])
+    # each new reading counted as its information fraction (hrtls.fusion.shadowing eq. 1)
+    info = np.array([1.0, 1.0, 0.5, 0.25, 1.0])
+    disc = causal_scans(t, anchor, rss, n_anchors=2, scan_s=0.5, average_s=1.0, t_origin=0.0,
+                        info=info)
+    np.testing.assert_allclose(disc.rss_dbm, sc.rss_dbm)
+    np.testing.assert_allclose(disc.weight, [1, 1, 0.75 / 3, 0, 0, 1])
 
 
 def test_first_scan_places_the_walker_where_the_readings_say() -> None:

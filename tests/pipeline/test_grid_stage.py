@@ -67,3 +67,28 @@ def test_live_rows_are_the_final_rows(office: SimulationResult) -> None:
     k = np.searchsorted(final.t, t)
     np.testing.assert_allclose(final.t[k], t)
     np.testing.assert_allclose(final.xyz[k, :2], np.concatenate(live_xy), atol=1e-9)
+
+
+def test_shadowing_discount_chunked_and_restored_equal_offline(office: SimulationResult) -> None:
+    """``[prediction.grid] shadowing_time_s``: the last reading per anchor survives chunks and
+    snapshots; tau > 0 changes the track."""
+    from hrtls.pipeline.chunks import split_session
+
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    cfg = TrackerConfig()
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+        "grid": {**cfg.prediction.grid, "shadowing_time_s": 1.0}})})
+    offline = Tracker(cfg).run(s).trajectory
+    plain = Tracker().run(s).trajectory
+    assert len(plain) == len(offline) and not np.allclose(plain.xyz, offline.xyz)
+    parts = list(split_session(s, 7.0))
+    tr = Tracker(cfg)
+    tr.start_session(s)
+    for part in parts[:4]:
+        tr.update(part)
+    tr = Tracker.restore(tr.snapshot())
+    for part in parts[4:]:
+        tr.update(part)
+    live = tr.finish().trajectory
+    n = len(live)
+    np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)

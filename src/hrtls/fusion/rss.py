@@ -31,6 +31,8 @@ from hrtls.fusion._checks import (
 )
 from hrtls.fusion.channel import ChannelEstimator, ChannelState
 from hrtls.fusion.gating import (
+    GATED,
+    NOT_SPD,
     TOO_NEAR,
     UpdateDiagnostics,
     chi2_threshold,
@@ -41,6 +43,7 @@ from hrtls.fusion.gating import (
 )
 from hrtls.fusion.path_loss import LN10, PathLossModel
 from hrtls.fusion.ranges import RangeParams, range_update
+from hrtls.fusion.shadowing import MIN_INFO_FRACTION
 from hrtls.fusion.state import FilterState
 
 
@@ -59,12 +62,16 @@ class RssUpdate:
 def rss_db_correction(x: FloatArray, p: FloatArray, anchor_x: float, anchor_y: float,
                       anchor_z: float, rss_dbm: float, a_dbm: float, eta: float, d0_m: float,
                       sigma_db: float, min_distance_m: float, threshold: float, gated: bool,
-                      use_3d: bool) -> tuple[int, float, float, float]:  # pragma: no cover
+                      use_3d: bool, info_fraction: float = 1.0
+                      ) -> tuple[int, float, float, float]:  # pragma: no cover
     """EKF update with one RSS reading in the dB domain on plain arrays, in place.
 
     ``h(p) = A - 10 eta log10(d/d0)`` with ``A = a_dbm``; ``sigma_db`` is the reading's
-    1-sigma. Returns ``(code, nis, S, nu)``: :data:`~hrtls.fusion.gating.TOO_NEAR` (NaNs) when
-    the estimate is nearer than ``min_distance_m``, else the outcome of
+    1-sigma. ``info_fraction`` ``w`` in (0, 1]: the reading enters with the variance
+    ``sigma^2 / w`` (correlated readings, :mod:`hrtls.fusion.shadowing` eq. 1); the gate tests
+    the innovation against the reading's own variance, ``S = H P H^T + sigma^2``. Returns
+    ``(code, nis, S, nu)``: :data:`~hrtls.fusion.gating.TOO_NEAR` (NaNs) when the estimate is
+    nearer than ``min_distance_m``, else the outcome of the gate and of
     :func:`~hrtls.fusion.gating.scalar_update`.
     """
     dx = x[0] - anchor_x
@@ -80,15 +87,31 @@ def rss_db_correction(x: FloatArray, p: FloatArray, anchor_x: float, anchor_y: f
     pred = a_dbm - 10.0 * eta * math.log10(dist / d0_m)
     g = -10.0 * eta / LN10 / (dist * dist)     # H = -10 eta / ln10 (p - a)^T / d^2
     nu = rss_dbm - pred
-    code, nis, s = scalar_update(x, p, (g * dx, g * dy, g * dz, 0.0), sigma_db * sigma_db, nu,
-                                 threshold, gated)
+    h = (g * dx, g * dy, g * dz, 0.0)
+    r = sigma_db * sigma_db
+    if info_fraction >= 1.0:
+        code, nis, s = scalar_update(x, p, h, r, nu, threshold, gated)
+        return code, nis, s, nu
+    hph = 0.0
+    for i in range(3):
+        for j in range(3):
+            hph += h[i] * p[i, j] * h[j]
+    s = hph + r
+    if not s > 0.0:
+        return NOT_SPD, math.nan, s, nu
+    nis = nu * nu / s
+    if gated and nis > threshold:
+        return GATED, nis, s, nu
+    code, _, _ = scalar_update(x, p, h, r / max(info_fraction, MIN_INFO_FRACTION), nu,
+                               threshold, False)
     return code, nis, s, nu
 
 
 def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
                model: PathLossModel, *, domain: Literal["db", "range"] = "db",
                min_distance_m: float = 0.5, gate_probability: float | None = 0.999,
-               use_3d: bool = False, t: float | None = None, source: str = "") -> RssUpdate:
+               use_3d: bool = False, t: float | None = None, source: str = "",
+               info_fraction: float = 1.0) -> RssUpdate:
     """EKF update of the position filter with one RSS reading.
 
     ``domain="db"``: ``z = rss``, ``h = A - 10 eta log10(d/d0)``,
@@ -96,14 +119,19 @@ def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
     ``domain="range"``: the reading is converted by eq. 1 to ``d`` with ``sigma_d`` and applied
     by the range EKF. ``d`` is planar, or with ``use_3d`` the slant distance using the state's z
     (anchors at other heights). Estimates nearer than ``min_distance_m`` are rejected (no
-    direction).
+    direction). ``info_fraction`` (dB domain): the reading's share of the information of an
+    independent one (:mod:`hrtls.fusion.shadowing`; its variance is divided by it).
     """
     a = finite_vector(anchor_xyz, where="rss anchor_xyz", length=3)
     z = finite_scalar(rss_dbm, where="rss rss_dbm")
+    w = finite_scalar(info_fraction, where="rss info_fraction")
+    if not 0.0 <= w <= 1.0:
+        raise InputError(f"{w}", where="rss info_fraction", expected="a value in [0, 1]")
     tt = state.t if t is None else float(t)
     if domain == "range":
         d = float(model.distance(z))
-        upd = range_update(state, a, d, float(model.distance_sigma(z)),
+        sigma_d = float(model.distance_sigma(z)) / math.sqrt(max(w, MIN_INFO_FRACTION))
+        upd = range_update(state, a, d, sigma_d,
                            params=RangeParams(min_distance_m=min_distance_m, use_3d=use_3d,
                                               gate_probability=gate_probability),
                            t=tt, source=source, kind="rss")
@@ -114,7 +142,7 @@ def rss_update(state: FilterState, anchor_xyz: ArrayLike, rss_dbm: float,
     x, p = state.x.copy(), state.P.copy()
     code, nis, s, nu = rss_db_correction(x, p, a[0], a[1], a[2], z, model.a_dbm, model.eta,
                                          model.d0_m, model.sigma_db, min_distance_m,
-                                         threshold, gate_probability is not None, use_3d)
+                                         threshold, gate_probability is not None, use_3d, w)
     if code == TOO_NEAR:
         return RssUpdate(state, rejected("rss", tt, "estimate on top of the anchor", source))
     diag = scalar_diagnostics("rss", tt, code, nis, s, nu, threshold, source)

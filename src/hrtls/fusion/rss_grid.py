@@ -13,7 +13,9 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
   ``l = (1 - e) N(r; mu(d) + o_a, sigma) + e / RSS_SPAN_DB``, raised to the power ``w`` (the
   share of the averaging window that is new in this scan, so a reading that enters several
-  overlapping windows counts once in all).
+  overlapping windows counts once in all; with ``shadowing_time_s > 0`` each new reading
+  counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
+  it, consecutive readings of an anchor sharing their shadowing).
 
 ``o_a`` is a per-anchor RSS offset, estimated causally after each update from the residual at
 the posterior mean (``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``);
@@ -57,6 +59,8 @@ class GridParams:
     outlier_probability: weight ``e`` of the uniform outlier density.
     offset_gain: gain of the causal per-anchor RSS offset (0: no offsets).
     offset_max_db: bound of the per-anchor offsets, dB.
+    shadowing_time_s: correlation time of an anchor's shadowing error, s (0: independent
+        readings; :mod:`hrtls.fusion.shadowing`).
     """
 
     cell_m: float = 0.25
@@ -68,12 +72,13 @@ class GridParams:
     outlier_probability: float = 0.05
     offset_gain: float = 0.0
     offset_max_db: float = 10.0
+    shadowing_time_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
-                     "outlier_probability"):
+                     "outlier_probability", "shadowing_time_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
@@ -298,15 +303,17 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
 
 def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anchors: int,
                  scan_s: float, average_s: float, t_origin: float,
-                 t_from: float = -math.inf) -> GridScans:
+                 t_from: float = -math.inf, info: FloatArray | None = None) -> GridScans:
     """Scans of the readings ``t`` (s), ``anchor`` (index) and ``rss_dbm`` after ``t_from``.
 
     A scan ends each ``scan_s`` window with readings (at its last reading); its rows: per
     anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start
-    at ``t_origin``. Weight of a row: the share of its readings that are new in this scan (not
-    in the previous scan's window of that anchor).
+    at ``t_origin``. Weight of a row: the readings that are new in this scan (not in the
+    previous scan's window of that anchor), each counted as ``info`` (its information
+    fraction, default 1), over the readings averaged.
     """
     tt = np.asarray(t, dtype=np.float64)
+    w_in = np.ones(tt.size) if info is None else np.asarray(info, dtype=np.float64)
     if tt.size == 0:
         z = np.zeros(0)
         zi = np.zeros(0, dtype=np.int64)
@@ -322,13 +329,14 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
         sel = anchor == a
         ta, ra = tt[sel], np.asarray(rss_dbm, dtype=np.float64)[sel]
         cs = np.concatenate([[0.0], np.cumsum(ra)])
+        cw = np.concatenate([[0.0], np.cumsum(w_in[sel])])
         hi = np.searchsorted(ta, ts, side="right")
         lo = np.searchsorted(ta, ts - average_s, side="right")
         n = hi - lo
         ok = n > 0
         means[ok, a] = (cs[hi[ok]] - cs[lo[ok]]) / n[ok]
         prev_hi = np.concatenate([[np.searchsorted(ta, t_from, side="right")], hi[:-1]])
-        weights[ok, a] = np.minimum(hi[ok] - np.maximum(prev_hi[ok], lo[ok]), n[ok]) / n[ok]
+        weights[ok, a] = (cw[hi[ok]] - cw[np.maximum(prev_hi[ok], lo[ok])]) / n[ok]
     heard = np.isfinite(means)
     count = heard.sum(axis=1).astype(np.int64)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)

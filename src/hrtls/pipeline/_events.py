@@ -339,22 +339,22 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
     """Process a run of events in order; ``x``, ``p``, ``state``, ``chan_cov`` change in place.
 
     ``params``: a :data:`LOOP_PARAMS_DTYPE` record (one-element array); ``state``: a
-    :data:`LOOP_STATE_DTYPE` record. ``data`` columns: step
-    ``[length, heading, dz, activity, var_heading]`` (length and heading before the step scale,
-    running multiplier and yaw offset of ``state``; the heading variance is interpolated in
-    ``(var_t, var_v)`` when ``var_t`` is not empty); rss ``[ax, ay, az, rss_dbm]``; range
-    ``[nx, ny, nz, range, sigma (NaN: default)]``; scan ``[first row in scan, number of rows]``
-    with ``scan`` (M, 4) the anchors heard (``SC_*`` columns); fix ``[x, y, z, sigma, row of
-    lead]`` with ``lead`` (F, 5) the step in progress at each fix
-    (:mod:`hrtls.pipeline._fix_events`, whose ``fix_params`` / ``fix_state`` records the fixes
-    use). Output rows: time, state, horizontal covariance ``cov_out`` (n, 2, 2) and heading
-    variance. ``aux_out`` (n, 5): innovation (2) and ``S`` (``S00, S01, S11``) of the 2-D
-    scan and fix updates (NaN otherwise); ``jump_out`` (n, 2): the position change of an
-    accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring of the last steps'
-    ``(t, heading)`` with a finite heading (before the yaw offset); row ``i`` of the ring is the
-    ``i + N_RECENT j``-th such step of the run (``n_headings`` counts them). The loop stops
-    before a fix that Python must apply (``fix_state.stop``: its row, else -1); the rows
-    before it are done.
+    :data:`LOOP_STATE_DTYPE` record. ``data`` columns: step ``[length, heading, dz, activity,
+    var_heading]`` (length and heading before the step scale, running multiplier and yaw offset
+    of ``state``; the heading variance is interpolated in ``(var_t, var_v)`` when ``var_t`` is
+    not empty); rss ``[ax, ay, az, rss_dbm]``; range ``[nx, ny, nz, range, sigma (NaN:
+    default)]``; scan ``[first row in scan, number of rows]`` with ``scan`` (M, 4) the anchors
+    heard (``SC_*`` columns); fix ``[x, y, z, sigma, row of lead]`` with ``lead`` (F, 5) the
+    step in progress at each fix (:mod:`hrtls.pipeline._fix_events`, whose ``fix_params`` /
+    ``fix_state`` records the fixes use); an rss row's fifth column is its information fraction
+    (:mod:`hrtls.fusion.shadowing`; NaN: 1). Output rows: time, state, horizontal covariance
+    ``cov_out`` (n, 2, 2) and heading variance. ``aux_out`` (n, 5): innovation (2) and ``S``
+    (``S00, S01, S11``) of the 2-D scan and fix updates (NaN otherwise); ``jump_out`` (n, 2):
+    the position change of an accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring
+    of the last steps' ``(t, heading)`` with a finite heading (before the yaw offset); row ``i``
+    of the ring is the ``i + N_RECENT j``-th such step of the run (``n_headings`` counts them).
+    The loop stops before a fix that Python must apply (``fix_state.stop``: its row, else -1);
+    the rows before it are done.
     """
     prm = params[0]
     s = state[0]
@@ -432,7 +432,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                     st, nis, sv, nu = rss_db_correction(
                         x, p, data[k, 0], data[k, 1], data[k, 2], data[k, 3], s.channel.a_dbm,
                         s.channel.eta, prm.path_loss.d0_m, s.sigma_db, prm.rss_min_distance_m,
-                        prm.gate_1d, True, False)
+                        prm.gate_1d, True, False,
+                        data[k, 4] if np.isfinite(data[k, 4]) else 1.0)
                 else:
                     sig = data[k, 4] if np.isfinite(data[k, 4]) else prm.range_default_sigma_m
                     st, nis, sv, nu = range_correction(

@@ -258,6 +258,11 @@ class RssConfig(_Section):
         default=0.0, ge=0.0, description="tight mode: mean RSS per beacon over windows of "
         "this length before the update (readings of one beacon share their shadowing); "
         "0 = every reading")
+    shadowing_time_s: float = Field(
+        default=1.0, ge=0.0, description="tight mode: correlation time of a beacon's shadowing "
+        "error (AR(1)); a reading dt after the previous one of its beacon counts as "
+        "(1 - rho) / (1 + rho) of an independent one, rho = exp(-dt / shadowing_time_s); "
+        "0 = independent readings")
     estimate_channel: bool = True
     sensitivity_dbm: float = -100.0
     use_wls_covariance: bool = True

@@ -23,6 +23,7 @@ from hrtls.data import Activity, Landmark, Session
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.rss_grid import GridParams, GridState, RssGridFilter, causal_scans
+from hrtls.fusion.shadowing import ShadowingMemory
 from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.output import TrackRows
@@ -49,6 +50,8 @@ class GridStage:
         self._buf_t = np.zeros(0)
         self._buf_a = np.zeros(0, dtype=np.int64)
         self._buf_r = np.zeros(0)
+        self._buf_w = np.zeros(0)               # information fraction of each reading
+        self._memory = ShadowingMemory()
         self.rows = TrackRows()
 
     @classmethod
@@ -90,6 +93,9 @@ class GridStage:
             index = {a: i for i, a in enumerate(self.ids)}
             a = np.array([index.get(str(x), -1) for x in rss.anchor.tolist()], dtype=np.int64)
             keep = a >= 0
+            w = self._memory.fractions(rss.t[keep], a[keep],
+                                       tau_s=self.params.shadowing_time_s)
+            self._buf_w = np.concatenate([self._buf_w, w])
             self._buf_t = np.concatenate([self._buf_t, rss.t[keep]])
             self._buf_a = np.concatenate([self._buf_a, a[keep]])
             self._buf_r = np.concatenate([self._buf_r, rss.rss_dbm[keep]])
@@ -104,7 +110,8 @@ class GridStage:
             return
         scans = causal_scans(self._buf_t[:upto], self._buf_a[:upto], self._buf_r[:upto],
                              n_anchors=len(self.ids), scan_s=w, average_s=self.params.average_s,
-                             t_origin=self.t0, t_from=self.state.t)
+                             t_origin=self.t0, t_from=self.state.t,
+                             info=self._buf_w[:upto])
         rows, self.state = self.filter.update(self.state, scans)
         n = len(rows.t)
         x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
@@ -113,8 +120,8 @@ class GridStage:
         # readings older than the averaging window of the next scan are no longer needed
         drop = int(np.searchsorted(self._buf_t, self.state.t - self.params.average_s,
                                    side="right"))
-        self._buf_t, self._buf_a, self._buf_r = (self._buf_t[drop:], self._buf_a[drop:],
-                                                 self._buf_r[drop:])
+        self._buf_t, self._buf_a, self._buf_r, self._buf_w = (
+            self._buf_t[drop:], self._buf_a[drop:], self._buf_r[drop:], self._buf_w[drop:])
 
     def finish(self) -> None:
         """Run every buffered scan (end of the recording)."""
@@ -127,7 +134,8 @@ class GridStage:
         s = self.state
         return {"t": s.t, "density": s.density, "offsets_db": s.offsets_db,
                 "started": s.started, "buf_t": self._buf_t, "buf_a": self._buf_a,
-                "buf_r": self._buf_r}
+                "buf_r": self._buf_r, "buf_w": self._buf_w,
+                "last_t": dict(self._memory.last_t)}
 
     def restore(self, d: dict[str, Any] | None) -> None:
         """Continue from :meth:`state_dict` (None: the stage was off, and stays off)."""
@@ -141,3 +149,7 @@ class GridStage:
         self._buf_t = np.asarray(d["buf_t"], dtype=np.float64)
         self._buf_a = np.asarray(d["buf_a"], dtype=np.int64)
         self._buf_r = np.asarray(d["buf_r"], dtype=np.float64)
+        # buf_w, last_t: absent from snapshots made before the shadowing discount
+        self._buf_w = np.asarray(d.get("buf_w", np.ones(len(self._buf_t))), dtype=np.float64)
+        self._memory = ShadowingMemory({str(k): float(v)
+                                        for k, v in d.get("last_t", {}).items()})

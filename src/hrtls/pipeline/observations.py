@@ -273,7 +273,9 @@ def apply_rss(eng: FusionEngine, t: float, payload: Any) -> None:
     cfg = eng.config
     parts = eng.parts
     if payload[0] == "reading":
-        _, anchor, value = payload
+        anchor, value = payload[1], payload[2]
+        # (queued before the shadowing discount, e.g. in an older snapshot: independent)
+        info_fraction = payload[3] if len(payload) > 3 else 1.0
         lm = landmark_at(eng, anchor, t)
         if lm is None or lm.position is None:
             eng.diagnostics.append(skipped("rss", t, _why_not(eng, anchor, t, "anchor"), anchor))
@@ -286,7 +288,8 @@ def apply_rss(eng: FusionEngine, t: float, payload: Any) -> None:
                 distance_var_m2=float(np.trace(eng.state.P[:2, :2])))
             model = eng.channel_state.model()
         upd = rss_update(eng.state, lm.xyz(), value, model, min_distance_m=cfg.rss.min_distance_m,
-                         gate_probability=cfg.gate_probability, t=t, source=anchor)
+                         gate_probability=cfg.gate_probability, t=t, source=anchor,
+                         info_fraction=info_fraction)
         eng.state = upd.state
         eng.diagnostics.append(upd.diagnostics)
         eng.corrected_since_fix = eng.corrected_since_fix or upd.diagnostics.accepted

@@ -28,6 +28,7 @@ from hrtls.data.observations import (
     TagDetections,
 )
 from hrtls.fusion.rss_scans import average_rss_per_anchor, scan_table
+from hrtls.fusion.shadowing import ShadowingMemory
 from hrtls.fusion.tags import group_detections
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline._fix_events import fixes_in_loop
@@ -98,7 +99,7 @@ class EventSchedule:
 
     STATE = ("pending", "seq", "horizon", "bulk_count", "labels", "tag_t", "tag_id",
              "scan_t", "scan_a", "scan_v", "scan_rows", "scan_base", "avg_t", "avg_a",
-             "avg_v", "seen_obs", "rss_note")
+             "avg_v", "seen_obs", "rss_note", "rss_last_t")
     """Plain attributes of the schedule's state (snapshot); plus the buffer from ``i``."""
     fixes_in_loop = True
     """Position fixes as rows of the compiled loop where it can apply them
@@ -140,6 +141,7 @@ class EventSchedule:
         self.avg_v = np.zeros(0)
         self.seen_obs = False
         self.rss_note = False
+        self.rss_last_t: dict[str, float] = {}   # ShadowingMemory.last_t of tight readings
 
     # ------------------------------------------------------------------ queueing
     def push(self, t: float, kind: int, payload: Any) -> None:
@@ -210,12 +212,19 @@ class EventSchedule:
                       np.full(n, ev.EV_STEP, dtype=np.int64), rows, np.full(n, "", dtype=str))
 
     def _queue_tight(self, t: np.ndarray, anchor: np.ndarray, rss_dbm: np.ndarray) -> None:
-        """Queue RSS readings for tight (per-reading) range updates."""
+        """Queue RSS readings for tight (per-reading) updates with their information fraction.
+
+        The fraction (:mod:`hrtls.fusion.shadowing`) depends on the time since the previous
+        reading of the same beacon, remembered across chunks in ``rss_last_t``.
+        """
+        memory = ShadowingMemory(self.rss_last_t)
+        w = memory.fractions(t, anchor, tau_s=self.config.rss.shadowing_time_s)
         if self.slow_only:
             for k in range(len(t)):
-                self.push(float(t[k]), RSS, ("reading", str(anchor[k]), float(rss_dbm[k])))
+                self.push(float(t[k]), RSS, ("reading", str(anchor[k]), float(rss_dbm[k]),
+                                             float(w[k])))
         else:
-            self._add_bulk(RSS, t, anchor, rss_dbm, np.full(len(t), np.nan))
+            self._add_bulk(RSS, t, anchor, rss_dbm, w)
 
     def flush_averages(self, t_seen: float) -> None:
         """Queue the per-beacon RSS means of the ``average_s`` windows that have closed."""
@@ -437,7 +446,8 @@ class EventSchedule:
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`state`."""
         for name in (*self.STATE, *self.BULK):
-            setattr(self, name, state[name])
+            # rss_last_t: absent from snapshots made before the shadowing discount
+            setattr(self, name, state.get(name, {}) if name == "rss_last_t" else state[name])
         self.i = 0
         self.label_kind = np.asarray(state["label_kind"], dtype=object)
         self.label_reason = np.asarray(state["label_reason"], dtype=object)
