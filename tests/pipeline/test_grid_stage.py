@@ -92,3 +92,17 @@ def test_shadowing_discount_chunked_and_restored_equal_offline(office: Simulatio
     live = tr.finish().trajectory
     n = len(live)
     np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
+
+
+def test_bench_rss_alone_is_the_wls_kalman_track(office: SimulationResult) -> None:
+    """Tarrio's "RSS alone" baseline (bench papers) is the WLS track, not the grid filter."""
+    from hrtls.jobs.bench_metrics import rss_alone_config, rss_alone_session
+
+    s = rss_alone_session(office.session).with_parts(fixes=None, tags=None, ranges=None)
+    res = Tracker(rss_alone_config(TrackerConfig())).run(s)
+    assert not any("grid filter" in n for n in res.report["notes"])
+    wls = _config("random-walk")
+    wls = wls.model_copy(update={"rss": wls.rss.model_copy(update={"mode": "wls"})})
+    np.testing.assert_allclose(res.trajectory.xyz, Tracker(wls).run(s).trajectory.xyz)
+    grid = Tracker(TrackerConfig().model_copy(update={"rss": wls.rss})).run(s)
+    assert any("grid filter" in n for n in grid.report["notes"])

@@ -160,8 +160,15 @@ def rss_alone_session(session: Session) -> Session:
 
 
 def rss_alone_config(config: TrackerConfig) -> TrackerConfig:
-    """RSS alone: WLS positions held between scans (no inertial prediction)."""
-    return config.model_copy(update={"name": "rss-alone",
+    """RSS alone: WLS positions held between scans (no inertial prediction).
+
+    Tarrio's baseline is the per-scan WLS position, so the session without IMU keeps the
+    Kalman filter with the random-walk prediction (``no_imu = "random-walk"``), not the
+    tracker's default grid filter for such sessions (:mod:`hrtls.pipeline.grid_stage`),
+    which is an estimator of its own with a motion model.
+    """
+    prediction = config.prediction.model_copy(update={"no_imu": "random-walk"})
+    return config.model_copy(update={"name": "rss-alone", "prediction": prediction,
                                       "rss": config.rss.model_copy(update={"mode": "wls"})})
 
 
