@@ -120,7 +120,8 @@ def test_live_mission_estimator_equals_offline_and_is_published(
     mid, agents, offset = _setup(live, 1)
     with live.client(live.commander) as c, connect(
             f"{live.ws_url}{API}/missions/{mid}/ws",
-            additional_headers={"Authorization": f"Bearer {live.commander}"}) as dash:
+            additional_headers={"Authorization": f"Bearer {live.commander}"},
+            ping_interval=None) as dash:
         assert json.loads(dash.recv(timeout=30))["type"] == "hello"
         assert json.loads(dash.recv(timeout=30))["type"] == "snapshot"
         _stream(live, agents, offset)
@@ -305,7 +306,8 @@ def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
     runner = _runner(live)
     with live.client(live.commander) as c, connect(
             f"{live.ws_url}{API}/missions/{mid}/ws",
-            additional_headers={"Authorization": f"Bearer {live.commander}"}) as dash:
+            additional_headers={"Authorization": f"Bearer {live.commander}"},
+            ping_interval=None) as dash:
         assert json.loads(dash.recv(timeout=30))["type"] == "hello"
         assert json.loads(dash.recv(timeout=30))["type"] == "snapshot"
         _stream(live, agents, offset)
