@@ -150,7 +150,7 @@ def _peer_at(mt: MissionTracker, peer: str, t: np.ndarray
     """Index of the range of times ``t`` used, B's xy there, its variance, its landmark time."""
     if peer not in mt.started:
         return None
-    rows = mt._agent_rows(peer)
+    rows = mt.agent_rows(peer)
     if rows is None:
         return None
     tb, xy, cov = rows
@@ -196,7 +196,7 @@ def split_peer_ranges(mt: MissionTracker, i: int, ranges: RangeMeasurements | No
         sigma = math.sqrt(float(ranges.sigma_m[sel[k]]) ** 2 + n * var)
         lm = Landmark(id=peer, kind="node", floor=0, accuracy_m=math.sqrt(var),
                       position=(float(pos[0]), float(pos[1]), 0.0), updated=tk)
-        mt._apply(mt.names[i], "set_landmarks", {peer: lm})
+        mt.give_landmarks(mt.names[i], {peer: lm})
         rows.append((tk, peer, float(ranges.range_m[sel[k]]), sigma))
     if not rows:
         return rest, None

@@ -341,6 +341,10 @@ class MissionTracker:
         else:
             self._deferred.setdefault(name, []).append((method, arg))
 
+    def give_landmarks(self, name: str, landmarks: Mapping[str, Landmark]) -> None:
+        """Set ``landmarks`` on agent ``name``'s tracker now, or right after its start."""
+        self._apply(name, "set_landmarks", dict(landmarks))
+
     def windows(self) -> list[tuple[float, float]]:
         """The common windows ``(t_start, t_end)`` covering every agent's data fed so far."""
         spans = [(b.t_first, b.t_last) for b in self.buffers.values() if b.t_first < math.inf]
@@ -400,7 +404,7 @@ class MissionTracker:
             use, keep = self._split_ranges(i, rest)
             self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
             if keep is not None or self._pending[name] is not None:
-                touched |= self._collect(i, name, keep, self._agent_rows(name))
+                touched |= self._collect(i, name, keep, self.agent_rows(name))
             self._trim_rows(name, t_end)
         changed = self._relocalize(touched, t_end)
         if self.params.cooperate:
@@ -414,7 +418,7 @@ class MissionTracker:
         touched: set[str] = set()
         for i, name in enumerate(self.names):
             if self._pending[name] is not None and name in self.started:
-                touched |= self._collect(i, name, None, self._agent_rows(name), final=True)
+                touched |= self._collect(i, name, None, self.agent_rows(name), final=True)
         self._relocalize(touched, self.horizon_s, every=True)
 
     def _relocalize(self, touched: set[str], t_end: float, *, every: bool = False) -> list[str]:
@@ -501,8 +505,12 @@ class MissionTracker:
     def _node_var(self, node: str) -> float:
         return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
 
-    def _agent_rows(self, name: str) -> Rows | None:
-        """The agent's recent estimates (time, xy, covariance) with this window's new rows."""
+    def agent_rows(self, name: str) -> Rows | None:
+        """Agent ``name``'s recent estimates (time, xy, covariance) with its newest rows.
+
+        Pulls the rows its tracker made since the last call (kept back to the trim of the
+        last window); None before its first row.
+        """
         est = self.trackers[name].estimates_since(self._last_t[name])
         if len(est) > 1:
             self._last_t[name] = float(est.t[-2])
