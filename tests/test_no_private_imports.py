@@ -86,10 +86,9 @@ def private_imports(source: str, *, module: str, package: str) -> list[str]:
                 continue
             for a in node.names:
                 full = f"{src}.{a.name}"
-                if not _private_module_ok(src, package):
-                    bad.append(f"from {src} import {a.name}")
-                elif _private(a.name) and not (_is_module(full)
-                                               and _private_module_ok(full, package)):
+                private_name = _private(a.name) and not (
+                    _is_module(full) and _private_module_ok(full, package))
+                if private_name or not _private_module_ok(src, package):
                     bad.append(f"from {src} import {a.name}")
     return bad
 

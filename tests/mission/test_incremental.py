@@ -269,12 +269,12 @@ def test_readings_later_than_the_agents_latest_row_are_kept(seed1) -> None:  # t
     for j, (name, part) in enumerate(_parts(sessions)):
         mt.feed(name, part, now_s=float(j))
         mt.advance(now_s=float(j))
-        held = max(held, sum(len(r.t) for r in mt._pending.values() if r is not None))
+        held = max(held, sum(len(r.t) for r in mt.pending.values() if r is not None))
     for k in sessions:
         mt.end(k)
     res = mt.run()
     assert held > 0           # some ranges waited for their agent's rows
-    assert all(r is None for r in mt._pending.values())
+    assert all(r is None for r in mt.pending.values())
     assert sum(res.readings.values()) == _ranges_to_unknown_nodes(sessions)
 
 
@@ -283,13 +283,13 @@ def test_snapshot_holds_the_pending_readings(seed1) -> None:  # type: ignore[no-
     parts = _parts(sessions)
     mt = MissionTracker(_headers(sessions), kinds=kinds)
     j = 0
-    while not any(r is not None for r in mt._pending.values()):
+    while not any(r is not None for r in mt.pending.values()):
         mt.feed(parts[j][0], parts[j][1], now_s=float(j))
         mt.advance(now_s=float(j))
         j += 1
     back = MissionTracker.restore(mt.snapshot())
-    for k, r in mt._pending.items():
-        got = back._pending[k]
+    for k, r in mt.pending.items():
+        got = back.pending[k]
         assert (r is None) == (got is None)
         if r is not None and got is not None:
             np.testing.assert_array_equal(got.t, r.t)

@@ -17,6 +17,7 @@ innovation gate). The per-event loop is a compiled kernel; :class:`RobotTracker`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -129,6 +130,9 @@ def _range_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: flo
     return True
 
 
+_STATE_FIELDS = ("x", "p", "_last_odo", "_last_t", "_accepted", "_rejected", "_started")
+
+
 class RobotTracker:
     """A robot's causal EKF, chunk by chunk (see module doc)."""
 
@@ -209,6 +213,26 @@ class RobotTracker:
         if not self._rows:
             return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3, 3))
         return self._rows[0]
+
+    def state(self) -> dict[str, Any]:
+        """A started tracker's state as plain values and arrays (:mod:`hrtls.mission.snapshot`)."""
+        return {"robot": {k: getattr(self, k) for k in _STATE_FIELDS},
+                "params": dataclasses.asdict(self.params), "landmarks": dict(self.landmarks),
+                "rows": list(self._all())}
+
+    @classmethod
+    def from_state(cls, d: dict[str, Any]) -> RobotTracker:
+        """The tracker of :meth:`state` values."""
+        tr = cls(RobotTrackerParams(**d["params"]))
+        tr.load_state(d)
+        return tr
+
+    def load_state(self, d: dict[str, Any]) -> None:
+        """Take the EKF state, landmarks and rows of :meth:`state` values (same parameters)."""
+        for k, v in d["robot"].items():
+            setattr(self, k, v)
+        self.landmarks = {k: (float(v[0]), float(v[1])) for k, v in d["landmarks"].items()}
+        self._rows = [tuple(d["rows"])] if len(d["rows"][0]) else []
 
     def estimates_since(self, t_after_s: float = -math.inf) -> Estimates:
         """Rows with time > ``t_after_s`` (every row is final)."""

@@ -33,7 +33,7 @@ from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
 from hrtls.mission.readings import NodeReadings
-from hrtls.mission.robot import RobotTracker, RobotTrackerParams
+from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline import snapshot as codec
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker
@@ -42,7 +42,6 @@ FORMAT = "hrtls-mission"
 MISSION_VERSION = 2
 """Layout of the mission mapping written by :func:`mission_snapshot`."""
 
-_ROBOT_FIELDS = ("x", "p", "_last_odo", "_last_t", "_accepted", "_rejected", "_started")
 _ESTIMATE_FIELDS = tuple(f.name for f in dataclasses.fields(NodeEstimate))
 
 
@@ -112,10 +111,7 @@ def _tracker_state(tr: Tracker | RobotTracker, started: bool) -> dict[str, Any]:
         return {"started": False}
     if isinstance(tr, Tracker):
         return {"started": True, "tracker": tr.snapshot()}
-    rows = tr._all()
-    return {"started": True, "robot": {k: getattr(tr, k) for k in _ROBOT_FIELDS},
-            "params": dataclasses.asdict(tr.params), "landmarks": dict(tr.landmarks),
-            "rows": list(rows)}
+    return {"started": True, **tr.state()}
 
 
 def _tracker_from(d: dict[str, Any], kind: str, config: TrackerConfig | None
@@ -124,12 +120,7 @@ def _tracker_from(d: dict[str, Any], kind: str, config: TrackerConfig | None
         return RobotTracker() if kind == "robot" else Tracker(config)
     if kind == "rescuer":
         return Tracker.restore(d["tracker"])
-    tr = RobotTracker(RobotTrackerParams(**d["params"]))
-    for k, v in d["robot"].items():
-        setattr(tr, k, v)
-    tr.landmarks = {k: (float(v[0]), float(v[1])) for k, v in d["landmarks"].items()}
-    tr._rows = [tuple(d["rows"])] if len(d["rows"][0]) else []
-    return tr
+    return RobotTracker.from_state(d)
 
 
 def _deferred(ops: list[tuple[str, object]]) -> list[list[Any]]:
@@ -158,13 +149,13 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "users": {n: sorted(v) for n, v in mt.users.items()},
         "given": {str(i): g for i, g in mt.given.items()},
         "history": {n: [list(h) for h in rows] for n, rows in mt.history.items()},
-        "version": mt._version, "estimated_at": mt._estimated_at,
-        "pass_use": [[i, n, t, c] for (i, n), (t, c) in mt._pass_use.items()],
-        "contrib_trace": [[i, n, v] for (i, n), v in mt._contrib_trace.items()],
+        "version": mt.versions, "estimated_at": mt.estimated_at,
+        "pass_use": [[i, n, t, c] for (i, n), (t, c) in mt.pass_use.items()],
+        "contrib_trace": [[i, n, v] for (i, n), v in mt.contrib_trace.items()],
         "closures": [dataclasses.astuple(c) for c in mt.closures],
         "peer_use": [[i, n, t, c] for (i, n), (t, c) in mt.peers.uses.items()],
         "pending": {k: None if r is None else [r.t, r.node.astype(str), r.range_m, r.sigma_m]
-                    for k, r in mt._pending.items()},
+                    for k, r in mt.pending.items()},
     }
 
 
@@ -181,14 +172,14 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     mt.given = {int(i): dict(g) for i, g in d["given"].items()}
     mt.history = {n: [(float(h[0]), h[1], h[2]) for h in rows]
                   for n, rows in d["history"].items()}
-    mt._version = dict(d["version"])
-    mt._estimated_at = dict(d["estimated_at"])
-    mt._pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
-    mt._contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
+    mt.versions = dict(d["version"])
+    mt.estimated_at = dict(d["estimated_at"])
+    mt.pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
+    mt.contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
     mt.peers = PeerUses({(int(i), n): (float(t), int(c))
                          for i, n, t, c in d.get("peer_use", [])})
-    mt._pending = {k: None if r is None else RangeMeasurements(*r)
+    mt.pending = {k: None if r is None else RangeMeasurements(*r)
                    for k, r in d["pending"].items()}
 
 
@@ -202,14 +193,14 @@ def mission_snapshot(mt: Any) -> bytes:
         "headers": {k: [h.meta.model_dump(mode="json"), _lm(h.landmarks)]
                     for k, h in mt.headers.items()},
         "landmark_updates": _lm(list(mt.landmark_updates)),
-        "robot_updates": _lm(list(mt._robot_updates)),
+        "robot_updates": _lm(list(mt.robot_updates)),
         "trackers": {k: _tracker_state(tr, k in mt.started) for k, tr in mt.trackers.items()},
-        "deferred": {k: _deferred(v) for k, v in mt._deferred.items()},
+        "deferred": {k: _deferred(v) for k, v in mt.deferred.items()},
         "buffers": {k: [_session_state(b.data), b.t_first, b.t_last, b.heard_s, b.ended]
                     for k, b in mt.buffers.items()},
-        "t0": mt.t0, "horizon_s": mt.horizon_s, "k": mt._k,
-        "last_t": dict(mt._last_t),
-        "rows": {k: [list(r) for r in rows] for k, rows in mt._rows.items()},
+        "t0": mt.t0, "horizon_s": mt.horizon_s, "k": mt.window_index,
+        "last_t": dict(mt.rows_pulled_s),
+        "rows": {k: [list(r) for r in rows] for k, rows in mt.recent_rows.items()},
         "nodes": _nodes_state(mt),
     }
     return codec.pack(state)
@@ -239,21 +230,21 @@ def restore_mission(data: bytes) -> Any:
                             params=MissionParams(**prm), kinds=d["kinds"],
                             landmark_updates=[Landmark.model_validate(v)
                                               for v in d["landmark_updates"]])
-        mt._robot_updates = [Landmark.model_validate(v) for v in d["robot_updates"]]
+        mt.robot_updates = [Landmark.model_validate(v) for v in d["robot_updates"]]
         for k, st in d["trackers"].items():
             mt.trackers[k] = _tracker_from(st, mt.kinds[k], config)
             if st["started"]:
                 mt.started.add(k)
-        mt._deferred = {k: _deferred_from(v) for k, v in d["deferred"].items()}
+        mt.deferred = {k: _deferred_from(v) for k, v in d["deferred"].items()}
         for k, (data_state, t_first, t_last, heard, ended) in d["buffers"].items():
             b = mt.buffers[k]
             b.data = _session_from(data_state, headers[k].meta, headers[k].landmarks)
             b.t_first, b.t_last, b.heard_s, b.ended = t_first, t_last, heard, ended
         mt.t0 = d["t0"]
         mt.horizon_s = float(d["horizon_s"]) if d["horizon_s"] is not None else -math.inf
-        mt._k = int(d["k"])
-        mt._last_t = dict(d["last_t"])
-        mt._rows = {k: [tuple(r) for r in rows] for k, rows in d["rows"].items()}
+        mt.window_index = int(d["k"])
+        mt.rows_pulled_s = dict(d["last_t"])
+        mt.recent_rows = {k: [tuple(r) for r in rows] for k, rows in d["rows"].items()}
         _restore_nodes(mt, d["nodes"])
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(f"incomplete mission snapshot ({exc!r})", where="mission snapshot",

@@ -189,6 +189,9 @@ class MissionTracker:
     speaks or the mission ends, ``final``). Windows start at the earliest data time of the
     first processed window. ``now_s``: the clock at creation (an agent not heard from yet
     holds the windows back until ``silent_after_s`` after it).
+
+    Its state is public for :mod:`hrtls.mission.snapshot` (read and restored there); other
+    callers use :meth:`agent_rows` and :meth:`give_landmarks` and leave the state alone.
     """
 
     def __init__(self, agents: Mapping[str, Session | AgentHeader], *,
@@ -216,12 +219,12 @@ class MissionTracker:
         for buf in self.buffers.values():
             buf.heard_s = now_s
         self.started: set[str] = set()
-        self._deferred: dict[str, list[tuple[str, object]]] = {k: [] for k in self.names}
+        self.deferred: dict[str, list[tuple[str, object]]] = {k: [] for k in self.names}
         self.t0: float | None = None
         self.horizon_s = -math.inf
-        self._k = 0
+        self.window_index = 0
         # robots take a version at the first window starting at or after its time
-        self._robot_updates = sorted(landmark_updates, key=lambda v: float(v.updated or 0.0))
+        self.robot_updates = sorted(landmark_updates, key=lambda v: float(v.updated or 0.0))
         self.estimator = NodeEstimator(self.params.nodes)
         self.readings: dict[str, NodeReadings] = {}
         self.estimates: dict[str, NodeEstimate] = {}
@@ -229,14 +232,14 @@ class MissionTracker:
         self.users: dict[str, set[int]] = {}
         self.given: dict[int, dict[str, int]] = {i: {} for i in range(len(self.names))}
         self.history: dict[str, list[tuple[float, FloatArray, FloatArray]]] = {}
-        self._last_t = dict.fromkeys(self.names, -math.inf)
-        self._rows: dict[str, list[Rows]] = {k: [] for k in self.names}
+        self.rows_pulled_s = dict.fromkeys(self.names, -math.inf)
+        self.recent_rows: dict[str, list[Rows]] = {k: [] for k in self.names}
         # ranges later than the agent's latest row, kept until rows cover them (readings.py)
-        self._pending: dict[str, RangeMeasurements | None] = dict.fromkeys(self.names)
-        self._version: dict[str, int] = {}
-        self._estimated_at: dict[str, int] = {}
-        self._pass_use: dict[tuple[int, str], tuple[float, int]] = {}
-        self._contrib_trace: dict[tuple[int, str], float] = {}
+        self.pending: dict[str, RangeMeasurements | None] = dict.fromkeys(self.names)
+        self.versions: dict[str, int] = {}
+        self.estimated_at: dict[str, int] = {}
+        self.pass_use: dict[tuple[int, str], tuple[float, int]] = {}
+        self.contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
         self.peers = PeerUses()
         for k, a in agents.items():
@@ -267,7 +270,7 @@ class MissionTracker:
         late = [v for v in versions if float(v.updated or 0.0) < self.horizon_s]
         due = [v for v in versions if float(v.updated or 0.0) >= self.horizon_s]
         self.landmark_updates += tuple(due)
-        self._robot_updates = sorted([*self._robot_updates, *due],
+        self.robot_updates = sorted([*self.robot_updates, *due],
                                      key=lambda v: float(v.updated or 0.0))
         for name in self.started:
             tr = self.trackers[name]
@@ -293,22 +296,22 @@ class MissionTracker:
             self.t0 = min(b.t_first for b in with_data)
         t_data = max(b.t_last for b in with_data)
         clock = t_data if now_s is None else now_s
-        before = dict(self._version)
+        before = dict(self.versions)
         n = 0
         c = self.params.chunk_s
         while True:
-            t_start, t_end = self.t0 + self._k * c, self.t0 + (self._k + 1) * c
+            t_start, t_end = self.t0 + self.window_index * c, self.t0 + (self.window_index + 1) * c
             if t_start > t_data or t_end > t_s:
                 break
             if not final and not self._complete(t_end, clock):
                 break
             self.step(t_start, t_end)
-            self._k += 1
+            self.window_index += 1
             self.horizon_s = t_end
             n += 1
         if final:
             self._flush()
-        changed = tuple(sorted(k for k, v in self._version.items() if before.get(k) != v))
+        changed = tuple(sorted(k for k, v in self.versions.items() if before.get(k) != v))
         return Progress(n, self.horizon_s, changed)
 
     def _complete(self, t_end: float, clock: float) -> bool:
@@ -330,7 +333,7 @@ class MissionTracker:
         if isinstance(tr, Tracker):
             tr.update_landmarks(self.landmark_updates)
         self.started.add(name)
-        for method, arg in self._deferred.pop(name, []):
+        for method, arg in self.deferred.pop(name, []):
             getattr(tr, method)(arg)
         return part
 
@@ -339,7 +342,7 @@ class MissionTracker:
         if name in self.started:
             getattr(self.trackers[name], method)(arg)
         else:
-            self._deferred.setdefault(name, []).append((method, arg))
+            self.deferred.setdefault(name, []).append((method, arg))
 
     def give_landmarks(self, name: str, landmarks: Mapping[str, Landmark]) -> None:
         """Set ``landmarks`` on agent ``name``'s tracker now, or right after its start."""
@@ -390,9 +393,9 @@ class MissionTracker:
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
         touched: set[str] = set()
-        due = [v for v in self._robot_updates if float(v.updated or 0.0) <= t_start]
+        due = [v for v in self.robot_updates if float(v.updated or 0.0) <= t_start]
         if due:
-            self._robot_updates = self._robot_updates[len(due):]
+            self.robot_updates = self.robot_updates[len(due):]
             for name, tr in self.trackers.items():
                 if isinstance(tr, RobotTracker):
                     self._apply(name, "update_landmarks", due)
@@ -403,7 +406,7 @@ class MissionTracker:
             rest, peer = split_peer_ranges(self, i, part.ranges)
             use, keep = self._split_ranges(i, rest)
             self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
-            if keep is not None or self._pending[name] is not None:
+            if keep is not None or self.pending[name] is not None:
                 touched |= self._collect(i, name, keep, self.agent_rows(name))
             self._trim_rows(name, t_end)
         changed = self._relocalize(touched, t_end)
@@ -417,7 +420,7 @@ class MissionTracker:
         """
         touched: set[str] = set()
         for i, name in enumerate(self.names):
-            if self._pending[name] is not None and name in self.started:
+            if self.pending[name] is not None and name in self.started:
                 touched |= self._collect(i, name, None, self.agent_rows(name), final=True)
         self._relocalize(touched, self.horizon_s, every=True)
 
@@ -426,12 +429,12 @@ class MissionTracker:
         changed: list[str] = []
         for node in sorted(touched):
             n_now = len(self.readings[node].r)
-            n_then = self._estimated_at.get(node, 0)
+            n_then = self.estimated_at.get(node, 0)
             grown = n_now > n_then if every else \
                 n_now - n_then >= max(3, self.params.refresh_fraction * n_then)
             if not grown:
                 continue
-            self._estimated_at[node] = n_now
+            self.estimated_at[node] = n_now
             obs = self.readings[node].ranges(self.params.pass_gap_s)
             prev = self.estimates.get(node)
             init = prev.position_m if prev is not None and prev.localized else None
@@ -440,7 +443,7 @@ class MissionTracker:
                 est = self.estimator.estimate(obs)
             self.estimates[node] = est
             if est.localized:
-                self._version[node] = self._version.get(node, 0) + 1
+                self.versions[node] = self.versions.get(node, 0) + 1
                 changed.append(node)
                 self.history.setdefault(node, []).append(
                     (t_end, est.position_m.copy(), est.covariance_m2.copy()))
@@ -475,10 +478,10 @@ class MissionTracker:
             return False
         if i not in self.contrib.get(node, set()) or i in self.users.get(node, set()):
             return True
-        rows = self._rows[self.names[i]]
+        rows = self.recent_rows[self.names[i]]
         if not rows or not math.isfinite(self.params.loop_closure_ratio):
             return False
-        now, then = float(np.trace(rows[0][2][-1])), self._contrib_trace[(i, node)]
+        now, then = float(np.trace(rows[0][2][-1])), self.contrib_trace[(i, node)]
         if now < self.params.loop_closure_ratio * then:
             return False
         self.closures.append(LoopClosure(float(rows[0][0][-1]), self.names[i], node, now, then))
@@ -493,11 +496,11 @@ class MissionTracker:
         times = ranges.t[usable]
         for n in np.unique(nodes).tolist():
             m = nodes == n
-            last_t, count = self._pass_use.get((i, str(n)), (-math.inf, 0))
+            last_t, count = self.pass_use.get((i, str(n)), (-math.inf, 0))
             if float(times[m][0]) - last_t > self.params.pass_gap_s:
                 count = 0
             count += int(np.count_nonzero(m))
-            self._pass_use[(i, str(n))] = (float(times[m][-1]), count)
+            self.pass_use[(i, str(n))] = (float(times[m][-1]), count)
             mine = 2.0 if i in self.contrib.get(str(n), set()) else 1.0     # module doc
             extra[m] = count * mine * self._node_var(str(n))
         return extra
@@ -511,17 +514,17 @@ class MissionTracker:
         Pulls the rows its tracker made since the last call (kept back to the trim of the
         last window); None before its first row.
         """
-        est = self.trackers[name].estimates_since(self._last_t[name])
+        est = self.trackers[name].estimates_since(self.rows_pulled_s[name])
         if len(est) > 1:
-            self._last_t[name] = float(est.t[-2])
-        rows = merge_rows(self._rows[name], (est.t, est.xyz[:, :2], est.cov_xy))
-        self._rows[name] = [] if rows is None else [rows]
+            self.rows_pulled_s[name] = float(est.t[-2])
+        rows = merge_rows(self.recent_rows[name], (est.t, est.xyz[:, :2], est.cov_xy))
+        self.recent_rows[name] = [] if rows is None else [rows]
         return rows
 
     def _trim_rows(self, name: str, t_end: float) -> None:
         """Keep the per-window cost of :meth:`_collect` independent of the mission's length."""
-        if len(self._rows[name]) == 1:
-            self._rows[name] = [trim_rows(self._rows[name][0], t_end,
+        if len(self.recent_rows[name]) == 1:
+            self.recent_rows[name] = [trim_rows(self.recent_rows[name][0], t_end,
                                           keep_s=self.params.peer_ranges.rows_kept_s())]
 
     def _collect(self, i: int, name: str, ranges: RangeMeasurements | None, rows: Rows | None,
@@ -531,14 +534,14 @@ class MissionTracker:
         Each reading gets the agent's estimate at its time; the later ones (all before the
         agent's first row) stay pending, none with ``final`` (:mod:`hrtls.mission.readings`).
         """
-        ranges = join_ranges(self._pending[name], ranges)
-        self._pending[name] = None
+        ranges = join_ranges(self.pending[name], ranges)
+        self.pending[name] = None
         if ranges is None:
             return set()
         if rows is None:
-            self._pending[name] = ranges
+            self.pending[name] = ranges
             return set()
-        now, self._pending[name] = (ranges, None) if final else split_at(ranges, float(rows[0][-1]))
+        now, self.pending[name] = (ranges, None) if final else split_at(ranges, float(rows[0][-1]))
         if now is None:
             return set()
         touched: set[str] = set()
@@ -550,7 +553,7 @@ class MissionTracker:
             tr = self.readings.setdefault(node, NodeReadings()).add(
                 agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m])
             self.contrib.setdefault(node, set()).add(i)
-            self._contrib_trace[(i, node)] = min(self._contrib_trace.get((i, node), math.inf), tr)
+            self.contrib_trace[(i, node)] = min(self.contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
 
@@ -558,7 +561,7 @@ class MissionTracker:
         """Give each node re-localized in this window to every agent (see :meth:`_usable`)."""
         for node in changed:
             est = self.estimates[node]
-            v = self._version[node]
+            v = self.versions[node]
             sigma = float(np.sqrt(self._node_var(node)))
             lm = Landmark(id=node, kind="node", floor=0, accuracy_m=max(sigma, 1e-6),
                           position=(float(est.position_m[0]), float(est.position_m[1]), 0.0),
