@@ -525,7 +525,7 @@ class MissionTracker:
         """Keep the per-window cost of :meth:`_collect` independent of the mission's length."""
         if len(self.recent_rows[name]) == 1:
             self.recent_rows[name] = [trim_rows(self.recent_rows[name][0], t_end,
-                                          keep_s=self.params.peer_ranges.rows_kept_s())]
+                                                keep_s=self.params.peer_ranges.rows_kept_s())]
 
     def _collect(self, i: int, name: str, ranges: RangeMeasurements | None, rows: Rows | None,
                  *, final: bool = False) -> set[str]:
