@@ -49,7 +49,7 @@ class TeamParams:
     """Team spreading of the rescuers' way points (module doc); lengths m, times s."""
 
     team_gap_m: float = 8.0
-    leg_walk_s: float | None = 40.0
+    leg_walk_s: float | None = None
 
     def __post_init__(self) -> None:
         if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)):
@@ -91,10 +91,10 @@ def polyline_distance(points_m: FloatArray, line_m: FloatArray) -> FloatArray:
 
 
 def team_free(points_m: FloatArray, routes_m: list[FloatArray], *, gap_m: float) -> FloatArray:
-    """Candidates farther than ``gap_m`` from every teammate's remaining route (bool mask)."""
+    """Candidates at least ``gap_m`` from every teammate's remaining route (bool mask)."""
     free = np.ones(len(points_m), dtype=bool)
     for line in routes_m:
-        free &= polyline_distance(points_m, line) > gap_m
+        free &= polyline_distance(points_m, line) >= gap_m
     return free
 
 
@@ -123,7 +123,7 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     visits: dict[str, int] = {}
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
-    targets: dict[str, FloatArray] = {}  # each walking rescuer's current way point
+    targets: dict[str, FloatArray] = {}  # each rescuer's way point until it asks again
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in sorted(set(persons) - set(busy)):
@@ -149,6 +149,5 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         tracker.feed(name, person.walk_to(c.position_m, max_walk_s=leg_s,
                                           until_s=end_s[name]))
         if person.arrived:
-            targets.pop(name, None)
             open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
     return RescuerLoopResult(tracker, choices)
