@@ -48,8 +48,8 @@ FloatArray = NDArray[np.float64]
 class TeamParams:
     """Team spreading of the rescuers' way points (module doc); lengths m, times s."""
 
-    team_gap_m: float = 8.0
-    leg_walk_s: float | None = None
+    team_gap_m: float = 0.0
+    leg_walk_s: float | None = 40.0
 
     def __post_init__(self) -> None:
         if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)):
