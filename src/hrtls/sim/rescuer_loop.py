@@ -4,17 +4,18 @@ The rescuer counterpart of :mod:`hrtls.sim.planner_loop` (issue 18 item 3). Each
 :class:`~hrtls.sim.person_legs.WalkingPerson`; every rescuer first stands at its start until its
 entry time, then walks leg after leg. Events are handled in time order: the rescuer whose data
 ends first (the end of its last leg: it stopped at its way point, or on its route after
-``plan_period_s`` of walking) is next; the :class:`~hrtls.mission.tracker.MissionTracker`
-processes every complete window up to that time (every agent has data until then); the
-rescuer's position for the planner is its tracker's latest row (at most ``chunk_s`` old; its
-start pose before the first row); :func:`hrtls.mission.waypoints.next_waypoint` picks the way
-point from :func:`~hrtls.mission.waypoints.planner_input` (tracker state only, never the truth);
-the person walks there from its true position (it sees the building) and the leg's part is fed
-to the tracker. A node is targeted at most ``max_visits_per_node`` times by the whole team.
-A rescuer that reached its way point says so (it sees the building, as it sees the route): the
-candidates within ``explore_gap_m`` of a reached way point are no longer offered to the team
-(without this the planner, seeing the estimated track away from the point, sends the rescuer
-to where it already stands, again and again).
+``leg_walk_s`` of walking, :class:`TeamParams`) is next; the
+:class:`~hrtls.mission.tracker.MissionTracker` processes every complete window up to that time
+(every agent has data until then); the rescuer's position for the planner is its tracker's
+latest row (at most ``chunk_s`` old; its start pose before the first row);
+:func:`hrtls.mission.waypoints.next_waypoint` picks the way point from
+:func:`~hrtls.mission.waypoints.planner_input` (tracker state only, never the truth); the person
+walks there from its true position (it sees the building) and the leg's part is fed to the
+tracker. A node is targeted at most ``max_visits_per_node`` times by the whole team. A rescuer
+that reached its way point says so (it sees the building, as it sees the route): the candidates
+within ``explore_gap_m`` of a reached way point are no longer offered to the team (without this
+the planner, seeing the estimated track away from the point, sends the rescuer to where it
+already stands, again and again).
 Team spreading (:class:`TeamParams`): while a teammate walks to its way point, the candidates
 within ``team_gap_m`` of that way point or of its remaining route (the corridor route from the
 teammate's estimated position, map knowledge) are not offered to the rescuer that asks, so two
@@ -46,7 +47,11 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, kw_only=True)
 class TeamParams:
-    """Team spreading of the rescuers' way points (module doc); lengths m, times s."""
+    """Team spreading of the rescuers' way points and leg length (module doc); m, s.
+
+    ``team_gap_m = 0`` offers every open candidate (spreading off, the default: README,
+    planner-driven rescuers).
+    """
 
     team_gap_m: float = 0.0
     leg_walk_s: float | None = 40.0
