@@ -26,7 +26,7 @@ from hrtls.sim.mission import (
 from hrtls.sim.person import Infrastructure
 from hrtls.sim.person_legs import WalkingPerson
 from hrtls.sim.planner_loop import LoopParams
-from hrtls.sim.rescuer_loop import drive_rescuers, rescuer_estimate
+from hrtls.sim.rescuer_loop import TeamParams, drive_rescuers, polyline_distance, rescuer_estimate
 from hrtls.sim.robot_driver import CorridorRouter
 from hrtls.sim.scenario_options import scenario_rngs
 
@@ -217,3 +217,44 @@ def test_driver_options_are_checked() -> None:
         MissionOptions(rescuer_driver="teleport")
     with pytest.raises(InputError, match="planner"):
         MissionOptions(n_robots=1, robot_driver="planner", rescuer_driver="planner")
+
+
+def _first_choices(team: TeamParams) -> tuple:
+    """Two rescuers with the same data entering a T of corridors at once: their first choices."""
+    tee = unary_union([box(0, 0, 30, 3), box(14, 0, 17, 15)])
+    router = CorridorRouter(tee, grid_m=0.75, margin_m=0.4)
+    persons = {k: _person(tee, seed=11, name=k, start=ENTRANCE_XY, nodes={}, router=router)
+               for k in ("R1", "R2")}
+    out = drive_rescuers(persons, {}, kinds={}, enter_s={"R1": 10.0, "R2": 10.0},
+                         end_s={"R1": 40.0, "R2": 40.0}, params=LoopParams(),
+                         config=TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION}),
+                         team=team)
+    return router, out.choices["R1"][0], out.choices["R2"][0]
+
+
+def test_two_rescuers_asking_at_once_get_distinct_spread_way_points() -> None:
+    team = TeamParams(team_gap_m=6.0, leg_walk_s=30.0)
+    router, (t1, c1), (t2, c2) = _first_choices(team)
+    assert t1 == pytest.approx(t2)  # both asked at their common entry time
+    # R1 asked first (name order) and was sent to the far end of the long corridor; R2 is
+    # sent neither there nor near R1's route: up the side branch
+    assert c1.position_m[0] > 25.0
+    assert np.hypot(*(c1.position_m - c2.position_m)) > team.team_gap_m
+    route = router.route(np.array(ENTRANCE_XY), c1.position_m)
+    assert polyline_distance(c2.position_m[None], route)[0] >= team.team_gap_m
+    assert c2.position_m[1] > 7.0
+    # without spreading the same data sends R2 down the same corridor as R1
+    _, (_, d1), (_, d2) = _first_choices(TeamParams(team_gap_m=0.0, leg_walk_s=30.0))
+    np.testing.assert_array_equal(d1.position_m, c1.position_m)
+    assert polyline_distance(d2.position_m[None], route)[0] < team.team_gap_m
+
+
+def test_polyline_distance_and_team_parameters() -> None:
+    line = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    pts = np.array([[5.0, 2.0], [12.0, 5.0], [-3.0, -4.0], [10.0, 10.0]])
+    np.testing.assert_allclose(polyline_distance(pts, line), [2.0, 2.0, 5.0, 0.0])
+    np.testing.assert_allclose(polyline_distance(pts[:1], line[:1]), [np.hypot(5.0, 2.0)])
+    with pytest.raises(InputError, match="team"):
+        TeamParams(team_gap_m=-1.0)
+    with pytest.raises(InputError, match="team"):
+        TeamParams(leg_walk_s=0.0)
