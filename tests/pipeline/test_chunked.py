@@ -5,19 +5,28 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hrtls.pipeline import Tracker, preset
+from hrtls.data import Session
+from hrtls.pipeline import Tracker, TrackerConfig, preset
 from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
 
-def chunked_run(name: str, sim: SimulationResult, chunk_s: float) -> TrackResult:
-    s = sim.session
-    tr = Tracker(preset(name))
-    tr.start_session(s)
-    for part in split_session(s, chunk_s):
+def track_in_parts(cfg: TrackerConfig, session: Session, *, chunk_s: float,
+                   restore_after: int | None = None) -> TrackResult:
+    """``session`` fed in ``chunk_s`` parts; after part ``restore_after`` (if given) the tracker
+    goes on from its snapshot."""
+    tr = Tracker(cfg)
+    tr.start_session(session)
+    for i, part in enumerate(split_session(session, chunk_s)):
+        if i == restore_after:
+            tr = Tracker.restore(tr.snapshot())
         tr.update(part)
     return tr.finish()
+
+
+def chunked_run(name: str, sim: SimulationResult, chunk_s: float) -> TrackResult:
+    return track_in_parts(preset(name), sim.session, chunk_s=chunk_s)
 
 
 def assert_same(offline: TrackResult, live: TrackResult) -> None:

@@ -9,6 +9,8 @@ from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.pipeline import Tracker, TrackerConfig
 from hrtls.sim.simulation_result import SimulationResult
 
+from .test_chunked import track_in_parts
+
 NO_IMU = ("imu", "orientation", "pressure", "fixes", "tags", "ranges")
 
 
@@ -72,8 +74,6 @@ def test_live_rows_are_the_final_rows(office: SimulationResult) -> None:
 def test_shadowing_discount_chunked_and_restored_equal_offline(office: SimulationResult) -> None:
     """``[prediction.grid] shadowing_time_s``: the last reading per anchor survives chunks and
     snapshots; tau > 0 changes the track."""
-    from hrtls.pipeline.chunks import split_session
-
     s = office.session.with_parts(**dict.fromkeys(NO_IMU))
     cfg = TrackerConfig()
     cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
@@ -81,15 +81,7 @@ def test_shadowing_discount_chunked_and_restored_equal_offline(office: Simulatio
     offline = Tracker(cfg).run(s).trajectory
     plain = Tracker().run(s).trajectory
     assert len(plain) == len(offline) and not np.allclose(plain.xyz, offline.xyz)
-    parts = list(split_session(s, 7.0))
-    tr = Tracker(cfg)
-    tr.start_session(s)
-    for part in parts[:4]:
-        tr.update(part)
-    tr = Tracker.restore(tr.snapshot())
-    for part in parts[4:]:
-        tr.update(part)
-    live = tr.finish().trajectory
+    live = track_in_parts(cfg, s, chunk_s=7.0, restore_after=4).trajectory
     n = len(live)
     np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
 

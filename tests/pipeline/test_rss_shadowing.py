@@ -10,12 +10,11 @@ import pytest
 
 from hrtls.evaluate.metrics import checkpoint_errors
 from hrtls.pipeline import Tracker, preset
-from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import TrackResult
 from hrtls.sim.scenarios import SimulationResult
 
-from .test_chunked import assert_same
+from .test_chunked import assert_same, track_in_parts
 
 
 def _with(cfg: TrackerConfig, section: str, **kw: object) -> TrackerConfig:
@@ -43,30 +42,14 @@ def test_chunked_equals_offline(office: SimulationResult, chunk_s: float) -> Non
     """The last reading of each beacon is carried across chunks."""
     cfg = _tight(3.0)
     offline = Tracker(cfg).run(office.session)
-    tr = Tracker(cfg)
-    tr.start_session(office.session)
-    for part in split_session(office.session, chunk_s):
-        tr.update(part)
-    assert_same(offline, tr.finish())
+    assert_same(offline, track_in_parts(cfg, office.session, chunk_s=chunk_s))
 
 
 def test_snapshot_restore_continues_exactly(office: SimulationResult) -> None:
     cfg = _tight(3.0)
     s = office.session
-    parts = list(split_session(s, 10.0))
-    ref = Tracker(cfg)
-    ref.start_session(s)
-    for part in parts:
-        ref.update(part)
-    whole = ref.finish()
-    first = Tracker(cfg)
-    first.start_session(s)
-    for part in parts[:5]:
-        first.update(part)
-    again = Tracker.restore(first.snapshot())
-    for part in parts[5:]:
-        again.update(part)
-    out = again.finish()
+    whole = track_in_parts(cfg, s, chunk_s=10.0)
+    out = track_in_parts(cfg, s, chunk_s=10.0, restore_after=5)
     n = len(out.trajectory)
     np.testing.assert_allclose(out.trajectory.xyz, whole.trajectory.xyz[-n:], atol=1e-9, rtol=0)
     assert out.report["corrections"] == whole.report["corrections"]

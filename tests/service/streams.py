@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any
 
 import httpx
@@ -10,6 +11,7 @@ import numpy as np
 
 from hrtls.data import Session
 from hrtls.pipeline import Tracker, preset
+from hrtls.service.client import AgentClient, session_batches
 from hrtls.sim.scenarios import run_scenario
 
 API = "/api/v1"
@@ -61,3 +63,31 @@ def stored(commander: httpx.Client, mission: int, agent: int) -> dict[str, np.nd
     return {"t": np.array([r["t"] for r in rows]),
             "xy": np.array([[r["x"], r["y"]] for r in rows]).reshape(-1, 2),
             "cov": np.array([r["cov_xy"] for r in rows]).reshape(-1, 2, 2)}
+
+
+def stream_agents(url: str, agents: list[Any], offset: float, *, t_from: float = -math.inf,
+                  t_to: float = math.inf,
+                  first_seq: dict[int, int] | None = None) -> dict[int, int]:
+    """Send each agent's batches ending in (t_from, t_to], agents interleaved by time.
+
+    ``agents`` holds (simulated member, agent id, token); a first part (``first_seq`` None) checks
+    every agent in at its start pose. Returns each agent's next seq, for the following part.
+    """
+    clients, batches = {}, []
+    for m, aid, token in agents:
+        c = AgentClient(url, token, first_seq=(first_seq or {}).get(aid, 0))
+        if first_seq is None:
+            pose = m.session.meta.start_pose.model_dump()
+            pose["t"] = (pose.get("t") or m.session.time_span()[0]) + offset
+            c.checkin(pose)
+        clients[aid] = c
+        batches += [(t, aid, b) for t, b in session_batches(m.session, t_offset_s=offset)
+                    if t_from < t <= t_to]
+    for _, aid, b in sorted(batches, key=lambda x: x[0]):
+        clients[aid].submit(b)
+    out = {}
+    for aid, c in clients.items():
+        assert c.flush(max_wait_s=30) and c.outbox == {}
+        out[aid] = c.next_seq
+        c.close()
+    return out

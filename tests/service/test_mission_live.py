@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import time
 from pathlib import Path
 from typing import Any
@@ -17,7 +16,7 @@ from websockets.sync.client import connect
 
 from hrtls.io.mission import read_mission
 from hrtls.mission.tracker import MissionResult, MissionTracker
-from hrtls.service.client import AgentClient, session_batches
+from hrtls.service.client import AgentClient
 from hrtls.service.db import make_engine, session_factory
 from hrtls.service.mission_runner import MissionRunner, offline_tracker
 from hrtls.service.missions import export_mission
@@ -25,7 +24,7 @@ from hrtls.service.models import MissionSnapshot
 from hrtls.service.network_sim import common_offset, create_network_mission, network_team
 
 from .conftest import Live
-from .streams import API
+from .streams import API, stream_agents
 
 OPTIONS = {"walk_s": 45.0, "stagger_s": 10.0, "n_nodes": 12, "n_robots": 1}
 PARAMS = {"silent_after_s": 120.0}   # no agent is taken as silent: the end is the close
@@ -34,30 +33,6 @@ PARAMS = {"silent_after_s": 120.0}   # no agent is taken as silent: the end is t
 def _runner(live: Live) -> MissionRunner:
     runner: MissionRunner = live.server.config.app.state.services.missions
     return runner
-
-
-def _stream(live: Live, agents: list[Any], offset: float, *, t_from: float = -math.inf,
-            t_to: float = math.inf, first_seq: dict[int, int] | None = None) -> dict[int, int]:
-    """Each agent's batches ending in (t_from, t_to], agents interleaved by time; next seqs."""
-    out: dict[int, int] = {}
-    clients = {}
-    batches = []
-    for m, aid, token in agents:
-        c = AgentClient(live.url, token, first_seq=(first_seq or {}).get(aid, 0))
-        if first_seq is None:
-            pose = m.session.meta.start_pose.model_dump()
-            pose["t"] = (pose.get("t") or m.session.time_span()[0]) + offset
-            c.checkin(pose)
-        clients[aid] = c
-        batches += [(t, aid, b) for t, b in session_batches(m.session, t_offset_s=offset)
-                    if t_from < t <= t_to]
-    for _, aid, b in sorted(batches, key=lambda x: x[0]):
-        clients[aid].submit(b)
-    for aid, c in clients.items():
-        assert c.outbox == {}
-        out[aid] = c.next_seq
-        c.close()
-    return out
 
 
 def _close(live: Live, mid: int) -> None:
@@ -124,7 +99,7 @@ def test_live_mission_estimator_equals_offline_and_is_published(
             ping_interval=None) as dash:
         assert json.loads(dash.recv(timeout=30))["type"] == "hello"
         assert json.loads(dash.recv(timeout=30))["type"] == "snapshot"
-        _stream(live, agents, offset)
+        stream_agents(live.url, agents, offset)
         runner = _runner(live)
         _wait(runner, mid, done=False)
         lm = runner.missions[mid]
@@ -199,7 +174,7 @@ def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: 
     first = make_live(snapshot_every_s=5.0)
     mid, agents, offset = _setup(first, 0)
     cut = offset + 30.0
-    seqs = _stream(first, agents, offset, t_to=cut)
+    seqs = stream_agents(first.url, agents, offset, t_to=cut)
     _wait(_runner(first), mid, done=False)
     engine = make_engine(first.settings.db_url)
     try:
@@ -220,7 +195,7 @@ def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: 
         assert r.status_code == 409 and "started" in r.json()["detail"]
     first.stop()
     second = make_live(snapshot_every_s=5.0)
-    _stream(second, agents, offset, t_from=cut, first_seq=seqs)
+    stream_agents(second.url, agents, offset, t_from=cut, first_seq=seqs)
     runner = _runner(second)
     _wait(runner, mid, done=False)
     _close(second, mid)
@@ -263,7 +238,7 @@ def test_cli_streams_a_networked_mission(live: Live, commander: httpx.Client) ->
 def test_a_landmark_version_written_live_reaches_the_mission_estimator(make_live: Any) -> None:
     live = make_live()
     mid, agents, offset = _setup(live, 0)
-    seqs = _stream(live, agents, offset, t_to=offset + 12.0)
+    seqs = stream_agents(live.url, agents, offset, t_to=offset + 12.0)
     runner = _runner(live)
     _wait(runner, mid, done=False)
     with live.client(live.commander) as c:
@@ -278,7 +253,7 @@ def test_a_landmark_version_written_live_reaches_the_mission_estimator(make_live
         assert time.monotonic() < deadline, "the version did not reach the estimator"
         time.sleep(0.1)
     assert lm.tracker.horizon_s < offset + 30.0 and not lm.late_versions
-    _stream(live, agents, offset, t_from=offset + 12.0, first_seq=seqs)
+    stream_agents(live.url, agents, offset, t_from=offset + 12.0, first_seq=seqs)
     _wait(runner, mid, done=False)
     _close(live, mid)
     _wait(runner, mid, done=True)
@@ -310,7 +285,7 @@ def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
             ping_interval=None) as dash:
         assert json.loads(dash.recv(timeout=30))["type"] == "hello"
         assert json.loads(dash.recv(timeout=30))["type"] == "snapshot"
-        _stream(live, agents, offset)
+        stream_agents(live.url, agents, offset)
         _wait(runner, mid, done=False)
         _close(live, mid)
         _wait(runner, mid, done=True)

@@ -226,3 +226,11 @@ def login(page, service: Service, token: str | None = None) -> None:
     page.fill("#login-token", token or service.token)
     page.click("#login-submit")
     page.wait_for_selector("#app:not([hidden])")
+
+
+@pytest.fixture
+def geometry(page, service):
+    """The dashboard page loaded (not logged in), to call its ES modules (js/geometry.js)."""
+    page.goto(service.url + "/")
+    page.wait_for_selector("body[data-ready='1']")
+    return page

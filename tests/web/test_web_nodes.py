@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tests.service.streams import stream_agents
 
-from hrtls.service.client import AgentClient, session_batches
+from hrtls.service.client import AgentClient
 from hrtls.service.network_sim import common_offset, create_network_mission, network_team
 
 from .conftest import Service, login
@@ -29,29 +30,6 @@ OPTIONS = {"walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2}
 SEED = 2
 CUT_S = 50.0
 PARAMS = {"silent_after_s": 120.0}   # the windows past the cut wait for the rest or the close
-
-
-def _stream(service: Service, agents: list[Any], offset: float, *, t_from: float,
-            t_to: float, first_seq: dict[int, int] | None) -> dict[int, int]:
-    """Each agent's batches ending in (t_from, t_to], interleaved by time; the next seqs."""
-    clients, batches = {}, []
-    for m, aid, token in agents:
-        c = AgentClient(service.url, token, first_seq=(first_seq or {}).get(aid, 0))
-        if first_seq is None:
-            pose = m.session.meta.start_pose.model_dump()
-            pose["t"] = (pose.get("t") or m.session.time_span()[0]) + offset
-            c.checkin(pose)
-        clients[aid] = c
-        batches += [(t, aid, b) for t, b in session_batches(m.session, t_offset_s=offset)
-                    if t_from < t <= t_to]
-    for _, aid, b in sorted(batches, key=lambda x: x[0]):
-        clients[aid].submit(b)
-    out = {}
-    for aid, c in clients.items():
-        assert c.flush(max_wait_s=30) and c.outbox == {}
-        out[aid] = c.next_seq
-        c.close()
-    return out
 
 
 def _network(service: Service, mid: int) -> list[dict[str, Any]]:
@@ -128,7 +106,7 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
         mid, agents = create_network_mission(commander, "nodes", mission, members,
                                              params=PARAMS)
         offset = common_offset(commander, mid, members)
-    seqs = _stream(service, agents, offset, t_from=-math.inf, t_to=offset + CUT_S,
+    seqs = stream_agents(service.url, agents, offset, t_from=-math.inf, t_to=offset + CUT_S,
                    first_seq=None)
     _wait_network(service, mid, lambda ns: any(n["localized"] for n in ns)
                   and any(not n["localized"] and n["readings"] for n in ns))
@@ -160,7 +138,7 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
     page.wait_for_function("n => document.querySelectorAll('path.node-marker').length === n",
                            arg=len(loc1))
 
-    _stream(service, agents, offset, t_from=offset + CUT_S, t_to=math.inf, first_seq=seqs)
+    stream_agents(service.url, agents, offset, t_from=offset + CUT_S, t_to=math.inf, first_seq=seqs)
     status, _ = service.api("PATCH", f"/missions/{mid}", {"status": "closed"})
     assert status == 200
     _wait_network(service, mid, lambda ns: len([n for n in ns if n["localized"]]) > len(loc1))
@@ -170,13 +148,6 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
     assert page.evaluate("() => window.notReloaded === true")
     screenshot(page, "nodes_final")
     page_log.assert_clean()
-
-
-@pytest.fixture
-def geometry(page, service):
-    page.goto(service.url + "/")
-    page.wait_for_selector("body[data-ready='1']")
-    return page
 
 
 def test_node_ellipse_against_numpy_hand_cases(geometry):

@@ -29,13 +29,6 @@ def test_page_loads_offline_and_shows_only_the_login(page, page_log, service, sc
     page_log.assert_clean()
 
 
-@pytest.fixture
-def geometry(page, service):
-    page.goto(service.url + "/")
-    page.wait_for_selector("body[data-ready='1']")
-    return page
-
-
 def test_quality_levels_hand_computed(geometry):
     # diagonal covariance: 2-sigma radius = 2 * sqrt(max variance)
     cases = geometry.evaluate("""async () => {
