@@ -40,7 +40,7 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rss
 TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
           "straight_02", "straight_03")
 GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
-                "offset_gain": (0.0, 0.01)}
+                "offset_gain": (0.0, 0.01), "attenuation_probability": (0.0, 0.2)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
 
 

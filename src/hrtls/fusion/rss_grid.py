@@ -11,7 +11,8 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
 * **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
   log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
-  ``l = (1 - e) N(r; mu(d) + o_a, sigma) + e / RSS_SPAN_DB``, raised to the power ``w`` (the
+  ``l = (1 - e) [(1 - q) N(r; mu(d) + o_a, sigma) + q N(r; mu(d) + o_a - att, sigma)]
+  + e / RSS_SPAN_DB``, raised to the power ``w`` (the
   share of the averaging window that is new in this scan, so a reading that enters several
   overlapping windows counts once in all; with ``shadowing_time_s > 0`` each new reading
   counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
@@ -61,6 +62,9 @@ class GridParams:
     offset_max_db: bound of the per-anchor offsets, dB.
     shadowing_time_s: correlation time of an anchor's shadowing error, s (0: independent
         readings; :mod:`hrtls.fusion.shadowing`).
+    attenuation_probability: weight ``q`` of the attenuated component (a body or obstacle
+        between the device and the anchor; 0: none).
+    attenuation_db: mean attenuation of that component, dB.
     """
 
     cell_m: float = 0.25
@@ -73,20 +77,26 @@ class GridParams:
     offset_gain: float = 0.0
     offset_max_db: float = 10.0
     shadowing_time_s: float = 0.0
+    attenuation_probability: float = 0.0
+    attenuation_db: float = 8.0
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
-                     "outlier_probability", "shadowing_time_s"):
+                     "outlier_probability", "shadowing_time_s", "attenuation_probability",
+                     "attenuation_db"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
                              where="GridParams.average_s", expected="at least scan_s")
-        if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0):
+        if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0
+                and self.attenuation_probability < 1.0):
             raise InputError(f"outlier_probability = {self.outlier_probability}, offset_gain = "
-                             f"{self.offset_gain}", where="GridParams",
-                             expected="outlier_probability < 1 and offset_gain <= 1")
+                             f"{self.offset_gain}, attenuation_probability = "
+                             f"{self.attenuation_probability}", where="GridParams",
+                             expected="outlier_probability < 1, offset_gain <= 1 and "
+                                      "attenuation_probability < 1")
 
     def record(self) -> np.ndarray:
         """The settings as a one-element :data:`GRID_DTYPE` array."""
@@ -95,7 +105,8 @@ class GridParams:
 
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
-    "outlier_probability", "offset_gain", "offset_max_db")])
+    "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
+    "attenuation_db")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -214,12 +225,14 @@ def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
 
 @numba.njit(cache=True, error_model="numpy")
 def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
-                   offsets_db: FloatArray, model: np.record, outlier: float,
+                   offsets_db: FloatArray, model: np.record, prm: np.record,
                    out: FloatArray) -> None:   # pragma: no cover - compiled
     """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring)."""
     out[:] = 0.0
     sig = model.sigma_db
+    outlier, q = prm.outlier_probability, prm.attenuation_probability
     norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
+    shift = prm.attenuation_db / sig
     floor = outlier / RSS_SPAN_DB
     ny, nx = out.shape
     for r in range(anchor.shape[0]):
@@ -228,7 +241,8 @@ def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weig
             for j in range(nx):
                 mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
                 z = (rss_dbm[r] - mu - offsets_db[a]) / sig
-                out[i, j] += weight[r] * math.log(norm * math.exp(-0.5 * z * z) + floor)
+                g = (1.0 - q) * math.exp(-0.5 * z * z) + q * math.exp(-0.5 * (z + shift) ** 2)
+                out[i, j] += weight[r] * math.log(norm * g + floor)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -272,8 +286,8 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             dt = max(t[k] - t_prev, 0.0)
             blur(density, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
         a, b = first[k], first[k] + count[k]
-        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, model,
-                       prm.outlier_probability, ll)
+        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, model, prm,
+                       ll)
         top = ll.max()
         total = 0.0
         for i in range(ny):
@@ -361,9 +375,13 @@ class RssGridFilter:
         self._model = np.zeros(1, dtype=PATH_LOSS_DTYPE)
         self._model[0] = model.record()[0]
 
-    def start(self) -> GridState:
-        """The state before the first scan."""
-        return GridState.empty(self.geometry, len(self.anchors_xy))
+    def start(self, offsets_db: FloatArray | None = None) -> GridState:
+        """The state before the first scan; ``offsets_db``: starting per-anchor offsets, dB."""
+        state = GridState.empty(self.geometry, len(self.anchors_xy))
+        if offsets_db is not None:
+            state.offsets_db[:] = np.clip(np.asarray(offsets_db, dtype=np.float64),
+                                          -self.params.offset_max_db, self.params.offset_max_db)
+        return state
 
     def update(self, state: GridState, scans: GridScans) -> tuple[GridRows, GridState]:
         """Rows of ``scans`` (after ``state.t``) and the new state (``state`` is unchanged)."""

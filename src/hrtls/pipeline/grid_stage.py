@@ -28,6 +28,18 @@ from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
 from hrtls.pipeline.output import TrackRows
 
+RSS_OFFSET_KEY = "rss_offset_db"
+"""Extra landmark field: the anchor's RSS over the channel model, dB (a site survey)."""
+
+
+def survey_offsets(anchors: dict[str, Landmark], ids: list[str]) -> np.ndarray:
+    """Each anchor's surveyed RSS offset over the channel, dB (extra field ``rss_offset_db``).
+
+    Zero where the landmark does not carry one.
+    """
+    return np.array([float((anchors[a].model_extra or {}).get(RSS_OFFSET_KEY, 0.0))
+                     for a in ids], dtype=np.float64)
+
 
 class GridStage:
     """Buffered RSS readings, the grid filter's state and its rows.
@@ -46,7 +58,7 @@ class GridStage:
         self.z_m = z_m
         self.notes = notes
         self.state = GridState(-math.inf, np.zeros((0, 0)), np.zeros(0)) if self.filter is None \
-            else self.filter.start()
+            else self.filter.start(survey_offsets(anchors, self.ids))
         self._buf_t = np.zeros(0)
         self._buf_a = np.zeros(0, dtype=np.int64)
         self._buf_r = np.zeros(0)
