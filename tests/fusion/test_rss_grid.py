@@ -16,6 +16,7 @@ from hrtls.fusion.rss_grid import (
     GridGeometry,
     GridParams,
     RssGridFilter,
+    bias_update,
     blur,
     causal_scans,
     log_likelihood,
@@ -52,11 +53,108 @@ def test_likelihood_of_one_reading_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]]])                 # one anchor, one row, two cells
     out = np.zeros((1, 2))
     log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
-                   _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0), 0.1, out)
+                   np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
+                   GridParams(outlier_probability=0.1).record()[0], out)
     for j, mu in enumerate((-59.0, -79.0)):
         z = (-70.0 - mu) / 4.0
         lik = 0.9 * math.exp(-0.5 * z * z) / (math.sqrt(2 * math.pi) * 4.0) + 0.1 / RSS_SPAN_DB
         assert out[0, j] == pytest.approx(0.5 * math.log(lik), rel=1e-12)
+
+
+def test_attenuated_component_and_offset_variance_by_hand() -> None:
+    """l = (1-e) [(1-q) N(r; mu+o, s) + q N(r; mu+o-att, s)] + e/span, s^2 = sigma^2 + P."""
+    dist = np.array([[[1.0, 10.0]]])
+    out = np.zeros((1, 2))
+    prm = GridParams(outlier_probability=0.1, attenuation_probability=0.25, attenuation_db=8.0)
+    log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([1.0]), np.array([2.0]),
+                   np.array([9.0]), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0), prm.record()[0],
+                   out)
+    s = 5.0                                          # sqrt(4^2 + 9)
+    for j, mu in enumerate((-59.0 + 2.0, -79.0 + 2.0)):
+        g = 0.75 * math.exp(-0.5 * ((-70.0 - mu) / s) ** 2) + \
+            0.25 * math.exp(-0.5 * ((-70.0 - mu + 8.0) / s) ** 2)
+        lik = 0.9 * g / (math.sqrt(2 * math.pi) * s) + 0.1 / RSS_SPAN_DB
+        assert out[0, j] == pytest.approx(math.log(lik), rel=1e-12)
+    # a reading far weaker than the model is likelier with the attenuated component
+    plain, att = np.zeros((1, 2)), np.zeros((1, 2))
+    for q, o in ((0.0, plain), (0.25, att)):
+        log_likelihood(dist, np.array([0]), np.array([-71.0]), np.array([1.0]), np.zeros(1),
+                       np.zeros(1), _model(sigma_db=4.0),
+                       GridParams(attenuation_probability=q).record()[0], o)
+    assert att[0, 0] > plain[0, 0] and att[0, 1] < plain[0, 1]
+
+
+def test_bias_update_by_hand() -> None:
+    """A point-mass density: e = r - mu - o, S = sigma^2 / w + P, o += P e / S, P -= P^2 / S."""
+    dist = np.array([[[1.0, 10.0]], [[10.0, 1.0]]])     # two anchors, two cells
+    density = np.array([[1.0, 0.0]])
+    off, var = np.array([1.0, 0.0]), np.array([9.0, 4.0])
+    bias_update(dist, density, np.array([0, 1]), np.array([-55.0, -75.0]), np.array([0.5, 1.0]),
+                off, var, _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
+    s0 = 16.0 / 0.5 + 9.0
+    assert off[0] == pytest.approx(1.0 + 9.0 / s0 * (-55.0 + 59.0 - 1.0), rel=1e-12)
+    assert var[0] == pytest.approx(9.0 - 81.0 / s0, rel=1e-12)
+    s1 = 16.0 + 4.0
+    assert off[1] == pytest.approx(4.0 / s1 * (-75.0 + 79.0), rel=1e-12)
+    # two equally likely cells: the spread of the predicted RSS enters S
+    density = np.array([[0.5, 0.5]])
+    off, var = np.zeros(2), np.array([9.0, 9.0])
+    bias_update(dist, density, np.array([0]), np.array([-69.0]), np.array([1.0]), off, var,
+                _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
+    s = 16.0 + 100.0 + 9.0                              # Var of (-59, -79) is 100
+    assert off[0] == pytest.approx(9.0 / s * 0.0, abs=1e-12) and var[0] == pytest.approx(
+        9.0 - 81.0 / s, rel=1e-12)
+    # a residual beyond 3 sqrt(S) is not used
+    off, var = np.zeros(2), np.array([9.0, 9.0])
+    bias_update(dist, np.array([[1.0, 0.0]]), np.array([0]), np.array([-30.0]), np.array([1.0]),
+                off, var, _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
+    assert off[0] == 0.0 and var[0] == 9.0
+
+
+def _walk(anchors: np.ndarray, model: PathLossModel, seed: int) -> tuple[np.ndarray, ...]:
+    rng = np.random.default_rng(seed)
+    t = np.repeat(np.arange(0.0, 10.0, 0.5), len(anchors)) + 0.01
+    a = np.tile(np.arange(len(anchors)), 20)
+    xy = np.column_stack([2.0 + 0.5 * t, 3.0 + 0.2 * t])
+    d = np.maximum(np.linalg.norm(xy - anchors[a], axis=1), 1.0)
+    return t, a, model.expected_rss(d) + rng.normal(0.0, 4.0, len(t))
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(-10.0, 10.0), st.integers(0, 2**31), st.sampled_from([0.0, 3.0]))
+def test_a_bias_common_to_readings_and_offsets_does_not_move_the_walker(
+        c: float, seed: int, bias_sigma: float) -> None:
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    model = PathLossModel()
+    t, a, rss = _walk(anchors, model, seed)
+    prm = GridParams(cell_m=0.5, bias_sigma_db=bias_sigma, attenuation_probability=0.2)
+    f = RssGridFilter(anchors, model=model, params=prm)
+    rows = []
+    for shift in (0.0, c):
+        sc = causal_scans(t, a, rss + shift, n_anchors=4, scan_s=0.5, average_s=1.0,
+                          t_origin=0.0)
+        rows.append(f.update(f.start(np.full(4, shift)), sc)[0])
+    np.testing.assert_allclose(rows[1].mean_xy, rows[0].mean_xy, atol=1e-6)
+
+
+def test_the_bias_state_learns_a_constant_anchor_offset() -> None:
+    """A +6 dB anchor: the bias state finds it and the track is closer to the walk."""
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    model = PathLossModel()
+    t, a, rss = _walk(anchors, model, 3)
+    rss = rss + np.where(a == 1, 6.0, 0.0)
+    sc = causal_scans(t, a, rss, n_anchors=4, scan_s=0.5, average_s=1.0, t_origin=0.0)
+    err = []
+    for sigma in (0.0, 4.0):
+        f = RssGridFilter(anchors, model=model, params=GridParams(cell_m=0.25,
+                                                                  bias_sigma_db=sigma))
+        rows, state = f.update(f.start(), sc)
+        xy = np.column_stack([2.0 + 0.5 * rows.t, 3.0 + 0.2 * rows.t])
+        err.append(float(np.mean(np.linalg.norm(rows.mean_xy - xy, axis=1)[10:])))
+        if sigma:
+            assert state.offsets_db[1] - np.mean(state.offsets_db[[0, 2, 3]]) > 3.0
+            assert state.offsets_var_db2 is not None and np.all(state.offsets_var_db2 < 16.0)
+    assert err[1] < err[0]
 
 
 def test_mean_rss_is_the_path_loss_law() -> None:

@@ -98,3 +98,27 @@ def test_bench_rss_alone_is_the_wls_kalman_track(office: SimulationResult) -> No
     np.testing.assert_allclose(res.trajectory.xyz, Tracker(wls).run(s).trajectory.xyz)
     grid = Tracker(TrackerConfig().model_copy(update={"rss": wls.rss})).run(s)
     assert any("grid filter" in n for n in grid.report["notes"])
+
+
+def test_bias_state_and_surveyed_offsets_chunked_and_restored_equal_offline(
+        office: SimulationResult) -> None:
+    """``[prediction.grid] bias_sigma_db`` and the anchors' ``rss_offset_db``: the offsets and
+    their variances survive chunks and snapshots; each changes the track."""
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    cfg = TrackerConfig()
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+        "grid": {**cfg.prediction.grid, "bias_sigma_db": 3.0,
+                 "attenuation_probability": 0.2}})})
+    lms = {k: lm.model_copy(update={"rss_offset_db": 2.0 if i % 2 else -1.0})
+           if lm.kind in ("anchor", "beacon") else lm
+           for i, (k, lm) in enumerate(s.landmarks.items())}
+    surveyed = s.with_parts(landmarks=lms)
+    plain = Tracker().run(s).trajectory
+    offline = Tracker(cfg).run(s).trajectory
+    offset = Tracker().run(surveyed).trajectory
+    assert not np.allclose(plain.xyz, offline.xyz) and not np.allclose(plain.xyz, offset.xyz)
+    for session in (s, surveyed):
+        whole = Tracker(cfg).run(session).trajectory
+        live = track_in_parts(cfg, session, chunk_s=7.0, restore_after=4).trajectory
+        n = len(live)
+        np.testing.assert_allclose(live.xyz, whole.xyz[-n:], atol=1e-9, rtol=0)

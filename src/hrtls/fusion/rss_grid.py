@@ -65,6 +65,8 @@ class GridParams:
     attenuation_probability: weight ``q`` of the attenuated component (a body or obstacle
         between the device and the anchor; 0: none).
     attenuation_db: mean attenuation of that component, dB.
+    bias_sigma_db: prior standard deviation of each anchor's RSS bias, dB (0: no bias state).
+    bias_walk_db_per_sqrt_s: random walk of the biases, dB/sqrt(s).
     """
 
     cell_m: float = 0.25
@@ -79,13 +81,15 @@ class GridParams:
     shadowing_time_s: float = 0.0
     attenuation_probability: float = 0.0
     attenuation_db: float = 8.0
+    bias_sigma_db: float = 0.0
+    bias_walk_db_per_sqrt_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
                      "outlier_probability", "shadowing_time_s", "attenuation_probability",
-                     "attenuation_db"):
+                     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
@@ -106,7 +110,7 @@ class GridParams:
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
     "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
-    "attenuation_db")])
+    "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -151,12 +155,20 @@ class GridGeometry:
 
 @dataclass(slots=True, eq=False)
 class GridState:
-    """Density (ny, nx; sums to 1, or all zero before the first scan), time and offsets."""
+    """Density (ny, nx; sums to 1, or all zero before the first scan), time and offsets.
+
+    ``offsets_var_db2``: variance of each anchor's offset (the bias state; zero without it).
+    """
 
     t: float
     density: FloatArray
     offsets_db: FloatArray
     started: bool = False
+    offsets_var_db2: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        if self.offsets_var_db2 is None:
+            self.offsets_var_db2 = np.zeros(len(self.offsets_db))
 
     @classmethod
     def empty(cls, geometry: GridGeometry, n_anchors: int) -> GridState:
@@ -225,24 +237,57 @@ def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
 
 @numba.njit(cache=True, error_model="numpy")
 def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
-                   offsets_db: FloatArray, model: np.record, prm: np.record,
-                   out: FloatArray) -> None:   # pragma: no cover - compiled
-    """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring)."""
+                   offsets_db: FloatArray, offsets_var: FloatArray, model: np.record,
+                   prm: np.record, out: FloatArray) -> None:   # pragma: no cover - compiled
+    """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring).
+
+    The offset's variance ``offsets_var`` adds to the shadowing variance (bias marginalised).
+    """
     out[:] = 0.0
-    sig = model.sigma_db
     outlier, q = prm.outlier_probability, prm.attenuation_probability
-    norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
-    shift = prm.attenuation_db / sig
     floor = outlier / RSS_SPAN_DB
     ny, nx = out.shape
     for r in range(anchor.shape[0]):
         a = anchor[r]
+        sig = math.sqrt(model.sigma_db ** 2 + offsets_var[a])
+        norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
+        shift = prm.attenuation_db / sig
         for i in range(ny):
             for j in range(nx):
                 mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
                 z = (rss_dbm[r] - mu - offsets_db[a]) / sig
                 g = (1.0 - q) * math.exp(-0.5 * z * z) + q * math.exp(-0.5 * (z + shift) ** 2)
                 out[i, j] += weight[r] * math.log(norm * g + floor)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def bias_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
+                weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+                model: np.record) -> None:   # pragma: no cover - compiled
+    """Kalman update of each heard anchor's offset from the residual over ``density``.
+
+    The predicted RSS is marginalised over the (predicted) position density: residual
+    ``e = r - E[mu] - o``, variance ``S = sigma^2 / w + Var[mu] + P``; a residual beyond
+    3 sqrt(S) is not used (an outlier or an attenuated reading).
+    """
+    ny, nx = density.shape
+    for r in range(anchor.shape[0]):
+        a, w = anchor[r], weight[r]
+        if w <= 0.0:
+            continue
+        m1 = m2 = 0.0
+        for i in range(ny):
+            for j in range(nx):
+                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
+                m1 += density[i, j] * mu
+                m2 += density[i, j] * mu * mu
+        p = offsets_var[a]
+        s = model.sigma_db ** 2 / w + max(m2 - m1 * m1, 0.0) + p
+        e = rss_dbm[r] - m1 - offsets_db[a]
+        if e * e > 9.0 * s:
+            continue
+        offsets_db[a] += p / s * e
+        offsets_var[a] = p - p * p / s
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -269,11 +314,12 @@ def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatAr
 
 @numba.njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
-                density: FloatArray, offsets_db: FloatArray, t_prev: float, started: bool,
+                density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+                t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
     # pragma: no cover - compiled
-    """Run the scans through the filter; ``density`` and ``offsets_db`` in place.
+    """Run the scans through the filter; ``density``, ``offsets_db``, ``offsets_var`` in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
     """
@@ -282,12 +328,17 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     tmp = np.empty((ny, nx))
     ll = np.empty((ny, nx))
     for k in range(t.shape[0]):
+        dt = 0.0
         if started:
             dt = max(t[k] - t_prev, 0.0)
             blur(density, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
         a, b = first[k], first[k] + count[k]
-        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, model, prm,
-                       ll)
+        if prm.bias_sigma_db > 0.0:
+            offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
+            bias_update(dist, density, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
+                        offsets_var, model)
+        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
+                       model, prm, ll)
         top = ll.max()
         total = 0.0
         for i in range(ny):
@@ -381,6 +432,7 @@ class RssGridFilter:
         if offsets_db is not None:
             state.offsets_db[:] = np.clip(np.asarray(offsets_db, dtype=np.float64),
                                           -self.params.offset_max_db, self.params.offset_max_db)
+        state.offsets_var_db2 = np.full(len(self.anchors_xy), self.params.bias_sigma_db ** 2)
         return state
 
     def update(self, state: GridState, scans: GridScans) -> tuple[GridRows, GridState]:
@@ -389,13 +441,14 @@ class RssGridFilter:
         out = np.zeros((s, 5))
         density = state.density.copy()
         offsets = state.offsets_db.copy()
+        var = np.asarray(state.offsets_var_db2, dtype=np.float64).copy()
         g = self.geometry
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
-                                 density, offsets, state.t, state.started, scans.t,
+                                 density, offsets, var, state.t, state.started, scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
                                  scans.weight, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
         rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
-        return rows, GridState(float(t_last), density, offsets, state.started or s > 0)
+        return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var)
