@@ -18,6 +18,7 @@ Run: ``python benchmarks/ble_residuals.py``.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from pathlib import Path
 
@@ -71,7 +72,7 @@ def report(tr: BleRssiTrajectory, ch: ChannelModel) -> dict[str, float]:
     moving = speed > 0.3
     rr = r - fitted
     cells = []
-    for lo, hi in zip(BINS_DEG[:-1], BINS_DEG[1:], strict=True):
+    for lo, hi in itertools.pairwise(BINS_DEG):
         sel = moving & (ang >= lo) & (ang < hi + (hi == 180))
         cells.append(f"{lo}-{hi}: {rr[sel].mean():+.1f} ({sel.sum()})")
     print("  body shadowing (residual minus receiver mean, by relative bearing deg): "

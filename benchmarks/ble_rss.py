@@ -11,6 +11,8 @@ horizontal error at every truth sample for
 * ``random walk``: ``[prediction] no_imu = "random-walk"`` (the Kalman filter; before the grid);
 * ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
 * ``grid, held out``: the leave-one-out choice above;
+* ``grid, held out, no bias``: the same choice among the candidates without the per-anchor
+  bias state (``bias_sigma_db = 0``: the choice before it existed);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
@@ -40,8 +42,10 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rss
 TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
           "straight_02", "straight_03")
 GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
-                "offset_gain": (0.0, 0.01), "attenuation_probability": (0.0, 0.2)}
+                "offset_gain": (0.0, 0.01), "bias_sigma_db": (0.0, 3.0, 5.0)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
+BEFORE = {"bias_sigma_db": 0.0}
+"""The candidates of the choice before the bias state (column ``grid, held out, no bias``)."""
 
 
 def config(no_imu: str, grid: dict[str, float] | None = None) -> TrackerConfig:
@@ -73,8 +77,9 @@ def survey_channel(tracks: list[BleRssiTrajectory]) -> ChannelModel:
                         sigma_db=float(np.std(y - x @ coef)))
 
 
-def _row(name: str, e: np.ndarray) -> list[str]:
-    return [name, *(f"{v:.2f}" for v in np.percentile(e, [50, 75, 95]))]
+def surveyed(s: Session, channel: ChannelModel, use: bool) -> Session:
+    """``s`` with the surveyed ``channel`` when ``use``."""
+    return s.with_parts(meta=s.meta.model_copy(update={"channel": channel})) if use else s
 
 
 def sweep(loaded: dict[str, BleRssiTrajectory], grids: list[str]) -> None:
@@ -115,19 +120,21 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    for col in ("track", "random walk", "grid, default", "grid, held out", "choice (dev)"):
+    for col in ("track", "random walk", "grid, default", "grid, held out, no bias",
+                "grid, held out", "choice (dev)"):
         table.add_column(col)
-    summary: dict[str, list[float]] = {"walk": [], "default": [], "held": []}
+    summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
+    before = [k for k, c in enumerate(candidates) if all(c[a] == b for a, b in BEFORE.items())]
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])
                  for k in range(len(candidates)) for ch in (False, True)}
         k, ch = min(score, key=lambda kc: score[kc])
+        kb, cb = min((kc for kc in score if kc[0] in before), key=lambda kc: score[kc])
         s = loaded[h].session
-        held = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]})) if ch \
-            else s
         e = {"walk": errors(s, config("random-walk")), "default": errors(s, config("grid")),
-             "held": errors(held, config("grid", candidates[k]))}
+             "before": errors(surveyed(s, surveys[h], cb), config("grid", candidates[kb])),
+             "held": errors(surveyed(s, surveys[h], ch), config("grid", candidates[k]))}
         for key, v in e.items():
             summary[key].append(float(np.percentile(v, 75)))
         cells = [" / ".join(f"{x:.2f}" for x in np.percentile(v, [50, 75, 95]))
