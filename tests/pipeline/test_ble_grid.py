@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from hrtls.data import Session
+from hrtls.data.session import ChannelModel
 from hrtls.datasets.ble_rssi import load_trajectory
 from hrtls.evaluate.metrics import position_errors
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
@@ -73,3 +74,50 @@ def test_chunks_and_snapshot_give_the_rows_of_one_run(shared_data: Path) -> None
     np.testing.assert_allclose(part.t, whole.t[tail])
     np.testing.assert_allclose(part.xyz, whole.xyz[tail], atol=1e-9)
     np.testing.assert_allclose(part.cov_xy, whole.cov_xy[tail], atol=1e-9)
+
+
+def _survey(shared_data: Path, names: list[str]) -> ChannelModel:
+    """A, eta and the residual sigma fitted to the readings of ``names`` at the true distance."""
+    root = shared_data / "ble_rssi"
+    logd, rss = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in names:
+            tr = load_trajectory(root, name)
+            pos = np.array([tr.receivers[a].xyz[:2] for a in tr.anchor.tolist()])
+            d = np.maximum(np.linalg.norm(tr.beacon_xyz[:, :2] - pos, axis=1), 1.0)
+            logd.append(-10.0 * np.log10(d))
+            rss.append(tr.rss_dbm)
+    x = np.column_stack([np.ones(sum(len(v) for v in logd)), np.concatenate(logd)])
+    y = np.concatenate(rss)
+    coef = np.linalg.lstsq(x, y, rcond=None)[0]
+    return ChannelModel(a_dbm=float(coef[0]), eta=float(coef[1]),
+                        sigma_db=float(np.std(y - x @ coef)))
+
+
+# the leave-one-out choice of `python benchmarks/ble_rss.py` for each held-out track (settings
+# over the defaults; True: the channel surveyed on the other four) and its held-out p75, m
+HELD_OUT = {
+    "rectangular_with_rotation": ({}, False, 2.87),
+    "rectangular_without_rotation": ({"sigma_speed_m_per_sqrt_s": 2.0, "bias_sigma_db": 3.0},
+                                     False, 2.51),
+    "straight_01": ({"sigma_speed_m_per_sqrt_s": 2.0, "bias_sigma_db": 5.0}, True, 2.42),
+    "straight_02": ({"sigma_speed_m_per_sqrt_s": 2.0, "bias_sigma_db": 3.0}, False, 2.70),
+    "straight_03": ({"sigma_speed_m_per_sqrt_s": 2.0, "bias_sigma_db": 5.0}, False, 2.35),
+}
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_held_out_p75_with_the_leave_one_out_choice(shared_data: Path, name: str) -> None:
+    """The per-track held-out p75 of the bias-state choice (issue 19 goal 2.5 m: not met on
+    rectangular with rotation, 2.87 m, nor straight 02, 2.70 m)."""
+    grid, survey, p75 = HELD_OUT[name]
+    s = _session(shared_data, name)
+    if survey:
+        channel = _survey(shared_data, [n for n in TRACKS if n != name])
+        s = s.with_parts(meta=s.meta.model_copy(update={"channel": channel}))
+    cfg = TrackerConfig()
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(
+        update={"grid": {**cfg.prediction.grid, **grid}})})
+    err = position_errors(Tracker(cfg).run(s).trajectory, s.truth)[1]
+    assert float(np.percentile(err, 75)) == pytest.approx(p75, abs=0.01)

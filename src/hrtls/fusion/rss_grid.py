@@ -249,7 +249,8 @@ def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weig
     ny, nx = out.shape
     for r in range(anchor.shape[0]):
         a = anchor[r]
-        sig = math.sqrt(model.sigma_db ** 2 + offsets_var[a])
+        sig = model.sigma_db if offsets_var[a] == 0.0 else \
+            math.sqrt(model.sigma_db ** 2 + offsets_var[a])
         norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
         shift = prm.attenuation_db / sig
         for i in range(ny):
