@@ -12,17 +12,26 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
   ``l = (1 - e) [(1 - q) N(r; mu(d) + o_a, sigma) + q N(r; mu(d) + o_a - att, sigma)]
-  + e / RSS_SPAN_DB``, raised to the power ``w`` (the
-  share of the averaging window that is new in this scan, so a reading that enters several
+  + e / RSS_SPAN_DB`` (``q``: ``attenuation_probability``, ``att``: ``attenuation_db``, a body
+  or obstacle in the way: it only attenuates), raised to the power ``w`` (the share of the
+  averaging window that is new in this scan, so a reading that enters several
   overlapping windows counts once in all; with ``shadowing_time_s > 0`` each new reading
   counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
   it, consecutive readings of an anchor sharing their shadowing).
 
-``o_a`` is a per-anchor RSS offset, estimated causally after each update from the residual at
-the posterior mean (``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``);
-``offset_gain = 0`` keeps it at zero. The first scan starts from a uniform density, so the first
-row is what the first scan's likelihood says (no start at an arbitrary point). Each scan gives
-one row: the mean and covariance of the density. Forward only (causal).
+``o_a`` is a per-anchor RSS offset (starting value: a survey, else zero). With
+``offset_gain > 0`` it follows the residual at the posterior mean after each update
+(``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``). With
+``bias_sigma_db > 0`` it is also a Kalman state (variance ``P_a``, prior
+``bias_sigma_db^2``, random walk ``bias_walk_db_per_sqrt_s``): the likelihood marginalises it
+(``sigma^2 + P_a`` in place of ``sigma^2``) and, before each update, :func:`bias_update` moves
+it by the residual over the predicted density, whose spread of ``mu`` enters the innovation
+variance (an uncertain position moves the offset little). A bias common to the readings and
+the offsets leaves the position unchanged.
+
+The first scan starts from a uniform density, so the first row is what the first scan's
+likelihood says (no start at an arbitrary point). Each scan gives one row: the mean and
+covariance of the density. Forward only (causal).
 """
 
 from __future__ import annotations

@@ -6,6 +6,8 @@ RSS readings of each chunk go to :class:`~hrtls.fusion.rss_grid.RssGridFilter` (
 of the position density, height of the start, heading not observed: the variance of a uniform
 angle) are the track's rows, live and offline, instead of the random-walk Kalman filter's.
 Readings are buffered until their scan window has closed, so chunks give the rows of one call.
+An anchor landmark's extra field ``rss_offset_db`` (a site survey of that anchor's RSS over
+the channel model, dB) is the grid's starting offset for it.
 The grid uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a
 note) and the Kalman filter's track, which uses them all, is the track.
 ``no_imu = "random-walk"`` keeps the Kalman filter with
