@@ -2,7 +2,8 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-averaging window, per-anchor offset gain) and optionally the channel (``A``, ``eta``, ``sigma``
+averaging window, per-anchor offset gain,
+per-anchor bias state) and optionally the channel (``A``, ``eta``, ``sigma``
 fitted by least squares to the development tracks' readings against their true distances, as
 a site survey would) are chosen there by the mean p75 of the horizontal error; the held-out
 track is then tracked once with that choice. Printed per track: p50 / p75 / p95 of the
