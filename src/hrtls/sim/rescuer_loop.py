@@ -55,11 +55,17 @@ class TeamParams:
 
     team_gap_m: float = 0.0
     leg_walk_s: float | None = 40.0
+    assign: bool = True
+    """Team-aware targets (module doc): the teammates' nodes not offered, the rest assigned."""
+    cross_m: float = 3.0
+    """``WaypointParams.cross_m`` of the rescuers: a node heard from one straight pass gets a
+    way point off the pass's line."""
 
     def __post_init__(self) -> None:
-        if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)):
+        if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)
+                and self.cross_m >= 0):
             raise InputError("invalid team parameters", where="TeamParams",
-                             expected="team_gap_m >= 0, leg_walk_s > 0 or None")
+                             expected="team_gap_m >= 0, leg_walk_s > 0 or None, cross_m >= 0")
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +134,8 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     visits: dict[str, int] = {}
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
-    targets: dict[str, FloatArray] = {}  # each rescuer's way point until it asks again
+    targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
+    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in sorted(set(persons) - set(busy)):
@@ -140,14 +147,17 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         person = persons[name]
         tracker.advance(person.t_s)
         targets.pop(name, None)
-        routes = [person.router.route(rescuer_estimate(tracker, persons[k]), w)
-                  for k, w in sorted(targets.items())]
+        routes = [person.router.route(rescuer_estimate(tracker, persons[k]), w.position_m)
+                  for k, w in sorted(targets.items())] if tp.team_gap_m > 0 else []
         offer = open_ & team_free(points, routes, gap_m=tp.team_gap_m) if routes else open_
         offer = offer if offer.any() else open_
+        team = [w for _, w in sorted(targets.items())] if tp.assign else []
         c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
                           candidates_m=points[offer] if offer.any() else points,
-                          visits=visits, params=prm.waypoints)
-        targets[name] = c.position_m
+                          visits=visits, params=wp,
+                          team_m=np.array([w.position_m for w in team]).reshape(-1, 2),
+                          taken=frozenset(w.node for w in team if w.node))
+        targets[name] = c
         if c.node:
             visits[c.node] = visits.get(c.node, 0) + 1
         choices[name].append((person.t_s, c))
