@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shapely.geometry import box
-from shapely.ops import unary_union
+from tests.sim.test_rescuer_driver import L_CORRIDOR, _person
 
 from hrtls.mission.waypoints import (
     PlannerInput,
@@ -19,7 +18,6 @@ from hrtls.mission.waypoints import (
     next_waypoint,
 )
 from hrtls.sim.robot_driver import CorridorRouter
-from tests.sim.test_rescuer_driver import L_CORRIDOR, _person
 
 WIDE = np.diag([4.0, 4.0])  # a localized node's covariance above target_sigma_m
 

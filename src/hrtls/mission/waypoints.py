@@ -11,7 +11,8 @@ position: the planner never sees the simulator's truth. :func:`next_waypoint` th
    from every reading position, so the next ranges come from a new direction (or rule the point
    out); the nearest such node first, none farther than ``heard_reach_m`` from the agent;
 2. for a localized node whose largest position sigma exceeds ``target_sigma_m``: its estimate
-   (ranges from close and from a new side);
+   (ranges from close and from a new side), or with ``refine_reach_m`` the candidate nearest to
+   it, none farther (the caller may leave out the candidates near way points already reached);
 3. otherwise, or first while a gap wider than ``explore_gap_m`` is left, exploration: the
    candidate farthest from every agent's estimated track (where unheard nodes may be), less
    ``explore_distance_weight`` times its distance from the agent.
@@ -51,6 +52,9 @@ class WaypointParams:
     cross_m: float = 0.0
     """The way point of a node heard from one straight pass is this far from the pass's line
     (0: off)."""
+    refine_reach_m: float | None = None
+    """A localized node's way point is the candidate nearest its estimate, if within this
+    (``None``: the estimate itself, whatever the candidates)."""
 
     def __post_init__(self) -> None:
         if not (self.target_sigma_m > 0 and self.new_view_m >= 0 and self.max_visits_per_node >= 1
@@ -142,8 +146,20 @@ def node_targets(inp: PlannerInput, candidates_m: FloatArray, visits: dict[str, 
     for node, (p, c) in sorted(inp.localized.items()):
         if (np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0)) > prm.target_sigma_m
                 and visits.get(node, 0) < prm.max_visits_per_node and node not in taken):
-            out.append(Choice(np.asarray(p, dtype=np.float64), "refine", node))
+            q = _refine_point(np.asarray(p, dtype=np.float64), candidates_m, prm)
+            if q is not None:
+                out.append(Choice(q, "refine", node))
     return out
+
+
+def _refine_point(p: FloatArray, candidates_m: FloatArray, prm: WaypointParams
+                  ) -> FloatArray | None:
+    """A localized node's way point (module doc, item 2), ``None`` when there is none."""
+    if prm.refine_reach_m is None:
+        return p
+    d = np.hypot(*(candidates_m - p).T)
+    i = int(np.argmin(d))
+    return candidates_m[i].copy() if d[i] <= prm.refine_reach_m else None
 
 
 def assign(cost: FloatArray) -> NDArray[np.int64]:

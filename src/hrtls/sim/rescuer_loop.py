@@ -60,10 +60,14 @@ class TeamParams:
     cross_m: float = 3.0
     """``WaypointParams.cross_m`` of the rescuers: a node heard from one straight pass gets a
     way point off the pass's line."""
+    refine_reach_m: float | None = 3.0
+    """``WaypointParams.refine_reach_m`` of the rescuers: a localized node's way point is an
+    offered candidate (not near a way point reached), so no rescuer stands at a node twice."""
 
     def __post_init__(self) -> None:
         if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)
-                and self.cross_m >= 0):
+                and self.cross_m >= 0
+                and (self.refine_reach_m is None or self.refine_reach_m >= 0)):
             raise InputError("invalid team parameters", where="TeamParams",
                              expected="team_gap_m >= 0, leg_walk_s > 0 or None, cross_m >= 0")
 
@@ -135,7 +139,8 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
     targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
-    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m)
+    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m,
+                             refine_reach_m=tp.refine_reach_m)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in sorted(set(persons) - set(busy)):
