@@ -16,6 +16,12 @@ that reached its way point says so (it sees the building, as it sees the route):
 within ``explore_gap_m`` of a reached way point are no longer offered to the team (without this
 the planner, seeing the estimated track away from the point, sends the rescuer to where it
 already stands, again and again).
+Team-aware targets (:class:`TeamParams` ``assign``): the nodes the teammates walk to now are not
+offered, and the other nodes worth a visit are assigned to the asking rescuer and its teammates
+at once, each teammate at its current way point (where it asks next):
+:func:`hrtls.mission.waypoints.next_waypoint` with ``team_m``. A node heard from one straight
+pass gets a way point off the pass's line (``cross_m``), a localized node one of the offered
+candidates near its estimate (``refine_reach_m``).
 Team spreading (:class:`TeamParams`): while a teammate walks to its way point, the candidates
 within ``team_gap_m`` of that way point or of its remaining route (the corridor route from the
 teammate's estimated position, map knowledge) are not offered to the rescuer that asks, so two
@@ -47,7 +53,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, kw_only=True)
 class TeamParams:
-    """Team spreading of the rescuers' way points and leg length (module doc); m, s.
+    """Team-aware targets, spreading of the way points and leg length (module doc); m, s.
 
     ``team_gap_m = 0`` offers every open candidate (spreading off, the default: README,
     planner-driven rescuers).
