@@ -22,7 +22,8 @@ A node is targeted at most ``max_visits_per_node`` times (the caller keeps ``vis
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,13 +53,16 @@ class WaypointParams:
     cross_m: float = 0.0
     """The way point of a node heard from one straight pass is this far from the pass's line
     (0: off)."""
+    heard_again_m: float = 0.0
+    """Extra cost of a heard node to an agent that heard it already (:func:`next_waypoint`)."""
     refine_reach_m: float | None = None
     """A localized node's way point is the candidate nearest its estimate, if within this
     (``None``: the estimate itself, whatever the candidates)."""
 
     def __post_init__(self) -> None:
         if not (self.target_sigma_m > 0 and self.new_view_m >= 0 and self.max_visits_per_node >= 1
-                and self.max_readings >= 1 and self.straight_m >= 0 and self.cross_m >= 0):
+                and self.max_readings >= 1 and self.straight_m >= 0 and self.cross_m >= 0
+                and self.heard_again_m >= 0):
             raise InputError("invalid way-point parameters", where="WaypointParams",
                              expected="sigma > 0, distance >= 0, visits and readings >= 1")
 
@@ -69,13 +73,15 @@ class PlannerInput:
 
     ``localized``: node -> (position, covariance); ``heard``: unlocalized node -> (reading
     positions ``(k, 2)``, ranges, range sigmas including the reading agent's position sigma);
-    ``tracks_m``: every agent's estimated positions so far (every 10th row) ``(m, 2)``.
+    ``tracks_m``: every agent's estimated positions so far (every 10th row) ``(m, 2)``;
+    ``heard_by``: unlocalized node -> names of the agents whose readings it has.
     """
 
     agent_m: FloatArray
     localized: dict[str, tuple[FloatArray, FloatArray]]
     heard: dict[str, tuple[FloatArray, FloatArray, FloatArray]]
     tracks_m: FloatArray
+    heard_by: dict[str, frozenset[str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -92,16 +98,19 @@ def planner_input(tracker: MissionTracker, *, agent_m: FloatArray) -> PlannerInp
     localized = {k: (e.position_m, e.covariance_m2) for k, e in tracker.estimates.items()
                  if e.localized}
     heard: dict[str, tuple[FloatArray, FloatArray, FloatArray]] = {}
+    heard_by: dict[str, frozenset[str]] = {}
     for k, rd in tracker.readings.items():
         if k in localized or not rd.r:
             continue
         xy, cov = np.asarray(rd.xy), np.asarray(rd.cov)
         s = np.sqrt(np.asarray(rd.s) ** 2 + np.trace(cov, axis1=1, axis2=2))
         heard[k] = (xy, np.asarray(rd.r), s)
+        heard_by[k] = frozenset(tracker.names[i] for i in set(rd.agent))
     rows = [tr.estimates_since().xyz[::10, :2] for name, tr in tracker.trackers.items()
             if name in tracker.started]
     tracks = np.vstack(rows) if rows else np.zeros((0, 2))
-    return PlannerInput(np.asarray(agent_m, dtype=np.float64), localized, heard, tracks)
+    return PlannerInput(np.asarray(agent_m, dtype=np.float64), localized, heard, tracks,
+                        heard_by)
 
 
 def _line_distance(points_m: FloatArray, a: FloatArray) -> tuple[float, FloatArray]:
@@ -182,14 +191,17 @@ def assign(cost: FloatArray) -> NDArray[np.int64]:
 
 def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[str, int],
                   params: WaypointParams | None = None, team_m: FloatArray | None = None,
-                  taken: frozenset[str] = frozenset()) -> Choice:
+                  taken: frozenset[str] = frozenset(),
+                  names: Sequence[str] = ()) -> Choice:
     """The agent's next way point (module doc); ``visits`` counts the nodes already targeted.
 
     Team-aware (``team_m``, the teammates' next asking positions ``(k, 2)``, e.g. their current
     way points; ``taken``, the nodes they walk to now, not offered): the nodes worth a visit are
     assigned to the agent and its teammates at once (:func:`assign`, heard nodes before refine
     ones, then the least total straight-line distance), and the agent gets its own; the agent
-    explores when it gets none.
+    explores when it gets none. ``names``: the agent's and its teammates' names (rows in that
+    order); a heard node costs ``heard_again_m`` more to an agent whose readings it has already
+    (a new agent's readings carry an error independent of the first one's).
     """
     prm = params or WaypointParams()
     if len(candidates_m) == 0:
@@ -207,6 +219,11 @@ def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[s
     # heard nodes first: a refine target costs more than any heard one
     penalty = np.array([0.0 if c.kind == "heard" else 1.0 + 2.0 * float(dist.max()) * len(pos)
                         for c in targets])
+    again = np.array([[prm.heard_again_m * (c.kind == "heard"
+                                            and name in inp.heard_by.get(c.node, ()))
+                       for c in targets] for name in names]).reshape(len(names), len(targets))
+    if len(names) == len(pos):
+        dist = dist + again
     j = int(assign(dist + penalty[None])[0])
     return targets[j] if j >= 0 else explore[0]
 

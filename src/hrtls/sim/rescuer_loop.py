@@ -66,13 +66,16 @@ class TeamParams:
     cross_m: float = 3.0
     """``WaypointParams.cross_m`` of the rescuers: a node heard from one straight pass gets a
     way point off the pass's line."""
+    heard_again_m: float = 10.0
+    """``WaypointParams.heard_again_m`` of the rescuers: a heard node goes preferably to a
+    rescuer that has not heard it (with ``assign``)."""
     refine_reach_m: float | None = 3.0
     """``WaypointParams.refine_reach_m`` of the rescuers: a localized node's way point is an
     offered candidate (not near a way point reached), so no rescuer stands at a node twice."""
 
     def __post_init__(self) -> None:
         if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)
-                and self.cross_m >= 0
+                and self.cross_m >= 0 and self.heard_again_m >= 0
                 and (self.refine_reach_m is None or self.refine_reach_m >= 0)):
             raise InputError("invalid team parameters", where="TeamParams",
                              expected="team_gap_m >= 0, leg_walk_s > 0 or None, cross_m >= 0")
@@ -145,7 +148,7 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
     targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
-    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m,
+    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m, heard_again_m=tp.heard_again_m,
                              refine_reach_m=tp.refine_reach_m)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
@@ -162,12 +165,13 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
                   for k, w in sorted(targets.items())] if tp.team_gap_m > 0 else []
         offer = open_ & team_free(points, routes, gap_m=tp.team_gap_m) if routes else open_
         offer = offer if offer.any() else open_
-        team = [w for _, w in sorted(targets.items())] if tp.assign else []
+        mates = sorted(targets) if tp.assign else []
         c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
                           candidates_m=points[offer] if offer.any() else points,
                           visits=visits, params=wp,
-                          team_m=np.array([w.position_m for w in team]).reshape(-1, 2),
-                          taken=frozenset(w.node for w in team if w.node))
+                          team_m=np.array([targets[k].position_m for k in mates]).reshape(-1, 2),
+                          taken=frozenset(targets[k].node for k in mates if targets[k].node),
+                          names=[name, *mates])
         targets[name] = c
         if c.node:
             visits[c.node] = visits.get(c.node, 0) + 1
