@@ -166,3 +166,19 @@ def test_planner_driven_team_localizes_a_reference_number_of_nodes() -> None:
                          config=TrackerConfig.model_validate(
                              {"prediction": RESCUER_PREDICTION})).run()
     assert sum(e.localized for e in res.nodes.values()) >= 8
+
+
+def test_a_heard_node_goes_preferably_to_a_rescuer_that_has_not_heard_it() -> None:
+    one = (np.array([[5.0, 0.0]]), np.array([1.0]), np.array([0.01]))
+    two = (np.array([[15.0, 0.0]]), np.array([1.0]), np.array([0.01]))
+    inp = PlannerInput(np.zeros(2), {}, {"A": one, "B": two}, _line(0.0, 20.0, 41),
+                       {"A": frozenset({"R1"}), "B": frozenset({"R2"})})
+    cand = _line(0.0, 20.0, 41)
+    prm = WaypointParams(new_view_m=0.0, heard_again_m=20.0)
+    # A's nearest feasible point is 4 m away, B's 14 m: A, unless R1 heard A (4 + 20 > 14)
+    plain = next_waypoint(inp, candidates_m=cand, visits={}, params=prm)
+    assert plain.node == "A" and plain.position_m[0] == pytest.approx(4.0)
+    assert next_waypoint(inp, candidates_m=cand, visits={}, params=prm,
+                         names=["R1"]).node == "B"
+    assert next_waypoint(inp, candidates_m=cand, visits={}, params=prm,
+                         names=["R3"]).node == "A"
