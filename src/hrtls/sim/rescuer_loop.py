@@ -15,7 +15,8 @@ tracker. A node is targeted at most ``max_visits_per_node`` times by the whole t
 that reached its way point says so (it sees the building, as it sees the route): the candidates
 within ``explore_gap_m`` of a reached way point are no longer offered to the team (without this
 the planner, seeing the estimated track away from the point, sends the rescuer to where it
-already stands, again and again).
+already stands, again and again); when that would leave none, every candidate but those near
+the way point just reached is offered again (a new round).
 Team-aware targets (:class:`TeamParams` ``assign``): the nodes the teammates walk to now are not
 offered, and the other nodes worth a visit are assigned to the asking rescuer and its teammates
 at once, each teammate at its current way point (where it asks next):
@@ -179,5 +180,6 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         tracker.feed(name, person.walk_to(c.position_m, max_walk_s=leg_s,
                                           until_s=end_s[name]))
         if person.arrived:
-            open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
+            near = np.hypot(*(points - c.position_m).T) <= prm.waypoints.explore_gap_m
+            open_ = ~near if np.all(near | ~open_) else open_ & ~near
     return RescuerLoopResult(tracker, choices)
