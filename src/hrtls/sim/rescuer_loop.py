@@ -15,8 +15,8 @@ tracker. A node is targeted at most ``max_visits_per_node`` times by the whole t
 that reached its way point says so (it sees the building, as it sees the route): the candidates
 within ``explore_gap_m`` of a reached way point are no longer offered to the team (without this
 the planner, seeing the estimated track away from the point, sends the rescuer to where it
-already stands, again and again); when that would leave none, every candidate but those near
-the way point just reached is offered again (a new round).
+already stands, again and again); when none is left, every candidate but those near the
+rescuer's last reached way point is offered (a new round).
 Team-aware targets (:class:`TeamParams` ``assign``): the nodes the teammates walk to now are not
 offered, and the other nodes worth a visit are assigned to the asking rescuer and its teammates
 at once, each teammate at its current way point (where it asks next):
@@ -149,6 +149,7 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
     targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
+    reached: dict[str, FloatArray] = {}  # each rescuer's last way point reached
     wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m, heard_again_m=tp.heard_again_m,
                              refine_reach_m=tp.refine_reach_m)
     while True:
@@ -166,6 +167,8 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
                   for k, w in sorted(targets.items())] if tp.team_gap_m > 0 else []
         offer = open_ & team_free(points, routes, gap_m=tp.team_gap_m) if routes else open_
         offer = offer if offer.any() else open_
+        if not offer.any() and name in reached:  # a new round (module doc)
+            offer = np.hypot(*(points - reached[name]).T) > prm.waypoints.explore_gap_m
         mates = sorted(targets) if tp.assign else []
         c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
                           candidates_m=points[offer] if offer.any() else points,
@@ -180,6 +183,6 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         tracker.feed(name, person.walk_to(c.position_m, max_walk_s=leg_s,
                                           until_s=end_s[name]))
         if person.arrived:
-            near = np.hypot(*(points - c.position_m).T) <= prm.waypoints.explore_gap_m
-            open_ = ~near if np.all(near | ~open_) else open_ & ~near
+            reached[name] = c.position_m
+            open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
     return RescuerLoopResult(tracker, choices)
