@@ -16,7 +16,8 @@ Each node of a :class:`~hrtls.sim.mission.Mission` falls in one class, checked i
 
 For the nodes not localized but heard, the same readings placed at the agents' **true**
 positions are solved again (``from true positions``): a node localized that way was lost to the
-agents' own error, not to the readings' geometry.
+agents' own error, not to the readings' geometry; and ``rejected, within 3 m`` counts those whose
+rejected solution lies within ``bad_m`` of the truth (a gate refused a good position).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from hrtls.sim.mission import Mission
 CLASSES = ("localized", "localized, > 3 m off", "never in range", "in range, no reading",
            "too few readings", "one straight pass / mirror", "NLOS / pass gates", "fit gate",
            "sigma too large", "other")
+EXTRA = ("from true positions", "rejected, within 3 m")
 
 
 def reason_class(reason: str) -> str:
@@ -74,8 +76,8 @@ def _true_readings(mission: Mission, tracker: MissionTracker, node: str) -> Node
 
 def why_not_localized(mission: Mission, tracker: MissionTracker, result: MissionResult, *,
                       bad_m: float = 3.0) -> dict[str, int]:
-    """Nodes per class (module doc), plus ``from true positions`` (heard, not localized)."""
-    out = dict.fromkeys((*CLASSES, "from true positions"), 0)
+    """Nodes per class (module doc), plus the ``EXTRA`` counts of the nodes not localized."""
+    out = dict.fromkeys((*CLASSES, *EXTRA), 0)
     est = NodeEstimator(tracker.params.nodes)
     for node, truth in mission.node_truth_m.items():
         e = result.nodes.get(node)
@@ -88,6 +90,8 @@ def why_not_localized(mission: Mission, tracker: MissionTracker, result: Mission
             out["in range, no reading" if near else "never in range"] += 1
             continue
         out[reason_class(e.reason)] += 1
+        if np.all(np.isfinite(e.position_m)):
+            out["rejected, within 3 m"] += float(np.hypot(*(e.position_m - truth))) <= bad_m
         out["from true positions"] += est.estimate(_true_readings(mission, tracker,
                                                                   node)).localized
     return out
@@ -99,7 +103,7 @@ def why_table(rows: dict[str, list[dict[str, int]]]) -> str:
     total = {c: sum(sum(v for k, v in d.items() if k in CLASSES) for d in rows[c])
              for c in cols}
     lines = ["| node class | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    for k in (*CLASSES, "from true positions"):
+    for k in (*CLASSES, *EXTRA):
         cells = []
         for c in cols:
             n = sum(d[k] for d in rows[c])

@@ -45,7 +45,7 @@ def test_the_estimators_reasons_fall_in_their_classes(why: ModuleType) -> None:
 
 
 def test_the_table_sums_the_seeds_and_gives_shares_of_all_nodes(why: ModuleType) -> None:
-    a = dict.fromkeys((*why.CLASSES, "from true positions"), 0)
+    a = dict.fromkeys((*why.CLASSES, *why.EXTRA), 0)
     b = dict(a)
     a.update({"localized": 3, "sigma too large": 1, "from true positions": 1})
     b.update({"localized": 2, "never in range": 2})
