@@ -19,6 +19,10 @@ only) and prints, over the seeds, mean / p90 / worst of:
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
+``--why``: every node's class at the end (localized, never in range, too few readings, one
+straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
+the seeds; ``--only-on``: cooperation on only.
+
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
 
