@@ -198,7 +198,7 @@ def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[s
     Team-aware (``team_m``, the teammates' next asking positions ``(k, 2)``, e.g. their current
     way points; ``taken``, the nodes they walk to now, not offered): the nodes worth a visit are
     assigned to the agent and its teammates at once (:func:`assign`, heard nodes before refine
-    ones by a margin, then the least total straight-line distance), and the agent gets its own;
+    ones, then the least total straight-line distance), and the agent gets its own;
     the agent explores when it gets none. ``names``: the agent's and its teammates' names (rows
     in that order); a heard node costs ``heard_again_m`` more to an agent whose readings it has
     already (a new agent's readings carry an error independent of the first one's).
@@ -216,15 +216,14 @@ def next_waypoint(inp: PlannerInput, *, candidates_m: FloatArray, visits: dict[s
     pos = np.vstack([inp.agent_m[None], np.zeros((0, 2)) if team_m is None else team_m])
     pts = np.array([c.position_m for c in targets])
     dist = np.linalg.norm(pos[:, None, :] - pts[None], axis=2)
-    # heard nodes first: a refine target costs more than any heard one at its distance (the
-    # heard_again_m extra below is not counted in this margin)
-    penalty = np.array([0.0 if c.kind == "heard" else 1.0 + 2.0 * float(dist.max()) * len(pos)
-                        for c in targets])
     again = np.array([[prm.heard_again_m * (c.kind == "heard"
                                             and name in inp.heard_by.get(c.node, ()))
                        for c in targets] for name in names]).reshape(len(names), len(targets))
     if len(names) == len(pos):
         dist = dist + again
+    # heard nodes first: a refine target costs more than any heard one
+    penalty = np.array([0.0 if c.kind == "heard" else 1.0 + 2.0 * float(dist.max()) * len(pos)
+                        for c in targets])
     j = int(assign(dist + penalty[None])[0])
     return targets[j] if j >= 0 else explore[0]
 
