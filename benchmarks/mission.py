@@ -19,6 +19,10 @@ only) and prints, over the seeds, mean / p90 / worst of:
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
+``--why``: every node's class at the end (localized, never in range, too few readings, one
+straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
+the seeds; ``--only-on``: cooperation on only.
+
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
 
@@ -41,6 +45,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options
+from _mission_why import why_not_localized, why_table
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
@@ -107,11 +112,13 @@ class SeedItem:
     prediction: dict[str, float] = field(default_factory=dict)
     peer_extrapolate: bool = False
     """``PeerRangeParams.extrapolate``: peers carried to a range's time with their velocity."""
+    only_on: bool = False
+    """Cooperation on only (the ``off`` column skipped)."""
 
 
-def modes(peers: bool) -> tuple[str, str]:
-    """The two columns compared: cooperation off / on, or peer ranges off / on."""
-    return ("no peers", "peers") if peers else ("off", "on")
+def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
+    """The columns compared: cooperation off / on (``only_on``: on), or peer ranges off / on."""
+    return ("no peers", "peers") if peers else ("on",) if only_on else ("off", "on")
 
 
 @dataclass(frozen=True)
@@ -130,6 +137,8 @@ class ModeScores:
     window_ms: tuple[float, float]
     agent_ms: tuple[float, float]
     nodes_ms: tuple[float, float]
+    why: dict[str, int]
+    """Nodes per class of ``_mission_why`` (why not localized)."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -192,7 +201,7 @@ def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
 def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     """Scores of one seed with cooperation ``off`` and ``on``."""
     out: dict[str, ModeScores] = {}
-    for mode in modes(item.peers):
+    for mode in modes(item.peers, item.only_on):
         peers = mode == "peers"
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
@@ -208,7 +217,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees,
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
                                true_agent_rmse(mission, tracker), _quarters(windows),
-                               _quarters(agents_s), _quarters(nodes_s))
+                               _quarters(agents_s), _quarters(nodes_s),
+                               why_not_localized(mission, tracker, res))
     return out
 
 
@@ -242,6 +252,10 @@ def main() -> None:
                     default=RESCUER_PREDICTION["sigma_heading_increment_rad"],
                     help="rescuers' [prediction] sigma_heading_increment_rad "
                          "(default: RESCUER_PREDICTION)")
+    ap.add_argument("--why", action="store_true",
+                    help="also print why the nodes were not localized (benchmarks/_mission_why)")
+    ap.add_argument("--only-on", action="store_true",
+                    help="cooperation on only (the off column skipped: half the time)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -254,8 +268,9 @@ def main() -> None:
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
             "n1": []}
-        for m in modes(args.peer_ranges)}
-    nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges)}
+        for m in modes(args.peer_ranges, args.only_on)}
+    nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
+    why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
     for key in ("agent_cov_scale", "agent_correlation"):
@@ -263,10 +278,11 @@ def main() -> None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
-    items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate)
+    items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
+                      args.only_on)
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
-        for mode in modes(args.peer_ranges):
+        for mode in modes(args.peer_ranges, args.only_on):
             m = scores[mode]
             r = rows[mode]
             r["mean"].append(m.mean)
@@ -284,6 +300,7 @@ def main() -> None:
             r["n0"].append(m.nodes_ms[0])
             r["n1"].append(m.nodes_ms[1])
             nees_all[mode].extend(m.node_nees)
+            why[mode].append(m.why)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
@@ -303,7 +320,7 @@ def main() -> None:
           "| agent NEES | nodes localized | node RMSE, m | node NEES (mean; 95 % bounds) "
           "| node RMSE from true agent positions, m | robot error p90, m |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for mode in modes(args.peer_ranges):
+    for mode in modes(args.peer_ranges, args.only_on):
         r = rows[mode]
         n = len(nees_all[mode])
         lo, hi = (chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n) if n else (0, 0)
@@ -314,11 +331,15 @@ def main() -> None:
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
     print("| cooperation | window | agents (trackers + collection) | node re-estimation |")
     print("|---|---|---|---|")
-    for mode in modes(args.peer_ranges):
+    for mode in modes(args.peer_ranges, args.only_on):
         r = rows[mode]
         print(f"| {mode} | {np.mean(r['w0']):.1f} / {np.mean(r['w1']):.1f} "
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
               f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} |")
+    if args.why:
+        print(f"\nnodes by class at the end, summed over seeds ({args.rescuer_driver} driver; "
+              "benchmarks/_mission_why.py):\n")
+        print(why_table({f"cooperation {m}": why[m] for m in why}))
     batch.finish()
 
 

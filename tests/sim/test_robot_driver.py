@@ -70,7 +70,7 @@ def test_planner_input_is_built_from_the_tracker_and_the_estimate_only() -> None
     params = list(inspect.signature(planner_input).parameters)
     assert params == ["tracker", "agent_m"]
     assert set(PlannerInput.__dataclass_fields__) == {
-        "agent_m", "localized", "heard", "tracks_m"}
+        "agent_m", "localized", "heard", "tracks_m", "heard_by"}
 
 
 def test_heard_node_way_point_is_a_new_view_inside_its_range_disc() -> None:

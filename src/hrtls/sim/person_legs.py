@@ -2,9 +2,10 @@
 
 :class:`WalkingPerson` is :func:`hrtls.sim.person.simulate_person` cut into legs for a closed
 loop (issue 18): each :meth:`WalkingPerson.walk_to` starts from the person's **true** state (the
-person sees the building), turns on the spot toward the route, stands for a short pause, then
-walks the shortest corridor route (:class:`hrtls.sim.robot_driver.CorridorRouter`, grid of the
-free space straightened where the line of sight allows) to the way point and stops there (turn
+person sees the building), turns on the spot toward the route, stands for a short pause (none
+when the route continues within ``straight_rad`` of the heading), then walks the shortest
+corridor route (:class:`hrtls.sim.robot_driver.CorridorRouter`, grid of the free space
+straightened where the line of sight allows) to the way point and stops there (turn
 first, then stand: the order of :func:`hrtls.sim.motion_truth.simulate_motion` at a stop); a
 route longer than ``max_walk_s`` of walking is cut and the person stops on it (the caller gives
 the next way point then). The first walk starts with ``enter_m`` straight ahead in the start
@@ -68,6 +69,8 @@ class LegParams:
     speed_range_m_s: tuple[float, float] = (0.9, 1.5)
     pause_range_s: tuple[float, float] = (1.0, 3.0)
     """The stop at the start of a leg, after the turn toward the route, drawn per leg."""
+    straight_rad: float = 0.35
+    """A leg whose first direction is within this of the heading continues: no pause."""
     corner_radius_range_m: tuple[float, float] = (0.0, 1.0)
     arrive_m: float = 0.5
     """A way point closer than this to the person: no walk, the person only stands."""
@@ -79,7 +82,7 @@ class LegParams:
         lo, hi = self.speed_range_m_s
         p0, p1 = self.pause_range_s
         if not (0 < lo <= hi and 0 < p0 <= p1 and self.arrive_m > 0
-                and self.turn_rate_rad_s > 0):
+                and self.turn_rate_rad_s > 0 and self.straight_rad >= 0):
             raise InputError("invalid leg parameters", where="LegParams",
                              expected="speeds > 0, pauses > 0 (low <= high), arrive_m > 0")
 
@@ -248,7 +251,7 @@ class WalkingPerson:
         h = still_headings(duration_s=n_turn * dt, heading_rad=self.heading_rad, turn_rad=turn,
                            turn_rate_rad_s=prm.turn_rate_rad_s, dt_s=dt,
                            min_turn_s=self.motion_params.min_turn_s)
-        n_pause = max(1, round(pause / dt))
+        n_pause = 1 if abs(turn) < prm.straight_rad else max(1, round(pause / dt))
         h = np.concatenate([h, np.full(n_pause, first)])
         turning = _still(self.t_s + dt * np.arange(1, len(h) + 1), self.xy_m, h)
         walk = simulate_motion(wps, rate_hz=self.device.rate_hz, params=self.motion_params,

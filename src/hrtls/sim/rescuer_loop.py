@@ -15,7 +15,14 @@ tracker. A node is targeted at most ``max_visits_per_node`` times by the whole t
 that reached its way point says so (it sees the building, as it sees the route): the candidates
 within ``explore_gap_m`` of a reached way point are no longer offered to the team (without this
 the planner, seeing the estimated track away from the point, sends the rescuer to where it
-already stands, again and again).
+already stands, again and again); when none is left, every candidate but those near the
+rescuer's last reached way point is offered (a new round).
+Team-aware targets (:class:`TeamParams` ``assign``): the nodes the teammates walk to now are not
+offered, and the other nodes worth a visit are assigned to the asking rescuer and its teammates
+at once, each teammate at its current way point (where it asks next):
+:func:`hrtls.mission.waypoints.next_waypoint` with ``team_m``. A node heard from one straight
+pass gets a way point off the pass's line (``cross_m``), a localized node one of the offered
+candidates near its estimate (``refine_reach_m``).
 Team spreading (:class:`TeamParams`): while a teammate walks to its way point, the candidates
 within ``team_gap_m`` of that way point or of its remaining route (the corridor route from the
 teammate's estimated position, map knowledge) are not offered to the rescuer that asks, so two
@@ -47,7 +54,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, kw_only=True)
 class TeamParams:
-    """Team spreading of the rescuers' way points and leg length (module doc); m, s.
+    """Team-aware targets, spreading of the way points and leg length (module doc); m, s.
 
     ``team_gap_m = 0`` offers every open candidate (spreading off, the default: README,
     planner-driven rescuers).
@@ -55,11 +62,24 @@ class TeamParams:
 
     team_gap_m: float = 0.0
     leg_walk_s: float | None = 40.0
+    assign: bool = True
+    """Team-aware targets (module doc): the teammates' nodes not offered, the rest assigned."""
+    cross_m: float = 3.0
+    """``WaypointParams.cross_m`` of the rescuers: a node heard from one straight pass gets a
+    way point off the pass's line."""
+    heard_again_m: float = 10.0
+    """``WaypointParams.heard_again_m`` of the rescuers: a heard node goes preferably to a
+    rescuer that has not heard it (with ``assign``)."""
+    refine_reach_m: float | None = 3.0
+    """``WaypointParams.refine_reach_m`` of the rescuers: a localized node's way point is an
+    offered candidate (not near a way point reached), so no rescuer stands at a node twice."""
 
     def __post_init__(self) -> None:
-        if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)):
+        if not (self.team_gap_m >= 0 and (self.leg_walk_s is None or self.leg_walk_s > 0)
+                and self.cross_m >= 0 and self.heard_again_m >= 0
+                and (self.refine_reach_m is None or self.refine_reach_m >= 0)):
             raise InputError("invalid team parameters", where="TeamParams",
-                             expected="team_gap_m >= 0, leg_walk_s > 0 or None")
+                             expected="team_gap_m >= 0, leg_walk_s > 0 or None, cross_m >= 0")
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +148,10 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     visits: dict[str, int] = {}
     points = next(iter(persons.values())).router.points_m
     open_ = np.ones(len(points), dtype=bool)
-    targets: dict[str, FloatArray] = {}  # each rescuer's way point until it asks again
+    targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
+    reached: dict[str, FloatArray] = {}  # each rescuer's last way point reached
+    wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m, heard_again_m=tp.heard_again_m,
+                             refine_reach_m=tp.refine_reach_m)
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in sorted(set(persons) - set(busy)):
@@ -140,19 +163,26 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
         person = persons[name]
         tracker.advance(person.t_s)
         targets.pop(name, None)
-        routes = [person.router.route(rescuer_estimate(tracker, persons[k]), w)
-                  for k, w in sorted(targets.items())]
+        routes = [person.router.route(rescuer_estimate(tracker, persons[k]), w.position_m)
+                  for k, w in sorted(targets.items())] if tp.team_gap_m > 0 else []
         offer = open_ & team_free(points, routes, gap_m=tp.team_gap_m) if routes else open_
         offer = offer if offer.any() else open_
+        if not offer.any() and name in reached:  # a new round (module doc)
+            offer = np.hypot(*(points - reached[name]).T) > prm.waypoints.explore_gap_m
+        mates = sorted(targets) if tp.assign else []
         c = next_waypoint(planner_input(tracker, agent_m=rescuer_estimate(tracker, person)),
                           candidates_m=points[offer] if offer.any() else points,
-                          visits=visits, params=prm.waypoints)
-        targets[name] = c.position_m
+                          visits=visits, params=wp,
+                          team_m=np.array([targets[k].position_m for k in mates]).reshape(-1, 2),
+                          taken=frozenset(targets[k].node for k in mates if targets[k].node),
+                          names=[name, *mates])
+        targets[name] = c
         if c.node:
             visits[c.node] = visits.get(c.node, 0) + 1
         choices[name].append((person.t_s, c))
         tracker.feed(name, person.walk_to(c.position_m, max_walk_s=leg_s,
                                           until_s=end_s[name]))
         if person.arrived:
+            reached[name] = c.position_m
             open_ &= np.hypot(*(points - c.position_m).T) > prm.waypoints.explore_gap_m
     return RescuerLoopResult(tracker, choices)
