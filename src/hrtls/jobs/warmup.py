@@ -46,11 +46,21 @@ def configure_cache() -> Path | None:
     return folder
 
 
-def _marker() -> Path:
-    import numba
+def _numba_version() -> str:
+    """The installed numba version, read from its distribution folder (numba is not imported)."""
+    import importlib.util
 
+    spec = importlib.util.find_spec("numba")
+    if spec is None or spec.origin is None:
+        return "none"
+    site = Path(spec.origin).parent.parent
+    found = sorted(site.glob("numba-*.dist-info"))
+    return found[0].name[len("numba-"):-len(".dist-info")] if found else "unknown"
+
+
+def _marker() -> Path:
     where = os.environ.get("NUMBA_CACHE_DIR", str(Path(hrtls.__file__).resolve().parent))
-    tag = f"{hrtls.__version__}-numba{numba.__version__}-{zlib.crc32(where.encode()):08x}"
+    tag = f"{hrtls.__version__}-numba{_numba_version()}-{zlib.crc32(where.encode()):08x}"
     return cache_root() / f"compiled-{tag}"
 
 
