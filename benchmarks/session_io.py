@@ -144,8 +144,8 @@ for owner, name, label in [(TR.Tracker, "update", "tracker"), (TR.Tracker, "fini
                            (S.SessionStream, "truth", "read truth")]:
     timed_method(owner, name, label, time.thread_time)
 # within the phases above, not added to them: numba's kernels on their first call (the
-# compiled code loaded from the cache, numba's target set up on the first), by thread CPU
-import numba.core.caching as NC, numba.core.dispatcher as ND
+# compiled code loaded from the cache, numba's target set up on the first), by thread CPU;
+# with the ahead-of-time build, its loading (numba is then imported only for a kernel it lacks)
 within = collections.defaultdict(float)
 def timed_within(owner, name, label, count=None):
     fn = getattr(owner, name)
@@ -157,9 +157,26 @@ def timed_within(owner, name, label, count=None):
             within[count(out)] += 1
         return out
     setattr(owner, name, wrapper)
-timed_within(NC.Cache, "load_overload", "numba cache loads",
-             lambda out: "numba cache misses" if out is None else "numba cache hits")
-timed_within(ND.Dispatcher, "compile", "numba first calls")
+def numba_timers():
+    import numba.core.caching as NC, numba.core.dispatcher as ND
+    timed_within(NC.Cache, "load_overload", "numba cache loads",
+                 lambda out: "numba cache misses" if out is None else "numba cache hits")
+    timed_within(ND.Dispatcher, "compile", "numba first calls")
+try:
+    import hrtls.kernels as HK
+except ImportError:  # an older checkout (--baseline-src): numba imported with the modules
+    numba_timers()
+else:
+    timed_within(HK, "_load", "ahead-of-time kernels loaded")
+    first_numba = HK._numba
+    def numba_then_timers():
+        if HK._STATE["numba"] is None:
+            c0 = time.thread_time()
+            first_numba()
+            within["numba imported for the JIT"] += time.thread_time() - c0
+            numba_timers()
+        return first_numba()
+    HK._numba = numba_then_timers
 sys.argv = ["hrtls", "track", *sys.argv[1:]]
 shown = io.StringIO()
 with contextlib.redirect_stdout(shown):
@@ -289,6 +306,10 @@ def _track_row(label: str, rounds: list[Round], table: Table, target: bool) -> N
     for name, value in phases.items():
         table.add_row(f"  {name}", f"{value:.2f}", "",
                       f"{value / tracker:.2f}x tracker, {value / cpu:.0%}", "", "", "")
+    for name in ("ahead-of-time kernels loaded", "numba imported for the JIT"):
+        if name in within:  # part of the tracker's and the readers' rows
+            table.add_row(f"  within those: {name}", f"{within[name]:.2f}", "",
+                          f"{within[name] / tracker:.2f}x tracker", "", "", "")
     if "numba first calls" in within:  # part of the tracker's and the readers' rows
         first = within["numba first calls"]
         table.add_row(
