@@ -140,11 +140,19 @@ def source_stamps(paths: list[str]) -> list[tuple[str, int, int]]:
     return out
 
 
-def _load() -> dict[str, list[tuple[Callable[..., Any], Callable[[tuple[Any, ...]], bool]]]]:
-    """The exports of the built module by kernel key; empty when off, missing or stale."""
+Table = dict[str, list[tuple[Callable[..., Any], Callable[[tuple[Any, ...]], bool]]]]
+"""The builds of each kernel (by key): the compiled function and its argument check."""
+
+
+def _load() -> Table:
+    """The builds of this install (:func:`folder`); empty when off, missing or stale."""
     if os.environ.get(ENV_SWITCH, "1") == "0":
         return {}
-    where = folder()
+    return load_builds(folder())
+
+
+def load_builds(where: Path) -> Table:
+    """The builds of the module in ``where``; empty when missing or its sources changed."""
     try:
         with open(where / MANIFEST, "rb") as fh:
             manifest = pickle.load(fh)
@@ -179,6 +187,14 @@ def exports(key: str) -> tuple[tuple[Callable[..., Any], Callable[[tuple[Any, ..
             if table is None:
                 table = _STATE["aot"] = _load()
     return tuple(table.get(key, ()))
+
+
+def jit_only() -> None:
+    """Call the JIT kernels only, whatever is built (until :func:`reset`)."""
+    with _LOCK:
+        _STATE["aot"] = {}
+        for k in REGISTRY.values():
+            k._aot = None
 
 
 def reset() -> None:

@@ -88,6 +88,9 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
     from hrtls.pipeline.finish import finish_track
     from hrtls.sim.scenarios import run_scenario
 
+    from hrtls.kernels import jit_only
+
+    jit_only()  # the builds compiled ahead of time are made from what the JIT compiles here
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -101,3 +104,20 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
             finish_track(Tracker(cfg).run(session), session, cfg)
     mark_compiled()
     return time.perf_counter() - start
+
+
+def build_ahead() -> str:
+    """Compile the kernels that :func:`warm_up` compiled ahead of time; one line saying how."""
+    import warnings
+
+    from hrtls.jobs.aot import build
+    from hrtls.kernels import folder
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            count = build()
+    except Exception as exc:  # noqa: BLE001 - no C compiler or a pycc failure: the JIT serves
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+        return f"kernels not compiled ahead of time ({reason}); the JIT kernels are used"
+    return f"{count} kernel builds compiled ahead of time into {folder()}"
