@@ -33,7 +33,7 @@ MANIFEST = "manifest.pkl"
 _LOCK = threading.RLock()
 REGISTRY: dict[str, Kernel] = {}
 """Every declared kernel by ``module:qualname``."""
-_STATE: dict[str, Any] = {"aot": None, "numba": None}
+_STATE: dict[str, Any] = {"aot": None, "numba": None, "scipy": {}}
 
 Spec = tuple[Any, ...]
 """One argument type: ``("a", dtype, ndim, layout, writable)`` for arrays, ``("s", types)``
@@ -148,19 +148,21 @@ def _load() -> Table:
     """The builds of this install (:func:`folder`); empty when off, missing or stale."""
     if os.environ.get(ENV_SWITCH, "1") == "0":
         return {}
-    return load_builds(folder())
+    table, _STATE["scipy"] = load_builds(folder())
+    return table
 
 
-def load_builds(where: Path) -> Table:
-    """The builds of the module in ``where``; empty when missing or its sources changed."""
+def load_builds(where: Path) -> tuple[Table, dict[str, list[str]]]:
+    """The builds of the module in ``where`` and the scipy modules each kernel's builds call;
+    empty when missing or its sources changed."""
     try:
         with open(where / MANIFEST, "rb") as fh:
             manifest = pickle.load(fh)
     except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
-        return {}
+        return {}, {}
     stamps = manifest["sources"]
     if source_stamps([s[0] for s in stamps]) != stamps:
-        return {}
+        return {}, {}
     import importlib.machinery
     import importlib.util
 
@@ -172,9 +174,9 @@ def load_builds(where: Path) -> Table:
         module = importlib.util.module_from_spec(spec)
         loader.exec_module(module)
     except (ImportError, OSError, AssertionError):
-        return {}
-    return {key: [(getattr(module, sym), guard(specs)) for sym, specs in entries]
-            for key, entries in manifest["exports"].items()}
+        return {}, {}
+    return ({key: [(getattr(module, sym), guard(specs)) for sym, specs in entries]
+             for key, entries in manifest["exports"].items()}, manifest.get("scipy", {}))
 
 
 def exports(key: str) -> tuple[tuple[Callable[..., Any], Callable[[tuple[Any, ...]], bool]],
@@ -186,7 +188,43 @@ def exports(key: str) -> tuple[tuple[Callable[..., Any], Callable[[tuple[Any, ..
             table = _STATE["aot"]
             if table is None:
                 table = _STATE["aot"] = _load()
-    return tuple(table.get(key, ()))
+    builds = tuple(table.get(key, ()))
+    for name in _STATE.get("scipy", {}).get(key, ()) if builds else ():
+        preload_cython(name)
+    return builds
+
+
+def preload_cython(name: str) -> None:
+    """Load scipy's ``scipy.linalg.cython_blas`` (or ``cython_lapack``) extension alone.
+
+    numba's BLAS and LAPACK helpers import it on their first call to take its functions;
+    importing it by name first runs ``scipy.linalg``'s ``__init__``, several times slower.
+    Loaded here, the helpers find it in ``sys.modules``; it is the same compiled module.
+    On any failure nothing is done (the helpers then import it as usual).
+    """
+    if name in sys.modules:
+        return
+    import importlib.machinery
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("scipy")
+        if spec is None or spec.origin is None:
+            return
+        base = Path(spec.origin).parent.joinpath(*name.split(".")[1:])
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            path = base.with_name(base.name + suffix)
+            if path.exists():
+                loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+                found = importlib.util.spec_from_file_location(name, path, loader=loader)
+                if found is None:
+                    return
+                module = importlib.util.module_from_spec(found)
+                loader.exec_module(module)
+                sys.modules[name] = module
+                return
+    except (ImportError, OSError):
+        return
 
 
 def jit_only() -> None:

@@ -52,8 +52,61 @@ def compiled_builds(kernels: Iterable[K.Kernel]) -> list[tuple[K.Kernel, Any, li
     return out
 
 
-def _flagged_compile(options: dict[Any, dict[str, Any]]) -> Any:
-    """``compile_extra`` for pycc with each kernel's own numba options (as its dispatcher's)."""
+BLAS_HELPERS = frozenset({"numba_xxdot", "numba_xxgemv", "numba_xxgemm", "numba_xxnrm2"})
+"""numba's helpers that call BLAS (``scipy.linalg.cython_blas``); its other ``numba_xx*`` and
+``numba_ez_*`` helpers call LAPACK (``scipy.linalg.cython_lapack``)."""
+
+
+def _llvm_modules(library: Any) -> list[Any]:
+    """The LLVM modules of a numba code library and of the libraries it links."""
+    out, todo, seen = [], [library], set()
+    while todo:
+        lib = todo.pop()
+        if id(lib) not in seen:
+            seen.add(id(lib))
+            out.append(lib._final_module)
+            todo.extend(getattr(lib, "_linking_libraries", ()))
+    return out
+
+
+def _body(modules: list[Any], name: str) -> Any:
+    """The defined function ``name`` in one of ``modules`` (None when only declared)."""
+    for module in modules:
+        try:
+            fn = module.get_function(name)
+        except NameError:
+            continue
+        if not fn.is_declaration:
+            return fn
+    return None
+
+
+def scipy_needed(library: Any, name: str) -> set[str]:
+    """The scipy modules whose BLAS or LAPACK function ``name`` of ``library`` may call."""
+    modules = _llvm_modules(library)
+    seen: set[str] = set()
+    todo = [name]
+    while todo:
+        fn = _body(modules, todo.pop())
+        for block in fn.blocks if fn is not None else ():
+            for ins in block.instructions:
+                callee = list(ins.operands)[-1].name if ins.opcode == "call" else ""
+                if callee and callee not in seen:
+                    seen.add(callee)
+                    if not callee.startswith("llvm."):
+                        todo.append(callee)
+    needed = set()
+    for callee in seen:
+        if callee in BLAS_HELPERS:
+            needed.add("scipy.linalg.cython_blas")
+        elif callee.startswith(("numba_xx", "numba_ez_")):
+            needed.add("scipy.linalg.cython_lapack")
+    return needed
+
+
+def _flagged_compile(options: dict[Any, dict[str, Any]], needs: dict[Any, set[str]]) -> Any:
+    """``compile_extra`` for pycc with each kernel's own numba options (as its dispatcher's);
+    ``needs`` receives the scipy modules each kernel may call."""
     from numba.core import compiler
     from numba.core.registry import cpu_target
 
@@ -65,8 +118,10 @@ def _flagged_compile(options: dict[Any, dict[str, Any]]) -> Any:
         cpu_target.options.parse_as_flags(own, options.get(func, {}))
         for name in ("no_compile", "no_cpython_wrapper", "no_cfunc_wrapper", "nrt"):
             setattr(own, name, getattr(flags, name))
-        return base(typingctx, targetctx, func, args, return_type, own, locals,
+        cres = base(typingctx, targetctx, func, args, return_type, own, locals,
                     library=library, **kw)
+        needs.setdefault(func, set()).update(scipy_needed(cres.library, cres.fndesc.llvm_func_name))
+        return cres
 
     return compile_extra
 
@@ -94,8 +149,9 @@ def build(kernels: Iterable[K.Kernel] | None = None, *, where: Path | None = Non
             cc.export(symbol, sig)(kernel.py_func)
             exports.setdefault(kernel.key, []).append((symbol, specs))
         saved = pycc_compiler.compile_extra
+        needs: dict[Any, set[str]] = {}
         pycc_compiler.compile_extra = _flagged_compile(
-            {k.py_func: k.dispatcher.targetoptions for k, _, _ in builds})
+            {k.py_func: k.dispatcher.targetoptions for k, _, _ in builds}, needs)
         try:
             cc.compile()
         finally:
@@ -105,7 +161,8 @@ def build(kernels: Iterable[K.Kernel] | None = None, *, where: Path | None = Non
                           for k in K.REGISTRY.values()} - {""} | {numba.__file__})
         # a new name each build: a process may still map the older one
         name = f"{K.MODULE_NAME}-{time.time_ns():x}{''.join(built.suffixes)}"
-        manifest = {"file": name, "exports": exports, "sources": K.source_stamps(sources)}
+        manifest = {"file": name, "exports": exports, "sources": K.source_stamps(sources),
+                    "scipy": {k.key: sorted(needs.get(k.py_func, ())) for k, _, _ in builds}}
         where.mkdir(parents=True, exist_ok=True)
         (where / K.MANIFEST).unlink(missing_ok=True)
         for old in where.glob(f"{K.MODULE_NAME}-*"):
