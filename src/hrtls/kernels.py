@@ -69,6 +69,7 @@ class Kernel:
         return self._dispatcher
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        """The first build whose argument types fit, else numba's dispatcher."""
         aot = self._aot
         if aot is None:
             aot = self._aot = exports(self.key)
@@ -153,8 +154,10 @@ def _load() -> Table:
 
 
 def load_builds(where: Path) -> tuple[Table, dict[str, list[str]]]:
-    """The builds of the module in ``where`` and the scipy modules each kernel's builds call;
-    empty when missing or its sources changed."""
+    """The builds of the module in ``where`` and the scipy modules each kernel's builds call.
+
+    Both are empty when the module is missing or its sources changed.
+    """
     try:
         with open(where / MANIFEST, "rb") as fh:
             manifest = pickle.load(fh)

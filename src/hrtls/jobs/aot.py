@@ -105,8 +105,10 @@ def scipy_needed(library: Any, name: str) -> set[str]:
 
 
 def _flagged_compile(options: dict[Any, dict[str, Any]], needs: dict[Any, set[str]]) -> Any:
-    """``compile_extra`` for pycc with each kernel's own numba options (as its dispatcher's);
-    ``needs`` receives the scipy modules each kernel may call."""
+    """``compile_extra`` for pycc with each kernel's own numba options (as its dispatcher's).
+
+    ``needs`` receives the scipy modules each kernel may call.
+    """
     from numba.core import compiler
     from numba.core.registry import cpu_target
 

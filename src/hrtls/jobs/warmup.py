@@ -83,12 +83,11 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
     """Compile the kernels by tracking a simulated walk with every preset; seconds taken."""
     import warnings
 
+    from hrtls.kernels import jit_only
     from hrtls.pipeline import Tracker, preset
     from hrtls.pipeline.config import PRESETS
     from hrtls.pipeline.finish import finish_track
     from hrtls.sim.scenarios import run_scenario
-
-    from hrtls.kernels import jit_only
 
     jit_only()  # the builds compiled ahead of time are made from what the JIT compiles here
     start = time.perf_counter()
@@ -117,7 +116,7 @@ def build_ahead() -> str:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             count = build()
-    except Exception as exc:  # noqa: BLE001 - no C compiler or a pycc failure: the JIT serves
+    except Exception as exc:  # no C compiler, or pycc failed: the JIT kernels serve
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
         return f"kernels not compiled ahead of time ({reason}); the JIT kernels are used"
     return f"{count} kernel builds compiled ahead of time into {folder()}"
