@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 import hrtls.kernels as K
 from hrtls.data._interp_kernel import interp_columns_kernel
+from hrtls.fusion.gating import joseph_kernel
 from hrtls.gait.butterworth import sos_kernel
 from hrtls.gait.motion_detector import running_std_kernel
 
@@ -41,27 +42,37 @@ def _std_args(rng: np.random.Generator, n: int) -> tuple[object, ...]:
             np.zeros(n))
 
 
+def _joseph_args(rng: np.random.Generator, n: int) -> tuple[object, ...]:
+    k = 1 + n % 4
+    a = rng.normal(size=(k, k))
+    p = a @ a.T + np.eye(k)
+    return (rng.normal(size=k), p, rng.normal(size=(2, k)), np.eye(2) * rng.uniform(0.1, 2.0),
+            rng.normal(size=2), 9.21, -1, np.zeros(k), np.zeros((k, k)), np.zeros((2, 2)))
+
+
+CASES = ((sos_kernel, _sos_args), (interp_columns_kernel, _interp_args),
+         (running_std_kernel, _std_args), (joseph_kernel, _joseph_args))
+
+
 @pytest.fixture(scope="module")
 def builds(tmp_path_factory: pytest.TempPathFactory) -> K.Table:
-    """sos, interp and running-std kernels built ahead of time from their JIT builds."""
+    """The kernels of :data:`CASES` built ahead of time from their JIT builds."""
     if not HAS_CC:
         pytest.skip("no C compiler: the ahead-of-time build is not possible here")
     from hrtls.jobs.aot import build
 
     rng = np.random.default_rng(0)
-    kernels = []
-    for kernel, args in ((sos_kernel, _sos_args(rng, 20)),
-                         (interp_columns_kernel, _interp_args(rng, 20)),
-                         (running_std_kernel, _std_args(rng, 20))):
-        kernel.dispatcher(*args)
-        kernels.append(kernel)
+    for kernel, make in CASES:
+        kernel.dispatcher(*make(rng, 20))
     where = tmp_path_factory.mktemp("aot")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        assert build(kernels, where=where) == 3
+        assert build([k for k, _ in CASES], where=where) == 4
     table, needs = K.load_builds(where)
-    assert set(table) == {k.key for k in kernels}
-    assert needs == {k.key: [] for k in kernels}  # none calls BLAS
+    assert set(table) == {k.key for k, _ in CASES}
+    # the Joseph update multiplies with BLAS (numba calls scipy's cython_blas); the others not
+    assert needs == {k.key: ["scipy.linalg.cython_blas"] if k is joseph_kernel else []
+                     for k, _ in CASES}
     return table
 
 
@@ -74,14 +85,14 @@ def _aot_call(table: K.Table, kernel: K.Kernel, args: tuple[object, ...]) -> obj
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 300))
 def test_builds_equal_the_jit_bit_for_bit(builds: K.Table, seed: int, n: int) -> None:
-    for kernel, make in ((sos_kernel, _sos_args), (interp_columns_kernel, _interp_args),
-                         (running_std_kernel, _std_args)):
+    for kernel, make in CASES:
         jit_args = make(np.random.default_rng(seed), n)
         aot_args = make(np.random.default_rng(seed), n)
-        assert _aot_call(builds, kernel, aot_args) == kernel.dispatcher(*jit_args)
+        np.testing.assert_equal(_aot_call(builds, kernel, aot_args),
+                                kernel.dispatcher(*jit_args))
         for a, b in zip(aot_args, jit_args, strict=True):
-            if isinstance(a, np.ndarray):
-                np.testing.assert_array_equal(a, b, strict=True)
+            if isinstance(a, np.ndarray):  # outputs written in place: the same bits
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
 def test_builds_are_not_loaded_once_a_source_changes(builds: K.Table, tmp_path: Path) -> None:
@@ -141,3 +152,14 @@ def test_a_failed_build_says_so_in_one_line(monkeypatch: pytest.MonkeyPatch) -> 
     message = build_ahead()
     assert message == ("kernels not compiled ahead of time (cc: not found); the JIT kernels "
                        "are used")
+
+
+def test_cython_blas_loads_without_scipy_linalg() -> None:
+    import subprocess
+
+    code = ("import sys, hrtls.kernels as K; K.preload_cython('scipy.linalg.cython_blas'); "
+            "m = sys.modules['scipy.linalg.cython_blas']; "
+            "print('scipy.linalg' in sys.modules, 'dgemm' in m.__pyx_capi__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=120).stdout.split()
+    assert out == ["False", "True"]

@@ -16,6 +16,7 @@ import time
 import zlib
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import hrtls
 
@@ -101,8 +102,33 @@ def warm_up(progress: Callable[[str], None] | None = None) -> float:
                 progress(f"compiling for preset {name}")
             cfg = preset(name)
             finish_track(Tracker(cfg).run(session), session, cfg)
+        if progress:
+            progress("compiling for tags, fixes and a device orientation")
+        cfg = preset("default")
+        for other in _more_sessions(session):
+            finish_track(Tracker(cfg).run(other), other, cfg)
     mark_compiled()
     return time.perf_counter() - start
+
+
+def _more_sessions(session: Any) -> list[Any]:
+    """Sessions that reach the kernels the presets' walk does not (for the builds ahead of time).
+
+    A short office walk (tags, fixes, beacons) and ``session`` with a device orientation (the
+    compass correction; identity quaternions: only the argument types matter here).
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from hrtls.data import OrientationSeries
+    from hrtls.sim.scenarios import run_scenario
+
+    t = session.imu.t
+    q = np.zeros((len(t), 4))
+    q[:, 0] = 1.0
+    device = dataclasses.replace(session, orientation=OrientationSeries(t=t, q=q))
+    return [run_scenario("office_random_walk", 0, duration_s=600.0).session, device]
 
 
 def build_ahead() -> str:
