@@ -124,7 +124,7 @@ def _more_sessions(session: Any) -> list[Any]:
     from hrtls.data import OrientationSeries
     from hrtls.sim.scenarios import run_scenario
 
-    t = session.imu.t
+    t = session.imu.accel.t
     q = np.zeros((len(t), 4))
     q[:, 0] = 1.0
     device = dataclasses.replace(session, orientation=OrientationSeries(t=t, q=q))
