@@ -163,3 +163,10 @@ def test_cython_blas_loads_without_scipy_linalg() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, timeout=120).stdout.split()
     assert out == ["False", "True"]
+
+
+def test_kernels_pickle_as_references() -> None:
+    import pickle
+
+    assert pickle.loads(pickle.dumps(sos_kernel)) is sos_kernel
+    assert K.declared("hrtls.gait.butterworth:sos_kernel") is sos_kernel

@@ -87,6 +87,18 @@ class Kernel:
     def __repr__(self) -> str:
         return f"Kernel({self.key})"
 
+    def __reduce__(self) -> tuple[Any, tuple[str]]:
+        return declared, (self.key,)
+
+
+def declared(key: str) -> Kernel:
+    """The kernel declared as ``module:qualname`` (its module imported)."""
+    import importlib
+
+    module = key.partition(":")[0]
+    importlib.import_module(module)
+    return REGISTRY[key]
+
 
 def njit(**options: Any) -> Callable[[Callable[..., Any]], Kernel]:
     """Declare a kernel with numba's ``njit`` options (imports nothing yet)."""
