@@ -146,7 +146,7 @@ def test_a_failed_build_says_so_in_one_line(monkeypatch: pytest.MonkeyPatch) -> 
     from hrtls.jobs.warmup import build_ahead
 
     def no_compiler(*args: object, **kwargs: object) -> int:
-        raise FileNotFoundError("cc: not found\nmore")
+        raise FileNotFoundError("cc: not found. If using conda try:\nmore")
 
     monkeypatch.setattr(aot, "build", no_compiler)
     message = build_ahead()

@@ -145,6 +145,7 @@ def build_ahead() -> str:
             warnings.simplefilter("ignore")
             count = build()
     except Exception as exc:  # no C compiler, or pycc failed: the JIT kernels serve
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        reason = reason.split(". ")[0].rstrip(".")[:160]  # its first sentence
         return f"kernels not compiled ahead of time ({reason}); the JIT kernels are used"
     return f"{count} kernel builds compiled ahead of time into {folder()}"
