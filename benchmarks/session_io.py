@@ -10,7 +10,8 @@
   writing), one row each; the wall ratio (end to end over the tracker's calls) is shown too,
   but under load both grow with the other jobs on the machine, CPU times do not;
   ``--baseline-src PATH`` runs the same children on another checkout's ``src`` (e.g. the
-  main branch), interleaved round by round with this one;
+  main branch), interleaved round by round with this one, and ``--jit-row`` this code with
+  the JIT kernels only (``HRTLS_AOT=0``: not the ones ``hrtls warmup`` compiled ahead of time);
 * the same on the recording converted to Parquet (``hrtls convert --to parquet``), a second
   row without a target;
 * peak memory (the child's own ``VmHWM``) of ``hrtls track`` on an eight-hour
@@ -26,8 +27,8 @@ The readers run interleaved, ``--repeat`` rounds, so each round compares them un
 load; the table shows the best round (CPU seconds of all threads, and wall seconds) and the
 spread of the per-round ratio (min / median / max). Run: ``python benchmarks/session_io.py
 [--rows N] [--repeat 5] [--track-repeat 3] [--hours-track 2] [--hours-memory 8] [--skip-track]
-[--skip-read] [--no-bytecode] [--baseline-src PATH]``; simulated sessions are cached under
-``--work``.
+[--skip-read] [--no-bytecode] [--baseline-src PATH] [--jit-row]``; simulated sessions are
+cached under ``--work``.
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ CHILD_ENV: dict[str, str] = {"COLUMNS": "200", "MPLBACKEND": "Agg", "PYTHONPATH"
 """Environment of the children, over this process's own."""
 
 
-def _child(args: list[str], src: str | None = None) -> tuple[str, float, float, float]:
+def _child(args: list[str], src: str | None = None,
+           env: dict[str, str] | None = None) -> tuple[str, float, float, float]:
     """(output, wall s, CPU s, peak MB) of one ``python -c`` child process.
 
     CPU: the child's own rusage (``wait4``); peak memory: its ``VmHWM`` (:data:`PEAK`).
@@ -94,7 +96,7 @@ def _child(args: list[str], src: str | None = None) -> tuple[str, float, float, 
         w0 = time.perf_counter()
         proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, text=True,
                                 env={**os.environ, **CHILD_ENV, **(
-                                    {"PYTHONPATH": src} if src else {})})
+                                    {"PYTHONPATH": src} if src else {}), **(env or {})})
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - w0
         proc.returncode = os.waitstatus_to_exitcode(status)
@@ -144,8 +146,8 @@ for owner, name, label in [(TR.Tracker, "update", "tracker"), (TR.Tracker, "fini
                            (S.SessionStream, "truth", "read truth")]:
     timed_method(owner, name, label, time.thread_time)
 # within the phases above, not added to them: numba's kernels on their first call (the
-# compiled code loaded from the cache, numba's target set up on the first), by thread CPU
-import numba.core.caching as NC, numba.core.dispatcher as ND
+# compiled code loaded from the cache, numba's target set up on the first), by thread CPU;
+# with the ahead-of-time build, its loading (numba is then imported only for a kernel it lacks)
 within = collections.defaultdict(float)
 def timed_within(owner, name, label, count=None):
     fn = getattr(owner, name)
@@ -157,9 +159,26 @@ def timed_within(owner, name, label, count=None):
             within[count(out)] += 1
         return out
     setattr(owner, name, wrapper)
-timed_within(NC.Cache, "load_overload", "numba cache loads",
-             lambda out: "numba cache misses" if out is None else "numba cache hits")
-timed_within(ND.Dispatcher, "compile", "numba first calls")
+def numba_timers():
+    import numba.core.caching as NC, numba.core.dispatcher as ND
+    timed_within(NC.Cache, "load_overload", "numba cache loads",
+                 lambda out: "numba cache misses" if out is None else "numba cache hits")
+    timed_within(ND.Dispatcher, "compile", "numba first calls")
+try:
+    import hrtls.kernels as HK
+except ImportError:  # an older checkout (--baseline-src): numba imported with the modules
+    numba_timers()
+else:
+    timed_within(HK, "_load", "ahead-of-time kernels loaded")
+    first_numba = HK._numba
+    def numba_then_timers():
+        if HK._STATE["numba"] is None:
+            c0 = time.thread_time()
+            first_numba()
+            within["numba imported for the JIT"] += time.thread_time() - c0
+            numba_timers()
+        return first_numba()
+    HK._numba = numba_then_timers
 sys.argv = ["hrtls", "track", *sys.argv[1:]]
 shown = io.StringIO()
 with contextlib.redirect_stdout(shown):
@@ -189,10 +208,11 @@ Round = tuple[dict[str, float], float, float, float, float]
 """(CPU s by phase, wall s, CPU s, tracker wall s, peak MB) of one child."""
 
 
-def phases_child(session: Path, out: Path, src: str | None = None) -> Round:
+def phases_child(session: Path, out: Path, src: str | None = None,
+                 env: dict[str, str] | None = None) -> Round:
     """One ``hrtls track`` in a child whose phases are timed (:data:`BREAKDOWN`)."""
     text, wall, cpu, peak_mb = _child([sys.executable, "-c", BREAKDOWN, str(session), "-o",
-                                       str(out), "--overwrite"], src)
+                                       str(out), "--overwrite"], src, env)
     phases = {k: float(v) for k, v in re.findall(r"PHASE (.+)=([0-9.]+)", text)}
     phases |= {f"within {k}": float(v) for k, v in re.findall(r"WITHIN (.+)=([0-9.]+)", text)}
     found = re.search(r"IMU samples in ([0-9.]+) s", text)
@@ -256,16 +276,22 @@ def parquet_copy(session: Path) -> Path:
 
 
 def track_rows(label: str, session: Path, out: Path, repeat: int, table: Table,
-               target: bool, baseline: str | None = None) -> None:
+               target: bool, baseline: str | None = None, jit: bool = False) -> None:
     """``hrtls track`` of ``session`` ``repeat`` times: the round of least CPU, by phase.
 
-    With ``baseline`` (another checkout's sources) its rounds alternate with this code's.
+    With ``baseline`` (another checkout's sources) its rounds alternate with this code's; with
+    ``jit`` also this code with the JIT kernels only (``HRTLS_AOT=0``).
     """
     runs: dict[str, list[Round]] = {label: []}
+    jit_label = f"{label}, JIT kernels only (HRTLS_AOT=0)"
+    if jit:
+        runs[jit_label] = []
     if baseline:
         runs[f"{label}, baseline {baseline}"] = []
     for _ in range(repeat):
         runs[label].append(phases_child(session, out))
+        if jit:
+            runs[jit_label].append(phases_child(session, out, env={"HRTLS_AOT": "0"}))
         if baseline:
             runs[f"{label}, baseline {baseline}"].append(phases_child(session, out, baseline))
     for name, rounds in runs.items():
@@ -289,6 +315,10 @@ def _track_row(label: str, rounds: list[Round], table: Table, target: bool) -> N
     for name, value in phases.items():
         table.add_row(f"  {name}", f"{value:.2f}", "",
                       f"{value / tracker:.2f}x tracker, {value / cpu:.0%}", "", "", "")
+    for name in ("ahead-of-time kernels loaded", "numba imported for the JIT"):
+        if name in within:  # part of the tracker's and the readers' rows
+            table.add_row(f"  within those: {name}", f"{within[name]:.2f}", "",
+                          f"{within[name] / tracker:.2f}x tracker", "", "", "")
     if "numba first calls" in within:  # part of the tracker's and the readers' rows
         first = within["numba first calls"]
         table.add_row(
@@ -303,7 +333,8 @@ def tracking(args: argparse.Namespace, table: Table) -> None:
     s2, s8 = simulated(args.work, args.hours_track), simulated(args.work, args.hours_memory)
     phases_child(s2, args.work / "out_track")  # the page cache and the kernel cache warm
     track_rows(f"hrtls track {args.hours_track:g} h", s2, args.work / "out_track",
-               args.track_repeat, table, target=True, baseline=args.baseline_src)
+               args.track_repeat, table, target=True, baseline=args.baseline_src,
+               jit=args.jit_row)
     if not args.skip_parquet:
         track_rows(f"hrtls track {args.hours_track:g} h, Parquet", parquet_copy(s2),
                    args.work / "out_track_parquet", args.track_repeat, table, target=False)
@@ -326,6 +357,8 @@ def main() -> None:
     parser.add_argument("--no-bytecode", action="store_true")
     parser.add_argument("--baseline-src", default=None,
                         help="another checkout's src folder, tracked in alternate rounds")
+    parser.add_argument("--jit-row", action="store_true",
+                        help="also this code with the JIT kernels only, in alternate rounds")
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "hrtls-io")
     args = parser.parse_args()
     warnings.simplefilter("ignore")

@@ -8,6 +8,9 @@ from pathlib import Path
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+# the tests call the JIT kernels (the reference), whatever `hrtls warmup` built ahead of time;
+# tests/test_kernels_aot.py builds and checks its own
+os.environ.setdefault("HRTLS_AOT", "0")
 
 
 def shared_data_root() -> Path | None:

@@ -6,13 +6,12 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import numba
-
 from hrtls.attitude._jit import FASTMATH, JIT
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def nav_rotation_var(
     w: float, x: float, y: float, z: float, P: FloatArray, out: FloatArray, i: int
 ) -> None:
@@ -32,7 +31,7 @@ def nav_rotation_var(
         out[i, r] = 4.0 * acc
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def sym3_inverse(
     s00: float, s01: float, s02: float, s11: float, s12: float, s22: float
 ) -> tuple[bool, float, float, float, float, float, float]:
@@ -59,7 +58,7 @@ def make_block3(n: int, m: int) -> Callable[..., bool]:
     """
 
     # closures of one qualname must not share a cache entry: no cache
-    @numba.njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+    @njit(inline="always", fastmath=FASTMATH, error_model="numpy")
     def update(
         P: FloatArray, dx: FloatArray, H: Any, r0: float, r1: float, r2: float, var: float,
         ph: FloatArray,
@@ -136,7 +135,7 @@ block3_update7 = make_block3(7, 4)
 """Block update for 7 states (the quaternion EKF with bias)."""
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def update_finite(dx: FloatArray, P: FloatArray) -> bool:
     """The correction and the variances of an EKF update are all finite."""
     ok = True

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,6 +17,7 @@ from hrtls.attitude import _kernels as K
 from hrtls.attitude import _quaternion as Q
 from hrtls.attitude._jit import JIT
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 # ---- parameter layout (after the shared part)
 TAU_ACC = K.PRM_SPECIFIC
@@ -74,7 +74,7 @@ NX = 58
 
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _biquad(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: float) -> float:
     """One step of the Butterworth low-pass (transposed direct form II, ``b = b0 [1, 2, 1]``)."""
     y = b0 * u + x[k]
@@ -83,14 +83,14 @@ def _biquad(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: float) ->
     return y
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _biquad_steady(x: FloatArray, k: int, u: float, b0: float, a1: float, a2: float) -> None:
     """The state of a low-pass that has seen the constant ``u`` forever (output ``u``)."""
     x[k + 1] = (b0 - a2) * u
     x[k] = (3.0 * b0 - a1 - a2) * u
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _set_gains(x: FloatArray, prm: FloatArray, dt: float) -> None:
     """Gains for the sample period ``dt``.
 
@@ -111,7 +111,7 @@ def _set_gains(x: FloatArray, prm: FloatArray, dt: float) -> None:
     x[DT] = dt
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _rotation_matrix(w: float, x: float, y: float, z: float, out: FloatArray) -> None:
     """``R(q)`` row-major into ``out[0:9]``."""
     out[0] = 1.0 - 2.0 * (y * y + z * z)
@@ -125,7 +125,7 @@ def _rotation_matrix(w: float, x: float, y: float, z: float, out: FloatArray) ->
     out[8] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _restart_lowpass(x: FloatArray, aux: FloatArray, a_i: tuple[float, float, float],
                      rr: FloatArray) -> None:
     """Low-pass states at rest on the current ``a_I``, ``R_6`` (in ``rr``) and ``R_6 b``."""
@@ -142,7 +142,7 @@ def _restart_lowpass(x: FloatArray, aux: FloatArray, a_i: tuple[float, float, fl
         _biquad_steady(x, RBLP + 2 * r, rb, b0, a1, a2)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _steady_noise(var: float, growth: float) -> float:
     """Measurement variance ``w = var^2 / v + var`` whose steady-state estimate variance is ``var``.
 
@@ -153,7 +153,7 @@ def _steady_noise(var: float, growth: float) -> float:
     return var * var / max(growth, 1e-300) + var
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _bias_update(P: FloatArray, aux: FloatArray, H: Mat3, y0: float, y1: float, y2: float,
                  w0: float, w1: float, w2: float, clip: float) -> None:
     """Kalman update of the bias, ``b`` clipped.
@@ -196,7 +196,7 @@ def _bias_update(P: FloatArray, aux: FloatArray, H: Mat3, y0: float, y1: float, 
     P[1, 2] = P[2, 1] = p12
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _row_times_sym3(m0: float, m1: float, m2: float, i00: float, i01: float, i02: float,
                     i11: float, i12: float, i22: float) -> tuple[float, float, float]:
     """The row ``m`` times the symmetric matrix with upper triangle ``i``."""
@@ -204,13 +204,13 @@ def _row_times_sym3(m0: float, m1: float, m2: float, i00: float, i01: float, i02
             m0 * i02 + m1 * i12 + m2 * i22)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _clipped_step(b: float, db: float, clip: float) -> float:
     """``b + db`` clipped to ``[-clip, clip]``; ``b`` unchanged when ``db`` is not finite."""
     return min(clip, max(-clip, b + db)) if math.isfinite(db) else b
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _start(x: FloatArray, P: FloatArray, aux: FloatArray, prm: FloatArray, flags: int,
            w: float, qx: float, qy: float, qz: float, r_tilt: float, r_head: float,
            p_max: float) -> None:
@@ -237,7 +237,7 @@ def _start(x: FloatArray, P: FloatArray, aux: FloatArray, prm: FloatArray, flags
             P[a, b] = p_max if a == b else 0.0
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _mag_disturbance(x: FloatArray, aux: FloatArray, prm: FloatArray, mn: float, dip: float,
                      rate: float, dt: float, gn: float, gd: float) -> None:
     """Disturbance detection and reference update [3.5] from the field norm ``mn`` and dip.
@@ -283,7 +283,7 @@ def _mag_disturbance(x: FloatArray, aux: FloatArray, prm: FloatArray, mn: float,
     aux[K.AUX_MCAND_N], aux[K.AUX_MCAND_DIP], aux[K.AUX_MCAND_T] = cand_n, cand_dip, cand_t
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def inertial_lowpass_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,

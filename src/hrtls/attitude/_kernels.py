@@ -17,12 +17,12 @@ import math
 from collections import namedtuple
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.attitude._jit import JIT
 from hrtls.attitude._quaternion import heading_from_mag, rot, rot_t, shortest_arc_to_up, write_q
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 # ------------------------------------------------------------------------------------------
 # aux layout (bookkeeping shared by every filter)
@@ -95,19 +95,19 @@ def new_aux(bias0: FloatArray) -> FloatArray:
 # ------------------------------------------------------------------------------------------
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def finite3(v0: float, v1: float, v2: float) -> bool:
     """All three components finite."""
     return math.isfinite(v0) and math.isfinite(v1) and math.isfinite(v2)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def gyro_ok(r: float, g0: float, g1: float, g2: float) -> bool:
     """Gyro sample finite and inside the measurement range ``r``, rad/s."""
     return finite3(g0, g1, g2) and abs(g0) < r and abs(g1) < r and abs(g2) < r
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def rest_and_bias(
     aux: FloatArray, prm: FloatArray, g0: float, g1: float, g2: float,
     a0: float, a1: float, a2: float, dt: float, active: bool = True,
@@ -171,7 +171,7 @@ def rest_and_bias(
     return at_rest
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def init_rest(aux: FloatArray, g0: float, g1: float, g2: float, a0: float, a1: float,
               a2: float, gyr_ok: bool) -> None:
     """Start the rest low-passes at the first samples (at initialisation)."""
@@ -184,7 +184,7 @@ def init_rest(aux: FloatArray, g0: float, g1: float, g2: float, a0: float, a1: f
     aux[AUX_ALP + 2] = a2
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
     """Learn the reference field (norm ``n``, uT, and ``dip``, rad) at its first sample.
 
@@ -204,7 +204,7 @@ def first_field(aux: FloatArray, prm: FloatArray, n: float, dip: float) -> bool:
     return True
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def mag_gate(
     aux: FloatArray, prm: FloatArray, mx: float, my: float, mz: float,
     ux: float, uy: float, uz: float, dt: float,
@@ -257,7 +257,7 @@ def mag_gate(
     return norm_ok and dip_ok and jump_ok
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def init_attitude(
     prm: FloatArray, a0: float, a1: float, a2: float, m0: float, m1: float, m2: float,
     mag_ok: bool,
@@ -283,7 +283,7 @@ Sample = namedtuple(
 """One sample as a kernel sees it (see :func:`read_sample`)."""
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def read_sample(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, i: int, has_gyr: bool,
     has_mag: bool, prm: FloatArray, aux: FloatArray,
@@ -327,7 +327,7 @@ def read_sample(
                   mag_fin)
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def try_init(aux: FloatArray, prm: FloatArray, s: Any, has_mag: bool
              ) -> tuple[int, float, float, float, float]:
     """Initialise the shared bookkeeping at the first static-looking sample (eq. 4.13).
@@ -355,7 +355,7 @@ def try_init(aux: FloatArray, prm: FloatArray, s: Any, has_mag: bool
     return flags, w, x, y, z
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     """Decide whether the gyro sample is integrated; rest detection and bias at rest.
 
@@ -369,7 +369,7 @@ def gyro_step(aux: FloatArray, prm: FloatArray, s: Any, has_gyr: bool) -> int:
     return (FLAG_GYR if use else 0) | (FLAG_REST if rest else 0)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def dynamic_acc_var(aux: FloatArray, s: Any, w: float, x: float, y: float, z: float,
                     tau_s: float) -> float:
     """Running per-axis variance of the body's acceleration, (m/s^2)^2.
@@ -399,13 +399,13 @@ def dynamic_acc_var(aux: FloatArray, s: Any, w: float, x: float, y: float, z: fl
     return var
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def unbiased_rate(aux: FloatArray, s: Any) -> tuple[float, float, float]:
     """The gyro rate minus the current bias estimate, rad/s."""
     return s.g0 - aux[AUX_BIAS], s.g1 - aux[AUX_BIAS + 1], s.g2 - aux[AUX_BIAS + 2]
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def count_used(aux: FloatArray, flags: int, use_a: bool, use_m: bool, has_mag: bool) -> int:
     """Flags of the static sensors that corrected the attitude; count the others."""
     # written outside the branches (see read_sample)
@@ -414,7 +414,7 @@ def count_used(aux: FloatArray, flags: int, use_a: bool, use_m: bool, has_mag: b
     return flags | (FLAG_ACC if use_a else 0) | (FLAG_MAG if use_m else 0)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def horizontal_unit(
     m0: float, m1: float, m2: float, ux: float, uy: float, uz: float
 ) -> tuple[float, float, float, float]:
@@ -426,7 +426,7 @@ def horizontal_unit(
     return z0, z1, z2, math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def write_uninit(out_q: FloatArray, out_var: FloatArray, out_flags: Any, i: int) -> None:
     """Output of a sample before initialisation: identity, variance pi^2 (when kept), no flags."""
     write_q(out_q, i, 1.0, 0.0, 0.0, 0.0)

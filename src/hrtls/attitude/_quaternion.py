@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import math
 
-import numba
-
 from hrtls.attitude._jit import JIT
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def qmul(
     aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
 ) -> tuple[float, float, float, float]:
@@ -27,7 +26,7 @@ def qmul(
     )
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def rot_t(
     w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
 ) -> tuple[float, float, float]:
@@ -42,7 +41,7 @@ def rot_t(
     )
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def rot(
     w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
 ) -> tuple[float, float, float]:
@@ -54,7 +53,7 @@ Row3 = tuple[float, float, float]
 Row4 = tuple[float, float, float, float]
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def rot_t_jac(
     w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float
 ) -> tuple[Row4, Row4, Row4]:
@@ -69,7 +68,7 @@ def rot_t_jac(
     )
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def rot_t_jacobian(
     w: float, x: float, y: float, z: float, v0: float, v1: float, v2: float, out: FloatArray
 ) -> None:
@@ -80,7 +79,7 @@ def rot_t_jacobian(
             out[j, b] = jac[j][b]
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def cos_sinc(a: float) -> tuple[float, float]:
     """``cos(a)`` and ``sin(a)/a``; Taylor series below 0.1 rad (error < 1e-16)."""
     if abs(a) < 0.1:
@@ -91,7 +90,7 @@ def cos_sinc(a: float) -> tuple[float, float]:
     return math.cos(a), math.sin(a) / a
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def transition(wx: float, wy: float, wz: float, dt: float, phi: FloatArray) -> None:
     """``Phi = exp(Omega dt)`` for ``dq/dt = Omega q = q * [0, w] / 2`` (Inderst eq. 4.10-4.12).
 
@@ -120,7 +119,7 @@ def transition(wx: float, wy: float, wz: float, dt: float, phi: FloatArray) -> N
     phi[3, 3] = c
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def shortest_arc_to_up(ax: float, ay: float, az: float) -> tuple[float, float, float, float]:
     """Quaternion rotating the unit vector ``a`` onto ``+z`` by the shortest arc.
 
@@ -134,7 +133,7 @@ def shortest_arc_to_up(ax: float, ay: float, az: float) -> tuple[float, float, f
     return w / n, ay / n, -ax / n, 0.0
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def heading_from_mag(
     w: float, x: float, y: float, z: float, mx: float, my: float, mz: float
 ) -> tuple[float, float, float, float]:
@@ -148,7 +147,7 @@ def heading_from_mag(
     return qmul(c, 0.0, 0.0, s, w, x, y, z)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def positive_unit(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
     """``q / |q|`` with the sign chosen so that ``w >= 0``."""
     n = math.sqrt(w * w + x * x + y * y + z * z)
@@ -157,7 +156,7 @@ def positive_unit(w: float, x: float, y: float, z: float) -> tuple[float, float,
     return w / n, x / n, y / n, z / n
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def gyro_quat_step(
     w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, dt: float
 ) -> tuple[float, float, float, float]:
@@ -171,7 +170,7 @@ def gyro_quat_step(
     return positive_unit(w, x, y, z)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def set_q(v: FloatArray, k: int, w: float, x: float, y: float, z: float) -> None:
     """``v[k:k + 4] = q`` (a quaternion inside a state vector)."""
     v[k] = w
@@ -180,7 +179,7 @@ def set_q(v: FloatArray, k: int, w: float, x: float, y: float, z: float) -> None
     v[k + 3] = z
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def write_q(out_q: FloatArray, i: int, w: float, x: float, y: float, z: float) -> None:
     """``out_q[i] = q``."""
     out_q[i, 0] = w

@@ -37,7 +37,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,6 +46,7 @@ from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.attitude.fqa import fqa_quaternion
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["ComplementaryFilter", "ComplementaryParams"]
 
@@ -92,7 +92,7 @@ class ComplementaryParams(CommonParams):
                 self.bias_max_rad_s)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _blend(
     gam: float, sw: float, sx: float, sy: float, sz: float,
     dw: float, dx: float, dy: float, dz: float,
@@ -108,7 +108,7 @@ def _blend(
     return w / n, x / n, y / n, z / n
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def complementary_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, aux: FloatArray, out_q: FloatArray,

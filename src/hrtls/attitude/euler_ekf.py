@@ -50,7 +50,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -61,6 +60,7 @@ from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["EulerEkf", "EulerEkfParams"]
 
@@ -152,13 +152,13 @@ class EulerEkfParams(CommonParams):
                 self.rate_ref_rad_s, self.dyn_acc_window_s, self.dyn_acc_corr_s)
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _wrap(a: float) -> float:
     """Wrap to (-pi, pi]."""
     return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _euler_to_quat(r: float, p: float, y: float) -> tuple[float, float, float, float]:
     cr = math.cos(0.5 * r)
     sr = math.sin(0.5 * r)
@@ -175,7 +175,7 @@ def _euler_to_quat(r: float, p: float, y: float) -> tuple[float, float, float, f
     return w, x, yy, z
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     sp = max(-1.0, min(1.0, 2.0 * (w * y - z * x)))
@@ -184,7 +184,7 @@ def _quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float
     return roll, pitch, yaw
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _sincos(w: float, x: float, y: float, z: float
             ) -> tuple[float, float, float, float, float, float]:
     """``sin/cos`` of roll, pitch, yaw of a unit quaternion, from its rotation matrix."""
@@ -200,7 +200,7 @@ def _sincos(w: float, x: float, y: float, z: float
     return r21 / cp, r22 / cp, sp, cp, r10 / cp, r00 / cp
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _reset_cov(P: FloatArray, prm: FloatArray) -> None:
     """``P(0) = p0 I``."""
     for r in range(3):
@@ -208,7 +208,7 @@ def _reset_cov(P: FloatArray, prm: FloatArray) -> None:
             P[r, c] = prm[_P0] if r == c else 0.0
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def euler_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,

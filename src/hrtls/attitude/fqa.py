@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -24,13 +23,14 @@ from hrtls.attitude import _quaternion as Q
 from hrtls.attitude._jit import JIT
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["fqa", "fqa_quaternion"]
 
 _EPS = 1e-9
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _half(c: float, s: float) -> tuple[float, float]:
     """``cos(a/2), sin(a/2)`` from ``cos a, sin a`` (sign of the sine kept, 0 -> +)."""
     ch = math.sqrt(max(0.0, 0.5 * (1.0 + c)))
@@ -40,7 +40,7 @@ def _half(c: float, s: float) -> tuple[float, float]:
     return ch, sh
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def fqa_quaternion(
     a0: float, a1: float, a2: float, m0: float, m1: float, m2: float
 ) -> tuple[float, float, float, float]:
@@ -79,7 +79,7 @@ def fqa_quaternion(
     return w, x, y, z
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _fqa_batch(acc: FloatArray, mag: FloatArray, out: FloatArray) -> None:
     for i in range(acc.shape[0]):
         w, x, y, z = fqa_quaternion(acc[i, 0], acc[i, 1], acc[i, 2],

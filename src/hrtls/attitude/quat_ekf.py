@@ -41,7 +41,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -52,6 +51,7 @@ from hrtls.attitude._jit import JIT
 from hrtls.attitude.base import AttitudeFilter, CommonParams
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["QuatEkf", "QuatEkfParams"]
 
@@ -167,7 +167,7 @@ class QuatEkfParams(CommonParams):
                 1.0 if (b and self.bias_var_at_rest and self.estimate_bias) else 0.0)
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _project(x: FloatArray, P: FloatArray) -> None:
     """``P <- J P J^T`` with ``J = diag(I - q q^T, I)`` (covariance of the unit quaternion)."""
     v0 = P[0, 0] * x[0] + P[0, 1] * x[1] + P[0, 2] * x[2] + P[0, 3] * x[3]
@@ -190,7 +190,7 @@ def _project(x: FloatArray, P: FloatArray) -> None:
             P[c, a] = val
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _normalize(x: FloatArray, P: FloatArray) -> None:
     """Unit norm with ``w >= 0``; a sign flip of ``q`` also flips its covariance with the bias."""
     n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
@@ -206,7 +206,7 @@ def _normalize(x: FloatArray, P: FloatArray) -> None:
     x[3] /= n
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _apply_f(
     f: tuple[float, float, float, float, float, float, float, float],
     v0: float, v1: float, v2: float, v3: float, v4: float, v5: float, v6: float,
@@ -225,7 +225,7 @@ def _apply_f(
     )
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _predict(
     x: FloatArray, P: FloatArray, work: FloatArray, wx: float, wy: float, wz: float, dt: float,
     qv: float, bw: float,
@@ -282,7 +282,7 @@ def _predict(
     P[6, 6] += bw
 
 
-@numba.njit(inline="always", **JIT)
+@njit(inline="always", **JIT)
 def _shrink_bias_var(P: FloatArray, v: float) -> None:
     """Bias variances above ``v`` down to ``v``: ``P <- D P D``.
 
@@ -298,7 +298,7 @@ def _shrink_bias_var(P: FloatArray, v: float) -> None:
                 P[c, r] *= f
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
     """Initial covariance: ``p0`` per quaternion component, the bias variance, projected."""
     for r in range(_NS):
@@ -308,7 +308,7 @@ def _reset_cov(x: FloatArray, P: FloatArray, prm: FloatArray) -> None:
     _project(x, P)
 
 
-@numba.njit(**JIT)
+@njit(**JIT)
 def quat_ekf_kernel(
     t: FloatArray, acc: FloatArray, gyr: FloatArray, mag: FloatArray, has_gyr: bool,
     has_mag: bool, prm: FloatArray, x: FloatArray, P: FloatArray, aux: FloatArray,

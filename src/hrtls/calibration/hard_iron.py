@@ -33,13 +33,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hrtls.data import ImuStream
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["HardIronFit", "fit_hard_iron"]
 
@@ -68,7 +68,7 @@ class HardIronFit:
     n_used: int
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     """Least-squares circle (sphere) through the rows ``keep`` of ``p``: ``(centre, r^2)``.
 
@@ -108,7 +108,7 @@ def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     return _eliminate(m, mean)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _eliminate(m: FloatArray, mean: FloatArray) -> tuple[FloatArray, float]:
     # pragma: no cover - compiled
     """Centre and ``r^2`` from the normal equations ``m = [A^T A | A^T b]`` of the rows ``u``.
@@ -145,7 +145,7 @@ def _eliminate(m: FloatArray, mean: FloatArray) -> tuple[FloatArray, float]:
     return centre, r2
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _solve_plane(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     # pragma: no cover - compiled
     """:func:`_solve_kernel` for 2-D rows, its sums in scalars (the same order of operations)."""
@@ -183,7 +183,7 @@ def _solve_plane(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     return _eliminate(m, mean)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, passes: int
                       ) -> tuple[FloatArray, float, np.ndarray, bool]:
     """The fit, then up to ``passes`` refits on the samples within the gate of the latest.
@@ -222,7 +222,7 @@ def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, pas
     return c, r, keep, True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _spread_kernel(d: FloatArray) -> tuple[float, float]:
     """Angle covered by the 2-D vectors ``d`` (N, 2) around the origin, deg; their extent.
 
@@ -260,7 +260,7 @@ def _spread_kernel(d: FloatArray) -> tuple[float, float]:
     return 360.0 - math.degrees(gap), extent
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
                 passes: int) -> tuple[bool, FloatArray, float, float, float, float, int]:
     """Samples ``m`` (N, 3) projected on the rows of ``basis``, gated fit, coverage, residual.
@@ -312,7 +312,7 @@ def _plane_basis(up_d: ArrayLike | None) -> FloatArray:
     return plane_basis_kernel(up)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def plane_basis_kernel(up_d: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Rows (2, 3) spanning the plane perpendicular to ``up_d`` (finite, non-zero)."""
     up = up_d / math.sqrt(up_d[0] * up_d[0] + up_d[1] * up_d[1] + up_d[2] * up_d[2])
@@ -326,14 +326,14 @@ def plane_basis_kernel(up_d: FloatArray) -> FloatArray:  # pragma: no cover - co
     return out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _cross3(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """``a x b`` of two 3-vectors."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
                      a[0] * b[1] - a[1] * b[0]])
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
                        min_samples: int, min_field_ut: float, min_arc_deg: float
                        ) -> tuple[int, FloatArray, float, float, float, float, int]:

@@ -21,12 +21,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from hrtls.calibration.hard_iron import FIT_OK, checked_fit_kernel, plane_basis_kernel
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["RunningHardIron", "RunningHardIronParams", "RunningHardIronState"]
 
@@ -169,7 +169,7 @@ class RunningHardIron:
         st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted = (float(v) for v in fl)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: FloatArray,
                        acc_mean: FloatArray, good: np.ndarray) -> None:
     # pragma: no cover - compiled
@@ -196,7 +196,7 @@ def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: Floa
             acc_mean[b, a] = sa / bs
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def close_blocks_kernel(mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
                         t_end: FloatArray, blocks_mag: FloatArray, acc_sum: FloatArray,
                         c_ut: FloatArray, ints: np.ndarray, fl: FloatArray, out: FloatArray,

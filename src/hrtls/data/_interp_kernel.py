@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def interp_columns_kernel(tq: FloatArray, t: FloatArray, values: FloatArray,
                           out: FloatArray) -> None:  # pragma: no cover - compiled
     """``out[:, c] = np.interp(tq, t, values[:, c])`` for every column (``t`` increasing)."""

@@ -37,11 +37,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 R_DRY_J_KG_K = 287.05
@@ -152,7 +152,7 @@ class BaroFloorState:
     stairs_m_s: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
                  ) -> float:  # pragma: no cover - compiled
     """Mean of ``x`` over the samples with ``t[i] - window_s <= t <= t[i]``."""
@@ -164,7 +164,7 @@ def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
     return s / (i - j)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stairs: FloatArray,
                 i0: int, fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
                 level: FloatArray, floor: NDArray[np.int64], fast_s: float, slow_s: float,

@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -27,6 +26,7 @@ from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar, finite_vector
 from hrtls.fusion._records import to_record
 from hrtls.fusion.path_loss import LN10, PathLossModel
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -148,7 +148,7 @@ class ChannelEstimator:
         return ChannelState.from_record(rec[0], cov), used
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def channel_update(prm: np.record, cs: np.record, cov: FloatArray, rss_dbm: float,
                    distance_m: float, distance_var_m2: float, d0_m: float
                    ) -> bool:  # pragma: no cover - compiled
@@ -209,7 +209,7 @@ def channel_update(prm: np.record, cs: np.record, cov: FloatArray, rss_dbm: floa
     return True
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def channel_update_readings(prm: np.record, cs: np.ndarray, cov: FloatArray, rss_dbm: FloatArray,
                             distance_m: FloatArray, distance_var_m2: FloatArray, d0_m: float
                             ) -> int:  # pragma: no cover - compiled

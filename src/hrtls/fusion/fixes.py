@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -36,6 +35,7 @@ from hrtls.fusion._checks import (
 )
 from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped
 from hrtls.fusion.state import IH, N_STATE, FilterState
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -235,7 +235,7 @@ def partial_step(t: float, *, t_start: float, t_end: float, length_m: float,
                                     float(heading_rad)))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def partial_step_xy(t: float, t_start: float, t_end: float, length_m: float,
                     heading_rad: float) -> tuple[float, float]:  # pragma: no cover - compiled
     """:func:`partial_step` as two floats (east, north), callable from compiled code."""

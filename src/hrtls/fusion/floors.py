@@ -32,7 +32,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -45,6 +44,7 @@ from hrtls.fusion.gating import (
     scalar_update,
 )
 from hrtls.fusion.state import FilterState
+from hrtls.kernels import njit
 
 FLIGHT_STATE = ("floor_start", "floor", "up_m", "down_m", "flat_steps", "stair_steps",
                 "gap_steps")
@@ -100,7 +100,7 @@ def floor_level(index: ArrayLike, floor_height_m: float, *, ground_z_m: float = 
     return np.asarray(ground_z_m + h * np.asarray(index, dtype=np.float64))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def flight_step(st: FloatArray, dz_m: float, stairs: bool, floor_height_m: float,
                 change_fraction: float, end_flat_steps: float,
                 direction_fraction: float) -> bool:  # pragma: no cover
@@ -136,7 +136,7 @@ def flight_step(st: FloatArray, dz_m: float, stairs: bool, floor_height_m: float
     return True
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def floor_level_correction(x: FloatArray, p: FloatArray, floor_height_m: float,
                            ground_z_m: float, sigma_m: float, threshold: float, gated: bool,
                            floor: float = math.nan

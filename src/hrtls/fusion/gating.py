@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Literal
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray
+from hrtls.kernels import njit
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -175,7 +175,7 @@ class UpdateResult:
     diagnostics: UpdateDiagnostics
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def joseph_kernel(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray, nu: FloatArray,
                   threshold: float, angle_index: int, x_out: FloatArray, p_out: FloatArray,
                   s_out: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled
@@ -257,13 +257,13 @@ def joseph_kernel(x: FloatArray, p: FloatArray, h: FloatArray, r: FloatArray, nu
     return 0, value
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def wrap_rad(a: float) -> float:  # pragma: no cover - compiled
     """Angle wrapped to ``(-pi, pi]`` (as :func:`hrtls.frames.wrap_angle`)."""
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def symmetrize_in_place(p: FloatArray) -> None:  # pragma: no cover - compiled
     """``P <- (P + P^T) / 2`` for the 4x4 filter covariance (the diagonal is kept exactly)."""
     for i in range(N_FILTER_STATE):
@@ -273,7 +273,7 @@ def symmetrize_in_place(p: FloatArray) -> None:  # pragma: no cover - compiled
             p[j, i] = m
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def scalar_update(x: FloatArray, p: FloatArray, h: tuple[float, float, float, float], r: float,
                   nu: float, threshold: float, gated: bool
                   ) -> tuple[int, float, float]:  # pragma: no cover - compiled
@@ -314,7 +314,7 @@ def scalar_update(x: FloatArray, p: FloatArray, h: tuple[float, float, float, fl
     return ACCEPTED, nis, s
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def position_update(x: FloatArray, p: FloatArray, r00: float, r01: float, r11: float,
                     nu0: float, nu1: float, threshold: float,
                     aux: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled

@@ -11,13 +11,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hrtls.data.session import ChannelModel
 from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
+from hrtls.kernels import njit
 
 LN10 = math.log(10.0)
 
@@ -26,7 +26,7 @@ PATH_LOSS_DTYPE = np.dtype([("a_dbm", np.float64), ("eta", np.float64),
 """Record of :class:`PathLossModel` for compiled code (same field names)."""
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def mean_rss_dbm(a_dbm: float, eta: float, d0_m: float, distance_m: FloatArray | float
                  ) -> FloatArray | float:   # pragma: no cover - compiled
     """Mean RSS at ``distance_m`` (m; a scalar or an array), dBm: ``A - 10 eta log10(d/d0)``.

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
 from hrtls.fusion.state import FilterState
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,7 +56,7 @@ RANDOM_WALK_DTYPE = np.dtype([("sigma_speed_m_per_sqrt_s", np.float64),
 """Record of :class:`RandomWalkParams` for compiled code (same field names)."""
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def random_walk_covariance(prm: np.record, p: FloatArray, dt: float) -> None:
     # pragma: no cover - compiled
     """Grow the covariance ``p`` over ``dt`` seconds in place (``prm``: a random-walk record)."""

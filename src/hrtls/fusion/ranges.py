@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -36,6 +35,7 @@ from hrtls.fusion.gating import (
     scalar_update,
 )
 from hrtls.fusion.state import FilterState
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,7 +74,7 @@ class RangeUpdate:
     diagnostics: UpdateDiagnostics
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def range_correction(x: FloatArray, p: FloatArray, node_x: float, node_y: float, node_z: float,
                      range_m: float, sigma_m: float, min_distance_m: float, threshold: float,
                      gated: bool, use_3d: bool

@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -45,6 +44,7 @@ from hrtls.fusion.path_loss import LN10, PathLossModel
 from hrtls.fusion.ranges import RangeParams, range_update
 from hrtls.fusion.shadowing import MIN_INFO_FRACTION
 from hrtls.fusion.state import FilterState
+from hrtls.kernels import njit
 
 
 # ------------------------------------------------------------------------------------------
@@ -58,7 +58,7 @@ class RssUpdate:
     diagnostics: UpdateDiagnostics
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rss_db_correction(x: FloatArray, p: FloatArray, anchor_x: float, anchor_y: float,
                       anchor_z: float, rss_dbm: float, a_dbm: float, eta: float, d0_m: float,
                       sigma_db: float, min_distance_m: float, threshold: float, gated: bool,

@@ -39,7 +39,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,6 +46,7 @@ from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
 from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel, mean_rss_dbm
+from hrtls.kernels import njit
 
 IntArray = NDArray[np.int64]
 
@@ -211,7 +211,7 @@ class GridScans:
     weight: FloatArray
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
     # pragma: no cover - compiled
     """Convolve ``density`` (ny, nx) in place with a Gaussian of ``sigma_cells`` per axis.
@@ -244,7 +244,7 @@ def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
         density /= total
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
                    offsets_db: FloatArray, offsets_var: FloatArray, model: np.record,
                    prm: np.record, out: FloatArray) -> None:   # pragma: no cover - compiled
@@ -300,7 +300,7 @@ def bias_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm
         offsets_var[a] = p - p * p / s
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatArray) -> None:
     # pragma: no cover - compiled
     """Mean (out[0:2]) and covariance xx, xy, yy (out[2:5]) of the density, m and m^2."""
@@ -322,7 +322,7 @@ def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatAr
     out[4] = max(syy - sy * sy, 0.0)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
                 density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
                 t_prev: float, started: bool,

@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -33,6 +32,7 @@ from hrtls.data.observations import RssReadings
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar, finite_vector
 from hrtls.fusion.path_loss import LN10, PathLossModel
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -44,7 +44,7 @@ class WlsFix:
     reference: int
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def hyperbolic_wls_kernel(axy: FloatArray, d: FloatArray, sigma_ln: float, ref: int,
                           out: FloatArray) -> bool:  # pragma: no cover - compiled
     """Eq. 2 on plain arrays: ``out`` receives ``[x, y, cov_xx, cov_xy, cov_yy]``.
@@ -117,7 +117,7 @@ def hyperbolic_wls_kernel(axy: FloatArray, d: FloatArray, sigma_ln: float, ref: 
     return bool(np.all(np.isfinite(out)))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def scan_fix(model: np.record, axy: FloatArray, rss_dbm: FloatArray, count: FloatArray,
              out: FloatArray) -> int:  # pragma: no cover - compiled
     """Eq. 1 distances of a scan's mean RSS, then eq. 2 (nearest reference) into ``out``.

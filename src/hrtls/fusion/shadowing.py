@@ -28,12 +28,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
+from hrtls.kernels import njit
 
 MIN_INFO_FRACTION = 1e-6
 """Smallest information fraction applied (a repeat at the same time: no update to speak of)."""
@@ -55,7 +55,7 @@ class ShadowingParams:
         finite_scalar(self.shadowing_time_s, where="shadowing_time_s", non_negative=True)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def information_fraction(dt_s: float, tau_s: float) -> float:  # pragma: no cover - compiled
     """Eq. 1: information of a reading ``dt_s`` after the previous one of its beacon.
 
@@ -106,7 +106,7 @@ class ShadowingMemory:
         return w
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def fractions_of(dt_s: FloatArray, tau_s: float) -> FloatArray:  # pragma: no cover - compiled
     """Eq. 1 for every gap of ``dt_s`` (s)."""
     out = np.empty(dt_s.shape[0])

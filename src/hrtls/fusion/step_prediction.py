@@ -43,7 +43,6 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-import numba
 import numpy as np
 
 from hrtls.data.results import Activity, StepEvents
@@ -52,6 +51,7 @@ from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
 from hrtls.fusion.gating import symmetrize_in_place, wrap_rad
 from hrtls.fusion.state import IH, N_STATE, FilterState
+from hrtls.kernels import njit
 
 HeadingMode = Literal["input", "state"]
 FIRST_STRIDE_MAX_TURN_RAD = float(np.deg2rad(10.0))
@@ -146,7 +146,7 @@ _STANDING, _UPSTAIRS, _DOWNSTAIRS = (int(Activity.STANDING), int(Activity.UPSTAI
                                      int(Activity.DOWNSTAIRS))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def predict_step(prm: np.record, x: FloatArray, p: FloatArray, input_heading_rad: float,
                  has_input_heading: bool, reference_pending: bool, length_m: float,
                  heading_rad: float, dz_m: float, activity: int, var_heading_rad2: float

@@ -30,7 +30,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -43,16 +42,17 @@ from hrtls.fusion._checks import (
     non_decreasing_time,
 )
 from hrtls.fusion.state import FilterState
+from hrtls.kernels import njit
 
 HeadingMode = Literal["input", "state"]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _wrap(a: float) -> float:  # pragma: no cover - compiled
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def velocity_kernel(t: FloatArray, speed: FloatArray, yaw: FloatArray, var_yaw: FloatArray,
                     var_speed: FloatArray, t0: float, x: FloatArray, p: FloatArray,
                     mode_state: bool, prev_yaw: float, has_prev: bool, heading_rate_var: float,

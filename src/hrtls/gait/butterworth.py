@@ -20,9 +20,10 @@ output="sos")``, whose sections pair each pole with its nearest zeros).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 
@@ -78,7 +79,7 @@ def sos_response(sos: FloatArray, frequency_hz: FloatArray,
     return h
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def sos_kernel(sos: FloatArray, x: FloatArray, zi: FloatArray,
                y: FloatArray) -> None:  # pragma: no cover
     """Filter the columns of ``x`` (N, K) into ``y``; ``zi`` (S, 2, K) is updated in place.

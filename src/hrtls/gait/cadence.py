@@ -30,12 +30,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_vector, check_positive
+from hrtls.kernels import njit
 
 IntArray = NDArray[np.int64]
 
@@ -70,7 +70,7 @@ class CadenceParams:
     run_frequency_hz: float = 2.4
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _lagged_products(y: FloatArray, lag: int, n_lags: int,
                      out: FloatArray) -> None:  # pragma: no cover - compiled
     """``out[l] = sum_k y[k] y[k - l]`` (k from l up) for ``n_lags`` (1 or 4) lags from ``lag``.
@@ -102,7 +102,7 @@ def _lagged_products(y: FloatArray, lag: int, n_lags: int,
     out[lag + 3] = s3
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def cadence_kernel(x: FloatArray, sigma: FloatArray, ipars: IntArray, fpars: FloatArray,
                    buf: FloatArray, ist: IntArray, fst: FloatArray, walk_out: IntArray,
                    freq_out: FloatArray, r_out: FloatArray,

@@ -31,10 +31,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.gait._state import FloatArray, as_matrix, as_time, as_vector, check_positive
+from hrtls.kernels import njit
 
 TWO_PI = 2.0 * np.pi
 
@@ -55,7 +55,7 @@ class FourierHeadingParams:
     tip_is_second: bool = True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def fourier_heading_kernel(t: FloatArray, a: FloatArray, ends: FloatArray, pars: FloatArray,
                            theta: FloatArray) -> None:  # pragma: no cover
     """Step directions ``theta[k]`` (NaN when undefined) for step ends ``ends[k]``, k >= 2.

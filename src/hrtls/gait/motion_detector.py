@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -24,6 +23,7 @@ from hrtls.gait._state import (
     check_positive,
     state_from_dict,
 )
+from hrtls.kernels import njit
 
 IntArray = NDArray[np.int64]
 
@@ -32,7 +32,7 @@ WALK = 1
 RUN = 2
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def running_std_kernel(t: FloatArray, x: FloatArray, window_s: float, buf_t: FloatArray,
                        buf_x: FloatArray, ints: NDArray[np.int64], sums: FloatArray,
                        mean_out: FloatArray, std_out: FloatArray) -> None:  # pragma: no cover

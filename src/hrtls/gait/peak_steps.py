@@ -27,13 +27,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
 from hrtls.gait.motion_detector import RunningStd, RunningStdState
 from hrtls.gait.pll import StepDetection
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -69,7 +69,7 @@ class PeakStepParams:
     rhythm_max_ratio: float = 1.4
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def peak_step_kernel(t: FloatArray, x: FloatArray, sigma: FloatArray, pars: FloatArray,
                      st: FloatArray, steps: FloatArray) -> int:  # pragma: no cover
     """Scan a chunk; return the number of steps written to ``steps`` (rows as StepDetection).

@@ -29,7 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
@@ -41,6 +40,7 @@ from hrtls.gait._state import (
     state_from_dict,
 )
 from hrtls.gait.motion_detector import RUN, MotionResult
+from hrtls.kernels import njit
 
 TWO_PI = 2.0 * np.pi
 
@@ -83,7 +83,7 @@ class PllParams:
         return 2.0 * self.damping * wn / (TWO_PI * kd), wn * wn / (TWO_PI * kd)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def pll_kernel(t: FloatArray, x: FloatArray, mean: FloatArray, sigma: FloatArray,
                mode: np.ndarray, pars: FloatArray, st: FloatArray, osc: FloatArray,
                freq: FloatArray, steps: FloatArray) -> int:  # pragma: no cover

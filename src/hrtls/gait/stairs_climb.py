@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from hrtls.data import Activity
@@ -48,6 +47,7 @@ from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
 from hrtls.gait.pll import StepDetection
+from hrtls.kernels import njit
 
 __all__ = ["CLIMB_STATE", "ClimbParams", "climb_heights", "climb_labels"]
 
@@ -97,7 +97,7 @@ class ClimbParams:
                                  expected="a finite number > 0")
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def climb_height_kernel(t: FloatArray, a: FloatArray, st: FloatArray, bias_s: float,
                         leak_s: float, max_gap_s: float,
                         h_out: FloatArray) -> None:  # pragma: no cover - compiled
@@ -119,7 +119,7 @@ def climb_height_kernel(t: FloatArray, a: FloatArray, st: FloatArray, bias_s: fl
         h_out[i] = st[4]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def climb_labels_kernel(t_start: FloatArray, t_end: FloatArray, dh_m: FloatArray,
                         act: FloatArray, st: FloatArray, threshold_m: float, baseline_s: float,
                         max_flight_s: float, settle_s: float, rest_s: float,

@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.frames import quat_to_matrix, wrap_angle
 from hrtls.gait._state import FloatArray
 from hrtls.gait.analyzer_state import PendingGait
+from hrtls.kernels import njit
 
 __all__ = ["HEADING_HOLD_DELAY_S", "TURNING_STEP_RAD", "StepYaw", "check_heading_choice",
            "held_heading", "level_forward_axis", "yaw_step_headings"]
@@ -27,7 +27,7 @@ TURNING_STEP_RAD = math.radians(20.0)
 """step_yaw="turns": a step turning more than this uses the time-averaged yaw"""
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def trapezoid_area_kernel(t: FloatArray, y: FloatArray,
                           area: FloatArray) -> None:  # pragma: no cover - compiled
     """``area[i]``: integral of ``y`` over ``[t[0], t[i]]`` by the trapezoid rule (one pass)."""

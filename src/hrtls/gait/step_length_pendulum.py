@@ -26,15 +26,15 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_vector, check_positive
 from hrtls.gait.pll import StepDetection
+from hrtls.kernels import njit
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def excursion_kernel(t: FloatArray, a: FloatArray, t0: FloatArray, t1: FloatArray,
                      out: FloatArray) -> None:  # pragma: no cover
     """``out[k]``: vertical excursion (m) over the samples of ``t`` in ``[t0[k], t1[k]]``.

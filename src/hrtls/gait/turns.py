@@ -30,11 +30,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_matrix, as_time, check_positive
+from hrtls.kernels import njit
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -71,7 +71,7 @@ class TurnParams:
                    max_duration_s=10.0)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def vertical_rate_kernel(t: FloatArray, q: FloatArray, prev: FloatArray,
                          out: FloatArray) -> None:  # pragma: no cover
     """``out[i]``: rate about the navigation z axis between samples i-1 and i (rad/s).
@@ -103,7 +103,7 @@ def vertical_rate_kernel(t: FloatArray, q: FloatArray, prev: FloatArray,
     prev[0], prev[1], prev[2], prev[3], prev[4] = pt, pw, px, py, pz
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def turn_kernel(t: FloatArray, w: FloatArray, pars: FloatArray, st: FloatArray,
                 turns: FloatArray) -> int:  # pragma: no cover
     """Segment turns; return the number written to ``turns`` (rows ``t_start, t_end, angle``).

@@ -27,13 +27,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_time, as_vector, check_positive
 from hrtls.gait.motion_detector import RunningStd, RunningStdState
+from hrtls.kernels import njit
 
 IntArray = NDArray[np.int64]
 
@@ -60,7 +60,7 @@ class AutomatonParams:
     m6_reset: str = "step"
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def automaton_kernel(t: FloatArray, a: FloatArray, sigma: FloatArray, pars: FloatArray,
                      st: FloatArray, v_out: FloatArray,
                      mode_out: np.ndarray) -> None:  # pragma: no cover

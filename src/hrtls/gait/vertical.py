@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
@@ -31,6 +30,7 @@ from hrtls.gait._state import (
     state_from_dict,
     state_to_dict,
 )
+from hrtls.kernels import njit
 
 UNIT_QUAT_TOL = 2e-3
 """Largest ``| |q|^2 - 1 |`` of an attitude quaternion accepted as unit."""
@@ -55,7 +55,7 @@ class LevelledAcceleration:
     frame: str
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _rotated(w: float, x: float, y: float, z: float, vx: float, vy: float,
              vz: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """``q v conj(q)`` of one unit quaternion ``[w, x, y, z]`` and vector ``v``."""
@@ -67,7 +67,7 @@ def _rotated(w: float, x: float, y: float, z: float, vx: float, vy: float,
             vz + w * tz + (x * ty - y * tx))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def rotate_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pragma: no cover
     """``out[i] = q[i] * v[i] * conj(q[i])`` for unit quaternions [w, x, y, z] (row-wise).
 
@@ -80,7 +80,7 @@ def rotate_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pra
                                                    v[j, 0], v[j, 1], v[j, 2])
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def level_kernel(q: FloatArray, acc: FloatArray, gravity_m_s2: float, vertical: FloatArray,
                  horizontal: FloatArray) -> int:  # pragma: no cover - compiled
     """:func:`from_orientation` in one pass: first row whose quaternion is not unit, or -1.
@@ -107,7 +107,7 @@ def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     return out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def heading_kernel(q: FloatArray, v: FloatArray, out: FloatArray) -> None:  # pragma: no cover
     """Unwrapped ENU heading (rad, CCW from east) of ``v`` (3,) rotated by each ``q[i]``.
 
@@ -168,7 +168,7 @@ def levelled(t: FloatArray, acc: FloatArray, q: FloatArray, *,
     return LevelledAcceleration(t, vert, horiz, "enu")
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _levelling_kernel(t: FloatArray, acc: FloatArray, cutoff_hz: float, g: FloatArray,
                       ref: FloatArray, vert: FloatArray,
                       horiz: FloatArray) -> None:  # pragma: no cover

@@ -53,12 +53,12 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.gait._state import FloatArray, as_matrix, as_time, as_vector
 from hrtls.gait.step_release import HeadingOffset
+from hrtls.kernels import njit
 
 __all__ = ["WalkingDirection", "WalkingDirectionParams", "WalkingDirectionState",
            "in_reference_frame"]
@@ -101,7 +101,7 @@ class WalkingDirectionParams:
                                  expected="a finite value >= 0 (max_step_s > 0)")
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def walking_direction_kernel(t: FloatArray, h: FloatArray, v: FloatArray, starts: FloatArray,
                              ends: FloatArray, pars: FloatArray, c: FloatArray,
                              delta: FloatArray) -> None:  # pragma: no cover

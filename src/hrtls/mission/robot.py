@@ -23,7 +23,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -31,6 +30,7 @@ from hrtls.data import Session
 from hrtls.data.landmarks import Landmark
 from hrtls.data.results import StepEvents, Trajectory
 from hrtls.errors import InputError
+from hrtls.kernels import njit
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.tracker import TrackResult
 
@@ -62,7 +62,7 @@ class RobotTrackerParams:
                 raise InputError(f"{name} = {v}", where="RobotTrackerParams", expected="> 0")
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatArray,
                  t_rng: FloatArray, lm: FloatArray, r: FloatArray, s: FloatArray,
                  frac: float, q_psi: float, gate: float
@@ -107,7 +107,7 @@ def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatAr
     return xs, ps, acc
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _range_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: float,
                   gate: float) -> bool:
     if not (math.isfinite(lm[0]) and math.isfinite(lm[1])):

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -55,6 +54,7 @@ from hrtls.fusion.rss import rss_db_correction
 from hrtls.fusion.rss_scans import scan_fix
 from hrtls.fusion.state import FilterState
 from hrtls.fusion.step_prediction import STEP_PREDICTION_DTYPE, StepPredictionParams, predict_step
+from hrtls.kernels import njit
 from hrtls.pipeline._fix_events import (
     FIX_IN_LOOP,
     FIX_IN_PYTHON,
@@ -226,7 +226,7 @@ def loop_state(state: FilterState, *, path_loss: PathLossModel, channel: Channel
     return rec, cov
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, length: float,
           heading: float, dz: float, act: int, var_h: float) -> None:  # pragma: no cover
     """One step (``predict_step``), the known start heading, the flight rule and the floor."""
@@ -263,7 +263,7 @@ def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
         floor_level_correction(x, p, h, 0.0, prm.floor_sigma_m, 0.0, False, fl[1])
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _advance(prm: np.record, s: np.record, p: FloatArray, t: float) -> None:
     # pragma: no cover - compiled
     """Bring the state to t before an observation (random walk without an IMU)."""
@@ -274,7 +274,7 @@ def _advance(prm: np.record, s: np.record, p: FloatArray, t: float) -> None:
     s.t = t
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _scan(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, rows: FloatArray,
           aux: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled
     """One RSS scan: eq. 1-2 position (``scan_fix``), then the WLS jump or the 2-D update."""
@@ -307,7 +307,7 @@ def _scan(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
     return position_update(x, p, r00, r01, r11, fix[0] - x[0], fix[1] - x[1], prm.gate_2d, aux)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _interp(xp: FloatArray, fp: FloatArray, x: float) -> float:  # pragma: no cover - compiled
     """``np.interp(x, xp, fp)`` for one point (ends held; xp increasing, non-empty)."""
     n = xp.shape[0]
@@ -327,7 +327,7 @@ def _interp(xp: FloatArray, fp: FloatArray, x: float) -> float:  # pragma: no co
     return slope * (x - xp[lo]) + fp[lo]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.ndarray,
                  state: np.ndarray, chan_cov: FloatArray, x: FloatArray, p: FloatArray,
                  t_out: FloatArray, x_out: FloatArray, cov_out: FloatArray, var_h_out: FloatArray,

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.fusion.fixes import DRIFT_MIN_PATH_M, FixParams, partial_step_xy
 from hrtls.fusion.gating import ACCEPTED, GATED, NOT_SPD, joseph_kernel, wrap_rad
+from hrtls.kernels import njit
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.step_scale import StepScaleParams
 
@@ -108,12 +108,12 @@ def fix_params(config: TrackerConfig, fix: FixParams, scale: StepScaleParams, *,
     return rec
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _slot(fp: np.record, fs: np.record, t: float) -> int:  # pragma: no cover - compiled
     return math.floor((t - fs.phase_s) / fp.period_s)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def fix_due_code(fp: np.record, fs: np.record, t: float, row: FloatArray) -> int:
     # pragma: no cover - compiled
     """What the loop does with the fix ``row`` at ``t`` (``FIX_*``), before touching the state.
@@ -141,7 +141,7 @@ def fix_due_code(fp: np.record, fs: np.record, t: float, row: FloatArray) -> int
     return FIX_IN_LOOP
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _lead(fp: np.record, fs: np.record, x: FloatArray, state_t: float, step_scale: float,
           t: float, lead: FloatArray) -> tuple[float, float]:  # pragma: no cover - compiled
     """The part of the step in progress at ``t`` (``observations._step_lead``), m."""
@@ -157,7 +157,7 @@ def _lead(fp: np.record, fs: np.record, x: FloatArray, state_t: float, step_scal
                            x[3] + wrap_rad(h_k - h_last))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def learn_scale(fp: np.record, fs: np.record, step_scale: float, prior_x: float, prior_y: float,
                 post_x: float, post_y: float) -> float:  # pragma: no cover - compiled
     """:meth:`StepScaleLearner.correct`; returns the walking scale (the running one in ``fs``)."""
@@ -201,7 +201,7 @@ def fix_state(*, phase_s: float | None, last_slot: int | None, rejections: int,
                       last_heading_rad, last_row_t, -1)], dtype=FIX_STATE_DTYPE)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def fix_event(fp: np.record, fs: np.record, s: np.record, x: FloatArray, p: FloatArray,
               t: float, row: FloatArray, lead: FloatArray, threshold: float, aux: FloatArray,
               jump: FloatArray) -> tuple[int, float]:  # pragma: no cover - compiled

@@ -37,10 +37,10 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from hrtls.frames import quat_multiply, quat_to_matrix
+from hrtls.kernels import njit
 
 FloatArray = np.ndarray
 
@@ -62,7 +62,7 @@ class CompassParams:
     field_corrected: bool = False
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _smooth_kernel(t: FloatArray, err: FloatArray, ok: FloatArray, alpha_tau: float,
                    state: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Low pass of the unit vector of ``err``; ``state = [t_prev, cos, sin, started]``."""

@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba
 import numpy as np
+
+from hrtls.kernels import njit
 
 MAX_SAMPLES = 2000
 """Samples per part."""
@@ -28,7 +29,7 @@ class ColumnError(ValueError):
     """A column that cannot be read; the message names the field."""
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _first_not_finite(a: np.ndarray, nan_ok: bool) -> int:  # pragma: no cover (compiled)
     """Index of the first infinity (or NaN unless ``nan_ok``) in a flat array, -1 if none."""
     for i in range(a.size):
@@ -38,7 +39,7 @@ def _first_not_finite(a: np.ndarray, nan_ok: bool) -> int:  # pragma: no cover (
     return -1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def first_out_of_order(t: np.ndarray, strict: bool) -> int:  # pragma: no cover (compiled)
     """Index of the first time not after (``strict``) or before its predecessor, -1 if none."""
     for i in range(1, t.size):

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from hrtls.kernels import njit
 
 if TYPE_CHECKING:
     from hrtls.sim.motion_truth import PathGeometry
@@ -14,7 +15,7 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def run_profile_kernel(seg_s0: FloatArray, seg_v: FloatArray, length: float, dt: float,
                        accel: float, decel: float, max_n: int) -> tuple[FloatArray, FloatArray]:
     """Arc length and speed of one stop-free run sampled every ``dt`` (starts and ends at rest).

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hrtls.errors import InputError
 from hrtls.frames import GRAVITY_M_S2
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -26,7 +26,7 @@ GAIT_SIGNAL_COLUMNS = ("ap_m_s2", "ml_m_s2", "vertical_m_s2", "roll_rate_rad_s",
 _MIRRORED = (1, 3, 5)  # ML acceleration, roll rate and yaw rate change sign left <-> right
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _levelled_kernel(f: FloatArray, w: FloatArray, dt: float, alpha: float, u0: FloatArray,
                      gravity: float, out: FloatArray) -> None:  # pragma: no cover
     """Gyro-propagated, accelerometer-blended up direction ``u``; signals in (x_h, y_h, u)."""

@@ -26,9 +26,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -41,7 +42,7 @@ S_OK, S_TOO_FEW, S_COLLINEAR, S_AMBIGUOUS, S_INCONSISTENT, S_UNCERTAIN = 0, 1, 2
 STATUS_NAMES = ("ok", "too-few-neighbours", "collinear", "ambiguous", "inconsistent", "uncertain")
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _centred_scatter(px: FloatArray, py: FloatArray,
                      c: int) -> tuple[float, float, float, float, float]:
     """Mean (mx, my) of the first ``c`` points and their centred scatter sums sxx, sxy, syy."""
@@ -64,7 +65,7 @@ def _centred_scatter(px: FloatArray, py: FloatArray,
     return mx, my, sxx, sxy, syy
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[float, float, float]:
     """Least-squares position from ``c`` circles; returns x, y and the max |range residual|."""
     mx, my, sxx, sxy, syy = _centred_scatter(px, py, c)
@@ -122,7 +123,7 @@ def _lls_gn(px: FloatArray, py: FloatArray, d: FloatArray, c: int) -> tuple[floa
     return x, y, worst
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
     """RMS distance of the points from their best-fit line (sqrt(small eigenvalue / c))."""
     _, _, sxx, sxy, syy = _centred_scatter(px, py, c)
@@ -132,7 +133,7 @@ def _min_spread(px: FloatArray, py: FloatArray, c: int) -> float:
     return math.sqrt(lam / c)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _farthest_pair(px: FloatArray, py: FloatArray, c: int) -> tuple[int, int]:
     """Indices of the two points farthest apart."""
     ia = 0
@@ -148,7 +149,7 @@ def _farthest_pair(px: FloatArray, py: FloatArray, c: int) -> tuple[int, int]:
     return ia, ib
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _gdop(px: FloatArray, py: FloatArray, c: int, x: float, y: float) -> float:
     """sqrt(trace((J^T J)^-1)) of range observations from the points at (x, y)."""
     a11 = 0.0
@@ -169,7 +170,7 @@ def _gdop(px: FloatArray, py: FloatArray, c: int, x: float, y: float) -> float:
     return math.sqrt((a11 + a22) / det)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _gdop2(ax: float, ay: float, bx: float, by: float, x: float, y: float) -> float:
     """GDOP of a fix from the two ranges to a and b (2 / sin^2 of the angle between them)."""
     ux = x - ax
@@ -186,7 +187,7 @@ def _gdop2(ax: float, ay: float, bx: float, by: float, x: float, y: float) -> fl
     return math.sqrt(2.0) / abs(s)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _flip_pair(
     px: FloatArray, py: FloatArray, pd: FloatArray, c: int, x: float, y: float, tol: float
 ) -> tuple[int, int]:
@@ -222,7 +223,7 @@ def _flip_pair(
     return -1, -1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _circle_candidates(
     ax: float, ay: float, ra: float, bx: float, by: float, rb: float, tol: float
 ) -> tuple[bool, float, float, float, float]:
@@ -247,7 +248,7 @@ def _circle_candidates(
     return True, mx - h * ey, my + h * ex, mx + h * ey, my - h * ex
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def propagate_kernel(
     indptr: IntArray,
     indices: IntArray,

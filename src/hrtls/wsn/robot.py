@@ -12,12 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
+from hrtls.kernels import njit
 from hrtls.wsn.ranging import AgentLeg, Landmarks, RangeScan, RangeWorld
 
 __all__ = ["RobotAgent", "RobotParams", "RobotState", "robot_leg_kernel", "robot_leg_reference"]
@@ -77,12 +77,12 @@ class RobotParams:
             raise InputError("step counts must be >= 1", where="RobotParams", expected=">= 1")
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _wrap(a: float) -> float:
     return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def robot_leg_kernel(
     true_pose: FloatArray,
     est_pose: FloatArray,
