@@ -270,7 +270,7 @@ def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weig
                 out[i, j] += weight[r] * math.log(norm * g + floor)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def bias_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
                 weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
                 model: np.record) -> None:   # pragma: no cover - compiled
