@@ -7,7 +7,12 @@ the reference systems:
 * a shift of weight while standing: one or two weak peaks (0.5-0.65 m/s^2, just above the
   absolute threshold) with no walk around them;
 * the closing movement after the last step of a walk (the trailing foot set beside the
-  other): a peak on the walking rhythm with about half the walk's peaks.
+  other): a peak on the walking rhythm with about half the walk's peaks. On the development
+  recording HA/001 (``benchmarks/closing_steps.py``) the last step the INDIP reference counts
+  peaks at 0.70-1.08 times the walk's level where the walk ends standing, the uncounted
+  closing movement after it at 0.28-0.49 (one at 0.86 that Stereophoto counts as a contact);
+  its timing (0.9-1.3 step periods), vertical and antero-posterior peak-to-peak overlap those
+  of the last steps, so the peak share is the rule's only feature.
 
 Steps are chained into walks while consecutive steps are at most ``max_gap_s`` apart. A walk
 is *confirmed* by a peak of at least ``strong_peak_m_s2`` or by ``min_walk_steps`` steps;
@@ -21,9 +26,9 @@ and kept when the next step comes later than ``max_gap_s`` but within ``closing_
 apart). With ``closing_ratio`` 0 only the first rule acts.
 
 Causal: a held step is decided by a later step, or dropped once the step detector has
-reported every step up to ``max_gap_s`` after the walk's last step; nothing later is used.
-A weak last step waits up to ``closing_pause_s``. The gait analyzer holds its steps until they are decided
-(:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at the step rate
+reported every step up to ``max_gap_s`` (a confirmed walk's weak step: ``closing_pause_s``)
+after the walk's last step; nothing later is used. The gait analyzer holds its steps until
+they are decided (:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at the step rate
 (Python); the state is the recent steps' decisions and the current walk's level.
 """
 
@@ -67,7 +72,7 @@ class WalkStepParams:
     max_gap_s: float = 2.0
     strong_peak_m_s2: float = 0.8
     min_walk_steps: int = 3
-    closing_ratio: float = 0.0
+    closing_ratio: float = 0.6
     level_steps: int = 4
     closing_pause_s: float = 3.0
 
