@@ -62,7 +62,6 @@ def _features(k: int, te: np.ndarray, peak: np.ndarray, v: np.ndarray, ap: np.nd
 def real_rows() -> list[tuple[str, str, str, dict[str, float]]]:
     """``(trial, role, kind, features)`` for the last INDIP step and the closing movement."""
     import steps_stops
-
     from hrtls.datasets import mobgap
     from hrtls.pipeline.config import preset
     from hrtls.pipeline.tracker import Tracker

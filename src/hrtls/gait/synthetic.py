@@ -334,7 +334,7 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
     end standing): the detected peak of the last step the INDIP reference counts is 0.70-1.08
     times the walk's level (median 0.85), so the end ramp ends at 60-100 %; then a closing
     movement that no reference counts as a contact, 0.28-0.49 times the level, 0.9-1.3 step
-    periods after the last step (vertical only, no step event).
+    periods after the last step (5 of 6; one 1.9), vertical only, no step event.
     """
     rng = np.random.default_rng(seed)
     person = SimPerson.random(rng)

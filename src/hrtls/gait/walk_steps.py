@@ -28,8 +28,8 @@ apart). With ``closing_ratio`` 0 only the first rule acts.
 Causal: a held step is decided by a later step, or dropped once the step detector has
 reported every step up to ``max_gap_s`` (a confirmed walk's weak step: ``closing_pause_s``)
 after the walk's last step; nothing later is used. The gait analyzer holds its steps until
-they are decided (:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at the step rate
-(Python); the state is the recent steps' decisions and the current walk's level.
+they are decided (:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at
+the step rate (Python); the state is the recent steps' decisions and the current walk's level.
 """
 
 from __future__ import annotations
