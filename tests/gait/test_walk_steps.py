@@ -90,7 +90,7 @@ def test_parameters_and_state_are_checked() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(gaps=st.lists(st.floats(0.3, 3.0), min_size=1, max_size=30),
+@given(gaps=st.lists(st.floats(0.3, 4.0), min_size=1, max_size=30),
        peaks=st.lists(st.floats(0.45, 3.0), min_size=30, max_size=30),
        cuts=st.lists(st.integers(0, 30), max_size=4),
        ratio=st.sampled_from([0.0, 0.6]))
