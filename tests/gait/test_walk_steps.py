@@ -32,19 +32,40 @@ from ._chunks import run_with_restarts
 
 
 def test_hand_made_weight_shift_walk_and_closing_step() -> None:
-    # two weak peaks while standing, a walk of six steps, a weak closing step, a lone weak
-    # peak later, and a walk of three weak steps (confirmed by its count)
+    # two weak peaks while standing, a walk of six steps, a weak closing step (1.0 against a
+    # level of 2.25: 0.44 < 0.6), a lone weak peak later, and a walk of three weak steps
+    # (confirmed by its count)
     t = np.array([1.0, 1.5, 5.0, 5.6, 6.2, 6.8, 7.4, 8.0, 8.6, 12.0, 15.0, 15.6, 16.2])
     peak = np.array([0.6, 0.7, 2.0, 2.4, 2.2, 2.5, 2.3, 2.1, 1.0, 0.6, 0.7, 0.6, 0.7])
     kept = walk_steps(t, peak)
-    np.testing.assert_array_equal(kept, [False, False] + [True] * 7 + [False] + [True] * 3)
-    closing = walk_steps(t, peak, WalkStepParams(closing_ratio=0.55))
-    np.testing.assert_array_equal(closing, [False, False] + [True] * 6 + [False] * 2
+    np.testing.assert_array_equal(kept, [False, False] + [True] * 6 + [False] * 2
                                   + [True] * 3)
+    no_closing = walk_steps(t, peak, WalkStepParams(closing_ratio=0.0))
+    np.testing.assert_array_equal(no_closing, [False, False] + [True] * 7 + [False]
+                                  + [True] * 3)
+    # a last step at 0.67 of the level (1.5 / 2.25) is a step
+    strong_last = walk_steps(t[:9], np.r_[peak[:8], 1.5])
+    np.testing.assert_array_equal(strong_last, [False, False] + [True] * 7)
     # one strong peak confirms a walk at once: nothing is held
     st_ = WalkStepState()
     add_steps(st_, WalkStepParams(), np.array([3.0]), np.array([0.9]))
     assert step_status(st_, np.array([3.0]))[0] == KEEP
+
+
+def test_weak_step_before_a_pause_is_kept_before_standing_dropped() -> None:
+    # a walk of four 2 m/s^2 steps, a weak step (0.5 of the level), then the next step
+    # 2.5 s later (a pause inside a walk: kept) or 3.5 s later (the person stood: dropped)
+    t = np.array([1.0, 1.5, 2.0, 2.5, 3.0])
+    peak = np.array([2.0, 2.0, 2.0, 2.0, 1.0])
+    for gap, weak_kept in ((2.5, True), (3.5, False)):
+        kept = walk_steps(np.r_[t, 3.0 + gap], np.r_[peak, 2.0])
+        np.testing.assert_array_equal(kept, [True] * 4 + [weak_kept, True])
+    # the decision waits for the pause: undecided 2.9 s after the weak step, dropped at 3.1 s
+    s = WalkStepState()
+    add_steps(s, WalkStepParams(), t, peak, complete_s=5.9)
+    assert step_status(s, t)[-1] == UNDECIDED
+    add_steps(s, WalkStepParams(), np.zeros(0), np.zeros(0), complete_s=6.1)
+    assert step_status(s, t)[-1] == DROP
 
 
 def test_held_steps_wait_for_the_decision() -> None:
@@ -60,7 +81,7 @@ def test_held_steps_wait_for_the_decision() -> None:
 
 def test_parameters_and_state_are_checked() -> None:
     for bad in ({"min_walk_steps": 0}, {"closing_ratio": 1.0}, {"strong_peak_m_s2": -1.0},
-                {"level_steps": 1.5}):
+                {"level_steps": 1.5}, {"closing_pause_s": 1.5}):
         with pytest.raises(InputError):
             WalkStepParams(**bad)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="one decision per step"):
@@ -69,10 +90,10 @@ def test_parameters_and_state_are_checked() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(gaps=st.lists(st.floats(0.3, 3.0), min_size=1, max_size=30),
+@given(gaps=st.lists(st.floats(0.3, 4.0), min_size=1, max_size=30),
        peaks=st.lists(st.floats(0.45, 3.0), min_size=30, max_size=30),
        cuts=st.lists(st.integers(0, 30), max_size=4),
-       ratio=st.sampled_from([0.0, 0.55]))
+       ratio=st.sampled_from([0.0, 0.6]))
 def test_batches_equal_whole_and_strong_walks_are_kept(gaps: list[float], peaks: list[float],
                                                        cuts: list[int], ratio: float) -> None:
     t = np.cumsum(gaps)

@@ -127,7 +127,8 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
              turn_rate_rad_s: float = 0.0, heading0_rad: float = 0.0,
              ramp_s: float = 1.0, seed: int = 0, stop_amplitude: float | None = None,
              turns: tuple[tuple[float, float, float], ...] = (),
-             turn_amplitude: float = 0.5) -> SimWalk:
+             turn_amplitude: float = 0.5, end_amplitude: float | None = None,
+             closing: tuple[float, float] | None = None) -> SimWalk:
     """Simulate a sequence of ``(activity, duration_s)`` segments.
 
     Parameters
@@ -143,6 +144,11 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     stop_amplitude: None: the step amplitude ignores the ramps; else the vertical and AP
         amplitude of the steps of a ramp scale from this fraction (bout start and end) to 1
         (smaller steps while starting and stopping).
+    end_amplitude: the fraction at the end of a bout (None: ``stop_amplitude``).
+    closing: ``(amplitude, delay_steps)``: after the last step of a bout followed by standing,
+        a closing movement (the trailing foot set beside the other, no step event and no
+        forward speed): one vertical cycle of ``amplitude`` times the bout's walking
+        amplitude, peaking ``delay_steps`` step periods after the last step event.
     turns: turns on the spot ``(t_start_s, duration_s, angle_rad)``: the walking direction
         turns by the angle at a constant rate, the step amplitude and speed scale by
         ``turn_amplitude`` (short, flat turning steps).
@@ -167,10 +173,14 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
             ramp = np.clip(np.minimum(t[i0:i1] - t[i0], t[i1 - 1] - t[i0:i1]) / ramp_s, 0, 1)
             g.speed[i0:i1] *= ramp
             g.ramp[i0:i1] = ramp
+            g.late[(i0 + i1) // 2:i1] = True
         i0 = i1
     turn_rate = np.where(g.act != Activity.STANDING, turn_rate_rad_s, 0.0)
     if stop_amplitude is not None:
-        g.amp_v *= stop_amplitude + (1.0 - stop_amplitude) * g.ramp
+        lo = np.full(n, stop_amplitude)
+        if end_amplitude is not None:   # the second half of each bout ramps to its end value
+            lo = np.where(g.late, end_amplitude, lo)
+        g.amp_v *= lo + (1.0 - lo) * g.ramp
     for t_turn, d_turn, angle in turns:
         inside = (t >= t_turn) & (t < t_turn + d_turn)
         turn_rate = np.where(inside, turn_rate + angle / d_turn, turn_rate)
@@ -180,12 +190,13 @@ def simulate(segments: list[tuple[int, float]], *, person: SimPerson | None = No
     kern = np.ones(max(1, round(0.5 * rate_hz)))
     speed = np.convolve(g.speed, kern / kern.size, mode="same")
     psi = heading0_rad + np.cumsum(turn_rate) * (1.0 / rate_hz)
-    acc_d, q_nd = _device_signals(g, t, speed, psi, person=p, mount=mount, rate_hz=rate_hz,
-                                  rng=rng)
     # step events: integer crossings of the phase while moving
     moving = g.act != Activity.STANDING
     cross = np.flatnonzero((np.floor(g.phase[1:]) > np.floor(g.phase[:-1])) & moving[1:]) + 1
     step_t = t[cross]
+    extra_v = None if closing is None else _closing_pulses(g, t, step_t, p, *closing)
+    acc_d, q_nd = _device_signals(g, t, speed, psi, person=p, mount=mount, rate_hz=rate_hz,
+                                  rng=rng, extra_v=extra_v)
     # length and heading of the step that *ends* at each event
     return SimWalk(t, acc_d, q_nd, mount, g.act, step_t, g.len_s[cross - 1], psi[cross],
                    g.act[cross - 1], speed, p)
@@ -204,12 +215,42 @@ class _GaitProfile:
     ap_s: FloatArray     # antero-posterior amplitude relative to walking
     speed: FloatArray    # forward speed, m/s
     ramp: FloatArray     # speed ramp of the bout (1 outside the ramps)
+    late: np.ndarray     # in the second half of a bout (its end ramp)
 
     @classmethod
     def zeros(cls, n: int) -> _GaitProfile:
         """A profile of ``n`` samples (activity unset, ramp 1)."""
         return cls(np.empty(n, dtype=np.int64), np.zeros(n), np.zeros(n), np.zeros(n),
-                   np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n), np.ones(n))
+                   np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n), np.ones(n),
+                   np.zeros(n, dtype=bool))
+
+
+def _closing_pulses(g: _GaitProfile, t: FloatArray, step_t: FloatArray, person: SimPerson,
+                    amplitude: float, delay_steps: float) -> FloatArray:
+    """Vertical acceleration of the closing movement after each bout that ends standing.
+
+    One cycle ``a cos(2 pi (t - t_c) / T)`` under a Hann window of half-width ``T`` (the
+    walking step period); ``a`` is the amplitude times the bout's median vertical peak over
+    1-3.5 s before its last step (before the end ramp's last second).
+    """
+    out = np.zeros_like(t)
+    period = 1.0 / person.walk_hz
+    phi = np.linspace(0.0, 2.0 * np.pi, 256, endpoint=False)
+    crest = float(np.max(np.cos(phi) + person.h2 * np.cos(2 * phi + person.p2)
+                         + person.h3 * np.cos(3 * phi + person.p3)))
+    moving = g.act != Activity.STANDING
+    ends = np.flatnonzero(moving[:-1] & ~moving[1:])
+    for i_end in ends:
+        last = step_t[step_t <= t[i_end]]
+        if last.size == 0:
+            continue
+        t_c = last[-1] + delay_steps * period
+        i0, i1 = np.searchsorted(t, [last[-1] - 3.5, last[-1] - 1.0])
+        amp = amplitude * crest * float(np.median(g.amp_v[i0:i1 + 1]))
+        u = (t - t_c) / period
+        win = np.where(np.abs(u) < 1.0, 0.5 * (1.0 + np.cos(np.pi * u)), 0.0)
+        out += amp * win * np.cos(2.0 * np.pi * u)
+    return out
 
 
 def _bout_steps(g: _GaitProfile, a: int, i0: int, i1: int, *, cyc: float, person: SimPerson,
@@ -250,12 +291,13 @@ def _bout_steps(g: _GaitProfile, a: int, i0: int, i1: int, *, cyc: float, person
 
 def _device_signals(g: _GaitProfile, t: FloatArray, speed: FloatArray, psi: FloatArray, *,
                     person: SimPerson, mount: FloatArray, rate_hz: float,
-                    rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+                    rng: np.random.Generator, extra_v: FloatArray | None = None
+                    ) -> tuple[FloatArray, FloatArray]:
     """Device-frame specific force (with noise) and attitude ``q_nd`` of the profile.
 
     ``speed`` is the smoothed forward speed (its derivative is the forward acceleration),
     ``psi`` the walking direction; the trunk adds a yaw oscillation at stride frequency and a
-    pitch oscillation at step frequency while moving.
+    pitch oscillation at step frequency while moving; ``extra_v`` is added to the vertical.
     """
     p = person
     n = t.shape[0]
@@ -267,7 +309,7 @@ def _device_signals(g: _GaitProfile, t: FloatArray, speed: FloatArray, psi: Floa
     a_ap = p.ap_ratio * g.ap_s * g.amp_v * np.cos(phi - 1.4 * np.pi)
     a_ml = g.amp_ml * np.sin(0.5 * phi + 0.3)
     sway = 0.05 * np.sin(2 * np.pi * 0.3 * t + rng.uniform(0, 6))
-    a_v = np.where(moving, a_v, sway)
+    a_v = np.where(moving, a_v, sway) + (0.0 if extra_v is None else extra_v)
     a_ap = np.where(moving, a_ap, 0.5 * sway) + a_mean
     a_ml = np.where(moving, a_ml, 0.5 * sway)
     trunk = np.where(moving, np.deg2rad(3.0) * np.sin(0.5 * phi), 0.0)
@@ -286,9 +328,13 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
     """Stand, walk about 10 m, turn on the spot (U-turn), walk back, stop and stand.
 
     A random person and mounting; 2-4 s standing at each end, 5.5-8 s each way, a 1.5-2.5 s
-    turn of +-180 deg. The steps of the start and stop ramps shrink to 10-40 % of the walking
-    amplitude, the turning steps to 25-50 % (lower-back recordings: the last peak of a walk
-    can be a quarter of the others, e.g. mobgap MS/001 Test5).
+    turn of +-180 deg. The steps of the start ramp shrink to 10-40 % of the walking amplitude,
+    the turning steps to 25-50 %. The stop is drawn from the development recording mobgap
+    HA/001 (lower back, ``benchmarks/closing_steps.py``; its walk ends in Test5 and Test11 that
+    end standing): the detected peak of the last step the INDIP reference counts is 0.70-1.08
+    times the walk's level (median 0.85), so the end ramp ends at 60-100 %; then a closing
+    movement that no reference counts as a contact, 0.28-0.49 times the level, 0.9-1.3 step
+    periods after the last step (5 of 6; one 1.9), vertical only, no step event.
     """
     rng = np.random.default_rng(seed)
     person = SimPerson.random(rng)
@@ -299,4 +345,5 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
     return simulate(segs, person=person, rate_hz=rate_hz, q_bd=random_mounting(rng),
                     seed=seed, stop_amplitude=rng.uniform(0.1, 0.4),
                     turns=((st0 + w1, turn, np.pi * rng.choice([-1.0, 1.0])),),
-                    turn_amplitude=rng.uniform(0.25, 0.5))
+                    turn_amplitude=rng.uniform(0.25, 0.5), end_amplitude=rng.uniform(0.6, 1.0),
+                    closing=(rng.uniform(0.28, 0.49), rng.uniform(0.9, 1.3)))

@@ -7,7 +7,12 @@ the reference systems:
 * a shift of weight while standing: one or two weak peaks (0.5-0.65 m/s^2, just above the
   absolute threshold) with no walk around them;
 * the closing movement after the last step of a walk (the trailing foot set beside the
-  other): a peak on the walking rhythm with about half the walk's peaks.
+  other): a peak on the walking rhythm with about half the walk's peaks. On the development
+  recording HA/001 (``benchmarks/closing_steps.py``) the last step the INDIP reference counts
+  peaks at 0.70-1.08 times the walk's level where the walk ends standing, the uncounted
+  closing movement after it at 0.28-0.49 (one at 0.86 that Stereophoto counts as a contact);
+  its timing (0.9-1.3 step periods), vertical and antero-posterior peak-to-peak overlap those
+  of the last steps, so the peak share is the rule's only feature.
 
 Steps are chained into walks while consecutive steps are at most ``max_gap_s`` apart. A walk
 is *confirmed* by a peak of at least ``strong_peak_m_s2`` or by ``min_walk_steps`` steps;
@@ -15,14 +20,16 @@ the steps of an unconfirmed walk are held and dropped when the walk ends unconfi
 confirmed walk a step whose peak is under ``closing_ratio`` times the walk's level (median
 peak of its last ``level_steps`` kept steps) is held until a step at or above that share
 follows within ``max_gap_s`` (then all held steps are released: slow or turning steps inside
-a walk) and dropped when the walk ends first. With ``closing_ratio`` 0 only the first rule
-acts.
+a walk). It is dropped when no step follows within ``closing_pause_s`` (the person stands)
+and kept when the next step comes later than ``max_gap_s`` but within ``closing_pause_s``
+(a pause inside a walk: the Mobilise-D walking-bout definition merges strides up to 3 s
+apart). With ``closing_ratio`` 0 only the first rule acts.
 
 Causal: a held step is decided by a later step, or dropped once the step detector has
-reported every step up to ``max_gap_s`` after the walk's last step; nothing later is used.
-The gait analyzer holds its steps until they are decided
-(:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at the step rate
-(Python); the state is the recent steps' decisions and the current walk's level.
+reported every step up to ``max_gap_s`` (a confirmed walk's weak step: ``closing_pause_s``)
+after the walk's last step; nothing later is used. The gait analyzer holds its steps until
+they are decided (:func:`hrtls.gait.step_release.release_steps`). The per-step logic runs at
+the step rate (Python); the state is the recent steps' decisions and the current walk's level.
 """
 
 from __future__ import annotations
@@ -58,13 +65,16 @@ class WalkStepParams:
     closing_ratio: a confirmed walk's step with a peak under this share of the walk's level is
         held until a stronger step follows (0 disables).
     level_steps: the walk's level is the median peak of this many last kept steps.
+    closing_pause_s: a held weak step of a confirmed walk is dropped when no step follows
+        within this time, s (at least ``max_gap_s``).
     """
 
     max_gap_s: float = 2.0
     strong_peak_m_s2: float = 0.8
     min_walk_steps: int = 3
-    closing_ratio: float = 0.0
+    closing_ratio: float = 0.6
     level_steps: int = 4
+    closing_pause_s: float = 3.0
 
     def __post_init__(self) -> None:
         """Validate."""
@@ -78,6 +88,9 @@ class WalkStepParams:
         if not (math.isfinite(self.closing_ratio) and 0.0 <= self.closing_ratio < 1.0):
             raise InputError(f"closing_ratio = {self.closing_ratio}", where="WalkStepParams",
                              expected="0 <= closing_ratio < 1")
+        if not (math.isfinite(self.closing_pause_s) and self.closing_pause_s >= self.max_gap_s):
+            raise InputError(f"closing_pause_s = {self.closing_pause_s}", where="WalkStepParams",
+                             expected="a finite value >= max_gap_s")
 
 
 @dataclass
@@ -139,9 +152,10 @@ def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
     starts = chain_starts(t_new, max_gap_s=p.max_gap_s, t_before_s=s.t_last).tolist()
     for te, peak, start in zip(t_new.tolist(), np.asarray(acc_max_m_s2)[new].tolist(), starts,
                                strict=True):
-        if start:   # a new walk: the held steps end their walk
+        if start:   # a new walk: the held steps of a confirmed walk stay after a short pause
+            dec = KEEP if s.confirmed and te - s.t_last <= p.closing_pause_s else DROP
             for i in held:
-                status[i] = DROP
+                status[i] = dec
             held, level, s.n_steps, s.confirmed = [], [], 0, False
         s.t_last = te
         s.n_steps += 1
@@ -162,7 +176,8 @@ def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
             for i in held:
                 status[i] = KEEP
             held = []
-    if complete_s > s.t_last + p.max_gap_s:   # no later step can join the walk
+    wait_s = p.closing_pause_s if s.confirmed else p.max_gap_s
+    if complete_s > s.t_last + wait_s:   # no later step can join the walk or keep its steps
         for i in held:
             status[i] = DROP
     s.t = np.asarray(times, dtype=np.float64)

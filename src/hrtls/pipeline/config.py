@@ -176,8 +176,9 @@ class GaitConfig(_Section):
     """insert one step in a gap of 1.6-2.4 local step periods (:mod:`hrtls.gait.missed_steps`)"""
     drop_weak_walks: bool = True
     """with the peak detector: drop the steps of walks of fewer than 3 steps without a peak of
-    0.8 m/s^2 (a shift of weight while standing; :mod:`hrtls.gait.walk_steps`); such steps
-    wait up to about 4 s for the decision"""
+    0.8 m/s^2 (a shift of weight while standing) and a walk's last step under 0.6 of its
+    peaks when 3 s of standing follow (the closing movement; :mod:`hrtls.gait.walk_steps`);
+    such steps wait up to about 4 s for the decision"""
     climb_stairs: bool = True
     """with activity = "motion": label walking steps whose vertical climb is a stair's
     upstairs / downstairs (:mod:`hrtls.gait.stairs_climb`), when the device's placement is one
