@@ -38,10 +38,11 @@ def _range_set(rows: list[tuple[int, float, str, float]]) -> RangeSet:
 
 def _dead_reckoned(truth: np.ndarray, *, scale: float = 1.0, drift_rad: float = 0.0
                    ) -> np.ndarray:
-    """The true increments scaled by ``scale`` and rotated by ``drift_rad`` per metre walked."""
+    """The true increments scaled by ``scale`` and rotated by ``drift_rad`` more every 10 m
+    walked (the smoother's default segment)."""
     d = np.diff(truth, axis=0)
     walked = np.concatenate([[0.0], np.cumsum(np.hypot(d[:, 0], d[:, 1]))])[:-1]
-    a = drift_rad * walked
+    a = drift_rad * np.floor(walked / 10.0 + 1e-9)
     rd = scale * np.column_stack([np.cos(a) * d[:, 0] - np.sin(a) * d[:, 1],
                                   np.sin(a) * d[:, 0] + np.cos(a) * d[:, 1]])
     return np.vstack([truth[:1], truth[:1] + np.cumsum(rd, axis=0)])
@@ -71,16 +72,14 @@ def test_a_step_length_scale_error_is_recovered_with_the_nodes() -> None:
 def test_a_heading_drift_is_recovered_with_the_nodes() -> None:
     t = np.arange(0.0, 40.0, 1.0)
     truth = _walk(t)
-    f = _dead_reckoned(truth, drift_rad=0.005)     # 0.2 rad after 40 m
-    before = max(np.linalg.norm(np.asarray(_dead_reckoned(truth, drift_rad=0.005)[-1]
-                                           - truth[-1])), 1.0)
+    f = _dead_reckoned(truth, drift_rad=0.05)      # 0.05 rad more every 10 m
+    before = float(np.linalg.norm(f[-1] - truth[-1]))
+    assert before > 2.0
     sol = _solve_one(f, t, truth)
-    # a segment's rotation: the drift where it starts (the start's heading prior holds the first)
-    walked = np.arange(sol.heading_rad["R1"].size) * 10.0
-    assert np.allclose(sol.heading_rad["R1"], -0.005 * walked, atol=0.02)
-    for n, p in NODES.items():     # the rotation is constant per segment: within 0.5 m
-        assert np.linalg.norm(sol.nodes[n][0] - p) < 0.5, n
-    assert np.linalg.norm(sol.paths["R1"][1][-1] - truth[-1]) < 0.2 * before
+    assert np.allclose(sol.heading_rad["R1"], -0.05 * np.arange(4), atol=0.01)
+    for n, p in NODES.items():
+        assert np.linalg.norm(sol.nodes[n][0] - p) < 0.1, n
+    assert np.linalg.norm(sol.paths["R1"][1][-1] - truth[-1]) < 0.1
 
 
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -103,7 +102,7 @@ def test_permuting_nodes_and_agents_gives_the_same_solution_and_exact_data_exact
             continue
         assert np.allclose(one.nodes[n][0], two.nodes[n][0], atol=1e-6)
         assert np.allclose(one.nodes[n][1], two.nodes[n][1], rtol=1e-5, atol=1e-9)
-        assert np.linalg.norm(one.nodes[n][0] - p) < 1e-3
+        assert np.linalg.norm(one.nodes[n][0] - p) < 0.01     # exact up to convergence
     assert sum(v[2] for v in one.nodes.values()) >= 2
 
 

@@ -34,7 +34,8 @@ class SmootherState:
     """What the loop keeps for the smoother (all plain arrays / lists: snapshot-ready).
 
     ``rows``: per agent its kept rows (t, x, y); ``start_cov``: its first row's covariance;
-    ``pulled``: time of its last kept row; ``ranges``: agent index, t, node, range, sigma;
+    ``pulled``: time of its last final row; ``tail``: its latest row (t, x, y, covariance),
+    which may still change; ``ranges``: agent index, t, node, range, sigma;
     ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
     ``warm``: the last solution (warm start).
     """
@@ -42,6 +43,7 @@ class SmootherState:
     rows: dict[str, list[list[float]]] = field(default_factory=dict)
     start_cov: dict[str, FloatArray] = field(default_factory=dict)
     pulled: dict[str, float] = field(default_factory=dict)
+    tail: dict[str, list[float]] = field(default_factory=dict)
     ranges: list[list[Any]] = field(default_factory=list)
     last_solve_s: float = -math.inf
     owned: set[str] = field(default_factory=set)
@@ -58,14 +60,21 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
     name = mt.names[i]
     if name in mt.started:
         est = mt.trackers[name].estimates_since(st.pulled.get(name, -math.inf))
+        new = [[float(est.t[k]), float(est.xyz[k, 0]), float(est.xyz[k, 1]),
+                *np.asarray(est.cov_xy[k], np.float64).reshape(-1).tolist()]
+               for k in range(len(est))]
+        tail = st.tail.get(name)
+        if tail is not None and (not new or new[0][0] > tail[0]):
+            new.insert(0, tail)               # a restored tracker does not repeat it
         rows = st.rows.setdefault(name, [])
-        for k in range(len(est) - 1):         # the last row may still change
-            t = float(est.t[k])
+        for row in new[:-1]:                  # the last row may still change: the tail
             if not rows:
-                st.start_cov[name] = np.asarray(est.cov_xy[k], np.float64).copy()
-            if not rows or t >= rows[-1][0] + prm.decimate_s:
-                rows.append([t, float(est.xyz[k, 0]), float(est.xyz[k, 1])])
-            st.pulled[name] = t
+                st.start_cov[name] = np.asarray(row[3:7], np.float64).reshape(2, 2)
+            if not rows or row[0] >= rows[-1][0] + prm.decimate_s:
+                rows.append(row[:3])
+            st.pulled[name] = row[0]
+        if new:
+            st.tail[name] = new[-1]
     if ranges is None or not len(ranges.t):
         return
     m = ~np.isin(ranges.node, mt.known[i])
@@ -143,7 +152,7 @@ def state_of(st: SmootherState | None) -> dict[str, Any] | None:
         "corrections": {k: list(v) for k, v in w.corrections.items()},
         "scale": w.scale, "heading": w.heading_rad, "height": w.height_m, "rms": w.rms,
         "evaluations": w.evaluations}
-    return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled,
+    return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
             "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
             "warm": warm, "seconds": st.seconds}
 
@@ -162,6 +171,7 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
     return SmootherState(
         rows={k: [list(r) for r in v] for k, v in d["rows"].items()},
         start_cov=dict(d["start_cov"]), pulled=dict(d["pulled"]),
+        tail={k: list(v) for k, v in d["tail"].items()},
         ranges=[[int(p[0]), p[1], np.asarray(p[2]).astype(str), p[3], p[4]]
                 for p in d["ranges"]],
         last_solve_s=float(d["last"]), owned=set(d["owned"]), warm=warm,
