@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csc_matrix, csr_matrix, diags, identity
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import SuperLU, splu
 
 from hrtls.errors import InputError
 
@@ -458,7 +458,7 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
         step = None
         while evaluations < prob.prm.max_evaluations and lam < 1e8:
             damped = csc_matrix(hess + diags(lam * (hess.diagonal() + 1e-9)))
-            cand = x - splu(damped).solve(grad)
+            cand = x - _factor(damped).solve(grad)
             c = _cost(prob, cand)
             evaluations += 1
             if c < cost:
@@ -468,6 +468,16 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
         if step is None or float(np.max(np.abs(step))) < 1e-4:
             break
     return x, evaluations
+
+
+def _factor(m: csc_matrix) -> SuperLU:
+    """LU of a symmetric positive definite matrix.
+
+    Minimum degree ordering on ``A + A^T`` and no pivoting off the diagonal: far less fill-in
+    than the default column ordering.
+    """
+    return splu(m, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True})
 
 
 def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
@@ -488,7 +498,7 @@ def _node_covariances(info: csc_matrix, prob: _Problem, inflation: float) -> lis
     if k == 0:
         return []
     try:
-        lu = splu(info + 1e-9 * identity(info.shape[0], format="csc"))
+        lu = _factor(csc_matrix(info + 1e-9 * identity(info.shape[0], format="csc")))
         rhs = np.zeros((info.shape[0], 2 * k))
         rhs[prob.node_col + np.arange(2 * k), np.arange(2 * k)] = 1.0
         sol = lu.solve(rhs)
