@@ -92,7 +92,7 @@ class SmootherParams:
     loss: str = "soft_l1"
     loss_scale: float = 2.0
     min_ranges: int = 6
-    min_spread_m: float = 0.5
+    min_spread_m: float = 2.0
     max_sigma_m: float = 3.0
     max_evaluations: int = 60
     every_s: float = 30.0
