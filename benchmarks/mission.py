@@ -15,6 +15,9 @@ only) and prints, over the seeds, mean / p90 / worst of:
   collection, ``_collect``: flat when the per-agent cost does not grow with the mission's length)
   and the node re-estimation (grows with the readings of the nodes in range).
 
+``--smoother``: both columns with the range-SLAM smoother (``MissionParams.smoother``, its
+default parameters; the cost table then gives its time per solve).
+
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
@@ -46,6 +49,7 @@ from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options
 from _mission_why import why_not_localized, why_table
+from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
 from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
@@ -114,6 +118,8 @@ class SeedItem:
     """``PeerRangeParams.extrapolate``: peers carried to a range's time with their velocity."""
     only_on: bool = False
     """Cooperation on only (the ``off`` column skipped)."""
+    smoother: SmootherParams | None = None
+    """``MissionParams.smoother`` (None: the per-node estimator alone)."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -139,6 +145,7 @@ class ModeScores:
     nodes_ms: tuple[float, float]
     why: dict[str, int]
     """Nodes per class of ``_mission_why`` (why not localized)."""
+    solve_s: tuple[float, float] = (float("nan"), float("nan"))
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -175,6 +182,12 @@ def _run_timed(tracker: MissionTracker
     return tracker.result(), windows, spent["agents"][:-1], spent["nodes"][:-1]
 
 
+def _solves(tracker: MissionTracker) -> tuple[float, float]:
+    """The smoother's solves: mean and largest time per solve, s (NaN without it)."""
+    sec = [] if tracker.smoother is None else tracker.smoother.seconds
+    return (float(np.mean(sec)), float(np.max(sec))) if sec else (float("nan"), float("nan"))
+
+
 def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
     """Node RMSE from the same readings placed at the agents' true positions (zero covariance)."""
     est = NodeEstimator(tracker.params.nodes)
@@ -206,7 +219,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
             cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
-            peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate)),
+            peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
+            smoother=item.smoother),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
@@ -218,7 +232,7 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
                                true_agent_rmse(mission, tracker), _quarters(windows),
                                _quarters(agents_s), _quarters(nodes_s),
-                               why_not_localized(mission, tracker, res))
+                               why_not_localized(mission, tracker, res), _solves(tracker))
     return out
 
 
@@ -256,6 +270,8 @@ def main() -> None:
                     help="also print why the nodes were not localized (benchmarks/_mission_why)")
     ap.add_argument("--only-on", action="store_true",
                     help="cooperation on only (the off column skipped: half the time)")
+    ap.add_argument("--smoother", action="store_true",
+                    help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -267,7 +283,7 @@ def main() -> None:
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
-            "n1": []}
+            "n1": [], "s0": [], "s1": []}
         for m in modes(args.peer_ranges, args.only_on)}
     nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
@@ -279,7 +295,7 @@ def main() -> None:
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
-                      args.only_on)
+                      args.only_on, SmootherParams() if args.smoother else None)
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
@@ -299,6 +315,8 @@ def main() -> None:
             r["a1"].append(m.agent_ms[1])
             r["n0"].append(m.nodes_ms[0])
             r["n1"].append(m.nodes_ms[1])
+            r["s0"].append(m.solve_s[0])
+            r["s1"].append(m.solve_s[1])
             nees_all[mode].extend(m.node_nees)
             why[mode].append(m.why)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
@@ -329,13 +347,15 @@ def main() -> None:
               f"| {_stats(r['anees'])} | {_stats(r['frac'])} | {_stats(r['rmse'])} | {nees} "
               f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} |")
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
-    print("| cooperation | window | agents (trackers + collection) | node re-estimation |")
-    print("|---|---|---|---|")
+    print("| cooperation | window | agents (trackers + collection) | node re-estimation "
+          "| smoother solve, s (mean / largest) |")
+    print("|---|---|---|---|---|")
     for mode in modes(args.peer_ranges, args.only_on):
         r = rows[mode]
         print(f"| {mode} | {np.mean(r['w0']):.1f} / {np.mean(r['w1']):.1f} "
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
-              f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} |")
+              f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} "
+              f"| {np.mean(r['s0']):.1f} / {np.max(r['s1']):.1f} |")
     if args.why:
         print(f"\nnodes by class at the end, summed over seeds ({args.rescuer_driver} driver; "
               "benchmarks/_mission_why.py):\n")

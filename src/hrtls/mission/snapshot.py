@@ -31,6 +31,8 @@ from hrtls.data.observations import (
 from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
+from hrtls.mission import smoothing
+from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
 from hrtls.mission.readings import NodeReadings
 from hrtls.mission.robot import RobotTracker
@@ -202,6 +204,7 @@ def mission_snapshot(mt: Any) -> bytes:
         "last_t": dict(mt.rows_pulled_s),
         "rows": {k: [list(r) for r in rows] for k, rows in mt.recent_rows.items()},
         "nodes": _nodes_state(mt),
+        "smoother": smoothing.state_of(mt.smoother),
     }
     return codec.pack(state)
 
@@ -222,6 +225,8 @@ def restore_mission(data: bytes) -> Any:
         prm = dict(d["params"])
         prm["nodes"] = NodeEstimatorParams(**prm["nodes"])
         prm["peer_ranges"] = PeerRangeParams(**prm.get("peer_ranges", {}))
+        if prm.get("smoother") is not None:
+            prm["smoother"] = SmootherParams(**prm["smoother"])
         config = None if d["config"] is None else TrackerConfig.model_validate(d["config"])
         headers = {k: AgentHeader(SessionMeta.model_validate(m),
                                   {i: Landmark.model_validate(v) for i, v in lms.items()})
@@ -246,6 +251,7 @@ def restore_mission(data: bytes) -> Any:
         mt.rows_pulled_s = dict(d["last_t"])
         mt.recent_rows = {k: [tuple(r) for r in rows] for k, rows in d["rows"].items()}
         _restore_nodes(mt, d["nodes"])
+        mt.smoother = smoothing.state_from(d.get("smoother"))
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(f"incomplete mission snapshot ({exc!r})", where="mission snapshot",
                           expected="bytes from MissionTracker.snapshot()") from None

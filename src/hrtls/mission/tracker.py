@@ -52,7 +52,9 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
+from hrtls.mission import smoothing
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
+from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
@@ -89,6 +91,9 @@ class MissionParams:
         Node estimator parameters.
     peer_ranges:
         How a peer's estimate is carried to the time of an inter-agent range.
+    smoother:
+        The range-SLAM smoother of agents' paths and nodes (:mod:`hrtls.mission.smoothing`);
+        None: the per-node estimator alone.
     """
 
     chunk_s: float = 5.0
@@ -99,6 +104,7 @@ class MissionParams:
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
+    smoother: SmootherParams | None = None
 
     def __post_init__(self) -> None:
         for name in ("chunk_s", "pass_gap_s", "silent_after_s"):
@@ -242,6 +248,7 @@ class MissionTracker:
         self.contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
         self.peers = PeerUses()
+        self.smoother = smoothing.SmootherState() if self.params.smoother else None
         for k, a in agents.items():
             if isinstance(a, Session):
                 self.feed(k, a, now_s=now_s)
@@ -406,10 +413,12 @@ class MissionTracker:
             rest, peer = split_peer_ranges(self, i, part.ranges)
             use, keep = self._split_ranges(i, rest)
             self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
+            smoothing.collect(self, i, rest)
             if keep is not None or self.pending[name] is not None:
                 touched |= self._collect(i, name, keep, self.agent_rows(name))
             self._trim_rows(name, t_end)
         changed = self._relocalize(touched, t_end)
+        changed += [n for n in smoothing.solve(self, t_end) if n not in changed]
         if self.params.cooperate:
             self._share(changed, t_end)
 
@@ -423,11 +432,12 @@ class MissionTracker:
             if self.pending[name] is not None and name in self.started:
                 touched |= self._collect(i, name, None, self.agent_rows(name), final=True)
         self._relocalize(touched, self.horizon_s, every=True)
+        smoothing.solve(self, self.horizon_s, final=True)
 
     def _relocalize(self, touched: set[str], t_end: float, *, every: bool = False) -> list[str]:
         """Estimate again the touched nodes whose readings grew enough (``every``: any growth)."""
         changed: list[str] = []
-        for node in sorted(touched):
+        for node in sorted(touched - (self.smoother.owned if self.smoother else set())):
             n_now = len(self.readings[node].r)
             n_then = self.estimated_at.get(node, 0)
             grown = n_now > n_then if every else \

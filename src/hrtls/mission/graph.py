@@ -1,0 +1,524 @@
+"""Mission-level range SLAM: the agents' paths and the dropped nodes solved jointly.
+
+:class:`hrtls.mission.nodes.NodeEstimator` localizes each node alone from the agents' filtered
+estimates, so it cannot remove an error the agents share (a walker's step-length scale and heading
+drift persist over the whole walk; only the tags at the entrance anchor the frame). This module
+solves one nonlinear least-squares problem over every agent's decimated path and every node
+(range-only SLAM on a pose chain).
+
+Path model. Agent ``a``'s causal estimate rows, taken every ``decimate_s`` (``f_k`` at ``t_k``),
+give increments ``d_k = f_{k+1} - f_k``. The poses ``x_k`` are unknowns tied by
+
+    x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, q_k^2 I)
+
+``P_0`` the agent's covariance at its first row (the start at the entrance), ``j`` the segment
+(``segment_m`` walked) of increment ``k``, ``q_k^2 = odo_sigma_m^2 + (odo_fraction |d_k|)^2``; a
+segment's step-length scale correction ``s_j`` and rotation ``phi_j`` are random walks over the
+segments (``s_0 ~ N(0, scale_sigma^2)``, ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise
+``heading_sigma_rad`` / ``heading_walk_rad``): the persistent part of the dead-reckoning error.
+An agent's position at a range's time is interpolated between its poses.
+
+Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
+``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
+and the nodes (estimated, prior ``N(0, height_sigma_m^2)``), ``e`` the range noise (its sigma as
+received); walls lengthen ranges (NLOS), so the range residuals go through a robust loss
+(``loss``, scale ``loss_scale`` in sigmas).
+
+Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (every pose and
+correction marginalized; ``W`` the robust loss's weights there), times the mean square whitened
+residual of the inlier ranges when above one. A node is solved with at least ``min_ranges``
+ranges whose positions spread ``min_spread_m`` off a line, and counts as localized with a sigma
+below ``max_sigma_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csc_matrix, csr_matrix, diags, identity
+from scipy.sparse.linalg import SuperLU, splu
+
+from hrtls.errors import InputError
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SmootherParams:
+    """Parameters of :func:`smooth` (see module doc).
+
+    Attributes
+    ----------
+    decimate_s:
+        Spacing of the agents' rows kept as poses, s.
+    segment_m:
+        Distance walked (along the agent's rows) of a scale / heading correction segment, m.
+    odo_sigma_m, odo_fraction:
+        Noise of one increment between poses: a floor (m) and a part of its length.
+    scale_sigma, scale_walk_sigma:
+        Prior 1-sigma of the first segment's scale correction and of its change per segment.
+    heading_sigma_rad, heading_walk_rad:
+        Prior 1-sigma of the first segment's rotation and of its change per segment, rad.
+    height_sigma_m:
+        Prior 1-sigma of the antenna-node height difference, m.
+    loss, loss_scale:
+        Robust loss of the range residuals (``rho`` as in ``scipy.optimize.least_squares``) and
+        its scale in whitened units.
+    min_ranges:
+        Fewest ranges of a node in the problem.
+    min_spread_m:
+        RMS distance of a node's reading positions from their best-fit line, at least, m.
+    max_sigma_m:
+        Largest 1-sigma (worst axis) of a localized node, m.
+    max_evaluations:
+        Cost evaluations per solve at most.
+    every_s:
+        In the mission loop: solve again after this much mission time, s.
+    """
+
+    decimate_s: float = 1.0
+    segment_m: float = 10.0
+    odo_sigma_m: float = 0.05
+    odo_fraction: float = 0.05
+    scale_sigma: float = 0.08
+    scale_walk_sigma: float = 0.02
+    heading_sigma_rad: float = 0.02
+    heading_walk_rad: float = 0.1
+    height_sigma_m: float = 2.0
+    loss: str = "soft_l1"
+    loss_scale: float = 2.0
+    min_ranges: int = 6
+    min_spread_m: float = 2.0
+    max_sigma_m: float = 3.0
+    max_evaluations: int = 60
+    every_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
+                     "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
+                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
+        if not (math.isfinite(self.odo_fraction) and self.odo_fraction >= 0):
+            raise InputError(f"odo_fraction = {self.odo_fraction}", where="SmootherParams",
+                             expected=">= 0")
+        if self.min_ranges < 3 or self.max_evaluations < 1:
+            raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
+                             f"{self.max_evaluations}", where="SmootherParams",
+                             expected="min_ranges >= 3, max_evaluations >= 1")
+        if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
+            raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
+                             expected="linear, soft_l1, huber or cauchy")
+
+
+@dataclass(frozen=True, eq=False)
+class AgentPath:
+    """One agent's causal estimate rows: name, time (s), xy (m), first row's covariance (m^2)."""
+
+    name: str
+    t: FloatArray
+    xy_m: FloatArray
+    start_cov_m2: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class RangeSet:
+    """Ranges to the nodes: agent index, time (s), node id, range (m), 1-sigma (m)."""
+
+    agent: IntArray
+    t: FloatArray
+    node: NDArray[np.str_]
+    range_m: FloatArray
+    sigma_m: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class SmootherResult:
+    """Result of :func:`smooth`.
+
+    ``nodes``: id -> (position (2,), covariance (2, 2), localized); per agent name: ``paths``
+    its pose times and corrected poses, ``corrections`` its poses minus its rows there (warm
+    start of the next solve), ``scale`` / ``heading_rad`` its segment corrections;
+    ``height_m``: the estimated height difference; ``rms``: RMS whitened inlier range residual;
+    ``evaluations``: cost evaluations of the solve.
+    """
+
+    nodes: dict[str, tuple[FloatArray, FloatArray, bool]]
+    paths: dict[str, tuple[FloatArray, FloatArray]]
+    corrections: dict[str, tuple[FloatArray, FloatArray]]
+    scale: dict[str, FloatArray]
+    heading_rad: dict[str, FloatArray]
+    height_m: float
+    rms: float
+    evaluations: int
+
+
+def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray]:
+    t0, t1 = float(path.t[0]), float(path.t[-1])
+    tq = np.arange(t0, t1, step_s)
+    if tq.size == 0 or tq[-1] < t1:
+        tq = np.append(tq, t1)
+    xy = np.column_stack([np.interp(tq, path.t, path.xy_m[:, 0]),
+                          np.interp(tq, path.t, path.xy_m[:, 1])])
+    return tq, xy
+
+
+class _Problem:
+    """Unknowns, residuals and Jacobian of one solve.
+
+    Columns: per agent its poses, then its segments' scales and rotations; the nodes; the
+    height last.
+    """
+
+    def __init__(self, paths: list[AgentPath], ranges: RangeSet, node_ids: list[str],
+                 prm: SmootherParams) -> None:
+        self.prm = prm
+        self.node_ids = node_ids
+        self.t, self.f, self.pose_col, self.s_col, self.n_seg = [], [], [], [], []
+        odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
+        col = 0
+        for p in paths:
+            t, f = _decimate(p, prm.decimate_s)
+            d = np.diff(f, axis=0)
+            walked = np.cumsum(np.hypot(d[:, 0], d[:, 1])) - np.hypot(d[:, 0], d[:, 1])
+            seg = np.floor(walked / prm.segment_m).astype(np.int64)
+            n_seg = int(seg[-1]) + 1 if seg.size else 1
+            self.t.append(t)
+            self.f.append(f)
+            self.pose_col.append(col)
+            self.s_col.append(col + 2 * len(t))
+            self.n_seg.append(n_seg)
+            q = np.sqrt(prm.odo_sigma_m ** 2 + (prm.odo_fraction * np.hypot(d[:, 0], d[:, 1])) ** 2)
+            odo.append((col + 2 * np.arange(len(t) - 1), col + 2 * len(t) + seg, d, q))
+            col += 2 * len(t) + 2 * n_seg
+        self.odo_k = np.concatenate([o[0] for o in odo]).astype(np.int64)
+        self.odo_s = np.concatenate([o[1] for o in odo]).astype(np.int64)
+        self.odo_phi = self.odo_s + np.repeat(np.asarray(self.n_seg, np.int64),
+                                              [len(o[0]) for o in odo])
+        self.odo_d = np.concatenate([o[2] for o in odo]).reshape(-1, 2)
+        self.odo_q = np.concatenate([o[3] for o in odo])
+        self.node_col = col
+        self.height_col = col + 2 * len(node_ids)
+        self.n = self.height_col + 1
+        self.p0 = [np.linalg.cholesky(np.linalg.inv(p.start_cov_m2 + 1e-6 * np.eye(2))).T
+                   for p in paths]
+        self._ranges(ranges)
+
+    def _ranges(self, ranges: RangeSet) -> None:
+        index = {n: i for i, n in enumerate(self.node_ids)}
+        keep = np.array([str(n) in index for n in ranges.node], dtype=bool)
+        agent = ranges.agent[keep]
+        self.rt = ranges.t[keep]
+        self.rnode = np.array([index[str(n)] for n in ranges.node[keep]], dtype=np.int64)
+        self.ragent = agent
+        self.r = ranges.range_m[keep]
+        self.s = ranges.sigma_m[keep]
+        self.c0 = np.zeros(len(self.rt), dtype=np.int64)
+        self.c1 = np.zeros(len(self.rt), dtype=np.int64)
+        self.w = np.zeros(len(self.rt))
+        for a, t in enumerate(self.t):
+            m = agent == a
+            k = np.clip(np.searchsorted(t, self.rt[m], side="right") - 1, 0, len(t) - 1)
+            k1 = np.minimum(k + 1, len(t) - 1)
+            self.c0[m] = self.pose_col[a] + 2 * k
+            self.c1[m] = self.pose_col[a] + 2 * k1
+            dt = t[k1] - t[k]
+            self.w[m] = np.where(dt > 0, np.clip((self.rt[m] - t[k]) / np.where(dt > 0, dt, 1.0),
+                                                 0.0, 1.0), 0.0)
+
+    # ---------------------------------------------------------------- residuals
+    def _range_parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        w = self.w[:, None]
+        xa = (1.0 - w) * _pairs(x, self.c0) + w * _pairs(x, self.c1)
+        diff = _pairs(x, self.node_col + 2 * self.rnode) - xa
+        h = np.sqrt(np.sum(diff * diff, axis=1) + x[self.height_col] ** 2)
+        return (self.r - h) / self.s, diff, h
+
+    def _odo_parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        phi, k = x[self.odo_phi], 1.0 + x[self.odo_s]
+        c, sn = np.cos(phi), np.sin(phi)
+        d = self.odo_d
+        rd = np.column_stack([c * d[:, 0] - sn * d[:, 1], sn * d[:, 0] + c * d[:, 1]])
+        e = (_pairs(x, self.odo_k + 2) - _pairs(x, self.odo_k) - k[:, None] * rd) \
+            / self.odo_q[:, None]
+        return e, rd, np.column_stack([-rd[:, 1], rd[:, 0]])
+
+    def residuals(self, x: FloatArray) -> FloatArray:
+        prm = self.prm
+        out = [self._range_parts(x)[0], self._odo_parts(x)[0].reshape(-1)]
+        for a, col in enumerate(self.pose_col):
+            out.append(self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
+            sc, n_seg = self.s_col[a], self.n_seg[a]
+            sv, ph = x[sc:sc + n_seg], x[sc + n_seg:sc + 2 * n_seg]
+            out.append(np.array([sv[0] / prm.scale_sigma, ph[0] / prm.heading_sigma_rad]))
+            out.append(np.diff(sv) / prm.scale_walk_sigma)
+            out.append(np.diff(ph) / prm.heading_walk_rad)
+        out.append(np.array([x[self.height_col] / prm.height_sigma_m]))
+        return np.concatenate(out)
+
+    def jacobian(self, x: FloatArray) -> csr_matrix:
+        prm = self.prm
+        rows: list[IntArray] = []
+        cols: list[IntArray] = []
+        vals: list[FloatArray] = []
+
+        def put(r: object, c: object, v: object) -> None:
+            r_, c_ = np.atleast_1d(np.asarray(r, np.int64)), np.atleast_1d(np.asarray(c, np.int64))
+            v_ = np.broadcast_to(np.asarray(v, np.float64), r_.shape)
+            rows.append(r_)
+            cols.append(c_)
+            vals.append(np.array(v_))
+
+        _, diff, h = self._range_parts(x)
+        n_r = len(self.r)
+        ri = np.arange(n_r)
+        u = diff / (h * self.s)[:, None]
+        for ax in (0, 1):
+            put(ri, self.node_col + 2 * self.rnode + ax, -u[:, ax])
+            put(ri, self.c0 + ax, (1.0 - self.w) * u[:, ax])
+            put(ri, self.c1 + ax, self.w * u[:, ax])
+        put(ri, np.full(n_r, self.height_col), -x[self.height_col] / (h * self.s))
+        _, rd, rdp = self._odo_parts(x)
+        k = 1.0 + x[self.odo_s]
+        oi = n_r + 2 * np.arange(len(self.odo_k))
+        for ax in (0, 1):
+            put(oi + ax, self.odo_k + 2 + ax, 1.0 / self.odo_q)
+            put(oi + ax, self.odo_k + ax, -1.0 / self.odo_q)
+            put(oi + ax, self.odo_s, -rd[:, ax] / self.odo_q)
+            put(oi + ax, self.odo_phi, -k * rdp[:, ax] / self.odo_q)
+        row = n_r + 2 * len(self.odo_k)
+        for a, col in enumerate(self.pose_col):
+            for i in (0, 1):
+                put([row + i, row + i], [col, col + 1], self.p0[a][i])
+            sc, n_seg = self.s_col[a], self.n_seg[a]
+            put([row + 2, row + 3], [sc, sc + n_seg],
+                [1.0 / prm.scale_sigma, 1.0 / prm.heading_sigma_rad])
+            row += 4
+            for base, sig in ((sc, prm.scale_walk_sigma), (sc + n_seg, prm.heading_walk_rad)):
+                j = np.arange(n_seg - 1)
+                put(row + j, base + j + 1, 1.0 / sig)
+                put(row + j, base + j, -1.0 / sig)
+                row += n_seg - 1
+        put(row, self.height_col, 1.0 / prm.height_sigma_m)
+        return csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(row + 1, self.n))
+
+
+def _pairs(x: FloatArray, col: IntArray) -> FloatArray:
+    return np.column_stack([x[col], x[col + 1]])
+
+
+def _spread(a: FloatArray) -> float:
+    c = a - a.mean(axis=0)
+    w = np.linalg.eigvalsh(np.cov(c.T, bias=True).reshape(2, 2))
+    return float(np.sqrt(max(w[0], 0.0)))
+
+
+def _linear_init(a: FloatArray, r: FloatArray) -> FloatArray | None:
+    """Linear least squares of ``||p - a_k||^2 = r_k^2`` about the centroid."""
+    c = a.mean(axis=0)
+    d = a - c
+    rhs = np.sum(d ** 2, axis=1) - r ** 2
+    lhs = 2.0 * (d - d.mean(axis=0))
+    sol, _, rank, _ = np.linalg.lstsq(lhs, rhs - rhs.mean(), rcond=None)
+    return None if rank < 2 else np.asarray(c + sol, np.float64)
+
+
+def _raw_positions(paths: list[AgentPath], ranges: RangeSet) -> FloatArray:
+    xy = np.zeros((len(ranges.t), 2))
+    for a, p in enumerate(paths):
+        m = ranges.agent == a
+        xy[m, 0] = np.interp(ranges.t[m], p.t, p.xy_m[:, 0])
+        xy[m, 1] = np.interp(ranges.t[m], p.t, p.xy_m[:, 1])
+    return xy
+
+
+def _select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams) -> list[str]:
+    """Nodes with enough ranges from positions spread off a line."""
+    raw = _raw_positions(paths, ranges)
+    out = []
+    for n in sorted(set(ranges.node.tolist())):
+        m = ranges.node == n
+        if np.count_nonzero(m) >= prm.min_ranges and _spread(raw[m]) >= prm.min_spread_m:
+            out.append(str(n))
+    return out
+
+
+def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, FloatArray],
+             warm: SmootherResult | None) -> FloatArray:
+    x0 = np.zeros(prob.n)
+    for a, col in enumerate(prob.pose_col):
+        poses = prob.f[a].copy()
+        name = paths[a].name
+        if warm is not None and name in warm.corrections and len(warm.corrections[name][0]):
+            tc, dc = warm.corrections[name]
+            poses[:, 0] += np.interp(prob.t[a], tc, dc[:, 0])
+            poses[:, 1] += np.interp(prob.t[a], tc, dc[:, 1])
+            sc, n_seg = prob.s_col[a], prob.n_seg[a]
+            for base, v in ((sc, warm.scale[name]), (sc + n_seg, warm.heading_rad[name])):
+                m = min(n_seg, v.size)
+                if m:
+                    x0[base:base + n_seg] = v[m - 1]
+                    x0[base:base + m] = v[:m]
+            _extend(poses, prob.f[a], int(np.searchsorted(prob.t[a], tc[-1], side="right")),
+                    float(warm.scale[name][-1]), float(warm.heading_rad[name][-1]))
+        x0[col:col + 2 * len(prob.t[a])] = poses.reshape(-1)
+    x0[prob.height_col] = max(warm.height_m, 0.1) if warm is not None else 1.0
+    raw = _pairs(x0, prob.c0) * (1.0 - prob.w[:, None]) + _pairs(x0, prob.c1) * prob.w[:, None]
+    for i, n in enumerate(prob.node_ids):
+        init = warm.nodes[n][0] if warm is not None and n in warm.nodes else initial_nodes.get(n)
+        if init is None:
+            m = prob.rnode == i
+            init = _linear_init(raw[m], np.sqrt(np.maximum(prob.r[m] ** 2 - x0[prob.height_col]
+                                                           ** 2, 0.0)))
+            if init is None or not np.all(np.isfinite(init)):
+                init = raw[m].mean(axis=0)
+        x0[prob.node_col + 2 * i:prob.node_col + 2 * i + 2] = init
+    return x0
+
+
+def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams | None = None,
+           initial_nodes: dict[str, FloatArray] | None = None,
+           warm: SmootherResult | None = None) -> SmootherResult:
+    """Solve the agents' paths and the nodes jointly (module doc).
+
+    ``initial_nodes``: starting positions of nodes (others: linear trilateration from the
+    agents' rows); ``warm``: a previous solution to start from (its nodes and corrections).
+    """
+    prm = params or SmootherParams()
+    prob = _Problem(paths, ranges, _select_nodes(paths, ranges, prm), prm)
+    x0 = _initial(prob, paths, dict(initial_nodes or {}), warm)
+    x, evaluations = _solve(prob, x0)
+    res = prob.residuals(x)
+    n_r = len(prob.r)
+    z = (res[:n_r] / prm.loss_scale) ** 2
+    w = np.ones(res.size)
+    w[:n_r] = _robust_weights(z, prm.loss)
+    jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
+    inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
+    rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
+    cov = _node_covariances(csc_matrix(jac.T @ jac), prob, max(rms ** 2, 1.0)
+                            if math.isfinite(rms) else 1.0)
+    nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
+    for i, n in enumerate(prob.node_ids):
+        c = cov[i]
+        ok = bool(np.all(np.isfinite(c))) and \
+            float(np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0))) <= prm.max_sigma_m
+        nodes[n] = (x[prob.node_col + 2 * i:prob.node_col + 2 * i + 2].copy(), c, ok)
+    out_paths, corr, scale, heading = {}, {}, {}, {}
+    for a, col in enumerate(prob.pose_col):
+        name = paths[a].name
+        poses = x[col:col + 2 * len(prob.t[a])].reshape(-1, 2).copy()
+        out_paths[name] = (prob.t[a], poses)
+        corr[name] = (prob.t[a], poses - prob.f[a])
+        sc, n_seg = prob.s_col[a], prob.n_seg[a]
+        scale[name] = x[sc:sc + n_seg].copy()
+        heading[name] = x[sc + n_seg:sc + 2 * n_seg].copy()
+    return SmootherResult(nodes, out_paths, corr, scale, heading, float(abs(x[prob.height_col])),
+                          rms, evaluations)
+
+
+def _cost(prob: _Problem, x: FloatArray) -> float:
+    """Robust cost: ``sum rho`` of the range rows plus the squared prior and odometry rows."""
+    res = prob.residuals(x)
+    n_r = len(prob.r)
+    c2 = prob.prm.loss_scale ** 2
+    z = res[:n_r] ** 2 / c2
+    loss = prob.prm.loss
+    if loss == "soft_l1":
+        rho = 2.0 * (np.sqrt(1.0 + z) - 1.0)
+    elif loss == "cauchy":
+        rho = np.log1p(z)
+    elif loss == "huber":
+        rho = np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
+    else:
+        rho = z
+    return float(c2 * np.sum(rho) + np.sum(res[n_r:] ** 2))
+
+
+def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
+    """Levenberg-Marquardt with iteratively reweighted range rows and a sparse direct solve.
+
+    Returns the solution and the cost evaluations spent.
+    """
+    n_r = len(prob.r)
+    x, cost, lam, evaluations = x0.copy(), _cost(prob, x0), 1e-3, 1
+    while evaluations < prob.prm.max_evaluations:
+        res = prob.residuals(x)
+        w = np.ones(res.size)
+        w[:n_r] = _robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
+        jw = diags(np.sqrt(w)) @ prob.jacobian(x)
+        hess = csc_matrix(jw.T @ jw)
+        grad = jw.T @ (np.sqrt(w) * res)
+        step = None
+        while evaluations < prob.prm.max_evaluations and lam < 1e8:
+            damped = csc_matrix(hess + diags(lam * (hess.diagonal() + 1e-9)))
+            cand = x - _factor(damped).solve(grad)
+            c = _cost(prob, cand)
+            evaluations += 1
+            if c < cost:
+                step, x, cost, lam = cand - x, cand, c, max(lam / 3.0, 1e-7)
+                break
+            lam *= 5.0
+        if step is None or float(np.max(np.abs(step))) < 1e-4:
+            break
+    return x, evaluations
+
+
+def _factor(m: csc_matrix) -> SuperLU:
+    """LU of a symmetric positive definite matrix.
+
+    Minimum degree ordering on ``A + A^T`` and no pivoting off the diagonal: far less fill-in
+    than the default column ordering.
+    """
+    return splu(m, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True})
+
+
+def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
+    """IRLS weights ``rho'(z)`` of the range rows at the solution."""
+    if loss == "soft_l1":
+        return np.asarray(1.0 / np.sqrt(1.0 + z), np.float64)
+    if loss == "cauchy":
+        return np.asarray(1.0 / (1.0 + z), np.float64)
+    if loss == "huber":
+        return np.asarray(np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300))),
+                          np.float64)
+    return np.ones_like(z)
+
+
+def _node_covariances(info: csc_matrix, prob: _Problem, inflation: float) -> list[FloatArray]:
+    """The node blocks of ``info^-1`` times ``inflation`` (NaN when singular)."""
+    k = len(prob.node_ids)
+    if k == 0:
+        return []
+    try:
+        lu = _factor(csc_matrix(info + 1e-9 * identity(info.shape[0], format="csc")))
+        rhs = np.zeros((info.shape[0], 2 * k))
+        rhs[prob.node_col + np.arange(2 * k), np.arange(2 * k)] = 1.0
+        sol = lu.solve(rhs)
+    except (RuntimeError, ValueError):
+        return [np.full((2, 2), np.nan)] * k
+    out = []
+    for i in range(k):
+        c = inflation * sol[prob.node_col + 2 * i:prob.node_col + 2 * i + 2, 2 * i:2 * i + 2]
+        out.append(0.5 * (c + c.T))
+    return out
+
+
+def _extend(poses: FloatArray, f: FloatArray, k: int, scale: float, heading_rad: float) -> None:
+    """Poses from ``k`` on, in place: the last solved pose carried on by the rows' increments.
+
+    The increments are scaled and rotated by the last segment's corrections.
+    """
+    if k < 1 or k >= len(poses):
+        return
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    d = np.diff(f[k - 1:], axis=0) * (1.0 + scale)
+    rd = np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]])
+    poses[k:] = poses[k - 1] + np.cumsum(rd, axis=0)

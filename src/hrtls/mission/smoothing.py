@@ -1,0 +1,178 @@
+"""The mission loop's range-SLAM smoother (:mod:`hrtls.mission.graph`) at a cadence.
+
+With ``MissionParams.smoother`` set, :class:`~hrtls.mission.tracker.MissionTracker` keeps, for
+every agent, its estimate rows every ``decimate_s`` (the first row's covariance too) and every
+range it measured to a node without a known position (used by its tracker or kept as a reading),
+and every ``every_s`` of mission time solves :func:`hrtls.mission.graph.smooth` on all of it,
+warm-started from the previous solution. The data are those of the processed windows only
+(causal); a range later than its agent's latest row waits for the next solve. Each node the
+smoother localizes becomes the mission's estimate of that node (the per-node estimator no longer
+re-estimates it) and is shared with the agents like any re-localized node.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.data.observations import RangeMeasurements
+from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
+from hrtls.mission.nodes import NodeEstimate
+
+if TYPE_CHECKING:
+    from hrtls.mission.tracker import MissionTracker
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class SmootherState:
+    """What the loop keeps for the smoother (all plain arrays / lists: snapshot-ready).
+
+    ``rows``: per agent its kept rows (t, x, y); ``start_cov``: its first row's covariance;
+    ``pulled``: time of its last final row; ``tail``: its latest row (t, x, y, covariance),
+    which may still change; ``ranges``: agent index, t, node, range, sigma;
+    ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
+    ``warm``: the last solution (warm start).
+    """
+
+    rows: dict[str, list[list[float]]] = field(default_factory=dict)
+    start_cov: dict[str, FloatArray] = field(default_factory=dict)
+    pulled: dict[str, float] = field(default_factory=dict)
+    tail: dict[str, list[float]] = field(default_factory=dict)
+    ranges: list[list[Any]] = field(default_factory=list)
+    last_solve_s: float = -math.inf
+    owned: set[str] = field(default_factory=set)
+    warm: SmootherResult | None = None
+    seconds: list[float] = field(default_factory=list)
+
+
+def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> None:
+    """Keep agent ``i``'s new rows (every ``decimate_s``) and its ranges to unknown nodes."""
+    prm = mt.params.smoother
+    st = mt.smoother
+    if prm is None or st is None:
+        return
+    name = mt.names[i]
+    if name in mt.started:
+        est = mt.trackers[name].estimates_since(st.pulled.get(name, -math.inf))
+        new = [[float(est.t[k]), float(est.xyz[k, 0]), float(est.xyz[k, 1]),
+                *np.asarray(est.cov_xy[k], np.float64).reshape(-1).tolist()]
+               for k in range(len(est))]
+        tail = st.tail.get(name)
+        if tail is not None and (not new or new[0][0] > tail[0]):
+            new.insert(0, tail)               # a restored tracker does not repeat it
+        rows = st.rows.setdefault(name, [])
+        for row in new[:-1]:                  # the last row may still change: the tail
+            if not rows:
+                st.start_cov[name] = np.asarray(row[3:7], np.float64).reshape(2, 2)
+            if not rows or row[0] >= rows[-1][0] + prm.decimate_s:
+                rows.append(row[:3])
+            st.pulled[name] = row[0]
+        if new:
+            st.tail[name] = new[-1]
+    if ranges is None or not len(ranges.t):
+        return
+    m = ~np.isin(ranges.node, mt.known[i])
+    if m.any():
+        st.ranges.append([i, ranges.t[m].copy(), ranges.node[m].astype(str),
+                          ranges.range_m[m].copy(), ranges.sigma_m[m].copy()])
+
+
+def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
+    st = mt.smoother
+    assert st is not None
+    paths: list[AgentPath] = []
+    index: dict[int, int] = {}
+    for i, name in enumerate(mt.names):
+        rows = st.rows.get(name, [])
+        if len(rows) < 2:
+            continue
+        a = np.asarray(rows, np.float64)
+        index[i] = len(paths)
+        paths.append(AgentPath(name, a[:, 0], a[:, 1:3], st.start_cov[name]))
+    parts = [p for p in st.ranges if int(p[0]) in index]
+    if not paths or not parts:
+        return None
+    agent = np.concatenate([np.full(len(p[1]), index[int(p[0])], np.int64) for p in parts])
+    t = np.concatenate([p[1] for p in parts])
+    last = np.array([paths[a].t[-1] for a in range(len(paths))])
+    m = t <= last[agent]
+    return paths, RangeSet(agent[m], t[m], np.concatenate([p[2] for p in parts])[m],
+                           np.concatenate([p[3] for p in parts])[m],
+                           np.concatenate([p[4] for p in parts])[m])
+
+
+def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]:
+    """Solve when due (``every_s`` since the last solve, or ``final``); the nodes it changed.
+
+    Each localized node replaces the mission's estimate of it (version, history) and is owned by
+    the smoother from then on.
+    """
+    import time
+
+    prm, st = mt.params.smoother, mt.smoother
+    if prm is None or st is None or (not final and t_end < st.last_solve_s + prm.every_s):
+        return []
+    st.last_solve_s = t_end
+    got = _problem(mt)
+    if got is None:
+        return []
+    paths, ranges = got
+    initial = {n: e.position_m for n, e in mt.estimates.items() if e.localized}
+    clock = time.perf_counter()
+    st.warm = smooth(paths, ranges, params=prm, initial_nodes=initial, warm=st.warm)
+    st.seconds.append(time.perf_counter() - clock)
+    changed: list[str] = []
+    for node, (p, cov, ok) in sorted(st.warm.nodes.items()):
+        if not ok:
+            continue
+        k = int(np.count_nonzero(ranges.node == node))
+        mt.estimates[node] = NodeEstimate(p.copy(), cov.copy(), True, "", np.ones(k, dtype=bool),
+                                          st.warm.rms, st.warm.evaluations)
+        st.owned.add(node)
+        mt.versions[node] = mt.versions.get(node, 0) + 1
+        mt.history.setdefault(node, []).append((t_end, p.copy(), cov.copy()))
+        changed.append(node)
+    return changed
+
+
+def state_of(st: SmootherState | None) -> dict[str, Any] | None:
+    """Plain values of the smoother's state (snapshot)."""
+    if st is None:
+        return None
+    w = st.warm
+    warm = None if w is None else {
+        "nodes": {n: [p, c, ok] for n, (p, c, ok) in w.nodes.items()},
+        "paths": {k: list(v) for k, v in w.paths.items()},
+        "corrections": {k: list(v) for k, v in w.corrections.items()},
+        "scale": w.scale, "heading": w.heading_rad, "height": w.height_m, "rms": w.rms,
+        "evaluations": w.evaluations}
+    return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
+            "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
+            "warm": warm, "seconds": st.seconds}
+
+
+def state_from(d: dict[str, Any] | None) -> SmootherState | None:
+    """The smoother's state from :func:`state_of` values."""
+    if d is None:
+        return None
+    w = d["warm"]
+    warm = None if w is None else SmootherResult(
+        {n: (np.asarray(p), np.asarray(c), bool(ok)) for n, (p, c, ok) in w["nodes"].items()},
+        {k: (v[0], v[1]) for k, v in w["paths"].items()},
+        {k: (v[0], v[1]) for k, v in w["corrections"].items()},
+        dict(w["scale"]), dict(w["heading"]), float(w["height"]), float(w["rms"]),
+        int(w["evaluations"]))
+    return SmootherState(
+        rows={k: [list(r) for r in v] for k, v in d["rows"].items()},
+        start_cov=dict(d["start_cov"]), pulled=dict(d["pulled"]),
+        tail={k: list(v) for k, v in d["tail"].items()},
+        ranges=[[int(p[0]), p[1], np.asarray(p[2]).astype(str), p[3], p[4]]
+                for p in d["ranges"]],
+        last_solve_s=float(d["last"]), owned=set(d["owned"]), warm=warm,
+        seconds=list(d["seconds"]))
