@@ -67,7 +67,9 @@ def builds(tmp_path_factory: pytest.TempPathFactory) -> K.Table:
     where = tmp_path_factory.mktemp("aot")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        assert build([k for k, _ in CASES], where=where) == 4
+        # one build per signature the JIT made (other tests may have added some)
+        n_sigs = sum(len(k.dispatcher.signatures) for k, _ in CASES)
+        assert build([k for k, _ in CASES], where=where) == n_sigs >= 4
     table, needs = K.load_builds(where)
     assert set(table) == {k.key for k, _ in CASES}
     # the Joseph update multiplies with BLAS (numba calls scipy's cython_blas); the others not
@@ -77,9 +79,9 @@ def builds(tmp_path_factory: pytest.TempPathFactory) -> K.Table:
 
 
 def _aot_call(table: K.Table, kernel: K.Kernel, args: tuple[object, ...]) -> object:
-    (fn, fits), = table[kernel.key]
-    assert fits(args)
-    return fn(*args)
+    fitting = [fn for fn, fits in table[kernel.key] if fits(args)]
+    assert len(fitting) == 1
+    return fitting[0](*args)
 
 
 @settings(max_examples=25, deadline=None)
