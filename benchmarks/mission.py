@@ -120,6 +120,8 @@ class SeedItem:
     """Cooperation on only (the ``off`` column skipped)."""
     smoother: SmootherParams | None = None
     """``MissionParams.smoother`` (None: the per-node estimator alone)."""
+    attitude: dict[str, Any] = field(default_factory=dict)
+    """The rescuers' ``[attitude]`` table (empty: the defaults)."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -222,7 +224,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
             smoother=item.smoother),
             kinds=mission.kinds,
-            config=TrackerConfig.model_validate({"prediction": item.prediction}))
+            config=TrackerConfig.model_validate({"prediction": item.prediction,
+                                                 "attitude": item.attitude}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -272,6 +275,8 @@ def main() -> None:
                     help="cooperation on only (the off column skipped: half the time)")
     ap.add_argument("--smoother", action="store_true",
                     help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
+    ap.add_argument("--no-magnetometer", action="store_true",
+                    help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -295,7 +300,8 @@ def main() -> None:
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
-                      args.only_on, SmootherParams() if args.smoother else None)
+                      args.only_on, SmootherParams() if args.smoother else None,
+                      {"use_magnetometer": False} if args.no_magnetometer else {})
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
