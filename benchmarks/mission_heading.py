@@ -3,9 +3,7 @@
 Simulates ``inderst_hybrid_mission`` per seed and runs each rescuer's own tracker (no
 cooperation, ``RESCUER_PREDICTION``) with an ``[attitude]`` variant; prints per rescuer the
 tracker's heading error (state heading minus the true heading, median over the distance band)
-at 0-5 m, 15-25 m and 55-65 m walked, and the true magnetic deflection at the start (the
-simulator's field at the start position, east of the undisturbed field). The truth is read here
-for scoring only.
+at 0-5 m, 15-25 m and 55-65 m walked. The truth is read here for scoring only.
 
     python benchmarks/mission_heading.py --seeds 0-4 --variant default|no-magnetometer|no-hard-iron
 """
