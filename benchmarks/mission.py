@@ -24,7 +24,9 @@ the peers carried to a range's time with their velocity (``PeerRangeParams.extra
 
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
-the seeds; ``--only-on``: cooperation on only.
+the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
+the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
+their heading errors; ``benchmarks/mission_heading.py``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
@@ -277,6 +279,8 @@ def main() -> None:
                     help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
     ap.add_argument("--no-magnetometer", action="store_true",
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
+    ap.add_argument("--no-hard-iron-fit", action="store_true",
+                    help="rescuers' [attitude] mag_hard_iron = off (the field used raw)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -299,9 +303,12 @@ def main() -> None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
+    attitude: dict[str, Any] = {"use_magnetometer": False} if args.no_magnetometer else {}
+    if args.no_hard_iron_fit:
+        attitude["mag_hard_iron"] = "off"
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
-                      {"use_magnetometer": False} if args.no_magnetometer else {})
+                      attitude)
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
