@@ -24,7 +24,9 @@ the peers carried to a range's time with their velocity (``PeerRangeParams.extra
 
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
-the seeds; ``--only-on``: cooperation on only.
+the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
+the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
+their heading errors; ``benchmarks/mission_heading.py``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
@@ -120,6 +122,8 @@ class SeedItem:
     """Cooperation on only (the ``off`` column skipped)."""
     smoother: SmootherParams | None = None
     """``MissionParams.smoother`` (None: the per-node estimator alone)."""
+    attitude: dict[str, Any] = field(default_factory=dict)
+    """The rescuers' ``[attitude]`` table (empty: the defaults)."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -222,7 +226,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
             smoother=item.smoother),
             kinds=mission.kinds,
-            config=TrackerConfig.model_validate({"prediction": item.prediction}))
+            config=TrackerConfig.model_validate({"prediction": item.prediction,
+                                                 "attitude": item.attitude}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -272,6 +277,10 @@ def main() -> None:
                     help="cooperation on only (the off column skipped: half the time)")
     ap.add_argument("--smoother", action="store_true",
                     help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
+    ap.add_argument("--no-magnetometer", action="store_true",
+                    help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
+    ap.add_argument("--no-hard-iron-fit", action="store_true",
+                    help="rescuers' [attitude] mag_hard_iron = off (the field used raw)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -294,8 +303,12 @@ def main() -> None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
                   "sigma_heading_increment_rad": args.heading_increment_rad}
+    attitude: dict[str, Any] = {"use_magnetometer": False} if args.no_magnetometer else {}
+    if args.no_hard_iron_fit:
+        attitude["mag_hard_iron"] = "off"
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
-                      args.only_on, SmootherParams() if args.smoother else None)
+                      args.only_on, SmootherParams() if args.smoother else None,
+                      attitude)
              for seed in _seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
