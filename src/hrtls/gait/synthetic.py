@@ -348,6 +348,7 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
     return simulate(segs, person=person, rate_hz=rate_hz, q_bd=random_mounting(rng),
                     seed=seed, stop_amplitude=rng.uniform(0.1, 0.4),
                     turns=((st0 + w1, turn, np.pi * rng.choice([-1.0, 1.0])),),
-                    turn_amplitude=rng.uniform(0.25, 0.5), end_amplitude=rng.uniform(*LAST_STEP_AMPLITUDE_RANGE),
+                    turn_amplitude=rng.uniform(0.25, 0.5),
+                    end_amplitude=rng.uniform(*LAST_STEP_AMPLITUDE_RANGE),
                     closing=(rng.uniform(*CLOSING_AMPLITUDE_RANGE),
                              rng.uniform(*CLOSING_DELAY_STEPS_RANGE)))

@@ -6,8 +6,9 @@ the last step the INDIP reference counts is 0.70-1.08 times the walk's level (me
 the last step is drawn at 60-100 % of the walking amplitude; after it comes a closing movement
 (the trailing foot set beside the other) that no reference counts as a contact, 0.28-0.49 times
 the walk's level, peaking 0.9-1.3 step periods after the last step (5 of 6; one 1.9), with no
-forward progression. Both generators use these ranges: :func:`hrtls.gait.synthetic.short_walk_u_turn`
-(end ramp and closing pulse) and the scenario simulator (:func:`stop_pulses`).
+forward progression. Both generators use these ranges: the short walks
+(:func:`hrtls.gait.synthetic.short_walk_u_turn`: end ramp and closing pulse) and the scenario
+simulator (:func:`stop_pulses`).
 
 In the scenario simulator a stop-free run ends at rest on its last heel strike, where the
 speed-driven oscillation has faded out; :func:`stop_pulses` adds to the vertical waist
@@ -43,8 +44,11 @@ def cycle_acceleration(u: FloatArray) -> FloatArray:
 
 
 def cycle_displacement(u: FloatArray, period_s: float) -> FloatArray:
-    """Displacement whose second time derivative is :func:`cycle_acceleration` of
-    ``u = (t - t_c) / period_s``; zero with zero velocity at and beyond ``|u| = 1``."""
+    """Displacement (per unit amplitude) of one cycle of ``u = (t - t_c) / period_s``.
+
+    Its second time derivative is :func:`cycle_acceleration`; zero, with zero velocity, at
+    and beyond ``|u| = 1``.
+    """
 
     def f(x: FloatArray) -> FloatArray:
         return np.asarray(0.5 * np.cos(2.0 * np.pi * x) / (2.0 * np.pi) ** 2
