@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import butter, sosfilt
 
 from hrtls.data import Activity, StepEvents
 
@@ -35,6 +36,11 @@ CLOSING_DELAY_STEPS_RANGE: tuple[float, float] = (0.9, 1.3)
 """Delay of the closing movement's peak after the last step, walking step periods."""
 PEAK_DELAY_STEPS = 0.07
 """Vertical peak of a step after its heel strike, step periods (module notes of gait_model)."""
+MEASURE_CUTOFF_HZ = 3.0
+"""The evidence's peaks are of the vertical acceleration low-passed at this corner (4th-order
+Butterworth, as the step detector sees it); levels and amplitudes are matched in that measure."""
+LEVEL_STEPS = 4
+"""The walk's level: median peak of this many steps before the last one (as in the evidence)."""
 
 
 def cycle_acceleration(u: FloatArray) -> FloatArray:
@@ -82,27 +88,27 @@ def stop_pulses(t: FloatArray, acc_up: FloatArray, steps: StepEvents, moving: ND
     """Vertical displacement (m) of the last step and closing movement of each walking stop.
 
     ``acc_up`` is the vertical acceleration of the oscillation, ``moving`` the samples that
-    belong to a run. A run gets them when its last step is walking, it has at least three
-    steps, and the person stands until the closing cycle is over. The walk's level is the median
-    vertical peak of the steps ending 1-3.5 s before the last heel strike (all but the last
-    step if none), its period the median duration of those steps.
+    belong to a run. A run gets them when its last step is walking, it has more than
+    ``LEVEL_STEPS`` steps, and the person stands until the closing cycle is over. The walk's
+    level is the median peak (in the evidence's measure, ``MEASURE_CUTOFF_HZ``) of the
+    ``LEVEL_STEPS`` steps before the last one, its period their median duration.
     """
     out = np.zeros(len(t))
     if len(steps) == 0 or len(t) < 2:
         return out
     first, last = _runs(steps)
-    step_peaks = _step_peaks(t, acc_up, steps)
+    rate_hz = 1.0 / float(t[1] - t[0])
+    sos = butter(4, min(MEASURE_CUTOFF_HZ, 0.45 * rate_hz), fs=rate_hz, output="sos")
+    step_peaks = _step_peaks(t, sosfilt(sos, acc_up), steps)
     for a, b in zip(first, last, strict=True):
         # one draw per run (also for runs that get none), so runs draw independently
         end_amp, close_amp, delay = (rng.uniform(*LAST_STEP_AMPLITUDE_RANGE),
                                      rng.uniform(*CLOSING_AMPLITUDE_RANGE),
                                      rng.uniform(*CLOSING_DELAY_STEPS_RANGE))
-        if b - a < 2 or int(steps.activity[b]) != int(Activity.WALKING):
+        if b - a < LEVEL_STEPS or int(steps.activity[b]) != int(Activity.WALKING):
             continue
         t_hs = float(steps.t_end[b])
-        idx = np.arange(a, b)
-        near = idx[(steps.t_end[idx] >= t_hs - 3.5) & (steps.t_end[idx] <= t_hs - 1.0)]
-        idx = near if near.size else idx
+        idx = np.arange(b - LEVEL_STEPS, b)
         period = float(np.median(steps.t_end[idx] - steps.t_start[idx]))
         level = float(np.median(step_peaks[idx]))
         t_pk = t_hs + PEAK_DELAY_STEPS * period
@@ -110,6 +116,9 @@ def stop_pulses(t: FloatArray, acc_up: FloatArray, steps: StepEvents, moving: ND
         i_after = int(np.searchsorted(t, t_close + period))
         if i_after >= len(t) or np.any(moving[int(np.searchsorted(t, t_hs)) + 2:i_after + 1]):
             continue
-        out += end_amp * level * cycle_displacement((t - t_pk) / period, period)
-        out += close_amp * level * cycle_displacement((t - t_close) / period, period)
+        # filtered peak of a unit cycle of this period
+        u = np.arange(-1.0, 3.0, 1.0 / (rate_hz * period))
+        gain = float(np.max(sosfilt(sos, cycle_acceleration(u))))
+        out += end_amp * level / gain * cycle_displacement((t - t_pk) / period, period)
+        out += close_amp * level / gain * cycle_displacement((t - t_close) / period, period)
     return out
