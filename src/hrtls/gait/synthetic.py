@@ -31,6 +31,11 @@ from hrtls.frames import GRAVITY_M_S2, quat_from_euler, quat_multiply, quat_rota
 from hrtls.gait._state import FloatArray
 from hrtls.sim.gait_model import GaitParams
 from hrtls.sim.motion_truth import GAIT_RUN, GAIT_WALK
+from hrtls.sim.stop_model import (
+    CLOSING_AMPLITUDE_RANGE,
+    CLOSING_DELAY_STEPS_RANGE,
+    LAST_STEP_AMPLITUDE_RANGE,
+)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -329,12 +334,10 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
 
     A random person and mounting; 2-4 s standing at each end, 5.5-8 s each way, a 1.5-2.5 s
     turn of +-180 deg. The steps of the start ramp shrink to 10-40 % of the walking amplitude,
-    the turning steps to 25-50 %. The stop is drawn from the development recording mobgap
-    HA/001 (lower back, ``benchmarks/closing_steps.py``; its walk ends in Test5 and Test11 that
-    end standing): the detected peak of the last step the INDIP reference counts is 0.70-1.08
-    times the walk's level (median 0.85), so the end ramp ends at 60-100 %; then a closing
-    movement that no reference counts as a contact, 0.28-0.49 times the level, 0.9-1.3 step
-    periods after the last step (5 of 6; one 1.9), vertical only, no step event.
+    the turning steps to 25-50 %. The stop follows the real evidence of
+    :mod:`hrtls.sim.stop_model` (shared with the scenario simulator): the end ramp ends at
+    60-100 % of the walking amplitude, then a closing movement (vertical only, no step event)
+    of 0.28-0.49 times the level, 0.9-1.3 step periods after the last step.
     """
     rng = np.random.default_rng(seed)
     person = SimPerson.random(rng)
@@ -345,5 +348,7 @@ def short_walk_u_turn(seed: int, *, rate_hz: float = 100.0) -> SimWalk:
     return simulate(segs, person=person, rate_hz=rate_hz, q_bd=random_mounting(rng),
                     seed=seed, stop_amplitude=rng.uniform(0.1, 0.4),
                     turns=((st0 + w1, turn, np.pi * rng.choice([-1.0, 1.0])),),
-                    turn_amplitude=rng.uniform(0.25, 0.5), end_amplitude=rng.uniform(0.6, 1.0),
-                    closing=(rng.uniform(0.28, 0.49), rng.uniform(0.9, 1.3)))
+                    turn_amplitude=rng.uniform(0.25, 0.5),
+                    end_amplitude=rng.uniform(*LAST_STEP_AMPLITUDE_RANGE),
+                    closing=(rng.uniform(*CLOSING_AMPLITUDE_RANGE),
+                             rng.uniform(*CLOSING_DELAY_STEPS_RANGE)))

@@ -105,6 +105,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from hrtls.data import Activity, StepEvents
 from hrtls.sim.motion_truth import GAIT_RUN, GAIT_STAIRS, MotionTruth
+from hrtls.sim.stop_model import stop_pulses
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -371,6 +372,12 @@ def simulate_gait(motion: MotionTruth, params: GaitParams, rng: np.random.Genera
     """Gait phase, body oscillation and true steps for ``motion``."""
     phase, steps = _phase_and_steps(motion, params, rng)
     offset_body, euler_osc = _oscillation(motion, params, rng, phase)
+    if len(motion.t) > 2 and motion.dt > 0:
+        # the stops' own draws come from a child generator: the gait stream is unchanged
+        up = offset_body[:, 2]
+        acc_up = np.gradient(np.gradient(up, motion.dt), motion.dt)
+        offset_body[:, 2] = up + stop_pulses(motion.t, acc_up, steps, motion.moving,
+                                             rng.spawn(1)[0])
     # feet alternate (the stride-frequency terms flip sign every step); even steps: left foot
     foot = np.mod(np.arange(len(steps)), 2).astype(np.int64)
     return GaitResult(phase=phase, offset_body=offset_body, euler_osc=euler_osc, steps=steps,
