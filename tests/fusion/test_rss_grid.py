@@ -132,10 +132,10 @@ def test_a_bias_common_to_readings_and_offsets_does_not_move_the_walker(
     prm = GridParams(cell_m=0.5, bias_sigma_db=bias_sigma, attenuation_probability=0.2)
     f = RssGridFilter(anchors, model=model, params=prm)
     rows = []
-    for shift in (0.0, c):
-        sc = causal_scans(t, a, rss + shift, n_anchors=4, scan_s=0.5, average_s=1.0,
+    for common_db in (0.0, c):
+        sc = causal_scans(t, a, rss + common_db, n_anchors=4, scan_s=0.5, average_s=1.0,
                           t_origin=0.0)
-        rows.append(f.update(f.start(np.full(4, shift)), sc)[0])
+        rows.append(f.update(f.start(np.full(4, common_db)), sc)[0])
     np.testing.assert_allclose(rows[1].mean_xy, rows[0].mean_xy, atol=1e-6)
 
 
