@@ -16,6 +16,7 @@ p50 / p75 / p95 of the horizontal error at every truth sample for
   persistent velocity (``velocity_time_s = 0``: the choice before it existed);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
+``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs).
 ``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
 ``[prediction.grid]`` keys over the defaults (all five tracks: a development look, not held out).
 """
@@ -97,6 +98,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--grid", action="append", default=[],
                     help="JSON object of [prediction.grid] keys: p75 per track, all five")
+    ap.add_argument("--default-channel", action="store_true",
+                    help="only the default channel among the choices (a fifth of the runs)")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -118,7 +121,7 @@ def main() -> None:
             s = loaded[n].session
             p75[(k, None, n)] = float(np.percentile(errors(s, cfg), 75))
             for h in TRACKS:
-                if h != n:
+                if h != n and not args.default_channel:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
@@ -130,7 +133,8 @@ def main() -> None:
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])
-                 for k in range(len(candidates)) for ch in (False, True)}
+                 for k in range(len(candidates))
+                 for ch in ((False,) if args.default_channel else (False, True))}
         k, ch = min(score, key=lambda kc: score[kc])
         kb, cb = min((kc for kc in score if kc[0] in before), key=lambda kc: score[kc])
         s = loaded[h].session
