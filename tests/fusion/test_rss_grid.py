@@ -301,7 +301,8 @@ def test_zero_velocity_is_the_old_diffusion_and_chunks_give_one_run() -> None:
     t, a, rss = _walk_scans(12)
     sc = causal_scans(t, a, rss, n_anchors=4, scan_s=0.5, average_s=0.5, t_origin=0.0)
     # a velocity state that is never fed (infinite time constant) stays zero: plain diffusion
-    plain = RssGridFilter(anchors, model=model, params=GridParams(cell_m=0.5))
+    plain = RssGridFilter(anchors, model=model,
+                          params=GridParams(cell_m=0.5, velocity_time_s=0.0))
     still = RssGridFilter(anchors, model=model,
                           params=GridParams(cell_m=0.5, velocity_time_s=1e300))
     r0, _ = plain.update(plain.start(), sc)

@@ -98,9 +98,9 @@ class GridParams:
     shadowing_time_s: float = 0.0
     attenuation_probability: float = 0.0
     attenuation_db: float = 8.0
-    bias_sigma_db: float = 0.0
+    bias_sigma_db: float = 3.0
     bias_walk_db_per_sqrt_s: float = 0.0
-    velocity_time_s: float = 0.0
+    velocity_time_s: float = 8.0
     velocity_max_m_per_s: float = 1.5
 
     def __post_init__(self) -> None:
