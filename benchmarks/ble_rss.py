@@ -2,20 +2,21 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-averaging window, per-anchor offset gain,
-per-anchor bias state) and optionally the channel (``A``, ``eta``, ``sigma``
-fitted by least squares to the development tracks' readings against their true distances, as
-a site survey would) are chosen there by the mean p75 of the horizontal error; the held-out
-track is then tracked once with that choice. Printed per track: p50 / p75 / p95 of the
-horizontal error at every truth sample for
+per-anchor bias state, persistent-velocity time constant; the averaging window of 2 s and no
+offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally the
+channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks' readings
+against their true distances, as a site survey would) are chosen there by the mean p75 of the
+horizontal error; the held-out track is then tracked once with that choice. Printed per track:
+p50 / p75 / p95 of the horizontal error at every truth sample for
 
 * ``random walk``: ``[prediction] no_imu = "random-walk"`` (the Kalman filter; before the grid);
 * ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
 * ``grid, held out``: the leave-one-out choice above;
-* ``grid, held out, no bias``: the same choice among the candidates without the per-anchor
-  bias state (``bias_sigma_db = 0``: the choice before it existed);
+* ``grid, held out, no velocity``: the same choice among the candidates without the
+  persistent velocity (``velocity_time_s = 0``: the choice before it existed);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
+``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs).
 ``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
 ``[prediction.grid]`` keys over the defaults (all five tracks: a development look, not held out).
 """
@@ -42,11 +43,12 @@ from hrtls.pipeline import Tracker, TrackerConfig
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rssi"
 TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
           "straight_02", "straight_03")
-GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (1.0, 2.0),
-                "offset_gain": (0.0, 0.01), "bias_sigma_db": (0.0, 3.0, 5.0)}
+GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,),
+                "offset_gain": (0.0,), "bias_sigma_db": (0.0, 3.0, 5.0),
+                "velocity_time_s": (0.0, 8.0, 16.0)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
-BEFORE = {"bias_sigma_db": 0.0}
-"""The candidates of the choice before the bias state (column ``grid, held out, no bias``)."""
+BEFORE = {"velocity_time_s": 0.0}
+"""The candidates of the choice before the persistent velocity (``grid, held out, no velocity``)."""
 
 
 def config(no_imu: str, grid: dict[str, float] | None = None) -> TrackerConfig:
@@ -96,6 +98,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--grid", action="append", default=[],
                     help="JSON object of [prediction.grid] keys: p75 per track, all five")
+    ap.add_argument("--default-channel", action="store_true",
+                    help="only the default channel among the choices (a fifth of the runs)")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -117,11 +121,11 @@ def main() -> None:
             s = loaded[n].session
             p75[(k, None, n)] = float(np.percentile(errors(s, cfg), 75))
             for h in TRACKS:
-                if h != n:
+                if h != n and not args.default_channel:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    for col in ("track", "random walk", "grid, default", "grid, held out, no bias",
+    for col in ("track", "random walk", "grid, default", "grid, held out, no velocity",
                 "grid, held out", "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
@@ -129,7 +133,8 @@ def main() -> None:
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])
-                 for k in range(len(candidates)) for ch in (False, True)}
+                 for k in range(len(candidates))
+                 for ch in ((False,) if args.default_channel else (False, True))}
         k, ch = min(score, key=lambda kc: score[kc])
         kb, cb = min((kc for kc in score if kc[0] in before), key=lambda kc: score[kc])
         s = loaded[h].session

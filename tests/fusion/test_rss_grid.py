@@ -19,8 +19,10 @@ from hrtls.fusion.rss_grid import (
     bias_update,
     blur,
     causal_scans,
+    follow_velocity,
     log_likelihood,
     moments,
+    shift,
 )
 
 
@@ -130,10 +132,10 @@ def test_a_bias_common_to_readings_and_offsets_does_not_move_the_walker(
     prm = GridParams(cell_m=0.5, bias_sigma_db=bias_sigma, attenuation_probability=0.2)
     f = RssGridFilter(anchors, model=model, params=prm)
     rows = []
-    for shift in (0.0, c):
-        sc = causal_scans(t, a, rss + shift, n_anchors=4, scan_s=0.5, average_s=1.0,
+    for common_db in (0.0, c):
+        sc = causal_scans(t, a, rss + common_db, n_anchors=4, scan_s=0.5, average_s=1.0,
                           t_origin=0.0)
-        rows.append(f.update(f.start(np.full(4, shift)), sc)[0])
+        rows.append(f.update(f.start(np.full(4, common_db)), sc)[0])
     np.testing.assert_allclose(rows[1].mean_xy, rows[0].mean_xy, atol=1e-6)
 
 
@@ -234,3 +236,90 @@ def test_a_large_site_gets_larger_cells_within_max_cells() -> None:
     assert g.nx * g.ny <= 10_000 and g.cell_m > 2.0
     x, y = g.centres()
     assert x[0] <= -2.0 + 1e-9 and x[-1] >= 302.0 - 1e-9 and y[-1] >= 202.0 - 1e-9
+
+
+def test_shift_moves_a_point_mass_by_v_dt() -> None:
+    d = np.zeros((9, 9))
+    d[4, 4] = 1.0
+    # v = (0.6, -0.2) m/s for dt = 2.5 s on 0.5 m cells: 3 columns right, 1 row down
+    shift(d, 0.6 * 2.5 / 0.5, -0.2 * 2.5 / 0.5, np.empty_like(d))
+    expect = np.zeros((9, 9))
+    expect[3, 7] = 1.0
+    np.testing.assert_allclose(d, expect, atol=1e-15)
+    # a fraction of a cell splits the mass between the two neighbours, mean moved exactly
+    d = np.zeros((9, 9))
+    d[4, 4] = 1.0
+    shift(d, 1.25, 0.0, np.empty_like(d))
+    assert (d[4, 5], d[4, 6]) == pytest.approx((0.75, 0.25))
+    m = np.zeros(5)
+    moments(d, 0.0, 0.0, 1.0, m)
+    assert (m[0], m[1]) == pytest.approx((5.25, 4.0))
+
+
+def test_follow_velocity_by_hand() -> None:
+    v = np.array([1.0, 0.0])
+    # gain dt / (tau + dt) = 0.5 / 2.5 = 0.2; displacement per second (0, 2)
+    follow_velocity(v, np.array([0.0, 0.0]), np.array([0.0, 1.0]), 0.5, 2.0, 10.0)
+    np.testing.assert_allclose(v, [0.8, 0.4])
+    follow_velocity(v, np.array([0.0, 0.0]), np.array([10.0, 0.0]), 0.5, 0.0, 1.5)
+    np.testing.assert_allclose(v, [1.5, 0.0])      # gain 1, clipped to 1.5 m/s
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(3, 12), st.integers(3, 12), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0),
+       st.integers(0, 2**31))
+def test_shift_keeps_a_density_and_equals_its_python_reading(ny: int, nx: int, sx: float,
+                                                            sy: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    d = rng.random((ny, nx))
+    d /= d.sum()
+    a, b = d.copy(), d.copy()
+    shift(a, sx, sy, np.empty_like(a))
+    shift.py_func(b, sx, sy, np.empty_like(b))
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+    assert np.all(a >= 0) and a.sum() == pytest.approx(1.0)
+    z = d.copy()
+    shift(z, 0.0, 0.0, np.empty_like(z))
+    np.testing.assert_array_equal(z, d)
+
+
+def _walk_scans(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Readings of four anchors of a walker going along x at 1 m/s, one scan per 0.5 s."""
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    model = PathLossModel(sigma_db=3.0)
+    t = np.repeat(0.5 * np.arange(n), 4)
+    xy = np.column_stack([2.0 + t, np.full(t.size, 5.0)])
+    a = np.tile(np.arange(4), n)
+    d = np.maximum(np.linalg.norm(xy - anchors[a], axis=1), 1.0)
+    rss = model.expected_rss(d) + np.random.default_rng(3).normal(0.0, 3.0, t.size)
+    return t, a, rss
+
+
+def test_zero_velocity_is_the_old_diffusion_and_chunks_give_one_run() -> None:
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    model = PathLossModel(sigma_db=3.0)
+    t, a, rss = _walk_scans(12)
+    sc = causal_scans(t, a, rss, n_anchors=4, scan_s=0.5, average_s=0.5, t_origin=0.0)
+    # a velocity state that is never fed (infinite time constant) stays zero: plain diffusion
+    plain = RssGridFilter(anchors, model=model,
+                          params=GridParams(cell_m=0.5, velocity_time_s=0.0))
+    still = RssGridFilter(anchors, model=model,
+                          params=GridParams(cell_m=0.5, velocity_time_s=1e300))
+    r0, _ = plain.update(plain.start(), sc)
+    r1, s1 = still.update(still.start(), sc)
+    np.testing.assert_allclose(r1.mean_xy, r0.mean_xy, atol=1e-12)
+    assert np.all(np.abs(s1.velocity_m_per_s) < 1e-290)
+    # with velocity: the rows of one call equal those of two calls carrying the state
+    f = RssGridFilter(anchors, model=model, params=GridParams(cell_m=0.5, velocity_time_s=2.0))
+    whole, end = f.update(f.start(), sc)
+    cut = 6.0 * 0.5
+    first, mid = f.update(f.start(), causal_scans(t[t < cut], a[t < cut], rss[t < cut],
+                                                  n_anchors=4, scan_s=0.5, average_s=0.5,
+                                                  t_origin=0.0))
+    rest, end2 = f.update(mid, causal_scans(t, a, rss, n_anchors=4, scan_s=0.5, average_s=0.5,
+                                            t_origin=0.0, t_from=mid.t))
+    np.testing.assert_allclose(np.vstack([first.mean_xy, rest.mean_xy]), whole.mean_xy,
+                               atol=1e-12)
+    np.testing.assert_allclose(end2.velocity_m_per_s, end.velocity_m_per_s, atol=1e-12)
+    # the walker goes along +x: the persistent velocity learnt points that way
+    assert end.velocity_m_per_s[0] > 0.3

@@ -6,7 +6,11 @@ import numpy as np
 
 from hrtls.evaluate.metrics import position_errors
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
+from hrtls.fusion.path_loss import PathLossModel
+from hrtls.fusion.rss_grid import GridParams
 from hrtls.pipeline import Tracker, TrackerConfig
+from hrtls.pipeline.build import Notes
+from hrtls.pipeline.grid_stage import GridStage
 from hrtls.sim.simulation_result import SimulationResult
 
 from .test_chunked import track_in_parts
@@ -122,3 +126,29 @@ def test_bias_state_and_surveyed_offsets_chunked_and_restored_equal_offline(
         live = track_in_parts(cfg, session, chunk_s=7.0, restore_after=4).trajectory
         n = len(live)
         np.testing.assert_allclose(live.xyz, whole.xyz[-n:], atol=1e-9, rtol=0)
+
+
+def test_persistent_velocity_chunked_and_restored_equal_offline(office: SimulationResult
+                                                                ) -> None:
+    """``[prediction.grid] velocity_time_s``: the velocity survives chunks and snapshots and
+    changes the track; a snapshot without it (older) restores with a zero velocity."""
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    cfg = TrackerConfig()
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+        "grid": {**cfg.prediction.grid, "velocity_time_s": 4.0}})})
+    plain = Tracker().run(s).trajectory
+    offline = Tracker(cfg).run(s).trajectory
+    assert len(plain) == len(offline) and not np.allclose(plain.xyz, offline.xyz)
+    live = track_in_parts(cfg, s, chunk_s=7.0, restore_after=4).trajectory
+    n = len(live)
+    np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
+    anchors = {k: lm for k, lm in s.landmarks.items() if lm.kind in ("anchor", "beacon")}
+    stage = GridStage(anchors, model=PathLossModel(), params=GridParams(velocity_time_s=4.0),
+                      t0=0.0, z_m=0.0, notes=Notes())
+    stage.state.velocity_m_per_s[:] = (0.5, -0.25)
+    d = stage.state_dict()
+    assert d is not None
+    stage.restore(d)
+    np.testing.assert_array_equal(stage.state.velocity_m_per_s, [0.5, -0.25])
+    stage.restore({k: v for k, v in d.items() if k != "velocity_m_per_s"})
+    np.testing.assert_array_equal(stage.state.velocity_m_per_s, [0.0, 0.0])

@@ -5,7 +5,12 @@ beacons is a multi-modal, far from Gaussian position density. The filter holds t
 a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding box plus
 ``margin_m``) and alternates, for every scan:
 
-* **motion**: the density is convolved with a Gaussian of standard deviation
+* **motion**: with ``velocity_time_s > 0`` the density is first shifted by ``v dt`` (bilinear
+  between cells), ``v`` the walker's persistent velocity: an exponential average, time constant
+  ``velocity_time_s``, of the posterior mean's displacement per second from scan to scan
+  (``v += dt / (velocity_time_s + dt) ((m_k - m_{k-1}) / dt - v)``, speed at most
+  ``velocity_max_m_per_s``), so that through seconds of misleading readings the track keeps
+  walking; then it is convolved with a Gaussian of standard deviation
   ``sigma_speed_m_per_sqrt_s sqrt(dt)`` per axis (a walker of unknown direction; separable,
   truncated at 3 sigma; mass that leaves the grid is dropped and the rest renormalised);
 * **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
@@ -76,6 +81,9 @@ class GridParams:
     attenuation_db: mean attenuation of that component, dB.
     bias_sigma_db: prior standard deviation of each anchor's RSS bias, dB (0: no bias state).
     bias_walk_db_per_sqrt_s: random walk of the biases, dB/sqrt(s).
+    velocity_time_s: time constant of the persistent-velocity estimate, s (0: no velocity,
+        diffusion only).
+    velocity_max_m_per_s: bound of the persistent speed, m/s.
     """
 
     cell_m: float = 0.25
@@ -90,15 +98,18 @@ class GridParams:
     shadowing_time_s: float = 0.0
     attenuation_probability: float = 0.0
     attenuation_db: float = 8.0
-    bias_sigma_db: float = 0.0
+    bias_sigma_db: float = 3.0
     bias_walk_db_per_sqrt_s: float = 0.0
+    velocity_time_s: float = 8.0
+    velocity_max_m_per_s: float = 1.5
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", positive=True)
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
                      "outlier_probability", "shadowing_time_s", "attenuation_probability",
-                     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s"):
+                     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s",
+                     "velocity_time_s", "velocity_max_m_per_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
@@ -119,7 +130,8 @@ class GridParams:
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
     "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
-    "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s")])
+    "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s", "velocity_time_s",
+    "velocity_max_m_per_s")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -166,7 +178,8 @@ class GridGeometry:
 class GridState:
     """Density (ny, nx; sums to 1, or all zero before the first scan), time and offsets.
 
-    ``offsets_var_db2``: variance of each anchor's offset (the bias state; zero without it).
+    ``offsets_var_db2``: variance of each anchor's offset (the bias state; zero without it);
+    ``velocity_m_per_s``: the persistent velocity (x, y), m/s (zero without it).
     """
 
     t: float
@@ -174,10 +187,13 @@ class GridState:
     offsets_db: FloatArray
     started: bool = False
     offsets_var_db2: FloatArray | None = None
+    velocity_m_per_s: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if self.offsets_var_db2 is None:
             self.offsets_var_db2 = np.zeros(len(self.offsets_db))
+        if self.velocity_m_per_s is None:
+            self.velocity_m_per_s = np.zeros(2)
 
     @classmethod
     def empty(cls, geometry: GridGeometry, n_anchors: int) -> GridState:
@@ -242,6 +258,56 @@ def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
             total += s
     if total > 0.0:
         density /= total
+
+
+@njit(cache=True, error_model="numpy")
+def shift(density: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Move ``density`` (ny, nx) in place by ``sx_cells`` columns and ``sy_cells`` rows.
+
+    Bilinear between the four cells a mass lands among (its mean moves by the shift exactly);
+    mass that leaves the grid is dropped and the rest renormalised (unchanged if none stays).
+    """
+    if sx_cells == 0.0 and sy_cells == 0.0:
+        return
+    ix, iy = math.floor(sx_cells), math.floor(sy_cells)
+    fx, fy = sx_cells - ix, sy_cells - iy
+    ny, nx = density.shape
+    tmp[:] = 0.0
+    for i in range(ny):
+        for j in range(nx):
+            p = density[i, j]
+            if p == 0.0:
+                continue
+            for di in range(2):
+                ii = i + iy + di
+                if ii < 0 or ii >= ny:
+                    continue
+                wy = fy if di else 1.0 - fy
+                for dj in range(2):
+                    jj = j + ix + dj
+                    if 0 <= jj < nx:
+                        tmp[ii, jj] += p * wy * (fx if dj else 1.0 - fx)
+    total = tmp.sum()
+    if total > 0.0:
+        density[:] = tmp / total
+
+
+@njit(cache=True, error_model="numpy")
+def follow_velocity(velocity: FloatArray, prev_xy: FloatArray, mean_xy: FloatArray, dt: float,
+                    time_s: float, max_m_per_s: float) -> None:   # pragma: no cover - compiled
+    """Exponential average of the mean's displacement per second into ``velocity`` (in place).
+
+    Gain ``dt / (time_s + dt)``; the speed is clipped to ``max_m_per_s``.
+    """
+    if dt <= 0.0:
+        return
+    g = dt / (time_s + dt)
+    for c in range(2):
+        velocity[c] += g * ((mean_xy[c] - prev_xy[c]) / dt - velocity[c])
+    speed = math.hypot(velocity[0], velocity[1])
+    if speed > max_m_per_s:
+        velocity *= max_m_per_s / speed
 
 
 @njit(cache=True, error_model="numpy")
@@ -325,11 +391,11 @@ def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatAr
 @njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
                 density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
-                t_prev: float, started: bool,
+                velocity: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
     # pragma: no cover - compiled
-    """Run the scans through the filter; ``density``, ``offsets_db``, ``offsets_var`` in place.
+    """Run the scans through the filter; ``density``, offsets, ``velocity`` in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
     """
@@ -337,10 +403,16 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     cell = prm.cell_m
     tmp = np.empty((ny, nx))
     ll = np.empty((ny, nx))
+    prev = np.zeros(5)              # moments of the previous scan's posterior
+    moving = prm.velocity_time_s > 0.0
+    if started and moving:
+        moments(density, x0, y0, cell, prev)
     for k in range(t.shape[0]):
         dt = 0.0
         if started:
             dt = max(t[k] - t_prev, 0.0)
+            if moving:
+                shift(density, velocity[0] * dt / cell, velocity[1] * dt / cell, tmp)
             blur(density, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
         a, b = first[k], first[k] + count[k]
         if prm.bias_sigma_db > 0.0:
@@ -363,6 +435,10 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
                     density[i, j] = math.exp(ll[i, j] - top)
             density /= density.sum()
         moments(density, x0, y0, cell, out[k])
+        if moving and started:
+            follow_velocity(velocity, prev[:2], out[k, :2], dt, prm.velocity_time_s,
+                            prm.velocity_max_m_per_s)
+        prev[:] = out[k]
         if prm.offset_gain > 0.0:
             ci = min(max(round((out[k, 1] - y0) / cell), 0), ny - 1)
             cj = min(max(round((out[k, 0] - x0) / cell), 0), nx - 1)
@@ -452,13 +528,15 @@ class RssGridFilter:
         density = state.density.copy()
         offsets = state.offsets_db.copy()
         var = np.asarray(state.offsets_var_db2, dtype=np.float64).copy()
+        vel = np.asarray(state.velocity_m_per_s, dtype=np.float64).copy()
         g = self.geometry
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
-                                 density, offsets, var, state.t, state.started, scans.t,
+                                 density, offsets, var, vel, state.t, state.started, scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
                                  scans.weight, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
         rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
-        return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var)
+        return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var,
+                               vel)
