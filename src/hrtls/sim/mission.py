@@ -6,7 +6,8 @@ nodes dropped at random in the corridors without positions. ``n_rescuers`` rescu
 IMU enter one after the other (``stagger_s`` apart) from the entrance and walk random routes
 through the corridors, ranging to every node within ``max_range_m`` (Gaussian noise
 ``range_sigma_m`` plus ``range_sigma_fraction`` of the distance, exponential NLOS bias behind
-walls, dropouts, failed nodes never answer). With ``peer_ranges`` the agents also range to each
+walls, dropouts, failed nodes never answer); one magnetic environment (15 random disturbances)
+for the floor, the same field for every rescuer. With ``peer_ranges`` the agents also range to each
 other (:mod:`hrtls.sim.peers`: node id = the other agent's name, ``peer_rate_hz``,
 ``peer_max_range_m``).
 
@@ -170,6 +171,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         return _driven_team(seed, o, nodes, alive, model, tags, r[7], sites)
     agents: dict[str, Session] = {}
     sims: dict[str, SimulationResult] = {}
+    magnetic = MagneticEnvironment(anomalies=random_anomalies(r[7], sites))  # one building
     for i in range(o.n_rescuers):
         rr = scenario_rngs(seed * 1000 + 17 * (i + 1))
         wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 1.15,
@@ -177,7 +179,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
                                     stop_range_s=(2.0, 8.0), min_leg_m=3.0)
         sim = simulate_person(
             "inderst_hybrid_mission", seed, {"rescuer": i}, wps, device=get_device("inemo"),
-            magnetic=MagneticEnvironment(anomalies=random_anomalies(r[7], sites)),
+            magnetic=magnetic,
             infra=Infrastructure(tags=tags, nodes=alive, range_model=model),
             description=f"hybrid mission, rescuer {i + 1} of {o.n_rescuers}",
             start_pause_s=3.0 + i * o.stagger_s, rngs=rr)
@@ -222,13 +224,14 @@ def _driven_team(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, flo
     router = CorridorRouter(FREE_SPACE, grid_m=DriverParams().grid_m,
                             margin_m=DriverParams().margin_m)
     persons: dict[str, WalkingPerson] = {}
+    magnetic = MagneticEnvironment(anomalies=random_anomalies(rng, sites))  # one building
     for i in range(o.n_rescuers):
         name = f"R{i + 1}"
         persons[name] = WalkingPerson(
             name=name, seed=seed, device=get_device("inemo"), router=router,
             start_xy_m=np.array(ENTRANCE_XY), start_heading_rad=np.pi / 2,
             infra=Infrastructure(tags=tags, nodes=alive, range_model=model),
-            magnetic=MagneticEnvironment(anomalies=random_anomalies(rng, sites)),
+            magnetic=magnetic,
             rngs=scenario_rngs(seed * 1000 + 17 * (i + 1)),
             source={"scenario": "inderst_hybrid_mission", "seed": seed,
                     "options": {"rescuer": i, "driver": "planner"}},
