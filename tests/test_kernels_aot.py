@@ -79,8 +79,9 @@ def builds(tmp_path_factory: pytest.TempPathFactory) -> K.Table:
 
 
 def _aot_call(table: K.Table, kernel: K.Kernel, args: tuple[object, ...]) -> object:
+    # the first build that fits, as Kernel.__call__ picks it
     fitting = [fn for fn, fits in table[kernel.key] if fits(args)]
-    assert len(fitting) == 1
+    assert fitting
     return fitting[0](*args)
 
 
