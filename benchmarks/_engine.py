@@ -26,6 +26,15 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from ``"0-9"``, ``"100,105"`` or ``"0-4,100-104"``."""
+    out: list[int] = []
+    for part in text.split(","):
+        a, _, b = part.partition("-")
+        out.extend(range(int(a), int(b or a) + 1))
+    return out
+
+
 def add_engine_options(ap: argparse.ArgumentParser) -> None:
     """The engine options of ``benchmarks/wsn.py``."""
     ap.add_argument("--engine", default="local", help="local | ray (same numbers either way)")

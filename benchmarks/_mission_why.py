@@ -58,7 +58,8 @@ def _closest_m(mission: Mission, xy: np.ndarray) -> float:
     return best
 
 
-def _true_readings(mission: Mission, tracker: MissionTracker, node: str) -> NodeRanges:
+def true_readings(mission: Mission, tracker: MissionTracker, node: str) -> NodeRanges:
+    """The readings of ``node`` placed at the agents' true positions (zero covariance; scoring)."""
     rd = tracker.readings[node]
     obs = rd.ranges(tracker.params.pass_gap_s)
     ag, t = np.asarray(rd.agent), np.asarray(rd.t)
@@ -92,7 +93,7 @@ def why_not_localized(mission: Mission, tracker: MissionTracker, result: Mission
         out[reason_class(e.reason)] += 1
         if np.all(np.isfinite(e.position_m)):
             out["rejected, within 3 m"] += float(np.hypot(*(e.position_m - truth))) <= bad_m
-        out["from true positions"] += est.estimate(_true_readings(mission, tracker,
+        out["from true positions"] += est.estimate(true_readings(mission, tracker,
                                                                   node)).localized
     return out
 

@@ -49,22 +49,14 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2
 
-from _engine import Batch, add_engine_options
-from _mission_why import why_not_localized, why_table
+from _engine import Batch, add_engine_options, parse_seeds
+from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
-from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges
+from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.sim.mission import RESCUER_PREDICTION, Mission, MissionOptions, inderst_hybrid_mission
-
-
-def _seeds(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out.extend(range(int(a), int(b or a) + 1))
-    return out
 
 
 def agent_errors(mission: Mission, result: MissionResult, kind: str = "rescuer"
@@ -196,19 +188,8 @@ def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
     """Node RMSE from the same readings placed at the agents' true positions (zero covariance)."""
     est = NodeEstimator(tracker.params.nodes)
     d2 = []
-    for node, rd in tracker.readings.items():
-        obs = rd.ranges(tracker.params.pass_gap_s)
-        ag, t = np.asarray(rd.agent), np.asarray(rd.t)
-        xy = np.zeros((len(t), 2))
-        for i, name in enumerate(tracker.names):
-            truth = mission.simulations[name].session.truth
-            assert truth is not None
-            m = ag == i
-            xy[m, 0] = np.interp(t[m], truth.t, truth.xyz[:, 0])
-            xy[m, 1] = np.interp(t[m], truth.t, truth.xyz[:, 1])
-        e = est.estimate(NodeRanges.build(agent_xy_m=xy, agent_cov_m2=np.zeros((len(t), 2, 2)),
-                                          range_m=obs.range_m, range_sigma_m=obs.range_sigma_m,
-                                          group=obs.group, chain=obs.chain))
+    for node in tracker.readings:
+        e = est.estimate(true_readings(mission, tracker, node))
         if e.localized:
             d = e.position_m - mission.node_truth_m[node]
             d2.append(float(d @ d))
@@ -309,7 +290,7 @@ def main() -> None:
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude)
-             for seed in _seeds(args.seeds)]
+             for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
             m = scores[mode]

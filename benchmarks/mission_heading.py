@@ -14,6 +14,8 @@ import argparse
 
 import numpy as np
 
+from _engine import parse_seeds
+from hrtls.frames import wrap_angle
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker
 from hrtls.sim.mission import RESCUER_PREDICTION, inderst_hybrid_mission
@@ -23,24 +25,12 @@ VARIANTS = {"default": {}, "no-magnetometer": {"use_magnetometer": False},
 BANDS_M = ((0.3, 5.0), (15.0, 25.0), (55.0, 65.0))
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return np.asarray((a + np.pi) % (2 * np.pi) - np.pi)
-
-
-def _seeds(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out.extend(range(int(a), int(b or a) + 1))
-    return out
-
-
 def band_errors_deg(t: np.ndarray, heading_rad: np.ndarray, truth_t: np.ndarray,
                     truth_xy: np.ndarray, truth_heading_rad: np.ndarray) -> list[float]:
     """Median heading error (deg) of the estimate in each band of :data:`BANDS_M`."""
     walked = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(truth_xy, axis=0).T))])
     d = np.interp(t, truth_t, walked)
-    err = np.degrees(_wrap(heading_rad - np.interp(t, truth_t, np.unwrap(truth_heading_rad))))
+    err = np.degrees(wrap_angle(heading_rad - np.interp(t, truth_t, np.unwrap(truth_heading_rad))))
     return [float(np.median(err[(d > lo) & (d < hi)])) if np.any((d > lo) & (d < hi))
             else float("nan") for lo, hi in BANDS_M]
 
@@ -54,7 +44,7 @@ def main() -> None:
                                            "attitude": VARIANTS[args.variant]})
     print(f"variant {args.variant}: heading error (deg) at " +
           ", ".join(f"{lo:g}-{hi:g} m" for lo, hi in BANDS_M))
-    for seed in _seeds(args.seeds):
+    for seed in parse_seeds(args.seeds):
         mission = inderst_hybrid_mission(seed)
         for name, session in mission.agents.items():
             truth = session.truth
