@@ -12,7 +12,14 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   ``velocity_max_m_per_s``), so that through seconds of misleading readings the track keeps
   walking; then it is convolved with a Gaussian of standard deviation
   ``sigma_speed_m_per_sqrt_s sqrt(dt)`` per axis (a walker of unknown direction; separable,
-  truncated at 3 sigma; mass that leaves the grid is dropped and the rest renormalised);
+  truncated at 3 sigma; mass that leaves the grid is dropped and the rest renormalised).
+  With ``mode_turn_deg > 0`` or ``stopped_mode`` the density is joint over position and a
+  velocity mode ``m`` (:attr:`GridParams.n_modes` of them): mode ``m`` moves at ``v`` turned
+  by ``m mode_turn_deg`` (a stopped mode: not at all), each mode keeping its mass; before
+  that the modes switch as a Markov chain (each left with probability
+  ``1 - exp(-mode_switch_per_s dt)``, to the others alike). The update multiplies every mode
+  by the same likelihood, so the modes are weighted by how well their predictions explain the
+  scan, and the rows, the bias and ``v`` use the position density (the sum over modes);
 * **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
   log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
@@ -45,18 +52,30 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
 from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel, mean_rss_dbm
+from hrtls.fusion.rss_grid_kernels import (
+    RSS_SPAN_DB,
+    IntArray,
+    apply_likelihood,
+    bias_update,
+    blur,
+    follow_velocity,
+    log_likelihood,
+    mix_modes,
+    moments,
+    move_modes,
+    shift,
+)
 from hrtls.kernels import njit
 
-IntArray = NDArray[np.int64]
-
-RSS_SPAN_DB = 60.0
-"""Width of the uniform outlier density of a reading, dB."""
+__all__ = ["GRID_DTYPE", "RSS_SPAN_DB", "GridGeometry", "GridParams", "GridRows", "GridScans",
+           "GridState", "RssGridFilter", "apply_likelihood", "bias_update", "blur", "causal_scans",
+           "follow_velocity", "grid_kernel", "log_likelihood", "mix_modes", "moments",
+           "move_modes", "shift"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -84,6 +103,11 @@ class GridParams:
     velocity_time_s: time constant of the persistent-velocity estimate, s (0: no velocity,
         diffusion only).
     velocity_max_m_per_s: bound of the persistent speed, m/s.
+    mode_turn_deg: angle between the velocity modes, deg: the persistent velocity turned by
+        0, 1, ... ``round(360 / mode_turn_deg) - 1`` times this angle (0: one mode, today's
+        filter; at most 180).
+    stopped_mode: one more mode that does not move.
+    mode_switch_per_s: rate of leaving a velocity mode (for the others alike), 1/s.
     """
 
     cell_m: float = 0.25
@@ -102,6 +126,9 @@ class GridParams:
     bias_walk_db_per_sqrt_s: float = 0.0
     velocity_time_s: float = 8.0
     velocity_max_m_per_s: float = 1.5
+    mode_turn_deg: float = 0.0
+    stopped_mode: bool = False
+    mode_switch_per_s: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -109,11 +136,15 @@ class GridParams:
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
                      "outlier_probability", "shadowing_time_s", "attenuation_probability",
                      "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s",
-                     "velocity_time_s", "velocity_max_m_per_s"):
+                     "velocity_time_s", "velocity_max_m_per_s", "mode_turn_deg",
+                     "mode_switch_per_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
                              where="GridParams.average_s", expected="at least scan_s")
+        if self.mode_turn_deg > 180.0:
+            raise InputError(f"mode_turn_deg = {self.mode_turn_deg}", where="GridParams",
+                             expected="at most 180 deg")
         if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0
                 and self.attenuation_probability < 1.0):
             raise InputError(f"outlier_probability = {self.outlier_probability}, offset_gain = "
@@ -126,12 +157,18 @@ class GridParams:
         """The settings as a one-element :data:`GRID_DTYPE` array."""
         return to_record(GRID_DTYPE, self)
 
+    @property
+    def n_modes(self) -> int:
+        """Number of velocity modes: the turned velocities, plus one if ``stopped_mode``."""
+        turns = max(round(360.0 / self.mode_turn_deg), 1) if self.mode_turn_deg > 0.0 else 1
+        return turns + int(self.stopped_mode)
+
 
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
     "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s", "velocity_time_s",
-    "velocity_max_m_per_s")])
+    "velocity_max_m_per_s", "mode_turn_deg", "stopped_mode", "mode_switch_per_s")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -176,9 +213,12 @@ class GridGeometry:
 
 @dataclass(slots=True, eq=False)
 class GridState:
-    """Density (ny, nx; sums to 1, or all zero before the first scan), time and offsets.
+    """Density, time, offsets and velocity.
 
-    ``offsets_var_db2``: variance of each anchor's offset (the bias state; zero without it);
+    ``density``: the joint density of the velocity mode and the position (K, ny, nx; sums to
+    1); a (ny, nx) density (one mode; older snapshots) is also read, shared equally among the
+    modes (:meth:`modes`). ``offsets_var_db2``: variance of each anchor's offset (the bias
+    state; zero without it);
     ``velocity_m_per_s``: the persistent velocity (x, y), m/s (zero without it).
     """
 
@@ -196,10 +236,23 @@ class GridState:
             self.velocity_m_per_s = np.zeros(2)
 
     @classmethod
-    def empty(cls, geometry: GridGeometry, n_anchors: int) -> GridState:
+    def empty(cls, geometry: GridGeometry, n_anchors: int, n_modes: int = 1) -> GridState:
         """Before the first scan (uniform prior)."""
-        d = np.full((geometry.ny, geometry.nx), 1.0 / (geometry.nx * geometry.ny))
+        d = np.full((n_modes, geometry.ny, geometry.nx),
+                    1.0 / (n_modes * geometry.nx * geometry.ny))
         return cls(-math.inf, d, np.zeros(n_anchors))
+
+    def modes(self, n_modes: int) -> FloatArray:
+        """A copy of the density as ``n_modes`` modes (K, ny, nx).
+
+        A density with another number of modes (or none: (ny, nx)) gives its position density
+        shared equally among the ``n_modes``.
+        """
+        d = np.asarray(self.density, dtype=np.float64)
+        if d.ndim == 3 and d.shape[0] == n_modes:
+            return d.copy()
+        pos = d.sum(axis=0) if d.ndim == 3 else d
+        return np.repeat(pos[None, :, :] / n_modes, n_modes, axis=0)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -228,213 +281,45 @@ class GridScans:
 
 
 @njit(cache=True, error_model="numpy")
-def blur(density: FloatArray, sigma_cells: float, tmp: FloatArray) -> None:
-    # pragma: no cover - compiled
-    """Convolve ``density`` (ny, nx) in place with a Gaussian of ``sigma_cells`` per axis.
-
-    Zero outside the grid; truncated at 3 sigma; renormalised to sum 1. ``tmp``: (ny, nx).
-    """
-    if sigma_cells <= 1e-6:
-        return
-    h = math.ceil(3.0 * sigma_cells)
-    w = np.empty(2 * h + 1)
-    for k in range(-h, h + 1):
-        w[k + h] = math.exp(-0.5 * (k / sigma_cells) ** 2)
-    w /= w.sum()
-    ny, nx = density.shape
-    for i in range(ny):
-        for j in range(nx):
-            s = 0.0
-            for k in range(max(-h, -j), min(h, nx - 1 - j) + 1):
-                s += w[k + h] * density[i, j + k]
-            tmp[i, j] = s
-    total = 0.0
-    for i in range(ny):
-        for j in range(nx):
-            s = 0.0
-            for k in range(max(-h, -i), min(h, ny - 1 - i) + 1):
-                s += w[k + h] * tmp[i + k, j]
-            density[i, j] = s
-            total += s
-    if total > 0.0:
-        density /= total
-
-
-@njit(cache=True, error_model="numpy")
-def shift(density: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray) -> None:
-    # pragma: no cover - compiled
-    """Move ``density`` (ny, nx) in place by ``sx_cells`` columns and ``sy_cells`` rows.
-
-    Bilinear between the four cells a mass lands among (its mean moves by the shift exactly);
-    mass that leaves the grid is dropped and the rest renormalised (unchanged if none stays).
-    """
-    if sx_cells == 0.0 and sy_cells == 0.0:
-        return
-    ix, iy = math.floor(sx_cells), math.floor(sy_cells)
-    fx, fy = sx_cells - ix, sy_cells - iy
-    ny, nx = density.shape
-    tmp[:] = 0.0
-    for i in range(ny):
-        for j in range(nx):
-            p = density[i, j]
-            if p == 0.0:
-                continue
-            for di in range(2):
-                ii = i + iy + di
-                if ii < 0 or ii >= ny:
-                    continue
-                wy = fy if di else 1.0 - fy
-                for dj in range(2):
-                    jj = j + ix + dj
-                    if 0 <= jj < nx:
-                        tmp[ii, jj] += p * wy * (fx if dj else 1.0 - fx)
-    total = tmp.sum()
-    if total > 0.0:
-        density[:] = tmp / total
-
-
-@njit(cache=True, error_model="numpy")
-def follow_velocity(velocity: FloatArray, prev_xy: FloatArray, mean_xy: FloatArray, dt: float,
-                    time_s: float, max_m_per_s: float) -> None:   # pragma: no cover - compiled
-    """Exponential average of the mean's displacement per second into ``velocity`` (in place).
-
-    Gain ``dt / (time_s + dt)``; the speed is clipped to ``max_m_per_s``.
-    """
-    if dt <= 0.0:
-        return
-    g = dt / (time_s + dt)
-    for c in range(2):
-        velocity[c] += g * ((mean_xy[c] - prev_xy[c]) / dt - velocity[c])
-    speed = math.hypot(velocity[0], velocity[1])
-    if speed > max_m_per_s:
-        velocity *= max_m_per_s / speed
-
-
-@njit(cache=True, error_model="numpy")
-def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
-                   offsets_db: FloatArray, offsets_var: FloatArray, model: np.record,
-                   prm: np.record, out: FloatArray) -> None:   # pragma: no cover - compiled
-    """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring).
-
-    The offset's variance ``offsets_var`` adds to the shadowing variance (bias marginalised).
-    """
-    out[:] = 0.0
-    outlier, q = prm.outlier_probability, prm.attenuation_probability
-    floor = outlier / RSS_SPAN_DB
-    ny, nx = out.shape
-    for r in range(anchor.shape[0]):
-        a = anchor[r]
-        sig = model.sigma_db if offsets_var[a] == 0.0 else \
-            math.sqrt(model.sigma_db ** 2 + offsets_var[a])
-        norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
-        shift = prm.attenuation_db / sig
-        for i in range(ny):
-            for j in range(nx):
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
-                z = (rss_dbm[r] - mu - offsets_db[a]) / sig
-                g = (1.0 - q) * math.exp(-0.5 * z * z) + q * math.exp(-0.5 * (z + shift) ** 2)
-                out[i, j] += weight[r] * math.log(norm * g + floor)
-
-
-@njit(cache=True, error_model="numpy")
-def bias_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
-                weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
-                model: np.record) -> None:   # pragma: no cover - compiled
-    """Kalman update of each heard anchor's offset from the residual over ``density``.
-
-    The predicted RSS is marginalised over the (predicted) position density: residual
-    ``e = r - E[mu] - o``, variance ``S = sigma^2 / w + Var[mu] + P``; a residual beyond
-    3 sqrt(S) is not used (an outlier or an attenuated reading).
-    """
-    ny, nx = density.shape
-    for r in range(anchor.shape[0]):
-        a, w = anchor[r], weight[r]
-        if w <= 0.0:
-            continue
-        m1 = m2 = 0.0
-        for i in range(ny):
-            for j in range(nx):
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
-                m1 += density[i, j] * mu
-                m2 += density[i, j] * mu * mu
-        p = offsets_var[a]
-        s = model.sigma_db ** 2 / w + max(m2 - m1 * m1, 0.0) + p
-        e = rss_dbm[r] - m1 - offsets_db[a]
-        if e * e > 9.0 * s:
-            continue
-        offsets_db[a] += p / s * e
-        offsets_var[a] = p - p * p / s
-
-
-@njit(cache=True, error_model="numpy")
-def moments(density: FloatArray, x0: float, y0: float, cell: float, out: FloatArray) -> None:
-    # pragma: no cover - compiled
-    """Mean (out[0:2]) and covariance xx, xy, yy (out[2:5]) of the density, m and m^2."""
-    ny, nx = density.shape
-    sx = sy = sxx = sxy = syy = 0.0
-    for i in range(ny):
-        y = y0 + cell * i
-        for j in range(nx):
-            p = density[i, j]
-            x = x0 + cell * j
-            sx += p * x
-            sy += p * y
-            sxx += p * x * x
-            sxy += p * x * y
-            syy += p * y * y
-    out[0], out[1] = sx, sy
-    out[2] = max(sxx - sx * sx, 0.0)
-    out[3] = sxy - sx * sy
-    out[4] = max(syy - sy * sy, 0.0)
-
-
-@njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
                 density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
                 velocity: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
     # pragma: no cover - compiled
-    """Run the scans through the filter; ``density``, offsets, ``velocity`` in place.
+    """Run the scans through the filter; ``density`` (K, ny, nx), offsets, ``velocity`` in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
     """
-    ny, nx = density.shape
+    ny, nx = density.shape[1], density.shape[2]
     cell = prm.cell_m
     tmp = np.empty((ny, nx))
     ll = np.empty((ny, nx))
+    pos = np.empty((ny, nx))        # the position density (sum over the modes)
     prev = np.zeros(5)              # moments of the previous scan's posterior
     moving = prm.velocity_time_s > 0.0
+    still = np.zeros(2)
+    turn = math.radians(prm.mode_turn_deg)
     if started and moving:
-        moments(density, x0, y0, cell, prev)
+        pos[:] = density.sum(axis=0)
+        moments(pos, x0, y0, cell, prev)
     for k in range(t.shape[0]):
         dt = 0.0
         if started:
             dt = max(t[k] - t_prev, 0.0)
-            if moving:
-                shift(density, velocity[0] * dt / cell, velocity[1] * dt / cell, tmp)
-            blur(density, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
+            mix_modes(density, 1.0 - math.exp(-prm.mode_switch_per_s * dt))
+            move_modes(density, velocity if moving else still, turn, prm.stopped_mode > 0.0,
+                       dt, cell, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
         a, b = first[k], first[k] + count[k]
         if prm.bias_sigma_db > 0.0:
             offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
-            bias_update(dist, density, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
+            pos[:] = density.sum(axis=0)
+            bias_update(dist, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
                         offsets_var, model)
         log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
                        model, prm, ll)
-        top = ll.max()
-        total = 0.0
-        for i in range(ny):
-            for j in range(nx):
-                density[i, j] *= math.exp(ll[i, j] - top)
-                total += density[i, j]
-        if total > 0.0:
-            density /= total
-        else:   # the scan excludes the whole prior: restart from its likelihood
-            for i in range(ny):
-                for j in range(nx):
-                    density[i, j] = math.exp(ll[i, j] - top)
-            density /= density.sum()
-        moments(density, x0, y0, cell, out[k])
+        apply_likelihood(density, ll, pos)
+        moments(pos, x0, y0, cell, out[k])
         if moving and started:
             follow_velocity(velocity, prev[:2], out[k, :2], dt, prm.velocity_time_s,
                             prm.velocity_max_m_per_s)
@@ -514,7 +399,7 @@ class RssGridFilter:
 
     def start(self, offsets_db: FloatArray | None = None) -> GridState:
         """The state before the first scan; ``offsets_db``: starting per-anchor offsets, dB."""
-        state = GridState.empty(self.geometry, len(self.anchors_xy))
+        state = GridState.empty(self.geometry, len(self.anchors_xy), self.params.n_modes)
         if offsets_db is not None:
             state.offsets_db[:] = np.clip(np.asarray(offsets_db, dtype=np.float64),
                                           -self.params.offset_max_db, self.params.offset_max_db)
@@ -525,7 +410,7 @@ class RssGridFilter:
         """Rows of ``scans`` (after ``state.t``) and the new state (``state`` is unchanged)."""
         s = len(scans.t)
         out = np.zeros((s, 5))
-        density = state.density.copy()
+        density = state.modes(self.params.n_modes)
         offsets = state.offsets_db.copy()
         var = np.asarray(state.offsets_var_db2, dtype=np.float64).copy()
         vel = np.asarray(state.velocity_m_per_s, dtype=np.float64).copy()
