@@ -2,18 +2,20 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-per-anchor bias state, persistent-velocity time constant; the averaging window of 2 s and no
-offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally the
-channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks' readings
-against their true distances, as a site survey would) are chosen there by the mean p75 of the
-horizontal error; the held-out track is then tracked once with that choice. Printed per track:
-p50 / p75 / p95 of the horizontal error at every truth sample for
+per-anchor bias state, persistent-velocity time constant, and the motion choices of
+:data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the averaging window of 2 s
+and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
+the channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks'
+readings against their true distances, as a site survey would) are chosen there by the mean
+p75 of the horizontal error; the held-out track is then tracked once with that choice.
+Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample for
 
 * ``random walk``: ``[prediction] no_imu = "random-walk"`` (the Kalman filter; before the grid);
 * ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
-* ``grid, held out``: the leave-one-out choice above;
-* ``grid, held out, no velocity``: the same choice among the candidates without the
-  persistent velocity (``velocity_time_s = 0``: the choice before it existed);
+* ``grid, held out``: the leave-one-out choice above, and ``s / run`` the seconds that
+  held-out run took (the whole tracker, one process);
+* ``grid, held out, one mode``: the same choice among the candidates without the motion
+  choices (one velocity mode, no burst state: the candidates before them);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs).
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import time
 import warnings
 from pathlib import Path
 from typing import Any
@@ -46,9 +49,25 @@ TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight
 GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,),
                 "offset_gain": (0.0,), "bias_sigma_db": (0.0, 3.0, 5.0),
                 "velocity_time_s": (0.0, 8.0, 16.0)}
-"""Candidate ``[prediction.grid]`` settings of the leave-one-out choice."""
-BEFORE = {"velocity_time_s": 0.0}
-"""The candidates of the choice before the persistent velocity (``grid, held out, no velocity``)."""
+"""Candidate ``[prediction.grid]`` settings of the leave-one-out choice, each with every
+:data:`MOTION_CHOICES` entry that fits it."""
+FIXED_HEADINGS = {"mode_turn_deg": 45.0, "stopped_mode": True, "mode_switch_per_s": 0.1,
+                  "velocity_time_s": 0.0}
+MOTION_CHOICES: tuple[dict[str, Any], ...] = (
+    {},                                                     # one mode, no burst state
+    {"burst_sigma_db": 10.0},                               # per-anchor burst state
+    {"stopped_mode": True, "mode_switch_per_s": 0.1},       # persistent velocity or stopped
+    {**FIXED_HEADINGS, "mode_speed_m_per_s": 0.5},          # 8 fixed headings or stopped
+    {**FIXED_HEADINGS, "mode_speed_m_per_s": 1.0})
+"""Velocity modes and burst state added to the candidates: the stopped mode only with a
+persistent velocity, the fixed headings (no persistent velocity) only once per other setting."""
+
+
+def fits(base: dict[str, Any], extra: dict[str, Any]) -> bool:
+    """Whether the motion choice ``extra`` goes with ``base`` (no duplicate runs)."""
+    if "mode_speed_m_per_s" in extra:
+        return base["velocity_time_s"] == 0.0
+    return not extra.get("stopped_mode") or base["velocity_time_s"] > 0.0
 
 
 def config(no_imu: str, grid: dict[str, float] | None = None) -> TrackerConfig:
@@ -109,8 +128,9 @@ def main() -> None:
             warnings.simplefilter("ignore")
             sweep(loaded, args.grid)
         return
-    candidates = [dict(zip(GRID_CHOICES, v, strict=True))
-                  for v in itertools.product(*GRID_CHOICES.values())]
+    bases = [dict(zip(GRID_CHOICES, v, strict=True))
+             for v in itertools.product(*GRID_CHOICES.values())]
+    candidates = [{**b, **m} for b in bases for m in MOTION_CHOICES if fits(b, m)]
     # p75 of every candidate on every track, with the default channel and with each fold's
     # surveyed channel (the survey of the four tracks other than the held-out one)
     surveys = {h: survey_channel([loaded[n] for n in TRACKS if n != h]) for h in TRACKS}
@@ -125,11 +145,11 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    for col in ("track", "random walk", "grid, default", "grid, held out, no velocity",
-                "grid, held out", "choice (dev)"):
+    for col in ("track", "random walk", "grid, default", "grid, held out, one mode",
+                "grid, held out", "s / run", "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
-    before = [k for k, c in enumerate(candidates) if all(c[a] == b for a, b in BEFORE.items())]
+    before = [k for k, c in enumerate(candidates) if set(c) == set(GRID_CHOICES)]
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])
@@ -139,8 +159,10 @@ def main() -> None:
         kb, cb = min((kc for kc in score if kc[0] in before), key=lambda kc: score[kc])
         s = loaded[h].session
         e = {"walk": errors(s, config("random-walk")), "default": errors(s, config("grid")),
-             "before": errors(surveyed(s, surveys[h], cb), config("grid", candidates[kb])),
-             "held": errors(surveyed(s, surveys[h], ch), config("grid", candidates[k]))}
+             "before": errors(surveyed(s, surveys[h], cb), config("grid", candidates[kb]))}
+        start = time.perf_counter()
+        e["held"] = errors(surveyed(s, surveys[h], ch), config("grid", candidates[k]))
+        seconds = time.perf_counter() - start
         for key, v in e.items():
             summary[key].append(float(np.percentile(v, 75)))
         cells = [" / ".join(f"{x:.2f}" for x in np.percentile(v, [50, 75, 95]))
@@ -148,9 +170,9 @@ def main() -> None:
         choice = ", ".join(f"{a}={b}" for a, b in candidates[k].items()) + \
             (f", channel A={surveys[h].a_dbm:.1f} eta={surveys[h].eta:.2f} "
              f"sigma={surveys[h].sigma_db:.1f}" if ch else ", default channel")
-        table.add_row(h, *cells, f"{choice} (dev p75 {score[(k, ch)]:.2f})")
+        table.add_row(h, *cells, f"{seconds:.1f}", f"{choice} (dev p75 {score[(k, ch)]:.2f})")
     table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
-                                         for v in summary.values()), "")
+                                         for v in summary.values()), "", "")
     Console(width=200).print(table)
 
 

@@ -55,7 +55,7 @@ def test_likelihood_of_one_reading_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]]])                 # one anchor, one row, two cells
     out = np.zeros((1, 2))
     log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
-                   np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
+                   np.zeros(1), np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
                    GridParams(outlier_probability=0.1).record()[0], out)
     for j, mu in enumerate((-59.0, -79.0)):
         z = (-70.0 - mu) / 4.0
@@ -69,8 +69,8 @@ def test_attenuated_component_and_offset_variance_by_hand() -> None:
     out = np.zeros((1, 2))
     prm = GridParams(outlier_probability=0.1, attenuation_probability=0.25, attenuation_db=8.0)
     log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([1.0]), np.array([2.0]),
-                   np.array([9.0]), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0), prm.record()[0],
-                   out)
+                   np.array([9.0]), np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
+                   prm.record()[0], out)
     s = 5.0                                          # sqrt(4^2 + 9)
     for j, mu in enumerate((-59.0 + 2.0, -79.0 + 2.0)):
         g = 0.75 * math.exp(-0.5 * ((-70.0 - mu) / s) ** 2) + \
@@ -81,7 +81,7 @@ def test_attenuated_component_and_offset_variance_by_hand() -> None:
     plain, att = np.zeros((1, 2)), np.zeros((1, 2))
     for q, o in ((0.0, plain), (0.25, att)):
         log_likelihood(dist, np.array([0]), np.array([-71.0]), np.array([1.0]), np.zeros(1),
-                       np.zeros(1), _model(sigma_db=4.0),
+                       np.zeros(1), np.zeros(1), _model(sigma_db=4.0),
                        GridParams(attenuation_probability=q).record()[0], o)
     assert att[0, 0] > plain[0, 0] and att[0, 1] < plain[0, 1]
 

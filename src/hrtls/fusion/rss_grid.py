@@ -14,8 +14,9 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   ``sigma_speed_m_per_sqrt_s sqrt(dt)`` per axis (a walker of unknown direction; separable,
   truncated at 3 sigma; mass that leaves the grid is dropped and the rest renormalised).
   With ``mode_turn_deg > 0`` or ``stopped_mode`` the density is joint over position and a
-  velocity mode ``m`` (:attr:`GridParams.n_modes` of them): mode ``m`` moves at ``v`` turned
-  by ``m mode_turn_deg`` (a stopped mode: not at all), each mode keeping its mass; before
+  velocity mode ``m`` (:attr:`GridParams.n_modes` of them): mode ``m`` moves at ``v`` (or,
+  with ``mode_speed_m_per_s > 0``, that speed along +x) turned by ``m mode_turn_deg`` (a
+  stopped mode: not at all), each mode keeping its mass; before
   that the modes switch as a Markov chain (each left with probability
   ``1 - exp(-mode_switch_per_s dt)``, to the others alike). The update multiplies every mode
   by the same likelihood, so the modes are weighted by how well their predictions explain the
@@ -63,6 +64,8 @@ from hrtls.fusion.rss_grid_kernels import (
     apply_likelihood,
     bias_update,
     blur,
+    burst_predict,
+    burst_update,
     follow_velocity,
     log_likelihood,
     mix_modes,
@@ -72,10 +75,29 @@ from hrtls.fusion.rss_grid_kernels import (
 )
 from hrtls.kernels import njit
 
-__all__ = ["GRID_DTYPE", "RSS_SPAN_DB", "GridGeometry", "GridParams", "GridRows", "GridScans",
-           "GridState", "RssGridFilter", "apply_likelihood", "bias_update", "blur", "causal_scans",
-           "follow_velocity", "grid_kernel", "log_likelihood", "mix_modes", "moments",
-           "move_modes", "shift"]
+__all__ = [
+    "GRID_DTYPE",
+    "RSS_SPAN_DB",
+    "GridGeometry",
+    "GridParams",
+    "GridRows",
+    "GridScans",
+    "GridState",
+    "RssGridFilter",
+    "apply_likelihood",
+    "bias_update",
+    "blur",
+    "burst_predict",
+    "burst_update",
+    "causal_scans",
+    "follow_velocity",
+    "grid_kernel",
+    "log_likelihood",
+    "mix_modes",
+    "moments",
+    "move_modes",
+    "shift",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -106,8 +128,14 @@ class GridParams:
     mode_turn_deg: angle between the velocity modes, deg: the persistent velocity turned by
         0, 1, ... ``round(360 / mode_turn_deg) - 1`` times this angle (0: one mode, today's
         filter; at most 180).
+    mode_speed_m_per_s: with it (> 0) the modes turn a fixed velocity of this speed along +x
+        instead of the persistent velocity (modes of fixed heading), m/s.
     stopped_mode: one more mode that does not move.
     mode_switch_per_s: rate of leaving a velocity mode (for the others alike), 1/s.
+    burst_sigma_db: extra spread of an anchor's readings during a burst, dB (0: no burst
+        state).
+    burst_enter_per_s: rate at which an anchor enters a burst, 1/s.
+    burst_exit_per_s: rate at which a burst ends, 1/s.
     """
 
     cell_m: float = 0.25
@@ -127,8 +155,12 @@ class GridParams:
     velocity_time_s: float = 8.0
     velocity_max_m_per_s: float = 1.5
     mode_turn_deg: float = 0.0
+    mode_speed_m_per_s: float = 0.0
     stopped_mode: bool = False
     mode_switch_per_s: float = 0.5
+    burst_sigma_db: float = 0.0
+    burst_enter_per_s: float = 0.05
+    burst_exit_per_s: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -137,14 +169,18 @@ class GridParams:
                      "outlier_probability", "shadowing_time_s", "attenuation_probability",
                      "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s",
                      "velocity_time_s", "velocity_max_m_per_s", "mode_turn_deg",
-                     "mode_switch_per_s"):
+                     "mode_speed_m_per_s", "mode_switch_per_s", "burst_sigma_db",
+                     "burst_enter_per_s", "burst_exit_per_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
                              where="GridParams.average_s", expected="at least scan_s")
-        if self.mode_turn_deg > 180.0:
-            raise InputError(f"mode_turn_deg = {self.mode_turn_deg}", where="GridParams",
-                             expected="at most 180 deg")
+        if self.mode_turn_deg > 180.0 or (self.mode_speed_m_per_s > 0.0
+                                           and self.mode_turn_deg == 0.0):
+            raise InputError(f"mode_turn_deg = {self.mode_turn_deg}, mode_speed_m_per_s = "
+                             f"{self.mode_speed_m_per_s}", where="GridParams",
+                             expected="mode_turn_deg at most 180 deg, and above 0 with a "
+                                      "mode speed")
         if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0
                 and self.attenuation_probability < 1.0):
             raise InputError(f"outlier_probability = {self.outlier_probability}, offset_gain = "
@@ -163,12 +199,20 @@ class GridParams:
         turns = max(round(360.0 / self.mode_turn_deg), 1) if self.mode_turn_deg > 0.0 else 1
         return turns + int(self.stopped_mode)
 
+    @property
+    def burst_start(self) -> float:
+        """Burst probability of an anchor before its first reading (the chain's stationary)."""
+        rate = self.burst_enter_per_s + self.burst_exit_per_s
+        return self.burst_enter_per_s / rate if self.burst_sigma_db > 0.0 and rate > 0.0 \
+            else 0.0
+
 
 GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "cell_m", "max_cells", "margin_m", "sigma_speed_m_per_sqrt_s", "scan_s", "average_s",
     "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s", "velocity_time_s",
-    "velocity_max_m_per_s", "mode_turn_deg", "stopped_mode", "mode_switch_per_s")])
+    "velocity_max_m_per_s", "mode_turn_deg", "mode_speed_m_per_s", "stopped_mode",
+    "mode_switch_per_s", "burst_sigma_db", "burst_enter_per_s", "burst_exit_per_s")])
 """Record of :class:`GridParams` for compiled code (same field names)."""
 
 
@@ -219,7 +263,9 @@ class GridState:
     1); a (ny, nx) density (one mode; older snapshots) is also read, shared equally among the
     modes (:meth:`modes`). ``offsets_var_db2``: variance of each anchor's offset (the bias
     state; zero without it);
-    ``velocity_m_per_s``: the persistent velocity (x, y), m/s (zero without it).
+    ``velocity_m_per_s``: the persistent velocity (x, y), m/s (zero without it);
+    ``burst_probability``: each anchor's probability of a burst (None: the chain's stationary
+    value, :attr:`GridParams.burst_start`).
     """
 
     t: float
@@ -228,6 +274,7 @@ class GridState:
     started: bool = False
     offsets_var_db2: FloatArray | None = None
     velocity_m_per_s: FloatArray | None = None
+    burst_probability: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if self.offsets_var_db2 is None:
@@ -283,11 +330,11 @@ class GridScans:
 @njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
                 density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
-                velocity: FloatArray, t_prev: float, started: bool,
+                velocity: FloatArray, burst: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
     # pragma: no cover - compiled
-    """Run the scans through the filter; ``density`` (K, ny, nx), offsets, ``velocity`` in place.
+    """Run the scans through the filter; density (K, ny, nx) and the other states in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
     """
@@ -298,7 +345,9 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     pos = np.empty((ny, nx))        # the position density (sum over the modes)
     prev = np.zeros(5)              # moments of the previous scan's posterior
     moving = prm.velocity_time_s > 0.0
-    still = np.zeros(2)
+    base = np.zeros(2)              # what the modes turn when not the persistent velocity
+    base[0] = prm.mode_speed_m_per_s
+    fixed = prm.mode_speed_m_per_s > 0.0
     turn = math.radians(prm.mode_turn_deg)
     if started and moving:
         pos[:] = density.sum(axis=0)
@@ -308,16 +357,22 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
         if started:
             dt = max(t[k] - t_prev, 0.0)
             mix_modes(density, 1.0 - math.exp(-prm.mode_switch_per_s * dt))
-            move_modes(density, velocity if moving else still, turn, prm.stopped_mode > 0.0,
-                       dt, cell, prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell, tmp)
+            if prm.burst_sigma_db > 0.0:
+                burst_predict(burst, dt, prm.burst_enter_per_s, prm.burst_exit_per_s)
+            spread = prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell
+            move_modes(density, velocity if moving and not fixed else base, turn,
+                       prm.stopped_mode > 0.0, dt, cell, spread, tmp)
         a, b = first[k], first[k] + count[k]
+        pos[:] = density.sum(axis=0)
         if prm.bias_sigma_db > 0.0:
             offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
-            pos[:] = density.sum(axis=0)
             bias_update(dist, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
                         offsets_var, model)
         log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
-                       model, prm, ll)
+                       burst, model, prm, ll)
+        if prm.burst_sigma_db > 0.0:
+            burst_update(dist, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
+                         offsets_var, burst, model, prm)
         apply_likelihood(density, ll, pos)
         moments(pos, x0, y0, cell, out[k])
         if moving and started:
@@ -414,14 +469,18 @@ class RssGridFilter:
         offsets = state.offsets_db.copy()
         var = np.asarray(state.offsets_var_db2, dtype=np.float64).copy()
         vel = np.asarray(state.velocity_m_per_s, dtype=np.float64).copy()
+        burst = np.full(len(offsets), self.params.burst_start) \
+            if state.burst_probability is None \
+            else np.asarray(state.burst_probability, dtype=np.float64).copy()
         g = self.geometry
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
-                                 density, offsets, var, vel, state.t, state.started, scans.t,
+                                 density, offsets, var, vel, burst, state.t, state.started,
+                                 scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
                                  scans.weight, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
         rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
         return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var,
-                               vel)
+                               vel, burst)

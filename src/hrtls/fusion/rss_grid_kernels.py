@@ -105,11 +105,14 @@ def follow_velocity(velocity: FloatArray, prev_xy: FloatArray, mean_xy: FloatArr
 
 @njit(cache=True, error_model="numpy")
 def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
-                   offsets_db: FloatArray, offsets_var: FloatArray, model: np.record,
-                   prm: np.record, out: FloatArray) -> None:   # pragma: no cover - compiled
+                   offsets_db: FloatArray, offsets_var: FloatArray, burst: FloatArray,
+                   model: np.record, prm: np.record, out: FloatArray) -> None:
+    # pragma: no cover - compiled
     """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring).
 
     The offset's variance ``offsets_var`` adds to the shadowing variance (bias marginalised).
+    An anchor in a burst (probability ``burst``) reads with ``burst_sigma_db`` more spread:
+    ``l = (1 - b) l_normal + b (1 - e) N(r; mu + o, sqrt(s^2 + burst_sigma_db^2))``.
     """
     out[:] = 0.0
     outlier, q = prm.outlier_probability, prm.attenuation_probability
@@ -119,14 +122,72 @@ def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weig
         a = anchor[r]
         sig = model.sigma_db if offsets_var[a] == 0.0 else \
             math.sqrt(model.sigma_db ** 2 + offsets_var[a])
-        norm = (1.0 - outlier) / (math.sqrt(2.0 * math.pi) * sig)
+        pb = burst[a]
+        norm = (1.0 - outlier) * (1.0 - pb) / (math.sqrt(2.0 * math.pi) * sig)
+        sb = math.sqrt(sig ** 2 + prm.burst_sigma_db ** 2)
+        nb = (1.0 - outlier) * pb / (math.sqrt(2.0 * math.pi) * sb)
         shift = prm.attenuation_db / sig
         for i in range(ny):
             for j in range(nx):
                 mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
-                z = (rss_dbm[r] - mu - offsets_db[a]) / sig
+                e = rss_dbm[r] - mu - offsets_db[a]
+                z = e / sig
                 g = (1.0 - q) * math.exp(-0.5 * z * z) + q * math.exp(-0.5 * (z + shift) ** 2)
-                out[i, j] += weight[r] * math.log(norm * g + floor)
+                v = norm * g + floor
+                if pb > 0.0:
+                    v += nb * math.exp(-0.5 * (e / sb) ** 2)
+                out[i, j] += weight[r] * math.log(v)
+
+
+@njit(cache=True, error_model="numpy")
+def burst_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
+                 weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+                 burst: FloatArray, model: np.record, prm: np.record) -> None:
+    # pragma: no cover - compiled
+    """Posterior burst probability of each heard anchor from its reading, in place.
+
+    Over the (predicted) position ``density``: ``L_n = sum p N(r; mu + o, s)`` and
+    ``L_b = sum p N(r; mu + o, sqrt(s^2 + burst_sigma_db^2))``, ``s^2 = sigma^2 + P``; the odds
+    ``b / (1 - b)`` are multiplied by ``(L_b / L_n)^w``.
+    """
+    ny, nx = density.shape
+    for r in range(anchor.shape[0]):
+        a, w = anchor[r], weight[r]
+        pb = burst[a]
+        if w <= 0.0 or pb <= 0.0 or pb >= 1.0:
+            continue
+        sig = math.sqrt(model.sigma_db ** 2 + offsets_var[a])
+        sb = math.sqrt(sig ** 2 + prm.burst_sigma_db ** 2)
+        ln = lb = 0.0
+        for i in range(ny):
+            for j in range(nx):
+                p = density[i, j]
+                if p == 0.0:
+                    continue
+                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
+                e = rss_dbm[r] - mu - offsets_db[a]
+                ln += p * math.exp(-0.5 * (e / sig) ** 2) / sig
+                lb += p * math.exp(-0.5 * (e / sb) ** 2) / sb
+        if ln <= 0.0 or lb <= 0.0:
+            continue
+        odds = pb / (1.0 - pb) * (lb / ln) ** w
+        burst[a] = odds / (1.0 + odds)
+
+
+@njit(cache=True, error_model="numpy")
+def burst_predict(burst: FloatArray, dt: float, enter_per_s: float, exit_per_s: float) -> None:
+    # pragma: no cover - compiled
+    """Two-state Markov chain of each anchor's burst over ``dt``, in place.
+
+    ``b <- b_inf + (b - b_inf) exp(-(enter + exit) dt)``, ``b_inf = enter / (enter + exit)``.
+    """
+    rate = enter_per_s + exit_per_s
+    if rate <= 0.0 or dt <= 0.0:
+        return
+    stay = math.exp(-rate * dt)
+    b_inf = enter_per_s / rate
+    for a in range(burst.shape[0]):
+        burst[a] = b_inf + (burst[a] - b_inf) * stay
 
 
 @njit(cache=True, error_model="numpy")
