@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from hrtls.evaluate.metrics import position_errors
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
-from hrtls.fusion.rss_grid import GridParams
+from hrtls.fusion.rss_grid import GridParams, causal_scans
 from hrtls.pipeline import Tracker, TrackerConfig
 from hrtls.pipeline.build import Notes
 from hrtls.pipeline.grid_stage import GridStage
@@ -152,3 +153,39 @@ def test_persistent_velocity_chunked_and_restored_equal_offline(office: Simulati
     np.testing.assert_array_equal(stage.state.velocity_m_per_s, [0.5, -0.25])
     stage.restore({k: v for k, v in d.items() if k != "velocity_m_per_s"})
     np.testing.assert_array_equal(stage.state.velocity_m_per_s, [0.0, 0.0])
+
+
+def test_velocity_modes_and_burst_state_chunked_and_restored_equal_offline(
+        office: SimulationResult) -> None:
+    """``[prediction.grid]`` velocity modes and burst state survive chunks and snapshots and
+    change the track; an older snapshot (one-mode density, no burst probabilities) restores
+    as the modes sharing its density and the burst chain's stationary probability."""
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    cfg = TrackerConfig()
+    keys = {"mode_turn_deg": 90.0, "stopped_mode": True, "burst_sigma_db": 10.0}
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+        "grid": {**cfg.prediction.grid, **keys}})})
+    plain = Tracker().run(s).trajectory
+    offline = Tracker(cfg).run(s).trajectory
+    assert len(plain) == len(offline) and not np.allclose(plain.xyz, offline.xyz)
+    live = track_in_parts(cfg, s, chunk_s=7.0, restore_after=4).trajectory
+    n = len(live)
+    np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
+    anchors = {k: lm for k, lm in s.landmarks.items() if lm.kind in ("anchor", "beacon")}
+    params = GridParams(mode_turn_deg=90.0, stopped_mode=True, burst_sigma_db=10.0)
+    stage = GridStage(anchors, model=PathLossModel(), params=params, t0=0.0, z_m=0.0,
+                      notes=Notes())
+    assert stage.state.density.shape[0] == params.n_modes == 5
+    d = stage.state_dict()
+    assert d is not None
+    old = {k: v for k, v in d.items() if k != "burst_probability"}
+    old["density"] = np.asarray(d["density"]).sum(axis=0)
+    stage.restore(old)
+    assert stage.state.burst_probability is None
+    np.testing.assert_allclose(stage.state.modes(5), d["density"], rtol=1e-12)
+    assert stage.filter is not None
+    _, state = stage.filter.update(stage.state, causal_scans(
+        np.array([0.2]), np.array([0]), np.array([-60.0]), n_anchors=len(anchors),
+        scan_s=0.5, average_s=2.0, t_origin=0.0))
+    assert state.burst_probability is not None and state.density.shape[0] == 5
+    assert state.burst_probability[1] == pytest.approx(params.burst_start)

@@ -459,6 +459,7 @@ class RssGridFilter:
             state.offsets_db[:] = np.clip(np.asarray(offsets_db, dtype=np.float64),
                                           -self.params.offset_max_db, self.params.offset_max_db)
         state.offsets_var_db2 = np.full(len(self.anchors_xy), self.params.bias_sigma_db ** 2)
+        state.burst_probability = np.full(len(self.anchors_xy), self.params.burst_start)
         return state
 
     def update(self, state: GridState, scans: GridScans) -> tuple[GridRows, GridState]:

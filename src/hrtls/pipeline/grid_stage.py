@@ -148,8 +148,9 @@ class GridStage:
         s = self.state
         return {"t": s.t, "density": s.density, "offsets_db": s.offsets_db,
                 "offsets_var_db2": s.offsets_var_db2, "velocity_m_per_s": s.velocity_m_per_s,
-                "started": s.started, "buf_t": self._buf_t, "buf_a": self._buf_a,
-                "buf_r": self._buf_r, "buf_w": self._buf_w,
+                "burst_probability": s.burst_probability, "started": s.started,
+                "buf_t": self._buf_t, "buf_a": self._buf_a, "buf_r": self._buf_r,
+                "buf_w": self._buf_w,
                 "last_t": dict(self._memory.last_t)}
 
     def restore(self, d: dict[str, Any] | None) -> None:
@@ -164,7 +165,9 @@ class GridStage:
                                None if d.get("offsets_var_db2") is None   # older snapshots
                                else np.asarray(d["offsets_var_db2"], dtype=np.float64),
                                None if d.get("velocity_m_per_s") is None
-                               else np.asarray(d["velocity_m_per_s"], dtype=np.float64))
+                               else np.asarray(d["velocity_m_per_s"], dtype=np.float64),
+                               None if d.get("burst_probability") is None
+                               else np.asarray(d["burst_probability"], dtype=np.float64))
         self._buf_t = np.asarray(d["buf_t"], dtype=np.float64)
         self._buf_a = np.asarray(d["buf_a"], dtype=np.int64)
         self._buf_r = np.asarray(d["buf_r"], dtype=np.float64)
