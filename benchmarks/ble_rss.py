@@ -2,7 +2,7 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-per-anchor bias state, persistent-velocity time constant, and the motion choices of
+per-anchor bias state, persistent-velocity time constant, and with ``--motion`` the choices of
 :data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the averaging window of 2 s
 and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
 the channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks'
@@ -15,10 +15,12 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 * ``grid, held out``: the leave-one-out choice above, and ``s / run`` the seconds that
   held-out run took (the whole tracker, one process);
 * ``grid, held out, one mode``: the same choice among the candidates without the motion
-  choices (one velocity mode, no burst state: the candidates before them);
+  choices (one velocity mode, no burst state; the same as ``grid, held out`` without
+  ``--motion``);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
-``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs).
+``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
+``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse).
 ``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
 ``[prediction.grid]`` keys over the defaults (all five tracks: a development look, not held out).
 """
@@ -119,6 +121,8 @@ def main() -> None:
                     help="JSON object of [prediction.grid] keys: p75 per track, all five")
     ap.add_argument("--default-channel", action="store_true",
                     help="only the default channel among the choices (a fifth of the runs)")
+    ap.add_argument("--motion", action="store_true",
+                    help="velocity modes and the burst state among the candidates")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -130,7 +134,8 @@ def main() -> None:
         return
     bases = [dict(zip(GRID_CHOICES, v, strict=True))
              for v in itertools.product(*GRID_CHOICES.values())]
-    candidates = [{**b, **m} for b in bases for m in MOTION_CHOICES if fits(b, m)]
+    motion = MOTION_CHOICES if args.motion else MOTION_CHOICES[:1]
+    candidates = [{**b, **m} for b in bases for m in motion if fits(b, m)]
     # p75 of every candidate on every track, with the default channel and with each fold's
     # surveyed channel (the survey of the four tracks other than the held-out one)
     surveys = {h: survey_channel([loaded[n] for n in TRACKS if n != h]) for h in TRACKS}

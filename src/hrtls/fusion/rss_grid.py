@@ -42,6 +42,13 @@ it by the residual over the predicted density, whose spread of ``mu`` enters the
 variance (an uncertain position moves the offset little). A bias common to the readings and
 the offsets leaves the position unchanged.
 
+With ``burst_sigma_db > 0`` each anchor has a burst state (a multi-second episode of readings
+far off the law): a two-state Markov chain (``burst_enter_per_s``, ``burst_exit_per_s``,
+:func:`burst_predict`) whose probability ``b_a`` the likelihood marginalises (the Gaussian
+above weighted ``1 - b_a``, plus ``b_a (1 - e) N(r; mu + o_a, sqrt(sigma^2 + P_a +
+burst_sigma_db^2))``) and :func:`burst_update` updates from each reading over the predicted
+density.
+
 The first scan starts from a uniform density, so the first row is what the first scan's
 likelihood says (no start at an arbitrary point). Each scan gives one row: the mean and
 covariance of the density. Forward only (causal).
