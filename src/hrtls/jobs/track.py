@@ -267,49 +267,91 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
     The GeoJSON is ``trajectory.geojson`` (RFC 7946, WGS-84) when the recording has a
     georeference, else :data:`LOCAL_GEOJSON` (local metres, a type map tools refuse).
     """
+    pending = start_track_outputs(result, session, out_dir, overwrite=overwrite,
+                                  table_format=table_format)
+    return pending.finish(result, session, plot=plot, evaluation=evaluation)
+
+
+class PendingOutputs:
+    """The tables and the GeoJSON of a track being written on threads.
+
+    Made by :func:`start_track_outputs`; :meth:`finish` waits for them and writes the report
+    (and the plot). The caller may work meanwhile (e.g. the evaluation) but must call
+    :meth:`finish`, or :meth:`join` when it gives up.
+    """
+
+    def __init__(self, out_dir: Path, tables: Background[list[Path]],
+                 geojson: Background[Path]) -> None:
+        self.out_dir = out_dir
+        self._tables = tables
+        self._geojson = geojson
+
+    def join(self) -> None:
+        """Wait for the writers to end, whatever they gave."""
+        self._tables.join()
+        self._geojson.join()
+
+    def finish(self, result: TrackResult, session: Session, *, plot: bool = False,
+               evaluation: dict[str, Any] | None = None) -> list[Path]:
+        """The written files once the writers are done, with ``report.json`` (and track.png).
+
+        The report is ``result.report`` as it is now, with ``evaluation`` added. An error of a
+        writer is raised here (the GeoJSON's first), once both have ended.
+        """
+        self.join()
+        geojson = self._geojson.result()
+        written = [*self._tables.result(), geojson]
+        report = dict(result.report)
+        if evaluation is not None:
+            report["evaluation"] = evaluation
+        (self.out_dir / "report.json").write_text(
+            json.dumps(report, indent=2, default=float) + "\n", encoding="utf-8")
+        written.append(self.out_dir / "report.json")
+        if plot:
+            written.append(_plot(result, session, self.out_dir / "track.png"))
+        return written
+
+
+def start_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
+                        overwrite: bool = False, table_format: TableFormat = "csv"
+                        ) -> PendingOutputs:
+    """Start writing the tables and the GeoJSON of :func:`write_track_outputs` on threads.
+
+    The output folder is checked and made here, before any thread starts. Arrow's writers and
+    text casts let go of the GIL, so the caller's own work overlaps with them.
+    """
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     geo = session.georeference
-    # the tables are written on a thread (Arrow's writer lets go of the GIL) while the GeoJSON
-    # text is made here
+    landmarks = session.resolved_landmarks() if geo is not None else session.landmarks
+    origin = session.meta.time_origin_unix_s
     tables = Background(lambda: [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
                          georeference=geo),
         write_steps(result.steps, out_dir / f"steps.{table_format}")], name="write tables")
-    try:
-        geojson = (
-            write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                          landmarks=session.resolved_landmarks(), georeference=geo,
-                          time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
-            if geo is not None else
-            write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
-                                landmarks=session.landmarks,
-                                time_origin_unix_s=session.meta.time_origin_unix_s,
-                                overwrite=True))
-    except BaseException:
-        tables.join()
-        raise
-    written = [*tables.result(), geojson]
-    report = dict(result.report)
-    if evaluation is not None:
-        report["evaluation"] = evaluation
-    (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=float) + "\n",
-                                         encoding="utf-8")
-    written.append(out_dir / "report.json")
-    if plot:
-        from hrtls.evaluate.floor_plots import plot_track_by_floor
+    geojson = Background(lambda: (
+        write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
+                      landmarks=landmarks, georeference=geo, time_origin_unix_s=origin,
+                      overwrite=True)
+        if geo is not None else
+        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                            landmarks=landmarks, time_origin_unix_s=origin, overwrite=True)),
+        name="write geojson")
+    return PendingOutputs(out_dir, tables, geojson)
 
-        written.append(plot_track_by_floor(
-            out_dir / "track.png", result.trajectory, session.truth,
-            floor_height_m=session.meta.floor_height_m,
-            checkpoints=session.checkpoints, landmarks=_positioned(session),
-            fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
-            title=f"hrtls track ({result.report['config']['name']})"
-            + ("" if result.report.get("heading", {}).get("observable", True)
-               else ", " + result.report["heading"]["plot_note"]), ellipses=25))
-    return written
+
+def _plot(result: TrackResult, session: Session, path: Path) -> Path:
+    from hrtls.evaluate.floor_plots import plot_track_by_floor
+
+    return plot_track_by_floor(
+        path, result.trajectory, session.truth, floor_height_m=session.meta.floor_height_m,
+        checkpoints=session.checkpoints, landmarks=_positioned(session),
+        fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
+        title=f"hrtls track ({result.report['config']['name']})"
+        + ("" if result.report.get("heading", {}).get("observable", True)
+           else ", " + result.report["heading"]["plot_note"]), ellipses=25)
 
 
 def _positioned(session: Session) -> dict[str, Any]:
