@@ -199,9 +199,17 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     truth: list[GroundTruth | None] = []
 
     def chunks_then_truth() -> Iterator[Session]:
-        yield from stream.chunks()
-        # the ground truth, for the evaluation, is read while the last chunks are tracked
-        truth.append(stream.truth())
+        held: Session | None = None
+        for chunk in stream.chunks():
+            if held is not None:
+                yield held
+            held = chunk
+        # the IMU is read: the ground truth, for the evaluation, is read on another thread
+        # while the last chunks are tracked
+        reader = Background(stream.truth, name=f"read truth of {stream.path.name}")
+        if held is not None:
+            yield held
+        truth.append(reader.result())
 
     chunks = read_ahead(chunks_then_truth(), name=f"read {stream.path.name}")
     held: list[Session] = []
