@@ -1,4 +1,4 @@
-"""The outputs of a track written on threads (:func:`start_track_outputs`) while the caller
+"""The tables of a track written on a thread (:func:`start_track_outputs`) while the caller
 evaluates: the same files as :func:`write_track_outputs`, errors raised at the end."""
 
 from __future__ import annotations
@@ -66,7 +66,17 @@ def test_a_writer_error_is_raised_at_finish_without_a_report(tracked: TrackRun,
         pending.finish(tracked.result, tracked.session)
     assert LOCAL_GEOJSON in str(raised.value)
     assert not (out / "report.json").exists()
-    assert (out / "trajectory.csv").exists()   # the other writer ended first
+    assert (out / "trajectory.csv").exists()   # the tables' writer ended first
+
+
+def test_a_table_error_is_raised_at_finish(tracked: TrackRun, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    (out / "steps.csv").mkdir(parents=True)   # the steps table cannot replace a folder
+    pending = start_track_outputs(tracked.result, tracked.session, out, overwrite=True)
+    with pytest.raises((InputError, OSError)) as raised:
+        pending.finish(tracked.result, tracked.session)
+    assert "steps.csv" in str(raised.value)
+    assert (out / LOCAL_GEOJSON).is_file() and not (out / "report.json").exists()
 
 
 def test_refusals_come_before_any_thread_or_folder(tracked: TrackRun, tmp_path: Path) -> None:

@@ -92,7 +92,7 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
                               trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     del run
-    # the tables and the GeoJSON are written on threads while the evaluation runs here
+    # the tables are written on a thread while the evaluation runs here
     pending = start_track_outputs(result, data, output, overwrite=overwrite,
                                   table_format="parquet" if format_out == "parquet" else "csv")
     try:

@@ -281,33 +281,44 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
 
 
 class PendingOutputs:
-    """The tables and the GeoJSON of a track being written on threads.
+    """The tables of a track being written on a thread; the rest is written by :meth:`finish`.
 
-    Made by :func:`start_track_outputs`; :meth:`finish` waits for them and writes the report
-    (and the plot). The caller may work meanwhile (e.g. the evaluation) but must call
-    :meth:`finish`, or :meth:`join` when it gives up.
+    Made by :func:`start_track_outputs`. The caller may work meanwhile (e.g. the evaluation)
+    but must call :meth:`finish`, or :meth:`join` when it gives up.
     """
 
-    def __init__(self, out_dir: Path, tables: Background[list[Path]],
-                 geojson: Background[Path]) -> None:
+    def __init__(self, out_dir: Path, tables: Background[list[Path]]) -> None:
         self.out_dir = out_dir
         self._tables = tables
-        self._geojson = geojson
 
     def join(self) -> None:
-        """Wait for the writers to end, whatever they gave."""
+        """Wait for the tables' writer to end, whatever it gave."""
         self._tables.join()
-        self._geojson.join()
 
     def finish(self, result: TrackResult, session: Session, *, plot: bool = False,
                evaluation: dict[str, Any] | None = None) -> list[Path]:
-        """The written files once the writers are done, with ``report.json`` (and track.png).
+        """The GeoJSON and ``report.json`` (and track.png) written, then all the files.
 
-        The report is ``result.report`` as it is now, with ``evaluation`` added. An error of a
-        writer is raised here (the GeoJSON's first), once both have ended.
+        The GeoJSON text is made here while the tables are written (Arrow's writer lets go of
+        the GIL; a second thread making GeoJSON text would wait for the GIL at each of its many
+        Arrow calls). The report is ``result.report`` as it is now, with ``evaluation`` added.
+        An error of the GeoJSON is raised once the tables' writer ended; then one of the tables.
         """
-        self.join()
-        geojson = self._geojson.result()
+        geo = session.georeference
+        try:
+            geojson = (
+                write_geojson(result.trajectory, self.out_dir / "trajectory.geojson",
+                              steps=result.steps, landmarks=session.resolved_landmarks(),
+                              georeference=geo, time_origin_unix_s=session.meta.time_origin_unix_s,
+                              overwrite=True)
+                if geo is not None else
+                write_local_geojson(result.trajectory, self.out_dir / LOCAL_GEOJSON,
+                                    steps=result.steps, landmarks=session.landmarks,
+                                    time_origin_unix_s=session.meta.time_origin_unix_s,
+                                    overwrite=True))
+        except BaseException:
+            self.join()
+            raise
         written = [*self._tables.result(), geojson]
         report = dict(result.report)
         if evaluation is not None:
@@ -323,31 +334,21 @@ class PendingOutputs:
 def start_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
                         overwrite: bool = False, table_format: TableFormat = "csv"
                         ) -> PendingOutputs:
-    """Start writing the tables and the GeoJSON of :func:`write_track_outputs` on threads.
+    """Start writing the tables of :func:`write_track_outputs` on a thread.
 
-    The output folder is checked and made here, before any thread starts. Arrow's writers and
-    text casts let go of the GIL, so the caller's own work overlaps with them.
+    The output folder is checked and made here, before the thread starts; the trajectory and
+    steps tables are written meanwhile the caller works (Arrow's writer lets go of the GIL).
     """
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     geo = session.georeference
-    landmarks = session.resolved_landmarks() if geo is not None else session.landmarks
-    origin = session.meta.time_origin_unix_s
     tables = Background(lambda: [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
                          georeference=geo),
         write_steps(result.steps, out_dir / f"steps.{table_format}")], name="write tables")
-    geojson = Background(lambda: (
-        write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
-                      landmarks=landmarks, georeference=geo, time_origin_unix_s=origin,
-                      overwrite=True)
-        if geo is not None else
-        write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
-                            landmarks=landmarks, time_origin_unix_s=origin, overwrite=True)),
-        name="write geojson")
-    return PendingOutputs(out_dir, tables, geojson)
+    return PendingOutputs(out_dir, tables)
 
 
 def _plot(result: TrackResult, session: Session, path: Path) -> Path:
