@@ -139,28 +139,12 @@ def timed_method(owner, name, label, clock=time.process_time):
     setattr(owner, name, wrapper)
 for owner, name, label in [
         (J, "track_recording", "track_recording"), (S.SessionStream, "start_imu", "read IMU whole"),
-        (J, "write_track_outputs", "write outputs")]:
+        (J, "evaluate_track", "evaluation"), (J, "write_track_outputs", "write outputs")]:
     timed_method(owner, name, label)
-# the CPU of their own thread alone: the readers (and the writers) run on others meanwhile
+# the CPU of their own thread alone: the readers run on others meanwhile
 for owner, name, label in [(TR.Tracker, "update", "tracker"), (TR.Tracker, "finish", "tracker"),
-                           (S.SessionStream, "truth", "read truth"),
-                           (J, "evaluate_track", "evaluation")]:
+                           (S.SessionStream, "truth", "read truth")]:
     timed_method(owner, name, label, time.thread_time)
-# writers started before the evaluation (start_track_outputs ... PendingOutputs.finish): the
-# process CPU of that span but the evaluation's own
-if hasattr(J, "start_track_outputs"):
-    started = []
-    first_start, first_finish = J.start_track_outputs, J.PendingOutputs.finish
-    def start_outputs(*a, **k):
-        started.append((time.process_time(), spent["evaluation"]))
-        return first_start(*a, **k)
-    def finish_outputs(*a, **k):
-        try:
-            return first_finish(*a, **k)
-        finally:
-            c0, e0 = started.pop()
-            spent["write outputs"] += time.process_time() - c0 - (spent["evaluation"] - e0)
-    J.start_track_outputs, J.PendingOutputs.finish = start_outputs, finish_outputs
 # within the phases above, not added to them: numba's kernels on their first call (the
 # compiled code loaded from the cache, numba's target set up on the first), by thread CPU;
 # with the ahead-of-time build, its loading (numba is then imported only for a kernel it lacks)

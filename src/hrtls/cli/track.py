@@ -76,8 +76,8 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
         check_output_dir,
         evaluate_track,
         reference_steps,
-        start_track_outputs,
         track_recording,
+        write_track_outputs,
     )
 
     imports_done()
@@ -92,20 +92,15 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
                               trial=trial, progress=progress)
     result, data, n, seconds = run.result, run.session, run.samples, run.tracker_s
     del run
-    # the tables are written on a thread while the evaluation runs here
-    pending = start_track_outputs(result, data, output, overwrite=overwrite,
-                                  table_format="parquet" if format_out == "parquet" else "csv")
-    try:
-        evaluation = evaluate_track(result, data)
-        reference = reference_steps(result, data)
-    except BaseException:
-        pending.join()
-        raise
-    if not plot:  # the ground truth is not needed any more
+    evaluation = evaluate_track(result, data)
+    reference = reference_steps(result, data)
+    if not plot:  # the ground truth is not needed any more: not held while writing
         data = data.with_parts(truth=None)
     if reference is not None:
         result.report["reference_steps"] = reference
-    pending.finish(result, data, plot=plot, evaluation=evaluation)
+    write_track_outputs(result, data, output, overwrite=overwrite, plot=plot,
+                        evaluation=evaluation, table_format="parquet"
+                        if format_out == "parquet" else "csv")
     _print_summary(result, name=cfg.name, samples=n, tracker_s=seconds, reference=reference,
                    evaluation=evaluation)
     console.print(f"wrote {output}")

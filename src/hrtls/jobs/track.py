@@ -196,7 +196,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         has fewer than two rows.
     """
     tracker = Tracker(config, keep_attitude=False)
-    truth: list[GroundTruth | None] = []
+    truth: list[Background[GroundTruth | None]] = []
 
     def chunks_then_truth() -> Iterator[Session]:
         held: Session | None = None
@@ -204,12 +204,11 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
             if held is not None:
                 yield held
             held = chunk
-        # the IMU is read: the ground truth, for the evaluation, is read on another thread
-        # while the last chunks are tracked
-        reader = Background(stream.truth, name=f"read truth of {stream.path.name}")
+        # the IMU is read: the ground truth, for the evaluation, is read on a thread of its own
+        # while the last chunk is tracked and the tracker finishes
+        truth.append(Background(stream.truth, name=f"read truth of {stream.path.name}"))
         if held is not None:
             yield held
-        truth.append(reader.result())
 
     chunks = read_ahead(chunks_then_truth(), name=f"read {stream.path.name}")
     held: list[Session] = []
@@ -238,6 +237,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         if progress:
             progress("reading and tracking", rows, max(rows, stream.rows_hint))
     if first is None or rows < 2:
+        truth[0].join()
         raise NotStreamable(str(stream.path))
     if progress:
         progress("reading and tracking", rows, rows)
@@ -249,7 +249,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     result = tracker.finish()
     seconds += time.perf_counter() - start
     del tracker
-    session = stream.session(first).with_parts(truth=truth[0])
+    session = stream.session(first).with_parts(truth=truth[0].result())
     result = widen_over_gaps(widen_unobservable_heading(result, session), session,
                              imu_t=stream.imu_t)
     return TrackRun(result, session, rows, seconds, streamed=True)
@@ -275,92 +275,49 @@ def write_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
     The GeoJSON is ``trajectory.geojson`` (RFC 7946, WGS-84) when the recording has a
     georeference, else :data:`LOCAL_GEOJSON` (local metres, a type map tools refuse).
     """
-    pending = start_track_outputs(result, session, out_dir, overwrite=overwrite,
-                                  table_format=table_format)
-    return pending.finish(result, session, plot=plot, evaluation=evaluation)
-
-
-class PendingOutputs:
-    """The tables of a track being written on a thread; the rest is written by :meth:`finish`.
-
-    Made by :func:`start_track_outputs`. The caller may work meanwhile (e.g. the evaluation)
-    but must call :meth:`finish`, or :meth:`join` when it gives up.
-    """
-
-    def __init__(self, out_dir: Path, tables: Background[list[Path]]) -> None:
-        self.out_dir = out_dir
-        self._tables = tables
-
-    def join(self) -> None:
-        """Wait for the tables' writer to end, whatever it gave."""
-        self._tables.join()
-
-    def finish(self, result: TrackResult, session: Session, *, plot: bool = False,
-               evaluation: dict[str, Any] | None = None) -> list[Path]:
-        """The GeoJSON and ``report.json`` (and track.png) written, then all the files.
-
-        The GeoJSON text is made here while the tables are written (Arrow's writer lets go of
-        the GIL; a second thread making GeoJSON text would wait for the GIL at each of its many
-        Arrow calls). The report is ``result.report`` as it is now, with ``evaluation`` added.
-        An error of the GeoJSON is raised once the tables' writer ended; then one of the tables.
-        """
-        geo = session.georeference
-        try:
-            geojson = (
-                write_geojson(result.trajectory, self.out_dir / "trajectory.geojson",
-                              steps=result.steps, landmarks=session.resolved_landmarks(),
-                              georeference=geo, time_origin_unix_s=session.meta.time_origin_unix_s,
-                              overwrite=True)
-                if geo is not None else
-                write_local_geojson(result.trajectory, self.out_dir / LOCAL_GEOJSON,
-                                    steps=result.steps, landmarks=session.landmarks,
-                                    time_origin_unix_s=session.meta.time_origin_unix_s,
-                                    overwrite=True))
-        except BaseException:
-            self.join()
-            raise
-        written = [*self._tables.result(), geojson]
-        report = dict(result.report)
-        if evaluation is not None:
-            report["evaluation"] = evaluation
-        (self.out_dir / "report.json").write_text(
-            json.dumps(report, indent=2, default=float) + "\n", encoding="utf-8")
-        written.append(self.out_dir / "report.json")
-        if plot:
-            written.append(_plot(result, session, self.out_dir / "track.png"))
-        return written
-
-
-def start_track_outputs(result: TrackResult, session: Session, out_dir: Path, *,
-                        overwrite: bool = False, table_format: TableFormat = "csv"
-                        ) -> PendingOutputs:
-    """Start writing the tables of :func:`write_track_outputs` on a thread.
-
-    The output folder is checked and made here, before the thread starts; the trajectory and
-    steps tables are written meanwhile the caller works (Arrow's writer lets go of the GIL).
-    """
     if table_format not in ("csv", "parquet"):
         raise InputError(f"{table_format!r}", where="--format-out", expected="csv or parquet")
     check_output_dir(out_dir, overwrite=overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     geo = session.georeference
+    # the tables are written on a thread (Arrow's writer lets go of the GIL) while the GeoJSON
+    # text is made here
     tables = Background(lambda: [
         write_trajectory(result.trajectory, out_dir / f"trajectory.{table_format}",
                          georeference=geo),
         write_steps(result.steps, out_dir / f"steps.{table_format}")], name="write tables")
-    return PendingOutputs(out_dir, tables)
+    try:
+        geojson = (
+            write_geojson(result.trajectory, out_dir / "trajectory.geojson", steps=result.steps,
+                          landmarks=session.resolved_landmarks(), georeference=geo,
+                          time_origin_unix_s=session.meta.time_origin_unix_s, overwrite=True)
+            if geo is not None else
+            write_local_geojson(result.trajectory, out_dir / LOCAL_GEOJSON, steps=result.steps,
+                                landmarks=session.landmarks,
+                                time_origin_unix_s=session.meta.time_origin_unix_s,
+                                overwrite=True))
+    except BaseException:
+        tables.join()
+        raise
+    written = [*tables.result(), geojson]
+    report = dict(result.report)
+    if evaluation is not None:
+        report["evaluation"] = evaluation
+    (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=float) + "\n",
+                                         encoding="utf-8")
+    written.append(out_dir / "report.json")
+    if plot:
+        from hrtls.evaluate.floor_plots import plot_track_by_floor
 
-
-def _plot(result: TrackResult, session: Session, path: Path) -> Path:
-    from hrtls.evaluate.floor_plots import plot_track_by_floor
-
-    return plot_track_by_floor(
-        path, result.trajectory, session.truth, floor_height_m=session.meta.floor_height_m,
-        checkpoints=session.checkpoints, landmarks=_positioned(session),
-        fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
-        title=f"hrtls track ({result.report['config']['name']})"
-        + ("" if result.report.get("heading", {}).get("observable", True)
-           else ", " + result.report["heading"]["plot_note"]), ellipses=25)
+        written.append(plot_track_by_floor(
+            out_dir / "track.png", result.trajectory, session.truth,
+            floor_height_m=session.meta.floor_height_m,
+            checkpoints=session.checkpoints, landmarks=_positioned(session),
+            fixes_xy=None if session.fixes is None else session.fixes.xyz[:, :2],
+            title=f"hrtls track ({result.report['config']['name']})"
+            + ("" if result.report.get("heading", {}).get("observable", True)
+               else ", " + result.report["heading"]["plot_note"]), ellipses=25))
+    return written
 
 
 def _positioned(session: Session) -> dict[str, Any]:
