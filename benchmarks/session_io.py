@@ -8,7 +8,9 @@
   tracker's calls (``Tracker.update`` and ``finish``, their thread alone: the IMU is read on
   another meanwhile), timed in the child with the other phases (imports, reading, evaluation,
   writing), one row each; the wall ratio (end to end over the tracker's calls) is shown too,
-  but under load both grow with the other jobs on the machine, CPU times do not;
+  but under load both grow with the other jobs on the machine, CPU times do not; the CPU of
+  the child's main thread (the tracker's calls among it) is a floor of its wall time even on
+  idle cores;
   ``--baseline-src PATH`` runs the same children on another checkout's ``src`` (e.g. the
   main branch), interleaved round by round with this one, and ``--jit-row`` this code with
   the JIT kernels only (``HRTLS_AOT=0``: not the ones ``hrtls warmup`` compiled ahead of time);
@@ -188,6 +190,8 @@ with contextlib.redirect_stdout(shown):
         pass
 print(shown.getvalue())
 spent["total"] = time.process_time() - T0
+# the main thread's own CPU: what the wall time cannot fall below even on idle cores
+within["main thread"] = time.thread_time()
 spent["read the rest (open, chunks, other tables)"] = spent.pop("track_recording") - sum(
     spent[k] for k in ("read IMU whole", "read truth", "tracker"))
 for k in [k for k, v in spent.items() if v == 0.0]:
@@ -315,6 +319,10 @@ def _track_row(label: str, rounds: list[Round], table: Table, target: bool) -> N
     for name, value in phases.items():
         table.add_row(f"  {name}", f"{value:.2f}", "",
                       f"{value / tracker:.2f}x tracker, {value / cpu:.0%}", "", "", "")
+    if "main thread" in within:  # the other rows' CPU on the main thread, with the tracker
+        main = within["main thread"]
+        table.add_row("  within those: on the main thread (a floor of the wall time)",
+                      f"{main:.2f}", "", f"{main / tracker:.2f}x tracker", "", "", "")
     for name in ("ahead-of-time kernels loaded", "numba imported for the JIT"):
         if name in within:  # part of the tracker's and the readers' rows
             table.add_row(f"  within those: {name}", f"{within[name]:.2f}", "",

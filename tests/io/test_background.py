@@ -144,3 +144,16 @@ def test_two_pass_on_a_session_folder_runs_both_passes(walk):
     np.testing.assert_array_equal(run.result.trajectory.xyz, whole.trajectory.xyz)
     one_pass = track_recording(walk, preset("default"), chunk_rows=500)
     assert one_pass.streamed and one_pass.result.report["offline"]["two_pass"] is False
+
+
+def test_streamed_truth_is_the_whole_read_truth_and_its_thread_ends(walk):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = track_recording(walk, preset("default"), chunk_rows=500)
+    whole = read_session(walk).truth
+    got = run.session.truth
+    assert got is not None and whole is not None and len(got.t) == len(whole.t) > 1000
+    np.testing.assert_array_equal(got.t, whole.t)
+    np.testing.assert_array_equal(got.xyz, whole.xyz)
+    np.testing.assert_array_equal(got.heading_rad, whole.heading_rad)
+    assert not [n for n in _threads() if n.startswith(("read truth of", "read "))]

@@ -196,12 +196,19 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         has fewer than two rows.
     """
     tracker = Tracker(config, keep_attitude=False)
-    truth: list[GroundTruth | None] = []
+    truth: list[Background[GroundTruth | None]] = []
 
     def chunks_then_truth() -> Iterator[Session]:
-        yield from stream.chunks()
-        # the ground truth, for the evaluation, is read while the last chunks are tracked
-        truth.append(stream.truth())
+        held: Session | None = None
+        for chunk in stream.chunks():
+            if held is not None:
+                yield held
+            held = chunk
+        # the IMU is read: the ground truth, for the evaluation, is read on a thread of its own
+        # while the last chunk is tracked and the tracker finishes
+        truth.append(Background(stream.truth, name=f"read truth of {stream.path.name}"))
+        if held is not None:
+            yield held
 
     chunks = read_ahead(chunks_then_truth(), name=f"read {stream.path.name}")
     held: list[Session] = []
@@ -230,6 +237,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
         if progress:
             progress("reading and tracking", rows, max(rows, stream.rows_hint))
     if first is None or rows < 2:
+        truth[0].join()
         raise NotStreamable(str(stream.path))
     if progress:
         progress("reading and tracking", rows, rows)
@@ -241,7 +249,7 @@ def _track_stream(stream: SessionStream, config: TrackerConfig,
     result = tracker.finish()
     seconds += time.perf_counter() - start
     del tracker
-    session = stream.session(first).with_parts(truth=truth[0])
+    session = stream.session(first).with_parts(truth=truth[0].result())
     result = widen_over_gaps(widen_unobservable_heading(result, session), session,
                              imu_t=stream.imu_t)
     return TrackRun(result, session, rows, seconds, streamed=True)
