@@ -22,7 +22,7 @@ cancels it, and the tracker's peak of the sum is lower again than the low-passed
 ``LAST_STEP_CYCLE_RANGE`` is larger than the evidence's range: it is set so that the tracker's
 measure of the simulated last steps matches the real one (docs/simulator.md). The closing
 cycle, alone after the walk, matches with the evidence's range.
-""""""
+"""
 
 from __future__ import annotations
 
