@@ -1,6 +1,6 @@
 """The last step of a walk and the closing movement after it (issue 19): real and simulated.
 
-Run ``PYTHONPATH=src python benchmarks/closing_steps.py [--seeds dev|held-out]`` (about 2 min
+Run ``PYTHONPATH=src python benchmarks/closing_steps.py [--seeds dev|held-out]`` (about 3 min
 on a quiet machine). Everything is in the tracker's own measure, the quantity the walk
 filter's ``closing_ratio`` is compared against: a detected step's peak (``acc_max``) over
 the median of the 4 detected peaks before the last step, from the default tracker (or gait
@@ -249,9 +249,9 @@ def main() -> None:
                     help=f"scenario (repeatable; default {', '.join(SCENARIOS)})")
     args = ap.parse_args()
     rows = real_rows() if DATA.is_dir() and not args.no_real else []
-    print(f"{'walk end':<34} {'role':<9} {'event':<32}" + "".join(f"{c:>7}" for c in COLS))
+    print(f"{'walk end':<34} {'role':<9} {'event':<38}" + "".join(f"{c:>7}" for c in COLS))
     for name, role, kind, f in rows:
-        print(f"{name:<34} {role:<9} {kind:<32}" + "".join(f"{f[c]:7.2f}" for c in COLS))
+        print(f"{name:<34} {role:<9} {kind:<38}" + "".join(f"{f[c]:7.2f}" for c in COLS))
     rows += scenario_rows(args.scenario or SCENARIOS, SEEDS[args.seeds])
     rows += short_walk_rows(SEEDS[args.seeds])
     print(f"\nsimulated seeds: {args.seeds} ({SEEDS[args.seeds].start}-"
