@@ -19,6 +19,7 @@ from hrtls.sim.motion_truth import Waypoint, simulate_motion
 from hrtls.sim.stop_model import (
     CLOSING_AMPLITUDE_RANGE,
     LAST_STEP_AMPLITUDE_RANGE,
+    LAST_STEP_CYCLE_RANGE,
     cycle_acceleration,
     cycle_displacement,
 )
@@ -81,8 +82,8 @@ def test_stops_only_change_the_vertical_after_each_last_step(monkeypatch):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_last_step_detected_and_closing_movement_not_counted(seed, monkeypatch):
-    # the middle of the evidence's ranges (module notes)
-    monkeypatch.setattr(stop_model, "LAST_STEP_AMPLITUDE_RANGE", (0.85, 0.85))
+    # the middle of the ranges (module notes)
+    monkeypatch.setattr(stop_model, "LAST_STEP_CYCLE_RANGE", (1.0, 1.0))
     monkeypatch.setattr(stop_model, "CLOSING_AMPLITUDE_RANGE", (0.38, 0.38))
     motion = _walk_stop_walk()
     gait = simulate_gait(motion, GaitParams().drawn(np.random.default_rng(seed)),
@@ -99,6 +100,44 @@ def test_last_step_detected_and_closing_movement_not_counted(seed, monkeypatch):
         assert not np.any((te > tl + 0.3) & (te < tl + 3.0)), "the closing movement is no step"
 
 
-def test_the_short_walks_share_the_ranges():
+def _end_ratios(te, peak, t_last):
+    """Tracker's measure of the last step and the next detected step (closing), or None."""
+    k = int(np.argmin(np.abs(te - t_last)))
+    if k < 5 or abs(te[k] - t_last) > 0.2:
+        return None
+    level = np.median(peak[k - 4:k])
+    close = peak[k + 1] / level if k + 1 < te.size and te[k + 1] - te[k] <= 1.5 else np.nan
+    return peak[k] / level, close
+
+
+def test_scenario_stops_in_the_trackers_measure_match_the_real_ones():
+    # colombo_natural, development seeds 0-2; real HA/001 walk ends (module notes): last step
+    # 0.70-1.08 of the level (median 0.85), closing movement 0.28-0.49
+    from hrtls.sim.scenarios import run_scenario
+
+    last, close = [], []
+    for seed in range(3):
+        r = run_scenario("colombo_natural", seed)
+        acc = r.session.imu.accel
+        ga = GaitAnalyzer(rate_hz=acc.rate_hz, heading="yaw", step_yaw="turns",
+                          window_features=False, walk_steps=WalkStepParams(closing_ratio=0.0))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            st = ga.process(acc.t, acc.values).steps
+        first, end = _runs(r.true_steps)
+        for a, b in zip(first, end, strict=True):
+            if b - a >= 4:
+                got = _end_ratios(st.t_end, st.acc_max, r.true_steps.t_end[b])
+                assert got is not None, "the last true step is detected"
+                last.append(got[0])
+                close.append(got[1])
+    assert len(last) >= 15
+    assert 0.75 <= np.median(last) <= 0.95
+    assert np.mean(np.array(last) < WalkStepParams().closing_ratio) <= 0.1
+    assert 0.28 <= np.nanmedian(close) <= 0.49
+
+
+def test_the_generators_ranges():
     assert LAST_STEP_AMPLITUDE_RANGE == (0.6, 1.0)
+    assert LAST_STEP_CYCLE_RANGE == (0.8, 1.2)
     assert CLOSING_AMPLITUDE_RANGE == (0.28, 0.49)
