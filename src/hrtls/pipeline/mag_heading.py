@@ -18,7 +18,11 @@ mounting together) is not known: it is learned as the circular mean of
 ``x_h - psi_in + a`` over the first ``learn_blocks`` clean walking blocks (the state heading
 then holds the start pose heading plus gyro turns), with variance ``P_hh`` at that time plus
 the spread of the mean; it is learned again when the hard iron in force moves by more than
-``relearn_hard_iron_ut``. The update (``h(x) = x_h``, ``H = e_h``):
+``relearn_hard_iron_ut``. While a running hard-iron fit has not been accepted yet the blocks
+are skipped: an uncalibrated magnetometer's heading error changes with the heading (a U-turn
+after learning ``b`` would read as a heading error of up to twice its deflection), unless
+``unfitted = "use"``, which adds ``sigma_unfitted_deg`` to their 1-sigma and learns ``b`` again
+once the fit is accepted. The update (``h(x) = x_h``, ``H = e_h``):
 
     nu = wrap(z - x_h),  S = P_hh + R,  K = P H^T / S,  NIS = nu^2 / S             (2)
 
@@ -36,7 +40,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -46,7 +50,8 @@ from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped
 from hrtls.fusion.state import IH, N_STATE, FilterState
 
 N_BLOCK = 9
-"""Columns of a block row: t_end, mean m_n (3), mean |m|, samples, mean hard iron (3)."""
+"""Columns of a block row: t_end, mean m_n (3), mean |m|, samples, mean hard iron (3; NaN
+while a running fit has not been accepted)."""
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -63,10 +68,12 @@ class MagHeadingParams:
     learn_blocks: int = 10
     walk_window_s: float = 2.0
     relearn_hard_iron_ut: float = 1.0
+    unfitted: Literal["skip", "use"] = "skip"
+    sigma_unfitted_deg: float = 10.0
 
     def __post_init__(self) -> None:
         positive = ("block_s", "sigma_floor_deg", "gate_fraction", "gate_dip_deg",
-                    "walk_window_s", "relearn_hard_iron_ut")
+                    "walk_window_s", "relearn_hard_iron_ut", "sigma_unfitted_deg")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -97,7 +104,8 @@ class MagBlocks:
         if not len(t):
             return np.zeros((0, N_BLOCK))
         m_n = np.einsum("nij,nj->ni", quat_to_matrix(q_nd), mag)
-        c = (np.full((len(t), 3), np.nan) if hard_iron_ut is None
+        # no running fit: the field as it comes is taken as calibrated (offset 0)
+        c = (np.zeros((len(t), 3)) if hard_iron_ut is None
              else np.asarray(hard_iron_ut, dtype=np.float64))
         vals = np.column_stack([t, m_n, np.linalg.norm(mag, axis=1), np.ones(len(t)), c])
         blocks = np.floor(np.asarray(t) / self.block_s)
@@ -144,11 +152,10 @@ def heading_update(state: FilterState, z_rad: float, r_rad2: float, *, t: float,
 
 
 def _hard_iron_moved(c: np.ndarray, c_learn: np.ndarray, limit_ut: float) -> bool:
-    """The hard iron in force differs from the one ``b`` was learned with (or became known)."""
-    known, known_then = bool(np.all(np.isfinite(c))), bool(np.all(np.isfinite(c_learn)))
-    if known != known_then:
-        return True
-    return known and float(np.linalg.norm(c - c_learn)) > limit_ut
+    """The hard iron in force moved away from the one ``b`` was learned with (inf: unfitted)."""
+    if np.all(np.isinf(c)) or np.all(np.isinf(c_learn)):
+        return bool(np.all(np.isinf(c)) != np.all(np.isinf(c_learn)))
+    return float(np.linalg.norm(c - c_learn)) > limit_ut
 
 
 class MagHeading:
@@ -185,12 +192,19 @@ class MagHeading:
               ) -> tuple[FilterState, UpdateDiagnostics]:
         """One block at ``t``: learn ``b`` or update the state heading (eq. 1-2)."""
         prm, s = self.params, self.state
-        why, var = self._check(row, walking and state.has_input_heading
-                               and not state.reference_pending)
+        if not state.has_input_heading or state.reference_pending:
+            return state, skipped("magnetic", t, "no step heading yet")
+        why, var = self._check(row, walking)
         if why:
             return state, skipped("magnetic", t, why)
         a, _, _ = field_angles(row)
         c = row[6:9]
+        if not np.all(np.isfinite(c)):
+            # an uncalibrated magnetometer's error depends on the heading
+            if prm.unfitted == "skip":
+                return state, skipped("magnetic", t, "hard iron not fitted yet")
+            var += math.radians(prm.sigma_unfitted_deg) ** 2
+            c = np.full(3, math.inf)
         if math.isfinite(s["b"]) and _hard_iron_moved(c, np.asarray(s["c_learn"]),
                                                       prm.relearn_hard_iron_ut):
             s["b"], s["learn"] = math.nan, [0.0, 0.0, 0.0, 0.0]
