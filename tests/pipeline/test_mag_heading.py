@@ -105,6 +105,30 @@ def test_offset_learned_then_heading_measured() -> None:
     assert d.status == "skipped" and "disturbed" in d.reason
 
 
+@pytest.mark.parametrize("unfitted", ["skip", "use"])
+def test_blocks_before_the_hard_iron_fit(unfitted: str) -> None:
+    prm = MagHeadingParams(reference_blocks=1, learn_blocks=1, unfitted=unfitted)
+    mh = MagHeading(prm)
+    row = np.array([0.0, 20.0, 0.0, -40.0, math.hypot(20.0, 40.0), 50,
+                    math.nan, math.nan, math.nan])
+    s = _state(0.5, np.diag([1.0, 1.0, 0.1, 0.01]))
+    reasons = [mh.apply(s, float(k), row, walking=True, input_heading_rad=0.2,
+                        gate_probability=0.997)[1] for k in range(3)]
+    if unfitted == "skip":
+        assert all(d.reason == "hard iron not fitted yet" for d in reasons)
+        return
+    assert reasons[0].reason == "heading offset learned"
+    # R = floor^2 + unfitted^2 + var_b (var_b = P_hh while learning: 0.01)
+    r = math.radians(6.0) ** 2 + math.radians(10.0) ** 2 + 0.01
+    assert float(reasons[1].innovation_cov[0, 0]) == pytest.approx(0.01 + r)
+    # the fit accepted: b is learned again from the fitted field
+    fitted = row.copy()
+    fitted[6:9] = 0.0
+    _, d = mh.apply(s, 4.0, fitted, walking=True, input_heading_rad=0.2,
+                    gate_probability=0.997)
+    assert d.reason == "heading offset learned"
+
+
 def test_config_needs_the_state_heading() -> None:
     with pytest.raises(ValueError, match="heading_mode"):
         TrackerConfig.model_validate({"attitude": {"heading_source": "gyro+compass"},
