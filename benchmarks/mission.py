@@ -265,6 +265,8 @@ def main() -> None:
                     help="rescuers' [attitude] mag_hard_iron = off (the field used raw)")
     ap.add_argument("--heading-source", choices=("filter", "gyro+compass"), default=None,
                     help="rescuers' [attitude] heading_source (default: the tracker's)")
+    ap.add_argument("--offset-floor", action="store_true",
+                    help="rescuers' [attitude.mag_heading] offset_floor = true")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -292,6 +294,8 @@ def main() -> None:
         attitude["mag_hard_iron"] = "off"
     if args.heading_source is not None:
         attitude["heading_source"] = args.heading_source
+    if args.offset_floor:
+        attitude["mag_heading"] = {"offset_floor": True}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude)

@@ -129,6 +129,19 @@ def test_blocks_before_the_hard_iron_fit(unfitted: str) -> None:
     assert d.reason == "heading offset learned"
 
 
+@pytest.mark.parametrize("floor", [False, True])
+def test_offset_floor_keeps_the_heading_variance_above_the_offsets(floor: bool) -> None:
+    mh = MagHeading(MagHeadingParams(reference_blocks=1, learn_blocks=1, offset_floor=floor))
+    row = np.array([0.0, 20.0, 0.0, -40.0, math.hypot(20.0, 40.0), 50, 0.0, 0.0, 0.0])
+    s = _state(0.5, np.diag([1.0, 1.0, 0.1, 0.01]))
+    for k in range(20):
+        s, _ = mh.apply(s, float(k), row, walking=True, input_heading_rad=0.2,
+                        gate_probability=0.997)
+    var_b = mh.state["var_b"]
+    assert var_b == pytest.approx(0.01)
+    assert (float(s.P[3, 3]) >= var_b * (1 - 1e-5)) == floor
+
+
 def test_config_needs_the_state_heading() -> None:
     with pytest.raises(ValueError, match="heading_mode"):
         TrackerConfig.model_validate({"attitude": {"heading_source": "gyro+compass"},

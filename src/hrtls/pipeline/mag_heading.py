@@ -22,7 +22,9 @@ the spread of the mean; it is learned again when the hard iron in force moves by
 are skipped: an uncalibrated magnetometer's heading error changes with the heading (a U-turn
 after learning ``b`` would read as a heading error of up to twice its deflection), unless
 ``unfitted = "use"``, which adds ``sigma_unfitted_deg`` to their 1-sigma and learns ``b`` again
-once the fit is accepted. The update (``h(x) = x_h``, ``H = e_h``):
+once the fit is accepted. ``offset_floor``: every update shares the offset's error, so none
+may bring ``P_hh`` below ``var_b`` (``R`` raised to ``var_b P_hh / (P_hh - var_b)``; no update
+while ``P_hh <= var_b``). The update (``h(x) = x_h``, ``H = e_h``):
 
     nu = wrap(z - x_h),  S = P_hh + R,  K = P H^T / S,  NIS = nu^2 / S             (2)
 
@@ -70,6 +72,7 @@ class MagHeadingParams:
     relearn_hard_iron_ut: float = 1.0
     unfitted: Literal["skip", "use"] = "skip"
     sigma_unfitted_deg: float = 10.0
+    offset_floor: bool = False
 
     def __post_init__(self) -> None:
         positive = ("block_s", "sigma_floor_deg", "gate_fraction", "gate_dip_deg",
@@ -224,5 +227,11 @@ class MagHeading:
             s["c_learn"] = [float(v) for v in c]
             return state, skipped("magnetic", t, "heading offset learned")
         z = input_heading_rad - a + s["b"]
-        return heading_update(state, z, var + s["var_b"], t=t,
-                              gate_probability=gate_probability)
+        r = var + s["var_b"]
+        p_hh = float(state.P[IH, IH])
+        if prm.offset_floor and p_hh > s["var_b"]:
+            # every update shares the offset's error: none may bring P_hh below var_b
+            r = max(r, s["var_b"] * p_hh / (p_hh - s["var_b"]))
+        elif prm.offset_floor:
+            return state, skipped("magnetic", t, "heading variance at the offset's")
+        return heading_update(state, z, r, t=t, gate_probability=gate_probability)
