@@ -27,7 +27,8 @@ straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``
 the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
 their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
-gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``).
+gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
+``--offset-floor``: its ``offset_floor``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
