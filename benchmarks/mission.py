@@ -26,7 +26,9 @@ the peers carried to a range's time with their velocity (``PeerRangeParams.extra
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
 the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
-their heading errors; ``benchmarks/mission_heading.py``).
+their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
+gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
+``--offset-floor``: its ``offset_floor``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``).
@@ -262,6 +264,10 @@ def main() -> None:
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     ap.add_argument("--no-hard-iron-fit", action="store_true",
                     help="rescuers' [attitude] mag_hard_iron = off (the field used raw)")
+    ap.add_argument("--heading-source", choices=("filter", "gyro+compass"), default=None,
+                    help="rescuers' [attitude] heading_source (default: the tracker's)")
+    ap.add_argument("--offset-floor", action="store_true",
+                    help="rescuers' [attitude.mag_heading] offset_floor = true")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -287,6 +293,10 @@ def main() -> None:
     attitude: dict[str, Any] = {"use_magnetometer": False} if args.no_magnetometer else {}
     if args.no_hard_iron_fit:
         attitude["mag_hard_iron"] = "off"
+    if args.heading_source is not None:
+        attitude["heading_source"] = args.heading_source
+    if args.offset_floor:
+        attitude["mag_heading"] = {"offset_floor": True}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude)

@@ -5,7 +5,8 @@ cooperation, ``RESCUER_PREDICTION``) with an ``[attitude]`` variant; prints per 
 tracker's heading error (state heading minus the true heading, median over the distance band)
 at 0-5 m, 15-25 m and 55-65 m walked. The truth is read here for scoring only.
 
-    python benchmarks/mission_heading.py --seeds 0-4 --variant default|no-magnetometer|no-hard-iron
+    python benchmarks/mission_heading.py --seeds 0-4 --variant default|no-magnetometer|\
+        no-hard-iron|gyro+compass|gyro+compass-unfitted
 """
 
 from __future__ import annotations
@@ -21,7 +22,10 @@ from hrtls.pipeline.tracker import Tracker
 from hrtls.sim.mission import RESCUER_PREDICTION, inderst_hybrid_mission
 
 VARIANTS = {"default": {}, "no-magnetometer": {"use_magnetometer": False},
-            "no-hard-iron": {"mag_hard_iron": "off"}}
+            "no-hard-iron": {"mag_hard_iron": "off"},
+            "gyro+compass": {"heading_source": "gyro+compass"},
+            "gyro+compass-unfitted": {"heading_source": "gyro+compass",
+                                      "mag_heading": {"unfitted": "use"}}}
 BANDS_M = ((0.3, 5.0), (15.0, 25.0), (55.0, 65.0))
 
 

@@ -41,6 +41,7 @@ from hrtls.gait.walk_steps import WalkStepParams
 from hrtls.gait.walking_bouts import WalkingBoutParams
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline.config import GaitConfig, TrackerConfig, params_of
+from hrtls.pipeline.mag_heading import MagBlocks, MagHeading, MagHeadingParams
 
 
 class Notes:
@@ -118,6 +119,27 @@ def attitude_filter(config: TrackerConfig, method: str
     if method == "none":
         return None
     return make_filter(method, config.attitude.filter_params(method))
+
+
+def compass_heading(config: TrackerConfig, *, has_mag: bool) -> MagBlocks | None:
+    """The field blocks of the magnetic heading measurement (``heading_source``), or None."""
+    att = config.attitude
+    if att.heading_source != "gyro+compass" or not (has_mag and att.use_magnetometer):
+        return None
+    return MagBlocks(params_of(MagHeadingParams, att.mag_heading).block_s)
+
+
+def mag_heading(config: TrackerConfig) -> MagHeading | None:
+    """The engine's magnetic heading measurement (``heading_source = "gyro+compass"``)."""
+    att = config.attitude
+    return (MagHeading(params_of(MagHeadingParams, att.mag_heading))
+            if att.heading_source == "gyro+compass" else None)
+
+
+def yaw_relative(config: TrackerConfig, *, has_mag: bool) -> bool:
+    """The attitude yaw has an arbitrary zero (no magnetometer in the attitude filter)."""
+    return not (config.attitude.use_magnetometer and has_mag) or \
+        compass_heading(config, has_mag=has_mag) is not None
 
 
 def step_model(config: GaitConfig, meta: SessionMeta) -> tuple[StepModel, float]:

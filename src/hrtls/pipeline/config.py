@@ -20,7 +20,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from hrtls.attitude.complementary import ComplementaryParams
 from hrtls.attitude.euler_ekf import EulerEkfParams
@@ -32,6 +40,7 @@ from hrtls.fusion.floors import FlightParams
 from hrtls.fusion.random_walk import RandomWalkParams
 from hrtls.fusion.rss_grid import GridParams
 from hrtls.gait.stairs_climb import ClimbParams
+from hrtls.pipeline.mag_heading import MagHeadingParams
 from hrtls.pipeline.step_scale import StepScaleParams
 
 
@@ -128,11 +137,20 @@ class AttitudeConfig(_Section):
     samples arrive (:mod:`hrtls.calibration.hard_iron_running`, our addition) and subtract it
     before the attitude stage from the time a fit is accepted (the field is used raw before);
     for devices never calibrated with a figure of eight (Inderst App. B)."""
+    heading_source: Literal["filter", "gyro+compass"] = "filter"
+    """``filter``: the step headings from the attitude filter (with the magnetometer when
+    ``use_magnetometer``); ``gyro+compass``: the filter runs without the magnetometer and the
+    magnetic heading is an absolute measurement of the state heading
+    (:mod:`hrtls.pipeline.mag_heading`, needs ``[prediction] heading_mode = "state"``)."""
+    mag_heading: dict[str, Any] = _table(MagHeadingParams)
+    """The magnetic heading measurement (:class:`hrtls.pipeline.mag_heading.MagHeadingParams`)."""
     quat_ekf: dict[str, Any] = _table(QuatEkfParams)
     euler_ekf: dict[str, Any] = _table(EulerEkfParams)
     complementary: dict[str, Any] = _table(ComplementaryParams)
     inertial_lp: dict[str, Any] = _table(InertialLowpassParams)
 
+    _complete_mag_heading = field_validator("mag_heading")(
+        lambda v: _complete(MagHeadingParams, v))
     _complete_quat_ekf = field_validator("quat_ekf")(
         lambda v: _complete(QuatEkfParams, v))
     _complete_euler_ekf = field_validator("euler_ekf")(
@@ -336,6 +354,14 @@ class TrackerConfig(_Section):
     """When a stairs flight changes the floor (:class:`hrtls.fusion.floors.FlightParams`)."""
     barometer: bool = Field(default=True, description="heights and floors from the "
                             "recording's barometer when it has one (hrtls.pipeline.barometric)")
+
+    @model_validator(mode="after")
+    def _compass_needs_state_heading(self) -> TrackerConfig:
+        if self.attitude.heading_source == "gyro+compass" and \
+                self.prediction.heading_mode != "state":
+            raise ValueError('attitude.heading_source = "gyro+compass" needs '
+                             'prediction.heading_mode = "state"')
+        return self
 
 
 PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range",

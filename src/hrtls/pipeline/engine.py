@@ -27,6 +27,7 @@ from hrtls.fusion.tags import TagMemory
 from hrtls.gait.analyzer import GaitResult
 from hrtls.pipeline import _events as ev
 from hrtls.pipeline import _fix_events as fx
+from hrtls.pipeline import build
 from hrtls.pipeline.build import Corrections, Notes
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
@@ -35,7 +36,7 @@ from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
 from hrtls.pipeline.landmark_updates import LandmarkVersions
 from hrtls.pipeline.observations import apply_fix, apply_observation, step_at
 from hrtls.pipeline.output import TrackRows
-from hrtls.pipeline.schedule import EventSchedule, PoseGate
+from hrtls.pipeline.schedule import MAGNETIC, EventSchedule, PoseGate
 from hrtls.pipeline.step_scale import StepScaleLearner
 
 MOVING_SIGMA_M_S2 = 0.2
@@ -168,6 +169,8 @@ class FusionEngine:
         """Accepted fixes: time of the output row holding the corrected state, position change
         (east, north) made by the fix, m."""
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
+        self.mag_heading = build.mag_heading(config)
+        """The magnetic heading measurement (``heading_source = "gyro+compass"``), or None."""
         self.fix_params = fx.fix_params(config, parts.fix_corrector.params, scale.params,
                                         running_factor=running_factor)
 
@@ -175,6 +178,12 @@ class FusionEngine:
     def drain(self, horizon: float) -> None:
         """Apply every queued event up to ``horizon`` in order (time, kind, arrival)."""
         sched = self.schedule
+        att = self.attitude
+        if att is not None and len(att.mag_rows):
+            # field blocks of the magnetic heading measurement, from the start pose on
+            for row in att.mag_rows[att.mag_rows[:, 0] >= self.pose.t_pose]:
+                sched.push(float(row[0]), MAGNETIC, row)
+            att.mag_rows = att.mag_rows[:0]
         while True:
             slow = sched.next_slow(horizon)
             if slow is not None:
@@ -439,6 +448,7 @@ class FusionEngine:
         out["fix_phase_s"] = self.parts.fix_corrector.params.phase_s
         out["landmark_versions"] = self.versions.state()
         out["grid"] = self.grid.state_dict()
+        out["mag_heading"] = None if self.mag_heading is None else self.mag_heading.state
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -452,6 +462,8 @@ class FusionEngine:
         if "landmark_versions" in state:   # snapshots from before landmark updates have none
             self.versions.restore(state["landmark_versions"])
         self.grid.restore(state.get("grid"))
+        if self.mag_heading is not None:
+            self.mag_heading.state = state["mag_heading"]
         self.track = TrackRows()
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]

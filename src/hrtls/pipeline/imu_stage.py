@@ -24,6 +24,7 @@ from hrtls.frames import quat_multiply
 from hrtls.pipeline.build import Notes
 from hrtls.pipeline.compass import CompassYaw
 from hrtls.pipeline.config import AttitudeConfig
+from hrtls.pipeline.mag_heading import MagBlocks
 from hrtls.pipeline.mounting import declared_handheld, handheld_mounting_q_bd, looks_handheld
 
 DEFAULT_VAR_YAW_RAD2 = 0.01
@@ -116,6 +117,9 @@ class AttitudeStage:
     compass: yaw correction of the device orientation, or None.
     use_mag: feed the magnetometer to the filter.
     keep_attitude: keep every per-sample result (for the track result).
+    mag_blocks: per-block field in the (gyro-only) navigation frame for the magnetic heading
+        measurement (``heading_source = "gyro+compass"``), or None; the completed blocks
+        wait in :attr:`mag_rows` for the tracker to queue them.
     """
 
     COMPASS = ("n_tot", "y_tot", "n_cur", "y_cur", "cur_block", "c", "radius", "history",
@@ -123,8 +127,11 @@ class AttitudeStage:
 
     def __init__(self, filt: AttitudeFilter | DeviceOrientation, *,
                  hard_iron: RunningHardIron | None, hard_iron_fixed_ut: np.ndarray | None,
-                 compass: CompassYaw | None, use_mag: bool, keep_attitude: bool) -> None:
+                 compass: CompassYaw | None, use_mag: bool, keep_attitude: bool,
+                 mag_blocks: MagBlocks | None = None) -> None:
         self.filter = filt
+        self.mag_blocks = mag_blocks
+        self.mag_rows = np.zeros((0, 9))
         self.hard_iron = hard_iron
         self.hard_iron_fixed_ut = hard_iron_fixed_ut
         self.compass = compass
@@ -168,6 +175,9 @@ class AttitudeStage:
             q = quat_multiply(q, np.asarray(mounting_q_bd, dtype=np.float64))
         if self.compass is not None and mag is not None and len(mag) == len(res.t):
             q = self.compass.correct(res.t, np.asarray(q), mag, c_of)
+        if self.mag_blocks is not None and mag is not None and len(mag) == len(res.t):
+            self.mag_rows = np.concatenate([self.mag_rows, self.mag_blocks.add(
+                res.t, np.asarray(q), mag, c_of)])
         var = (res.var_rpy[:, 2] if res.var_rpy is not None
                else np.full(len(res.t), DEFAULT_VAR_YAW_RAD2))
         # keep the yaw variance of the samples later events may still need
@@ -195,7 +205,9 @@ class AttitudeStage:
                            else None),
                 "compass": None if self.compass is None else {
                     k: getattr(self.compass, k) for k in self.COMPASS},
-                "hard_iron": None if self.hard_iron is None else self.hard_iron.state}
+                "hard_iron": None if self.hard_iron is None else self.hard_iron.state,
+                "mag_blocks": None if self.mag_blocks is None else {
+                    k: getattr(self.mag_blocks, k) for k in MagBlocks.STATE}}
 
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`state`."""
@@ -207,6 +219,9 @@ class AttitudeStage:
                 setattr(self.compass, k, v)
         if self.hard_iron is not None:
             self.hard_iron.state = state["hard_iron"]
+        if self.mag_blocks is not None:
+            for k, v in state["mag_blocks"].items():
+                setattr(self.mag_blocks, k, v)
 
 
 def fit_hard_iron_offline(imu: ImuStream, notes: list[tuple[bool, str]]) -> np.ndarray | None:

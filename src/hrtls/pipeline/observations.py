@@ -32,7 +32,7 @@ from hrtls.fusion.rss_scans import scan_position
 from hrtls.fusion.state import IH, FilterState
 from hrtls.fusion.tags import bearing_heading_correction
 from hrtls.fusion.yaw_stretch import YawStretchParams, stretch_yaw
-from hrtls.pipeline.schedule import BEARING, FIX, RANGE, RSS, TAGS
+from hrtls.pipeline.schedule import BEARING, FIX, MAGNETIC, RANGE, RSS, TAGS
 
 if TYPE_CHECKING:
     from hrtls.pipeline.engine import FusionEngine
@@ -60,6 +60,8 @@ def apply_observation(eng: FusionEngine, t: float, kind: int, payload: Any) -> N
         # the bearing judged against the heading at the read, applied to the heading now
         shift = float(wrap_angle(eng.state.heading - heading_at_read))
         apply_bearing(eng, t, tag_id, np.asarray(bearings) + shift)
+    elif kind == MAGNETIC:
+        apply_magnetic(eng, t, np.asarray(payload))
     elif kind == RANGE:
         node, rng, sigma = payload
         lm = landmark_at(eng, node, t)
@@ -71,6 +73,19 @@ def apply_observation(eng: FusionEngine, t: float, kind: int, payload: Any) -> N
         eng.state = upd_r.state
         eng.diagnostics.append(upd_r.diagnostics)
         eng.corrected_since_fix = eng.corrected_since_fix or upd_r.diagnostics.accepted
+
+
+def apply_magnetic(eng: FusionEngine, t: float, row: np.ndarray) -> None:
+    """A block of the field: the magnetic heading measurement (:mod:`~.mag_heading`)."""
+    mh = eng.mag_heading
+    if mh is None:
+        return
+    st = eng.state
+    walking = eng.last_step_end >= t - mh.params.walk_window_s
+    eng.state, diag = mh.apply(st, t, row, walking=walking,
+                               input_heading_rad=st.input_heading_rad - eng.yaw_offset,
+                               gate_probability=eng.config.gate_probability)
+    eng.diagnostics.append(diag)
 
 
 def landmark_at(eng: FusionEngine, landmark_id: str, t: float) -> Landmark | None:

@@ -36,7 +36,7 @@ from hrtls.pipeline.build import Notes
 from hrtls.pipeline.config import TrackerConfig
 
 # event kinds in the order they are applied when they share a time
-STEP, FIX, RSS, TAGS, RANGE, BEARING = 0, 1, 2, 3, 4, 5
+STEP, FIX, RSS, TAGS, RANGE, BEARING, MAGNETIC = 0, 1, 2, 3, 4, 5, 6
 SCAN_ROWS_TRIM = 4096
 """Stored anchors of queued RSS scans are trimmed once there are this many (rows)."""
 

@@ -207,8 +207,7 @@ class Tracker:
                 StepScaleParams, cfg.prediction.step_scale)), gait=self.history,
             params=build.kernel_params(cfg, parts, floor_height_m=meta.floor_height_m,
                                        heading_known=pose.heading is not None,
-                                       yaw_relative=not (cfg.attitude.use_magnetometer
-                                                         and s.has_mag),
+                                       yaw_relative=build.yaw_relative(cfg, has_mag=s.has_mag),
                                        has_imu=s.has_imu),
             has_imu=s.has_imu, velocity_mode=velocity_mode, running_factor=running_factor,
             t0=s.t0, notes=notes)
@@ -231,17 +230,17 @@ class Tracker:
                 block_samples=max(1, round(s.rate_hz))))
         self.attitude_method = build.attitude_method(cfg, s, self.notes)
         filt = build.attitude_filter(cfg, self.attitude_method)
-        # only on the device's own orientation (a black-box AHRS whose yaw wanders): our
-        # filters already fuse the magnetometer with their own disturbance gates; with the
+        # only on the device's own orientation (a black-box AHRS whose yaw wanders); with the
         # hard iron already removed, the compass needs no warm-up of its own
         compass = (CompassYaw(self._pose.t_pose, CompassParams(
                        field_corrected=hard_iron is not None or fixed_hard_iron_ut is not None))
                    if cfg.attitude.compass_yaw and s.has_mag
                    and isinstance(filt, DeviceOrientation) else None)
+        compass_heading = build.compass_heading(cfg, has_mag=s.has_mag)
         self.attitude = None if filt is None else AttitudeStage(
             filt, hard_iron=hard_iron, hard_iron_fixed_ut=fixed_hard_iron_ut, compass=compass,
-            use_mag=cfg.attitude.use_magnetometer and s.has_mag,
-            keep_attitude=self.keep_attitude)
+            use_mag=cfg.attitude.use_magnetometer and s.has_mag and compass_heading is None,
+            keep_attitude=self.keep_attitude, mag_blocks=compass_heading)
         self._hard_iron = hard_iron
 
     def set_landmarks(self, landmarks: dict[str, Landmark]) -> None:
