@@ -22,6 +22,10 @@ default parameters; the cost table then gives its time per solve).
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
+``--nees-split``: the agents' NEES split by time since their latest node use, the worst class
+of their uses (independent, second-order loop, direct), the NEES of the latest node used, their
+loop closures and their kind, pooled over the seeds (``benchmarks/_mission_nees.py``).
+
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
 the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
@@ -50,6 +54,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options, parse_seeds
+from _mission_nees import nees_split, nees_split_table
 from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
@@ -142,6 +147,8 @@ class ModeScores:
     why: dict[str, int]
     """Nodes per class of ``_mission_why`` (why not localized)."""
     solve_s: tuple[float, float] = (float("nan"), float("nan"))
+    nees_split: dict[str, list[float]] = field(default_factory=dict)
+    """Agents' NEES per bin of ``_mission_nees.nees_split``."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -218,7 +225,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
                                true_agent_rmse(mission, tracker), _quarters(windows),
                                _quarters(agents_s), _quarters(nodes_s),
-                               why_not_localized(mission, tracker, res), _solves(tracker))
+                               why_not_localized(mission, tracker, res), _solves(tracker),
+                               nees_split(mission, res))
     return out
 
 
@@ -254,6 +262,8 @@ def main() -> None:
                          "(default: RESCUER_PREDICTION)")
     ap.add_argument("--why", action="store_true",
                     help="also print why the nodes were not localized (benchmarks/_mission_why)")
+    ap.add_argument("--nees-split", action="store_true",
+                    help="also print the agents' NEES split by node use (benchmarks/_mission_nees)")
     ap.add_argument("--only-on", action="store_true",
                     help="cooperation on only (the off column skipped: half the time)")
     ap.add_argument("--smoother", action="store_true",
@@ -277,6 +287,7 @@ def main() -> None:
         for m in modes(args.peer_ranges, args.only_on)}
     nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
+    split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
     for key in ("agent_cov_scale", "agent_correlation"):
@@ -313,6 +324,7 @@ def main() -> None:
             r["s1"].append(m.solve_s[1])
             nees_all[mode].extend(m.node_nees)
             why[mode].append(m.why)
+            split[mode].append(m.nees_split)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
@@ -350,6 +362,11 @@ def main() -> None:
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
               f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} "
               f"| {np.mean(r['s0']):.1f} / {np.max(r['s1']):.1f} |")
+    if args.nees_split:
+        for mode, per_seed in split.items():
+            print(f"\nagents' NEES by node use, cooperation {mode}, pooled over seeds "
+                  "(benchmarks/_mission_nees.py):\n")
+            print(nees_split_table(per_seed))
     if args.why:
         print(f"\nnodes by class at the end, summed over seeds ({args.rescuer_driver} driver; "
               "benchmarks/_mission_why.py):\n")

@@ -57,6 +57,7 @@ from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_comple
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
+from hrtls.mission.provenance import NodeUse, Provenance
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -145,7 +146,8 @@ class MissionResult:
     """Per-agent results, the final node estimates and each node's history (localized rows).
 
     ``readings``: the ranges kept for each node's estimate, all agents; ``closures``: the loop
-    closures (contributors starting to use a node they fed).
+    closures (contributors starting to use a node they fed); ``uses``: every agent's uses of
+    the nodes (:mod:`hrtls.mission.provenance`).
     """
 
     agents: dict[str, TrackResult]
@@ -154,6 +156,7 @@ class MissionResult:
     contributors: dict[str, list[str]]
     readings: dict[str, int] = field(default_factory=dict)
     closures: list[LoopClosure] = field(default_factory=list)
+    uses: list[NodeUse] = field(default_factory=list)
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,6 +251,7 @@ class MissionTracker:
         self.contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
         self.peers = PeerUses()
+        self.prov = Provenance()
         self.smoother = smoothing.SmootherState() if self.params.smoother else None
         for k, a in agents.items():
             if isinstance(a, Session):
@@ -395,7 +399,7 @@ class MissionTracker:
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
         readings = {n: len(r.r) for n, r in self.readings.items()}
         return MissionResult(results, dict(self.estimates), hist, contributors, readings,
-                             list(self.closures))
+                             list(self.closures), list(self.prov.uses))
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -509,10 +513,16 @@ class MissionTracker:
             last_t, count = self.pass_use.get((i, str(n)), (-math.inf, 0))
             if float(times[m][0]) - last_t > self.params.pass_gap_s:
                 count = 0
-            count += int(np.count_nonzero(m))
+            before, count = count, count + int(np.count_nonzero(m))
             self.pass_use[(i, str(n))] = (float(times[m][-1]), count)
-            mine = 2.0 if i in self.contrib.get(str(n), set()) else 1.0     # module doc
-            extra[m] = count * mine * self._node_var(str(n))
+            contributor = i in self.contrib.get(str(n), set())
+            mine = 2.0 if contributor else 1.0     # module doc
+            extra[m] = (before + 1) * (count + 1) * mine * self._node_var(str(n))
+            est = self.estimates[str(n)]
+            self.prov.use(NodeUse(
+                float(times[m][0]), i, str(n), self.prov.kind(i, str(n), contributor=contributor),
+                int(np.count_nonzero(m)), est.position_m.copy(), est.covariance_m2.copy(),
+                float(np.sqrt(ranges.sigma_m[usable][m][-1] ** 2 + extra[m][-1]))))
         return extra
 
     def _node_var(self, node: str) -> float:
@@ -563,6 +573,7 @@ class MissionTracker:
             tr = self.readings.setdefault(node, NodeReadings()).add(
                 agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m])
             self.contrib.setdefault(node, set()).add(i)
+            self.prov.read(i, node)
             self.contrib_trace[(i, node)] = min(self.contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
