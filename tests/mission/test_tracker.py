@@ -111,27 +111,31 @@ def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # ty
     assert float(np.mean(nees)) <= 12.0
 
 
-def test_a_used_node_widens_by_its_uses_in_the_pass(mission) -> None:  # type: ignore[no-untyped-def]
-    """Hand case: node variance 0.5 m^2; 3 uses then 2 in the same pass (counts 3, 5), then a
-    new pass after the gap (count 1)."""
+def test_a_used_node_widens_by_the_pass_counts_of_all_nodes(mission) -> None:  # type: ignore[no-untyped-def]
+    """Hand case: node variances 0.5 and 0.2 m^2 (largest eigenvalue); 3 ranges, then 2 in the
+    same pass: ``(0 + 1)(3 + 1) = 4`` and ``(3 + 1)(5 + 1) = 24`` times the variance; a second
+    node in the pass shares the count (``(5 + 1)(7 + 1) = 48``); after the gap a new pass
+    (``1 * 2``); each agent its own pass."""
     from hrtls.data.observations import RangeMeasurements
     from hrtls.mission.nodes import NodeEstimate
 
     mt = MissionTracker(mission.agents, params=MissionParams(pass_gap_s=15.0))
-    mt.estimates["N1"] = NodeEstimate(np.zeros(2), np.diag([0.5, 0.2]), True, "",
-                                      np.ones(4, dtype=bool), 1.0, 1)
+    for node, cov in (("N1", np.diag([0.5, 0.2])), ("N2", np.diag([0.1, 0.2]))):
+        mt.estimates[node] = NodeEstimate(np.zeros(2), cov, True, "", np.ones(4, dtype=bool),
+                                          1.0, 1)
 
-    def var(t: list[float]) -> np.ndarray:
-        r = RangeMeasurements(np.asarray(t), np.array(["N1"] * len(t)), np.ones(len(t)),
+    def var(t: list[float], nodes: list[str], agent: int = 0) -> np.ndarray:
+        r = RangeMeasurements(np.asarray(t), np.array(nodes), np.ones(len(t)),
                               np.full(len(t), 0.1))
-        return mt._use_var(0, r, np.ones(len(t), dtype=bool))
+        return mt._use_var(agent, r, np.ones(len(t), dtype=bool))
 
-    np.testing.assert_allclose(var([0.0, 1.0, 2.0]), [1.5] * 3)
-    np.testing.assert_allclose(var([5.0, 6.0]), [2.5] * 2)
-    np.testing.assert_allclose(var([30.0]), [0.5])
-    np.testing.assert_allclose(mt._use_var(1, RangeMeasurements(
-        np.array([31.0]), np.array(["N1"]), np.ones(1), np.full(1, 0.1)), np.ones(1, dtype=bool)),
-        [0.5])                                                 # counted per agent
+    np.testing.assert_allclose(var([0.0, 1.0, 2.0], ["N1"] * 3), [2.0] * 3)
+    np.testing.assert_allclose(var([5.0, 6.0], ["N1"] * 2), [12.0] * 2)
+    np.testing.assert_allclose(var([7.0, 8.0], ["N1", "N2"]), [24.0, 9.6])
+    np.testing.assert_allclose(var([30.0], ["N2"]), [0.4])
+    np.testing.assert_allclose(var([31.0], ["N1"], agent=1), [1.0])
+    assert [u.ranges for u in mt.prov.uses] == [3, 2, 1, 1, 1, 1]
+    assert {u.kind for u in mt.prov.uses} == {"independent"}
 
 
 def test_a_contributor_uses_its_node_only_after_a_loop_closure(mission) -> None:  # type: ignore[no-untyped-def]

@@ -10,10 +10,31 @@ A use of ``n`` by ``a`` is *direct* when ``a`` read ``n`` itself (a loop closure
 when ``a`` is in ``S(n)`` without having read ``n`` (A localizes n, B corrected by n localizes m,
 A uses m), otherwise *independent*. The sets only grow (an error, once passed on, is not known
 to have decayed), which makes the classes conservative. Every use is logged (:class:`NodeUse`).
+
+Information of a pass (:func:`pool_factor`). Scalar model: agent error ``e_x`` (variance ``P``)
+independent of the nodes; its filter takes ranges ``z_k = x + e_k + v_k`` to nodes with errors
+``e_k`` of any correlation (``var e_k <= P_k``, covariance ``C``) and range noise ``v_k`` (``s^2``)
+as independent, with variances ``R_k = s^2 + a_k P_k``, weights ``w_k = 1 / R_k``. It claims
+``1 / (1/P + sum w)``; its error ``(e_x / P + sum w_k (e_k + v_k)) / (1/P + sum w)`` has the
+variance ``(1/P + w^T C w + s^2 sum w_k^2) / (1/P + sum w)^2``, at most the claim iff
+``w^T C w + s^2 sum w_k^2 <= sum w_k``. Cauchy-Schwarz, twice::
+
+    w^T C w <= (sum w_k sqrt(P_k))^2 <= (sum 1/a_k) (sum a_k P_k w_k^2)
+
+so ``sum 1/a_k <= 1`` makes the left side at most ``sum w_k^2 (a_k P_k + s^2) = sum w_k``: the
+claim is never below the truth, whatever the correlation. The ``m_j`` ranges of the pass's
+``j``-th window get ``a = (N_{j-1} + 1)(N_j + 1)`` (``N_j`` the ranges used up to it):
+``m_j / a = 1/(N_{j-1} + 1) - 1/(N_j + 1)`` telescopes to ``sum 1/a_k = 1 - 1/(N + 1)``. (The
+count of uses alone, ``a = N_j``, sums to about ``ln`` of the windows: a pass of six windows
+took its nodes' error 2.4 times.) A new pass starts after a gap of ``pass_gap_s`` or once the
+agent's covariance trace has grown ``loop_closure_ratio`` times beyond its smallest in the pass:
+its error is then mostly new drift, taken as independent of the nodes (the loop-closure
+approximation of :mod:`hrtls.mission.tracker`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +65,30 @@ class NodeUse:
     sigma_m: float
 
 
+@dataclass(frozen=True)
+class UsePool:
+    """An agent's current pass over the mission's nodes: time of its last used range, the
+    ranges used in it, the smallest covariance trace of the agent at its windows, m^2."""
+
+    t_last_s: float = -math.inf
+    ranges: int = 0
+    trace_min_m2: float = math.inf
+
+
+def pool_factor(pool: UsePool, *, t_first_s: float, t_last_s: float, ranges: int,
+                trace_m2: float, gap_s: float, ratio: float) -> tuple[UsePool, float]:
+    """The pass after a window's ``ranges`` and the factor ``a`` of their node variances.
+
+    A new pass starts after a gap above ``gap_s`` or once the agent's trace reached ``ratio``
+    times its smallest in the pass; ``a = (N_before + 1) (N_after + 1)`` (tracker module doc).
+    """
+    if t_first_s - pool.t_last_s > gap_s or trace_m2 >= ratio * pool.trace_min_m2:
+        pool = UsePool()
+    after = pool.ranges + ranges
+    return (UsePool(t_last_s, after, min(pool.trace_min_m2, trace_m2)),
+            float((pool.ranges + 1) * (after + 1)))
+
+
 @dataclass
 class Provenance:
     """``I(a)`` per agent index, ``S(n)`` per node and the use log (module doc)."""
@@ -51,6 +96,7 @@ class Provenance:
     inside_agent: dict[int, set[int]] = field(default_factory=dict)
     inside_node: dict[str, set[int]] = field(default_factory=dict)
     uses: list[NodeUse] = field(default_factory=list)
+    pools: dict[int, UsePool] = field(default_factory=dict)
 
     def agent(self, i: int) -> set[int]:
         """``I(i)``."""
@@ -79,6 +125,8 @@ class Provenance:
         """Plain values for :mod:`hrtls.mission.snapshot`."""
         return {"agents": [[i, sorted(s)] for i, s in self.inside_agent.items()],
                 "nodes": {n: sorted(s) for n, s in self.inside_node.items()},
+                "pools": [[i, p.t_last_s, p.ranges, p.trace_min_m2]
+                          for i, p in self.pools.items()],
                 "uses": [[u.t_s, u.agent, u.node, u.kind, u.ranges, u.position_m.tolist(),
                           u.covariance_m2.tolist(), u.sigma_m] for u in self.uses]}
 
@@ -88,9 +136,12 @@ class Provenance:
         agents = d["agents"]
         nodes = d["nodes"]
         uses = d["uses"]
+        pools = d["pools"]
         assert isinstance(agents, list) and isinstance(nodes, dict) and isinstance(uses, list)
+        assert isinstance(pools, list)
         return cls({int(i): {int(x) for x in s} for i, s in agents},
                    {str(n): {int(x) for x in s} for n, s in nodes.items()},
                    [NodeUse(float(t), int(a), str(n), str(k), int(c), np.asarray(p, np.float64),
                             np.asarray(cv, np.float64), float(sg))
-                    for t, a, n, k, c, p, cv, sg in uses])
+                    for t, a, n, k, c, p, cv, sg in uses],
+                   {int(i): UsePool(float(t), int(c), float(m)) for i, t, c, m in pools})

@@ -153,7 +153,6 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "given": {str(i): g for i, g in mt.given.items()},
         "history": {n: [list(h) for h in rows] for n, rows in mt.history.items()},
         "version": mt.versions, "estimated_at": mt.estimated_at,
-        "pass_use": [[i, n, t, c] for (i, n), (t, c) in mt.pass_use.items()],
         "contrib_trace": [[i, n, v] for (i, n), v in mt.contrib_trace.items()],
         "closures": [dataclasses.astuple(c) for c in mt.closures],
         "provenance": mt.prov.state(),
@@ -178,7 +177,6 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
                   for n, rows in d["history"].items()}
     mt.versions = dict(d["version"])
     mt.estimated_at = dict(d["estimated_at"])
-    mt.pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
     mt.contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
     mt.prov = Provenance.from_state(d["provenance"])

@@ -8,12 +8,12 @@ ways:
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
-  landmarks, the range sigma widened by the node's position uncertainty,
-  ``sqrt(sigma^2 + n * lambda_max(P_node))``, ``n`` the ranges the agent has used from that node
-  in its current pass, this window's included: the node's error is one and the same for every
-  range of a pass, and the agent's filter takes each range as independent; the widening keeps
-  the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
-  of once per range);
+  landmarks), its sigma widened to ``sqrt(sigma^2 + a c lambda_max(P_node))``; ``a = (N_before +
+  1)(N_after + 1)``, ``N`` the ranges the agent used from *any* mission node in its current pass
+  before / after this window (the nodes' errors may be one and the same, the agents' common
+  error; a pass then takes at most one node's information, :mod:`hrtls.mission.provenance`);
+  ``c`` is 2 when the agent's own error is inside the node's (it read the node, or a node that
+  corrected an agent that read it), else 1;
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
   as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator` (a range later than
   the agent's latest row waits for it, :mod:`hrtls.mission.readings`).
@@ -28,8 +28,9 @@ P1 + D``), node error ``e1 + v``: the filter's update taking the node as indepen
 ``a * P1`` claims a posterior variance ``P2 a P1 / (P2 + a P1)`` while the true one is
 ``P1 + (a P1 / (P2 + a P1))^2 D``; with ``a = 2`` (the node's variance doubled for its
 contributors) the two agree at ``P2 = 4 P1`` and the claim is conservative beyond. Passes of
-different agents are taken as partly correlated in the node estimate (``agent_correlation``); the
-second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not modelled.
+different agents are taken as partly correlated in the node estimate (``agent_correlation``). A
+second-order loop (A localizes n, B corrected by n localizes m, A uses m) gets ``c = 2`` as a
+loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in which estimate).
 
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
@@ -57,7 +58,7 @@ from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_comple
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
-from hrtls.mission.provenance import NodeUse, Provenance
+from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -247,7 +248,6 @@ class MissionTracker:
         self.pending: dict[str, RangeMeasurements | None] = dict.fromkeys(self.names)
         self.versions: dict[str, int] = {}
         self.estimated_at: dict[str, int] = {}
-        self.pass_use: dict[tuple[int, str], tuple[float, int]] = {}
         self.contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
         self.peers = PeerUses()
@@ -504,24 +504,23 @@ class MissionTracker:
 
     def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
                  ) -> FloatArray:
-        """Variance added to each usable range: node variance times its uses in the pass."""
-        extra = np.zeros(int(np.count_nonzero(usable)))
-        nodes = ranges.node[usable]
-        times = ranges.t[usable]
+        """Variance added to each usable range: its node's variance times the pass's factor."""
+        nodes, times = ranges.node[usable], ranges.t[usable]
+        rows = self.recent_rows[self.names[i]]
+        self.prov.pools[i], factor = pool_factor(
+            self.prov.pools.get(i, UsePool()), t_first_s=float(times.min()),
+            t_last_s=float(times.max()), ranges=len(times),
+            trace_m2=float(np.trace(rows[0][2][-1])) if rows else math.inf,
+            gap_s=self.params.pass_gap_s, ratio=self.params.loop_closure_ratio)
+        extra = np.zeros(len(times))
         for n in np.unique(nodes).tolist():
             m = nodes == n
-            last_t, count = self.pass_use.get((i, str(n)), (-math.inf, 0))
-            if float(times[m][0]) - last_t > self.params.pass_gap_s:
-                count = 0
-            before, count = count, count + int(np.count_nonzero(m))
-            self.pass_use[(i, str(n))] = (float(times[m][-1]), count)
-            contributor = i in self.contrib.get(str(n), set())
-            mine = 2.0 if contributor else 1.0     # module doc
-            extra[m] = (before + 1) * (count + 1) * mine * self._node_var(str(n))
+            kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
+            extra[m] = factor * (1.0 if kind == "independent" else 2.0) * self._node_var(str(n))
             est = self.estimates[str(n)]
             self.prov.use(NodeUse(
-                float(times[m][0]), i, str(n), self.prov.kind(i, str(n), contributor=contributor),
-                int(np.count_nonzero(m)), est.position_m.copy(), est.covariance_m2.copy(),
+                float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
+                est.position_m.copy(), est.covariance_m2.copy(),
                 float(np.sqrt(ranges.sigma_m[usable][m][-1] ** 2 + extra[m][-1]))))
         return extra
 
