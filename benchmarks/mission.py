@@ -121,6 +121,8 @@ class SeedItem:
     """``MissionParams.smoother`` (None: the per-node estimator alone)."""
     attitude: dict[str, Any] = field(default_factory=dict)
     """The rescuers' ``[attitude]`` table (empty: the defaults)."""
+    loop_closure_ratio: float | None = None
+    """``MissionParams.loop_closure_ratio`` (None: its default)."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -212,7 +214,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         tracker = MissionTracker(mission.agents, params=MissionParams(
             cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
-            smoother=item.smoother),
+            smoother=item.smoother, **({} if item.loop_closure_ratio is None else
+                                       {"loop_closure_ratio": item.loop_closure_ratio})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude}))
@@ -254,6 +257,8 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--loop-closure-ratio", type=float, default=None,
+                    help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
     ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
                     help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
     ap.add_argument("--heading-increment-rad", type=float,
@@ -300,7 +305,7 @@ def main() -> None:
         attitude["mag_hard_iron"] = "off"
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
-                      attitude)
+                      attitude, args.loop_closure_ratio)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):

@@ -96,7 +96,7 @@ class Provenance:
     inside_agent: dict[int, set[int]] = field(default_factory=dict)
     inside_node: dict[str, set[int]] = field(default_factory=dict)
     uses: list[NodeUse] = field(default_factory=list)
-    pools: dict[int, UsePool] = field(default_factory=dict)
+    passes: dict[tuple[int, str], UsePool] = field(default_factory=dict)
 
     def agent(self, i: int) -> set[int]:
         """``I(i)``."""
@@ -125,8 +125,8 @@ class Provenance:
         """Plain values for :mod:`hrtls.mission.snapshot`."""
         return {"agents": [[i, sorted(s)] for i, s in self.inside_agent.items()],
                 "nodes": {n: sorted(s) for n, s in self.inside_node.items()},
-                "pools": [[i, p.t_last_s, p.ranges, p.trace_min_m2]
-                          for i, p in self.pools.items()],
+                "passes": [[i, n, p.t_last_s, p.ranges, p.trace_min_m2]
+                           for (i, n), p in self.passes.items()],
                 "uses": [[u.t_s, u.agent, u.node, u.kind, u.ranges, u.position_m.tolist(),
                           u.covariance_m2.tolist(), u.sigma_m] for u in self.uses]}
 
@@ -136,12 +136,13 @@ class Provenance:
         agents = d["agents"]
         nodes = d["nodes"]
         uses = d["uses"]
-        pools = d["pools"]
+        passes = d["passes"]
         assert isinstance(agents, list) and isinstance(nodes, dict) and isinstance(uses, list)
-        assert isinstance(pools, list)
+        assert isinstance(passes, list)
         return cls({int(i): {int(x) for x in s} for i, s in agents},
                    {str(n): {int(x) for x in s} for n, s in nodes.items()},
                    [NodeUse(float(t), int(a), str(n), str(k), int(c), np.asarray(p, np.float64),
                             np.asarray(cv, np.float64), float(sg))
                     for t, a, n, k, c, p, cv, sg in uses],
-                   {int(i): UsePool(float(t), int(c), float(m)) for i, t, c, m in pools})
+                   {(int(i), str(n)): UsePool(float(t), int(c), float(m))
+                    for i, n, t, c, m in passes})

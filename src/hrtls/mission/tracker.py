@@ -504,17 +504,18 @@ class MissionTracker:
 
     def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
                  ) -> FloatArray:
-        """Variance added to each usable range: its node's variance times the pass's factor."""
+        """Variance added to each usable range: its node's variance times its pass's factor."""
         nodes, times = ranges.node[usable], ranges.t[usable]
         rows = self.recent_rows[self.names[i]]
-        self.prov.pools[i], factor = pool_factor(
-            self.prov.pools.get(i, UsePool()), t_first_s=float(times.min()),
-            t_last_s=float(times.max()), ranges=len(times),
-            trace_m2=float(np.trace(rows[0][2][-1])) if rows else math.inf,
-            gap_s=self.params.pass_gap_s, ratio=self.params.loop_closure_ratio)
+        trace = float(np.trace(rows[0][2][-1])) if rows else math.inf
         extra = np.zeros(len(times))
         for n in np.unique(nodes).tolist():
             m = nodes == n
+            key = (i, str(n))
+            self.prov.passes[key], factor = pool_factor(
+                self.prov.passes.get(key, UsePool()), t_first_s=float(times[m][0]),
+                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)), trace_m2=trace,
+                gap_s=self.params.pass_gap_s, ratio=math.inf)
             kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
             extra[m] = factor * (1.0 if kind == "independent" else 2.0) * self._node_var(str(n))
             est = self.estimates[str(n)]
