@@ -509,15 +509,21 @@ class MissionTracker:
         rows = self.recent_rows[self.names[i]]
         trace = float(np.trace(rows[0][2][-1])) if rows else math.inf
         extra = np.zeros(len(times))
-        for n in np.unique(nodes).tolist():
-            m = nodes == n
-            key = (i, str(n))
-            self.prov.passes[key], factor = pool_factor(
+        kinds = {str(n): self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
+                 for n in np.unique(nodes).tolist()}
+        own = np.array([kinds[str(n)] != "independent" for n in nodes], dtype=bool)
+        factors: dict[str, float] = {}
+        for key, m in [((i, str(n)), nodes == n) for n in kinds if kinds[n] == "independent"] \
+                + ([((i, ""), own)] if own.any() else []):
+            self.prov.passes[key], factors[key[1]] = pool_factor(
                 self.prov.passes.get(key, UsePool()), t_first_s=float(times[m][0]),
                 t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)), trace_m2=trace,
-                gap_s=self.params.pass_gap_s, ratio=math.inf)
-            kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
-            extra[m] = factor * (1.0 if kind == "independent" else 2.0) * self._node_var(str(n))
+                gap_s=self.params.pass_gap_s,
+                ratio=math.inf if key[1] else self.params.loop_closure_ratio)
+        for n, kind in kinds.items():
+            m = nodes == n
+            factor = factors[n] * 1.0 if kind == "independent" else factors[""] * 2.0
+            extra[m] = factor * self._node_var(n)
             est = self.estimates[str(n)]
             self.prov.use(NodeUse(
                 float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
