@@ -9,7 +9,10 @@ Every agent's error at 1 Hz over its track (truth read here, for scoring only) a
 * ``last node``: the NEES of the node's estimate the agent took at its latest use, against the
   chi-square 2-dof 95 % gate (the node's own error large against its claimed covariance);
 * ``loop closures``: the uses of nodes the agent read itself, so far (none, 1, 2+);
-* ``kind``: rescuer or robot.
+* ``kind``: rescuer or robot;
+* ``walked``: time since the agent's start, 100 s bins (its own filter's NEES changes along
+  its walk with or without cooperation: the other splits are read against this one, and against
+  the same bins with cooperation off).
 
 :func:`nees_split` gives per bin the sum of the NEES and the number of samples; the table pools
 them over the seeds (mean NEES per bin and its share of the samples).
@@ -29,12 +32,10 @@ NODE_GATE = float(chi2.ppf(0.95, 2))
 
 
 def _since_label(dt: float) -> str:
-    if not np.isfinite(dt):
-        return "no use yet"
     lo = 0.0
     for hi in SINCE_BINS_S:
         if dt < hi:
-            return f"{lo:g}-{hi:g} s"
+            return f"{lo:02g}-{hi:g} s"
         lo = hi
     return f">= {lo:g} s"
 
@@ -70,7 +71,8 @@ def nees_split(mission: Mission, result: MissionResult) -> dict[str, list[float]
         kind = mission.kinds.get(name, "rescuer")
         for q, (t, v) in enumerate(zip(tq, nees, strict=True)):
             n = int(k[q])
-            labels = [f"kind: {kind}"]
+            start = 100.0 * int((t - tq[0]) // 100.0)
+            labels = [f"kind: {kind}", f"walked: {start:g}-{start + 100.0:g} s"]
             if n == 0:
                 labels += ["since use: no use yet", "worst use: no use yet",
                            "last node: no use yet", "loop closures: none"]

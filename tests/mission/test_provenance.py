@@ -1,4 +1,4 @@
-"""Provenance of the mission's errors and the capped information of a pass (hrtls.mission.provenance)."""
+"""Provenance of the mission's errors; the capped information of a pass (mission.provenance)."""
 
 from __future__ import annotations
 
@@ -12,20 +12,16 @@ from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor
 
 
 def test_pool_factor_hand_case() -> None:
-    pool, a = pool_factor(UsePool(), t_first_s=0.0, t_last_s=2.0, ranges=3, trace_m2=8.0,
-                          gap_s=15.0, ratio=4.0)
-    assert a == 4.0 and pool == UsePool(2.0, 3, 8.0)
-    pool, a = pool_factor(pool, t_first_s=5.0, t_last_s=6.0, ranges=2, trace_m2=2.0,
-                          gap_s=15.0, ratio=4.0)
-    assert a == 24.0 and pool == UsePool(6.0, 5, 2.0)
+    pool, a = pool_factor(UsePool(), t_first_s=0.0, t_last_s=2.0, ranges=3, gap_s=15.0)
+    assert a == 4.0 and pool == UsePool(2.0, 3)
+    pool, a = pool_factor(pool, t_first_s=5.0, t_last_s=6.0, ranges=2, gap_s=15.0)
+    assert a == 24.0 and pool == UsePool(6.0, 5)
     # 3 / 4 + 2 / 24 = 1 - 1 / 6: the pass's ranges carry less than one node's information
     assert math.isclose(3 / 4 + 2 / 24, 1 - 1 / 6)
-    _, a = pool_factor(pool, t_first_s=30.0, t_last_s=30.0, ranges=1, trace_m2=2.0,
-                       gap_s=15.0, ratio=4.0)
+    _, a = pool_factor(pool, t_first_s=30.0, t_last_s=30.0, ranges=1, gap_s=15.0)
     assert a == 2.0                                          # after the gap: a new pass
-    _, a = pool_factor(pool, t_first_s=8.0, t_last_s=8.0, ranges=1, trace_m2=8.0,
-                       gap_s=15.0, ratio=4.0)
-    assert a == 2.0                                          # trace 4x its smallest: a new pass
+    _, a = pool_factor(pool, t_first_s=8.0, t_last_s=8.0, ranges=1, gap_s=15.0)
+    assert a == 42.0
 
 
 def test_second_order_loop_is_classified() -> None:
@@ -69,8 +65,7 @@ def test_claimed_variance_never_below_true_in_correlated_scalar_model(
     g_e = np.zeros(k)
     g_v: list[float] = []
     for m in windows:
-        pool, a = pool_factor(pool, t_first_s=t, t_last_s=t + 1.0, ranges=m, trace_m2=1.0,
-                              gap_s=15.0, ratio=math.inf)
+        pool, a = pool_factor(pool, t_first_s=t, t_last_s=t + 1.0, ranges=m, gap_s=15.0)
         t += 2.0
         for _ in range(m):
             node = int(rng.integers(k))

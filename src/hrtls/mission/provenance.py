@@ -12,24 +12,23 @@ A uses m), otherwise *independent*. The sets only grow (an error, once passed on
 to have decayed), which makes the classes conservative. Every use is logged (:class:`NodeUse`).
 
 Information of a pass (:func:`pool_factor`). Scalar model: agent error ``e_x`` (variance ``P``)
-independent of the nodes; its filter takes ranges ``z_k = x + e_k + v_k`` to nodes with errors
-``e_k`` of any correlation (``var e_k <= P_k``, covariance ``C``) and range noise ``v_k`` (``s^2``)
-as independent, with variances ``R_k = s^2 + a_k P_k``, weights ``w_k = 1 / R_k``. It claims
-``1 / (1/P + sum w)``; its error ``(e_x / P + sum w_k (e_k + v_k)) / (1/P + sum w)`` has the
-variance ``(1/P + w^T C w + s^2 sum w_k^2) / (1/P + sum w)^2``, at most the claim iff
+independent of the node; its filter takes ranges ``z_k = x + e_k + v_k`` with node errors ``e_k``
+of any correlation (``var e_k <= P_k``, covariance ``C``; over one pass by one node they are all
+the same error) and range noise ``v_k`` (``s^2``) as independent, with variances
+``R_k = s^2 + a_k P_k``, weights ``w_k = 1 / R_k``. It claims ``1 / (1/P + sum w)``; its error
+``(e_x / P + sum w_k (e_k + v_k)) / (1/P + sum w)`` has the variance
+``(1/P + w^T C w + s^2 sum w_k^2) / (1/P + sum w)^2``, at most the claim iff
 ``w^T C w + s^2 sum w_k^2 <= sum w_k``. Cauchy-Schwarz, twice::
 
     w^T C w <= (sum w_k sqrt(P_k))^2 <= (sum 1/a_k) (sum a_k P_k w_k^2)
 
 so ``sum 1/a_k <= 1`` makes the left side at most ``sum w_k^2 (a_k P_k + s^2) = sum w_k``: the
-claim is never below the truth, whatever the correlation. The ``m_j`` ranges of the pass's
-``j``-th window get ``a = (N_{j-1} + 1)(N_j + 1)`` (``N_j`` the ranges used up to it):
-``m_j / a = 1/(N_{j-1} + 1) - 1/(N_j + 1)`` telescopes to ``sum 1/a_k = 1 - 1/(N + 1)``. (The
-count of uses alone, ``a = N_j``, sums to about ``ln`` of the windows: a pass of six windows
-took its nodes' error 2.4 times.) A new pass starts after a gap of ``pass_gap_s`` or once the
-agent's covariance trace has grown ``loop_closure_ratio`` times beyond its smallest in the pass:
-its error is then mostly new drift, taken as independent of the nodes (the loop-closure
-approximation of :mod:`hrtls.mission.tracker`).
+claim is never below the truth. The ``m_j`` ranges of the pass's ``j``-th window get
+``a = (N_{j-1} + 1)(N_j + 1)`` (``N_j`` the ranges used up to it): ``m_j / a = 1/(N_{j-1} + 1) -
+1/(N_j + 1)`` telescopes to ``sum 1/a_k = 1 - 1/(N + 1)``. (The count of uses alone, ``a = N_j``,
+sums to ``1 + 1/2 + ... + 1/J`` over ``J`` windows of a pass, about ``ln J + 0.58``: above 1 from
+the second window on.) Passes of one agent by different nodes are taken as independent of each
+other, as are passes separated by ``pass_gap_s`` (the agent's drift in between).
 """
 
 from __future__ import annotations
@@ -67,26 +66,23 @@ class NodeUse:
 
 @dataclass(frozen=True)
 class UsePool:
-    """An agent's current pass over the mission's nodes: time of its last used range, the
-    ranges used in it, the smallest covariance trace of the agent at its windows, m^2."""
+    """An agent's current pass by a node: time of its last used range, the ranges used in it."""
 
     t_last_s: float = -math.inf
     ranges: int = 0
-    trace_min_m2: float = math.inf
 
 
 def pool_factor(pool: UsePool, *, t_first_s: float, t_last_s: float, ranges: int,
-                trace_m2: float, gap_s: float, ratio: float) -> tuple[UsePool, float]:
-    """The pass after a window's ``ranges`` and the factor ``a`` of their node variances.
+                gap_s: float) -> tuple[UsePool, float]:
+    """The pass after a window's ``ranges`` and the factor ``a`` of the node's variance.
 
-    A new pass starts after a gap above ``gap_s`` or once the agent's trace reached ``ratio``
-    times its smallest in the pass; ``a = (N_before + 1) (N_after + 1)`` (tracker module doc).
+    A new pass starts after a gap above ``gap_s``; ``a = (N_before + 1)(N_after + 1)`` (module
+    doc).
     """
-    if t_first_s - pool.t_last_s > gap_s or trace_m2 >= ratio * pool.trace_min_m2:
+    if t_first_s - pool.t_last_s > gap_s:
         pool = UsePool()
     after = pool.ranges + ranges
-    return (UsePool(t_last_s, after, min(pool.trace_min_m2, trace_m2)),
-            float((pool.ranges + 1) * (after + 1)))
+    return UsePool(t_last_s, after), float((pool.ranges + 1) * (after + 1))
 
 
 @dataclass
@@ -125,8 +121,7 @@ class Provenance:
         """Plain values for :mod:`hrtls.mission.snapshot`."""
         return {"agents": [[i, sorted(s)] for i, s in self.inside_agent.items()],
                 "nodes": {n: sorted(s) for n, s in self.inside_node.items()},
-                "passes": [[i, n, p.t_last_s, p.ranges, p.trace_min_m2]
-                           for (i, n), p in self.passes.items()],
+                "passes": [[i, n, p.t_last_s, p.ranges] for (i, n), p in self.passes.items()],
                 "uses": [[u.t_s, u.agent, u.node, u.kind, u.ranges, u.position_m.tolist(),
                           u.covariance_m2.tolist(), u.sigma_m] for u in self.uses]}
 
@@ -144,5 +139,4 @@ class Provenance:
                    [NodeUse(float(t), int(a), str(n), str(k), int(c), np.asarray(p, np.float64),
                             np.asarray(cv, np.float64), float(sg))
                     for t, a, n, k, c, p, cv, sg in uses],
-                   {(int(i), str(n)): UsePool(float(t), int(c), float(m))
-                    for i, n, t, c, m in passes})
+                   {(int(i), str(n)): UsePool(float(t), int(c)) for i, n, t, c in passes})

@@ -8,10 +8,11 @@ ways:
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
-  landmarks), its sigma widened to ``sqrt(sigma^2 + a c lambda_max(P_node))``; ``a = (N_before +
-  1)(N_after + 1)``, ``N`` the ranges the agent used from *any* mission node in its current pass
-  before / after this window (the nodes' errors may be one and the same, the agents' common
-  error; a pass then takes at most one node's information, :mod:`hrtls.mission.provenance`);
+  landmarks), its sigma widened to ``sqrt(sigma^2 + a c lambda_max(P_node))``: the node's error
+  is one and the same for every range of the agent's pass, and its filter takes each range as
+  independent; ``a = (N_before + 1)(N_after + 1)``, ``N`` the ranges it used from that node in
+  the pass before / after this window, keeps the pass's information from the node below one
+  range's with the node's variance, whatever the correlation (:mod:`hrtls.mission.provenance`);
   ``c`` is 2 when the agent's own error is inside the node's (it read the node, or a node that
   corrected an agent that read it), else 1;
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
@@ -506,24 +507,16 @@ class MissionTracker:
                  ) -> FloatArray:
         """Variance added to each usable range: its node's variance times its pass's factor."""
         nodes, times = ranges.node[usable], ranges.t[usable]
-        rows = self.recent_rows[self.names[i]]
-        trace = float(np.trace(rows[0][2][-1])) if rows else math.inf
         extra = np.zeros(len(times))
-        kinds = {str(n): self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
-                 for n in np.unique(nodes).tolist()}
-        own = np.array([kinds[str(n)] != "independent" for n in nodes], dtype=bool)
-        factors: dict[str, float] = {}
-        for key, m in [((i, str(n)), nodes == n) for n in kinds if kinds[n] == "independent"] \
-                + ([((i, ""), own)] if own.any() else []):
-            self.prov.passes[key], factors[key[1]] = pool_factor(
-                self.prov.passes.get(key, UsePool()), t_first_s=float(times[m][0]),
-                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)), trace_m2=trace,
-                gap_s=self.params.pass_gap_s,
-                ratio=math.inf if key[1] else self.params.loop_closure_ratio)
-        for n, kind in kinds.items():
+        for n in np.unique(nodes).tolist():
             m = nodes == n
-            factor = factors[n] * 1.0 if kind == "independent" else factors[""] * 2.0
-            extra[m] = factor * self._node_var(n)
+            key = (i, str(n))
+            self.prov.passes[key], factor = pool_factor(
+                self.prov.passes.get(key, UsePool()), t_first_s=float(times[m][0]),
+                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)),
+                gap_s=self.params.pass_gap_s)
+            kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
+            extra[m] = factor * (1.0 if kind == "independent" else 2.0) * self._node_var(str(n))
             est = self.estimates[str(n)]
             self.prov.use(NodeUse(
                 float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
