@@ -96,9 +96,9 @@ def test_ranges_to_known_landmarks_correct_the_agent_as_hrtls_track_does() -> No
 def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # type: ignore[no-untyped-def]
     """Seeded regression with ground truth: the nodes' errors and their covariance.
 
-    Rescuers with the mission's prediction noise (``RESCUER_PREDICTION``). Measured: 5 nodes,
-    RMSE 1.57 m, mean NEES 8.8 (default prediction noise: 11 nodes, 9.3 m, NEES 18.8, two
-    nodes 19-22 m off). The NEES is still above its 2 dof expectation.
+    Rescuers with the mission's prediction noise (``RESCUER_PREDICTION``). Measured: 4 nodes,
+    RMSE 1.47 m, mean NEES 0.83 (before the pass cap of ``hrtls.mission.provenance``: 5 nodes,
+    1.57 m, NEES 8.8; the agents now take less from the nodes, so more nodes fail the sigma gate).
     """
     cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
     res = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=True)).run()
@@ -106,9 +106,9 @@ def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # ty
                   for n, e in res.nodes.items() if e.localized])
     nees = [float(x @ np.linalg.solve(res.nodes[n].covariance_m2, x))
             for x, n in zip(d, [n for n, e in res.nodes.items() if e.localized], strict=True)]
-    assert len(d) >= 5
+    assert len(d) >= 4
     assert float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))) <= 3.3
-    assert float(np.mean(nees)) <= 12.0
+    assert float(np.mean(nees)) <= 6.0
 
 
 def test_a_used_node_widens_by_its_uses_in_the_pass(mission) -> None:  # type: ignore[no-untyped-def]
@@ -152,3 +152,37 @@ def test_a_contributor_uses_its_node_only_after_a_loop_closure(mission) -> None:
                     and getattr(d, "accepted", False)]
             if used:
                 assert (name, n) in closed and min(used) >= closed[(name, n)].t, (n, name)
+
+
+def _agents_nees(mission, res) -> float:  # type: ignore[no-untyped-def]
+    """Mean NEES (2 dof) of every agent's estimate at 1 Hz against the simulator's truth."""
+    out = []
+    for name, r in res.agents.items():
+        truth = mission.simulations[name].session.truth
+        tr = r.trajectory
+        tq = np.arange(float(tr.t[0]), float(tr.t[-1]), 1.0)
+        d = np.column_stack([np.interp(tq, tr.t, tr.xyz[:, k])
+                             - np.interp(tq, truth.t, truth.xyz[:, k]) for k in (0, 1)])
+        j = np.clip(np.searchsorted(tr.t, tq), 0, len(tr.t) - 1)
+        out.append(np.einsum("ki,kij,kj->k", d, np.linalg.inv(tr.cov_xy[j]), d))
+    return float(np.mean(np.concatenate(out)))
+
+
+def test_cooperation_keeps_the_agents_nees_within_their_own() -> None:
+    """Seeded regression with ground truth (150 s walks, 20 nodes): the nodes' ranges do not make
+    the agents more over-confident than alone (5 % margin), and their NEES stays below the 2 dof
+    95 % point.
+
+    Measured: NEES 2.20 alone; with cooperation 2.42 before the pass cap
+    (``hrtls.mission.provenance``), 2.16 after.
+    """
+    from scipy.stats import chi2
+
+    mission = inderst_hybrid_mission(2, MissionOptions(walk_s=150.0, stagger_s=20.0, n_nodes=20))
+    cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
+    alone = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=False)).run()
+    res = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=True)).run()
+    assert len(res.uses) >= 20
+    on, off = _agents_nees(mission, res), _agents_nees(mission, alone)
+    assert on <= 1.05 * off
+    assert on <= float(chi2.ppf(0.95, 2))
