@@ -123,6 +123,8 @@ class SeedItem:
     """The rescuers' ``[attitude]`` table (empty: the defaults)."""
     loop_closure_ratio: float | None = None
     """``MissionParams.loop_closure_ratio`` (None: its default)."""
+    pass_cap: bool = True
+    """``MissionParams.pass_cap``."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -214,8 +216,9 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         tracker = MissionTracker(mission.agents, params=MissionParams(
             cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
-            smoother=item.smoother, **({} if item.loop_closure_ratio is None else
-                                       {"loop_closure_ratio": item.loop_closure_ratio})),
+            smoother=item.smoother, pass_cap=item.pass_cap,
+            **({} if item.loop_closure_ratio is None else
+               {"loop_closure_ratio": item.loop_closure_ratio})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude}))
@@ -259,6 +262,8 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
     ap.add_argument("--loop-closure-ratio", type=float, default=None,
                     help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
+    ap.add_argument("--no-pass-cap", action="store_true",
+                    help="MissionParams.pass_cap = False (the earlier widening rule)")
     ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
                     help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
     ap.add_argument("--heading-increment-rad", type=float,
@@ -305,7 +310,7 @@ def main() -> None:
         attitude["mag_hard_iron"] = "off"
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
-                      attitude, args.loop_closure_ratio)
+                      attitude, args.loop_closure_ratio, not args.no_pass_cap)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor
+from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor, widening
 
 
 def test_pool_factor_hand_case() -> None:
@@ -79,3 +79,15 @@ def test_claimed_variance_never_below_true_in_correlated_scalar_model(
     true = gain_x ** 2 * prior_var + float(g_e @ cov @ g_e) + sigma ** 2 * float(np.sum(
         np.square(g_v)))
     assert p >= true * (1.0 - 1e-9)
+
+
+def test_widening_with_and_without_the_cap() -> None:
+    """Hand case: the third and fourth ranges of a pass, one window: ``a = 3 * 5`` capped, else
+    ``N_after = 4``; ``c = 2`` for a second-order use only with the cap."""
+    pool = UsePool(1.0, 2)
+    kw = {"t_first_s": 2.0, "t_last_s": 3.0, "ranges": 2, "gap_s": 15.0}
+    assert widening(pool, kind="independent", cap=True, **kw) == (UsePool(3.0, 4), 15.0)
+    assert widening(pool, kind="second-order", cap=True, **kw)[1] == 30.0
+    assert widening(pool, kind="direct", cap=True, **kw)[1] == 30.0
+    assert widening(pool, kind="second-order", cap=False, **kw)[1] == 4.0
+    assert widening(pool, kind="direct", cap=False, **kw)[1] == 8.0

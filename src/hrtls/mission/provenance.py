@@ -85,6 +85,20 @@ def pool_factor(pool: UsePool, *, t_first_s: float, t_last_s: float, ranges: int
     return UsePool(t_last_s, after), float((pool.ranges + 1) * (after + 1))
 
 
+def widening(pool: UsePool, *, t_first_s: float, t_last_s: float, ranges: int, gap_s: float,
+             kind: str, cap: bool) -> tuple[UsePool, float]:
+    """The pass after a window's ``ranges`` to a node and the factor ``a c`` of its variance.
+
+    ``cap``: ``a`` of :func:`pool_factor`, ``c`` 2 unless the use is independent; else the
+    earlier rule, ``a = N_after`` (the uses in the pass), ``c`` 2 for a direct use only.
+    """
+    pool, a = pool_factor(pool, t_first_s=t_first_s, t_last_s=t_last_s, ranges=ranges,
+                          gap_s=gap_s)
+    if not cap:
+        return pool, pool.ranges * (2.0 if kind == "direct" else 1.0)
+    return pool, a * (1.0 if kind == "independent" else 2.0)
+
+
 @dataclass
 class Provenance:
     """``I(a)`` per agent index, ``S(n)`` per node and the use log (module doc)."""

@@ -59,7 +59,7 @@ from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_comple
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
-from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor
+from hrtls.mission.provenance import NodeUse, Provenance, UsePool, widening
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -83,6 +83,10 @@ class MissionParams:
         A node is estimated again once its readings grew by this fraction (at least 3 new).
     cooperate:
         Give localized nodes to the agents (False: every agent alone).
+    pass_cap:
+        A pass's ranges to a node widened by ``a = (N_before + 1)(N_after + 1)`` and ``c = 2`` for
+        second-order loops (module doc); False: ``a = N_after``, ``c = 2`` for contributors only
+        (the earlier rule, over-counting a pass: :mod:`hrtls.mission.provenance`).
     loop_closure_ratio:
         A contributor uses a node once its covariance trace is this many times the smallest it
         had at its readings of the node (module doc; ``inf``: contributors never use it).
@@ -103,6 +107,7 @@ class MissionParams:
     pass_gap_s: float = 15.0
     refresh_fraction: float = 0.2
     cooperate: bool = True
+    pass_cap: bool = True
     loop_closure_ratio: float = 4.0
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
@@ -510,13 +515,12 @@ class MissionTracker:
         extra = np.zeros(len(times))
         for n in np.unique(nodes).tolist():
             m = nodes == n
-            key = (i, str(n))
-            self.prov.passes[key], factor = pool_factor(
-                self.prov.passes.get(key, UsePool()), t_first_s=float(times[m][0]),
-                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)),
-                gap_s=self.params.pass_gap_s)
             kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
-            extra[m] = factor * (1.0 if kind == "independent" else 2.0) * self._node_var(str(n))
+            self.prov.passes[(i, str(n))], factor = widening(
+                self.prov.passes.get((i, str(n)), UsePool()), t_first_s=float(times[m][0]),
+                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)),
+                gap_s=self.params.pass_gap_s, kind=kind, cap=self.params.pass_cap)
+            extra[m] = factor * self._node_var(str(n))
             est = self.estimates[str(n)]
             self.prov.use(NodeUse(
                 float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
