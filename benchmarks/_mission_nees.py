@@ -31,7 +31,8 @@ SINCE_BINS_S = (5.0, 15.0, 30.0, 60.0)
 NODE_GATE = float(chi2.ppf(0.95, 2))
 
 
-def _since_label(dt: float) -> str:
+def since_label(dt: float) -> str:
+    """Bin of the time since the latest use, s."""
     lo = 0.0
     for hi in SINCE_BINS_S:
         if dt < hi:
@@ -78,7 +79,7 @@ def nees_split(mission: Mission, result: MissionResult) -> dict[str, list[float]
                            "last node: no use yet", "loop closures: none"]
             else:
                 c = int(closures[n - 1])
-                labels += [f"since use: {_since_label(float(t - t_use[n - 1]))}",
+                labels += [f"since use: {since_label(float(t - t_use[n - 1]))}",
                            f"worst use: {USE_KINDS[int(worst[n - 1])]}",
                            "last node: NEES " + ("<=" if node_nees[n - 1] <= NODE_GATE else ">")
                            + f" {NODE_GATE:.2f}",
