@@ -22,6 +22,10 @@ default parameters; the cost table then gives its time per solve).
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
+``--nees-split``: the agents' NEES split by time since their latest node use, the worst class
+of their uses (independent, second-order loop, direct), the NEES of the latest node used, their
+loop closures and their kind, pooled over the seeds (``benchmarks/_mission_nees.py``).
+
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
 the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
@@ -52,6 +56,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options, parse_seeds
+from _mission_nees import nees_split, nees_split_table
 from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
@@ -118,6 +123,10 @@ class SeedItem:
     """``MissionParams.smoother`` (None: the per-node estimator alone)."""
     attitude: dict[str, Any] = field(default_factory=dict)
     """The rescuers' ``[attitude]`` table (empty: the defaults)."""
+    loop_closure_ratio: float | None = None
+    """``MissionParams.loop_closure_ratio`` (None: its default)."""
+    pass_cap: bool = True
+    """``MissionParams.pass_cap``."""
 
 
 def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
@@ -144,6 +153,8 @@ class ModeScores:
     why: dict[str, int]
     """Nodes per class of ``_mission_why`` (why not localized)."""
     solve_s: tuple[float, float] = (float("nan"), float("nan"))
+    nees_split: dict[str, list[float]] = field(default_factory=dict)
+    """Agents' NEES per bin of ``_mission_nees.nees_split``."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -207,7 +218,9 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         tracker = MissionTracker(mission.agents, params=MissionParams(
             cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
-            smoother=item.smoother),
+            smoother=item.smoother, pass_cap=item.pass_cap,
+            **({} if item.loop_closure_ratio is None else
+               {"loop_closure_ratio": item.loop_closure_ratio})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude}))
@@ -220,7 +233,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
                                true_agent_rmse(mission, tracker), _quarters(windows),
                                _quarters(agents_s), _quarters(nodes_s),
-                               why_not_localized(mission, tracker, res), _solves(tracker))
+                               why_not_localized(mission, tracker, res), _solves(tracker),
+                               nees_split(mission, res))
     return out
 
 
@@ -248,6 +262,10 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--loop-closure-ratio", type=float, default=None,
+                    help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
+    ap.add_argument("--no-pass-cap", action="store_true",
+                    help="MissionParams.pass_cap = False (the earlier widening rule)")
     ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
                     help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
     ap.add_argument("--heading-increment-rad", type=float,
@@ -256,6 +274,8 @@ def main() -> None:
                          "(default: RESCUER_PREDICTION)")
     ap.add_argument("--why", action="store_true",
                     help="also print why the nodes were not localized (benchmarks/_mission_why)")
+    ap.add_argument("--nees-split", action="store_true",
+                    help="also print the agents' NEES split by node use (benchmarks/_mission_nees)")
     ap.add_argument("--only-on", action="store_true",
                     help="cooperation on only (the off column skipped: half the time)")
     ap.add_argument("--smoother", action="store_true",
@@ -283,6 +303,7 @@ def main() -> None:
         for m in modes(args.peer_ranges, args.only_on)}
     nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
+    split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
     for key in ("agent_cov_scale", "agent_correlation"):
@@ -299,7 +320,7 @@ def main() -> None:
         attitude["mag_heading"] = {"offset_floor": True}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
-                      attitude)
+                      attitude, args.loop_closure_ratio, not args.no_pass_cap)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in modes(args.peer_ranges, args.only_on):
@@ -323,6 +344,7 @@ def main() -> None:
             r["s1"].append(m.solve_s[1])
             nees_all[mode].extend(m.node_nees)
             why[mode].append(m.why)
+            split[mode].append(m.nees_split)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
@@ -360,6 +382,11 @@ def main() -> None:
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
               f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} "
               f"| {np.mean(r['s0']):.1f} / {np.max(r['s1']):.1f} |")
+    if args.nees_split:
+        for mode, per_seed in split.items():
+            print(f"\nagents' NEES by node use, cooperation {mode}, pooled over seeds "
+                  "(benchmarks/_mission_nees.py):\n")
+            print(nees_split_table(per_seed))
     if args.why:
         print(f"\nnodes by class at the end, summed over seeds ({args.rescuer_driver} driver; "
               "benchmarks/_mission_why.py):\n")

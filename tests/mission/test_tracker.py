@@ -96,9 +96,9 @@ def test_ranges_to_known_landmarks_correct_the_agent_as_hrtls_track_does() -> No
 def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # type: ignore[no-untyped-def]
     """Seeded regression with ground truth: the nodes' errors and their covariance.
 
-    Rescuers with the mission's prediction noise (``RESCUER_PREDICTION``). Measured: 5 nodes,
-    RMSE 1.57 m, mean NEES 8.8 (default prediction noise: 11 nodes, 9.3 m, NEES 18.8, two
-    nodes 19-22 m off). The NEES is still above its 2 dof expectation.
+    Rescuers with the mission's prediction noise (``RESCUER_PREDICTION``). Measured: 4 nodes,
+    RMSE 1.47 m, mean NEES 0.83 (before the pass cap of ``hrtls.mission.provenance``: 5 nodes,
+    1.57 m, NEES 8.8; the agents now take less from the nodes, so more nodes fail the sigma gate).
     """
     cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
     res = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=True)).run()
@@ -106,32 +106,36 @@ def test_node_errors_and_nees_bounded_on_a_short_mission(mission) -> None:  # ty
                   for n, e in res.nodes.items() if e.localized])
     nees = [float(x @ np.linalg.solve(res.nodes[n].covariance_m2, x))
             for x, n in zip(d, [n for n, e in res.nodes.items() if e.localized], strict=True)]
-    assert len(d) >= 5
+    assert len(d) >= 4
     assert float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))) <= 3.3
-    assert float(np.mean(nees)) <= 12.0
+    assert float(np.mean(nees)) <= 6.0
 
 
 def test_a_used_node_widens_by_its_uses_in_the_pass(mission) -> None:  # type: ignore[no-untyped-def]
-    """Hand case: node variance 0.5 m^2; 3 uses then 2 in the same pass (counts 3, 5), then a
-    new pass after the gap (count 1)."""
+    """Hand case: node variances 0.5 and 0.2 m^2 (largest eigenvalue); 3 ranges to N1, then 2
+    in the same pass: ``(0 + 1)(3 + 1) = 4`` and ``(3 + 1)(5 + 1) = 24`` times its variance; then
+    one more (``6 * 7``) and N2's first (``1 * 2``); after the gap a new pass; each agent its own
+    passes."""
     from hrtls.data.observations import RangeMeasurements
     from hrtls.mission.nodes import NodeEstimate
 
     mt = MissionTracker(mission.agents, params=MissionParams(pass_gap_s=15.0))
-    mt.estimates["N1"] = NodeEstimate(np.zeros(2), np.diag([0.5, 0.2]), True, "",
-                                      np.ones(4, dtype=bool), 1.0, 1)
+    for node, cov in (("N1", np.diag([0.5, 0.2])), ("N2", np.diag([0.1, 0.2]))):
+        mt.estimates[node] = NodeEstimate(np.zeros(2), cov, True, "", np.ones(4, dtype=bool),
+                                          1.0, 1)
 
-    def var(t: list[float]) -> np.ndarray:
-        r = RangeMeasurements(np.asarray(t), np.array(["N1"] * len(t)), np.ones(len(t)),
+    def var(t: list[float], nodes: list[str], agent: int = 0) -> np.ndarray:
+        r = RangeMeasurements(np.asarray(t), np.array(nodes), np.ones(len(t)),
                               np.full(len(t), 0.1))
-        return mt._use_var(0, r, np.ones(len(t), dtype=bool))
+        return mt._use_var(agent, r, np.ones(len(t), dtype=bool))
 
-    np.testing.assert_allclose(var([0.0, 1.0, 2.0]), [1.5] * 3)
-    np.testing.assert_allclose(var([5.0, 6.0]), [2.5] * 2)
-    np.testing.assert_allclose(var([30.0]), [0.5])
-    np.testing.assert_allclose(mt._use_var(1, RangeMeasurements(
-        np.array([31.0]), np.array(["N1"]), np.ones(1), np.full(1, 0.1)), np.ones(1, dtype=bool)),
-        [0.5])                                                 # counted per agent
+    np.testing.assert_allclose(var([0.0, 1.0, 2.0], ["N1"] * 3), [2.0] * 3)
+    np.testing.assert_allclose(var([5.0, 6.0], ["N1"] * 2), [12.0] * 2)
+    np.testing.assert_allclose(var([7.0, 8.0], ["N1", "N2"]), [21.0, 0.4])
+    np.testing.assert_allclose(var([30.0], ["N2"]), [0.4])
+    np.testing.assert_allclose(var([31.0], ["N1"], agent=1), [1.0])
+    assert [u.ranges for u in mt.prov.uses] == [3, 2, 1, 1, 1, 1]
+    assert {u.kind for u in mt.prov.uses} == {"independent"}
 
 
 def test_a_contributor_uses_its_node_only_after_a_loop_closure(mission) -> None:  # type: ignore[no-untyped-def]
@@ -148,3 +152,37 @@ def test_a_contributor_uses_its_node_only_after_a_loop_closure(mission) -> None:
                     and getattr(d, "accepted", False)]
             if used:
                 assert (name, n) in closed and min(used) >= closed[(name, n)].t, (n, name)
+
+
+def _agents_nees(mission, res) -> float:  # type: ignore[no-untyped-def]
+    """Mean NEES (2 dof) of every agent's estimate at 1 Hz against the simulator's truth."""
+    out = []
+    for name, r in res.agents.items():
+        truth = mission.simulations[name].session.truth
+        tr = r.trajectory
+        tq = np.arange(float(tr.t[0]), float(tr.t[-1]), 1.0)
+        d = np.column_stack([np.interp(tq, tr.t, tr.xyz[:, k])
+                             - np.interp(tq, truth.t, truth.xyz[:, k]) for k in (0, 1)])
+        j = np.clip(np.searchsorted(tr.t, tq), 0, len(tr.t) - 1)
+        out.append(np.einsum("ki,kij,kj->k", d, np.linalg.inv(tr.cov_xy[j]), d))
+    return float(np.mean(np.concatenate(out)))
+
+
+def test_cooperation_keeps_the_agents_nees_within_their_own() -> None:
+    """Seeded regression with ground truth (150 s walks, 20 nodes): the nodes' ranges do not make
+    the agents more over-confident than alone (5 % margin), and their NEES stays below the 2 dof
+    95 % point.
+
+    Measured: NEES 2.20 alone; with cooperation 2.42 before the pass cap
+    (``hrtls.mission.provenance``), 2.16 after.
+    """
+    from scipy.stats import chi2
+
+    mission = inderst_hybrid_mission(2, MissionOptions(walk_s=150.0, stagger_s=20.0, n_nodes=20))
+    cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
+    alone = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=False)).run()
+    res = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=True)).run()
+    assert len(res.uses) >= 20
+    on, off = _agents_nees(mission, res), _agents_nees(mission, alone)
+    assert on <= 1.05 * off
+    assert on <= float(chi2.ppf(0.95, 2))

@@ -182,6 +182,7 @@ def mission_summary(run: MissionRun) -> dict[str, Any]:
                     "nodes_listed": len(folder.nodes), "landmarks": sorted(folder.landmarks)},
         "params": {"cooperate": run.params.cooperate, "chunk_s": run.params.chunk_s,
                    "loop_closure_ratio": ratio if math.isfinite(ratio) else None,
+                   "pass_cap": run.params.pass_cap,
                    "agent_cov_scale": run.params.nodes.agent_cov_scale,
                    "agent_correlation": run.params.nodes.agent_correlation,
                    "config": run.config.name},

@@ -34,6 +34,7 @@ from hrtls.errors import FormatError
 from hrtls.mission import smoothing
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
+from hrtls.mission.provenance import Provenance
 from hrtls.mission.readings import NodeReadings
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline import snapshot as codec
@@ -41,7 +42,7 @@ from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker
 
 FORMAT = "hrtls-mission"
-MISSION_VERSION = 2
+MISSION_VERSION = 3
 """Layout of the mission mapping written by :func:`mission_snapshot`."""
 
 _ESTIMATE_FIELDS = tuple(f.name for f in dataclasses.fields(NodeEstimate))
@@ -152,9 +153,9 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "given": {str(i): g for i, g in mt.given.items()},
         "history": {n: [list(h) for h in rows] for n, rows in mt.history.items()},
         "version": mt.versions, "estimated_at": mt.estimated_at,
-        "pass_use": [[i, n, t, c] for (i, n), (t, c) in mt.pass_use.items()],
         "contrib_trace": [[i, n, v] for (i, n), v in mt.contrib_trace.items()],
         "closures": [dataclasses.astuple(c) for c in mt.closures],
+        "provenance": mt.prov.state(),
         "peer_use": [[i, n, t, c] for (i, n), (t, c) in mt.peers.uses.items()],
         "pending": {k: None if r is None else [r.t, r.node.astype(str), r.range_m, r.sigma_m]
                     for k, r in mt.pending.items()},
@@ -176,9 +177,9 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
                   for n, rows in d["history"].items()}
     mt.versions = dict(d["version"])
     mt.estimated_at = dict(d["estimated_at"])
-    mt.pass_use = {(int(i), n): (float(t), int(c)) for i, n, t, c in d["pass_use"]}
     mt.contrib_trace = {(int(i), n): float(v) for i, n, v in d["contrib_trace"]}
     mt.closures = [LoopClosure(*c) for c in d["closures"]]
+    mt.prov = Provenance.from_state(d["provenance"])
     mt.peers = PeerUses({(int(i), n): (float(t), int(c))
                          for i, n, t, c in d.get("peer_use", [])})
     mt.pending = {k: None if r is None else RangeMeasurements(*r)

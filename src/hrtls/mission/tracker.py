@@ -8,12 +8,13 @@ ways:
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
 * to a node the agent may **use**: the range corrects the agent's tracker (the node is one of its
-  landmarks, the range sigma widened by the node's position uncertainty,
-  ``sqrt(sigma^2 + n * lambda_max(P_node))``, ``n`` the ranges the agent has used from that node
-  in its current pass, this window's included: the node's error is one and the same for every
-  range of a pass, and the agent's filter takes each range as independent; the widening keeps
-  the node's information counted about once per pass, ``sum_w 1 / w`` over its windows, instead
-  of once per range);
+  landmarks), its sigma widened to ``sqrt(sigma^2 + a c lambda_max(P_node))``: the node's error
+  is one and the same for every range of the agent's pass, and its filter takes each range as
+  independent; ``a = (N_before + 1)(N_after + 1)``, ``N`` the ranges it used from that node in
+  the pass before / after this window, keeps the pass's information from the node below one
+  range's with the node's variance, whatever the correlation (:mod:`hrtls.mission.provenance`);
+  ``c`` is 2 when the agent's own error is inside the node's (it read the node, or a node that
+  corrected an agent that read it), else 1;
 * otherwise the range is kept, with the agent's estimate and covariance at the reading's time,
   as a reading of that node for :class:`hrtls.mission.nodes.NodeEstimator` (a range later than
   the agent's latest row waits for it, :mod:`hrtls.mission.readings`).
@@ -28,8 +29,9 @@ P1 + D``), node error ``e1 + v``: the filter's update taking the node as indepen
 ``a * P1`` claims a posterior variance ``P2 a P1 / (P2 + a P1)`` while the true one is
 ``P1 + (a P1 / (P2 + a P1))^2 D``; with ``a = 2`` (the node's variance doubled for its
 contributors) the two agree at ``P2 = 4 P1`` and the claim is conservative beyond. Passes of
-different agents are taken as partly correlated in the node estimate (``agent_correlation``); the
-second-order loop (A localizes n, B corrected by n localizes m, A uses m) is not modelled.
+different agents are taken as partly correlated in the node estimate (``agent_correlation``). A
+second-order loop (A localizes n, B corrected by n localizes m, A uses m) gets ``c = 2`` as a
+loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in which estimate).
 
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
@@ -57,6 +59,7 @@ from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_comple
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
+from hrtls.mission.provenance import NodeUse, Provenance, UsePool, widening
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
@@ -80,6 +83,10 @@ class MissionParams:
         A node is estimated again once its readings grew by this fraction (at least 3 new).
     cooperate:
         Give localized nodes to the agents (False: every agent alone).
+    pass_cap:
+        A pass's ranges to a node widened by ``a = (N_before + 1)(N_after + 1)`` and ``c = 2`` for
+        second-order loops (module doc); False: ``a = N_after``, ``c = 2`` for contributors only
+        (the earlier rule, over-counting a pass: :mod:`hrtls.mission.provenance`).
     loop_closure_ratio:
         A contributor uses a node once its covariance trace is this many times the smallest it
         had at its readings of the node (module doc; ``inf``: contributors never use it).
@@ -100,6 +107,7 @@ class MissionParams:
     pass_gap_s: float = 15.0
     refresh_fraction: float = 0.2
     cooperate: bool = True
+    pass_cap: bool = True
     loop_closure_ratio: float = 4.0
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
@@ -145,7 +153,8 @@ class MissionResult:
     """Per-agent results, the final node estimates and each node's history (localized rows).
 
     ``readings``: the ranges kept for each node's estimate, all agents; ``closures``: the loop
-    closures (contributors starting to use a node they fed).
+    closures (contributors starting to use a node they fed); ``uses``: every agent's uses of
+    the nodes (:mod:`hrtls.mission.provenance`).
     """
 
     agents: dict[str, TrackResult]
@@ -154,6 +163,7 @@ class MissionResult:
     contributors: dict[str, list[str]]
     readings: dict[str, int] = field(default_factory=dict)
     closures: list[LoopClosure] = field(default_factory=list)
+    uses: list[NodeUse] = field(default_factory=list)
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,10 +254,10 @@ class MissionTracker:
         self.pending: dict[str, RangeMeasurements | None] = dict.fromkeys(self.names)
         self.versions: dict[str, int] = {}
         self.estimated_at: dict[str, int] = {}
-        self.pass_use: dict[tuple[int, str], tuple[float, int]] = {}
         self.contrib_trace: dict[tuple[int, str], float] = {}
         self.closures: list[LoopClosure] = []
         self.peers = PeerUses()
+        self.prov = Provenance()
         self.smoother = smoothing.SmootherState() if self.params.smoother else None
         for k, a in agents.items():
             if isinstance(a, Session):
@@ -395,7 +405,7 @@ class MissionTracker:
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
         readings = {n: len(r.r) for n, r in self.readings.items()}
         return MissionResult(results, dict(self.estimates), hist, contributors, readings,
-                             list(self.closures))
+                             list(self.closures), list(self.prov.uses))
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -500,19 +510,22 @@ class MissionTracker:
 
     def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
                  ) -> FloatArray:
-        """Variance added to each usable range: node variance times its uses in the pass."""
-        extra = np.zeros(int(np.count_nonzero(usable)))
-        nodes = ranges.node[usable]
-        times = ranges.t[usable]
+        """Variance added to each usable range: its node's variance times its pass's factor."""
+        nodes, times = ranges.node[usable], ranges.t[usable]
+        extra = np.zeros(len(times))
         for n in np.unique(nodes).tolist():
             m = nodes == n
-            last_t, count = self.pass_use.get((i, str(n)), (-math.inf, 0))
-            if float(times[m][0]) - last_t > self.params.pass_gap_s:
-                count = 0
-            count += int(np.count_nonzero(m))
-            self.pass_use[(i, str(n))] = (float(times[m][-1]), count)
-            mine = 2.0 if i in self.contrib.get(str(n), set()) else 1.0     # module doc
-            extra[m] = count * mine * self._node_var(str(n))
+            kind = self.prov.kind(i, str(n), contributor=i in self.contrib.get(str(n), set()))
+            self.prov.passes[(i, str(n))], factor = widening(
+                self.prov.passes.get((i, str(n)), UsePool()), t_first_s=float(times[m][0]),
+                t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)),
+                gap_s=self.params.pass_gap_s, kind=kind, cap=self.params.pass_cap)
+            extra[m] = factor * self._node_var(str(n))
+            est = self.estimates[str(n)]
+            self.prov.use(NodeUse(
+                float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
+                est.position_m.copy(), est.covariance_m2.copy(),
+                float(np.sqrt(ranges.sigma_m[usable][m][-1] ** 2 + extra[m][-1]))))
         return extra
 
     def _node_var(self, node: str) -> float:
@@ -563,6 +576,7 @@ class MissionTracker:
             tr = self.readings.setdefault(node, NodeReadings()).add(
                 agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m])
             self.contrib.setdefault(node, set()).add(i)
+            self.prov.read(i, node)
             self.contrib_trace[(i, node)] = min(self.contrib_trace.get((i, node), math.inf), tr)
             touched.add(node)
         return touched
