@@ -11,11 +11,13 @@ from typing import Any
 
 import httpx
 import numpy as np
+import pytest
 from sqlalchemy import func, select
 from websockets.sync.client import connect
 
 from hrtls.io.mission import read_mission
 from hrtls.mission.tracker import MissionResult, MissionTracker
+from hrtls.pipeline import snapshot as codec
 from hrtls.service.client import AgentClient
 from hrtls.service.db import make_engine, session_factory
 from hrtls.service.mission_runner import MissionRunner, offline_tracker
@@ -170,7 +172,26 @@ def test_network_declaration_is_checked(live: Live, commander: httpx.Client) -> 
                          json={"nodes": []}).status_code == 404
 
 
-def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: Any) -> None:
+def _age_snapshots(db_url: str, mid: int) -> None:
+    """Rewrite the mission's snapshots as an older version wrote them (``mission_version`` 2)."""
+    engine = make_engine(db_url)
+    try:
+        with session_factory(engine)() as db:
+            for snap in db.scalars(select(MissionSnapshot)
+                                   .where(MissionSnapshot.mission_id == mid)):
+                state = codec.unpack(snap.state)
+                state["mission_version"] = 2
+                snap.state = codec.pack(state)
+            db.commit()
+    finally:
+        engine.dispose()
+
+
+@pytest.mark.parametrize("older", [False, True], ids=["current", "older-version"])
+def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(
+        make_live: Any, older: bool) -> None:
+    """A restart continues from the newest snapshot; one it cannot read (an older version's)
+    is logged and the mission replayed from its raw log: the same estimates either way."""
     first = make_live(snapshot_every_s=5.0)
     mid, agents, offset = _setup(first, 0)
     cut = offset + 30.0
@@ -194,6 +215,8 @@ def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: 
         r = c.put(f"{API}/missions/{mid}/network", json={"nodes": []})
         assert r.status_code == 409 and "started" in r.json()["detail"]
     first.stop()
+    if older:
+        _age_snapshots(first.settings.db_url, mid)
     second = make_live(snapshot_every_s=5.0)
     stream_agents(second.url, agents, offset, t_from=cut, first_seq=seqs)
     runner = _runner(second)
@@ -202,11 +225,17 @@ def test_a_restart_restores_the_newest_snapshot_and_replays_the_rest(make_live: 
     _wait(runner, mid, done=True)
     lm = runner.missions[mid]
     assert lm.late_samples == 0
-    assert lm.restored_horizon_s is not None and lm.restored_horizon_s >= snap.horizon_s
     with lm.lock:
         got = lm.tracker.result()
     want = _offline(second, mid)
     _same_nodes(got, want)
+    if older:
+        assert lm.restored_horizon_s is None
+        for k, r in want.agents.items():
+            np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz,
+                                       atol=1e-12, rtol=0)
+        return
+    assert lm.restored_horizon_s is not None and lm.restored_horizon_s >= snap.horizon_s
     for k, r in want.agents.items():        # rows after the restored snapshot
         t = got.agents[k].trajectory.t
         i = int(np.searchsorted(r.trajectory.t, t[0]))

@@ -44,6 +44,7 @@ from sqlalchemy.orm import sessionmaker
 
 from hrtls.data import Landmark
 from hrtls.data.session import SessionMeta
+from hrtls.errors import FormatError
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
 from hrtls.pipeline import preset
@@ -214,7 +215,12 @@ class MissionRunner:
             net = db.get(MissionNetwork, mission_id)
             declared = frozenset(net.nodes) if net is not None else frozenset()
         if snap is not None:
-            tracker = MissionTracker.restore(snap.state)
+            try:
+                tracker = MissionTracker.restore(snap.state)
+            except FormatError as exc:    # e.g. written by an older version
+                log.warning("mission %s: snapshot not restorable (%s); replaying the raw log "
+                            "from the start", mission_id, exc)
+                return self._open_new(mission_id)
             for buf in tracker.buffers.values():   # the service was down, not the agents
                 buf.heard_s = max(buf.heard_s, self.clock())
             if set(tracker.names) == set(names.values()):
