@@ -79,9 +79,8 @@ def test_map_shrinks_to_zero_and_the_prior_far_from_the_survey(
 
 
 def test_a_zero_map_is_no_map() -> None:
-    g = GridGeometry.around(ANCHOR.repeat(3, 0) + [[0, 0], [8, 0], [0, 8]], cell_m=0.5,
-                            margin_m=1.0, max_cells=10_000)
     anchors = np.array([[0.0, 0.0], [8.0, 0.0], [0.0, 8.0]])
+    g = GridGeometry.around(anchors, cell_m=0.5, margin_m=1.0, max_cells=10_000)
     dist = g.distances(anchors, 1.0)
     model = np.zeros(1, dtype=PATH_LOSS_DTYPE)
     model[0] = MODEL.record()[0]

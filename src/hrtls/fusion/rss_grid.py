@@ -338,7 +338,8 @@ class GridScans:
 
 @njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
-                rmap: FloatArray, rvar: FloatArray, density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+                rmap: FloatArray, rvar: FloatArray, density: FloatArray,
+                offsets_db: FloatArray, offsets_var: FloatArray,
                 velocity: FloatArray, burst: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
@@ -378,7 +379,8 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
             bias_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
                         offsets_var, model)
-        log_likelihood(dist, rmap, rvar, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
+        log_likelihood(dist, rmap, rvar,
+                       anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
                        burst, model, prm, ll)
         if prm.burst_sigma_db > 0.0:
             burst_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
@@ -452,8 +454,11 @@ class RssGridFilter:
     def __init__(self, anchors_xy: FloatArray, *, model: PathLossModel,
                  params: GridParams | None = None,
                  radio_map: tuple[FloatArray, FloatArray] | None = None) -> None:
-        """``radio_map``: mean and variance (A, ny, nx) of each anchor's RSS over the path loss
-        on :attr:`geometry`'s cells, dB and dB^2 (:mod:`hrtls.fusion.radio_map`; None: none)."""
+        """The filter; ``radio_map``: mean and variance of each anchor's RSS over the law.
+
+        (A, ny, nx) each on :attr:`geometry`'s cells, dB and dB^2 (:mod:`hrtls.fusion.radio_map`;
+        None: no map).
+        """
         self.params = params or GridParams()
         self.model = model
         self.anchors_xy = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
@@ -497,8 +502,8 @@ class RssGridFilter:
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
-                                 self.rmap, self.rvar, density, offsets, var, vel, burst, state.t, state.started,
-                                 scans.t,
+                                 self.rmap, self.rvar, density, offsets, var, vel, burst,
+                                 state.t, state.started, scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
                                  scans.weight, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)

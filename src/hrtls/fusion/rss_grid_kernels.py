@@ -157,8 +157,9 @@ def log_likelihood(dist: FloatArray, rmap: FloatArray, rvar: FloatArray, anchor:
 
 @njit(cache=True, error_model="numpy")
 def burst_update(dist: FloatArray, rmap: FloatArray, rvar: FloatArray, density: FloatArray,
-                 anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
-                 burst: FloatArray, model: np.record, prm: np.record) -> None:
+                 anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
+                 offsets_db: FloatArray, offsets_var: FloatArray, burst: FloatArray,
+                 model: np.record, prm: np.record) -> None:
     # pragma: no cover - compiled
     """Posterior burst probability of each heard anchor from its reading, in place.
 
