@@ -53,7 +53,7 @@ class RadioMapParams:
     """
 
     survey: str = ""
-    length_m: float = 2.0
+    length_m: float = 4.0
     prior_sigma_db: float = 6.0
     prior_readings: float = 20.0
 
