@@ -32,6 +32,9 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
   it, consecutive readings of an anchor sharing their shadowing).
 
+With a radio map (:mod:`hrtls.fusion.radio_map`) ``mu`` of each cell also holds the map's
+mean there and ``sigma^2`` its variance.
+
 ``o_a`` is a per-anchor RSS offset (starting value: a survey, else zero). With
 ``offset_gain > 0`` it follows the residual at the posterior mean after each update
 (``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``). With
