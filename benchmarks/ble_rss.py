@@ -21,6 +21,13 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
 ``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse).
+``--map`` instead scores the radio map (``[prediction.radio_map]``, :mod:`hrtls.fusion.radio_map`)
+with the shipped grid settings: for each held-out track the survey is the other four tracks'
+readings at their true positions; its length scale and prior spread (:data:`MAP_CHOICES`) are
+chosen by the mean p75 of an inner leave-one-out on those four (each scored with the map of
+the other three); the held-out track is then tracked once with the map of all four. Last, for
+every candidate, each track tracked with the map of the other four (a look at all five tracks,
+for the documented default; not held out).
 ``--grid '{"key": value, ...}'`` (repeatable) instead prints the p75 of every track with those
 ``[prediction.grid]`` keys over the defaults (all five tracks: a development look, not held out).
 """
@@ -28,8 +35,10 @@ with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 from __future__ import annotations
 
 import argparse
+import csv
 import itertools
 import json
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -65,6 +74,12 @@ MOTION_CHOICES: tuple[dict[str, Any], ...] = (
 persistent velocity, the fixed headings (no persistent velocity) only once per other setting."""
 
 
+MAP_CHOICES: tuple[dict[str, float], ...] = tuple(
+    {"length_m": length, "prior_sigma_db": sigma}
+    for length in (1.0, 2.0, 4.0, 8.0) for sigma in (3.0, 6.0))
+"""Candidate ``[prediction.radio_map]`` settings of the inner leave-one-out."""
+
+
 def fits(base: dict[str, Any], extra: dict[str, Any]) -> bool:
     """Whether the motion choice ``extra`` goes with ``base`` (no duplicate runs)."""
     if "mode_speed_m_per_s" in extra:
@@ -72,12 +87,15 @@ def fits(base: dict[str, Any], extra: dict[str, Any]) -> bool:
     return not extra.get("stopped_mode") or base["velocity_time_s"] > 0.0
 
 
-def config(no_imu: str, grid: dict[str, float] | None = None) -> TrackerConfig:
-    """The default configuration with ``no_imu`` and some ``[prediction.grid]`` keys."""
+def config(no_imu: str, grid: dict[str, float] | None = None,
+           radio_map: dict[str, Any] | None = None) -> TrackerConfig:
+    """The default configuration with ``no_imu``, some ``[prediction.grid]`` and
+    ``[prediction.radio_map]`` keys."""
     cfg = TrackerConfig()
     table = {**cfg.prediction.grid, **(grid or {})}
+    rmap = {**cfg.prediction.radio_map, **(radio_map or {})}
     return TrackerConfig.model_validate({**cfg.model_dump(), "prediction": {
-        **cfg.prediction.model_dump(), "no_imu": no_imu, "grid": table}})
+        **cfg.prediction.model_dump(), "no_imu": no_imu, "grid": table, "radio_map": rmap}})
 
 
 def errors(session: Session, cfg: TrackerConfig) -> np.ndarray:
@@ -106,6 +124,59 @@ def surveyed(s: Session, channel: ChannelModel, use: bool) -> Session:
     return s.with_parts(meta=s.meta.model_copy(update={"channel": channel})) if use else s
 
 
+def write_survey(tracks: list[BleRssiTrajectory], path: Path) -> str:
+    """The readings of ``tracks`` at their true positions as a survey CSV at ``path``."""
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(("x_m", "y_m", "anchor", "rss_dbm"))
+        for tr in tracks:
+            w.writerows(zip(tr.beacon_xyz[:, 0].tolist(), tr.beacon_xyz[:, 1].tolist(),
+                            tr.anchor.tolist(), tr.rss_dbm.tolist(), strict=True))
+    return str(path)
+
+
+def map_study(loaded: dict[str, BleRssiTrajectory]) -> None:
+    """Held-out p50 / p75 / p95 without and with the radio map (module docstring)."""
+    tmp = Path(tempfile.mkdtemp(prefix="ble_map_"))
+    surveys = {frozenset(out): write_survey([loaded[n] for n in TRACKS if n not in out],
+                                            tmp / f"survey_{len(out)}_{'_'.join(sorted(out))}.csv")
+               for k in (1, 2) for out in itertools.combinations(TRACKS, k)}
+    p75: dict[tuple[int, str, str], float] = {}
+    for k, cand in enumerate(MAP_CHOICES):
+        for h, n in itertools.permutations(TRACKS, 2):
+            cfg = config("grid", radio_map={**cand, "survey": surveys[frozenset((h, n))]})
+            p75[(k, h, n)] = float(np.percentile(errors(loaded[n].session, cfg), 75))
+    table = Table(title="BLE RSSI, RSS alone, radio map: horizontal error p50 / p75 / p95 (m), "
+                        "held out")
+    for col in ("track", "grid, default", "grid + map, held out", "map choice (dev)"):
+        table.add_column(col)
+    summary: dict[str, list[float]] = {"default": [], "map": []}
+    for h in TRACKS:
+        dev = [n for n in TRACKS if n != h]
+        score = {k: float(np.mean([p75[(k, h, n)] for n in dev])) for k in range(len(MAP_CHOICES))}
+        k = min(score, key=lambda c: score[c])
+        s = loaded[h].session
+        e = {"default": errors(s, config("grid")),
+             "map": errors(s, config("grid", radio_map={**MAP_CHOICES[k],
+                                                        "survey": surveys[frozenset((h,))]}))}
+        for key, v in e.items():
+            summary[key].append(float(np.percentile(v, 75)))
+        cells = [" / ".join(f"{x:.2f}" for x in np.percentile(v, [50, 75, 95]))
+                 for v in e.values()]
+        choice = ", ".join(f"{a}={b}" for a, b in MAP_CHOICES[k].items())
+        table.add_row(h, *cells, f"{choice} (dev p75 {score[k]:.2f})")
+    table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
+                                         for v in summary.values()), "")
+    Console(width=160).print(table)
+    # every candidate with each track scored once on the map of the other four: a look at
+    # all five tracks (for the documented default, not held out)
+    for cand in MAP_CHOICES:
+        v = [float(np.percentile(errors(loaded[h].session, config("grid", radio_map={
+            **cand, "survey": surveys[frozenset((h,))]})), 75)) for h in TRACKS]
+        print(f"all five, {cand}: p75 " + " / ".join(f"{x:.2f}" for x in v) +
+              f" m; mean {np.mean(v):.2f}, worst {np.max(v):.2f} m")
+
+
 def sweep(loaded: dict[str, BleRssiTrajectory], grids: list[str]) -> None:
     """p75 per track (default channel) for each JSON object of ``[prediction.grid]`` keys."""
     for text in grids:
@@ -123,10 +194,17 @@ def main() -> None:
                     help="only the default channel among the choices (a fifth of the runs)")
     ap.add_argument("--motion", action="store_true",
                     help="velocity modes and the burst state among the candidates")
+    ap.add_argument("--map", action="store_true",
+                    help="the radio map from the other tracks' truth, held out")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         loaded = {n: load_trajectory(DATA, n) for n in TRACKS}
+    if args.map:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            map_study(loaded)
+        return
     if args.grid:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -25,6 +25,9 @@ from hrtls.fusion.rss_grid import (
     shift,
 )
 
+NO_MAP = np.zeros((0, 0, 0))
+"""No radio map (the kernels' empty map and variance)."""
+
 
 def _model(**kw: float) -> np.record:
     rec = np.zeros(1, dtype=PATH_LOSS_DTYPE)
@@ -54,7 +57,8 @@ def test_blur_of_a_point_is_the_normalised_gaussian() -> None:
 def test_likelihood_of_one_reading_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]]])                 # one anchor, one row, two cells
     out = np.zeros((1, 2))
-    log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
+    log_likelihood(dist, NO_MAP, NO_MAP,
+                   np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
                    np.zeros(1), np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
                    GridParams(outlier_probability=0.1).record()[0], out)
     for j, mu in enumerate((-59.0, -79.0)):
@@ -68,7 +72,8 @@ def test_attenuated_component_and_offset_variance_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]]])
     out = np.zeros((1, 2))
     prm = GridParams(outlier_probability=0.1, attenuation_probability=0.25, attenuation_db=8.0)
-    log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([1.0]), np.array([2.0]),
+    log_likelihood(dist, NO_MAP, NO_MAP,
+                   np.array([0]), np.array([-70.0]), np.array([1.0]), np.array([2.0]),
                    np.array([9.0]), np.zeros(1), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
                    prm.record()[0], out)
     s = 5.0                                          # sqrt(4^2 + 9)
@@ -80,7 +85,8 @@ def test_attenuated_component_and_offset_variance_by_hand() -> None:
     # a reading far weaker than the model is likelier with the attenuated component
     plain, att = np.zeros((1, 2)), np.zeros((1, 2))
     for q, o in ((0.0, plain), (0.25, att)):
-        log_likelihood(dist, np.array([0]), np.array([-71.0]), np.array([1.0]), np.zeros(1),
+        log_likelihood(dist, NO_MAP, NO_MAP,
+                       np.array([0]), np.array([-71.0]), np.array([1.0]), np.zeros(1),
                        np.zeros(1), np.zeros(1), _model(sigma_db=4.0),
                        GridParams(attenuation_probability=q).record()[0], o)
     assert att[0, 0] > plain[0, 0] and att[0, 1] < plain[0, 1]
@@ -91,7 +97,8 @@ def test_bias_update_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]], [[10.0, 1.0]]])     # two anchors, two cells
     density = np.array([[1.0, 0.0]])
     off, var = np.array([1.0, 0.0]), np.array([9.0, 4.0])
-    bias_update(dist, density, np.array([0, 1]), np.array([-55.0, -75.0]), np.array([0.5, 1.0]),
+    bias_update(dist, NO_MAP, NO_MAP,
+                density, np.array([0, 1]), np.array([-55.0, -75.0]), np.array([0.5, 1.0]),
                 off, var, _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
     s0 = 16.0 / 0.5 + 9.0
     assert off[0] == pytest.approx(1.0 + 9.0 / s0 * (-55.0 + 59.0 - 1.0), rel=1e-12)
@@ -101,14 +108,16 @@ def test_bias_update_by_hand() -> None:
     # two equally likely cells: the spread of the predicted RSS enters S
     density = np.array([[0.5, 0.5]])
     off, var = np.zeros(2), np.array([9.0, 9.0])
-    bias_update(dist, density, np.array([0]), np.array([-69.0]), np.array([1.0]), off, var,
+    bias_update(dist, NO_MAP, NO_MAP,
+                density, np.array([0]), np.array([-69.0]), np.array([1.0]), off, var,
                 _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
     s = 16.0 + 100.0 + 9.0                              # Var of (-59, -79) is 100
     assert off[0] == pytest.approx(9.0 / s * 0.0, abs=1e-12) and var[0] == pytest.approx(
         9.0 - 81.0 / s, rel=1e-12)
     # a residual beyond 3 sqrt(S) is not used
     off, var = np.zeros(2), np.array([9.0, 9.0])
-    bias_update(dist, np.array([[1.0, 0.0]]), np.array([0]), np.array([-30.0]), np.array([1.0]),
+    bias_update(dist, NO_MAP, NO_MAP,
+                np.array([[1.0, 0.0]]), np.array([0]), np.array([-30.0]), np.array([1.0]),
                 off, var, _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0))
     assert off[0] == 0.0 and var[0] == 9.0
 

@@ -26,6 +26,9 @@ from hrtls.fusion.rss_grid import (
     move_modes,
 )
 
+NO_MAP = np.zeros((0, 0, 0))
+"""No radio map (the kernels' empty map and variance)."""
+
 ANCHORS = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
 
 
@@ -108,7 +111,8 @@ def test_burst_component_of_the_likelihood_by_hand() -> None:
     dist = np.array([[[1.0, 10.0]]])
     out = np.zeros((1, 2))
     prm = GridParams(outlier_probability=0.1, burst_sigma_db=6.0).record()[0]
-    log_likelihood(dist, np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
+    log_likelihood(dist, NO_MAP, NO_MAP,
+                   np.array([0]), np.array([-70.0]), np.array([0.5]), np.zeros(1),
                    np.array([9.0]), np.array([0.2]), _model(a_dbm=-59.0, eta=2.0, sigma_db=4.0),
                    prm, out)
     s, sb = 5.0, math.sqrt(61.0)
@@ -126,7 +130,8 @@ def test_burst_update_and_predict_by_hand() -> None:
     density = np.array([[1.0, 0.0]])
     burst = np.array([0.1, 0.0])
     prm = GridParams(burst_sigma_db=8.0).record()[0]
-    burst_update(dist, density, np.array([0, 1]), np.array([-71.0, -70.0]), np.array([0.5, 1.0]),
+    burst_update(dist, NO_MAP, NO_MAP,
+                 density, np.array([0, 1]), np.array([-71.0, -70.0]), np.array([0.5, 1.0]),
                  np.zeros(2), np.zeros(2), burst, _model(a_dbm=-59.0, eta=2.0, sigma_db=6.0), prm)
     s, sb, e = 6.0, 10.0, -12.0
     ratio = (math.exp(-0.5 * (e / sb) ** 2) / sb) / (math.exp(-0.5 * (e / s) ** 2) / s)

@@ -32,6 +32,9 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
   it, consecutive readings of an anchor sharing their shadowing).
 
+With a radio map (:mod:`hrtls.fusion.radio_map`) ``mu`` of each cell also holds the map's
+mean there and ``sigma^2`` its variance.
+
 ``o_a`` is a per-anchor RSS offset (starting value: a survey, else zero). With
 ``offset_gain > 0`` it follows the residual at the posterior mean after each update
 (``o_a += offset_gain (r - mu - o_a)``, clipped to ``offset_max_db``). With
@@ -64,7 +67,7 @@ import numpy as np
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
 from hrtls.fusion._records import to_record
-from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel, mean_rss_dbm
+from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel
 from hrtls.fusion.rss_grid_kernels import (
     RSS_SPAN_DB,
     IntArray,
@@ -75,6 +78,7 @@ from hrtls.fusion.rss_grid_kernels import (
     burst_update,
     follow_velocity,
     log_likelihood,
+    map_mean,
     mix_modes,
     moments,
     move_modes,
@@ -100,6 +104,7 @@ __all__ = [
     "follow_velocity",
     "grid_kernel",
     "log_likelihood",
+    "map_mean",
     "mix_modes",
     "moments",
     "move_modes",
@@ -336,7 +341,8 @@ class GridScans:
 
 @njit(cache=True, error_model="numpy")
 def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: FloatArray,
-                density: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+                rmap: FloatArray, rvar: FloatArray, density: FloatArray,
+                offsets_db: FloatArray, offsets_var: FloatArray,
                 velocity: FloatArray, burst: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
@@ -344,6 +350,7 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     """Run the scans through the filter; density (K, ny, nx) and the other states in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
+    ``rmap``, ``rvar``: the radio map's mean and variance (A, ny, nx; (0, 0, 0): no map).
     """
     ny, nx = density.shape[1], density.shape[2]
     cell = prm.cell_m
@@ -373,12 +380,13 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
         pos[:] = density.sum(axis=0)
         if prm.bias_sigma_db > 0.0:
             offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
-            bias_update(dist, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
+            bias_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
                         offsets_var, model)
-        log_likelihood(dist, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
+        log_likelihood(dist, rmap, rvar,
+                       anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
                        burst, model, prm, ll)
         if prm.burst_sigma_db > 0.0:
-            burst_update(dist, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
+            burst_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
                          offsets_var, burst, model, prm)
         apply_likelihood(density, ll, pos)
         moments(pos, x0, y0, cell, out[k])
@@ -391,7 +399,7 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             cj = min(max(round((out[k, 0] - x0) / cell), 0), nx - 1)
             for r in range(a, b):
                 an = anchor[r]
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[an, ci, cj])
+                mu = map_mean(dist, rmap, an, ci, cj, model)
                 o = offsets_db[an] + prm.offset_gain * (rss_dbm[r] - mu - offsets_db[an])
                 offsets_db[an] = min(max(o, -prm.offset_max_db), prm.offset_max_db)
         t_prev = t[k]
@@ -447,7 +455,13 @@ class RssGridFilter:
     """The grid filter over a fixed set of anchors (state in :class:`GridState`)."""
 
     def __init__(self, anchors_xy: FloatArray, *, model: PathLossModel,
-                 params: GridParams | None = None) -> None:
+                 params: GridParams | None = None,
+                 radio_map: tuple[FloatArray, FloatArray] | None = None) -> None:
+        """The filter; ``radio_map``: mean and variance of each anchor's RSS over the law.
+
+        (A, ny, nx) each on :attr:`geometry`'s cells, dB and dB^2 (:mod:`hrtls.fusion.radio_map`;
+        None: no map).
+        """
         self.params = params or GridParams()
         self.model = model
         self.anchors_xy = np.asarray(anchors_xy, dtype=np.float64).reshape(-1, 2)
@@ -455,6 +469,13 @@ class RssGridFilter:
                                             margin_m=self.params.margin_m,
                                             max_cells=self.params.max_cells)
         self.dist = self.geometry.distances(self.anchors_xy, model.d0_m)
+        self.rmap = self.rvar = np.zeros((0, 0, 0))
+        if radio_map is not None:
+            self.rmap, self.rvar = (np.ascontiguousarray(m, dtype=np.float64)
+                                    for m in radio_map)
+            if self.rmap.shape != self.dist.shape or self.rvar.shape != self.dist.shape:
+                raise InputError(f"radio map of shape {self.rmap.shape} / {self.rvar.shape}",
+                                 where="RssGridFilter", expected=f"{self.dist.shape}")
         self._prm = self.params.record()[0]
         self._model = np.zeros(1, dtype=PATH_LOSS_DTYPE)
         self._model[0] = model.record()[0]
@@ -484,8 +505,8 @@ class RssGridFilter:
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
-                                 density, offsets, var, vel, burst, state.t, state.started,
-                                 scans.t,
+                                 self.rmap, self.rvar, density, offsets, var, vel, burst,
+                                 state.t, state.started, scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
                                  scans.weight, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)

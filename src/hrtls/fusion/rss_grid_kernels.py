@@ -104,50 +104,68 @@ def follow_velocity(velocity: FloatArray, prev_xy: FloatArray, mean_xy: FloatArr
 
 
 @njit(cache=True, error_model="numpy")
-def log_likelihood(dist: FloatArray, anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
-                   offsets_db: FloatArray, offsets_var: FloatArray, burst: FloatArray,
-                   model: np.record, prm: np.record, out: FloatArray) -> None:
+def map_mean(dist: FloatArray, rmap: FloatArray, a: int, i: int, j: int,
+             model: np.record) -> float:   # pragma: no cover - compiled
+    """Mean RSS of anchor ``a`` at cell (i, j): the path loss plus the radio map, if any, dBm."""
+    mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
+    return mu + rmap[a, i, j] if rmap.shape[0] > 0 else mu
+
+
+@njit(cache=True, error_model="numpy")
+def cell_log_likelihood(e: float, sig: float, pb: float, prm: np.record) -> float:
+    # pragma: no cover - compiled
+    """``log l`` of a residual ``e`` (dB) with spread ``sig`` and burst probability ``pb``."""
+    outlier, q = prm.outlier_probability, prm.attenuation_probability
+    z = e / sig
+    g = (1.0 - q) * math.exp(-0.5 * z * z) + \
+        q * math.exp(-0.5 * (z + prm.attenuation_db / sig) ** 2)
+    v = (1.0 - outlier) * (1.0 - pb) / (math.sqrt(2.0 * math.pi) * sig) * g \
+        + outlier / RSS_SPAN_DB
+    if pb > 0.0:
+        sb = math.sqrt(sig ** 2 + prm.burst_sigma_db ** 2)
+        v += (1.0 - outlier) * pb / (math.sqrt(2.0 * math.pi) * sb) * math.exp(-0.5 * (e / sb) ** 2)
+    return math.log(v)
+
+
+@njit(cache=True, error_model="numpy")
+def log_likelihood(dist: FloatArray, rmap: FloatArray, rvar: FloatArray, anchor: IntArray,
+                   rss_dbm: FloatArray, weight: FloatArray, offsets_db: FloatArray,
+                   offsets_var: FloatArray, burst: FloatArray, model: np.record,
+                   prm: np.record, out: FloatArray) -> None:
     # pragma: no cover - compiled
     """Sum over rows of ``weight log l`` per cell into ``out`` (ny, nx) (module docstring).
 
-    The offset's variance ``offsets_var`` adds to the shadowing variance (bias marginalised).
+    The offset's variance ``offsets_var`` adds to the shadowing variance (bias marginalised),
+    and so does the radio map's variance ``rvar`` (A, ny, nx) of each cell; the map ``rmap``
+    (A, ny, nx) adds to the mean (both (0, 0, 0): no map).
     An anchor in a burst (probability ``burst``) reads with ``burst_sigma_db`` more spread:
     ``l = (1 - b) l_normal + b (1 - e) N(r; mu + o, sqrt(s^2 + burst_sigma_db^2))``.
     """
     out[:] = 0.0
-    outlier, q = prm.outlier_probability, prm.attenuation_probability
-    floor = outlier / RSS_SPAN_DB
     ny, nx = out.shape
+    has_var = rvar.shape[0] > 0
     for r in range(anchor.shape[0]):
         a = anchor[r]
         sig = model.sigma_db if offsets_var[a] == 0.0 else \
             math.sqrt(model.sigma_db ** 2 + offsets_var[a])
-        pb = burst[a]
-        norm = (1.0 - outlier) * (1.0 - pb) / (math.sqrt(2.0 * math.pi) * sig)
-        sb = math.sqrt(sig ** 2 + prm.burst_sigma_db ** 2)
-        nb = (1.0 - outlier) * pb / (math.sqrt(2.0 * math.pi) * sb)
-        shift = prm.attenuation_db / sig
         for i in range(ny):
             for j in range(nx):
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
-                e = rss_dbm[r] - mu - offsets_db[a]
-                z = e / sig
-                g = (1.0 - q) * math.exp(-0.5 * z * z) + q * math.exp(-0.5 * (z + shift) ** 2)
-                v = norm * g + floor
-                if pb > 0.0:
-                    v += nb * math.exp(-0.5 * (e / sb) ** 2)
-                out[i, j] += weight[r] * math.log(v)
+                e = rss_dbm[r] - map_mean(dist, rmap, a, i, j, model) - offsets_db[a]
+                s = math.sqrt(sig ** 2 + rvar[a, i, j]) if has_var else sig
+                out[i, j] += weight[r] * cell_log_likelihood(e, s, burst[a], prm)
 
 
 @njit(cache=True, error_model="numpy")
-def burst_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
-                 weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
-                 burst: FloatArray, model: np.record, prm: np.record) -> None:
+def burst_update(dist: FloatArray, rmap: FloatArray, rvar: FloatArray, density: FloatArray,
+                 anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
+                 offsets_db: FloatArray, offsets_var: FloatArray, burst: FloatArray,
+                 model: np.record, prm: np.record) -> None:
     # pragma: no cover - compiled
     """Posterior burst probability of each heard anchor from its reading, in place.
 
     Over the (predicted) position ``density``: ``L_n = sum p N(r; mu + o, s)`` and
-    ``L_b = sum p N(r; mu + o, sqrt(s^2 + burst_sigma_db^2))``, ``s^2 = sigma^2 + P``; the odds
+    ``L_b = sum p N(r; mu + o, sqrt(s^2 + burst_sigma_db^2))``, ``s^2 = sigma^2 + P`` (plus
+    the radio map's variance of the cell; ``mu`` includes the map); the odds
     ``b / (1 - b)`` are multiplied by ``(L_b / L_n)^w``.
     """
     ny, nx = density.shape
@@ -164,8 +182,10 @@ def burst_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_db
                 p = density[i, j]
                 if p == 0.0:
                     continue
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
-                e = rss_dbm[r] - mu - offsets_db[a]
+                if rvar.shape[0] > 0:
+                    sig = math.sqrt(model.sigma_db ** 2 + offsets_var[a] + rvar[a, i, j])
+                    sb = math.sqrt(sig ** 2 + prm.burst_sigma_db ** 2)
+                e = rss_dbm[r] - map_mean(dist, rmap, a, i, j, model) - offsets_db[a]
                 ln += p * math.exp(-0.5 * (e / sig) ** 2) / sig
                 lb += p * math.exp(-0.5 * (e / sb) ** 2) / sb
         if ln <= 0.0 or lb <= 0.0:
@@ -191,28 +211,33 @@ def burst_predict(burst: FloatArray, dt: float, enter_per_s: float, exit_per_s: 
 
 
 @njit(cache=True, error_model="numpy")
-def bias_update(dist: FloatArray, density: FloatArray, anchor: IntArray, rss_dbm: FloatArray,
-                weight: FloatArray, offsets_db: FloatArray, offsets_var: FloatArray,
+def bias_update(dist: FloatArray, rmap: FloatArray, rvar: FloatArray, density: FloatArray,
+                anchor: IntArray, rss_dbm: FloatArray, weight: FloatArray,
+                offsets_db: FloatArray, offsets_var: FloatArray,
                 model: np.record) -> None:   # pragma: no cover - compiled
     """Kalman update of each heard anchor's offset from the residual over ``density``.
 
     The predicted RSS is marginalised over the (predicted) position density: residual
-    ``e = r - E[mu] - o``, variance ``S = sigma^2 / w + Var[mu] + P``; a residual beyond
-    3 sqrt(S) is not used (an outlier or an attenuated reading).
+    ``e = r - E[mu] - o``, variance ``S = sigma^2 / w + Var[mu] + P`` (plus the mean radio
+    map variance ``E[rvar]``; ``mu`` includes the map); a residual beyond 3 sqrt(S) is not used
+    (an outlier or an attenuated reading).
     """
     ny, nx = density.shape
+    has_var = rvar.shape[0] > 0
     for r in range(anchor.shape[0]):
         a, w = anchor[r], weight[r]
         if w <= 0.0:
             continue
-        m1 = m2 = 0.0
+        m1 = m2 = mv = 0.0
         for i in range(ny):
             for j in range(nx):
-                mu = mean_rss_dbm(model.a_dbm, model.eta, model.d0_m, dist[a, i, j])
+                mu = map_mean(dist, rmap, a, i, j, model)
                 m1 += density[i, j] * mu
                 m2 += density[i, j] * mu * mu
+                if has_var:
+                    mv += density[i, j] * rvar[a, i, j]
         p = offsets_var[a]
-        s = model.sigma_db ** 2 / w + max(m2 - m1 * m1, 0.0) + p
+        s = model.sigma_db ** 2 / w + max(m2 - m1 * m1, 0.0) + p + mv
         e = rss_dbm[r] - m1 - offsets_db[a]
         if e * e > 9.0 * s:
             continue

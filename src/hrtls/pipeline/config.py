@@ -37,6 +37,7 @@ from hrtls.attitude.quat_ekf import QuatEkfParams
 from hrtls.errors import FormatError, InputError
 from hrtls.fusion.channel import ChannelEstimatorParams
 from hrtls.fusion.floors import FlightParams
+from hrtls.fusion.radio_map import RadioMapParams
 from hrtls.fusion.random_walk import RandomWalkParams
 from hrtls.fusion.rss_grid import GridParams
 from hrtls.gait.stairs_climb import ClimbParams
@@ -230,12 +231,15 @@ class PredictionConfig(_Section):
     """Prediction without an IMU (:class:`hrtls.fusion.random_walk.RandomWalkParams`)."""
     grid: dict[str, Any] = _table(GridParams)
     """The grid filter without an IMU (:class:`hrtls.fusion.rss_grid.GridParams`)."""
+    radio_map: dict[str, Any] = _table(RadioMapParams)
+    """The grid filter's radio map from a survey file (:mod:`hrtls.fusion.radio_map`)."""
 
     _complete_step_scale = field_validator("step_scale")(
         lambda v: _complete(StepScaleParams, v))
     _complete_random_walk = field_validator("random_walk")(
         lambda v: _complete(RandomWalkParams, v))
     _complete_grid = field_validator("grid")(lambda v: _complete(GridParams, v))
+    _complete_radio_map = field_validator("radio_map")(lambda v: _complete(RadioMapParams, v))
 
 
 class FixesConfig(_Section):

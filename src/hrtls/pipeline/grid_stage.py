@@ -7,7 +7,9 @@ of the position density, height of the start, heading not observed: the variance
 angle) are the track's rows, live and offline, instead of the random-walk Kalman filter's.
 Readings are buffered until their scan window has closed, so chunks give the rows of one call.
 An anchor landmark's extra field ``rss_offset_db`` (a site survey of that anchor's RSS over
-the channel model, dB) is the grid's starting offset for it.
+the channel model, dB) is the grid's starting offset for it. With ``[prediction.radio_map]
+survey`` (a CSV file of readings at known positions) the grid adds that survey's radio map to
+the channel model (:mod:`hrtls.fusion.radio_map`).
 The grid uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a
 note) and the Kalman filter's track, which uses them all, is the track.
 ``no_imu = "random-walk"`` keeps the Kalman filter with
@@ -24,7 +26,14 @@ import numpy as np
 from hrtls.data import Activity, Landmark, Session
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
-from hrtls.fusion.rss_grid import GridParams, GridState, RssGridFilter, causal_scans
+from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, load_survey, residual_map
+from hrtls.fusion.rss_grid import (
+    GridGeometry,
+    GridParams,
+    GridState,
+    RssGridFilter,
+    causal_scans,
+)
 from hrtls.fusion.shadowing import ShadowingMemory
 from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
@@ -51,10 +60,21 @@ class GridStage:
     """
 
     def __init__(self, anchors: dict[str, Landmark], *, model: PathLossModel,
-                 params: GridParams, t0: float, z_m: float, notes: Notes) -> None:
+                 params: GridParams, t0: float, z_m: float, notes: Notes,
+                 survey: RadioSurvey | None = None,
+                 map_params: RadioMapParams | None = None) -> None:
+        """``survey``: readings at known positions for a radio map (``map_params``)."""
         self.ids = sorted(anchors)
         xy = np.array([anchors[a].xyz()[:2] for a in self.ids], dtype=np.float64)
-        self.filter = RssGridFilter(xy, model=model, params=params) if self.ids else None
+        radio_map = None
+        if self.ids and survey is not None:
+            geometry = GridGeometry.around(xy, cell_m=params.cell_m, margin_m=params.margin_m,
+                                           max_cells=params.max_cells)
+            radio_map = residual_map(survey, anchor_ids=self.ids, anchors_xy=xy,
+                                     geometry=geometry, model=model,
+                                     params=map_params or RadioMapParams())
+        self.filter = RssGridFilter(xy, model=model, params=params, radio_map=radio_map) \
+            if self.ids else None
         self.params = params
         self.t0 = t0
         self.z_m = z_m
@@ -76,13 +96,17 @@ class GridStage:
         ``t0``: first sample time (scan windows start there), s; ``z_m``: height of the rows.
         """
         params = params_of(GridParams, config.prediction.grid)
+        map_params = params_of(RadioMapParams, config.prediction.radio_map)
         anchors = grid_anchors(config, landmarks, has_imu=has_imu)
+        survey = load_survey(map_params.survey) if anchors and map_params.survey else None
         stage = cls(anchors, model=model, params=params, t0=t0, z_m=z_m,
-                    notes=notes)
+                    notes=notes, survey=survey, map_params=map_params)
         if stage.filter is not None:
             notes.add(f"no IMU: positions from beacon RSS alone by a grid filter over "
                       f"{len(anchors)} anchors ({stage.filter.geometry.cell_m:.2f} m cells), "
-                      "starting from the first scan's likelihood; heading not observed")
+                      "starting from the first scan's likelihood; heading not observed" +
+                      (f"; radio map of {len(survey.rss_dbm)} surveyed readings"
+                       if survey is not None else ""))
         elif not has_imu:
             notes.add("no IMU: positions from the infrastructure alone, predicted by a random "
                       "walk between observations")
