@@ -237,3 +237,12 @@ def test_renamed_diffusion_key_old_name_warns_new_name_reads(tmp_path: Path, tab
                     "sigma_speed_m_per_sqrt_s = 2.0\n", encoding="utf-8")
     with pytest.raises(FormatError, match="sigma_speed_m_s"):
         load_config(both)
+
+
+def test_a_relative_survey_path_is_read_from_the_config_files_folder(tmp_path: Path) -> None:
+    (tmp_path / "site").mkdir()
+    p = tmp_path / "site" / "cfg.toml"
+    p.write_text('[prediction.radio_map]\nsurvey = "walk.csv"\n', encoding="utf-8")
+    assert load_config(p).prediction.radio_map["survey"] == str(tmp_path / "site" / "walk.csv")
+    p.write_text(f'[prediction.radio_map]\nsurvey = "{tmp_path / "a.csv"}"\n', encoding="utf-8")
+    assert load_config(p).prediction.radio_map["survey"] == str(tmp_path / "a.csv")

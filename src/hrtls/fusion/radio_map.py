@@ -46,8 +46,8 @@ class RadioMapParams:
 
     Attributes
     ----------
-    survey: path of the survey CSV file (:data:`SURVEY_COLUMNS`; relative: to the working
-        directory; empty: no map).
+    survey: path of the survey CSV file (:data:`SURVEY_COLUMNS`; relative: to the folder of
+        the configuration file that names it, else to the working directory; empty: no map).
     length_m: length scale of the kernel regression, m.
     prior_sigma_db: spread of the residual where nothing is surveyed, dB.
     prior_readings: readings within ``length_m`` that weigh as much as the prior (``n0``).

@@ -384,14 +384,18 @@ def _validate(data: dict[str, object], *, where: str) -> TrackerConfig:
 
 
 def load_config(path: Path) -> TrackerConfig:
-    """Read a TOML configuration file."""
+    """Read a TOML configuration file (a relative survey path: to the file's folder)."""
     try:
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError("no such file", where=str(path), expected="a TOML file") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FormatError(str(exc), where=str(path), expected="valid TOML") from None
-    return _validate(data, where=str(path))
+    cfg = _validate(data, where=str(path))
+    radio_map = cfg.prediction.radio_map
+    if radio_map["survey"] and not Path(radio_map["survey"]).is_absolute():
+        radio_map["survey"] = str(Path(path).parent / radio_map["survey"])
+    return cfg
 
 
 def preset(name: str) -> TrackerConfig:
