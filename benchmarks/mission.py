@@ -372,7 +372,8 @@ def main() -> None:
     head = "peer ranges" if args.peer_ranges else "cooperation"
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
           "| agent NEES | nodes localized (mean / p10 / lowest) | node RMSE, m "
-          "| node NEES (mean; 95 % bounds) | node RMSE from true agent positions, m | robot error p90, m |")
+          "| node NEES (mean; 95 % bounds) | node RMSE from true agent positions, m "
+          "| robot error p90, m |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for mode in modes(args.peer_ranges, args.only_on):
         r = rows[mode]
