@@ -33,7 +33,7 @@ the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-ha
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
 their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
 gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
-``--offset-floor``: its ``offset_floor``).
+``--offset-floor``: its ``offset_floor``; ``--consider-offset``: ``offset_model = "consider"``).
 
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``) and
@@ -298,6 +298,8 @@ def main() -> None:
                     help="rescuers' [attitude] heading_source (filter: the tracker's default)")
     ap.add_argument("--offset-floor", action="store_true",
                     help="rescuers' [attitude.mag_heading] offset_floor = true")
+    ap.add_argument("--consider-offset", action="store_true",
+                    help="rescuers' [attitude.mag_heading] offset_model = \"consider\"")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -328,6 +330,8 @@ def main() -> None:
         attitude["heading_source"] = args.heading_source
     if args.offset_floor:
         attitude["mag_heading"] = {"offset_floor": True}
+    if args.consider_offset:
+        attitude["mag_heading"] = {**attitude.get("mag_heading", {}), "offset_model": "consider"}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude, args.loop_closure_ratio, not args.no_pass_cap)

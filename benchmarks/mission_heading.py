@@ -25,7 +25,9 @@ VARIANTS = {"default": {}, "no-magnetometer": {"use_magnetometer": False},
             "no-hard-iron": {"mag_hard_iron": "off"},
             "gyro+compass": {"heading_source": "gyro+compass"},
             "gyro+compass-unfitted": {"heading_source": "gyro+compass",
-                                      "mag_heading": {"unfitted": "use"}}}
+                                      "mag_heading": {"unfitted": "use"}},
+            "gyro+compass-consider": {"heading_source": "gyro+compass",
+                                      "mag_heading": {"offset_model": "consider"}}}
 BANDS_M = ((0.3, 5.0), (15.0, 25.0), (55.0, 65.0))
 
 

@@ -29,7 +29,22 @@ while ``P_hh <= var_b``). The update (``h(x) = x_h``, ``H = e_h``):
     nu = wrap(z - x_h),  S = P_hh + R,  K = P H^T / S,  NIS = nu^2 / S             (2)
 
 (Joseph form, :func:`hrtls.fusion.gating.kalman_update`), rejected when the NIS exceeds the
-chi-square(1) gate. ``R = sigma_floor^2 + (g dn)^2 + (g ddip)^2 + var_b``: ``dn`` the relative
+chi-square(1) gate.
+
+``offset_model = "consider"`` counts the offset's error as one shared by all updates instead
+(Schmidt-Kalman consider filter, Simon, Optimal State Estimation, Sec. 7.5). With ``e`` the
+state error, ``e_b`` the offset's and ``c = cov(e, e_b)``, ``nu = -H e + e_b - d`` and
+
+    S = P_hh - 2 c_h + var_b + R,   K = (P H^T - c) / S,
+    P' = (I - K H) P (I - K H)^T + K (var_b + R) K^T + (I - K H) c K^T + K c^T (I - K H)^T,
+    c' = (I - K H) c + K var_b                                                      (3)
+
+(``b`` itself is not updated). ``b`` is learned from the state heading, so ``e_b`` holds its
+error: ``c_h = P_hh`` when ``b`` is learned. Only the heading row of ``c`` is kept: between
+updates the heading's transition is the identity (a gyro turn adds noise, it does not couple)
+and the position rows are taken as 0; an update by another sensor that shrinks ``P_hh`` is
+counted by bounding ``c_h^2 <= P_hh var_b`` (the joint covariance stays positive
+semi-definite). Repeated updates drive ``P_hh`` towards ``var_b``, never below it. ``R = sigma_floor^2 + (g dn)^2 + (g ddip)^2 + var_b``: ``dn`` the relative
 deviation of the block's field magnitude and ``ddip`` (rad) of its dip from the reference Earth
 field, the median over the walking blocks seen so far (not the first sample: a rescuer stands
 at the entrance, often beside a disturbance, before walking). Blocks off the reference by more
@@ -48,7 +63,7 @@ import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.frames import quat_to_matrix, wrap_angle
-from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, skipped
+from hrtls.fusion.gating import UpdateDiagnostics, chi2_threshold, kalman_update, skipped
 from hrtls.fusion.state import IH, N_STATE, FilterState
 
 N_BLOCK = 9
@@ -73,6 +88,7 @@ class MagHeadingParams:
     unfitted: Literal["skip", "use"] = "skip"
     sigma_unfitted_deg: float = 10.0
     offset_floor: bool = False
+    offset_model: Literal["independent", "consider"] = "independent"
 
     def __post_init__(self) -> None:
         positive = ("block_s", "sigma_floor_deg", "gate_fraction", "gate_dip_deg",
@@ -85,6 +101,9 @@ class MagHeadingParams:
         if not (math.isfinite(self.disturbance_gain) and self.disturbance_gain >= 0):
             raise InputError(f"disturbance_gain = {self.disturbance_gain!r}",
                              where="MagHeadingParams", expected="a finite number >= 0")
+        if self.offset_model not in ("independent", "consider"):
+            raise InputError(f"offset_model = {self.offset_model!r}", where="MagHeadingParams",
+                             expected='"independent" or "consider"')
         for name in ("reference_blocks", "reference_max_blocks", "learn_blocks"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="MagHeadingParams",
@@ -154,6 +173,40 @@ def heading_update(state: FilterState, z_rad: float, r_rad2: float, *, t: float,
     return state.evolve(x=res.x, P=res.P), res.diagnostics
 
 
+def consider_heading_update(state: FilterState, z_rad: float, r_rad2: float, var_b_rad2: float,
+                            c: np.ndarray, *, t: float, gate_probability: float
+                            ) -> tuple[FilterState, np.ndarray, UpdateDiagnostics]:
+    """Eq. (3): the heading update with the offset's error ``var_b`` shared through ``c``."""
+    x, p = state.x, state.P
+    nu = float(wrap_angle(z_rad - state.heading))
+    s = float(p[IH, IH] - 2.0 * c[IH] + var_b_rad2 + r_rad2)
+    threshold = chi2_threshold(1, gate_probability)
+    nu_a = np.array([nu])
+    if not (s > 0.0):
+        diag = UpdateDiagnostics("magnetic", t, "rejected", dof=1, threshold=threshold,
+                                 innovation=nu_a, innovation_cov=np.array([[s]]),
+                                 reason="innovation covariance not positive definite")
+        return state, c, diag
+    value = nu * nu / s
+    if value > threshold:
+        diag = UpdateDiagnostics("magnetic", t, "rejected", nis=value, dof=1,
+                                 threshold=threshold, innovation=nu_a,
+                                 innovation_cov=np.array([[s]]),
+                                 reason="failed the chi-square gate")
+        return state, c, diag
+    k = (p[:, IH] - c) / s
+    a = np.eye(N_STATE)
+    a[:, IH] -= k
+    ack = np.outer(a @ c, k)
+    p_new = a @ p @ a.T + (var_b_rad2 + r_rad2) * np.outer(k, k) + ack + ack.T
+    x_new = x + k * nu
+    x_new[IH] = float(wrap_angle(x_new[IH]))
+    c_new = a @ c + k * var_b_rad2
+    diag = UpdateDiagnostics("magnetic", t, "accepted", nis=value, dof=1, threshold=threshold,
+                             innovation=nu_a, innovation_cov=np.array([[s]]))
+    return state.evolve(x=x_new, P=0.5 * (p_new + p_new.T)), c_new, diag
+
+
 def _hard_iron_moved(c: np.ndarray, c_learn: np.ndarray, limit_ut: float) -> bool:
     """The hard iron in force moved away from the one ``b`` was learned with (inf: unfitted)."""
     if np.all(np.isinf(c)) or np.all(np.isinf(c_learn)):
@@ -170,7 +223,7 @@ class MagHeading:
             "norm": deque(maxlen=params.reference_max_blocks),
             "dip": deque(maxlen=params.reference_max_blocks),
             "learn": [0.0, 0.0, 0.0, 0.0], "b": math.nan, "var_b": math.nan,
-            "c_learn": [math.nan] * 3}
+            "c_learn": [math.nan] * 3, "c_h": math.nan}
 
     def _check(self, row: np.ndarray, walking: bool) -> tuple[str, float]:
         """Why the block is not used (``""``: used) and its measurement variance, rad^2."""
@@ -225,8 +278,11 @@ class MagHeading:
             # circular variance of the mean of n blocks, plus the state heading's own
             s["var_b"] = acc[3] + (-2.0 * math.log(max(resultant, 1e-9))) / acc[2]
             s["c_learn"] = [float(v) for v in c]
+            s["c_h"] = float(state.P[IH, IH])
             return state, skipped("magnetic", t, "heading offset learned")
         z = input_heading_rad - a + s["b"]
+        if prm.offset_model == "consider":
+            return self._consider(state, t, z, var, gate_probability)
         r = var + s["var_b"]
         p_hh = float(state.P[IH, IH])
         if prm.offset_floor and p_hh > s["var_b"]:
@@ -235,3 +291,19 @@ class MagHeading:
         elif prm.offset_floor:
             return state, skipped("magnetic", t, "heading variance at the offset's")
         return heading_update(state, z, r, t=t, gate_probability=gate_probability)
+
+    def _consider(self, state: FilterState, t: float, z: float, var: float,
+                  gate_probability: float) -> tuple[FilterState, UpdateDiagnostics]:
+        """Eq. (3) with the heading row of ``c`` kept between blocks."""
+        s = self.state
+        var_b = s["var_b"]
+        # a snapshot from before the consider model: b's error as learned from P_hh now
+        c_h = s.get("c_h", math.nan)
+        c_h = c_h if math.isfinite(c_h) else float(state.P[IH, IH])
+        bound = math.sqrt(max(float(state.P[IH, IH]), 0.0) * var_b)
+        c = np.zeros(N_STATE)
+        c[IH] = min(max(c_h, -bound), bound)
+        state, c, diag = consider_heading_update(state, z, var, var_b, c, t=t,
+                                                 gate_probability=gate_probability)
+        s["c_h"] = float(c[IH])
+        return state, diag
