@@ -40,11 +40,13 @@ state error, ``e_b`` the offset's and ``c = cov(e, e_b)``, ``nu = -H e + e_b - d
     c' = (I - K H) c + K var_b                                                      (3)
 
 (``b`` itself is not updated). ``b`` is learned from the state heading, so ``e_b`` holds its
-error: ``c_h = P_hh`` when ``b`` is learned. Only the heading row of ``c`` is kept: between
-updates the heading's transition is the identity (a gyro turn adds noise, it does not couple)
-and the position rows are taken as 0; an update by another sensor that shrinks ``P_hh`` is
-counted by bounding ``c_h^2 <= P_hh var_b`` (the joint covariance stays positive
-semi-definite). Repeated updates drive ``P_hh`` towards ``var_b``, never below it. ``R = sigma_floor^2 + (g dn)^2 + (g ddip)^2 + var_b``: ``dn`` the relative
+error: ``c = P e_h`` when ``b`` is learned. Between blocks only ``c_h`` is kept and the offset's
+error is taken to reach the other states through the heading, ``c = (c_h / P_hh) P e_h``:
+exact under a step (``c' = F c`` moves ``c`` as ``F P e_h``), while a gyro turn adds noise to
+``P_hh`` but not to ``c_h`` (no coupling). An update by another sensor that shrinks ``P_hh`` is
+counted by bounding ``c_h^2 <= P_hh var_b``, which keeps the joint covariance of state and
+offset positive semi-definite. Repeated updates drive ``P_hh`` towards ``var_b``, never
+below it. ``R = sigma_floor^2 + (g dn)^2 + (g ddip)^2 + var_b``: ``dn`` the relative
 deviation of the block's field magnitude and ``ddip`` (rad) of its dip from the reference Earth
 field, the median over the walking blocks seen so far (not the first sample: a rescuer stands
 at the entrance, often beside a disturbance, before walking). Blocks off the reference by more
@@ -294,15 +296,16 @@ class MagHeading:
 
     def _consider(self, state: FilterState, t: float, z: float, var: float,
                   gate_probability: float) -> tuple[FilterState, UpdateDiagnostics]:
-        """Eq. (3) with the heading row of ``c`` kept between blocks."""
+        """Eq. (3) with ``c_h`` kept between blocks."""
         s = self.state
         var_b = s["var_b"]
         # a snapshot from before the consider model: b's error as learned from P_hh now
         c_h = s.get("c_h", math.nan)
         c_h = c_h if math.isfinite(c_h) else float(state.P[IH, IH])
-        bound = math.sqrt(max(float(state.P[IH, IH]), 0.0) * var_b)
-        c = np.zeros(N_STATE)
-        c[IH] = min(max(c_h, -bound), bound)
+        p_hh = float(state.P[IH, IH])
+        bound = math.sqrt(max(p_hh, 0.0) * var_b) * (1.0 - 1e-9)
+        c_h = min(max(c_h, -bound), bound)
+        c = state.P[:, IH] * (c_h / p_hh) if p_hh > 0.0 else np.zeros(N_STATE)
         state, c, diag = consider_heading_update(state, z, var, var_b, c, t=t,
                                                  gate_probability=gate_probability)
         s["c_h"] = float(c[IH])
