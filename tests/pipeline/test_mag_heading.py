@@ -16,7 +16,13 @@ from hrtls.data import Session
 from hrtls.errors import InputError
 from hrtls.fusion.state import FilterState
 from hrtls.pipeline import Tracker, TrackerConfig, preset
-from hrtls.pipeline.mag_heading import MagBlocks, MagHeading, MagHeadingParams, heading_update
+from hrtls.pipeline.mag_heading import (
+    MagBlocks,
+    MagHeading,
+    MagHeadingParams,
+    consider_heading_update,
+    heading_update,
+)
 from hrtls.sim.scenarios import SimulationResult, run_scenario
 
 from .test_chunked import assert_same, track_in_parts
@@ -142,22 +148,113 @@ def test_offset_floor_keeps_the_heading_variance_above_the_offsets(floor: bool) 
     assert (float(s.P[3, 3]) >= var_b * (1 - 1e-5)) == floor
 
 
+def test_consider_update_by_hand() -> None:
+    p = np.diag([0.5, 0.5, 0.01, 0.04])
+    p[0, 3] = p[3, 0] = 0.02
+    c = np.array([0.0, 0.0, 0.0, 0.03])
+    new, c_new, diag = consider_heading_update(_state(0.1, p), 0.3, 0.01, 0.03, c, t=1.0,
+                                               gate_probability=0.997)
+    # S = 0.04 - 2 0.03 + 0.03 + 0.01 = 0.02, K = (P[:, 3] - c) / S = (1, 0, 0, 0.5), nu = 0.2
+    assert diag.status == "accepted" and diag.nis == pytest.approx(0.2 ** 2 / 0.02)
+    assert float(diag.innovation_cov[0, 0]) == pytest.approx(0.02)
+    assert new.heading == pytest.approx(0.2) and new.x[0] == pytest.approx(1.2)
+    # P' = P - K S K^T; c' = (I - K H) c + K var_b
+    assert new.P[3, 3] == pytest.approx(0.04 - 0.25 * 0.02)
+    assert new.P[0, 0] == pytest.approx(0.5 - 0.02)
+    assert new.P[0, 3] == pytest.approx(0.02 - 0.5 * 0.02)
+    np.testing.assert_allclose(c_new, [0.0, 0.0, 0.0, 0.03], atol=1e-15)
+
+
+@pytest.mark.parametrize("consider", [False, True])
+def test_shared_offset_keeps_the_heading_variance_above_its_variance(consider: bool) -> None:
+    p = np.diag([0.5, 0.5, 0.01, 0.04])
+    s = _state(0.1, p)
+    var_b, r = 0.01, 0.01
+    c = np.zeros(4)
+    variances = []
+    for k in range(200):
+        if consider:
+            s, c, d = consider_heading_update(s, 0.1, r, var_b, c, t=float(k),
+                                              gate_probability=0.997)
+        else:
+            s, d = heading_update(s, 0.1, r + var_b, t=float(k), gate_probability=0.997)
+        assert d.status == "accepted"
+        variances.append(float(s.P[3, 3]))
+    # two updates by hand: P_hh = 0.04 -> 0.04 - 0.04^2 / 0.06 -> ...
+    assert variances[0] == pytest.approx(0.04 - 0.04 ** 2 / 0.06)
+    if consider:
+        p1, c1 = variances[0], 0.04 / 0.06 * var_b
+        assert variances[1] == pytest.approx(p1 - (p1 - c1) ** 2 / (p1 - 2 * c1 + var_b + r))
+        # never below the best possible (the prior, independent of the offset, combined with
+        # the mean of the 200 readings, whose error is the offset's plus R / 200); the offset
+        # not being estimated (Schmidt) leaves it above that, not near 0
+        best = 1.0 / (1.0 / 0.04 + 1.0 / (var_b + r / 200))
+        assert min(variances) >= best * (1 - 1e-9)
+        assert all(np.diff(variances) <= 1e-15)
+        assert best < variances[-1] < var_b
+    else:   # the offset's error counted anew each time: far below it
+        assert variances[-1] < 0.1 * var_b
+
+
+def test_heading_learned_with_the_offset_never_below_its_variance() -> None:
+    var_b, r, q = 0.01, 0.02, 0.001
+    s = _state(0.1, np.diag([0.5, 0.5, 0.01, var_b]))
+    c = s.P[:, 3].copy()   # b learned from this heading: c = P e_h
+    for k in range(100):
+        s = s.evolve(P=s.P + np.diag([0.0, 0.0, 0.0, q]))   # a gyro turn: noise, no coupling
+        s, c, d = consider_heading_update(s, 0.1, r, var_b, c, t=float(k),
+                                          gate_probability=0.997)
+        assert d.status == "accepted"
+        assert float(s.P[3, 3]) >= var_b * (1 - 1e-9)
+        assert np.all(np.linalg.eigvalsh(np.block([[s.P, c[:, None]],
+                                                   [c[None, :], np.array([[var_b]])]])) > -1e-12)
+
+
+def test_consider_state_restores_from_an_old_snapshot() -> None:
+    prm = MagHeadingParams(reference_blocks=1, learn_blocks=1, offset_model="consider")
+    row = np.array([0.0, 20.0, 0.0, -40.0, math.hypot(20.0, 40.0), 50, 0.0, 0.0, 0.0])
+    turned = row.copy()
+    turned[1:3] = 20.0 * math.cos(0.05), 20.0 * math.sin(0.05)
+    a, b = MagHeading(prm), MagHeading(prm)
+    s = _state(0.5, np.diag([1.0, 1.0, 0.1, 0.01]))
+    s, d = a.apply(s, 0.0, row, walking=True, input_heading_rad=0.2, gate_probability=0.997)
+    assert d.reason == "heading offset learned" and a.state["c_h"] == pytest.approx(0.01)
+    old = {k: v for k, v in a.state.items() if k != "c_h"}   # a snapshot from before
+    b.state = old
+    grown = s.evolve(P=s.P + np.diag([0.0, 0.0, 0.0, 0.02]))
+    ra, da = a.apply(grown, 1.0, turned, walking=True, input_heading_rad=0.2,
+                     gate_probability=0.997)
+    rb, db = b.apply(grown, 1.0, turned, walking=True, input_heading_rad=0.2,
+                     gate_probability=0.997)
+    assert da.status == db.status == "accepted"
+    # S = P_hh - 2 c_h + var_b + R: learned c_h = 0.01; the old one takes c_h = P_hh (0.03),
+    # bounded by sqrt(P_hh var_b)
+    r = math.radians(6.0) ** 2
+    assert float(da.innovation_cov[0, 0]) == pytest.approx(0.03 - 0.02 + 0.01 + r)
+    assert float(db.innovation_cov[0, 0]) == pytest.approx(
+        0.03 - 2 * math.sqrt(0.03 * 0.01) + 0.01 + r, rel=1e-6)
+    assert ra.P[3, 3] < grown.P[3, 3] and rb.P[3, 3] < grown.P[3, 3]
+
+
 def test_config_needs_the_state_heading() -> None:
     with pytest.raises(ValueError, match="heading_mode"):
         TrackerConfig.model_validate({"attitude": {"heading_source": "gyro+compass"},
                                       "prediction": {"heading_mode": "input"}})
     with pytest.raises(InputError):
         MagHeadingParams(sigma_floor_deg=0.0)
+    with pytest.raises(InputError):
+        MagHeadingParams(offset_model="shared")  # type: ignore[arg-type]
 
 
-def _config() -> TrackerConfig:
+def _config(offset_model: str = "independent") -> TrackerConfig:
     c = preset("default")
     return c.model_copy(update={"attitude": c.attitude.model_copy(update={
-        "heading_source": "gyro+compass"})})
+        "heading_source": "gyro+compass", "mag_heading": {"offset_model": offset_model}})})
 
 
-def test_chunked_and_restored_equal_offline(office: SimulationResult) -> None:
-    cfg = _config()
+@pytest.mark.parametrize("offset_model", ["independent", "consider"])
+def test_chunked_and_restored_equal_offline(office: SimulationResult, offset_model: str) -> None:
+    cfg = _config(offset_model)
     offline = Tracker(cfg).run(office.session)
     assert offline.report["corrections"]["magnetic"]["accepted"] > 0
     assert_same(offline, track_in_parts(cfg, office.session, chunk_s=5.0))
