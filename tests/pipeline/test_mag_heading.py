@@ -16,6 +16,8 @@ from hrtls.data import Session
 from hrtls.errors import InputError
 from hrtls.fusion.state import FilterState
 from hrtls.pipeline import Tracker, TrackerConfig, preset
+from hrtls.pipeline import snapshot as snap
+from hrtls.pipeline.chunks import split_session
 from hrtls.pipeline.mag_heading import (
     MagBlocks,
     MagHeading,
@@ -24,9 +26,6 @@ from hrtls.pipeline.mag_heading import (
     heading_update,
 )
 from hrtls.sim.scenarios import SimulationResult, run_scenario
-
-from hrtls.pipeline import snapshot as snap
-from hrtls.pipeline.chunks import split_session
 
 from .test_chunked import assert_same, track_in_parts
 
