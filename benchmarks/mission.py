@@ -267,6 +267,8 @@ def main() -> None:
                     help="cooperation on, without vs with inter-agent ranges")
     ap.add_argument("--peer-extrapolate", action="store_true",
                     help="PeerRangeParams.extrapolate: a peer extrapolated with its velocity")
+    ap.add_argument("--max-sigma-m", type=float, default=None,
+                    help="NodeEstimatorParams.max_sigma_m (default: its default)")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
@@ -318,7 +320,7 @@ def main() -> None:
     split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
-    for key in ("agent_cov_scale", "agent_correlation"):
+    for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
