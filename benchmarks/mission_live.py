@@ -25,9 +25,15 @@ from typing import Any
 import numpy as np
 
 from hrtls.mission.tracker import MissionResult, MissionTracker
+from hrtls.pipeline import preset
 from hrtls.service.client import AgentClient
 from hrtls.service.mission_runner import MissionRunner, offline_tracker
-from hrtls.service.network_sim import create_network_mission, network_team, stream_network
+from hrtls.service.network_sim import (
+    RESCUER_PRESET,
+    create_network_mission,
+    network_team,
+    stream_network,
+)
 from hrtls.service.settings import Settings
 
 
@@ -104,6 +110,7 @@ def live_vs_offline(url: str, commander_token: str, runner: MissionRunner, setti
         engine.dispose()
     late = runner.missions[mid].late_samples
     sim = MissionTracker({k: m.session for k, m in zip(tr.names, members, strict=True)},
+                         config=preset(RESCUER_PRESET),
                          kinds={k: m.kind for k, m in zip(tr.names, members, strict=True)}
                          ).run()
     shift = tr.t0 - min(m.session.time_span()[0] for m in members) if tr.t0 is not None else 0.0

@@ -17,13 +17,19 @@ from websockets.sync.client import connect
 
 from hrtls.io.mission import read_mission
 from hrtls.mission.tracker import MissionResult, MissionTracker
+from hrtls.pipeline import preset
 from hrtls.pipeline import snapshot as codec
 from hrtls.service.client import AgentClient
 from hrtls.service.db import make_engine, session_factory
 from hrtls.service.mission_runner import MissionRunner, offline_tracker
 from hrtls.service.missions import export_mission
 from hrtls.service.models import MissionSnapshot
-from hrtls.service.network_sim import common_offset, create_network_mission, network_team
+from hrtls.service.network_sim import (
+    RESCUER_PRESET,
+    common_offset,
+    create_network_mission,
+    network_team,
+)
 
 from .conftest import Live
 from .streams import API, stream_agents
@@ -117,8 +123,10 @@ def test_live_mission_estimator_equals_offline_and_is_published(
         assert loc, "no node localized"
         assert offset == 0.0        # a fresh mission keeps the simulator's times: the live
         sim = MissionTracker(       # estimates are those of the simulated mission offline
-            {str(aid): m.session for m, aid, _ in agents},
+            {str(aid): m.session for m, aid, _ in agents}, config=preset(RESCUER_PRESET),
             kinds={str(aid): m.kind for m, aid, _ in agents}).run()
+        assert lm.tracker.config is not None
+        assert lm.tracker.config.attitude.heading_source == "gyro+compass"
         assert _same_nodes(got, sim) == loc
         for k, r in want.agents.items():
             np.testing.assert_array_equal(r.trajectory.t, got.agents[k].trajectory.t)

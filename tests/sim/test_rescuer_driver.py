@@ -258,3 +258,20 @@ def test_polyline_distance_and_team_parameters() -> None:
         TeamParams(team_gap_m=-1.0)
     with pytest.raises(InputError, match="team"):
         TeamParams(leg_walk_s=0.0)
+
+
+def test_the_rescue_mission_preset_holds_the_simulated_rescuers_prediction_noise() -> None:
+    """The simulated rescuers follow their way points by the estimate of a tracker with
+    ``RESCUER_PREDICTION``; the ``rescue-mission`` preset (the study's and the service's
+    rescuers) adds the gyro+compass heading to the same noise."""
+    from hrtls.pipeline import preset
+
+    cfg = preset("rescue-mission")
+    assert {k: getattr(cfg.prediction, k) for k in RESCUER_PREDICTION} == RESCUER_PREDICTION
+    assert cfg.attitude.heading_source == "gyro+compass"
+    default = preset("default").model_dump()
+    changed = {(section, k) for section, values in cfg.model_dump().items()
+               if isinstance(values, dict)
+               for k, v in values.items() if default[section][k] != v}
+    assert changed == {("attitude", "heading_source"), ("prediction", "q_along"),
+                       ("prediction", "sigma_heading_increment_rad")}

@@ -369,7 +369,7 @@ class TrackerConfig(_Section):
 
 
 PRESETS = ("default", "colombo2014", "basso2017", "tarrio2011", "inderst-rfid", "inderst-range",
-           "handheld-phone")
+           "handheld-phone", "rescue-mission")
 """Named configurations shipped in ``hrtls/pipeline/presets``."""
 
 

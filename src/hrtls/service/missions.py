@@ -36,11 +36,12 @@ ROBOT_SIGMA_M = 0.3
 
 @dataclass(frozen=True)
 class TeamMember:
-    """One simulated agent: its name, kind and session."""
+    """One simulated agent: its name, kind, session and tracker preset."""
 
     name: str
     kind: str
     session: Session
+    preset: str = "default"
 
 
 def robot_session(session: Session, *, seed: int) -> Session:
@@ -101,7 +102,7 @@ def create_mission(commander: AgentClient, name: str, members: list[TeamMember]
     for m in members:
         sm = m.session.meta
         created = commander.request("POST", f"/missions/{mid}/agents", json={
-            "name": m.name, "kind": m.kind, "placement": sm.placement,
+            "name": m.name, "kind": m.kind, "preset": m.preset, "placement": sm.placement,
             "mounting_q_bd": None if sm.mounting_q_bd is None else list(sm.mounting_q_bd),
             "user": {"height_m": sm.user.height_m, "step_model": sm.user.step_model}})
         agents.append((m, int(created["agent"]["id"]), str(created["token"])))

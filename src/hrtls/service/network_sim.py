@@ -17,6 +17,8 @@ from hrtls.service.client import AgentClient
 from hrtls.service.missions import TeamMember, create_mission, stream_team
 from hrtls.sim.mission import Mission, run_mission
 
+RESCUER_PRESET = "rescue-mission"
+"""The rescuers' tracker preset (the hybrid-mission study's settings, README)."""
 ROBOT_PRESET = "default"
 
 
@@ -24,9 +26,11 @@ def network_team(name: str, *, seed: int, options: dict[str, Any]
                  ) -> tuple[Mission, list[TeamMember]]:
     """The simulated mission and its agents as team members (sessions without truth)."""
     mission = run_mission(name, seed, **options)
-    members = [TeamMember(k, mission.kinds.get(k, "rescuer"),
-                          s.with_parts(truth=None, checkpoints=None))
-               for k, s in mission.agents.items()]
+    members = []
+    for k, s in mission.agents.items():
+        kind = mission.kinds.get(k, "rescuer")
+        members.append(TeamMember(k, kind, s.with_parts(truth=None, checkpoints=None),
+                                  preset=ROBOT_PRESET if kind == "robot" else RESCUER_PRESET))
     return mission, members
 
 
