@@ -310,7 +310,8 @@ def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
     must give each node's state as the estimator has it, not its last localized estimate."""
     live = make_live()
     mission, members = network_team("inderst_hybrid_mission", seed=3, options={
-        "walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2})
+        "walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2},
+        rescuer_preset="default")   # a case with a node localized, then refused
     with AgentClient(live.url, live.commander) as commander:
         mid, agents = create_network_mission(commander, "small", mission, members,
                                              params=PARAMS)

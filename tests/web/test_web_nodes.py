@@ -125,7 +125,8 @@ def test_node_layer_follows_the_live_mission_estimator(page, page_log, service, 
     page.hover(f"path.node-marker.node-id-{node['id']}")
     tip = page.wait_for_selector(".node-tooltip").text_content() or ""
     assert f"node {node['id']}" in tip and f"σ {node['sigma_m']:.2f} m" in tip
-    assert f"{node['readings']} readings in {node['passes']} passes" in tip
+    r, p = node["readings"], node["passes"]
+    assert f"{r} reading{'' if r == 1 else 's'} in {p} pass{'' if p == 1 else 'es'}" in tip
     t = int(node["t"])
     assert f"estimated at t {t // 60}:{t % 60:02d}" in tip
     screenshot(page, "nodes_first_part")

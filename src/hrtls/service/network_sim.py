@@ -22,15 +22,18 @@ RESCUER_PRESET = "rescue-mission"
 ROBOT_PRESET = "default"
 
 
-def network_team(name: str, *, seed: int, options: dict[str, Any]
-                 ) -> tuple[Mission, list[TeamMember]]:
-    """The simulated mission and its agents as team members (sessions without truth)."""
+def network_team(name: str, *, seed: int, options: dict[str, Any],
+                 rescuer_preset: str = RESCUER_PRESET) -> tuple[Mission, list[TeamMember]]:
+    """The simulated mission and its agents as team members (sessions without truth).
+
+    The rescuers get the tracker preset ``rescuer_preset``, the robots ``ROBOT_PRESET``.
+    """
     mission = run_mission(name, seed, **options)
     members = []
     for k, s in mission.agents.items():
         kind = mission.kinds.get(k, "rescuer")
         members.append(TeamMember(k, kind, s.with_parts(truth=None, checkpoints=None),
-                                  preset=ROBOT_PRESET if kind == "robot" else RESCUER_PRESET))
+                                  preset=ROBOT_PRESET if kind == "robot" else rescuer_preset))
     return mission, members
 
 
