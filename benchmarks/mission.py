@@ -38,9 +38,9 @@ gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipel
 The rescuers' trackers run the default configuration with the step-and-heading prediction noise
 ``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``) and
 ``[attitude] heading_source = "gyro+compass"`` (chosen on dev seeds; ``--heading-source filter``:
-the tracker's default): the preset ``rescue-mission``. The simulated rescuers follow their planner's way points by the
-estimate of a tracker with ``RESCUER_PREDICTION`` alone, so the recordings of a seed do not
-depend on these options.
+the tracker's default): the preset ``rescue-mission``. The simulated rescuers follow their
+planner's way points by the estimate of a tracker with ``RESCUER_PREDICTION`` alone, so the
+recordings of a seed do not depend on these options.
 
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
 

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import convolve1d
 
 from hrtls.errors import InputError
 from hrtls.fusion._checks import FloatArray, finite_scalar
@@ -126,6 +125,8 @@ def kernel_sum(values: FloatArray, sigma_cells: float) -> FloatArray:
 
     Distances in cells; separable, truncated at 4 sigma; zero off the grid.
     """
+    from scipy.ndimage import convolve1d  # only with a survey: `hrtls track` stays light
+
     h = max(math.ceil(4.0 * sigma_cells), 1)
     k = np.exp(-0.5 * (np.arange(-h, h + 1) / sigma_cells) ** 2)
     out = convolve1d(values, k, axis=1, mode="constant")
