@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 
 from hrtls.errors import InputError
 from hrtls.fusion.path_loss import PATH_LOSS_DTYPE, PathLossModel
-from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, load_survey, residual_map
+from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, residual_map
 from hrtls.fusion.rss_grid import GridGeometry, GridParams, RssGridFilter, causal_scans
 from hrtls.fusion.rss_grid_kernels import log_likelihood
+from hrtls.io.survey import read_survey
 from hrtls.pipeline.build import Notes
 from hrtls.pipeline.grid_stage import GridStage
 
@@ -139,24 +140,24 @@ def _write(tmp_path: Path, text: str) -> Path:
     ("x_m,y_m,anchor,rss_dbm\n1,2,a,1e-7\n", ("walk_survey.csv", "rss_dbm", "units")),
     ("x_m,y_m,anchor,rss_dbm\n1,2,a,-170\n", ("walk_survey.csv", "rss_dbm", "dBm")),
     ("x_m,y_m,anchor,rss_dbm\n1,2,a,strong\n", ("walk_survey.csv", "rss_dbm", "number")),
-    ("x,y_m,anchor,rss_dbm\n1,2,a,-70\n", ("walk_survey.csv", "'x_m'", "header")),
+    ("x,y_m,anchor,rss_dbm\n1,2,a,-70\n", ("walk_survey.csv", "x_m", "header")),
     ("x_m,y_m,anchor,rss_dbm\n", ("walk_survey.csv", "no readings")),
 ])
 def test_bad_survey_files_name_the_file_and_field(tmp_path: Path, text: str,
                                                   words: tuple[str, ...]) -> None:
     with pytest.raises(InputError) as exc:
-        load_survey(_write(tmp_path, text))
+        read_survey(_write(tmp_path, text))
     for w in words:
         assert w in str(exc.value)
 
 
 def test_unknown_anchor_names_the_file_and_column(tmp_path: Path) -> None:
-    survey = load_survey(_write(tmp_path, "x_m,y_m,anchor,rss_dbm\n1,2,a,-70\n3,4,zz,-71\n"))
+    survey = read_survey(_write(tmp_path, "x_m,y_m,anchor,rss_dbm\n1,2,a,-70\n3,4,zz,-71\n"))
     with pytest.raises(InputError, match=r"walk_survey\.csv column 'anchor'.*'zz'"):
         residual_map(survey, anchor_ids=["a"], anchors_xy=ANCHOR, geometry=ROW, model=MODEL,
                      params=RadioMapParams())
     with pytest.raises(InputError, match="cannot read"):
-        load_survey(tmp_path / "missing.csv")
+        read_survey(tmp_path / "missing.csv")
 
 
 def test_the_stage_reads_the_survey_file(tmp_path: Path) -> None:

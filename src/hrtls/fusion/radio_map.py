@@ -18,10 +18,8 @@ and its variance to the likelihood's variance.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -31,7 +29,7 @@ from hrtls.fusion.path_loss import PathLossModel, mean_rss_dbm
 from hrtls.fusion.rss_grid import GridGeometry
 
 __all__ = ["RSS_RANGE_DBM", "SURVEY_COLUMNS", "RadioMapParams", "RadioSurvey",
-           "kernel_sum", "load_survey", "residual_map"]
+           "kernel_sum", "residual_map"]
 
 SURVEY_COLUMNS = ("x_m", "y_m", "anchor", "rss_dbm")
 """Columns of a survey CSV file (a header row with these names, in any order)."""
@@ -94,30 +92,6 @@ class RadioSurvey:
             raise InputError(f"'rss_dbm' = {self.rss_dbm[out[0]]} at reading {out[0]}",
                              where=self.source, expected=f"dBm within [{lo:g}, {hi:g}]",
                              hint="wrong units?")
-
-
-def load_survey(path: str | Path) -> RadioSurvey:
-    """The survey CSV file at ``path`` (a header of :data:`SURVEY_COLUMNS`, one reading a row)."""
-    p = Path(path)
-    try:
-        with p.open(newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as exc:
-        raise InputError(f"cannot read it ({exc.strerror})", where=str(p),
-                         expected="a survey CSV file") from None
-    missing = [c for c in SURVEY_COLUMNS if not rows or c not in rows[0]]
-    if missing:
-        raise InputError(f"no column {missing[0]!r}" if rows else "no readings", where=str(p),
-                         expected=f"a header {','.join(SURVEY_COLUMNS)} and one reading a row")
-    cols: dict[str, FloatArray] = {}
-    for c in ("x_m", "y_m", "rss_dbm"):
-        try:
-            cols[c] = np.array([float(r[c]) for r in rows], dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"a value of {c!r} is not a number", where=str(p),
-                             expected="numbers") from None
-    return RadioSurvey(cols["x_m"], cols["y_m"], np.array([str(r["anchor"]) for r in rows]),
-                       cols["rss_dbm"], source=str(p))
 
 
 def kernel_sum(values: FloatArray, sigma_cells: float) -> FloatArray:

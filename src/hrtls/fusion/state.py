@@ -25,7 +25,7 @@ from hrtls.data.session import StartPose
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
 from hrtls.fusion._checks import FloatArray, finite_matrix, finite_scalar, finite_vector
-from hrtls.fusion.gating import symmetrize
+from hrtls.fusion.gating import UpdateDiagnostics, kalman_update, symmetrize
 
 STATE_LABELS = ("x", "y", "z", "heading")
 """Names of the state components, in order."""
@@ -190,3 +190,18 @@ def independent_block(p: FloatArray, idx: list[int], block: FloatArray) -> Float
     out[:, idx] = 0.0
     out[np.ix_(idx, idx)] = block
     return symmetrize(out)
+
+
+def heading_update(state: FilterState, innovation_rad: float, r_rad2: float, *, kind: str,
+                   t: float, gate_probability: float | None,
+                   source: str = "") -> tuple[FilterState, UpdateDiagnostics]:
+    """Scalar EKF update by a heading measurement (Joseph form, NIS gate).
+
+    ``h(x) = x_h``, ``H = e_h``; ``innovation_rad`` is ``z - x_h``, wrapped to ``(-pi, pi]``.
+    """
+    h = np.zeros((1, N_STATE))
+    h[0, IH] = 1.0
+    res = kalman_update(state.x, state.P, h, np.array([[r_rad2]]), np.array([innovation_rad]),
+                        gate_probability=gate_probability, kind=kind, t=t, source=source,
+                        angle_index=IH)
+    return state.evolve(x=res.x, P=res.P), res.diagnostics

@@ -67,7 +67,7 @@ from hrtls.fusion.gating import (
     skipped,
     symmetrize,
 )
-from hrtls.fusion.state import IH, N_STATE, FilterState, independent_block
+from hrtls.fusion.state import IH, N_STATE, FilterState, heading_update, independent_block
 
 XY = [0, 1]
 
@@ -373,11 +373,6 @@ def bearing_heading_correction(state: FilterState, bearings_rad: ArrayLike, *,
     if mode != "kalman":
         raise InputError(f"mode {mode!r}", where="bearing_heading_correction",
                          expected="'replace' or 'kalman'")
-    h = np.zeros((1, N_STATE))
-    h[0, IH] = 1.0
-    res = kalman_update(state.x, state.P, h, np.array([[sigma_rad**2]]), np.array([err]),
-                        gate_probability=gate_probability, kind="bearing", t=tt, source=source,
-                        angle_index=IH)
-    new = state.evolve(x=res.x, P=res.P)
-    return HeadingCorrection(new, res.diagnostics,
-                             float(wrap_angle(new.heading - heading)))
+    new, diag = heading_update(state, err, sigma_rad**2, kind="bearing", t=tt,
+                               gate_probability=gate_probability, source=source)
+    return HeadingCorrection(new, diag, float(wrap_angle(new.heading - heading)))

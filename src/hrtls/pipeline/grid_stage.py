@@ -26,7 +26,7 @@ import numpy as np
 from hrtls.data import Activity, Landmark, Session
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
-from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, load_survey, residual_map
+from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, residual_map
 from hrtls.fusion.rss_grid import (
     GridGeometry,
     GridParams,
@@ -98,7 +98,11 @@ class GridStage:
         params = params_of(GridParams, config.prediction.grid)
         map_params = params_of(RadioMapParams, config.prediction.radio_map)
         anchors = grid_anchors(config, landmarks, has_imu=has_imu)
-        survey = load_survey(map_params.survey) if anchors and map_params.survey else None
+        survey = None
+        if anchors and map_params.survey:
+            from hrtls.io.survey import read_survey
+
+            survey = read_survey(map_params.survey)
         stage = cls(anchors, model=model, params=params, t0=t0, z_m=z_m,
                     notes=notes, survey=survey, map_params=map_params)
         if stage.filter is not None:

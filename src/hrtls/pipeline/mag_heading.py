@@ -65,8 +65,9 @@ import numpy as np
 
 from hrtls.errors import InputError
 from hrtls.frames import quat_to_matrix, wrap_angle
-from hrtls.fusion.gating import UpdateDiagnostics, chi2_threshold, kalman_update, skipped
+from hrtls.fusion.gating import UpdateDiagnostics, chi2_threshold, skipped
 from hrtls.fusion.state import IH, N_STATE, FilterState
+from hrtls.fusion.state import heading_update as fusion_heading_update
 
 N_BLOCK = 9
 """Columns of a block row: t_end, mean m_n (3), mean |m|, samples, mean hard iron (3; NaN
@@ -166,13 +167,8 @@ def field_angles(row: np.ndarray) -> tuple[float, float, float]:
 def heading_update(state: FilterState, z_rad: float, r_rad2: float, *, t: float,
                    gate_probability: float) -> tuple[FilterState, UpdateDiagnostics]:
     """Eq. (2): the scalar EKF update of the state heading by a heading measurement."""
-    h = np.zeros((1, N_STATE))
-    h[0, IH] = 1.0
-    nu = np.array([float(wrap_angle(z_rad - state.heading))])
-    res = kalman_update(state.x, state.P, h, np.array([[r_rad2]]), nu,
-                        gate_probability=gate_probability, kind="magnetic", t=t,
-                        angle_index=IH)
-    return state.evolve(x=res.x, P=res.P), res.diagnostics
+    return fusion_heading_update(state, float(wrap_angle(z_rad - state.heading)), r_rad2,
+                                 kind="magnetic", t=t, gate_probability=gate_probability)
 
 
 def consider_heading_update(state: FilterState, z_rad: float, r_rad2: float, var_b_rad2: float,
