@@ -252,7 +252,11 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 (dev) or 100-129 (held-out)")
     ap.add_argument("--nodes", type=int, default=40)
     ap.add_argument("--rescuers", type=int, default=3)
-    ap.add_argument("--robots", type=int, default=0)
+    ap.add_argument("--robots", type=int, default=MissionOptions().n_robots)
+    ap.add_argument("--tags", choices=("entrance", "doors"), default=MissionOptions().tag_layout,
+                    help="MissionOptions.tag_layout: tags at the entrance only or at the doors too")
+    ap.add_argument("--door-spacing-m", type=float, default=MissionOptions().door_spacing_m,
+                    help="MissionOptions.door_spacing_m (doors along each wall)")
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--range-sigma-fraction", type=float, default=0.0,
                     help="range noise proportional to the distance (0.02: the issue's 2 %%)")
@@ -309,7 +313,8 @@ def main() -> None:
                           range_sigma_m=args.range_sigma_m,
                           range_sigma_fraction=args.range_sigma_fraction,
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s,
-                          robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver)
+                          robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver,
+                          tag_layout=args.tags, door_spacing_m=args.door_spacing_m)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
@@ -367,7 +372,8 @@ def main() -> None:
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers ({args.rescuer_driver} driver), "
           f"{args.robots} robots "
-          f"({args.robot_driver} driver), "
+          f"({args.robot_driver} driver), tags {args.tags}"
+          f"{f' (doors {args.door_spacing_m:g} m apart)' if args.tags == 'doors' else ''}, "
           f"{args.nodes} nodes, range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "

@@ -47,6 +47,7 @@ from hrtls.data.observations import GroundTruth
 from hrtls.data.results import Activity, StepEvents
 from hrtls.data.session import SessionMeta, StartPose
 from hrtls.errors import InputError
+from hrtls.frames import wrap_angle
 from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
@@ -62,9 +63,13 @@ FloatArray = NDArray[np.float64]
 FREE_SPACE = unary_union([box(0, 0, 60, 3), box(0, 27, 60, 30), box(0, 0, 3, 30),
                           box(57, 0, 60, 30), box(28.5, 0, 31.5, 30)])
 """Corridors of the floor (the rescuers walk here; nodes are dropped here)."""
-ROOMS = unary_union([box(3, 3, 28.5, 27), box(31.5, 3, 57, 27)]).boundary
+ROOM_BLOCKS: tuple[tuple[float, float, float, float], ...] = ((3.0, 3.0, 28.5, 27.0),
+                                                               (31.5, 3.0, 57.0, 27.0))
+"""The two blocks of offices (x0, y0, x1, y1); every side faces a corridor."""
+ROOMS = unary_union([box(*b) for b in ROOM_BLOCKS]).boundary
 """Room walls (radio line of sight through them is NLOS)."""
 ENTRANCE_XY = (1.5, 1.5)
+TAG_HEIGHT_M = 2.2
 RESCUER_PREDICTION: dict[str, float] = {"q_along": 0.04, "sigma_heading_increment_rad": 0.02}
 """The rescuers' ``[prediction]`` noise the mission's figures use (README "Hybrid mission"),
 chosen on dev seeds 0-4 for a rescuer NEES near 2 without cooperation, never from the truth:
@@ -77,7 +82,7 @@ class MissionOptions:
     """Options of :func:`inderst_hybrid_mission` (lengths m, times s)."""
 
     n_rescuers: int = 3
-    n_robots: int = 0
+    n_robots: int = 1
     n_nodes: int = 40
     walk_s: float = 300.0
     stagger_s: float = 60.0
@@ -98,8 +103,19 @@ class MissionOptions:
     """Agents range to each other too (:mod:`hrtls.sim.peers`, the same radio model)."""
     peer_max_range_m: float = 10.0
     peer_rate_hz: float = 1.0
+    tag_layout: str = "doors"
+    """``entrance``: the two tags at the entrance corner; ``doors``: those plus one tag at each
+    office door of the room blocks' walls (:func:`mission_tags`)."""
+    door_spacing_m: float = 12.0
+    """Distance between doors along a wall (every other door of a 6 m office module)."""
 
     def __post_init__(self) -> None:
+        if self.tag_layout not in ("entrance", "doors"):
+            raise InputError(f"tag_layout = {self.tag_layout!r}", where="MissionOptions",
+                             expected="entrance or doors")
+        if not self.door_spacing_m > 0.0:
+            raise InputError(f"door_spacing_m = {self.door_spacing_m}", where="MissionOptions",
+                             expected="> 0 m")
         if self.robot_driver not in ("random", "planner"):
             raise InputError(f"robot_driver = {self.robot_driver!r}", where="MissionOptions",
                              expected="random or planner")
@@ -152,6 +168,46 @@ def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, floa
     return out
 
 
+def _door_offsets(length_m: float, spacing_m: float) -> FloatArray:
+    """Doors ``spacing_m`` apart along a wall of ``length_m``, centred (one when it is shorter)."""
+    n = max(1, int(np.floor(length_m / spacing_m)))
+    return (length_m - (n - 1) * spacing_m) / 2.0 + spacing_m * np.arange(n)
+
+
+def mission_tags(*, layout: str = "doors", door_spacing_m: float = 12.0) -> list[RfidTag]:
+    """The floor's RFID tags with their location messages (floor 0, 2.2 m up the wall).
+
+    ``entrance``: T1 and T2 at the entrance corner. ``doors``: also one tag ``D<k>`` at each
+    door of the room blocks' walls, ``door_spacing_m`` apart along each wall (centred on it),
+    its lobe facing the corridor perpendicular to the wall, the bearings those of the way
+    through the door (into the room and out).
+    """
+    tags = [RfidTag(id="T1", position=(1.5, 0.2, TAG_HEIGHT_M), lobe_orientation_rad=np.pi / 2,
+                    floor=0),
+            RfidTag(id="T2", position=(0.2, 1.5, TAG_HEIGHT_M), lobe_orientation_rad=0.0,
+                    floor=0)]
+    if layout == "entrance":
+        return tags
+    if layout != "doors":
+        raise InputError(f"tag layout {layout!r}", where="mission_tags",
+                         expected="entrance or doors")
+    for x0, y0, x1, y1 in ROOM_BLOCKS:
+        # (start, direction along the wall, length, lobe into the corridor)
+        walls = [((x0, y0), (1.0, 0.0), x1 - x0, -np.pi / 2),
+                 ((x0, y1), (1.0, 0.0), x1 - x0, np.pi / 2),
+                 ((x0, y0), (0.0, 1.0), y1 - y0, np.pi),
+                 ((x1, y0), (0.0, 1.0), y1 - y0, 0.0)]
+        for (sx, sy), (dx, dy), length, lobe in walls:
+            for u in _door_offsets(length, door_spacing_m):
+                out = float(wrap_angle(lobe))
+                xy = (float(sx + dx * u), float(sy + dy * u))
+                tags.append(RfidTag(
+                    id=f"D{len(tags) - 1}", position=(*xy, TAG_HEIGHT_M),
+                    lobe_orientation_rad=out, floor=0,
+                    bearings_rad=(float(wrap_angle(lobe + np.pi)), out)))
+    return tags
+
+
 def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> Mission:
     """Rescuers enter an office floor with tags at the doors and range nodes without positions.
 
@@ -161,8 +217,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     r = scenario_rngs(seed)
     nodes = _drop_nodes(r[7], o.n_nodes)
     alive = {k: v for k, v in nodes.items() if r[7].random() >= o.node_failure_fraction}
-    tags = [RfidTag(id="T1", position=(1.5, 0.2, 2.2), lobe_orientation_rad=np.pi / 2, floor=0),
-            RfidTag(id="T2", position=(0.2, 1.5, 2.2), lobe_orientation_rad=0.0, floor=0)]
+    tags = mission_tags(layout=o.tag_layout, door_spacing_m=o.door_spacing_m)
     sites = np.column_stack([r[7].uniform(0, 60, 15), r[7].uniform(0, 30, 15), np.full(15, 0.8)])
     model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m,
                        sigma_fraction=o.range_sigma_fraction, max_range_m=o.max_range_m,
