@@ -19,12 +19,13 @@ from hrtls.io.tables import decode_table, read_trajectory
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.pipeline.finish import finish_track
-from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
+from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission, mission_tags
 
 runner = CliRunner()
 SEED = 1
 OPTIONS = {"walk_s": 60.0, "stagger_s": 10.0, "n_nodes": 10}
-"""A short mission in which one rescuer uses nodes the others localized."""
+"""A short mission (the default tags at the doors and one robot) in which one rescuer uses
+nodes the others localized."""
 
 
 @pytest.fixture(scope="module")
@@ -56,11 +57,15 @@ def test_saved_folder_reads_back_the_mission(mission, saved: Path) -> None:  # t
     assert folder.node_truth_m is not None
     for k, v in mission.node_truth_m.items():
         np.testing.assert_array_equal(folder.node_truth_m[k], v)
-    assert sorted(folder.landmarks) == ["T1", "T2"]
+    assert sorted(folder.landmarks) == sorted(t.id for t in mission_tags())
+    assert {n: a.kind for n, a in folder.agents.items()} == {
+        "R1": "rescuer", "R2": "rescuer", "R3": "rescuer", "B1": "robot"}
     for name, agent in folder.agents.items():
         src = mission.agents[name]
-        assert agent.kind == "rescuer"
-        np.testing.assert_array_equal(agent.session.imu.accel.values, src.imu.accel.values)
+        if agent.kind == "rescuer":
+            np.testing.assert_array_equal(agent.session.imu.accel.values, src.imu.accel.values)
+        else:
+            np.testing.assert_array_equal(agent.session.fixes.xyz, src.fixes.xyz)
         np.testing.assert_array_equal(agent.session.ranges.range_m, src.ranges.range_m)
         np.testing.assert_array_equal(agent.session.truth.xyz, src.truth.xyz)
         assert all(lm.kind != "node" for lm in agent.session.landmarks.values())
@@ -76,7 +81,7 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
     flags = ["--chunk-s", str(chunk_s)] + ([] if cooperate else ["--no-cooperate"])
     text = _track(saved, tmp_path / "out", *flags)
     cfg = preset("default")
-    res = MissionTracker(mission.agents, config=cfg,
+    res = MissionTracker(mission.agents, config=cfg, kinds=mission.kinds,
                          params=MissionParams(cooperate=cooperate, chunk_s=chunk_s)).run()
     for name, raw in res.agents.items():
         want = finish_track(raw, mission.agents[name], cfg).trajectory
@@ -99,6 +104,9 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
     fixes = sum(r.report["corrections"].get("range", {}).get("accepted", 0)
                 for r in res.agents.values())
     assert (fixes > 0) is cooperate
+    for name, r in res.agents.items():     # the rescuers' trackers take the door tags as fixes
+        tags = r.report["corrections"].get("tag", {}).get("accepted", 0)
+        assert (tags > 0) is (mission.kinds[name] == "rescuer"), (name, tags)
     nodes = decode_table((tmp_path / "out" / "nodes.csv").read_bytes(), table="nodes",
                          name="nodes.csv")
     ids = list(nodes.str("id"))
