@@ -1,28 +1,32 @@
-"""Simulated hybrid mission: rescuers entering a floor with dropped range nodes (Inderst Ch. 3, 5).
+"""Simulated hybrid mission: rescuers and a robot entering a floor with dropped range nodes.
 
-``inderst_hybrid_mission``: a 60x30 m office floor (corridors around rooms whose walls block the
-radio line of sight), RFID tags at the entrance doors with known positions, and ``n_nodes`` range
-nodes dropped at random in the corridors without positions. ``n_rescuers`` rescuers with a waist
-IMU enter one after the other (``stagger_s`` apart) from the entrance and walk random routes
-through the corridors, ranging to every node within ``max_range_m`` (Gaussian noise
-``range_sigma_m`` plus ``range_sigma_fraction`` of the distance, exponential NLOS bias behind
-walls, dropouts, failed nodes never answer); one magnetic environment (15 random disturbances)
-for the floor, the same field for every rescuer. With ``peer_ranges`` the agents also range to each
-other (:mod:`hrtls.sim.peers`: node id = the other agent's name, ``peer_rate_hz``,
-``peer_max_range_m``).
+``inderst_hybrid_mission`` (Inderst Ch. 3, 5, 6): a 60x30 m office floor (a 3 m ring corridor and
+a middle corridor around two blocks of offices whose walls block the radio line of sight), RFID
+tags with location messages (``tag_layout``: ``doors``, the default, has two tags at the entrance
+corner and one at each office door of the blocks' walls, ``door_spacing_m`` apart, 2.2 m up the
+wall, lobe into the corridor, bearings through the door; ``entrance``: the two corner tags only;
+:func:`mission_tags`), and ``n_nodes`` range nodes dropped at random in the corridors without
+positions. ``n_rescuers`` rescuers with a waist IMU and a shoulder RFID reader enter one after
+the other (``stagger_s`` apart) from the entrance and walk random routes through the corridors
+(never through a door: the door tags are read from the corridor), ranging to every node within
+``max_range_m`` (Gaussian noise ``range_sigma_m`` plus ``range_sigma_fraction`` of the distance,
+exponential NLOS bias behind walls, dropouts, failed nodes never answer); one magnetic
+environment (15 random disturbances) for the floor, the same field for every rescuer. With
+``peer_ranges`` the agents also range to each other (:mod:`hrtls.sim.peers`: node id = the other
+agent's name, ``peer_rate_hz``, ``peer_max_range_m``).
 
-The agents' sessions hold only what a rescuer knows (start pose at the entrance, the tags'
+The agents' sessions hold only what an agent knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
-for scoring only. ``n_robots`` robots (default none) enter ``stagger_s / 2`` after the first
+for scoring only. ``n_robots`` robots (default one) enter ``stagger_s / 2`` after the first
 rescuer and drive random corridor routes at about 0.5 m/s; a robot's session holds its wheel
 odometry poses (:func:`hrtls.sim.team.odometry_poses`, 5 Hz) and its ranges to the nodes (the
-same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
+same radio model; no tag reader), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
 ``robot_driver="planner"`` the robots are instead driven in closed loop by the way-point planner
 on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
 unchanged). With ``rescuer_driver="planner"`` the rescuers walk, leg by leg, to the way points
 the planner picks from their trackers' estimates (:mod:`hrtls.sim.rescuer_loop`; robots then on
 random routes; inter-agent ranges are added after the loop, which does not see them). One floor
-only (the issue's two floors are not simulated here).
+only: the issue's second floor (stairs, barometer) is not simulated here.
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
@@ -171,7 +175,8 @@ def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, floa
 def _door_offsets(length_m: float, spacing_m: float) -> FloatArray:
     """Doors ``spacing_m`` apart along a wall of ``length_m``, centred (one when it is shorter)."""
     n = max(1, int(np.floor(length_m / spacing_m)))
-    return (length_m - (n - 1) * spacing_m) / 2.0 + spacing_m * np.arange(n)
+    return np.asarray((length_m - (n - 1) * spacing_m) / 2.0 + spacing_m * np.arange(n),
+                      dtype=np.float64)
 
 
 def mission_tags(*, layout: str = "doors", door_spacing_m: float = 12.0) -> list[RfidTag]:
