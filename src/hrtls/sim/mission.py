@@ -194,7 +194,8 @@ def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, floa
 def _door_offsets(length_m: float, spacing_m: float) -> FloatArray:
     """Doors ``spacing_m`` apart along a wall of ``length_m``, centred (one when it is shorter)."""
     n = max(1, int(np.floor(length_m / spacing_m)))
-    return (length_m - (n - 1) * spacing_m) / 2.0 + spacing_m * np.arange(n)
+    return np.asarray((length_m - (n - 1) * spacing_m) / 2.0 + spacing_m * np.arange(n),
+                      dtype=np.float64)
 
 
 def mission_tags(*, layout: str = "doors", door_spacing_m: float = 12.0) -> list[RfidTag]:

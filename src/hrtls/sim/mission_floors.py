@@ -67,7 +67,7 @@ def _route_to(router: object, start: Waypoint, goal_xy: tuple[float, float], z_m
 def _floor_walk(free_space: object, rng: np.random.Generator, *, distance_m: float,
                 start: tuple[float, float], z_m: float) -> list[Waypoint]:
     """A random corridor walk from ``start`` at height ``z_m``, without its first point."""
-    wps = random_floorplan_walk(free_space, rng, distance_m=distance_m,  # type: ignore[arg-type]
+    wps = random_floorplan_walk(free_space, rng, distance_m=distance_m,
                                 start=start, stop_probability=0.1, stop_range_s=(2.0, 8.0),
                                 min_leg_m=3.0)
     return [dataclasses.replace(w, z=z_m) for w in wps[1:]]
