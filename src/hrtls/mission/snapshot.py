@@ -194,7 +194,8 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
                    for k, r in d["pending"].items()}
     mt.floor_logs = {k: FloorLog([float(v) for v in t], [int(v) for v in f])
                      for k, (t, f) in d.get("floor_logs", {}).items()} or mt.floor_logs
-    mt.node_floor = {n: int(f) for n, f in d.get("node_floor", {}).items()}
+    mt.node_floor = {n: int(f) for n, f in
+                     d.get("node_floor", dict.fromkeys(mt.estimates, 0)).items()}
 
 
 def mission_snapshot(mt: Any) -> bytes:
