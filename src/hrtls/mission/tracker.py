@@ -36,6 +36,9 @@ loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in wh
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
 the agent's filter is decided here).
+Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
+causal rows), a node is estimated from the readings of its floor (the floor most of them were
+taken on) and given with it, and an agent uses a node only while on its floor.
 With ``cooperate=False`` no node is ever given to an agent (each agent alone). Ranges to
 other agents (node id = an agent's name) go to :mod:`hrtls.mission.peers` (with cooperation).
 """

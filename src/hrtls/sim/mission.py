@@ -21,8 +21,16 @@ same radio model), tracked by :class:`hrtls.mission.robot.RobotTracker`. With
 on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
 unchanged). With ``rescuer_driver="planner"`` the rescuers walk, leg by leg, to the way points
 the planner picks from their trackers' estimates (:mod:`hrtls.sim.rescuer_loop`; robots then on
-random routes; inter-agent ranges are added after the loop, which does not see them). One floor
-only (the issue's two floors are not simulated here).
+random routes; inter-agent ranges are added after the loop, which does not see them).
+
+``n_floors = 2`` (default 1): the issue's two-floor building (:mod:`hrtls.sim.mission_floors`):
+floor 1 repeats the corridors 3.3 m up, a stairwell at the north-east corner joins them; nodes
+alternate between the floors (``N1`` floor 0, ``N2`` floor 1, ...), every tag is repeated on
+floor 1 (id suffix ``F1``, ``floor = 1``); each rescuer walks floor 0, climbs, walks floor 1
+(about half come down again) and carries a barometer (:func:`hrtls.sim.barometer.with_barometer`);
+the slab blocks the radio (ranges only to the nodes of the agent's floor); robots stay on floor
+0. :attr:`Mission.node_floor` holds each node's floor (scoring only). Not with planner-driven
+rescuers or peer ranges.
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
