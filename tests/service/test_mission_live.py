@@ -383,6 +383,10 @@ def test_a_two_floor_mission_live_equals_offline(make_live: Any, db_url: str) ->
     assert any(mission.node_floor[n] == 1 for n in loc), "no floor-1 node localized"
     assert got.node_floor == sim.node_floor
     assert {mission.node_floor[n] for n in loc} == {got.node_floor[n] for n in loc} == {0, 1}
+    with live.client(live.commander) as c:
+        infra = c.get(f"{API}/missions/{mid}/infrastructure").json()
+    by_id = {n["id"]: n for n in infra["nodes"]}
+    assert all(by_id[n]["floor"] == got.node_floor[n] for n in loc)
     for k, r in sim.agents.items():
         np.testing.assert_array_equal(r.trajectory.t, got.agents[k].trajectory.t)
         np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz,
