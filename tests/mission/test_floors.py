@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hrtls.data import Session
+from hrtls.errors import InputError
 from hrtls.mission.floors import FloorLog, node_floor
 from hrtls.mission.nodes import NodeEstimator
 from hrtls.mission.readings import NodeReadings
@@ -73,6 +74,14 @@ def test_a_node_is_never_estimated_from_readings_of_another_floor() -> None:
     assert est.localized
     np.testing.assert_allclose(est.position_m, [5.0, 5.0], atol=0.05)
     assert len(reads.ranges(15.0)) == 20                 # all floors: what the old loop used
+
+
+@pytest.mark.parametrize("options", [{"n_floors": 3}, {"n_floors": 0},
+                                     {"n_floors": 2, "peer_ranges": True},
+                                     {"n_floors": 2, "rescuer_driver": "planner"}])
+def test_two_floor_options_are_checked(options: dict[str, object]) -> None:
+    with pytest.raises(InputError):
+        MissionOptions(**options)  # type: ignore[arg-type]
 
 
 OPTIONS = MissionOptions(n_floors=2, walk_s=60.0, stagger_s=15.0, n_nodes=16, n_rescuers=2)
