@@ -52,6 +52,23 @@ def test_node_floor_is_the_floor_of_most_readings_ties_the_lowest() -> None:
     assert node_floor([-1, -1, 2]) == -1
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2), st.integers(-1, 2)), min_size=1, max_size=30))
+def test_the_readings_of_each_floor_partition_all_readings(reads: list[tuple[int, int]]) -> None:
+    nr = NodeReadings()
+    for k, (agent, floor) in enumerate(reads):
+        t = np.array([float(k)])
+        nr.add(agent=agent, t_s=t, rows=(t, np.array([[float(k), 0.0]]), np.eye(2)[None]),
+               range_m=np.array([1.0 + k]), sigma_m=np.array([0.1]),
+               floor=np.array([floor], dtype=np.int64))
+    parts = [nr.ranges(15.0, floor=f) for f in (-1, 0, 1, 2)]
+    assert sum(len(p) for p in parts) == len(nr.ranges(15.0)) == len(reads)
+    for f, p in zip((-1, 0, 1, 2), parts, strict=True):
+        want = [1.0 + k for k, (_, fl) in enumerate(reads) if fl == f]
+        assert sorted(p.range_m.tolist()) == want
+        assert sorted(p.agent_xy_m[:, 0].tolist()) == [w - 1.0 for w in want]
+
+
 def test_a_node_is_never_estimated_from_readings_of_another_floor() -> None:
     """Hand-built: 12 readings on floor 0 fit a node at (5, 5); 8 readings on floor 1 (an
     agent whose floor estimate is right there: another node id reused) fit (20, 5)."""
