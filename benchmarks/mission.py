@@ -27,6 +27,10 @@ the peers carried to a range's time with their velocity (``PeerRangeParams.extra
 of their uses (independent, second-order loop, direct), the NEES of the latest node used, their
 loop closures and their kind, pooled over the seeds (``benchmarks/_mission_nees.py``).
 
+``--floors 2``: the two-floor building (``MissionOptions.n_floors``); a second table gives per
+floor the nodes localized (and localized on the right floor) and their RMSE, the rescuers' share
+of time on the right floor and their error per floor (``benchmarks/_mission_floors.py``).
+
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
 the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
@@ -61,6 +65,8 @@ import numpy as np
 from scipy.stats import chi2
 
 from _engine import Batch, add_engine_options, parse_seeds
+from _mission_floors import KEYS as FLOOR_KEYS
+from _mission_floors import floor_scores, floor_table
 from _mission_nees import nees_split, nees_split_table
 from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
@@ -164,6 +170,8 @@ class ModeScores:
     solve_s: tuple[float, float] = (float("nan"), float("nan"))
     nees_split: dict[str, list[float]] = field(default_factory=dict)
     """Agents' NEES per bin of ``_mission_nees.nees_split``."""
+    floors: dict[str, float] = field(default_factory=dict)
+    """``_mission_floors.floor_scores`` (two floors only)."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -243,7 +251,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                true_agent_rmse(mission, tracker), _quarters(windows),
                                _quarters(agents_s), _quarters(nodes_s),
                                why_not_localized(mission, tracker, res), _solves(tracker),
-                               nees_split(mission, res))
+                               nees_split(mission, res),
+                               floor_scores(mission, res) if item.options.n_floors > 1 else {})
     return out
 
 
@@ -257,6 +266,8 @@ def main() -> None:
                     help="MissionOptions.tag_layout: tags at the entrance only or at the doors too")
     ap.add_argument("--door-spacing-m", type=float, default=MissionOptions().door_spacing_m,
                     help="MissionOptions.door_spacing_m (doors along each wall)")
+    ap.add_argument("--floors", type=int, choices=(1, 2), default=MissionOptions().n_floors,
+                    help="MissionOptions.n_floors (2: the two-floor building)")
     ap.add_argument("--range-sigma-m", type=float, default=0.1)
     ap.add_argument("--range-sigma-fraction", type=float, default=0.0,
                     help="range noise proportional to the distance (0.02: the issue's 2 %%)")
@@ -314,7 +325,8 @@ def main() -> None:
                           range_sigma_fraction=args.range_sigma_fraction,
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s,
                           robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver,
-                          tag_layout=args.tags, door_spacing_m=args.door_spacing_m)
+                          tag_layout=args.tags, door_spacing_m=args.door_spacing_m,
+                          n_floors=args.floors)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
@@ -323,6 +335,7 @@ def main() -> None:
     nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
     split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
+    floor_rows = {m: {k: [] for k in FLOOR_KEYS} for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
     for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m"):
@@ -366,6 +379,8 @@ def main() -> None:
             nees_all[mode].extend(m.node_nees)
             why[mode].append(m.why)
             split[mode].append(m.nees_split)
+            for k, v in m.floors.items():
+                floor_rows[mode][k].append(v)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
@@ -374,7 +389,7 @@ def main() -> None:
           f"{args.robots} robots "
           f"({args.robot_driver} driver), tags {args.tags}"
           f"{f' (doors {args.door_spacing_m:g} m apart)' if args.tags == 'doors' else ''}, "
-          f"{args.nodes} nodes, range sigma "
+          f"{args.nodes} nodes, {args.floors} floor(s), range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, rescuers' "
@@ -406,6 +421,10 @@ def main() -> None:
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "
               f"| {np.mean(r['n0']):.1f} / {np.mean(r['n1']):.1f} "
               f"| {np.mean(r['s0']):.1f} / {np.max(r['s1']):.1f} |")
+    if args.floors > 1:
+        print("\nfloors (benchmarks/_mission_floors.py), mean / p90 / worst over seeds (shares: "
+              "mean / p10 / lowest):\n")
+        print(floor_table(floor_rows))
     if args.nees_split:
         for mode, per_seed in split.items():
             print(f"\nagents' NEES by node use, cooperation {mode}, pooled over seeds "

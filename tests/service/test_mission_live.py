@@ -357,3 +357,39 @@ def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
         assert (v["position"] is None) == (not v["localized"]) == (v["reason"] != "")
         assert pushed[n]["localized"] == v["localized"] and pushed[n]["readings"] == heard[n]
         assert pushed[n]["declared"] == v["declared"]
+
+
+def test_a_two_floor_mission_live_equals_offline(make_live: Any, db_url: str) -> None:
+    """The two-floor building (``n_floors = 2``, no robot): the service's estimator gives the
+    offline run of the simulated sessions, the nodes' floors included."""
+    live = make_live(engine="local")
+    mission, members = network_team("inderst_hybrid_mission", seed=4, options={
+        **OPTIONS, "walk_s": 60.0, "n_robots": 0, "n_rescuers": 2, "n_floors": 2})
+    with AgentClient(live.url, live.commander) as commander:
+        mid, agents = create_network_mission(commander, "inderst_hybrid_mission", mission,
+                                             members, params=PARAMS)
+        offset = common_offset(commander, mid, members)
+    assert offset == 0.0
+    stream_agents(live.url, agents, offset)
+    runner = _runner(live)
+    _wait(runner, mid, done=False)
+    _close(live, mid)
+    _wait(runner, mid, done=True)
+    lm = runner.missions[mid]
+    with lm.lock:
+        got = lm.tracker.result()
+    sim = MissionTracker({str(aid): m.session for m, aid, _ in agents},
+                         config=preset(RESCUER_PRESET),
+                         kinds={str(aid): m.kind for m, aid, _ in agents}).run()
+    loc = _same_nodes(got, sim)
+    assert any(mission.node_floor[n] == 1 for n in loc), "no floor-1 node localized"
+    assert got.node_floor == sim.node_floor
+    assert {mission.node_floor[n] for n in loc} == {got.node_floor[n] for n in loc} == {0, 1}
+    with live.client(live.commander) as c:
+        infra = c.get(f"{API}/missions/{mid}/infrastructure").json()
+    by_id = {n["id"]: n for n in infra["nodes"]}
+    assert all(by_id[n]["floor"] == got.node_floor[n] for n in loc)
+    for k, r in sim.agents.items():
+        np.testing.assert_array_equal(r.trajectory.t, got.agents[k].trajectory.t)
+        np.testing.assert_allclose(r.trajectory.xyz, got.agents[k].trajectory.xyz,
+                                   atol=1e-12, rtol=0)

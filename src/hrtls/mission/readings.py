@@ -26,7 +26,10 @@ Rows = tuple[FloatArray, FloatArray, FloatArray]
 
 @dataclass
 class NodeReadings:
-    """Readings of one node: agent index, time, agent xy and covariance, range, sigma."""
+    """Readings of one node: agent index, time, agent xy and covariance, range, sigma, floor.
+
+    ``floor``: the agent's floor at each reading (:mod:`hrtls.mission.floors`).
+    """
 
     agent: list[int] = field(default_factory=list)
     t: list[float] = field(default_factory=list)
@@ -34,14 +37,15 @@ class NodeReadings:
     cov: list[FloatArray] = field(default_factory=list)
     r: list[float] = field(default_factory=list)
     s: list[float] = field(default_factory=list)
+    floor: list[int] = field(default_factory=list)
 
     def add(self, *, agent: int, t_s: FloatArray, rows: Rows, range_m: FloatArray,
-            sigma_m: FloatArray) -> float:
+            sigma_m: FloatArray, floor: NDArray[np.int64] | None = None) -> float:
         """Append readings at times ``t_s`` with the agent's ``rows`` there.
 
         Position linearly interpolated between rows (held at the ends); covariance of the first
-        row at or after the time (the last row beyond it). Returns the smallest covariance trace
-        among them, m^2.
+        row at or after the time (the last row beyond it); ``floor``: the agent's floor at each
+        (0 when None). Returns the smallest covariance trace among them, m^2.
         """
         t, xy, cov = rows
         ax = np.interp(t_s, t, xy[:, 0])
@@ -53,21 +57,29 @@ class NodeReadings:
         self.cov.extend(cov[j])
         self.r.extend(range_m.tolist())
         self.s.extend(sigma_m.tolist())
+        self.floor.extend([0] * len(t_s) if floor is None else np.asarray(floor).tolist())
         return float(np.min(np.trace(cov[j], axis1=1, axis2=2)))
 
-    def ranges(self, pass_gap_s: float) -> NodeRanges:
-        """The readings for :class:`~hrtls.mission.nodes.NodeEstimator`, grouped in passes."""
-        a = np.asarray(self.agent, dtype=np.int64)
-        t = np.asarray(self.t)
+    def ranges(self, pass_gap_s: float, *, floor: int | None = None) -> NodeRanges:
+        """The readings for :class:`~hrtls.mission.nodes.NodeEstimator`, grouped in passes.
+
+        ``floor``: only the readings taken on that floor (None: all).
+        """
+        m = (np.ones(len(self.t), dtype=bool) if floor is None
+             else np.asarray(self.floor, dtype=np.int64) == floor)
+        chain = np.asarray(self.agent, dtype=np.int64)[m]
+        a, t = chain, np.asarray(self.t)[m]
         order = np.lexsort((t, a))
         a, t = a[order], t[order]
         new_pass = np.ones(len(t), dtype=bool)
         new_pass[1:] = (a[1:] != a[:-1]) | (np.diff(t) > pass_gap_s)
         group = np.empty(len(t), dtype=np.int64)
         group[order] = np.cumsum(new_pass) - 1
-        return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
-                                range_m=self.r, range_sigma_m=self.s, group=group,
-                                chain=np.asarray(self.agent, dtype=np.int64))
+        return NodeRanges.build(
+            agent_xy_m=np.asarray(self.xy).reshape(-1, 2)[m],
+            agent_cov_m2=np.asarray(self.cov).reshape(-1, 2, 2)[m],
+            range_m=np.asarray(self.r)[m], range_sigma_m=np.asarray(self.s)[m], group=group,
+            chain=chain)
 
 
 def join_ranges(a: RangeMeasurements | None, b: RangeMeasurements | None

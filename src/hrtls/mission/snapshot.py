@@ -6,7 +6,9 @@ msgpack of plain values and raw arrays; nothing is pickled) holding a mapping wi
 parameters, each agent's header (metadata, landmarks as JSON), each rescuer's
 :meth:`hrtls.pipeline.Tracker.snapshot` bytes, each robot's EKF state, the agents' buffered data
 not yet processed, and the node side (readings, estimates, history, who contributed and who
-uses which node, loop closures, each agent's ranges pending until its rows cover them).
+uses which node, loop closures, each agent's ranges pending until its rows cover them, the
+agents' floor logs, the readings' and nodes' floors). Version 3 (before floors) still restores:
+its readings and nodes are on floor 0 and its agents' floor logs start empty (floor 0).
 
 A restored mission continues exactly as the original would: the same windows, node estimates
 and agent rows. The agents' rows produced before the snapshot are not in it (the service stores
@@ -32,6 +34,7 @@ from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
 from hrtls.mission import smoothing
+from hrtls.mission.floors import FloorLog
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
 from hrtls.mission.provenance import Provenance
@@ -42,7 +45,8 @@ from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker
 
 FORMAT = "hrtls-mission"
-MISSION_VERSION = 3
+MISSION_VERSION = 4
+READABLE_VERSIONS = (3, 4)
 """Layout of the mission mapping written by :func:`mission_snapshot`."""
 
 _ESTIMATE_FIELDS = tuple(f.name for f in dataclasses.fields(NodeEstimate))
@@ -145,7 +149,8 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
     return {
         "readings": {n: [np.asarray(r.agent, dtype=np.int64), np.asarray(r.t),
                          np.asarray(r.xy).reshape(-1, 2), np.asarray(r.cov).reshape(-1, 2, 2),
-                         np.asarray(r.r), np.asarray(r.s)] for n, r in mt.readings.items()},
+                         np.asarray(r.r), np.asarray(r.s), np.asarray(r.floor, dtype=np.int64)]
+                     for n, r in mt.readings.items()},
         "estimates": {n: [getattr(e, f) for f in _ESTIMATE_FIELDS]
                       for n, e in mt.estimates.items()},
         "contrib": {n: sorted(v) for n, v in mt.contrib.items()},
@@ -159,6 +164,8 @@ def _nodes_state(mt: Any) -> dict[str, Any]:
         "peer_use": [[i, n, t, c] for (i, n), (t, c) in mt.peers.uses.items()],
         "pending": {k: None if r is None else [r.t, r.node.astype(str), r.range_m, r.sigma_m]
                     for k, r in mt.pending.items()},
+        "floor_logs": {k: [log.t, log.floor] for k, log in mt.floor_logs.items()},
+        "node_floor": dict(mt.node_floor),
     }
 
 
@@ -166,9 +173,10 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
     from hrtls.mission.peers import PeerUses
     from hrtls.mission.tracker import LoopClosure
 
-    for n, (a, t, xy, cov, r, s) in d["readings"].items():
+    for n, (a, t, xy, cov, r, s, *fl) in d["readings"].items():
         mt.readings[n] = NodeReadings(a.tolist(), t.tolist(), list(xy), list(cov),
-                                       r.tolist(), s.tolist())
+                                       r.tolist(), s.tolist(),
+                                       fl[0].tolist() if fl else [0] * len(t))
     mt.estimates = {n: NodeEstimate(*v) for n, v in d["estimates"].items()}
     mt.contrib = {n: set(v) for n, v in d["contrib"].items()}
     mt.users = {n: set(v) for n, v in d["users"].items()}
@@ -184,6 +192,10 @@ def _restore_nodes(mt: Any, d: dict[str, Any]) -> None:
                          for i, n, t, c in d.get("peer_use", [])})
     mt.pending = {k: None if r is None else RangeMeasurements(*r)
                    for k, r in d["pending"].items()}
+    mt.floor_logs = {k: FloorLog([float(v) for v in t], [int(v) for v in f])
+                     for k, (t, f) in d.get("floor_logs", {}).items()} or mt.floor_logs
+    mt.node_floor = {n: int(f) for n, f in
+                     d.get("node_floor", dict.fromkeys(mt.estimates, 0)).items()}
 
 
 def mission_snapshot(mt: Any) -> bytes:
@@ -219,9 +231,10 @@ def restore_mission(data: bytes) -> Any:
     if d.get("format") != FORMAT:
         raise FormatError(f"format {d.get('format')!r}", where="mission snapshot",
                           expected="bytes from MissionTracker.snapshot()")
-    if d.get("mission_version") != MISSION_VERSION:
+    if d.get("mission_version") not in READABLE_VERSIONS:
         raise FormatError(f"mission snapshot version {d.get('mission_version')}",
-                          where="mission snapshot", expected=f"version {MISSION_VERSION}")
+                          where="mission snapshot",
+                          expected="version " + " or ".join(map(str, READABLE_VERSIONS)))
     try:
         prm = dict(d["params"])
         prm["nodes"] = NodeEstimatorParams(**prm["nodes"])

@@ -36,6 +36,9 @@ loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in wh
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
 the agent's filter is decided here).
+Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
+causal rows), a node is estimated from the readings of its floor (the floor most of them were
+taken on) and given with it, and an agent uses a node only while on its floor.
 With ``cooperate=False`` no node is ever given to an agent (each agent alone). Ranges to
 other agents (node id = an agent's name) go to :mod:`hrtls.mission.peers` (with cooperation).
 """
@@ -56,11 +59,13 @@ from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
 from hrtls.mission import smoothing
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
+from hrtls.mission.floors import FloorLog, building_floor_height_m, node_floor
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.provenance import NodeUse, Provenance, UsePool, widening
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
+from hrtls.mission.records import LoopClosure, NodeTrack, Progress
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
@@ -124,30 +129,6 @@ class MissionParams:
                              where="MissionParams", expected=">= 1 (inf: never)")
 
 
-@dataclass(frozen=True)
-class LoopClosure:
-    """A contributor starting to use its node.
-
-    ``t``: time of the agent's row the decision used; covariance traces (m^2) of that row and
-    the smallest at the agent's readings of the node.
-    """
-
-    t: float
-    agent: str
-    node: str
-    trace_now_m2: float
-    trace_readings_m2: float
-
-
-@dataclass(frozen=True, eq=False)
-class NodeTrack:
-    """A node's estimate over the mission."""
-
-    t: FloatArray
-    position_m: FloatArray
-    covariance_m2: FloatArray
-
-
 @dataclass(frozen=True, eq=False)
 class MissionResult:
     """Per-agent results, the final node estimates and each node's history (localized rows).
@@ -164,6 +145,8 @@ class MissionResult:
     readings: dict[str, int] = field(default_factory=dict)
     closures: list[LoopClosure] = field(default_factory=list)
     uses: list[NodeUse] = field(default_factory=list)
+    node_floor: dict[str, int] = field(default_factory=dict)
+    """Each estimated node's floor (:mod:`hrtls.mission.floors`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,19 +155,6 @@ class AgentHeader:
 
     meta: SessionMeta
     landmarks: dict[str, Landmark] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class Progress:
-    """What :meth:`MissionTracker.advance` did.
-
-    ``windows``: windows processed; ``horizon_s``: end of the last processed window, s;
-    ``changed``: the nodes re-localized in them.
-    """
-
-    windows: int
-    horizon_s: float
-    changed: tuple[str, ...]
 
 
 def _known_ids(header: AgentHeader) -> list[str]:
@@ -259,6 +229,10 @@ class MissionTracker:
         self.peers = PeerUses()
         self.prov = Provenance()
         self.smoother = smoothing.SmootherState() if self.params.smoother else None
+        self.floor_logs = {k: FloorLog() for k in self.names}
+        self.node_floor: dict[str, int] = {}
+        self.floor_height_m = building_floor_height_m(
+            [self.headers[k].meta.floor_height_m for k in self.names if self.kinds[k] == "rescuer"])
         for k, a in agents.items():
             if isinstance(a, Session):
                 self.feed(k, a, now_s=now_s)
@@ -405,7 +379,7 @@ class MissionTracker:
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
         readings = {n: len(r.r) for n, r in self.readings.items()}
         return MissionResult(results, dict(self.estimates), hist, contributors, readings,
-                             list(self.closures), list(self.prov.uses))
+                             list(self.closures), list(self.prov.uses), dict(self.node_floor))
 
     def step(self, t_start: float, t_end: float) -> None:
         """One common window: feed every agent, then update the nodes and share them."""
@@ -455,9 +429,12 @@ class MissionTracker:
             if not grown:
                 continue
             self.estimated_at[node] = n_now
-            obs = self.readings[node].ranges(self.params.pass_gap_s)
+            floor = node_floor(self.readings[node].floor)
+            obs = self.readings[node].ranges(self.params.pass_gap_s, floor=floor)
             prev = self.estimates.get(node)
-            init = prev.position_m if prev is not None and prev.localized else None
+            init = (prev.position_m if prev is not None and prev.localized
+                    and self.node_floor.get(node, 0) == floor else None)
+            self.node_floor[node] = floor
             est = self.estimator.estimate(obs, initial_m=init)
             if not est.localized and init is not None:
                 est = self.estimator.estimate(obs)
@@ -494,7 +471,8 @@ class MissionTracker:
 
     def _usable(self, i: int, node: str) -> bool:
         """A node localized by the mission that agent ``i`` may use (see module doc)."""
-        if not (self.params.cooperate and node in self.given[i]):
+        if not (self.params.cooperate and node in self.given[i]) or \
+                self.node_floor.get(node, 0) != self.floor_logs[self.names[i]].now():
             return False
         if i not in self.contrib.get(node, set()) or i in self.users.get(node, set()):
             return True
@@ -538,6 +516,7 @@ class MissionTracker:
         last window); None before its first row.
         """
         est = self.trackers[name].estimates_since(self.rows_pulled_s[name])
+        self.floor_logs[name].add(est.t, est.floor)
         if len(est) > 1:
             self.rows_pulled_s[name] = float(est.t[-2])
         rows = merge_rows(self.recent_rows[name], (est.t, est.xyz[:, :2], est.cov_xy))
@@ -574,7 +553,8 @@ class MissionTracker:
                 continue
             m = now.node == n
             tr = self.readings.setdefault(node, NodeReadings()).add(
-                agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m])
+                agent=i, t_s=now.t[m], rows=rows, range_m=now.range_m[m], sigma_m=now.sigma_m[m],
+                floor=self.floor_logs[name].at(now.t[m]))
             self.contrib.setdefault(node, set()).add(i)
             self.prov.read(i, node)
             self.contrib_trace[(i, node)] = min(self.contrib_trace.get((i, node), math.inf), tr)
@@ -587,9 +567,10 @@ class MissionTracker:
             est = self.estimates[node]
             v = self.versions[node]
             sigma = float(np.sqrt(self._node_var(node)))
-            lm = Landmark(id=node, kind="node", floor=0, accuracy_m=max(sigma, 1e-6),
-                          position=(float(est.position_m[0]), float(est.position_m[1]), 0.0),
-                          updated=t)
+            f = self.node_floor.get(node, 0)
+            lm = Landmark(id=node, kind="node", floor=f, accuracy_m=max(sigma, 1e-6),
+                          position=(float(est.position_m[0]), float(est.position_m[1]),
+                                    f * self.floor_height_m), updated=t)
             for i, name in enumerate(self.names):
                 if self.given[i].get(node) == v:
                     continue

@@ -94,11 +94,12 @@ class LiveMission:
 
 
 def node_json(node: str, est: NodeEstimate | None, *, readings: int, passes: int,
-              t_s: float) -> dict[str, Any]:
-    """A node's state as stored and published (planar: floor 0, no z).
+              t_s: float, floor: int = 0) -> dict[str, Any]:
+    """A node's state as stored and published (planar: no z; its floor when localized).
 
-    ``est`` None: heard, not yet estimated (too few readings); ``passes``: groups of readings
-    sharing one agent error (:meth:`NodeReadings.ranges`); ``t_s``: mission time of the window
+    ``floor``: the mission's floor of the node (:mod:`hrtls.mission.floors`); ``est`` None:
+    heard, not yet estimated (too few readings); ``passes``: groups of readings sharing one
+    agent error (:meth:`NodeReadings.ranges`); ``t_s``: mission time of the window
     end the state is from (for a localized node, that of its newest estimate).
     """
     ok = est is not None and bool(est.localized)
@@ -110,7 +111,7 @@ def node_json(node: str, est: NodeEstimate | None, *, readings: int, passes: int
             "covariance_m2": cov.tolist() if ok and cov is not None else None,
             "sigma_m": float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
             if ok and cov is not None else None,
-            "floor": 0 if ok else None, "seed": False}
+            "floor": floor if ok else None, "seed": False}
 
 
 def network_nodes(db: DbSession, mission_id: int) -> list[dict[str, Any]] | None:
@@ -315,7 +316,8 @@ class MissionRunner:
             hist = tr.history.get(n)
             t_s = hist[-1][0] if est is not None and est.localized and hist else tr.horizon_s
             passes = len(np.unique(tr.readings[n].ranges(tr.params.pass_gap_s).group))
-            items[n] = node_json(n, est, readings=counts[n], passes=passes, t_s=t_s)
+            items[n] = node_json(n, est, readings=counts[n], passes=passes, t_s=t_s,
+                                 floor=tr.node_floor.get(n, 0))
         with self.sessions() as db, db.begin():
             net = db.get(MissionNetwork, lm.mission_id)
             if net is None:

@@ -25,8 +25,16 @@ same radio model; no tag reader), tracked by :class:`hrtls.mission.robot.RobotTr
 on the mission tracker's estimates (:mod:`hrtls.sim.planner_loop`; the rescuers' walks are
 unchanged). With ``rescuer_driver="planner"`` the rescuers walk, leg by leg, to the way points
 the planner picks from their trackers' estimates (:mod:`hrtls.sim.rescuer_loop`; robots then on
-random routes; inter-agent ranges are added after the loop, which does not see them). One floor
-only: the issue's second floor (stairs, barometer) is not simulated here.
+random routes; inter-agent ranges are added after the loop, which does not see them).
+
+``n_floors = 2`` (default 1): the issue's two-floor building (:mod:`hrtls.sim.mission_floors`):
+floor 1 repeats the corridors 3.3 m up, a stairwell at the north-east corner joins them; nodes
+alternate between the floors (``N1`` floor 0, ``N2`` floor 1, ...), every tag is repeated on
+floor 1 (id suffix ``F1``, ``floor = 1``); each rescuer walks floor 0, climbs, walks floor 1
+(about half come down again) and carries a barometer (:func:`hrtls.sim.barometer.with_barometer`);
+the slab blocks the radio (ranges only to the nodes of the agent's floor); robots stay on floor
+0. :attr:`Mission.node_floor` holds each node's floor (scoring only). Not with planner-driven
+rescuers or peer ranges.
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
@@ -55,6 +63,16 @@ from hrtls.frames import wrap_angle
 from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
+from hrtls.sim.mission_floors import (
+    FLOOR_HEIGHT_M,
+    NODE_HEIGHT_M,
+    STAIR_MOTION,
+    floor_of_height,
+    floor_tags,
+    slab_ranges,
+    spread_nodes,
+    two_floor_walk,
+)
 from hrtls.sim.motion_truth import MotionTruth, random_floorplan_walk, simulate_motion
 from hrtls.sim.peers import peer_ranges
 from hrtls.sim.person import Infrastructure, simulate_person
@@ -112,8 +130,19 @@ class MissionOptions:
     office door of the room blocks' walls (:func:`mission_tags`)."""
     door_spacing_m: float = 12.0
     """Distance between doors along a wall (every other door of a 6 m office module)."""
+    n_floors: int = 1
+    """1: one floor; 2: the two-floor building of :mod:`hrtls.sim.mission_floors` (nodes
+    alternate between the floors, tags on both, rescuers climb the stairs, robots stay on
+    floor 0, rescuers carry a barometer)."""
 
     def __post_init__(self) -> None:
+        if self.n_floors not in (1, 2):
+            raise InputError(f"n_floors = {self.n_floors}", where="MissionOptions",
+                             expected="1 or 2")
+        if self.n_floors > 1 and (self.rescuer_driver != "random" or self.peer_ranges):
+            raise InputError("n_floors = 2 with planner-driven rescuers or peer ranges",
+                             where="MissionOptions",
+                             expected="random rescuer routes and no peer ranges on two floors")
         if self.tag_layout not in ("entrance", "doors"):
             raise InputError(f"tag_layout = {self.tag_layout!r}", where="MissionOptions",
                              expected="entrance or doors")
@@ -160,6 +189,8 @@ class Mission:
     seed: int = 0
     kinds: dict[str, Literal["rescuer", "robot"]] = dataclasses.field(default_factory=dict)
     """Agent kind by name (``rescuer`` when missing)."""
+    node_floor: dict[str, int] = dataclasses.field(default_factory=dict)
+    """True floor of each node (scoring only; 0 when missing)."""
 
 
 def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, float, float]]:
@@ -221,8 +252,11 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     o = options or MissionOptions()
     r = scenario_rngs(seed)
     nodes = _drop_nodes(r[7], o.n_nodes)
+    if o.n_floors > 1:
+        nodes = spread_nodes(nodes, o.n_floors)
     alive = {k: v for k, v in nodes.items() if r[7].random() >= o.node_failure_fraction}
-    tags = mission_tags(layout=o.tag_layout, door_spacing_m=o.door_spacing_m)
+    tags = floor_tags(mission_tags(layout=o.tag_layout, door_spacing_m=o.door_spacing_m),
+                      o.n_floors)
     sites = np.column_stack([r[7].uniform(0, 60, 15), r[7].uniform(0, 30, 15), np.full(15, 0.8)])
     model = RangeModel(rate_hz=1.0, sigma_m=o.range_sigma_m,
                        sigma_fraction=o.range_sigma_fraction, max_range_m=o.max_range_m,
@@ -234,6 +268,11 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
     magnetic = MagneticEnvironment(anomalies=random_anomalies(r[7], sites))  # one building
     for i in range(o.n_rescuers):
         rr = scenario_rngs(seed * 1000 + 17 * (i + 1))
+        if o.n_floors > 1:
+            agents[f"R{i + 1}"], sims[f"R{i + 1}"] = _climbing_rescuer(
+                seed, i, o, rr, magnetic, Infrastructure(tags=tags, nodes=alive,
+                                                         range_model=model))
+            continue
         wps = random_floorplan_walk(FREE_SPACE, rr[0], distance_m=o.walk_s * 1.15,
                                     start=ENTRANCE_XY, stop_probability=0.1,
                                     stop_range_s=(2.0, 8.0), min_leg_m=3.0)
@@ -248,6 +287,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         sims[f"R{i + 1}"] = sim
     kinds: dict[str, Literal["rescuer", "robot"]] = dict.fromkeys(agents, "rescuer")
     rescuers = dict(agents)
+    alive = {k: v for k, v in alive.items() if v[2] < FLOOR_HEIGHT_M / 2}   # robots: floor 0
     for i in range(o.n_robots):
         name = f"B{i + 1}"
         if o.robot_driver == "planner":
@@ -268,8 +308,35 @@ def _finish(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, f
         agents = peer_ranges(agents, peer_model, scenario_rngs(seed * 1000 + 999)[6])
         sims = {k: dataclasses.replace(v, session=agents[k]) for k, v in sims.items()}
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
+    floors = {k: int(floor_of_height(v[2] - NODE_HEIGHT_M)) for k, v in nodes.items()}
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
-                   kinds=kinds)
+                   kinds=kinds, node_floor=floors)
+
+
+def _climbing_rescuer(seed: int, i: int, o: MissionOptions, rr: list[np.random.Generator],
+                      magnetic: MagneticEnvironment, infra: Infrastructure
+                      ) -> tuple[Session, SimulationResult]:
+    """Rescuer ``i`` of the two-floor building (:mod:`hrtls.sim.mission_floors`)."""
+    from hrtls.sim.barometer import with_barometer
+    from hrtls.sim.robot_driver import CorridorRouter, DriverParams
+
+    router = CorridorRouter(FREE_SPACE, grid_m=DriverParams().grid_m,
+                            margin_m=DriverParams().margin_m)
+    wps = two_floor_walk(FREE_SPACE, router, rr[0], distance_m=o.walk_s * 1.15,
+                         start=ENTRANCE_XY)
+    sim = simulate_person(
+        "inderst_hybrid_mission", seed, {"rescuer": i}, wps, device=get_device("inemo"),
+        motion_params=STAIR_MOTION, magnetic=magnetic,
+        infra=dataclasses.replace(infra, nodes={}), floor_height_m=FLOOR_HEIGHT_M,
+        description=f"hybrid mission, rescuer {i + 1} of {o.n_rescuers}, two floors",
+        start_pause_s=3.0 + i * o.stagger_s, rngs=rr)
+    assert sim.motion is not None and infra.range_model is not None
+    ranges = slab_ranges(infra.nodes, infra.range_model, sim.motion, rr[6])
+    sim = with_barometer(sim)
+    known = {k: lm for k, lm in sim.session.landmarks.items() if lm.kind != "node"}
+    session = sim.session.with_parts(ranges=ranges)
+    session = dataclasses.replace(session, landmarks=known)
+    return session, dataclasses.replace(sim, session=session)
 
 
 def _driven_team(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
