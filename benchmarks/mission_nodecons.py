@@ -71,7 +71,7 @@ def node_rows(data: dict[str, Any], prm: NodeEstimatorParams) -> list[dict[str, 
     est = NodeEstimator(prm)
     rows = []
     for nd in data["nodes"].values():
-        obs: NodeRanges = nd["obs"]
+        obs: NodeRanges = replace(nd["obs"], t_s=nd["t"])
         e = est.estimate(obs)
         row: dict[str, float] = {"localized": float(e.localized)}
         if e.localized:

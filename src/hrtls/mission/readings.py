@@ -67,7 +67,8 @@ class NodeReadings:
         group[order] = np.cumsum(new_pass) - 1
         return NodeRanges.build(agent_xy_m=np.asarray(self.xy), agent_cov_m2=np.asarray(self.cov),
                                 range_m=self.r, range_sigma_m=self.s, group=group,
-                                chain=np.asarray(self.agent, dtype=np.int64))
+                                chain=np.asarray(self.agent, dtype=np.int64),
+                                t_s=np.asarray(self.t))
 
 
 def join_ranges(a: RangeMeasurements | None, b: RangeMeasurements | None
