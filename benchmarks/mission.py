@@ -279,6 +279,10 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--range-correlation-s", type=float, default=None,
+                    help="NodeEstimatorParams.range_correlation_s (default: its default)")
+    ap.add_argument("--max-mirror-passes", type=int, default=None,
+                    help="NodeEstimatorParams.max_mirror_passes (default: its default)")
     ap.add_argument("--loop-closure-ratio", type=float, default=None,
                     help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
     ap.add_argument("--no-pass-cap", action="store_true",
@@ -329,7 +333,8 @@ def main() -> None:
     split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
-    for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m"):
+    for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m", "range_correlation_s",
+                "max_mirror_passes"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,

@@ -274,6 +274,37 @@ def pass_inflation(*, n: int, span_s: float, tau_s: float) -> float:
     return n * (1.0 + rho) / (n * (1.0 - rho) + 2.0 * rho)
 
 
+def drift_variance(cov_m2: FloatArray, t_s: FloatArray) -> FloatArray:
+    """Variance of a pass's agent errors about the error at its middle reading, per reading.
+
+    An agent's error drifts during a pass: at reading ``k`` it is the error at the middle
+    reading ``m`` plus the drift accumulated in between, whose covariance is the growth of the
+    agent's own covariance over that interval, ``Q_k = [sign(t_k - t_m) (P_k - P_m)]+`` (the
+    positive semi-definite part; 0 where a correction shrank it). Returns ``tr(Q_k) / 2``, the
+    variance along a direction averaged over directions, m^2 (``cov_m2`` ``(n, 2, 2)``).
+    """
+    n = t_s.shape[0]
+    if n < 2:
+        return np.zeros(n)
+    mid = int(np.argsort(t_s, kind="stable")[n // 2])
+    d = np.sign(t_s - t_s[mid])[:, None, None] * (cov_m2 - cov_m2[mid])
+    w = np.linalg.eigvalsh(0.5 * (d + np.swapaxes(d, 1, 2)))
+    return np.asarray(0.5 * np.sum(np.maximum(w, 0.0), axis=1), dtype=np.float64)
+
+
+def _drift(obs: NodeRanges, use: BoolArray) -> FloatArray:
+    """:func:`drift_variance` of each kept reading in its pass (zeros without times)."""
+    k = int(np.count_nonzero(use))
+    if obs.t_s is None:
+        return np.zeros(k)
+    out = np.zeros(k)
+    grp, t, cov = obs.group[use], obs.t_s[use], obs.agent_cov_m2[use]
+    for g in np.unique(grp).tolist():
+        m = grp == g
+        out[m] = drift_variance(cov[m], t[m])
+    return out
+
+
 def _inflation(obs: NodeRanges, use: BoolArray, tau_s: float) -> FloatArray:
     """:func:`pass_inflation` of each kept reading's pass (ones without times)."""
     k = int(np.count_nonzero(use))
@@ -324,7 +355,7 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, prm: NodeEstimatorPa
     """Joint Gauss-Newton over the node and the offset increments (Levenberg damping)."""
     a = obs.agent_xy_m[use]
     r = obs.range_m[use]
-    s0 = obs.range_sigma_m[use]
+    s0 = np.sqrt(obs.range_sigma_m[use] ** 2 + _drift(obs, use))   # range noise + drift
     s = s0 * np.sqrt(_inflation(obs, use, prm.range_correlation_s))   # weights of the solve
     off = _offsets(obs, use, prm)
     max_iterations = prm.max_iterations
