@@ -21,6 +21,15 @@ The node's covariance is the ``p`` block of the inverse normal matrix, i.e. the 
 with every pass's offset marginalized out (the sandwich form of the correlated errors). Passes of
 different chains (agents) are taken as independent.
 
+The range term of reading ``k`` has two more parts when the readings carry their times. The
+offset is the agent's error at the pass's middle reading; its error at ``k`` differs by the drift
+in between, of variance ``q_k`` from the growth of the agent's own covariance
+(:func:`drift_variance`), so ``s_k^2 = sigma_k^2 + q_k``. The range errors of one pass (the same
+walls between agent and node, the antennas' height difference) are correlated in time, a
+first-order autoregressive sequence of correlation time ``range_correlation_s``: each reading's
+variance is multiplied by :func:`pass_inflation`, so that a pass of many readings carries the
+information of its effectively independent ones, not of its count.
+
 Checks before a node counts as localized:
 
 * enough ranges and passes, and agent positions that are not collinear;
