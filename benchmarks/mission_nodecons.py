@@ -9,7 +9,8 @@ pooled), split by chains and passes, and the error sources of the module doc of
 :mod:`hrtls.mission.nodes`.
 
     python benchmarks/mission_nodecons.py dump --seeds 0-9 --out /tmp/nc
-    python benchmarks/mission_nodecons.py report --seeds 0-9 --out /tmp/nc
+    python benchmarks/mission_nodecons.py report --seeds 0-9 --out /tmp/nc [--no-times]
+        [--set max_mirror_passes=2 range_correlation_s=0 ...]
 """
 
 from __future__ import annotations
@@ -66,12 +67,14 @@ def _nees(d: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return np.einsum("ki,kij,kj->k", d, np.linalg.inv(cov), d)
 
 
-def node_rows(data: dict[str, Any], prm: NodeEstimatorParams) -> list[dict[str, float]]:
-    """One row per node with readings: localized, error, NEES, chains, passes and sources."""
+def node_rows(data: dict[str, Any], prm: NodeEstimatorParams, *, times: bool = True
+              ) -> list[dict[str, float]]:
+    """One row per node with readings: localized, error, NEES, chains, passes and sources
+    (``times``: the readings with their times, else without: no drift, no autocorrelation)."""
     est = NodeEstimator(prm)
     rows = []
     for nd in data["nodes"].values():
-        obs: NodeRanges = replace(nd["obs"], t_s=nd["t"])
+        obs: NodeRanges = replace(nd["obs"], t_s=nd["t"] if times else None)
         e = est.estimate(obs)
         row: dict[str, float] = {"localized": float(e.localized)}
         if e.localized:
@@ -132,7 +135,8 @@ def agent_nees(data: dict[str, Any]) -> np.ndarray:
     return np.concatenate(out)
 
 
-def report(seeds: list[int], out: Path, prm: NodeEstimatorParams) -> None:
+def report(seeds: list[int], out: Path, prm: NodeEstimatorParams, *, times: bool = True
+           ) -> None:
     """Per seed and pooled: localized, RMSE, NEES; split by chains; error sources."""
     allrows: list[dict[str, float]] = []
     per = {"frac": [], "rmse": [], "nees": []}
@@ -140,7 +144,7 @@ def report(seeds: list[int], out: Path, prm: NodeEstimatorParams) -> None:
     for seed in seeds:
         with open(out / f"seed{seed}.pkl", "rb") as f:
             data = pickle.load(f)
-        rows = node_rows(data, prm)
+        rows = node_rows(data, prm, times=times)
         anees.append(float(np.mean(agent_nees(data))))
         loc = [r for r in rows if r["localized"]]
         allrows += loc
@@ -186,6 +190,9 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-9")
     ap.add_argument("--out", default="/tmp/nc")
     ap.add_argument("--range-sigma-fraction", type=float, default=0.0)
+    ap.add_argument("--no-times", action="store_true",
+                    help="readings without their times (the estimator before the drift and "
+                         "autocorrelation terms; with --set max_mirror_passes=2: as before)")
     ap.add_argument("--set", nargs="*", default=[],
                     help="NodeEstimatorParams overrides, e.g. agent_cov_scale=4")
     args = ap.parse_args()
@@ -201,7 +208,7 @@ def main() -> None:
         for kv in args.set:
             k, v = kv.split("=")
             prm = replace(prm, **{k: type(getattr(prm, k))(float(v))})
-        report(parse_seeds(args.seeds), out, prm)
+        report(parse_seeds(args.seeds), out, prm, times=not args.no_times)
 
 
 if __name__ == "__main__":
