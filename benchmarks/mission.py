@@ -33,7 +33,8 @@ of time on the right floor and their error per floor (``benchmarks/_mission_floo
 
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
-the seeds; ``--only-on``: cooperation on only. ``--no-magnetometer`` / ``--no-hard-iron-fit``:
+the seeds; ``--only-on`` / ``--only-off``: cooperation on / off only.
+``--no-magnetometer`` / ``--no-hard-iron-fit``:
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
 their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
 gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
@@ -142,10 +143,15 @@ class SeedItem:
     """``MissionParams.loop_closure_ratio`` (None: its default)."""
     pass_cap: bool = True
     """``MissionParams.pass_cap``."""
+    only_off: bool = False
+    """Cooperation off only (the ``on`` column skipped)."""
 
 
-def modes(peers: bool, only_on: bool = False) -> tuple[str, ...]:
-    """The columns compared: cooperation off / on (``only_on``: on), or peer ranges off / on."""
+def modes(peers: bool, only_on: bool = False, only_off: bool = False) -> tuple[str, ...]:
+    """The columns compared: cooperation off / on (``only_on``: on, ``only_off``: off), or peer
+    ranges off / on."""
+    if only_off and not peers:
+        return ("off",)
     return ("no peers", "peers") if peers else ("on",) if only_on else ("off", "on")
 
 
@@ -229,7 +235,7 @@ def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
 def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     """Scores of one seed with cooperation ``off`` and ``on``."""
     out: dict[str, ModeScores] = {}
-    for mode in modes(item.peers, item.only_on):
+    for mode in modes(item.peers, item.only_on, item.only_off):
         peers = mode == "peers"
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
@@ -288,6 +294,10 @@ def main() -> None:
                     help="NodeEstimatorParams.agent_cov_scale (default: its default)")
     ap.add_argument("--agent-correlation", type=float, default=None,
                     help="NodeEstimatorParams.agent_correlation (default: its default)")
+    ap.add_argument("--range-correlation-s", type=float, default=None,
+                    help="NodeEstimatorParams.range_correlation_s (default: its default)")
+    ap.add_argument("--max-mirror-passes", type=int, default=None,
+                    help="NodeEstimatorParams.max_mirror_passes (default: its default)")
     ap.add_argument("--loop-closure-ratio", type=float, default=None,
                     help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
     ap.add_argument("--no-pass-cap", action="store_true",
@@ -304,6 +314,8 @@ def main() -> None:
                     help="also print the agents' NEES split by node use (benchmarks/_mission_nees)")
     ap.add_argument("--only-on", action="store_true",
                     help="cooperation on only (the off column skipped: half the time)")
+    ap.add_argument("--only-off", action="store_true",
+                    help="cooperation off only (the on column skipped)")
     ap.add_argument("--smoother", action="store_true",
                     help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
     ap.add_argument("--no-magnetometer", action="store_true",
@@ -327,18 +339,20 @@ def main() -> None:
                           robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver,
                           tag_layout=args.tags, door_spacing_m=args.door_spacing_m,
                           n_floors=args.floors)
+    cols = modes(args.peer_ranges, args.only_on, args.only_off)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
             "n1": [], "s0": [], "s1": []}
-        for m in modes(args.peer_ranges, args.only_on)}
-    nees_all: dict[str, list[float]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
-    why: dict[str, list[dict[str, int]]] = {m: [] for m in modes(args.peer_ranges, args.only_on)}
+        for m in cols}
+    nees_all: dict[str, list[float]] = {m: [] for m in cols}
+    why: dict[str, list[dict[str, int]]] = {m: [] for m in cols}
     split: dict[str, list[dict[str, list[float]]]] = {m: [] for m in why}
     floor_rows = {m: {k: [] for k in FLOOR_KEYS} for m in why}
     t0 = time.perf_counter()
     nodes = NodeEstimatorParams()
-    for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m"):
+    for key in ("agent_cov_scale", "agent_correlation", "max_sigma_m", "range_correlation_s",
+                "max_mirror_passes"):
         if getattr(args, key) is not None:
             nodes = replace(nodes, **{key: getattr(args, key)})
     prediction = {"q_along": args.q_along,
@@ -354,10 +368,11 @@ def main() -> None:
         attitude["mag_heading"] = {**attitude.get("mag_heading", {}), "offset_model": "consider"}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
-                      attitude, args.loop_closure_ratio, not args.no_pass_cap)
+                      attitude, args.loop_closure_ratio, not args.no_pass_cap,
+                      only_off=args.only_off)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
-        for mode in modes(args.peer_ranges, args.only_on):
+        for mode in cols:
             m = scores[mode]
             r = rows[mode]
             r["mean"].append(m.mean)
@@ -402,7 +417,7 @@ def main() -> None:
           "| node NEES (mean; 95 % bounds) | node RMSE from true agent positions, m "
           "| robot error p90, m |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for mode in modes(args.peer_ranges, args.only_on):
+    for mode in cols:
         r = rows[mode]
         n = len(nees_all[mode])
         lo, hi = (chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n) if n else (0, 0)
@@ -415,7 +430,7 @@ def main() -> None:
     print("| cooperation | window | agents (trackers + collection) | node re-estimation "
           "| smoother solve, s (mean / largest) |")
     print("|---|---|---|---|---|")
-    for mode in modes(args.peer_ranges, args.only_on):
+    for mode in cols:
         r = rows[mode]
         print(f"| {mode} | {np.mean(r['w0']):.1f} / {np.mean(r['w1']):.1f} "
               f"| {np.mean(r['a0']):.1f} / {np.mean(r['a1']):.1f} "

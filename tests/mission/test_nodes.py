@@ -12,7 +12,14 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from hrtls.errors import InputError
-from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams, NodeRanges, _offsets
+from hrtls.mission.nodes import (
+    NodeEstimator,
+    NodeEstimatorParams,
+    NodeRanges,
+    _offsets,
+    drift_variance,
+    pass_inflation,
+)
 
 EXACT = NodeEstimatorParams(agent_cov_scale=1.0, agent_correlation=0.0)
 """Synthetic passes: the agents' covariances are exact and their errors independent."""
@@ -329,3 +336,93 @@ def test_two_passes_that_disagree_beyond_their_covariance_fail_the_fit(
                               range_sigma_m=obs.range_sigma_m, group=obs.group)
     good = NodeEstimator(EXACT).estimate(honest)
     assert good.localized, good.reason
+
+
+def test_pass_inflation_by_hand() -> None:
+    assert pass_inflation(n=1, span_s=0.0, tau_s=20.0) == 1.0
+    assert pass_inflation(n=5, span_s=4.0, tau_s=0.0) == 1.0
+    rho = np.exp(-1.0)                    # two readings 1 s apart, tau 1 s: n / n_eff = 1 + rho
+    assert pass_inflation(n=2, span_s=1.0, tau_s=1.0) == pytest.approx(1.0 + rho)
+    assert pass_inflation(n=7, span_s=0.0, tau_s=5.0) == pytest.approx(7.0)   # one time: 1 reading
+
+
+@given(n=st.integers(1, 300), span=st.floats(0.0, 500.0), tau=st.floats(0.0, 100.0),
+       more=st.floats(0.0, 50.0))
+@settings(max_examples=200, deadline=None)
+def test_pass_inflation_bounded_and_monotone(n: int, span: float, tau: float,
+                                             more: float) -> None:
+    f = pass_inflation(n=n, span_s=span, tau_s=tau)
+    assert 1.0 - 1e-12 <= f <= n * (1.0 + 1e-12)
+    assert pass_inflation(n=n, span_s=span, tau_s=tau + more) >= f - 1e-9       # longer memory
+    assert pass_inflation(n=n, span_s=span + more, tau_s=tau) <= f + 1e-9       # sparser
+
+
+def test_drift_variance_by_hand() -> None:
+    cov = np.array([1.0, 2.0, 4.0, 3.0])[:, None, None] * np.eye(2)
+    t = np.array([0.0, 1.0, 2.0, 3.0])                  # middle reading: t = 2 (P = 4 I)
+    # before it: P_m - P_k (3 I, 2 I); after it: [P_k - P_m]+ = 0 (a correction shrank P)
+    np.testing.assert_allclose(drift_variance(cov, t), [3.0, 2.0, 0.0, 0.0])
+    aniso = np.array([np.diag([1.0, 1.0]), np.diag([2.0, 5.0])])
+    np.testing.assert_allclose(drift_variance(aniso, np.array([0.0, 1.0])), [2.5, 0.0])
+
+
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 30), scale=st.floats(1.0, 10.0))
+@settings(max_examples=100, deadline=None)
+def test_drift_variance_nonnegative_and_monotone(seed: int, n: int, scale: float) -> None:
+    rng = np.random.default_rng(seed)
+    m = rng.normal(size=(n, 2, 2))
+    growth = np.cumsum(m @ np.swapaxes(m, 1, 2), axis=0)          # PSD increments: P grows
+    t = np.cumsum(rng.uniform(0.1, 2.0, n))
+    base = np.eye(2)
+    q = drift_variance(base + growth, t)
+    assert np.all(q >= 0.0)
+    assert np.count_nonzero(q == 0.0) >= 1                        # the middle reading
+    np.testing.assert_allclose(drift_variance(np.broadcast_to(base, (n, 2, 2)), t), 0.0)
+    assert np.all(drift_variance(base + scale * growth, t) >= q - 1e-9)   # faster drift: more
+
+
+def _correlated_passes(rng: np.random.Generator, node: np.ndarray, *, tau_s: float
+                       ) -> dict[str, np.ndarray]:
+    """Four 1 Hz passes of 30 readings, small agent errors, range errors AR(1) in time."""
+    xy, cov, rr, grp, tt = [], [], [], [], []
+    rho = np.exp(-1.0 / tau_s)
+    for g in range(4):
+        ang = rng.uniform(0, 2 * np.pi)
+        c = node + rng.uniform(1.0, 5.0) * np.array([np.cos(ang), np.sin(ang)])
+        true = c + np.linspace(-8.0, 8.0, 30)[:, None] * np.array([-np.sin(ang), np.cos(ang)])
+        e = np.empty(30)
+        e[0] = rng.normal(0.0, 0.1)
+        for k in range(1, 30):
+            e[k] = rho * e[k - 1] + np.sqrt(1.0 - rho ** 2) * rng.normal(0.0, 0.1)
+        xy.append(true + rng.normal(0.0, 0.1, 2))
+        cov.append(np.broadcast_to(0.01 * np.eye(2), (30, 2, 2)))
+        rr.append(np.linalg.norm(true - node, axis=1) + e)
+        grp.append(np.full(30, g))
+        tt.append(100.0 * g + np.arange(30.0))
+    return {"agent_xy_m": np.concatenate(xy), "agent_cov_m2": np.concatenate(cov),
+            "range_m": np.concatenate(rr), "range_sigma_m": np.full(120, 0.1),
+            "group": np.concatenate(grp), "t_s": np.concatenate(tt)}
+
+
+def test_autocorrelated_range_errors_need_the_pass_inflation() -> None:
+    """Range errors correlated over 20 s: the readings' times and ``range_correlation_s``
+    give a node covariance at most the chi-square upper bound and at most 20 % conservative
+    (the inflation is that of the pass's mean range, not of its full correlation); taken as
+    independent (no times) it is overconfident."""
+    rng = np.random.default_rng(41)
+    prm = replace(EXACT, range_correlation_s=20.0, max_consistency_passes=0)
+    nees: dict[str, list[float]] = {"times": [], "no times": []}
+    for _ in range(150):
+        node = rng.uniform(-20, 20, 2)
+        kw = _correlated_passes(rng, node, tau_s=20.0)
+        for kind in nees:
+            obs = NodeRanges.build(**{**kw, "t_s": kw["t_s"] if kind == "times" else None})
+            e = NodeEstimator(prm).estimate(obs)
+            if e.localized:
+                d = e.position_m - node
+                nees[kind].append(float(d @ np.linalg.solve(e.covariance_m2, d)))
+    n = len(nees["times"])
+    assert n >= 140
+    lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
+    assert 0.8 * 2.0 <= float(np.mean(nees["times"])) <= hi, (np.mean(nees["times"]), lo, hi)
+    assert float(np.mean(nees["no times"])) > 1.5 * hi

@@ -33,8 +33,9 @@ def test_nodes_localized_near_truth_and_shared_only_with_non_contributors(
     loc = [n for n, e in res.nodes.items() if e.localized]
     assert len(loc) >= 2
     err = [np.linalg.norm(res.nodes[n].position_m - mission.node_truth_m[n]) for n in loc]
-    # a 90 s walk past 15 nodes; benchmarks/mission.py has the figures over seeds
-    assert np.median(err) < 4.0
+    # a 90 s walk past 15 nodes; benchmarks/mission.py has the figures over seeds (RMSE, not the
+    # median: which of the few nodes pass the gates moves the median of nine or ten by metres)
+    assert np.sqrt(np.mean(np.square(err))) < 5.5
     for n in loc:
         c = np.asarray(res.nodes[n].covariance_m2)
         np.testing.assert_allclose(c, c.T)

@@ -21,6 +21,15 @@ The node's covariance is the ``p`` block of the inverse normal matrix, i.e. the 
 with every pass's offset marginalized out (the sandwich form of the correlated errors). Passes of
 different chains (agents) are taken as independent.
 
+The range term of reading ``k`` has two more parts when the readings carry their times. The
+offset is the agent's error at the pass's middle reading; its error at ``k`` differs by the drift
+in between, of variance ``q_k`` from the growth of the agent's own covariance
+(:func:`drift_variance`), so ``s_k^2 = sigma_k^2 + q_k``. The range errors of one pass (the same
+walls between agent and node, the antennas' height difference) are correlated in time, a
+first-order autoregressive sequence of correlation time ``range_correlation_s``: each reading's
+variance is multiplied by :func:`pass_inflation`, so that a pass of many readings carries the
+information of its effectively independent ones, not of its count.
+
 Checks before a node counts as localized:
 
 * enough ranges and passes, and agent positions that are not collinear;
@@ -92,6 +101,10 @@ class NodeEstimatorParams:
         Part ``rho`` of the agents' errors common to all agents (same floor, same entrance,
         same magnetic disturbances): one offset ``c ~ N(0, rho * P_min)`` shared by every pass,
         ``P_min`` the smallest (trace) scaled pass covariance; each chain's walk models the rest.
+    range_correlation_s:
+        Correlation time ``tau`` of the range errors within a pass (the same walls between agent
+        and node, the antenna heights), s: the errors of one pass are taken as a first-order
+        autoregressive sequence; 0: independent (module doc, :func:`pass_inflation`).
     """
 
     min_ranges: int = 4
@@ -101,12 +114,13 @@ class NodeEstimatorParams:
     consistency_gate_probability: float = 0.999
     fit_gate_probability: float = 0.999
     ambiguity_margin: float = 9.0
-    max_mirror_passes: int = 2
+    max_mirror_passes: int = 64
     max_outlier_passes: int = 10
     max_consistency_passes: int = 2
     max_iterations: int = 30
     agent_cov_scale: float = 2.0
     agent_correlation: float = 0.5
+    range_correlation_s: float = 20.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.agent_correlation < 1.0:
@@ -121,6 +135,9 @@ class NodeEstimatorParams:
         if self.min_ranges < 3:
             raise InputError(f"min_ranges = {self.min_ranges}", where="NodeEstimatorParams",
                              expected=">= 3 (a planar position needs three ranges)")
+        if not self.range_correlation_s >= 0.0:
+            raise InputError(f"range_correlation_s = {self.range_correlation_s}",
+                             where="NodeEstimatorParams", expected=">= 0")
         for name in ("min_spread_m", "max_sigma_m", "ambiguity_margin", "agent_cov_scale"):
             if not getattr(self, name) > 0:
                 raise InputError(f"{name} = {getattr(self, name)}",
@@ -146,6 +163,9 @@ class NodeRanges:
     chain:
         ``(k,)`` agent of each reading: the passes of one chain, in increasing ``group`` order,
         are its passes in time order and their offsets a random walk (module doc).
+    t_s:
+        ``(k,)`` time of each reading, s (None: unknown, the readings' range errors are taken
+        as independent).
     """
 
     agent_xy_m: FloatArray
@@ -154,11 +174,14 @@ class NodeRanges:
     range_sigma_m: FloatArray
     group: IntArray
     chain: IntArray
+    t_s: FloatArray | None = None
 
     def __post_init__(self) -> None:
         k = self.range_m.shape[0] if self.range_m.ndim == 1 else -1
         shapes = {"agent_xy_m": (k, 2), "agent_cov_m2": (k, 2, 2), "range_m": (k,),
                   "range_sigma_m": (k,), "group": (k,), "chain": (k,)}
+        if self.t_s is not None:
+            shapes["t_s"] = (k,)
         for name, shape in shapes.items():
             if getattr(self, name).shape != shape:
                 raise InputError(f"{name} has shape {getattr(self, name).shape}",
@@ -172,15 +195,16 @@ class NodeRanges:
 
     @classmethod
     def build(cls, *, agent_xy_m: object, agent_cov_m2: object, range_m: object,
-              range_sigma_m: object, group: object, chain: object | None = None
-              ) -> NodeRanges:
+              range_sigma_m: object, group: object, chain: object | None = None,
+              t_s: object | None = None) -> NodeRanges:
         """Arrays converted to float64 / int64; no ``chain``: every pass its own agent."""
         return cls(np.asarray(agent_xy_m, np.float64).reshape(-1, 2),
                    np.asarray(agent_cov_m2, np.float64).reshape(-1, 2, 2),
                    np.asarray(range_m, np.float64).reshape(-1),
                    np.asarray(range_sigma_m, np.float64).reshape(-1),
                    np.asarray(group, np.int64).reshape(-1),
-                   np.asarray(group if chain is None else chain, np.int64).reshape(-1))
+                   np.asarray(group if chain is None else chain, np.int64).reshape(-1),
+                   None if t_s is None else np.asarray(t_s, np.float64).reshape(-1))
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
@@ -242,6 +266,71 @@ def _psd_part(m: FloatArray) -> FloatArray:
     return np.asarray((v * np.maximum(w, 0.0)) @ v.T, dtype=np.float64)
 
 
+def pass_inflation(*, n: int, span_s: float, tau_s: float) -> float:
+    """Variance factor of each of a pass's ``n`` readings for autocorrelated range errors.
+
+    Errors ``e_i`` of ``n`` readings equally spaced over ``span_s``, stationary first-order
+    autoregressive with correlation ``rho = exp(-dt / tau_s)`` between neighbours
+    (``dt = span_s / (n - 1)``): their generalized-least-squares mean has variance
+    ``sigma^2 (1 + rho) / (n (1 - rho) + 2 rho)``, that of ``n_eff = (n (1 - rho) + 2 rho) /
+    (1 + rho)`` independent readings. Returns ``n / n_eff`` (>= 1; 1 for ``n = 1`` or
+    ``tau_s = 0``; ``n`` when the readings coincide in time), so that ``n`` readings taken as
+    independent with their variance times the factor carry the pass's information.
+    """
+    if n <= 1 or tau_s <= 0.0:
+        return 1.0
+    rho = float(np.exp(-max(span_s, 0.0) / (n - 1) / tau_s))
+    return n * (1.0 + rho) / (n * (1.0 - rho) + 2.0 * rho)
+
+
+def drift_variance(cov_m2: FloatArray, t_s: FloatArray) -> FloatArray:
+    """Variance of a pass's agent errors about the error at its middle reading, per reading.
+
+    An agent's error drifts during a pass: at reading ``k`` it is the error at the middle
+    reading ``m`` plus the drift accumulated in between, whose covariance is the growth of the
+    agent's own covariance over that interval, ``Q_k = [sign(t_k - t_m) (P_k - P_m)]+`` (the
+    positive semi-definite part; 0 where a correction shrank it). Returns ``tr(Q_k) / 2``, the
+    variance along a direction averaged over directions, m^2 (``cov_m2`` ``(n, 2, 2)``).
+    """
+    n = t_s.shape[0]
+    if n < 2:
+        return np.zeros(n)
+    mid = int(np.argsort(t_s, kind="stable")[n // 2])
+    d = np.sign(t_s - t_s[mid])[:, None, None] * (cov_m2 - cov_m2[mid])
+    w = np.linalg.eigvalsh(0.5 * (d + np.swapaxes(d, 1, 2)))
+    return np.asarray(0.5 * np.sum(np.maximum(w, 0.0), axis=1), dtype=np.float64)
+
+
+def _drift(obs: NodeRanges, use: BoolArray) -> FloatArray:
+    """:func:`drift_variance` of each kept reading in its pass (zeros without times)."""
+    k = int(np.count_nonzero(use))
+    if obs.t_s is None:
+        return np.zeros(k)
+    out = np.zeros(k)
+    grp, t, cov = obs.group[use], obs.t_s[use], obs.agent_cov_m2[use]
+    for g in np.unique(grp).tolist():
+        m = grp == g
+        out[m] = drift_variance(cov[m], t[m])
+    return out
+
+
+def _inflation(obs: NodeRanges, use: BoolArray, tau_s: float) -> FloatArray:
+    """:func:`pass_inflation` of each kept reading's pass (ones without times)."""
+    k = int(np.count_nonzero(use))
+    if obs.t_s is None or tau_s <= 0.0:
+        return np.ones(k)
+    groups, inv = np.unique(obs.group[use], return_inverse=True)
+    t = obs.t_s[use]
+    lo = np.full(groups.size, np.inf)
+    hi = np.full(groups.size, -np.inf)
+    np.minimum.at(lo, inv, t)
+    np.maximum.at(hi, inv, t)
+    n = np.bincount(inv, minlength=groups.size)
+    f = np.array([pass_inflation(n=int(n[j]), span_s=float(hi[j] - lo[j]), tau_s=tau_s)
+                  for j in range(groups.size)])
+    return np.asarray(f[inv], dtype=np.float64)
+
+
 def _offsets(obs: NodeRanges, use: BoolArray, prm: NodeEstimatorParams) -> _Offsets:
     """Random-walk offset model of the kept readings' passes (module doc)."""
     groups, inv = np.unique(obs.group[use], return_inverse=True)
@@ -275,7 +364,8 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, prm: NodeEstimatorPa
     """Joint Gauss-Newton over the node and the offset increments (Levenberg damping)."""
     a = obs.agent_xy_m[use]
     r = obs.range_m[use]
-    s = obs.range_sigma_m[use]
+    s0 = np.sqrt(obs.range_sigma_m[use] ** 2 + _drift(obs, use))   # range noise + drift
+    s = s0 * np.sqrt(_inflation(obs, use, prm.range_correlation_s))   # weights of the solve
     off = _offsets(obs, use, prm)
     max_iterations = prm.max_iterations
     g, pinv, anc_k = off.g, off.d_inv, off.anc[off.g]
@@ -339,7 +429,7 @@ def _solve(obs: NodeRanges, use: BoolArray, p0: FloatArray, prm: NodeEstimatorPa
     cov = 0.5 * (cov + cov.T)
     # per-reading residual whitened by its prior spread (range noise + the pass's agent error)
     pg = off.s[g]
-    var = s ** 2 + np.einsum("ki,kij,kj->k", u, pg, u)
+    var = s0 ** 2 + np.einsum("ki,kij,kj->k", u, pg, u)
     whitened = (r - (np.linalg.norm(theta[:2] - a, axis=1))) / np.sqrt(var)
     return _Solve(p=theta[:2].copy(), cov=cov, cost=cost, whitened=whitened, iterations=it, ok=ok)
 

@@ -79,7 +79,7 @@ class NodeReadings:
             agent_xy_m=np.asarray(self.xy).reshape(-1, 2)[m],
             agent_cov_m2=np.asarray(self.cov).reshape(-1, 2, 2)[m],
             range_m=np.asarray(self.r)[m], range_sigma_m=np.asarray(self.s)[m], group=group,
-            chain=chain)
+            chain=chain, t_s=t)
 
 
 def join_ranges(a: RangeMeasurements | None, b: RangeMeasurements | None
