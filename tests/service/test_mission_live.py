@@ -305,13 +305,14 @@ def test_a_landmark_version_written_live_reaches_the_mission_estimator(make_live
 
 def test_heard_and_delocalized_nodes_are_published_as_the_estimator_has_them(
         make_live: Any) -> None:
-    """Seed 48 of a small mission: nodes heard but never localized, and N10 localized mid-way
-    then refused at the end (a check failed on its final readings); the network, the snapshot
-    and the socket must give each node's state as the estimator has it, not its last localized
-    estimate."""
+    """Seed 48 of a small mission (tags at the entrance only, no robot): nodes heard but never
+    localized, and N10 localized mid-way then refused at the end (a check failed on its final
+    readings); the network, the snapshot and the socket must give each node's state as the
+    estimator has it, not its last localized estimate."""
     live = make_live()
     mission, members = network_team("inderst_hybrid_mission", seed=48, options={
-        "walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2},
+        "walk_s": 30.0, "stagger_s": 5.0, "n_nodes": 10, "n_rescuers": 2, "n_robots": 0,
+        "tag_layout": "entrance"},
         rescuer_preset="default")   # a case with a node localized, then refused
     with AgentClient(live.url, live.commander) as commander:
         mid, agents = create_network_mission(commander, "small", mission, members,
