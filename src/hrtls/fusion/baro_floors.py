@@ -22,7 +22,11 @@ The floor is a state machine run sample by sample (causal, compiled):
   standing closes) or is faster than 1.5 ``max_climb_m_s``: the walking classifier may
   have missed the stairs, and a door step met on a flight (0.3 m/s of climb, close to the
   limits) swallowed the flight; a door while walking flat (about 0.7 m) stays below the
-  sustained change a floor needs;
+  sustained change a floor needs. Such a kept change opens an excursion (the altitude before
+  it is remembered): a fast change back towards that altitude is the door closing and is kept
+  too, walking or not, so the altitude comes back (removing it would leave the door's height
+  behind for good). The climb rate of the 3 s before a step is continued only when a flight
+  can be climbed that fast (``max_climb_m_s`` / 2); a faster one was a pressure step itself;
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -126,9 +130,10 @@ def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
     return np.asarray((c[1:] - c[start]) / n)
 
 
-N_SCALARS = 11
+N_SCALARS = 13
 """Scalars of :class:`BaroFloorState`: offset, in_step, t_start, f_start, climb, steps,
-level, floor, pending, started, floor changes."""
+level, floor, pending, started, floor changes, kept excursion's base altitude (NaN: none),
+kept excursion returning (1.0) or not."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -165,6 +170,15 @@ def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
 
 
 @njit(cache=True)
+def _takes_back(kept: float, before: float, change_m: float, min_m: float
+                ) -> bool:  # pragma: no cover - compiled
+    """Whether ``change_m`` from ``before`` goes back towards the kept excursion's base."""
+    away = before - kept
+    return (not np.isnan(kept) and abs(away) > min_m and away * change_m < 0.0
+            and abs(change_m) > 0.5 * abs(away))
+
+
+@njit(cache=True)
 def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stairs: FloatArray,
                 i0: int, fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
                 level: FloatArray, floor: NDArray[np.int64], fast_s: float, slow_s: float,
@@ -180,10 +194,13 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
     at) by more than ``max_climb`` (until it falls below half of that) the altitude continues
     at the step model's rate on stairs, else at the climb rate of the 3 s before when the
     person was walking then, else it is held; when the change is slower again, the step (what
-    went beyond that) is subtracted from then on.
+    went beyond that) is subtracted from then on. A fast change kept while walking flat opens
+    an excursion from ``fast`` before it (``kept``); a fast change back towards it is kept
+    until it is over (``back``).
     """
     offset, in_step, t_start, f_start, climb = st[0], st[1] > 0.5, st[2], st[3], st[4]
     steps, lv, fl, pending, started, changes = st[5], st[6], int(st[7]), st[8], st[9], st[10]
+    kept, back = st[11], st[12] > 0.5
     j = 0
     for i in range(i0, len(t)):
         fast[i] = _window_mean(t, raw, i, fast_s)
@@ -194,11 +211,19 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
         fast_change = (t[i] - t[j] > 0.5
                        and abs(fast[i] - fast[j] - rate * (t[i] - t[j]))
                        > limit * (t[i] - t[j]))
-        if fast_change and not in_step and walking[i] and stairs[i] == 0.0:
-            # walking: only a change back by about an open step, or one too fast for stairs
+        if back and not fast_change:
+            kept, back = np.nan, False      # the kept excursion is over
+        if fast_change and not in_step:
             change_m = fast[i] - fast[j]
-            fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
-                           or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
+            if back or _takes_back(kept, fast[j], change_m, freeze * height):
+                back = True                 # a kept door step closing: kept too
+                fast_change = False
+            elif walking[i] and stairs[i] == 0.0:
+                # walking: only a change back by about an open step, or one too fast for stairs
+                fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
+                               or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
+                if not fast_change and np.isnan(kept):
+                    kept = fast[j]          # a kept fast change: an excursion from there
         if fast_change and not in_step:
             in_step = True
             steps += 1.0
@@ -210,7 +235,8 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
                 k -= 1
             if walking[j] and t[j] - t[k] > 1.0:
                 climb = (fast[j] - fast[k]) / (t[j] - t[k])
-                climb = max(-0.5 * max_climb, min(0.5 * max_climb, climb))
+                if abs(climb) > 0.5 * max_climb:
+                    climb = 0.0             # faster than a flight: a pressure step itself
             rate = stairs[i] if stairs[i] != 0.0 else climb
             # continued from the change's start, a second before
             steady[i] = f_start - offset + rate * (t[i] - t_start)
@@ -250,6 +276,7 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
         floor[i] = fl
     st[0], st[1], st[2], st[3], st[4] = offset, 1.0 if in_step else 0.0, t_start, f_start, climb
     st[5], st[6], st[7], st[8], st[9], st[10] = steps, lv, float(fl), pending, started, changes
+    st[11], st[12] = kept, 1.0 if back else 0.0
 
 
 def _check_samples(t: FloatArray, pa: FloatArray) -> None:
@@ -321,6 +348,7 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
                                np.zeros(0, dtype=np.bool_), np.zeros(0), np.zeros(0),
                                np.zeros(0))
         state.scalars[8] = -1.0
+        state.scalars[11] = np.nan
     i0 = len(state.t)
     tt = np.concatenate([state.t, t])
     raw = np.concatenate([state.raw_m, scale_height_m(state.p0_pa) * np.log(state.p0_pa / pa)])
@@ -333,6 +361,8 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
     steady = np.concatenate([state.steady_m, np.empty(n - i0)])
     a = np.concatenate([state.a_m, np.empty(n - i0)])
     st = state.scalars.copy()
+    if len(st) < N_SCALARS:  # a state from before the kept excursion
+        st = np.concatenate([st, [np.nan, 0.0]])
     level = np.empty(n)
     floor = np.zeros(n, dtype=np.int64)
     _baro_block(tt, raw, walk, rates, i0, fast, steady, a, st, level, floor, p.step_smooth_s,
