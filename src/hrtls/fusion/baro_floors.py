@@ -132,9 +132,9 @@ def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
 
 
 N_SCALARS = 13
-"""Scalars of :class:`BaroFloorState`: offset, in_step (2.0: riding on after one), t_start, f_start, climb, steps,
-level, floor, pending, started, floor changes, kept excursion's base altitude (NaN: none),
-kept excursion returning (1.0) or not."""
+"""Scalars of :class:`BaroFloorState`: offset, in_step (2.0: a climb too long for a door
+goes on), t_start, f_start, climb, steps, level, floor, pending, started, floor changes, the
+kept excursion's base altitude (NaN: none), the kept excursion returning (1.0) or not."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -182,9 +182,11 @@ def _takes_back(kept: float, before: float, change_m: float, min_m: float
 @njit(cache=True)
 def _sustained_climb(t: FloatArray, z: FloatArray, j: int, max_m_s: float
                      ) -> float:  # pragma: no cover - compiled
-    """Climb rate of ``z`` over the 3 s up to ``t[j]`` as both halves agree (the slower one
-    when both climb the same way, else 0), limited to ``max_m_s``; a door edge in one half
-    is no flight."""
+    """Climb rate of ``z`` over the 3 s up to ``t[j]`` as both halves of them agree.
+
+    The slower half's rate when both climb the same way, else 0 (a door edge in one half is
+    no flight), limited to ``max_m_s``.
+    """
     k = j
     while k > 0 and t[k - 1] >= t[j] - 3.0:
         k -= 1
