@@ -25,9 +25,10 @@ The floor is a state machine run sample by sample (causal, compiled):
   sustained change a floor needs. Such a kept change opens an excursion (the altitude before
   it is remembered): a fast change back towards that altitude is the door closing and is kept
   too, walking or not, so the altitude comes back (removing it would leave the door's height
-  behind for good). The climb rate continued through a step is that of the altitude without
-  the steps removed so far over the 3 s before, as both halves of them agree (a door edge in
-  one half is no flight), limited to ``max_climb_m_s`` / 2;
+  behind for good); a step removed after a kept start removes that start too. The climb
+  rate continued through a step is that of the altitude without the steps removed so far
+  over the 3 s before, as both halves of them agree (a door edge in one half is no flight),
+  limited to ``max_climb_m_s`` / 2;
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
