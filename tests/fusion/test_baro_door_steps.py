@@ -139,3 +139,17 @@ def test_door_steps_on_a_flat_walk_never_change_the_floor(
                     step_starts_s=ends - 0.55, step_dz_m=np.zeros(len(ends)))
     assert r.changes == 0
     assert np.abs(r.z_m[-50:]).max() < 0.25 * height
+
+
+def test_a_state_saved_before_the_kept_excursion_is_continued() -> None:
+    """A state of 11 scalars (snapshots from before) goes on as one with no kept excursion."""
+    from dataclasses import replace
+
+    t, p, walking = recorded_door_step()
+    params = BaroFloorParams(floor_height_m=3.3)
+    state, _ = baro_floors_update(None, t[:100], p[:100], walking[:100], params=params)
+    assert state is not None and np.isnan(state.scalars[11]) and state.scalars[12] == 0.0
+    old = replace(state, scalars=state.scalars[:11].copy())
+    _, new_out = baro_floors_update(state, t[100:], p[100:], walking[100:], params=params)
+    _, old_out = baro_floors_update(old, t[100:], p[100:], walking[100:], params=params)
+    assert np.array_equal(new_out.z_m, old_out.z_m)
