@@ -17,12 +17,18 @@ The floor is a state machine run sample by sample (causal, compiled):
   else at the barometer's climb rate of the 3 s before when steps were detected then, else
   held, and the step is removed from then on. A fast change that lasts more than
   ``max_step_s`` is no door (their pressure rises within a second): it is a climb (an
-  elevator) and is kept whole. While walking on steps that are not stairs, a change is
+  elevator) and is kept whole, to its end. While walking on steps that are not stairs, a change is
   removed only when it takes back about the steps removed so far (a door opened while
   standing closes) or is faster than 1.5 ``max_climb_m_s``: the walking classifier may
   have missed the stairs, and a door step met on a flight (0.3 m/s of climb, close to the
   limits) swallowed the flight; a door while walking flat (about 0.7 m) stays below the
-  sustained change a floor needs;
+  sustained change a floor needs. Such a kept change opens an excursion (the altitude before
+  it is remembered): a fast change back towards that altitude is the door closing and is kept
+  too, walking or not, so the altitude comes back (removing it would leave the door's height
+  behind for good); a step removed after a kept start removes that start too. The climb
+  rate continued through a step is that of the altitude without the steps removed so far
+  over the 3 s before, as both halves of them agree (a door edge in one half is no flight),
+  limited to ``max_climb_m_s`` / 2;
 * the floor changes only when the altitude has stayed more than ``change_fraction`` of a floor
   height away from ``level`` for ``hold_s``: the floor moves by ``round(d / floor_height)`` and
   ``level`` by as many floor heights (the rest of the climb, or a floor height a little off,
@@ -126,9 +132,10 @@ def _causal_mean(t: FloatArray, x: FloatArray, window_s: float) -> FloatArray:
     return np.asarray((c[1:] - c[start]) / n)
 
 
-N_SCALARS = 11
-"""Scalars of :class:`BaroFloorState`: offset, in_step, t_start, f_start, climb, steps,
-level, floor, pending, started, floor changes."""
+N_SCALARS = 13
+"""Scalars of :class:`BaroFloorState`: offset, in_step (2.0: a climb too long for a door
+goes on), t_start, f_start, climb, steps, level, floor, pending, started, floor changes, the
+kept excursion's base altitude (NaN: none), the kept excursion returning (1.0) or not."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -165,6 +172,38 @@ def _window_mean(t: FloatArray, x: FloatArray, i: int, window_s: float
 
 
 @njit(cache=True)
+def _takes_back(kept: float, before: float, change_m: float, min_m: float
+                ) -> bool:  # pragma: no cover - compiled
+    """Whether ``change_m`` from ``before`` goes back towards the kept excursion's base."""
+    away = before - kept
+    return (not np.isnan(kept) and abs(away) > min_m and away * change_m < 0.0
+            and abs(change_m) > 0.5 * abs(away))
+
+
+@njit(cache=True)
+def _sustained_climb(t: FloatArray, z: FloatArray, j: int, max_m_s: float
+                     ) -> float:  # pragma: no cover - compiled
+    """Climb rate of ``z`` over the 3 s up to ``t[j]`` as both halves of them agree.
+
+    The slower half's rate when both climb the same way, else 0 (a door edge in one half is
+    no flight), limited to ``max_m_s``.
+    """
+    k = j
+    while k > 0 and t[k - 1] >= t[j] - 3.0:
+        k -= 1
+    m = k
+    while m < j and t[m] < t[j] - 1.5:
+        m += 1
+    if t[m] - t[k] < 0.5 or t[j] - t[m] < 0.5:
+        return 0.0
+    r1 = (z[m] - z[k]) / (t[m] - t[k])
+    r2 = (z[j] - z[m]) / (t[j] - t[m])
+    if r1 * r2 <= 0.0:
+        return 0.0
+    return float(np.sign(r1)) * min(abs(r1), abs(r2), max_m_s)
+
+
+@njit(cache=True)
 def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stairs: FloatArray,
                 i0: int, fast: FloatArray, steady: FloatArray, a: FloatArray, st: FloatArray,
                 level: FloatArray, floor: NDArray[np.int64], fast_s: float, slow_s: float,
@@ -180,43 +219,52 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
     at) by more than ``max_climb`` (until it falls below half of that) the altitude continues
     at the step model's rate on stairs, else at the climb rate of the 3 s before when the
     person was walking then, else it is held; when the change is slower again, the step (what
-    went beyond that) is subtracted from then on.
+    went beyond that) is subtracted from then on. A fast change kept while walking flat opens
+    an excursion from ``fast`` before it (``kept``); a fast change back towards it is kept
+    until it is over (``back``).
     """
-    offset, in_step, t_start, f_start, climb = st[0], st[1] > 0.5, st[2], st[3], st[4]
+    offset, t_start, f_start, climb = st[0], st[2], st[3], st[4]
+    in_step, riding = 0.5 < st[1] < 1.5, st[1] > 1.5
     steps, lv, fl, pending, started, changes = st[5], st[6], int(st[7]), st[8], st[9], st[10]
+    kept, back = st[11], st[12] > 0.5
     j = 0
     for i in range(i0, len(t)):
         fast[i] = _window_mean(t, raw, i, fast_s)
         while t[j] < t[i] - 1.0:
             j += 1
         rate = stairs[i] if stairs[i] != 0.0 else climb if in_step else 0.0
-        limit = 0.5 * max_climb if in_step else max_climb
+        limit = 0.5 * max_climb if in_step or riding else max_climb
         fast_change = (t[i] - t[j] > 0.5
                        and abs(fast[i] - fast[j] - rate * (t[i] - t[j]))
                        > limit * (t[i] - t[j]))
-        if fast_change and not in_step and walking[i] and stairs[i] == 0.0:
-            # walking: only a change back by about an open step, or one too fast for stairs
+        if back and not fast_change:
+            kept, back = np.nan, False      # the kept excursion is over
+        riding = riding and fast_change     # a climb too long for a door goes on
+        if fast_change and not in_step and not riding:
             change_m = fast[i] - fast[j]
-            fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
-                           or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
-        if fast_change and not in_step:
+            if back or _takes_back(kept, fast[j] - offset, change_m, freeze * height):
+                back = True                 # a kept door step closing: kept too
+                fast_change = False
+            elif walking[i] and stairs[i] == 0.0:
+                # walking: only a change back by about an open step, or one too fast for stairs
+                fast_change = ((offset * change_m < 0.0 and abs(offset) > 0.5 * abs(change_m))
+                               or abs(change_m) > 1.5 * max_climb * (t[i] - t[j]))
+                if not fast_change and np.isnan(kept):
+                    kept = fast[j] - offset  # a kept fast change: an excursion from there
+        if fast_change and not in_step and not riding:
             in_step = True
             steps += 1.0
             t_start = t[j]
             f_start = fast[j]
-            climb = 0.0
-            k = j
-            while k > 0 and t[k - 1] >= t_start - 3.0:
-                k -= 1
-            if walking[j] and t[j] - t[k] > 1.0:
-                climb = (fast[j] - fast[k]) / (t[j] - t[k])
-                climb = max(-0.5 * max_climb, min(0.5 * max_climb, climb))
+            if not np.isnan(kept):          # the kept start of the same step: removed too
+                f_start, kept = kept + offset, np.nan
+            climb = _sustained_climb(t, steady, j, 0.5 * max_climb) if walking[j] else 0.0
             rate = stairs[i] if stairs[i] != 0.0 else climb
             # continued from the change's start, a second before
             steady[i] = f_start - offset + rate * (t[i] - t_start)
         elif in_step and t[i] - t_start > max_step_s:
             steady[i] = fast[i] - offset     # too long for a door: a climb, kept whole
-            in_step = False
+            in_step, riding = False, True
             steps -= 1.0
         elif in_step:
             steady[i] = steady[i - 1] + rate * (t[i] - t[i - 1])
@@ -248,8 +296,10 @@ def _baro_block(t: FloatArray, raw: FloatArray, walking: NDArray[np.bool_], stai
                 pending = -1.0
         level[i] = lv
         floor[i] = fl
-    st[0], st[1], st[2], st[3], st[4] = offset, 1.0 if in_step else 0.0, t_start, f_start, climb
+    st[0], st[2], st[3], st[4] = offset, t_start, f_start, climb
+    st[1] = 1.0 if in_step else 2.0 if riding else 0.0
     st[5], st[6], st[7], st[8], st[9], st[10] = steps, lv, float(fl), pending, started, changes
+    st[11], st[12] = kept, 1.0 if back else 0.0
 
 
 def _check_samples(t: FloatArray, pa: FloatArray) -> None:
@@ -321,6 +371,7 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
                                np.zeros(0, dtype=np.bool_), np.zeros(0), np.zeros(0),
                                np.zeros(0))
         state.scalars[8] = -1.0
+        state.scalars[11] = np.nan
     i0 = len(state.t)
     tt = np.concatenate([state.t, t])
     raw = np.concatenate([state.raw_m, scale_height_m(state.p0_pa) * np.log(state.p0_pa / pa)])
@@ -333,6 +384,8 @@ def baro_floors_update(state: BaroFloorState | None, t: FloatArray, pressure_pa:
     steady = np.concatenate([state.steady_m, np.empty(n - i0)])
     a = np.concatenate([state.a_m, np.empty(n - i0)])
     st = state.scalars.copy()
+    if len(st) < N_SCALARS:  # a state from before the kept excursion
+        st = np.concatenate([st, [np.nan, 0.0]])
     level = np.empty(n)
     floor = np.zeros(n, dtype=np.int64)
     _baro_block(tt, raw, walk, rates, i0, fast, steady, a, st, level, floor, p.step_smooth_s,
