@@ -12,8 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from hrtls.mission.tracker import MissionResult
+from hrtls.sim.floorplan import floor_of
 from hrtls.sim.mission import Mission
-from hrtls.sim.mission_floors import FLOOR_HEIGHT_M, floor_of_height
+from hrtls.sim.mission_floors import FLOOR_HEIGHT_M
 
 KEYS = ("frac0", "right0", "rmse0", "frac1", "right1", "rmse1", "on_floor", "err0", "err1")
 """Scores per seed: nodes of floor k localized / localized on floor k / their RMSE (m), the
@@ -40,8 +41,9 @@ def floor_scores(mission: Mission, result: MissionResult) -> dict[str, float]:
         assert truth is not None
         tr = res.trajectory
         tq = np.arange(float(tr.t[0]), float(tr.t[-1]), 1.0)
-        true_floor = floor_of_height(np.interp(tq, truth.t, truth.xyz[:, 2]))
-        est_floor = np.rint(np.interp(tq, tr.t, tr.xyz[:, 2]) / FLOOR_HEIGHT_M)
+        true_floor = floor_of(np.interp(tq, truth.t, truth.xyz[:, 2]),
+                              floor_height_m=FLOOR_HEIGHT_M)
+        est_floor = floor_of(np.interp(tq, tr.t, tr.xyz[:, 2]), floor_height_m=FLOOR_HEIGHT_M)
         hits.append(est_floor == true_floor)
         floors.append(true_floor)
         errs.append(np.hypot(np.interp(tq, tr.t, tr.xyz[:, 0]) - np.interp(tq, truth.t,

@@ -57,7 +57,9 @@ def test_saved_folder_reads_back_the_mission(mission, saved: Path) -> None:  # t
     assert folder.node_truth_m is not None
     for k, v in mission.node_truth_m.items():
         np.testing.assert_array_equal(folder.node_truth_m[k], v)
-    assert sorted(folder.landmarks) == sorted(t.id for t in mission_tags())
+    o = MissionOptions()
+    tags = mission_tags(layout=o.tag_layout, door_spacing_m=o.door_spacing_m)
+    assert sorted(folder.landmarks) == sorted(t.id for t in tags)
     assert {n: a.kind for n, a in folder.agents.items()} == {
         "R1": "rescuer", "R2": "rescuer", "R3": "rescuer", "B1": "robot"}
     for name, agent in folder.agents.items():

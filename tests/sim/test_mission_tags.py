@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from shapely.geometry import Point
 
 from hrtls.errors import InputError
+from hrtls.sim.infrastructure import RfidTag
 from hrtls.sim.mission import (
     FREE_SPACE,
     ROOMS,
@@ -21,8 +22,13 @@ from hrtls.sim.mission import (
 )
 
 
+def _default_tags() -> list[RfidTag]:
+    o = MissionOptions()
+    return mission_tags(layout=o.tag_layout, door_spacing_m=o.door_spacing_m)
+
+
 def test_entrance_layout_is_the_two_corner_tags() -> None:
-    tags = mission_tags(layout="entrance")
+    tags = mission_tags(layout="entrance", door_spacing_m=12.0)
     assert [(t.id, t.position) for t in tags] == [("T1", (1.5, 0.2, 2.2)), ("T2", (0.2, 1.5, 2.2))]
 
 
@@ -68,7 +74,7 @@ def test_layout_and_spacing_are_validated() -> None:
     with pytest.raises(InputError, match="door_spacing_m"):
         MissionOptions(door_spacing_m=0.0)
     with pytest.raises(InputError, match="layout"):
-        mission_tags(layout="roof")
+        mission_tags(layout="roof", door_spacing_m=12.0)
 
 
 def test_defaults_are_the_issue_scenario() -> None:
@@ -89,7 +95,7 @@ def test_corridor_walkers_read_the_door_tags_and_not_only_the_entrance() -> None
         assert sum(counts.values()) >= 5 and len(counts) >= 3
         assert all(k.startswith("D") for k in counts)
         assert {k for k, lm in doors.agents[name].landmarks.items() if lm.kind == "rfid"} == {
-            t.id for t in mission_tags()}
+            t.id for t in _default_tags()}
         assert entrance.agents[name].tags is None
         np.testing.assert_array_equal(entrance.agents[name].truth.xyz,
                                       doors.agents[name].truth.xyz)
@@ -100,4 +106,4 @@ def test_planner_driven_rescuers_get_the_same_tags() -> None:
     m = inderst_hybrid_mission(2, MissionOptions(rescuer_driver="planner", n_rescuers=1,
                                                  n_robots=0, n_nodes=8, walk_s=30.0))
     rfid = {k for k, lm in m.agents["R1"].landmarks.items() if lm.kind == "rfid"}
-    assert rfid == {t.id for t in mission_tags()}
+    assert rfid == {t.id for t in _default_tags()}

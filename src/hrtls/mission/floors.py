@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from hrtls.data.session import SessionMeta
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -60,5 +62,6 @@ def node_floor(floors: Sequence[int]) -> int:
 
 
 def building_floor_height_m(heights_m: Sequence[float]) -> float:
-    """The floor height the mission shares nodes with: the agents' first (3 m without agents)."""
-    return float(heights_m[0]) if len(heights_m) else 3.0
+    """The floor height the mission shares nodes with: the agents' first, else the default."""
+    default = SessionMeta.model_fields["floor_height_m"].default
+    return float(heights_m[0]) if len(heights_m) else float(default)

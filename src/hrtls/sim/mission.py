@@ -65,10 +65,9 @@ from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_mea
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
 from hrtls.sim.mission_floors import (
     FLOOR_HEIGHT_M,
-    NODE_HEIGHT_M,
     STAIR_MOTION,
-    floor_of_height,
     floor_tags,
+    node_floors,
     slab_ranges,
     spread_nodes,
     two_floor_walk,
@@ -210,7 +209,7 @@ def _door_offsets(length_m: float, spacing_m: float) -> FloatArray:
                       dtype=np.float64)
 
 
-def mission_tags(*, layout: str = "doors", door_spacing_m: float = 12.0) -> list[RfidTag]:
+def mission_tags(*, layout: str, door_spacing_m: float) -> list[RfidTag]:
     """The floor's RFID tags with their location messages (floor 0, 2.2 m up the wall).
 
     ``entrance``: T1 and T2 at the entrance corner. ``doors``: also one tag ``D<k>`` at each
@@ -308,7 +307,7 @@ def _finish(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, f
         agents = peer_ranges(agents, peer_model, scenario_rngs(seed * 1000 + 999)[6])
         sims = {k: dataclasses.replace(v, session=agents[k]) for k, v in sims.items()}
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
-    floors = {k: int(floor_of_height(v[2] - NODE_HEIGHT_M)) for k, v in nodes.items()}
+    floors = node_floors(nodes)
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
                    kinds=kinds, node_floor=floors)
 

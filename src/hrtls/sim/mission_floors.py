@@ -19,10 +19,13 @@ from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
 
 from hrtls.data.observations import RangeMeasurements
+from hrtls.sim.floorplan import floor_of
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.motion_truth import MotionParams, MotionTruth, Waypoint, random_floorplan_walk
+from hrtls.sim.robot_driver import CorridorRouter
 
 FloatArray = NDArray[np.float64]
 
@@ -38,9 +41,10 @@ NODE_HEIGHT_M = 0.5
 """Height of a dropped node above its floor, m."""
 
 
-def floor_of_height(z_m: FloatArray | float) -> NDArray[np.int64]:
-    """The floor whose level is nearest to heights ``z_m`` (m)."""
-    return np.rint(np.asarray(z_m, dtype=np.float64) / FLOOR_HEIGHT_M).astype(np.int64)
+def node_floors(nodes: Mapping[str, tuple[float, float, float]]) -> dict[str, int]:
+    """Each node's floor, from its height (:data:`NODE_HEIGHT_M` above its floor)."""
+    return {k: int(floor_of(np.array([v[2] - NODE_HEIGHT_M]), floor_height_m=FLOOR_HEIGHT_M)[0])
+            for k, v in nodes.items()}
 
 
 def stair_leg(*, up: bool) -> list[Waypoint]:
@@ -53,18 +57,15 @@ def stair_leg(*, up: bool) -> list[Waypoint]:
     return [Waypoint(x=x, y=y, z=z, speed_m_s=0.55, corner_radius_m=0.0) for x, y, z in pts]
 
 
-def _route_to(router: object, start: Waypoint, goal_xy: tuple[float, float], z_m: float
-              ) -> list[Waypoint]:
-    from hrtls.sim.robot_driver import CorridorRouter
-
-    assert isinstance(router, CorridorRouter)
+def _route_to(router: CorridorRouter, start: Waypoint, goal_xy: tuple[float, float],
+              z_m: float) -> list[Waypoint]:
     pts = router.route(np.array([start.x, start.y]), np.asarray(goal_xy, dtype=np.float64))
     out = [Waypoint(x=float(x), y=float(y), z=z_m, speed_m_s=1.2, corner_radius_m=0.5)
            for x, y in pts[1:]]
     return [*out[:-1], Waypoint(x=goal_xy[0], y=goal_xy[1], z=z_m, speed_m_s=1.2)]
 
 
-def _floor_walk(free_space: object, rng: np.random.Generator, *, distance_m: float,
+def _floor_walk(free_space: BaseGeometry, rng: np.random.Generator, *, distance_m: float,
                 start: tuple[float, float], z_m: float) -> list[Waypoint]:
     """A random corridor walk from ``start`` at height ``z_m``, without its first point."""
     wps = random_floorplan_walk(free_space, rng, distance_m=distance_m,
@@ -73,7 +74,7 @@ def _floor_walk(free_space: object, rng: np.random.Generator, *, distance_m: flo
     return [dataclasses.replace(w, z=z_m) for w in wps[1:]]
 
 
-def two_floor_walk(free_space: object, router: object, rng: np.random.Generator, *,
+def two_floor_walk(free_space: BaseGeometry, router: CorridorRouter, rng: np.random.Generator, *,
                    distance_m: float, start: tuple[float, float]) -> list[Waypoint]:
     """A rescuer's route through both floors (module doc), about ``distance_m`` long."""
     back = bool(rng.random() < 0.5)
@@ -117,8 +118,9 @@ def slab_ranges(nodes: Mapping[str, tuple[float, float, float]], model: RangeMod
     got = range_measurements(nodes, model, track, rng)
     if got is None:
         return None
-    node_floor = {k: int(floor_of_height(v[2] - NODE_HEIGHT_M)) for k, v in nodes.items()}
-    agent_floor = floor_of_height(np.interp(got.t, motion.t, motion.xyz[:, 2]))
+    node_floor = node_floors(nodes)
+    agent_floor = floor_of(np.interp(got.t, motion.t, motion.xyz[:, 2]),
+                           floor_height_m=FLOOR_HEIGHT_M)
     keep = agent_floor == np.array([node_floor[str(n)] for n in got.node], dtype=np.int64)
     if not keep.any():
         return None
