@@ -14,9 +14,9 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 * ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
 * ``grid, held out``: the leave-one-out choice above, and ``s / run`` the seconds that
   held-out run took (the whole tracker, one process);
-* ``grid, held out, one mode``: the same choice among the candidates without the motion
-  choices (one velocity mode, no burst state; the same as ``grid, held out`` without
-  ``--motion``);
+* ``grid, held out, dB mean``: the same choice among the candidates without the motion
+  choices (one velocity mode, no burst state) and with the window's mean in dBm (the
+  candidates before ``window_statistic``);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
@@ -59,7 +59,8 @@ TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight
           "straight_02", "straight_03")
 GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,),
                 "offset_gain": (0.0,), "bias_sigma_db": (0.0, 3.0, 5.0),
-                "velocity_time_s": (0.0, 8.0, 16.0)}
+                "velocity_time_s": (0.0, 8.0, 16.0),
+                "window_statistic": ("mean-db", "mean-power", "median")}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice, each with every
 :data:`MOTION_CHOICES` entry that fits it."""
 FIXED_HEADINGS = {"mode_turn_deg": 45.0, "stopped_mode": True, "mode_switch_per_s": 0.1,
@@ -228,11 +229,12 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    for col in ("track", "random walk", "grid, default", "grid, held out, one mode",
+    for col in ("track", "random walk", "grid, default", "grid, held out, dB mean",
                 "grid, held out", "s / run", "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
-    before = [k for k, c in enumerate(candidates) if set(c) == set(GRID_CHOICES)]
+    before = [k for k, c in enumerate(candidates)
+              if set(c) == set(GRID_CHOICES) and c["window_statistic"] == "mean-db"]
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])

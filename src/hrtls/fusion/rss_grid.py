@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -83,6 +84,7 @@ from hrtls.fusion.rss_grid_kernels import (
     moments,
     move_modes,
     shift,
+    window_medians,
 )
 from hrtls.kernels import njit
 
@@ -109,7 +111,12 @@ __all__ = [
     "moments",
     "move_modes",
     "shift",
+    "window_medians",
 ]
+
+
+WINDOW_STATISTICS = ("mean-db", "mean-power", "median")
+"""Values of :attr:`GridParams.window_statistic`."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -148,6 +155,9 @@ class GridParams:
         state).
     burst_enter_per_s: rate at which an anchor enters a burst, 1/s.
     burst_exit_per_s: rate at which a burst ends, 1/s.
+    window_statistic: what a row holds of an anchor's readings in its window: ``mean-db``
+        (their mean in dBm), ``mean-power`` (their mean power, in dBm: a deep fade of one
+        reading moves it less) or ``median``.
     """
 
     cell_m: float = 0.25
@@ -173,6 +183,7 @@ class GridParams:
     burst_sigma_db: float = 0.0
     burst_enter_per_s: float = 0.05
     burst_exit_per_s: float = 0.3
+    window_statistic: Literal["mean-db", "mean-power", "median"] = "mean-db"
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -184,6 +195,10 @@ class GridParams:
                      "mode_speed_m_per_s", "mode_switch_per_s", "burst_sigma_db",
                      "burst_enter_per_s", "burst_exit_per_s"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
+        if self.window_statistic not in WINDOW_STATISTICS:
+            raise InputError(f"window_statistic = {self.window_statistic!r}",
+                             where="GridParams.window_statistic",
+                             expected=" or ".join(WINDOW_STATISTICS))
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
                              where="GridParams.average_s", expected="at least scan_s")
@@ -409,11 +424,14 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
 
 def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anchors: int,
                  scan_s: float, average_s: float, t_origin: float,
-                 t_from: float = -math.inf, info: FloatArray | None = None) -> GridScans:
+                 t_from: float = -math.inf, info: FloatArray | None = None,
+                 statistic: str = "mean-db") -> GridScans:
     """Scans of the readings ``t`` (s), ``anchor`` (index) and ``rss_dbm`` after ``t_from``.
 
     A scan ends each ``scan_s`` window with readings (at its last reading); its rows: per
-    anchor heard in ``(t_scan - average_s, t_scan]``, the mean RSS. ``t`` sorted; bins start
+    anchor heard in ``(t_scan - average_s, t_scan]``, the ``statistic`` of its readings
+    (:attr:`GridParams.window_statistic`; the mean power is ``10 log10`` of the mean of
+    ``10^(r / 10)``). ``t`` sorted; bins start
     at ``t_origin``. Weight of a row: the readings that are new in this scan (not in the
     previous scan's window of that anchor), each counted as ``info`` (its information
     fraction, default 1), over the readings averaged.
@@ -434,13 +452,18 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
     for a in range(n_anchors):
         sel = anchor == a
         ta, ra = tt[sel], np.asarray(rss_dbm, dtype=np.float64)[sel]
-        cs = np.concatenate([[0.0], np.cumsum(ra)])
+        cs = np.concatenate([[0.0], np.cumsum(10.0 ** (ra / 10.0) if statistic == "mean-power"
+                                              else ra)])
         cw = np.concatenate([[0.0], np.cumsum(w_in[sel])])
         hi = np.searchsorted(ta, ts, side="right")
         lo = np.searchsorted(ta, ts - average_s, side="right")
         n = hi - lo
         ok = n > 0
         means[ok, a] = (cs[hi[ok]] - cs[lo[ok]]) / n[ok]
+        if statistic == "mean-power":
+            means[ok, a] = 10.0 * np.log10(means[ok, a])
+        elif statistic == "median":
+            means[ok, a] = window_medians(ra, lo[ok], hi[ok])
         prev_hi = np.concatenate([[np.searchsorted(ta, t_from, side="right")], hi[:-1]])
         weights[ok, a] = (cw[hi[ok]] - cw[np.maximum(prev_hi[ok], lo[ok])]) / n[ok]
     heard = np.isfinite(means)

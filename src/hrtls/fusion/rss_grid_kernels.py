@@ -344,3 +344,13 @@ def apply_likelihood(density: FloatArray, ll: FloatArray, marginal: FloatArray) 
     marginal[:] = density[0]
     for m in range(1, k):
         marginal += density[m]
+
+
+@njit(cache=True, error_model="numpy")
+def window_medians(values: FloatArray, lo: IntArray, hi: IntArray) -> FloatArray:
+    # pragma: no cover - compiled
+    """Median of ``values[lo[k]:hi[k]]`` for every k (each slice non-empty)."""
+    out = np.empty(lo.shape[0])
+    for k in range(lo.shape[0]):
+        out[k] = np.median(values[lo[k]:hi[k]])
+    return out

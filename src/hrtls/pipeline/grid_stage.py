@@ -153,7 +153,8 @@ class GridStage:
         scans = causal_scans(self._buf_t[:upto], self._buf_a[:upto], self._buf_r[:upto],
                              n_anchors=len(self.ids), scan_s=w, average_s=self.params.average_s,
                              t_origin=self.t0, t_from=self.state.t,
-                             info=self._buf_w[:upto])
+                             info=self._buf_w[:upto],
+                             statistic=self.params.window_statistic)
         rows, self.state = self.filter.update(self.state, scans)
         n = len(rows.t)
         x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
