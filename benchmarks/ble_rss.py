@@ -2,7 +2,7 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-per-anchor bias state, persistent-velocity time constant, and with ``--motion`` the choices of
+per-anchor bias state, persistent-velocity time constant, the window statistic, and with ``--motion`` the choices of
 :data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the averaging window of 2 s
 and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
 the channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks'
