@@ -2,9 +2,10 @@
 
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
-per-anchor bias state, persistent-velocity time constant, the window statistic, and with ``--motion`` the choices of
-:data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the averaging window of 2 s
-and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
+per-anchor bias state, persistent-velocity time constant, with ``--window`` / ``--estimate``
+what a row holds of an anchor's window / the row's point estimate, and with ``--motion``
+the choices of :data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the
+averaging window of 2 s and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
 the channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks'
 readings against their true distances, as a site survey would) are chosen there by the mean
 p75 of the horizontal error; the held-out track is then tracked once with that choice.
@@ -14,13 +15,14 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 * ``grid, default``: ``hrtls track`` as shipped (no tuning on the held-out track either);
 * ``grid, held out``: the leave-one-out choice above, and ``s / run`` the seconds that
   held-out run took (the whole tracker, one process);
-* ``grid, held out, dB mean``: the same choice among the candidates without the motion
-  choices (one velocity mode, no burst state) and with the window's mean in dBm (the
-  candidates before ``window_statistic``);
+* ``grid, held out, before``: the same choice among the candidates without the motion
+  choices (one velocity mode, no burst state) nor the ``--window`` / ``--estimate`` values
+  other than the default (the candidates before those options);
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
-``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse).
+``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse);
+``--window`` and ``--estimate`` add :data:`EXTRA_CHOICES` (3 and 2 times the runs).
 ``--map`` instead scores the radio map (``[prediction.radio_map]``, :mod:`hrtls.fusion.radio_map`)
 with the shipped grid settings: for each held-out track the survey is the other four tracks'
 readings at their true positions; its length scale and prior spread (:data:`MAP_CHOICES`) are
@@ -59,10 +61,14 @@ TRACKS = ("rectangular_with_rotation", "rectangular_without_rotation", "straight
           "straight_02", "straight_03")
 GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,),
                 "offset_gain": (0.0,), "bias_sigma_db": (0.0, 3.0, 5.0),
-                "velocity_time_s": (0.0, 8.0, 16.0),
-                "window_statistic": ("mean-db", "mean-power", "median")}
+                "velocity_time_s": (0.0, 8.0, 16.0)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice, each with every
 :data:`MOTION_CHOICES` entry that fits it."""
+EXTRA_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "window": ("window_statistic", ("mean-db", "mean-power", "median")),
+    "estimate": ("point_estimate", ("mean", "median"))}
+"""``--window`` / ``--estimate``: a ``[prediction.grid]`` key added to :data:`GRID_CHOICES`
+with its values (the first is the shipped default)."""
 FIXED_HEADINGS = {"mode_turn_deg": 45.0, "stopped_mode": True, "mode_switch_per_s": 0.1,
                   "velocity_time_s": 0.0}
 MOTION_CHOICES: tuple[dict[str, Any], ...] = (
@@ -195,6 +201,10 @@ def main() -> None:
                     help="only the default channel among the choices (a fifth of the runs)")
     ap.add_argument("--motion", action="store_true",
                     help="velocity modes and the burst state among the candidates")
+    ap.add_argument("--window", action="store_true",
+                    help="window_statistic (mean-db, mean-power, median) among the candidates")
+    ap.add_argument("--estimate", action="store_true",
+                    help="point_estimate (mean, median) among the candidates")
     ap.add_argument("--map", action="store_true",
                     help="the radio map from the other tracks' truth, held out")
     args = ap.parse_args()
@@ -211,8 +221,9 @@ def main() -> None:
             warnings.simplefilter("ignore")
             sweep(loaded, args.grid)
         return
-    bases = [dict(zip(GRID_CHOICES, v, strict=True))
-             for v in itertools.product(*GRID_CHOICES.values())]
+    choices: dict[str, tuple[Any, ...]] = dict(GRID_CHOICES)
+    choices.update(dict(v for k, v in EXTRA_CHOICES.items() if getattr(args, k)))
+    bases = [dict(zip(choices, v, strict=True)) for v in itertools.product(*choices.values())]
     motion = MOTION_CHOICES if args.motion else MOTION_CHOICES[:1]
     candidates = [{**b, **m} for b in bases for m in motion if fits(b, m)]
     # p75 of every candidate on every track, with the default channel and with each fold's
@@ -229,12 +240,13 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    for col in ("track", "random walk", "grid, default", "grid, held out, dB mean",
+    for col in ("track", "random walk", "grid, default", "grid, held out, before",
                 "grid, held out", "s / run", "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
-    before = [k for k, c in enumerate(candidates)
-              if set(c) == set(GRID_CHOICES) and c["window_statistic"] == "mean-db"]
+    shipped = {key: values[0] for key, values in EXTRA_CHOICES.values()}
+    before = [k for k, c in enumerate(candidates) if set(c) <= set(choices)
+              and all(c.get(key, v) == v for key, v in shipped.items())]
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])

@@ -80,6 +80,7 @@ from hrtls.fusion.rss_grid_kernels import (
     follow_velocity,
     log_likelihood,
     map_mean,
+    median_row,
     mix_modes,
     moments,
     move_modes,
@@ -107,6 +108,7 @@ __all__ = [
     "grid_kernel",
     "log_likelihood",
     "map_mean",
+    "median_row",
     "mix_modes",
     "moments",
     "move_modes",
@@ -158,6 +160,9 @@ class GridParams:
     window_statistic: what a row holds of an anchor's readings in its window: ``mean-db``
         (their mean in dBm), ``mean-power`` (their mean power, in dBm: a deep fade of one
         reading moves it less) or ``median``.
+    point_estimate: what a row's position is: the density's ``mean`` or its per-axis
+        ``median`` (then its covariance is the spread about that point); the persistent
+        velocity and the offsets follow the mean either way.
     """
 
     cell_m: float = 0.25
@@ -184,6 +189,7 @@ class GridParams:
     burst_enter_per_s: float = 0.05
     burst_exit_per_s: float = 0.3
     window_statistic: Literal["mean-db", "mean-power", "median"] = "mean-db"
+    point_estimate: Literal["mean", "median"] = "mean"
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -199,6 +205,9 @@ class GridParams:
             raise InputError(f"window_statistic = {self.window_statistic!r}",
                              where="GridParams.window_statistic",
                              expected=" or ".join(WINDOW_STATISTICS))
+        if self.point_estimate not in ("mean", "median"):
+            raise InputError(f"point_estimate = {self.point_estimate!r}",
+                             where="GridParams.point_estimate", expected="mean or median")
         if self.average_s < self.scan_s:
             raise InputError(f"average_s = {self.average_s} s < scan_s = {self.scan_s} s",
                              where="GridParams.average_s", expected="at least scan_s")
@@ -218,7 +227,8 @@ class GridParams:
 
     def record(self) -> np.ndarray:
         """The settings as a one-element :data:`GRID_DTYPE` array."""
-        return to_record(GRID_DTYPE, self)
+        return to_record(GRID_DTYPE, self,
+                         median_point=float(self.point_estimate == "median"))
 
     @property
     def n_modes(self) -> int:
@@ -239,8 +249,10 @@ GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "outlier_probability", "offset_gain", "offset_max_db", "attenuation_probability",
     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s", "velocity_time_s",
     "velocity_max_m_per_s", "mode_turn_deg", "mode_speed_m_per_s", "stopped_mode",
-    "mode_switch_per_s", "burst_sigma_db", "burst_enter_per_s", "burst_exit_per_s")])
-"""Record of :class:`GridParams` for compiled code (same field names)."""
+    "mode_switch_per_s", "burst_sigma_db", "burst_enter_per_s", "burst_exit_per_s",
+    "median_point")])
+"""Record of :class:`GridParams` for compiled code (same field names; ``median_point`` is 1
+for ``point_estimate = "median"``, else 0)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -417,6 +429,8 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
                 mu = map_mean(dist, rmap, an, ci, cj, model)
                 o = offsets_db[an] + prm.offset_gain * (rss_dbm[r] - mu - offsets_db[an])
                 offsets_db[an] = min(max(o, -prm.offset_max_db), prm.offset_max_db)
+        if prm.median_point > 0.0:
+            median_row(pos, x0, y0, cell, out[k])
         t_prev = t[k]
         started = True
     return t_prev

@@ -354,3 +354,41 @@ def window_medians(values: FloatArray, lo: IntArray, hi: IntArray) -> FloatArray
     for k in range(lo.shape[0]):
         out[k] = np.median(values[lo[k]:hi[k]])
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def marginal_median(marginal: FloatArray, origin: float, cell: float) -> float:
+    # pragma: no cover - compiled
+    """Median of a marginal density on cells ``origin + cell j`` (sums to 1), m.
+
+    Linear between the two cell centres where the cumulative sum crosses 1/2 (the first
+    centre if the first cell already holds half the mass).
+    """
+    cum_prev = 0.0
+    for j in range(marginal.shape[0]):
+        cum = cum_prev + marginal[j]
+        if cum >= 0.5:
+            if j == 0:
+                return origin
+            return origin + cell * (j - 1 + (0.5 - cum_prev) / (cum - cum_prev))
+        cum_prev = cum
+    return origin + cell * (marginal.shape[0] - 1)
+
+
+@njit(cache=True, error_model="numpy")
+def median_row(density: FloatArray, x0: float, y0: float, cell: float, row: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Replace the mean of a :func:`moments` row by the density's per-axis median, in place.
+
+    ``density`` (ny, nx) sums to 1; the covariance becomes the spread about the new point,
+    ``C + (m - p)(m - p)^T``.
+    """
+    px = density.sum(axis=0)
+    py = density.sum(axis=1)
+    mx = marginal_median(px, x0, cell)
+    my = marginal_median(py, y0, cell)
+    dx, dy = row[0] - mx, row[1] - my
+    row[2] += dx * dx
+    row[3] += dx * dy
+    row[4] += dy * dy
+    row[0], row[1] = mx, my
