@@ -5,7 +5,8 @@ development tracks: the grid filter's settings (``[prediction.grid]``: diffusion
 per-anchor bias state, persistent-velocity time constant, with ``--window`` / ``--estimate``
 what a row holds of an anchor's window / the row's point estimate, and with ``--motion``
 the choices of :data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the
-averaging window of 2 s and no offset gain, the only values any fold chose among 1 / 2 s and 0 / 0.01) and optionally
+averaging window of 2 s and no offset gain, the only values any fold chose among 1 / 2 s and
+0 / 0.01) and optionally
 the channel (``A``, ``eta``, ``sigma`` fitted by least squares to the development tracks'
 readings against their true distances, as a site survey would) are chosen there by the mean
 p75 of the horizontal error; the held-out track is then tracked once with that choice.
@@ -16,8 +17,8 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 * ``grid, held out``: the leave-one-out choice above, and ``s / run`` the seconds that
   held-out run took (the whole tracker, one process);
 * ``grid, held out, before``: the same choice among the candidates without the motion
-  choices (one velocity mode, no burst state) nor the ``--window`` / ``--estimate`` values
-  other than the default (the candidates before those options);
+  choices (one velocity mode, no burst state) and with the ``--window`` / ``--estimate`` keys
+  at their first value (the settings before those options) when the flag is given;
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
@@ -54,6 +55,7 @@ from hrtls.data import Session
 from hrtls.data.session import ChannelModel
 from hrtls.datasets.ble_rssi import BleRssiTrajectory, load_trajectory
 from hrtls.evaluate.metrics import position_errors
+from hrtls.fusion.rss_grid import GridParams
 from hrtls.pipeline import Tracker, TrackerConfig
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ble_rssi"
@@ -67,8 +69,8 @@ GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,)
 EXTRA_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
     "window": ("window_statistic", ("mean-db", "mean-power", "median")),
     "estimate": ("point_estimate", ("mean", "median"))}
-"""``--window`` / ``--estimate``: a ``[prediction.grid]`` key added to :data:`GRID_CHOICES`
-with its values (the first is the shipped default)."""
+"""``--window`` / ``--estimate``: a ``[prediction.grid]`` key whose values join the candidates
+(the first: the setting before the option); without the flag the key keeps its default."""
 FIXED_HEADINGS = {"mode_turn_deg": 45.0, "stopped_mode": True, "mode_switch_per_s": 0.1,
                   "velocity_time_s": 0.0}
 MOTION_CHOICES: tuple[dict[str, Any], ...] = (
@@ -222,7 +224,9 @@ def main() -> None:
             sweep(loaded, args.grid)
         return
     choices: dict[str, tuple[Any, ...]] = dict(GRID_CHOICES)
-    choices.update(dict(v for k, v in EXTRA_CHOICES.items() if getattr(args, k)))
+    shipped = GridParams()
+    for flag, (key, values) in EXTRA_CHOICES.items():
+        choices[key] = values if getattr(args, flag) else (getattr(shipped, key),)
     bases = [dict(zip(choices, v, strict=True)) for v in itertools.product(*choices.values())]
     motion = MOTION_CHOICES if args.motion else MOTION_CHOICES[:1]
     candidates = [{**b, **m} for b in bases for m in motion if fits(b, m)]
@@ -244,9 +248,10 @@ def main() -> None:
                 "grid, held out", "s / run", "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
-    shipped = {key: values[0] for key, values in EXTRA_CHOICES.values()}
-    before = [k for k, c in enumerate(candidates) if set(c) <= set(choices)
-              and all(c.get(key, v) == v for key, v in shipped.items())]
+    first = {key: values[0] for flag, (key, values) in EXTRA_CHOICES.items()
+             if getattr(args, flag)}
+    before = [k for k, c in enumerate(candidates) if set(c) == set(choices)
+              and all(c[key] == v for key, v in first.items())]
     for h in TRACKS:
         dev = [n for n in TRACKS if n != h]
         score = {(k, ch): np.mean([p75[(k, h if ch else None, n)] for n in dev])

@@ -1,5 +1,6 @@
-"""What a grid scan row holds of an anchor's readings in its window: mean in dBm, mean power,
-median (``[prediction.grid] window_statistic``)."""
+"""What a grid scan row holds: of an anchor's readings in its window the mean in dBm, mean
+power or median (``[prediction.grid] window_statistic``); of the density its mean or per-axis
+median (``point_estimate``)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hrtls.errors import InputError
-from hrtls.fusion.rss_grid import WINDOW_STATISTICS, GridParams, causal_scans, window_medians
+from hrtls.fusion.rss_grid import (
+    WINDOW_STATISTICS,
+    GridParams,
+    causal_scans,
+    median_row,
+    moments,
+    window_medians,
+)
+from hrtls.fusion.rss_grid_kernels import marginal_median
 from hrtls.pipeline import TrackerConfig
 
 
@@ -69,3 +78,50 @@ def test_unknown_statistic_is_refused() -> None:
     with pytest.raises(ValueError, match="window_statistic"):
         TrackerConfig.model_validate(cfg)
     assert GridParams().window_statistic == "mean-db"
+
+
+def test_hand_computed_median_row() -> None:
+    # x marginal 0.2 / 0.2 / 0.6 at x = 0, 1, 2: cumulative 0.4 at x = 1, 1.0 at x = 2, so the
+    # median is 1 + 0.1 / 0.6; one row of cells: y median at its centre, 5
+    assert marginal_median(np.array([0.2, 0.2, 0.6]), 0.0, 1.0) == pytest.approx(7.0 / 6.0)
+    assert marginal_median(np.array([0.6, 0.4]), 3.0, 0.5) == pytest.approx(3.0)
+    d = np.array([[0.2, 0.2, 0.6]])
+    row = np.zeros(5)
+    moments(d, 0.0, 5.0, 1.0, row)
+    np.testing.assert_allclose(row, [1.4, 5.0, 0.64, 0.0, 0.0], atol=1e-12)
+    median_row(d, 0.0, 5.0, 1.0, row)
+    # covariance about the median: 0.64 + (1.4 - 7/6)^2
+    np.testing.assert_allclose(row, [7.0 / 6.0, 5.0, 0.64 + (1.4 - 7.0 / 6.0) ** 2, 0.0, 0.0],
+                               atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 7), st.integers(1, 7))
+def test_median_row_within_the_grid_and_spread_not_below_the_covariance(
+        seed: int, ny: int, nx: int) -> None:
+    rng = np.random.default_rng(seed)
+    d = rng.random((ny, nx)) ** 4
+    d /= d.sum()
+    row = np.zeros(5)
+    moments(d, -1.0, 2.0, 0.5, row)
+    before = row.copy()
+    median_row(d, -1.0, 2.0, 0.5, row)
+    other = before.copy()
+    median_row.py_func(d, -1.0, 2.0, 0.5, other)
+    np.testing.assert_allclose(row, other, rtol=1e-9, atol=1e-12)
+    assert -1.0 - 1e-9 <= row[0] <= -1.0 + 0.5 * (nx - 1) + 1e-9
+    assert 2.0 - 1e-9 <= row[1] <= 2.0 + 0.5 * (ny - 1) + 1e-9
+    assert row[2] >= before[2] - 1e-12 and row[4] >= before[4] - 1e-12
+    assert row[2] * row[4] - row[3] ** 2 >= -1e-9
+    # half the mass on either side of the median of each marginal (within a cell's mass)
+    px = d.sum(axis=0)
+    x = -1.0 + 0.5 * np.arange(nx)
+    assert px[x < row[0] - 1e-9].sum() <= 0.5 + 1e-9
+
+
+def test_unknown_point_estimate_is_refused() -> None:
+    with pytest.raises(InputError, match="point_estimate"):
+        GridParams(point_estimate="mode")  # type: ignore[arg-type]
+    assert GridParams().point_estimate == "mean"
+    assert GridParams(point_estimate="median").record()["median_point"][0] == 1.0
+    assert GridParams().record()["median_point"][0] == 0.0

@@ -54,7 +54,9 @@ density.
 
 The first scan starts from a uniform density, so the first row is what the first scan's
 likelihood says (no start at an arbitrary point). Each scan gives one row: the mean and
-covariance of the density. Forward only (causal).
+covariance of the density (the default, ``point_estimate = "mean"``), or with ``"median"`` its
+per-axis median and its spread about that point (the covariance plus the outer product of the
+mean's offset from it). Forward only (causal).
 """
 
 from __future__ import annotations
@@ -343,7 +345,8 @@ class GridState:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class GridRows:
-    """One row per scan: time (S,), mean (S, 2) and covariance (S, 2, 2) of the position."""
+    """One row per scan: time (S,), point estimate ``mean_xy`` (S, 2: the mean or median,
+    :attr:`GridParams.point_estimate`) and covariance about it (S, 2, 2) of the position."""
 
     t: FloatArray
     mean_xy: FloatArray
