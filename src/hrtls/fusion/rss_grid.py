@@ -345,8 +345,11 @@ class GridState:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class GridRows:
-    """One row per scan: time (S,), point estimate ``mean_xy`` (S, 2: the mean or median,
-    :attr:`GridParams.point_estimate`) and covariance about it (S, 2, 2) of the position."""
+    """One row per scan: time, point estimate and the position's covariance about it.
+
+    ``t`` (S,); ``mean_xy`` (S, 2): the mean or the median (:attr:`GridParams.point_estimate`);
+    ``cov_xy`` (S, 2, 2).
+    """
 
     t: FloatArray
     mean_xy: FloatArray
