@@ -21,7 +21,8 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   ``1 - exp(-mode_switch_per_s dt)``, to the others alike). The update multiplies every mode
   by the same likelihood, so the modes are weighted by how well their predictions explain the
   scan, and the rows, the bias and ``v`` use the position density (the sum over modes);
-* **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor under the
+* **update**: it is multiplied by the likelihood of the scan's mean RSS per anchor (or the
+  power mean or median of its window: ``window_statistic``) under the
   log-distance path loss (:func:`hrtls.fusion.path_loss.mean_rss_dbm`, horizontal distance, at
   least ``d0``) with shadowing ``sigma_db`` and an outlier floor:
   ``l = (1 - e) [(1 - q) N(r; mu(d) + o_a, sigma) + q N(r; mu(d) + o_a - att, sigma)]
