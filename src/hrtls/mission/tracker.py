@@ -119,7 +119,7 @@ class MissionParams:
     cooperate: bool = True
     pass_cap: bool = True
     loop_closure_ratio: float = 4.0
-    use_variance_ratio: float = math.inf
+    use_variance_ratio: float = 0.3
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
