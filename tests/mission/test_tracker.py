@@ -176,14 +176,16 @@ def test_cooperation_keeps_the_agents_nees_within_their_own() -> None:
     95 % point.
 
     Measured: NEES 2.20 alone; with cooperation 2.42 before the pass cap
-    (``hrtls.mission.provenance``), 2.16 after.
+    (``hrtls.mission.provenance``), 2.16 after. Without the information gate
+    (``use_variance_ratio`` inf): the pass cap alone is tested (the gate leaves 6 uses).
     """
     from scipy.stats import chi2
 
     mission = inderst_hybrid_mission(2, MissionOptions(walk_s=150.0, stagger_s=20.0, n_nodes=20))
     cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
     alone = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=False)).run()
-    res = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=True)).run()
+    res = MissionTracker(mission.agents, config=cfg, params=MissionParams(
+        cooperate=True, use_variance_ratio=math.inf)).run()
     assert len(res.uses) >= 20
     on, off = _agents_nees(mission, res), _agents_nees(mission, alone)
     assert on <= 1.05 * off

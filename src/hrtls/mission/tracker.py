@@ -503,7 +503,7 @@ class MissionTracker:
         """The information gate (``use_variance_ratio``) at the agent's latest row."""
         rows = self.recent_rows[self.names[i]]
         est = self.estimates.get(node)
-        if not rows or est is None or not est.localized:
+        if not rows or est is None:
             return True
         return informative(est.position_m, est.covariance_m2, rows[0][1][-1], rows[0][2][-1],
                            ratio=self.params.use_variance_ratio)
