@@ -99,7 +99,7 @@ class MissionParams:
         Information gate: an agent uses a node's ranges only while the node's claimed variance
         along the line of sight is at most this times the agent's own (its latest row), so a
         range carries information about the agent rather than about the node's error; a gated
-        range is kept as a reading of the node (:func:`informative`). ``inf``: no gate.
+        range is kept as a reading of the node (:func:`informative`). inf: no gate (0.3 opt-in).
     silent_after_s:
         Live (:meth:`MissionTracker.advance`): an agent whose latest part arrived longer ago
         than this (on the clock given to :meth:`MissionTracker.feed`) no longer holds the
@@ -119,7 +119,7 @@ class MissionParams:
     cooperate: bool = True
     pass_cap: bool = True
     loop_closure_ratio: float = 4.0
-    use_variance_ratio: float = 0.3
+    use_variance_ratio: float = math.inf
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
