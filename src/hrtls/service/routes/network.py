@@ -19,7 +19,7 @@ from hrtls.service.schemas import Strict
 router = APIRouter(tags=["missions"])
 
 LIVE_PARAMS = ("chunk_s", "pass_gap_s", "refresh_fraction", "cooperate", "loop_closure_ratio",
-               "use_variance_ratio", "silent_after_s")
+               "silent_after_s")
 """Fields of :class:`~hrtls.mission.tracker.MissionParams` a mission may set."""
 
 
