@@ -145,6 +145,8 @@ class SeedItem:
     """``MissionParams.pass_cap``."""
     only_off: bool = False
     """Cooperation off only (the ``on`` column skipped)."""
+    use_variance_ratio: float | None = None
+    """``MissionParams.use_variance_ratio`` (None: its default)."""
 
 
 def modes(peers: bool, only_on: bool = False, only_off: bool = False) -> tuple[str, ...]:
@@ -243,7 +245,9 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
             peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
             smoother=item.smoother, pass_cap=item.pass_cap,
             **({} if item.loop_closure_ratio is None else
-               {"loop_closure_ratio": item.loop_closure_ratio})),
+               {"loop_closure_ratio": item.loop_closure_ratio}),
+            **({} if item.use_variance_ratio is None else
+               {"use_variance_ratio": item.use_variance_ratio})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude}))
@@ -298,6 +302,8 @@ def main() -> None:
                     help="NodeEstimatorParams.range_correlation_s (default: its default)")
     ap.add_argument("--max-mirror-passes", type=int, default=None,
                     help="NodeEstimatorParams.max_mirror_passes (default: its default)")
+    ap.add_argument("--use-variance-ratio", type=float, default=None,
+                    help="MissionParams.use_variance_ratio (default: its default; inf: no gate)")
     ap.add_argument("--loop-closure-ratio", type=float, default=None,
                     help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
     ap.add_argument("--no-pass-cap", action="store_true",
@@ -369,7 +375,7 @@ def main() -> None:
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
-                      only_off=args.only_off)
+                      only_off=args.only_off, use_variance_ratio=args.use_variance_ratio)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in cols:
@@ -400,6 +406,8 @@ def main() -> None:
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
                   f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
+    ratio = (MissionParams().use_variance_ratio if args.use_variance_ratio is None
+             else args.use_variance_ratio)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers ({args.rescuer_driver} driver), "
           f"{args.robots} robots "
           f"({args.robot_driver} driver), tags {args.tags}"
@@ -407,7 +415,8 @@ def main() -> None:
           f"{args.nodes} nodes, {args.floors} floor(s), range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
-          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, rescuers' "
+          f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "
+          f"ratio {ratio:g}, rescuers' "
           f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")

@@ -98,7 +98,8 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
     summary = json.loads((tmp_path / "out" / "report.json").read_text())
     assert summary["params"] == {
         "cooperate": cooperate, "chunk_s": chunk_s, "loop_closure_ratio": 4.0,
-        "pass_cap": True, "agent_cov_scale": 2.0, "agent_correlation": 0.5, "config": "default"}
+        "pass_cap": True, "use_variance_ratio": None, "agent_cov_scale": 2.0,
+        "agent_correlation": 0.5, "config": "default"}
     assert summary["loop_closures"] == [
         {"t": c.t, "agent": c.agent, "node": c.node, "trace_now_m2": c.trace_now_m2,
          "trace_readings_m2": c.trace_readings_m2} for c in res.closures]

@@ -42,10 +42,10 @@ def _parts(sessions: dict[str, Session]) -> list[tuple[str, Session]]:
     return sorted(out, key=lambda kp: kp[1].time_span()[1])
 
 
-def _live(sessions: dict[str, Session], kinds: dict[str, str], *, cut: int | None = None
-          ) -> tuple[MissionTracker, int]:
+def _live(sessions: dict[str, Session], kinds: dict[str, str], *, cut: int | None = None,
+          params: MissionParams | None = None) -> tuple[MissionTracker, int]:
     """Feed the parts in arrival order, advancing after each; stop before part ``cut``."""
-    mt = MissionTracker(_headers(sessions), kinds=kinds)
+    mt = MissionTracker(_headers(sessions), kinds=kinds, params=params)
     parts = _parts(sessions)
     for j, (name, part) in enumerate(parts[:cut]):
         assert mt.feed(name, part, now_s=float(j)) is None
@@ -188,7 +188,7 @@ def test_landmark_versions_given_live_act_as_given_at_the_start(seed1) -> None: 
     assert mt.add_landmark_updates([late]) == [late]
     for k in sessions:
         mt.end(k)
-    assert _max_diff(want, mt.run()) <= 1e-12
+    assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
 
 
 def test_a_foreign_snapshot_is_refused() -> None:
@@ -303,3 +303,22 @@ def test_snapshot_holds_the_pending_readings(seed1) -> None:  # type: ignore[no-
         for k in sessions:
             m.end(k)
     assert _max_diff(mt.run(), back.run(), tail=True) == 0.0
+
+
+def test_with_the_information_gate_live_and_restored_give_the_offline_run(seed1) -> None:  # type: ignore[no-untyped-def]
+    """``use_variance_ratio`` 0.3 (the gate reads each agent's latest row): parts fed live, and
+    a snapshot restored half-way then fed the rest, give the offline run."""
+    sessions, kinds = seed1
+    prm = MissionParams(use_variance_ratio=0.3)
+    want = MissionTracker(sessions, kinds=kinds, params=prm).run()
+    assert len(want.uses) < len(MissionTracker(sessions, kinds=kinds).run().uses)  # it gates
+    parts = _parts(sessions)
+    mt, _ = _live(sessions, kinds, cut=len(parts) // 2, params=prm)
+    mt = MissionTracker.restore(mt.snapshot())
+    assert mt.params.use_variance_ratio == 0.3
+    for j, (name, part) in enumerate(parts[len(parts) // 2:], start=len(parts) // 2):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+    for k in sessions:
+        mt.end(k)
+    assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore

@@ -8,7 +8,14 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hrtls.mission.provenance import NodeUse, Provenance, UsePool, pool_factor, widening
+from hrtls.mission.provenance import (
+    NodeUse,
+    Provenance,
+    UsePool,
+    informative,
+    pool_factor,
+    widening,
+)
 
 
 def test_pool_factor_hand_case() -> None:
@@ -91,3 +98,50 @@ def test_widening_with_and_without_the_cap() -> None:
     assert widening(pool, kind="direct", cap=True, **kw)[1] == 30.0
     assert widening(pool, kind="second-order", cap=False, **kw)[1] == 4.0
     assert widening(pool, kind="direct", cap=False, **kw)[1] == 8.0
+
+
+def test_information_gate_hand_case() -> None:
+    """Node at (10, 0) with variances 1 (x) and 100 (y) m^2; agent at the origin, 2 and 0.1.
+
+    Along the line of sight (x): node 1 against agent 2: taken at ratio 1 (1 <= 2), not at 0.4
+    (1 > 0.8). Seen from (10, -10) the line of sight is y: 100 against 0.1, never taken. At a
+    common position the largest variances compare: 100 against 2.
+    """
+    node, pn = np.array([10.0, 0.0]), np.diag([1.0, 100.0])
+    pa = np.diag([2.0, 0.1])
+    assert informative(node, pn, np.zeros(2), pa, ratio=1.0)
+    assert not informative(node, pn, np.zeros(2), pa, ratio=0.4)
+    assert informative(node, pn, np.zeros(2), pa, ratio=0.5)             # 1 <= 0.5 * 2
+    assert not informative(node, pn, np.array([10.0, -10.0]), pa, ratio=100.0)   # 100 > 10
+    assert informative(node, pn, np.array([10.0, -10.0]), pa, ratio=1000.0)
+    assert not informative(node, pn, node, pa, ratio=49.0)                 # 100 > 98
+    assert informative(node, pn, node, pa, ratio=50.0)
+    assert informative(node, pn, np.zeros(2), pa, ratio=math.inf)
+
+
+def _cov(draw_l1: float, draw_l2: float, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    r = np.array([[c, -s], [s, c]])
+    return r @ np.diag([draw_l1, draw_l2]) @ r.T
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.01, 10.0), st.floats(0.01, 10.0), st.floats(0.0, 3.2),
+       st.floats(0.01, 10.0), st.floats(0.01, 10.0), st.floats(0.0, 3.2),
+       st.floats(-50.0, 50.0), st.floats(-50.0, 50.0), st.floats(0.05, 20.0))
+def test_information_gate_bounded_by_eigenvalues(a1: float, a2: float, aa: float, n1: float,
+                                                  n2: float, na: float, x: float, y: float,
+                                                  ratio: float) -> None:
+    """An agent whose every variance times the ratio is below every node variance never takes
+    the node's ranges, wherever it is; one whose smallest variance times the ratio is above the
+    node's largest always does."""
+    pa, pn = _cov(a1, a2, aa), _cov(n1, n2, na)
+    node = np.array([3.0, -2.0])
+    agent = np.array([x, y])
+    if ratio * max(a1, a2) < 0.999 * min(n1, n2):
+        assert not informative(node, pn, agent, pa, ratio=ratio)
+    if ratio * min(a1, a2) > 1.001 * max(n1, n2):
+        assert informative(node, pn, agent, pa, ratio=ratio)
+    # monotone in the ratio
+    if informative(node, pn, agent, pa, ratio=ratio):
+        assert informative(node, pn, agent, pa, ratio=2.0 * ratio)

@@ -166,7 +166,7 @@ def _headline(evaluation: dict[str, Any] | None) -> dict[str, Any] | None:
 def mission_summary(run: MissionRun) -> dict[str, Any]:
     """The mission's ``report.json``: inputs, parameters, per-agent and node figures."""
     folder, res = run.folder, run.result
-    ratio = run.params.loop_closure_ratio
+    ratio, gate = run.params.loop_closure_ratio, run.params.use_variance_ratio
     localized = [n for n, e in res.nodes.items() if e.localized]
     agents = {}
     for name, tr in run.agents.items():
@@ -183,6 +183,7 @@ def mission_summary(run: MissionRun) -> dict[str, Any]:
         "params": {"cooperate": run.params.cooperate, "chunk_s": run.params.chunk_s,
                    "loop_closure_ratio": ratio if math.isfinite(ratio) else None,
                    "pass_cap": run.params.pass_cap,
+                   "use_variance_ratio": gate if math.isfinite(gate) else None,
                    "agent_cov_scale": run.params.nodes.agent_cov_scale,
                    "agent_correlation": run.params.nodes.agent_correlation,
                    "config": run.config.name},

@@ -29,6 +29,15 @@ claim is never below the truth. The ``m_j`` ranges of the pass's ``j``-th window
 sums to ``1 + 1/2 + ... + 1/J`` over ``J`` windows of a pass, about ``ln J + 0.58``: above 1 from
 the second window on.) Passes of one agent by different nodes are taken as independent of each
 other, as are passes separated by ``pass_gap_s`` (the agent's drift in between).
+
+Information gate (:func:`informative`). A range from agent position ``x`` (covariance ``P_a``)
+to node ``n`` (``P_n``) constrains ``u^T (x - n)``, ``u`` the unit line of sight, with the
+variance ``u^T P_a u + u^T P_n u`` of its prior: the share of the range's correction that goes
+to the agent is ``u^T P_a u / (u^T P_a u + u^T P_n u + s^2)``, and whatever part of the node's
+error the claimed ``P_n`` misses (its correlation with the agent, an under-modelled node) is
+passed on to the agent with that share. With ``u^T P_n u <= rho u^T P_a u`` the agent takes at
+least ``1 / (1 + rho)`` of it (range noise aside) and the range is mostly about the agent;
+beyond, the range is mostly about the node and goes to the node's estimate as a reading.
 """
 
 from __future__ import annotations
@@ -70,6 +79,26 @@ class UsePool:
 
     t_last_s: float = -math.inf
     ranges: int = 0
+
+
+def informative(node_m: FloatArray, node_cov_m2: FloatArray, agent_m: FloatArray,
+                agent_cov_m2: FloatArray, *, ratio: float) -> bool:
+    """Whether an agent at ``agent_m`` may take ranges to a node at ``node_m`` (module doc).
+
+    True when the node's variance along the line of sight is at most ``ratio`` times the
+    agent's (``ratio`` inf: always); at a common position, the largest variances are compared.
+    """
+    if math.isinf(ratio):
+        return True
+    d = np.asarray(node_m, np.float64)[:2] - np.asarray(agent_m, np.float64)[:2]
+    norm = float(np.hypot(d[0], d[1]))
+    if norm < 1e-9:
+        var_n = float(np.linalg.eigvalsh(node_cov_m2)[-1])
+        var_a = float(np.linalg.eigvalsh(agent_cov_m2)[-1])
+    else:
+        u = d / norm
+        var_n, var_a = float(u @ node_cov_m2 @ u), float(u @ agent_cov_m2 @ u)
+    return var_n <= ratio * var_a
 
 
 def pool_factor(pool: UsePool, *, t_first_s: float, t_last_s: float, ranges: int,

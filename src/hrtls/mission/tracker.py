@@ -63,7 +63,7 @@ from hrtls.mission.floors import FloorLog, building_floor_height_m, node_floor
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
-from hrtls.mission.provenance import NodeUse, Provenance, UsePool, widening
+from hrtls.mission.provenance import NodeUse, Provenance, UsePool, informative, widening
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.records import LoopClosure, NodeTrack, Progress
 from hrtls.mission.robot import RobotTracker
@@ -95,6 +95,11 @@ class MissionParams:
     loop_closure_ratio:
         A contributor uses a node once its covariance trace is this many times the smallest it
         had at its readings of the node (module doc; ``inf``: contributors never use it).
+    use_variance_ratio:
+        Information gate: an agent uses a node's ranges only while the node's claimed variance
+        along the line of sight is at most this times the agent's own (its latest row), so a
+        range carries information about the agent rather than about the node's error; a gated
+        range is kept as a reading of the node (:func:`informative`). inf: no gate (0.3 opt-in).
     silent_after_s:
         Live (:meth:`MissionTracker.advance`): an agent whose latest part arrived longer ago
         than this (on the clock given to :meth:`MissionTracker.feed`) no longer holds the
@@ -114,6 +119,7 @@ class MissionParams:
     cooperate: bool = True
     pass_cap: bool = True
     loop_closure_ratio: float = 4.0
+    use_variance_ratio: float = math.inf
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
@@ -127,6 +133,9 @@ class MissionParams:
         if not self.loop_closure_ratio >= 1.0:
             raise InputError(f"loop_closure_ratio = {self.loop_closure_ratio}",
                              where="MissionParams", expected=">= 1 (inf: never)")
+        if not self.use_variance_ratio > 0.0:
+            raise InputError(f"use_variance_ratio = {self.use_variance_ratio}",
+                             where="MissionParams", expected="> 0 (inf: no gate)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -395,6 +404,8 @@ class MissionTracker:
             if part is None:
                 continue
             rest, peer = split_peer_ranges(self, i, part.ranges)
+            if rest is not None and math.isfinite(self.params.use_variance_ratio):
+                self.agent_rows(name)                   # the gate reads the latest row
             use, keep = self._split_ranges(i, rest)
             self.trackers[name].update(part.with_parts(ranges=merge_ranges(use, peer)))
             smoothing.collect(self, i, rest)
@@ -452,7 +463,9 @@ class MissionTracker:
         if ranges is None:
             return None, None
         known = np.isin(ranges.node, self.known[i])
-        usable = ~known & np.array([self._usable(i, str(n)) for n in ranges.node], dtype=bool)
+        ok = {n: self._informative(i, n) and self._usable(i, n)
+              for n in dict.fromkeys(ranges.node.tolist())}
+        usable = ~known & np.array([ok[n] for n in ranges.node.tolist()], dtype=bool)
         use = None
         if (usable | known).any():
             sig = ranges.sigma_m.copy()
@@ -485,6 +498,15 @@ class MissionTracker:
         self.closures.append(LoopClosure(float(rows[0][0][-1]), self.names[i], node, now, then))
         self.users.setdefault(node, set()).add(i)
         return True
+
+    def _informative(self, i: int, node: str) -> bool:
+        """The information gate (``use_variance_ratio``) at the agent's latest row."""
+        rows = self.recent_rows[self.names[i]]
+        est = self.estimates.get(node)
+        if not rows or est is None:
+            return True
+        return informative(est.position_m, est.covariance_m2, rows[0][1][-1], rows[0][2][-1],
+                           ratio=self.params.use_variance_ratio)
 
     def _use_var(self, i: int, ranges: RangeMeasurements, usable: NDArray[np.bool_]
                  ) -> FloatArray:
