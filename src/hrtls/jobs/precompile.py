@@ -22,7 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-FRONT_END = ("hrtls.calibration", "hrtls.attitude", "hrtls.gait")
+FRONT_END = ("hrtls.calibration", "hrtls.attitude")
 """Modules whose kernels part 1 first runs as Python."""
 PARTS = ((), FRONT_END)
 """Per worker process: the kernel modules it first runs as Python."""
