@@ -1,15 +1,15 @@
-"""Compile the live demo's kernels in background processes on a first run.
+"""Compile the live demo's kernels in a background process on a first run.
 
 numba compiles while holding the interpreter lock, so a process compiles one kernel at a time.
-On a first run (:func:`hrtls.jobs.warmup.first_run`) ``hrtls demo`` starts :data:`PARTS`
-worker processes at once; each tracks the start of a simulated team mission offline, which
-compiles what the live mission tracker and the robot's filter call, into numba's cache. Part 0
-goes in the tracker's order; part 1 runs the front-end kernels (:data:`FRONT_END`) as Python
-first, so that it compiles the later stages while part 0 compiles the front end, then goes
-over it again compiled (loading what part 0 cached). The demo itself loads what the workers
-have cached and waits for a kernel one of them is compiling
-(:func:`hrtls.kernels.cooperative`): no kernel is compiled twice. The workers write nothing but
-numba's cache and, when part 0 ends, a marker; they are stopped when the demo exits.
+On a first run (:func:`hrtls.jobs.warmup.first_run`) with a core to spare, ``hrtls demo``
+starts one worker process per entry of :data:`PARTS`; it tracks the start of a simulated team
+mission offline, which compiles what the live mission tracker and the robot's filter call, into
+numba's cache. The worker first runs the front-end kernels (:data:`FRONT_END`) as Python, so
+it compiles the later stages while the demo compiles the front end, then goes over the mission
+again compiled (loading what the demo cached). Each process loads what the other cached and
+waits for a kernel the other is compiling (:func:`hrtls.kernels.cooperative`): no kernel is
+compiled twice. The worker writes nothing but numba's cache and, when it ends, a marker; it
+stops when the demo exits.
 
 Run one part: ``python -m hrtls.jobs.precompile PART``.
 """
@@ -24,8 +24,12 @@ from pathlib import Path
 
 FRONT_END = ("hrtls.calibration", "hrtls.attitude")
 """Modules whose kernels part 1 first runs as Python."""
-PARTS = ((), FRONT_END)
+PARTS = (FRONT_END,)
 """Per worker process: the kernel modules it first runs as Python."""
+SPARE_PER_PART = 0.5
+"""Idle cores (:func:`spare_cores`) wanted per worker."""
+ENV_SWITCH = "HRTLS_PRECOMPILE"
+"""Set to ``0`` to start no worker."""
 WAYPOINTS = 6
 """Each rescuer walks the first waypoints of the demo's route (a corridor and the stairs)."""
 
@@ -39,11 +43,25 @@ def marker() -> Path:
 
 
 def wanted() -> bool:
-    """Whether the workers should run: a first run, and a cache locked across processes."""
+    """Whether the workers should run: a first run, a cache locked across processes, a core free.
+
+    numba compiles on one core; a worker gains only on a core the machine does not already use
+    (by the one-minute load average): on a busy machine it would slow the demo down.
+    """
     from hrtls.jobs.warmup import first_run
     from hrtls.kernels import fcntl
 
-    return fcntl is not None and first_run() and not marker().exists()
+    return (os.environ.get(ENV_SWITCH, "1") != "0" and fcntl is not None and first_run()
+            and not marker().exists() and spare_cores() >= SPARE_PER_PART * len(PARTS))
+
+
+def spare_cores() -> float:
+    """Cores the machine leaves idle: the count less the one-minute load, less this process."""
+    try:
+        load = os.getloadavg()[0]
+    except OSError:  # no load average (Windows): count the machine as busy
+        return 0.0
+    return (os.cpu_count() or 1) - 1.0 - load
 
 
 def start() -> list[subprocess.Popen[bytes]]:
