@@ -105,3 +105,16 @@ def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     warmup.mark_compiled()
     assert not precompile.wanted()  # `hrtls warmup` (or a track) compiled everything
     assert precompile.marker().parent == warmup.compiled_marker().parent
+
+
+def test_interpret_runs_python_until_reset() -> None:
+    from hrtls.fusion.gating import wrap_rad
+
+    keys = K.interpret(("hrtls.fusion.gating",))
+    try:
+        assert wrap_rad.key in keys and "hrtls.fusion.floors:floor_level_correction" not in keys
+        assert wrap_rad._aot is not None and wrap_rad._aot[0][0] is wrap_rad.py_func
+        assert abs(wrap_rad(3 * np.pi) - np.pi) < 1e-12
+    finally:
+        K.reset()
+    assert wrap_rad._aot is None
