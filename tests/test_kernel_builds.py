@@ -94,6 +94,8 @@ def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     assert precompile.wanted()
     monkeypatch.setattr(precompile, "spare_cores", lambda: 0.2)  # a busy machine
     assert not precompile.wanted()
+    monkeypatch.setenv(precompile.ENV_SWITCH, "1")
+    assert precompile.wanted()  # forced
     monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
     monkeypatch.setenv(precompile.ENV_SWITCH, "0")
     assert not precompile.wanted()

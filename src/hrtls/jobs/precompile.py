@@ -29,7 +29,7 @@ PARTS = (FRONT_END,)
 SPARE_PER_PART = 0.5
 """Idle cores (:func:`spare_cores`) wanted per worker."""
 ENV_SWITCH = "HRTLS_PRECOMPILE"
-"""Set to ``0`` to start no worker."""
+"""``0``: start no worker; ``1``: start it even on a busy machine; unset: on a spare core."""
 WAYPOINTS = 6
 """Each rescuer walks the first waypoints of the demo's route (a corridor and the stairs)."""
 
@@ -51,8 +51,9 @@ def wanted() -> bool:
     from hrtls.jobs.warmup import first_run
     from hrtls.kernels import fcntl
 
-    return (os.environ.get(ENV_SWITCH, "1") != "0" and fcntl is not None and first_run()
-            and not marker().exists() and spare_cores() >= SPARE_PER_PART * len(PARTS))
+    switch = os.environ.get(ENV_SWITCH, "auto")
+    return (switch != "0" and fcntl is not None and first_run() and not marker().exists()
+            and (switch == "1" or spare_cores() >= SPARE_PER_PART * len(PARTS)))
 
 
 def spare_cores() -> float:
