@@ -91,15 +91,16 @@ def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
     monkeypatch.delenv(precompile.ENV_SWITCH, raising=False)
+    assert not precompile.wanted()  # off unless asked for
+    monkeypatch.setenv(precompile.ENV_SWITCH, "auto")
     assert precompile.wanted()
     monkeypatch.setattr(precompile, "spare_cores", lambda: 0.2)  # a busy machine
     assert not precompile.wanted()
     monkeypatch.setenv(precompile.ENV_SWITCH, "1")
-    assert precompile.wanted()  # forced
-    monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
+    assert precompile.wanted()  # asked for, whatever the load
     monkeypatch.setenv(precompile.ENV_SWITCH, "0")
     assert not precompile.wanted()
-    monkeypatch.delenv(precompile.ENV_SWITCH)
+    monkeypatch.setenv(precompile.ENV_SWITCH, "1")
     precompile.marker().parent.mkdir(parents=True, exist_ok=True)
     precompile.marker().write_text("1\n")
     assert not precompile.wanted()  # the worker completed once

@@ -1,15 +1,17 @@
 """Compile the live demo's kernels in a background process on a first run.
 
 numba compiles while holding the interpreter lock, so a process compiles one kernel at a time.
-On a first run (:func:`hrtls.jobs.warmup.first_run`) with a core to spare, ``hrtls demo``
-starts one worker process per entry of :data:`PARTS`; it tracks the start of a simulated team
+Asked for (``HRTLS_PRECOMPILE=1``, or ``auto``: with a core to spare), a first run
+(:func:`hrtls.jobs.warmup.first_run`) of ``hrtls demo`` starts one worker process per entry
+of :data:`PARTS`; it tracks the start of a simulated team
 mission offline, which compiles what the live mission tracker and the robot's filter call, into
 numba's cache. The worker first runs the front-end kernels (:data:`FRONT_END`) as Python, so
 it compiles the later stages while the demo compiles the front end, then goes over the mission
 again compiled (loading what the demo cached). Each process loads what the other cached and
 waits for a kernel the other is compiling (:func:`hrtls.kernels.cooperative`): no kernel is
 compiled twice. The worker writes nothing but numba's cache and, when it ends, a marker; it
-stops when the demo exits.
+stops when the demo exits. On the shared 2-core machine at load 3-6 the worker made every
+agent's first estimate later (docs/real-data.md), so it is off unless asked for.
 
 Run one part: ``python -m hrtls.jobs.precompile PART``.
 """
@@ -29,7 +31,8 @@ PARTS = (FRONT_END,)
 SPARE_PER_PART = 0.5
 """Idle cores (:func:`spare_cores`) wanted per worker."""
 ENV_SWITCH = "HRTLS_PRECOMPILE"
-"""``0``: start no worker; ``1``: start it even on a busy machine; unset: on a spare core."""
+"""``1``: start the worker; ``auto``: when a core is spare; unset or ``0``: no worker (on the
+shared 2-core machine it slowed the demo down, module doc)."""
 WAYPOINTS = 6
 """Each rescuer walks the first waypoints of the demo's route (a corridor and the stairs)."""
 
@@ -43,16 +46,18 @@ def marker() -> Path:
 
 
 def wanted() -> bool:
-    """Whether the workers should run: a first run, a cache locked across processes, a core free.
+    """Whether the worker should run (asked for, a first run, a locked cache, a spare core).
 
-    numba compiles on one core; a worker gains only on a core the machine does not already use
-    (by the one-minute load average): on a busy machine it would slow the demo down.
+    Asked for: :data:`ENV_SWITCH`; the core is checked with ``auto`` only. numba compiles on
+    one core; a worker can gain only on a core the machine does not already use (by the
+    one-minute load average).
     """
     from hrtls.jobs.warmup import first_run
     from hrtls.kernels import fcntl
 
-    switch = os.environ.get(ENV_SWITCH, "auto")
-    return (switch != "0" and fcntl is not None and first_run() and not marker().exists()
+    switch = os.environ.get(ENV_SWITCH, "0")
+    return (switch in ("1", "auto") and fcntl is not None and first_run()
+            and not marker().exists()
             and (switch == "1" or spare_cores() >= SPARE_PER_PART * len(PARTS)))
 
 
