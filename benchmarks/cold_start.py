@@ -5,12 +5,12 @@
 * ``hrtls formats``: imports the format registry (readers, no tracker).
 * ``--demo``: ``hrtls demo`` with an empty kernel cache (a fresh install: every numba kernel is
   compiled) and then warm: seconds until the dashboard URL and token are printed and until each
-  agent's first live estimate (the snapshot polled with the printed token; target: the first
-  estimates under 25 s cold).
+  agent's first live estimate (the snapshot polled with the printed token; target: every
+  agent's first estimate under 25 s cold). ``--demo-runs`` repeats the pair.
 
 Each command runs ``--runs`` times in a new process; the table gives the best, median and worst
 wall time. The machine may be shared: the best run is the steadiest figure.
-Run: ``python benchmarks/cold_start.py [--runs 10] [--demo]``.
+Run: ``python benchmarks/cold_start.py [--runs 10] [--demo [--demo-runs 2]]``.
 """
 
 from __future__ import annotations
@@ -56,11 +56,14 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def demo_run(cache_dir: Path, work: Path) -> tuple[float, list[float]]:
-    """Seconds to the printed token, and to each agent's first estimate (``hrtls demo``)."""
+def demo_run(cache_dir: Path, work: Path) -> tuple[float, list[float], float | None]:
+    """Seconds to the printed token, to each agent's first estimate (``hrtls demo``), and to
+    the end of its background compiles (None when it started none, or they did not end)."""
     port = _free_port()
-    # JIT kernels only: a module `hrtls warmup` compiled ahead of time would make "cold" warm
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir), "HRTLS_AOT": "0"}
+    # JIT kernels only: a module `hrtls warmup` compiled ahead of time would make "cold" warm;
+    # the user cache (first-run markers) in the temporary folder too
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir), "HRTLS_AOT": "0",
+           "XDG_CACHE_HOME": str(cache_dir.parent / "user-cache")}
     start = time.perf_counter()
     proc = subprocess.Popen([*_hrtls(), "demo", "--speed", "4", "--port", str(port),
                              "--duration-s", str(DEMO_LIMIT_S), "-o", str(work)],
@@ -68,10 +71,12 @@ def demo_run(cache_dir: Path, work: Path) -> tuple[float, list[float]]:
     assert proc.stdout is not None
     try:
         token = None
+        background = False
         while token is None:
             line = proc.stdout.readline()
             if not line:
                 raise RuntimeError("hrtls demo ended before printing its token")
+            background = background or "background processes" in line
             if found := re.search(r"commander token \(sign in with it\)\s+(\S+)", line):
                 token = found.group(1)
         t_token = time.perf_counter() - start
@@ -87,26 +92,39 @@ def demo_run(cache_dir: Path, work: Path) -> tuple[float, list[float]]:
             if seen and len(seen) == len(picture["agents"]):
                 break
             time.sleep(0.25)
-        return t_token, sorted(seen.values())
+        done = _background_done(cache_dir, start) if background else None
+        return t_token, sorted(seen.values()), done
     finally:
         proc.terminate()
         proc.wait(timeout=30)
 
 
-def demo_table() -> Table:
-    """Cold then warm ``hrtls demo``."""
+def _background_done(cache_dir: Path, start: float) -> float | None:
+    """Seconds until the demo's background compiles wrote their marker (waits for it)."""
+    markers = cache_dir.parent / "user-cache" / "hrtls"
+    while time.perf_counter() - start < DEMO_LIMIT_S:
+        if any(markers.glob("demo-compiled-*")):
+            return time.perf_counter() - start
+        time.sleep(0.25)
+    return None
+
+
+def demo_table(runs: int = 1) -> Table:
+    """Cold then warm ``hrtls demo``, ``runs`` times (a new empty cache each time)."""
     table = Table("run", "token printed s", "first estimate s", "all agents s", "target s",
-                  "met", title="hrtls demo: empty kernel cache, then warm")
-    with tempfile.TemporaryDirectory() as tmp:
-        cache = Path(tmp) / "numba"
-        for label in ("cold (empty cache)", "warm"):
-            t_token, firsts = demo_run(cache, Path(tmp) / label.split()[0])
-            first = firsts[0] if firsts else float("nan")
-            last = firsts[-1] if firsts else float("nan")
-            met = "yes" if first < DEMO_TARGET_S else "no"
-            table.add_row(label, f"{t_token:.1f}", f"{first:.1f}", f"{last:.1f}",
-                          f"{DEMO_TARGET_S:.0f}" if label.startswith("cold") else "-",
-                          met if label.startswith("cold") else "-")
+                  "met", "background compiles s", title="hrtls demo: empty kernel cache, then warm")
+    for _ in range(runs):
+        with tempfile.TemporaryDirectory() as tmp:
+            cache = Path(tmp) / "numba"
+            for label in ("cold (empty cache)", "warm"):
+                t_token, firsts, done = demo_run(cache, Path(tmp) / label.split()[0])
+                first = firsts[0] if firsts else float("nan")
+                last = firsts[-1] if firsts else float("nan")
+                cold = label.startswith("cold")
+                met = "yes" if last < DEMO_TARGET_S else "no"  # every agent on the map
+                table.add_row(label, f"{t_token:.1f}", f"{first:.1f}", f"{last:.1f}",
+                              f"{DEMO_TARGET_S:.0f}" if cold else "-", met if cold else "-",
+                              "-" if done is None else f"{done:.1f}")
     return table
 
 
@@ -115,6 +133,8 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--demo", action="store_true",
                         help="also time hrtls demo cold and warm (about a minute)")
+    parser.add_argument("--demo-runs", type=int, default=1,
+                        help="cold and warm demo pairs (each with a new empty cache)")
     args = parser.parse_args()
     table = Table("command", "best s", "median s", "worst s", "target s", "met",
                   title=f"cold start, {args.runs} fresh processes each")
@@ -130,7 +150,7 @@ def main() -> None:
                       "-" if target is None else f"{target:.1f}", met)
     Console().print(table)
     if args.demo:
-        Console().print(demo_table())
+        Console().print(demo_table(args.demo_runs))
 
 
 if __name__ == "__main__":

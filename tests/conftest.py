@@ -11,6 +11,8 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # the tests call the JIT kernels (the reference), whatever `hrtls warmup` built ahead of time;
 # tests/test_kernels_aot.py builds and checks its own
 os.environ.setdefault("HRTLS_AOT", "0")
+# no background compile process from a demo the tests start (tests/test_kernel_builds.py checks it)
+os.environ.setdefault("HRTLS_PRECOMPILE", "0")
 
 
 def shared_data_root() -> Path | None:

@@ -23,6 +23,11 @@ from typing import Any
 
 import numpy as np
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover (Windows: no cross-process compile lock)
+    fcntl = None  # type: ignore[assignment]
+
 ENV_SWITCH = "HRTLS_AOT"
 """Set to ``0`` to call the JIT kernels only."""
 MODULE_NAME = "hrtls_aot_kernels"
@@ -35,6 +40,8 @@ REGISTRY: dict[str, Kernel] = {}
 """Every declared kernel by ``module:qualname``."""
 _STATE: dict[str, Any] = {"aot": None, "numba": None, "scipy": {}}
 
+_HELD: set[str] = set()
+"""Compile locks this process holds (changed under numba's compiler lock only)."""
 Spec = tuple[Any, ...]
 """One argument type: ``("a", dtype, ndim, layout, writable)`` for arrays, ``("s", types)``
 for scalars (the Python types numba gives that scalar type)."""
@@ -65,7 +72,7 @@ class Kernel:
         if self._dispatcher is None:
             with _LOCK:
                 if self._dispatcher is None:
-                    self._dispatcher = _numba().njit(**self.options)(self.py_func)
+                    self._dispatcher = cooperative(_numba().njit(**self.options)(self.py_func))
         return self._dispatcher
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
@@ -126,6 +133,64 @@ def _numba() -> Any:
 
                 mod = _STATE["numba"] = numba
     return mod
+
+
+def cooperative(dispatcher: Any) -> Any:
+    """The dispatcher, compiling one signature at a time across processes (its cache locked).
+
+    numba's cache of a kernel is an index file and numbered data files, updated without a
+    lock: two processes saving overloads of one kernel at once could pair a signature with the
+    other's code. Each compile here holds numba's compiler lock, then an exclusive lock on a
+    file beside the kernel's index; the cache is read and written inside it, so a process
+    waiting for another's compile then loads that build. Without ``fcntl`` (or a writable
+    cache) nothing changes.
+    """
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    index = getattr(cache_file, "_index_path", None)
+    if index is None or fcntl is None:
+        return dispatcher
+    from numba.core.compiler_lock import global_compiler_lock
+
+    compile_one = dispatcher.compile
+    lock_path = f"{index}.lock"
+
+    def compile(sig: Any) -> Any:
+        with global_compiler_lock:
+            if lock_path in _HELD:  # a compile of this kernel within its own compile
+                return compile_one(sig)
+            try:
+                handle = open(lock_path, "ab")  # noqa: SIM115 (held across the compile)
+            except OSError:
+                return compile_one(sig)
+            with handle:
+                fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes
+                _HELD.add(lock_path)
+                try:
+                    return compile_one(sig)
+                finally:
+                    _HELD.discard(lock_path)
+
+    dispatcher.compile = compile
+    return dispatcher
+
+
+def interpret(prefixes: tuple[str, ...]) -> list[str]:
+    """Run the declared kernels of the modules under ``prefixes`` as Python (until :func:`reset`).
+
+    For a process that compiles the other kernels first (:mod:`hrtls.jobs.precompile`); the
+    kernels of modules imported later are not affected. Returns their keys.
+    """
+    keys = []
+    with _LOCK:
+        for k in REGISTRY.values():
+            if k.key.startswith(prefixes):
+                k._aot = ((k.py_func, _any_arguments),)
+                keys.append(k.key)
+    return keys
+
+
+def _any_arguments(args: tuple[Any, ...]) -> bool:
+    return True
 
 
 def folder() -> Path:

@@ -43,6 +43,11 @@ def demo(
         "infrastructure and print the comparison.")] = False,
 ) -> None:
     """Live supervisor and dashboard with a simulated team; --no-serve: the batch comparison."""
+    from hrtls.jobs.precompile import start
+
+    if workers := start():  # a first run: the kernels compiled in other processes meanwhile
+        console.print(f"[yellow]note:[/yellow] compiling in {len(workers)} background processes "
+                      "while the demo starts")
     if no_serve:
         from hrtls.cli.track import demo as batch_demo
 

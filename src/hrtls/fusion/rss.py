@@ -103,7 +103,7 @@ def rss_db_correction(x: FloatArray, p: FloatArray, anchor_x: float, anchor_y: f
     if gated and nis > threshold:
         return GATED, nis, s, nu
     code, _, _ = scalar_update(x, p, h, r / max(info_fraction, MIN_INFO_FRACTION), nu,
-                               threshold, False)
+                               threshold, np.bool_(False))  # not a literal: one build
     return code, nis, s, nu
 
 

@@ -59,7 +59,8 @@ def _numba_version() -> str:
     return found[0].name[len("numba-"):-len(".dist-info")] if found else "unknown"
 
 
-def _marker() -> Path:
+def compiled_marker() -> Path:
+    """The file whose presence says the kernels of this install and cache are compiled."""
     where = os.environ.get("NUMBA_CACHE_DIR", str(Path(hrtls.__file__).resolve().parent))
     tag = f"{hrtls.__version__}-numba{_numba_version()}-{zlib.crc32(where.encode()):08x}"
     return cache_root() / f"compiled-{tag}"
@@ -67,12 +68,12 @@ def _marker() -> Path:
 
 def first_run() -> bool:
     """True when the kernels have not been compiled for this install yet."""
-    return not _marker().exists()
+    return not compiled_marker().exists()
 
 
 def mark_compiled() -> None:
     """Remember that the kernels are compiled (after a run that compiled them)."""
-    marker = _marker()
+    marker = compiled_marker()
     try:
         marker.parent.mkdir(parents=True, exist_ok=True)
         marker.write_text(f"{time.time():.0f}\n", encoding="utf-8")

@@ -260,7 +260,8 @@ def _step(prm: np.record, s: np.record, x: FloatArray, p: FloatArray, t: float, 
     pull = flight_step(fl, dz, stairs, h, prm.flight_change_fraction, prm.flight_end_flat_steps,
                        prm.flight_direction_fraction)
     if pull and (stairs or act in (_WALKING, _STANDING)):
-        floor_level_correction(x, p, h, 0.0, prm.floor_sigma_m, 0.0, False, fl[1])
+        # np.bool_, not a literal: the build Python's callers use serves this call too
+        floor_level_correction(x, p, h, 0.0, prm.floor_sigma_m, 0.0, np.bool_(False), fl[1])
 
 
 @njit(cache=True, error_model="numpy")
@@ -432,13 +433,13 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                     st, nis, sv, nu = rss_db_correction(
                         x, p, data[k, 0], data[k, 1], data[k, 2], data[k, 3], s.channel.a_dbm,
                         s.channel.eta, prm.path_loss.d0_m, s.sigma_db, prm.rss_min_distance_m,
-                        prm.gate_1d, True, False,
+                        prm.gate_1d, np.bool_(True), np.bool_(False),
                         data[k, 4] if np.isfinite(data[k, 4]) else 1.0)
                 else:
                     sig = data[k, 4] if np.isfinite(data[k, 4]) else prm.range_default_sigma_m
                     st, nis, sv, nu = range_correction(
                         x, p, data[k, 0], data[k, 1], data[k, 2], data[k, 3], sig,
-                        prm.range_min_distance_m, prm.gate_1d, True, False)
+                        prm.range_min_distance_m, prm.gate_1d, np.bool_(True), np.bool_(False))
                 if st == ST_ACCEPTED:
                     s.n_soft += 1
                     fs.corrected_since_fix = True

@@ -229,7 +229,8 @@ def fix_event(fp: np.record, fs: np.record, s: np.record, x: FloatArray, p: Floa
     x_new = np.empty(4)
     p_new = np.empty((4, 4))
     s_in = np.empty((2, 2))
-    code, nis = joseph_kernel(x, p_prior, h, r, nu, threshold, 3, x_new, p_new, s_in)
+    # np.int64, not a literal: the build Python's callers use serves this call too
+    code, nis = joseph_kernel(x, p_prior, h, r, nu, threshold, np.int64(3), x_new, p_new, s_in)
     aux[0], aux[1] = nu[0], nu[1]
     aux[2], aux[3], aux[4] = s_in[0, 0], s_in[0, 1], s_in[1, 1]
     if code != 0:

@@ -45,7 +45,7 @@ def _unpack(v: Any) -> Column | None:
         return None
     if type(v) is list:
         return np.asarray(v) if v else np.zeros(0, dtype="<U1")
-    return np.frombuffer(v[0], dtype=np.float64).reshape(v[1])
+    return np.frombuffer(v[0], dtype=np.float64).reshape(v[1]).copy()  # writable, as sent
 
 
 def _rebuild(cls: type[_Part], packed: tuple[Any, ...]) -> _Part:

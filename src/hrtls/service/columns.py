@@ -114,9 +114,8 @@ def _from_block(block: dict[str, Any], where: str, *, width: int | None,
     if len(data) != n_bytes:
         raise ColumnError(f"{where}.data has {len(data)} bytes, shape {shape} of {dtype} "
                           f"needs {n_bytes}")
-    a = np.frombuffer(data, dtype=dt)
-    if a.dtype != np.float64:
-        a = a.astype(np.float64)
+    # a writable copy: kernels get the array types the offline path gives them (one build)
+    a = np.frombuffer(data, dtype=dt).astype(np.float64)
     return a if width is None else a.reshape(n, width)
 
 

@@ -167,8 +167,11 @@ def _robot(seed: int, *, speed_m_s: float, laps: int) -> TeamMember:
 
 
 def team_mission(seed: int = 0, *, stop_s: float = 45.0, speed_m_s: float = 1.1,
-                 robot_laps: int = 1) -> TeamMission:
-    """Two rescuers and a robot in the two-floor building; rescuer B stops for ``stop_s``."""
+                 robot_laps: int = 1, waypoints: int | None = None) -> TeamMission:
+    """Two rescuers and a robot in the two-floor building; rescuer B stops for ``stop_s``.
+
+    ``waypoints``: keep only the first ones of each rescuer's route (a shorter mission).
+    """
     if not stop_s >= 0 or not speed_m_s > 0 or robot_laps < 1:
         raise InputError(f"stop_s={stop_s}, speed_m_s={speed_m_s}, robot_laps={robot_laps}",
                          where="team_mission", expected="stop_s >= 0, speed > 0, laps >= 1")
@@ -182,7 +185,8 @@ def team_mission(seed: int = 0, *, stop_s: float = 45.0, speed_m_s: float = 1.1,
             ("Rescuer A", _route_a(speed_m_s, fh), 0, "the thesis' two-floor route"),
             ("Rescuer B", _route_b(speed_m_s, fh, stop_s), 1,
              f"stops {stop_s:.0f} s at the far end of the first floor (PASS)")):
-        sim = simulate_person(f"team {name}", seed * 10 + offset, {"stop_s": stop_s}, route,
+        sim = simulate_person(f"team {name}", seed * 10 + offset, {"stop_s": stop_s},
+                              route[:waypoints],
                               device=device, motion_params=params, infra=infra,
                               with_pressure=True, floor_height_m=fh,
                               description=f"{name}: {note}")

@@ -1,0 +1,123 @@
+"""Cold start: one build per kernel on the demo's path, compiles locked across processes, the
+background worker's switches (``hrtls.jobs.precompile``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hrtls.kernels as K
+from hrtls.jobs import precompile, warmup
+from hrtls.service.batches import ImuPart
+from hrtls.service.columns import block, numeric
+
+# the live mission tracker on the demo's (shortened) team mission, then the Python callers of
+# the kernels that the tracker's compiled code also calls: each kernel must keep one build
+_SCRIPT = textwrap.dedent("""
+    import json, warnings
+    import numpy as np
+    warnings.simplefilter("ignore")
+    import hrtls.kernels as K
+    from hrtls.fusion.floors import floor_level_update
+    from hrtls.fusion.gating import kalman_update
+    from hrtls.mission.tracker import MissionParams, MissionTracker
+    from hrtls.pipeline import preset
+    from hrtls.fusion.state import FilterState
+    from hrtls.sim.team import team_mission
+    K.jit_only()
+    m = team_mission(0, stop_s=0.0, waypoints=6)
+    tr = MissionTracker({a.name: a.session for a in m.members}, config=preset("default"),
+                        kinds={a.name: a.kind for a in m.members}, params=MissionParams())
+    tr.advance()
+    x, p = np.zeros(4), np.eye(4)
+    kalman_update(x, p, np.eye(2, 4), np.eye(2), np.ones(2), gate_probability=0.99)
+    floor_level_update(FilterState(t=0.0, x=x, P=p), 3.0)
+    print(json.dumps({k: len(v._dispatcher.signatures) for k, v in K.REGISTRY.items()
+                      if v._dispatcher is not None}))
+""")
+ONE_BUILD = ("hrtls.attitude._inertial_lowpass_kernel:inertial_lowpass_kernel",
+             "hrtls.fusion.gating:joseph_kernel", "hrtls.fusion.gating:scalar_update",
+             "hrtls.gait.peak_steps:peak_step_kernel",
+             "hrtls.gait.motion_detector:running_std_kernel", "hrtls.gait.vertical:level_kernel")
+"""Kernels that had several builds in a live demo (read-only columns, literal arguments)."""
+
+
+def test_decoded_columns_are_writable() -> None:
+    a = np.arange(6.0).reshape(3, 2)
+    decoded = numeric(block(a), "imu.acc", width=2)
+    assert decoded.flags.writeable and decoded.flags.c_contiguous
+    np.testing.assert_array_equal(decoded, a)
+    part = ImuPart(t=np.arange(3.0), acc=np.ones((3, 3)), gyr=None, mag=None)
+    again = pickle.loads(pickle.dumps(part))
+    assert again.t.flags.writeable and again.acc.flags.writeable
+    np.testing.assert_array_equal(again.acc, part.acc)
+
+
+@pytest.mark.slow
+def test_demo_path_compiles_one_build_per_kernel(tmp_path: Path) -> None:
+    # an empty cache: a build loaded from the cache types none of the kernels it calls
+    env = {**os.environ, "HRTLS_AOT": "0", "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
+                         text=True, check=True)
+    builds = json.loads(out.stdout.strip().splitlines()[-1])
+    for key in ONE_BUILD:
+        assert builds.get(key) == 1, (key, builds.get(key))
+    several = {k: n for k, n in builds.items() if n > 1}
+    assert not several
+
+
+def test_compile_lock_is_beside_the_index(tmp_path: Path) -> None:
+    if K.fcntl is None:
+        pytest.skip("no fcntl")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "HRTLS_AOT": "0"}
+    code = ("from hrtls.fusion.gating import wrap_rad; import math; "
+            "print(wrap_rad(3 * math.pi))")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True)
+    assert abs(float(out.stdout) - np.pi) < 1e-12
+    locks = list(tmp_path.rglob("*wrap_rad*.nbi.lock"))
+    assert len(locks) == 1 and locks[0].with_suffix("").exists()  # the index beside it
+
+
+def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
+    monkeypatch.delenv(precompile.ENV_SWITCH, raising=False)
+    assert not precompile.wanted()  # off unless asked for
+    monkeypatch.setenv(precompile.ENV_SWITCH, "auto")
+    assert precompile.wanted()
+    monkeypatch.setattr(precompile, "spare_cores", lambda: 0.2)  # a busy machine
+    assert not precompile.wanted()
+    monkeypatch.setenv(precompile.ENV_SWITCH, "1")
+    assert precompile.wanted()  # asked for, whatever the load
+    monkeypatch.setenv(precompile.ENV_SWITCH, "0")
+    assert not precompile.wanted()
+    monkeypatch.setenv(precompile.ENV_SWITCH, "1")
+    precompile.marker().parent.mkdir(parents=True, exist_ok=True)
+    precompile.marker().write_text("1\n")
+    assert not precompile.wanted()  # the worker completed once
+    precompile.marker().unlink()
+    warmup.mark_compiled()
+    assert not precompile.wanted()  # `hrtls warmup` (or a track) compiled everything
+    assert precompile.marker().parent == warmup.compiled_marker().parent
+
+
+def test_interpret_runs_python_until_reset() -> None:
+    from hrtls.fusion.gating import wrap_rad
+
+    keys = K.interpret(("hrtls.fusion.gating",))
+    try:
+        assert wrap_rad.key in keys and "hrtls.fusion.floors:floor_level_correction" not in keys
+        assert wrap_rad._aot is not None and wrap_rad._aot[0][0] is wrap_rad.py_func
+        assert abs(wrap_rad(3 * np.pi) - np.pi) < 1e-12
+    finally:
+        K.reset()
+    assert wrap_rad._aot is None
