@@ -40,11 +40,11 @@ their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyr
 gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
 ``--offset-floor``: its ``offset_floor``; ``--consider-offset``: ``offset_model = "consider"``).
 
-The rescuers' trackers run the default configuration with the step-and-heading prediction noise
-``hrtls.sim.mission.RESCUER_PREDICTION`` (``--q-along`` / ``--heading-increment-rad``) and
+The rescuers' trackers run the preset ``rescue-mission`` (its step-and-heading prediction noise
+``--q-along`` / ``--heading-increment-rad``, its tag lobe sigma ``--tag-sigma-per-accuracy``) with
 ``[attitude] heading_source = "gyro+compass"`` (chosen on dev seeds; ``--heading-source filter``:
-the tracker's default): the preset ``rescue-mission``. The simulated rescuers follow their
-planner's way points by the estimate of a tracker with ``RESCUER_PREDICTION`` alone, so the
+the tracker's default). The simulated rescuers follow their planner's way points by the estimate
+of a tracker with ``hrtls.sim.mission.RESCUER_PREDICTION`` alone, so the
 recordings of a seed do not depend on these options.
 
 Dev seeds 0-9 (tuning); publish held-out seeds, e.g. ``--seeds 100-129``.
@@ -74,8 +74,12 @@ from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
+from hrtls.pipeline import preset
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.sim.mission import RESCUER_PREDICTION, Mission, MissionOptions, inderst_hybrid_mission
+from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
+
+RESCUER = preset("rescue-mission")
+"""The rescuers' configuration the options below default to."""
 
 
 def agent_errors(mission: Mission, result: MissionResult, kind: str = "rescuer"
@@ -147,6 +151,8 @@ class SeedItem:
     """Cooperation off only (the ``on`` column skipped)."""
     use_variance_ratio: float | None = None
     """``MissionParams.use_variance_ratio`` (None: its default)."""
+    tags: dict[str, float] = field(default_factory=dict)
+    """The rescuers' ``[tags]`` table (empty: the defaults)."""
 
 
 def modes(peers: bool, only_on: bool = False, only_off: bool = False) -> tuple[str, ...]:
@@ -250,7 +256,7 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                {"use_variance_ratio": item.use_variance_ratio})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
-                                                 "attitude": item.attitude}))
+                                                 "attitude": item.attitude, "tags": item.tags}))
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -308,12 +314,15 @@ def main() -> None:
                     help="MissionParams.loop_closure_ratio (default: its default; inf: never)")
     ap.add_argument("--no-pass-cap", action="store_true",
                     help="MissionParams.pass_cap = False (the earlier widening rule)")
-    ap.add_argument("--q-along", type=float, default=RESCUER_PREDICTION["q_along"],
-                    help="rescuers' [prediction] q_along (default: RESCUER_PREDICTION)")
+    ap.add_argument("--q-along", type=float, default=RESCUER.prediction.q_along,
+                    help="rescuers' [prediction] q_along (default: the rescue-mission preset)")
     ap.add_argument("--heading-increment-rad", type=float,
-                    default=RESCUER_PREDICTION["sigma_heading_increment_rad"],
+                    default=RESCUER.prediction.sigma_heading_increment_rad,
                     help="rescuers' [prediction] sigma_heading_increment_rad "
-                         "(default: RESCUER_PREDICTION)")
+                         "(default: the rescue-mission preset)")
+    ap.add_argument("--tag-sigma-per-accuracy", type=float,
+                    default=RESCUER.tags.sigma_per_accuracy,
+                    help="rescuers' [tags] sigma_per_accuracy (default: the rescue-mission preset)")
     ap.add_argument("--why", action="store_true",
                     help="also print why the nodes were not localized (benchmarks/_mission_why)")
     ap.add_argument("--nees-split", action="store_true",
@@ -375,7 +384,8 @@ def main() -> None:
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
-                      only_off=args.only_off, use_variance_ratio=args.use_variance_ratio)
+                      only_off=args.only_off, use_variance_ratio=args.use_variance_ratio,
+                      tags={"sigma_per_accuracy": args.tag_sigma_per_accuracy})
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in cols:
@@ -417,7 +427,8 @@ def main() -> None:
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "
           f"ratio {ratio:g}, rescuers' "
-          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad; values are "
+          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, tag sigma "
+          f"per accuracy {args.tag_sigma_per_accuracy}; values are "
           f"mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     head = "peer ranges" if args.peer_ranges else "cooperation"

@@ -92,10 +92,9 @@ ROOMS = unary_union([box(*b) for b in ROOM_BLOCKS]).boundary
 ENTRANCE_XY = (1.5, 1.5)
 TAG_HEIGHT_M = 2.2
 RESCUER_PREDICTION: dict[str, float] = {"q_along": 0.04, "sigma_heading_increment_rad": 0.02}
-"""The rescuers' ``[prediction]`` noise the mission's figures use (README "Hybrid mission"),
-chosen on dev seeds 0-4 for a rescuer NEES near 2 without cooperation, never from the truth:
-the default ``q_along`` takes the step-length error as independent per step, while a walker's
-unknown step-length scale (Weinberg constant) persists over the walk."""
+"""The ``[prediction]`` noise of the tracker whose estimate the planner-driven rescuers follow
+(:func:`hrtls.sim.rescuer_loop.drive_rescuers`; the recordings depend on it). The study's and
+the service's rescuers run the ``rescue-mission`` preset, with a larger ``q_along``."""
 
 
 @dataclass(frozen=True, kw_only=True)
