@@ -20,6 +20,8 @@ them over the seeds (mean NEES per bin and its share of the samples).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.stats import chi2
 
@@ -31,14 +33,20 @@ SINCE_BINS_S = (5.0, 15.0, 30.0, 60.0)
 NODE_GATE = float(chi2.ppf(0.95, 2))
 
 
+def time_bin(dt: float, bins_s: tuple[float, ...]) -> tuple[float, float]:
+    """Bounds ``(lo, hi)`` of the bin of ``dt`` among the upper edges ``bins_s`` (hi inf: last)."""
+    lo = 0.0
+    for hi in bins_s:
+        if dt < hi:
+            return lo, hi
+        lo = hi
+    return lo, math.inf
+
+
 def since_label(dt: float) -> str:
     """Bin of the time since the latest use, s."""
-    lo = 0.0
-    for hi in SINCE_BINS_S:
-        if dt < hi:
-            return f"{lo:02g}-{hi:g} s"
-        lo = hi
-    return f">= {lo:g} s"
+    lo, hi = time_bin(dt, SINCE_BINS_S)
+    return f"{lo:02g}-{hi:g} s" if math.isfinite(hi) else f">= {lo:g} s"
 
 
 def _agent_nees(mission: Mission, name: str, result: MissionResult

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 import numpy as np
 
 from _engine import parse_seeds
+from _mission_nees import time_bin
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.pipeline.config import TrackerConfig
@@ -31,12 +33,8 @@ COLUMNS = ("nees", "n", "along_nees", "cross_nees", "moving", "along_mse", "cros
 
 def bin_label(dt: float) -> str:
     """Bin of the time since the latest tag read, s."""
-    lo = 0.0
-    for hi in BINS_S:
-        if dt < hi:
-            return f"{lo:g}-{hi:g} s"
-        lo = hi
-    return f">= {lo:g} s (or none yet)"
+    lo, hi = time_bin(dt, BINS_S)
+    return f"{lo:g}-{hi:g} s" if math.isfinite(hi) else f">= {lo:g} s (or none yet)"
 
 
 def rescuer_terms(mission: Mission, name: str, t: np.ndarray, xy: np.ndarray, cov: np.ndarray
