@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -53,6 +54,16 @@ def push_messages(folder: Path, chunk_s: float) -> list[dict]:
             for k, v in enumerate(messages[i] for i in sorted(messages))]
 
 
+def _push(phone: httpx.Client, token: str, message: dict[str, Any]) -> httpx.Response:
+    """POST one message; a phone resends after a 429, when told (bounded)."""
+    for _ in range(300):
+        r = phone.post(f"{API}/ingest/sensorlogger", params={"token": token}, json=message)
+        if r.status_code != 429:
+            break
+        time.sleep(float(r.headers["retry-after"]))
+    return r
+
+
 def test_sensorlogger_push_tracked_like_offline(live: Live, commander: httpx.Client,
                                                 tmp_path: Path) -> None:
     session = office()
@@ -69,14 +80,9 @@ def test_sensorlogger_push_tracked_like_offline(live: Live, commander: httpx.Cli
     with httpx.Client(base_url=live.url, timeout=60) as phone:
         assert phone.post(f"{API}/ingest/sensorlogger", json=messages[0]).status_code == 401
         for m in messages:
-            for _ in range(300):   # a phone resends after a 429, when told (bounded)
-                r = phone.post(f"{API}/ingest/sensorlogger", params={"token": token}, json=m)
-                if r.status_code != 429:
-                    break
-                time.sleep(float(r.headers["retry-after"]))
+            r = _push(phone, token, m)
             assert r.status_code == 200, r.text
-        bad = phone.post(f"{API}/ingest/sensorlogger", params={"token": token},
-                         json={"messageId": 999, "payload": [{"name": "accelerometer"}]})
+        bad = _push(phone, token, {"messageId": 999, "payload": [{"name": "accelerometer"}]})
         assert bad.status_code == 422
         viewer = commander.post(f"{API}/tokens", json={"role": "viewer", "label": "v"}).json()
         assert phone.post(f"{API}/ingest/sensorlogger", params={"token": viewer["token"]},
