@@ -91,7 +91,7 @@ def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
     monkeypatch.delenv(precompile.ENV_SWITCH, raising=False)
-    assert not precompile.wanted()  # off unless asked for
+    assert precompile.wanted()  # auto: a core is spare
     monkeypatch.setenv(precompile.ENV_SWITCH, "auto")
     assert precompile.wanted()
     monkeypatch.setattr(precompile, "spare_cores", lambda: 0.2)  # a busy machine
@@ -108,6 +108,27 @@ def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     warmup.mark_compiled()
     assert not precompile.wanted()  # `hrtls warmup` (or a track) compiled everything
     assert precompile.marker().parent == warmup.compiled_marker().parent
+
+
+def test_spare_cores_from_cpu_counters(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(precompile, "IDLE_SAMPLE_S", 0.0)
+    monkeypatch.setattr(precompile.os, "cpu_count", lambda: 4)
+    counters = iter([(1000, 400), (1400, 700)])  # 300 of 400 jiffies idle: 3 of 4 cores
+    monkeypatch.setattr(precompile, "_cpu_times", lambda: next(counters))
+    assert precompile.spare_cores() == pytest.approx(2.0)  # less the demo's own core
+    counters = iter([(1000, 400), (1400, 400)])  # every core busy
+    assert precompile.spare_cores() == pytest.approx(-1.0)
+    monkeypatch.setattr(precompile, "_cpu_times", lambda: None)  # no /proc/stat
+    assert precompile.spare_cores() == 0.0
+
+
+def test_cpu_counters_of_this_machine() -> None:
+    times = precompile._cpu_times()
+    if times is None:
+        pytest.skip("no /proc/stat")
+    total, idle = times
+    assert 0 <= idle <= total
+    assert -1.0 <= precompile.spare_cores() <= (os.cpu_count() or 1) - 1.0 + 1e-9
 
 
 def test_interpret_runs_python_until_reset() -> None:

@@ -185,11 +185,11 @@ def startable(buf: AgentBuffer, *, robot: bool) -> bool:
     data = buf.data
     if buf.ended or data is None:
         return True
-    if robot:
-        return data.fixes is not None and len(data.fixes.t) >= 2
     a, b = data.time_span()
     return ready_to_start(accel_samples=0 if data.imu is None else len(data.imu.accel.t),
-                          span_s=b - a)
+                          span_s=b - a,
+                          robot_poses=(0 if data.fixes is None else len(data.fixes.t)) if robot
+                          else None)
 
 
 def window_complete(buffers: Mapping[str, AgentBuffer], t_end: float, *, clock_s: float,

@@ -419,7 +419,7 @@ class TrackerHost:
             "georeference": mission.georeference})
         landmarks, versions = versions_of(db, mission.id)
         return AgentSpec(agent_id, agent.preset, meta.model_dump(mode="json"), landmarks,
-                         versions)
+                         versions, kind=agent.kind)
 
     def _restore(self, live: AgentLive, t_from: float) -> tuple[float, float]:
         """Open the agent from its newest snapshot before ``t_from``; (t_data, t_final).

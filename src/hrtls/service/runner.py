@@ -33,7 +33,8 @@ class AgentSpec:
     """What a tracker of one agent is built from: preset, session metadata, landmarks (JSON).
 
     ``landmarks`` hold from the start; ``versions`` (each with its ``updated`` time, in time
-    order) from their times on (:mod:`hrtls.service.landmark_versions`).
+    order) from their times on (:mod:`hrtls.service.landmark_versions`). ``kind``: ``rescuer``
+    or ``robot`` (when its tracker starts: :func:`hrtls.pipeline.live.ready_to_start`).
     """
 
     agent_id: int
@@ -41,6 +42,7 @@ class AgentSpec:
     meta: dict[str, Any]
     landmarks: tuple[dict[str, Any], ...] = ()
     versions: tuple[dict[str, Any], ...] = ()
+    kind: str = "rescuer"
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,7 @@ class _Agent:
     t_final: float = -math.inf
     held: list[Session] = field(default_factory=list)
     carried: Estimates | None = None
+    robot: bool = False
 
 
 class TrackerRunner(Protocol):
@@ -136,7 +139,8 @@ class InProcessRunner:
             except InputError as exc:
                 raise StaleSnapshot(f"agent {spec.agent_id}: {exc}") from exc
         self._agents[spec.agent_id] = _Agent(tracker, spec.preset, meta, landmarks, versions,
-                                             t_final, carried=carried)
+                                             t_final, carried=carried,
+                                             robot=spec.kind == "robot")
 
     def feed(self, agent_id: int, batches: list[Batch]) -> Rows:
         """Feed the chunks of ``batches``; rows after the last final row.
@@ -154,7 +158,7 @@ class InProcessRunner:
                 a.tracker.update(chunk)
                 continue
             a.held.append(chunk)
-            if _ready(a.held):
+            if _ready(a.held, robot=a.robot):
                 a.tracker = Tracker(preset(a.preset), keep_attitude=False)
                 a.tracker.start_session(_start_session(a.held))
                 a.tracker.update_landmarks(a.versions)
@@ -231,10 +235,12 @@ def _unpack_rows(d: dict[str, Any]) -> Estimates:
                        for f in _FIELDS))
 
 
-def _ready(held: list[Session]) -> bool:
+def _ready(held: list[Session], *, robot: bool) -> bool:
     n_acc = sum(len(c.imu.accel.t) for c in held if c.imu is not None)
+    poses = sum(len(c.fixes.t) for c in held if c.fixes is not None) if robot else None
     return ready_to_start(accel_samples=n_acc,
-                          span_s=held[-1].time_span()[1] - held[0].time_span()[0])
+                          span_s=held[-1].time_span()[1] - held[0].time_span()[0],
+                          robot_poses=poses)
 
 
 def _start_session(held: list[Session]) -> Session:
