@@ -2,9 +2,10 @@
 
 A real ``hrtls serve`` on loopback (its own SQLite file) gets N robot agents that stream wheel
 odometry poses through :class:`hrtls.service.client.AgentClient` (the cheapest live tracker, so
-the service keeps up on a small machine). The service starts the tracker of an agent without
-IMU after 30 s of data, so each agent first sends a backlog batch of ``BACKLOG_S`` seconds and
-then one batch every ``--batch-s`` seconds. Once at least 90 % of the agents are drawn, the
+the service keeps up on a small machine). Each agent first sends a backlog batch of
+``BACKLOG_S`` seconds (the service started a tracker without IMU after 30 s of data when the
+tables in docs/dashboard.md were measured; a robot's now starts on its first poses) and then one
+batch every ``--batch-s`` seconds. Once at least 90 % of the agents are drawn, the
 signed-in dashboard is measured for ``--seconds``: the intervals between animation frames
 (requestAnimationFrame), the time of each render, the update latency (wall clock when a delta
 reaches the page minus the time the service computed the estimate, ``received_t``), the
