@@ -262,13 +262,12 @@ def _spread_kernel(d: FloatArray) -> tuple[float, float]:
 
 @njit(cache=True)
 def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
-                passes: int) -> tuple[bool, FloatArray, float, float, float, float, int]:
-    """Samples ``m`` (N, 3) projected on the rows of ``basis``, gated fit, coverage, residual.
+                passes: int) -> tuple[bool, FloatArray, float, float, FloatArray]:
+    """Samples ``m`` (N, 3) projected on the rows of ``basis``, gated fit, residual.
 
-    Returns ``(ok, c, r, residual, arc_deg, extent, n_used)`` with the centre ``c`` in the
-    projected coordinates; ``ok`` false: a fit gave ``r^2 <= 0`` (the rest is then unset).
-    For a 3-D basis the coverage is measured in the plane of the two main axes of the kept
-    samples around the centre.
+    Returns ``(ok, c, r, residual, d)`` with the centre ``c`` in the projected coordinates and
+    ``d`` the kept samples about it (``n_used`` rows); ``ok`` false: a fit gave ``r^2 <= 0``
+    (the rest is then unset).
     """
     n, dim = m.shape[0], basis.shape[0]
     p = np.empty((n, dim))
@@ -277,7 +276,7 @@ def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samp
             p[i, a] = m[i, 0] * basis[a, 0] + m[i, 1] * basis[a, 1] + m[i, 2] * basis[a, 2]
     c, r, keep, ok = _gated_fit_kernel(p, gate_fraction, min_samples, passes)
     if not ok:
-        return False, c, 0.0, math.nan, math.nan, math.nan, 0
+        return False, c, 0.0, math.nan, np.empty((0, dim))
     n_used = int(keep.sum())
     d = np.empty((n_used, dim))
     k = 0
@@ -293,11 +292,13 @@ def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samp
             d2 += d[i, a] * d[i, a]
         resid += (math.sqrt(d2) - r) ** 2
     resid = math.sqrt(resid / n_used)
-    if dim == 3:  # directions in the plane of their two main axes
-        _, _, vt = np.linalg.svd(d - d.sum(axis=0) / n_used, full_matrices=False)
-        d = np.ascontiguousarray(d @ np.ascontiguousarray(vt[:2].T))
-    arc, extent = _spread_kernel(d)
-    return True, c, r, resid, arc, extent, n_used
+    return True, c, r, resid, d
+
+
+def _main_axes(d: FloatArray) -> FloatArray:
+    """The 3-D vectors ``d`` in the plane of their two main axes (N, 2); numpy, offline only."""
+    _, _, vt = np.linalg.svd(d - d.sum(axis=0) / len(d), full_matrices=False)
+    return np.ascontiguousarray(d @ np.ascontiguousarray(vt[:2].T))
 
 
 def _plane_basis(up_d: ArrayLike | None) -> FloatArray:
@@ -320,9 +321,11 @@ def plane_basis_kernel(up_d: FloatArray) -> FloatArray:  # pragma: no cover - co
     axis[np.argmin(np.abs(up))] = 1.0
     e1 = _cross3(up, axis)            # up x its least aligned axis
     e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    e2 = _cross3(up, e1)
     out = np.empty((2, 3))
-    out[0] = e1
-    out[1] = _cross3(up, e1)
+    for a in range(3):   # element by element: no numba shape-mismatch message to compile
+        out[0, a] = e1[a]
+        out[1, a] = e2[a]
     return out
 
 
@@ -338,13 +341,23 @@ def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
                        min_samples: int, min_field_ut: float, min_arc_deg: float
                        ) -> tuple[int, FloatArray, float, float, float, float, int]:
     # pragma: no cover - compiled
-    """:func:`_fit_kernel` and the acceptance tests of :func:`fit_hard_iron`.
+    """:func:`_fit_kernel` on a plane ``basis`` (2, 3), coverage and the acceptance tests.
 
     Returns ``(code, c, r, residual, arc_deg, extent, n_used)``: ``code`` one of ``FIT_*``,
     ``c`` the offset in the device frame (``centre @ basis``, valid with ``FIT_OK``).
     """
-    ok, cp, r, resid, arc, extent, n_used = _fit_kernel(m, basis, gate_fraction, min_samples,
-                                                        _GATE_PASSES)
+    ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
+    arc, extent = _spread_kernel(d) if ok else (math.nan, math.nan)
+    return accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
+                      min_arc_deg)
+
+
+@njit(cache=True)
+def accept_fit(ok: bool, cp: FloatArray, basis: FloatArray, r: float, resid: float, arc: float,
+               extent: float, n_used: int, min_field_ut: float, min_arc_deg: float
+               ) -> tuple[int, FloatArray, float, float, float, float, int]:
+    # pragma: no cover - compiled
+    """The acceptance tests of a fit: :func:`checked_fit_kernel`'s result from its parts."""
     c = np.zeros(3)
     if not ok:
         return FIT_FAILED, c, r, resid, arc, extent, n_used
@@ -355,6 +368,20 @@ def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
     code = (FIT_NARROW if r < min_field_ut or extent < r
             else FIT_SHORT_ARC if arc < min_arc_deg else FIT_OK)
     return code, c, r, resid, arc, extent, n_used
+
+
+def _checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
+                 min_field_ut: float, min_arc_deg: float
+                 ) -> tuple[int, FloatArray, float, float, float, float, int]:
+    """:func:`checked_fit_kernel` for a plane ``basis``; for the identity (a sphere) the
+    coverage is measured in the plane of the two main axes of the kept samples."""
+    if basis.shape[0] == 2:
+        return checked_fit_kernel(m, basis, gate_fraction, min_samples, min_field_ut,
+                                  min_arc_deg)
+    ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
+    arc, extent = _spread_kernel(_main_axes(d)) if ok else (math.nan, math.nan)
+    return accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
+                      min_arc_deg)
 
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
@@ -388,7 +415,7 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         raise InputError(f"{len(m)} finite samples", where="hard-iron fit",
                          expected=f"at least {min_samples}")
     basis = _plane_basis(up_d)
-    code, c, r, resid, arc, extent, n_used = checked_fit_kernel(
+    code, c, r, resid, arc, extent, n_used = _checked_fit(
         np.ascontiguousarray(m), basis, float(gate_fraction), int(min_samples),
         float(min_field_ut), float(min_arc_deg))
     if code == FIT_FAILED:

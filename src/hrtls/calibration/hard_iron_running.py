@@ -208,22 +208,27 @@ def close_blocks_kernel(mag_mean: FloatArray, acc_mean: FloatArray, good: np.nda
     ``ints``: ``[n_kept, n_good, n_closed, stride, n_used, n_fits]``; ``fl``: ``[field_ut,
     residual_ut, arc_deg, t_accepted]`` of :class:`RunningHardIronState`. ``out`` (``k bs``,
     3) gets, for the samples of each block, the offset in force before the block closed
-    (``out`` may be empty: not written).
+    (``out`` may be empty: not written). Rows are copied element by element (no numba
+    shape-mismatch message to compile, :func:`hrtls.data._interp_kernel.interp_columns_kernel`).
     """
     n_kept, n_good, n_closed, stride = ints[0], ints[1], ints[2], ints[3]
     bs = out.shape[0] // mag_mean.shape[0]
     for b in range(mag_mean.shape[0]):
         for i in range(b * bs, (b + 1) * bs):
-            out[i] = c_ut
+            for a in range(3):
+                out[i, a] = c_ut[a]
         n_closed += 1
         if good[b]:
             if n_good % stride == 0:
-                blocks_mag[n_kept] = mag_mean[b]
+                for a in range(3):
+                    blocks_mag[n_kept, a] = mag_mean[b, a]
                 n_kept += 1
                 if n_kept > max_blocks:   # thin evenly: every second kept mean
-                    half = blocks_mag[:n_kept:2].copy()
-                    blocks_mag[:half.shape[0]] = half
-                    n_kept = half.shape[0]
+                    half = (n_kept + 1) // 2
+                    for k in range(half):   # row k <- row 2k (k <= 2k: in place)
+                        for a in range(3):
+                            blocks_mag[k, a] = blocks_mag[2 * k, a]
+                    n_kept = half
                     stride *= 2
             acc_sum += acc_mean[b]
             n_good += 1
@@ -240,7 +245,8 @@ def close_blocks_kernel(mag_mean: FloatArray, acc_mean: FloatArray, good: np.nda
             continue   # a refused refit keeps the last accepted offset
         if not np.all(np.isfinite(c_ut)):
             fl[3] = t_end[b]
-        c_ut[:] = c
+        for a in range(3):
+            c_ut[a] = c[a]
         fl[0], fl[1], fl[2] = r, resid, arc
         ints[4] = n_used
         ints[5] += 1

@@ -21,7 +21,11 @@ FloatArray = NDArray[np.float64]
 @njit(cache=True)
 def interp_columns_kernel(tq: FloatArray, t: FloatArray, values: FloatArray,
                           out: FloatArray) -> None:  # pragma: no cover - compiled
-    """``out[:, c] = np.interp(tq, t, values[:, c])`` for every column (``t`` increasing)."""
+    """``out[:, c] = np.interp(tq, t, values[:, c])`` for every column (``t`` increasing).
+
+    Rows are copied element by element: a row assignment from an array would make numba
+    compile its formatted shape-mismatch error, seconds of a first run.
+    """
     n = t.shape[0]
     j = 0
     for i in range(tq.shape[0]):
@@ -30,17 +34,17 @@ def interp_columns_kernel(tq: FloatArray, t: FloatArray, values: FloatArray,
             out[i] = x
             continue
         if x < t[0]:
-            out[i] = values[0]
+            _copy_row(values, 0, out, i)
             continue
         if x >= t[n - 1]:
-            out[i] = values[n - 1]
+            _copy_row(values, n - 1, out, i)
             continue
         if x < t[j]:   # queries went back: search again
             j = np.searchsorted(t, x, side="right") - 1
         while t[j + 1] <= x:   # t[j] <= x < t[j + 1]
             j += 1
         if t[j] == x:
-            out[i] = values[j]
+            _copy_row(values, j, out, i)
             continue
         for c in range(values.shape[1]):
             slope = (values[j + 1, c] - values[j, c]) / (t[j + 1] - t[j])
@@ -50,3 +54,10 @@ def interp_columns_kernel(tq: FloatArray, t: FloatArray, values: FloatArray,
                 if math.isnan(y) and values[j, c] == values[j + 1, c]:
                     y = values[j, c]
             out[i, c] = y
+
+
+@njit(cache=True, inline="always")
+def _copy_row(src: FloatArray, k: int, dst: FloatArray, i: int) -> None:
+    """``dst[i] = src[k]``."""  # pragma: no cover - compiled
+    for c in range(src.shape[1]):
+        dst[i, c] = src[k, c]
