@@ -131,14 +131,3 @@ def test_cpu_counters_of_this_machine() -> None:
     assert -1.0 <= precompile.spare_cores() <= (os.cpu_count() or 1) - 1.0 + 1e-9
 
 
-def test_interpret_runs_python_until_reset() -> None:
-    from hrtls.fusion.gating import wrap_rad
-
-    keys = K.interpret(("hrtls.fusion.gating",))
-    try:
-        assert wrap_rad.key in keys and "hrtls.fusion.floors:floor_level_correction" not in keys
-        assert wrap_rad._aot is not None and wrap_rad._aot[0][0] is wrap_rad.py_func
-        assert abs(wrap_rad(3 * np.pi) - np.pi) < 1e-12
-    finally:
-        K.reset()
-    assert wrap_rad._aot is None

@@ -174,25 +174,6 @@ def cooperative(dispatcher: Any) -> Any:
     return dispatcher
 
 
-def interpret(prefixes: tuple[str, ...]) -> list[str]:
-    """Run the declared kernels of the modules under ``prefixes`` as Python (until :func:`reset`).
-
-    For a process that compiles the other kernels first (:mod:`hrtls.jobs.precompile`); the
-    kernels of modules imported later are not affected. Returns their keys.
-    """
-    keys = []
-    with _LOCK:
-        for k in REGISTRY.values():
-            if k.key.startswith(prefixes):
-                k._aot = ((k.py_func, _any_arguments),)
-                keys.append(k.key)
-    return keys
-
-
-def _any_arguments(args: tuple[Any, ...]) -> bool:
-    return True
-
-
 def folder() -> Path:
     """Where the ahead-of-time build of this install lives (under the user cache)."""
     import zlib

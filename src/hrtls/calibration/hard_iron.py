@@ -373,8 +373,10 @@ def accept_fit(ok: bool, cp: FloatArray, basis: FloatArray, r: float, resid: flo
 def _checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
                  min_field_ut: float, min_arc_deg: float
                  ) -> tuple[int, FloatArray, float, float, float, float, int]:
-    """:func:`checked_fit_kernel` for a plane ``basis``; for the identity (a sphere) the
-    coverage is measured in the plane of the two main axes of the kept samples."""
+    """:func:`checked_fit_kernel` for a plane ``basis``, or for the identity (a sphere).
+
+    For a sphere the coverage is measured in the plane of the two main axes of the kept samples.
+    """
     if basis.shape[0] == 2:
         return checked_fit_kernel(m, basis, gate_fraction, min_samples, min_field_ut,
                                   min_arc_deg)

@@ -2,19 +2,20 @@
 
 numba compiles while holding the interpreter lock, so a process compiles one kernel at a time.
 On a first run (:func:`hrtls.jobs.warmup.first_run`) with a core to spare (``HRTLS_PRECOMPILE``
-``auto``, the default; ``1``: always, ``0``: never), ``hrtls demo`` starts one worker process
-per entry of :data:`PARTS`; it feeds the start of the demo's team to per-agent trackers as the
-service's tracker host does (the same batches, decoded the same way, the same presets), which
-compiles what the host calls, into numba's cache. The worker first runs the front-end kernels
-(:data:`FRONT_END`) as Python, so it compiles the later stages while the demo compiles the
-front end, then goes over the team again compiled (loading what the demo cached). Each process
-loads what the other cached and waits for a kernel the other is compiling
-(:func:`hrtls.kernels.cooperative`): no kernel is compiled twice. The worker writes nothing
-but numba's cache and, when it ends, a marker; it stops when the demo exits. A core is spare
-when the machine leaves it idle now (:func:`spare_cores`): on a busy machine the worker only
-takes time from the demo (docs/real-data.md).
+``auto``, the default; ``1``: always, ``0``: never), ``hrtls demo`` starts a worker process: it
+feeds the start of the demo's team to per-agent trackers as the service's tracker host does
+(the same batches, decoded the same way, the same presets), so it compiles exactly the host's
+builds, into numba's cache, in the order a rescuer's data needs them (front end, gait, then the
+position filter). The demo's own first compiles are the position filter's: a robot's tracker
+starts on its first odometry poses, a rescuer's only after ``RATE_SAMPLES`` IMU samples
+(:mod:`hrtls.pipeline.live`). The two processes thus compile different kernels at the same
+time; each loads what the other cached and waits for a kernel the other is compiling
+(:func:`hrtls.kernels.cooperative`): no kernel is compiled twice. The worker writes nothing but
+numba's cache and, when it ends, a marker; it stops when the demo exits. A core is spare when
+the machine leaves it idle now (:func:`spare_cores`): on a busy machine the worker only takes
+time from the demo (docs/real-data.md).
 
-Run one part: ``python -m hrtls.jobs.precompile PART``.
+Run it alone: ``python -m hrtls.jobs.precompile``.
 """
 
 from __future__ import annotations
@@ -26,12 +27,8 @@ import sys
 import time
 from pathlib import Path
 
-FRONT_END = ("hrtls.calibration", "hrtls.attitude")
-"""Modules whose kernels part 1 first runs as Python."""
-PARTS = (FRONT_END,)
-"""Per worker process: the kernel modules it first runs as Python."""
-SPARE_PER_PART = 0.5
-"""Idle cores (:func:`spare_cores`) wanted per worker."""
+SPARE_CORES = 0.5
+"""Idle cores (:func:`spare_cores`) the worker wants."""
 ENV_SWITCH = "HRTLS_PRECOMPILE"
 """``auto`` (unset): start the workers when cores are spare; ``1``: always; ``0``: never."""
 IDLE_SAMPLE_S = 0.2
@@ -41,7 +38,7 @@ WAYPOINTS = 6
 
 
 def marker() -> Path:
-    """The file part 0 writes when it has compiled the demo's kernels for this install."""
+    """The file the worker writes when it has compiled the demo's kernels for this install."""
     from hrtls.jobs.warmup import compiled_marker
 
     path = compiled_marker()
@@ -60,7 +57,7 @@ def wanted() -> bool:
     switch = os.environ.get(ENV_SWITCH, "auto")
     return (switch in ("1", "auto") and fcntl is not None and first_run()
             and not marker().exists()
-            and (switch == "1" or spare_cores() >= SPARE_PER_PART * len(PARTS)))
+            and (switch == "1" or spare_cores() >= SPARE_CORES))
 
 
 def spare_cores() -> float:
@@ -94,13 +91,12 @@ def _cpu_times() -> tuple[int, int] | None:
 
 
 def start() -> list[subprocess.Popen[bytes]]:
-    """Start the workers when :func:`wanted`; they are stopped at this process's exit."""
+    """Start the worker when :func:`wanted` (stopped at this process's exit); [] without."""
     if not wanted():
         return []
-    procs = [subprocess.Popen([sys.executable, "-m", "hrtls.jobs.precompile", str(part)],
+    procs = [subprocess.Popen([sys.executable, "-m", "hrtls.jobs.precompile"],
                               stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL, env=os.environ.copy())
-             for part in range(len(PARTS))]
+                              stderr=subprocess.DEVNULL, env=os.environ.copy())]
     atexit.register(stop, procs)
     return procs
 
@@ -117,12 +113,12 @@ def stop(procs: list[subprocess.Popen[bytes]]) -> None:
             proc.kill()
 
 
-def run_part(part: int, *, seed: int = 0) -> None:
-    """Track the start of the demo's team as the service does (part ``part``, module doc)."""
+def run(*, seed: int = 0) -> None:
+    """Track the start of the demo's team as the service's tracker host does (module doc)."""
     import math
     import warnings
 
-    from hrtls.kernels import interpret, jit_only, reset
+    from hrtls.kernels import jit_only
     from hrtls.service.client import encode, session_batches
     from hrtls.service.host import decode_batch
     from hrtls.service.runner import AgentSpec, InProcessRunner
@@ -131,23 +127,17 @@ def run_part(part: int, *, seed: int = 0) -> None:
     jit_only()  # numba's cache is what the demo loads
     mission = team_mission(seed, stop_s=0.0, waypoints=WAYPOINTS)
     landmarks = tuple(lm.model_dump(mode="json", exclude_none=True) for lm in mission.landmarks)
-    passes = [PARTS[part], ()] if PARTS[part] else [()]
+    runner = InProcessRunner()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for interpreted in passes:
-            if interpreted:
-                interpret(interpreted)
-            runner = InProcessRunner()
-            for k, member in enumerate(mission.members):
-                meta = member.session.meta.model_dump(mode="json")
-                runner.open(AgentSpec(k, member.preset, meta, landmarks, kind=member.kind), None,
-                            -math.inf)
-                batches = session_batches(member.session.with_parts(truth=None), chunk_s=0.5,
-                                          blocks=True)
-                for seq, (_, batch) in enumerate(batches):
-                    runner.feed(k, [decode_batch(*encode({**batch, "seq": seq}, "msgpack"))])
-            reset()
-            jit_only()
+        for k, member in enumerate(mission.members):
+            meta = member.session.meta.model_dump(mode="json")
+            runner.open(AgentSpec(k, member.preset, meta, landmarks, kind=member.kind), None,
+                        -math.inf)
+            batches = session_batches(member.session.with_parts(truth=None), chunk_s=0.5,
+                                      blocks=True)
+            for seq, (_, batch) in enumerate(batches):
+                runner.feed(k, [decode_batch(*encode({**batch, "seq": seq}, "msgpack"))])
 
 
 def _exit_with_parent(parent: int) -> None:
@@ -163,23 +153,21 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="hrtls parent watch", daemon=True).start()
 
 
-def main(argv: list[str]) -> int:
-    """``python -m hrtls.jobs.precompile PART``: run one part; 0 when it completed."""
+def main() -> int:
+    """``python -m hrtls.jobs.precompile``: compile, then write the marker; 0 when done."""
     from hrtls.jobs.warmup import configure_cache
 
     configure_cache()
     _exit_with_parent(os.getppid())
-    part = int(argv[0]) if argv else 0
-    run_part(part)
-    if part == 0:
-        path = marker()
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text("1\n", encoding="utf-8")
-        except OSError:
-            pass  # an unwritable home: the workers run again next time
+    run()
+    path = marker()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("1\n", encoding="utf-8")
+    except OSError:
+        pass  # an unwritable home: the worker runs again next time
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(sys.argv[1:]))
+    raise SystemExit(main())
