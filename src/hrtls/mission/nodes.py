@@ -584,3 +584,8 @@ class NodeEstimator:
 
 def _rms(x: FloatArray) -> float:
     return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+
+
+def largest_variance(cov_m2: FloatArray) -> float:
+    """Largest eigenvalue of a covariance, m^2."""
+    return float(np.linalg.eigvalsh(cov_m2)[-1])
