@@ -15,21 +15,23 @@ processed window (causal), so its result is a fixed-lag smoother of lag ``L``.
 Model (position only). The rows carry the filter's horizontal position ``x_k`` and covariance
 ``P_k`` but not its position-heading cross-covariance, so the step model is taken as
 ``x_{k+1} = x_k + u_k + w_k`` (``F = I``). A row between corrections is a pure prediction: its
-predicted mean is its filtered one, ``x^-_{k+1} = x_{k+1}``, and its predicted covariance
-``P^-_{k+1} = P_k + Q_k``, ``Q_k = [P_{k+1} - P_k]+`` (``[.]+`` the positive semi-definite
-part: ``P_{k+1}`` itself for a random walk; with the heading in the filter's state the position
-block can shrink along one axis, and ``Q_k >= 0`` keeps every gain below one). A correction has
-a row of its own at its time (the tracker writes one per fix, tag, RSS, range or heading update,
-``since_correction_s`` 0) whose prior is the previous row: ``x^-_{k+1} = x_k``,
-``P^-_{k+1} = P_k``. The backward pass, from the latest row (``x^s_n = x_n``, ``P^s_n = P_n``):
+predicted values are its filtered ones, ``x^-_{k+1} = x_{k+1}``, ``P^-_{k+1} = P_{k+1}``. A
+correction has a row of its own at its time (the tracker writes one per fix, tag, RSS, range or
+heading update, ``since_correction_s`` 0) whose prior is the previous row:
+``x^-_{k+1} = x_k``, ``P^-_{k+1} = P_k``. The backward pass, from the latest row
+(``x^s_n = x_n``, ``P^s_n = P_n``; ``[.]+`` the positive semi-definite part):
 
-    G_k = P_k (P^-_{k+1})^-1
+    G_k = P_k (P_k + Q_k)^-1,  Q_k = [P^-_{k+1} - P_k]+
     x^s_k = x_k + G_k (x^s_{k+1} - x^-_{k+1})
-    P^s_k = P_k - G_k [P^-_{k+1} - P^s_{k+1}]+ G_k^T
+    P^s_k = [P_k - G_k [P^-_{k+1} - P^s_{k+1}]+ G_k^T]+
 
-(``0 <= P^s_k <= P_k`` whatever the rows). Rows after the latest correction are unchanged
-(zero innovations); over a stretch of random-walk predictions ``a < k < c`` ending in a
-correction, the gains telescope: ``x^s_k = x_k + P_k (P^-_c)^-1 (x_c - x^-_c)`` and
+For a random walk ``P^-_{k+1} = P_k + Q_k`` and this is the exact RTS smoother; with the
+heading in the filter's state the position block can shrink along one axis between
+corrections, and ``Q_k >= 0`` keeps the gains at most one. A correction row has ``Q_k = 0``,
+``G_k = I``: the row before it takes the smoothed value at the correction. Rows after the
+latest correction are unchanged (zero innovations, ``P^s = P``). Over a stretch of random-walk
+predictions ``a < k < c`` ending in a correction the gains telescope:
+``x^s_k = x_k + P_k (P^-_c)^-1 (x_c - x^-_c)`` and
 ``P^s_k = P_k - P_k (P^-_c)^-1 (P^-_c - P_c) (P^-_c)^-1 P_k``. In one dimension, a random walk of
 step variance ``q`` from an exact fix at 0 to an exact fix at ``n`` gives the Brownian bridge,
 ``P^s_k = q k (n - k) / n``.
@@ -43,7 +45,9 @@ across an exact fix instead of being carried on. With ``P_j = P^s_j`` the estima
 ``S_j >= P^s_j`` stays conservative: where ``P^s`` falls (the second half of a stretch)
 ``D_j = 0`` and a pass keeps the earlier pass's offset and its larger prior ``S_{j-1}``; where
 it grows the walk adds the growth. The drift within a pass (:func:`~hrtls.mission.nodes.
-drift_variance`) is the growth of ``P^s`` away from the pass's middle reading, as before.
+drift_variance`) is the growth of ``P^s`` away from the pass's middle reading: 0 where ``P^s``
+falls, while the true spread there is ``var(e^s_j - e^s_i) = P^s_i + P^s_j - 2 P_i P_j^-1 P^s_j``
+(under-modelled; the pass inflation and ``agent_cov_scale`` cover it in part).
 Robots are not smoothed (their range updates share rows with odometry steps, so the rows do
 not hold a correction's prior).
 """
@@ -69,6 +73,13 @@ MIN_SHIFT_M = 0.25
 
 
 @njit(cache=True)
+def psd_part_kernel(m: FloatArray) -> FloatArray:
+    """The positive semi-definite part of the symmetric part of a 2x2 matrix."""
+    w, v = np.linalg.eigh(0.5 * (m + m.T))
+    return (v * np.maximum(w, 0.0)) @ v.T
+
+
+@njit(cache=True)
 def rts_bridge_kernel(xy: FloatArray, cov: FloatArray, corr: NDArray[np.bool_],
                       xs: FloatArray, ps: FloatArray) -> None:
     """Backward RTS pass of the module doc over rows ``(n, 2)``, ``(n, 2, 2)``, into xs, ps.
@@ -81,28 +92,23 @@ def rts_bridge_kernel(xy: FloatArray, cov: FloatArray, corr: NDArray[np.bool_],
     xs[n - 1] = xy[n - 1]
     ps[n - 1] = cov[n - 1]
     for k in range(n - 2, -1, -1):
-        pp = cov[k].copy()                          # the prior of row k + 1
-        xp = xy[k] if corr[k + 1] else xy[k + 1]
-        if not corr[k + 1]:
-            q = cov[k + 1] - cov[k]
-            w, v = np.linalg.eigh(0.5 * (q + q.T))
-            pp += (v * np.maximum(w, 0.0)) @ v.T
-        a, b, c = pp[0, 0], 0.5 * (pp[0, 1] + pp[1, 0]), pp[1, 1]
-        det = a * c - b * b
-        if not det > 1e-18 * max(a * c, 1e-300):
-            xs[k] = xy[k]
-            ps[k] = cov[k]
-            continue
-        inv = np.empty((2, 2))
-        inv[0, 0], inv[0, 1], inv[1, 0], inv[1, 1] = c / det, -b / det, -b / det, a / det
-        g = cov[k] @ inv
-        xs[k] = xy[k] + g @ (xs[k + 1] - xp)
-        d = pp - ps[k + 1]
-        d = 0.5 * (d + d.T)
-        w, v = np.linalg.eigh(d)
-        d = (v * np.maximum(w, 0.0)) @ v.T
-        p = cov[k] - g @ d @ g.T
-        ps[k] = 0.5 * (p + p.T)
+        if corr[k + 1]:                                 # G = I, prior P_k
+            xs[k] = xs[k + 1]
+            p = cov[k] - psd_part_kernel(cov[k] - ps[k + 1])
+        else:
+            pp = cov[k] + psd_part_kernel(cov[k + 1] - cov[k])
+            a, b, c = pp[0, 0], 0.5 * (pp[0, 1] + pp[1, 0]), pp[1, 1]
+            det = a * c - b * b
+            if not det > 1e-18 * max(a * c, 1e-300):
+                xs[k] = xy[k]
+                ps[k] = cov[k]
+                continue
+            inv = np.empty((2, 2))
+            inv[0, 0], inv[0, 1], inv[1, 0], inv[1, 1] = c / det, -b / det, -b / det, a / det
+            g = cov[k] @ inv
+            xs[k] = xy[k] + g @ (xs[k + 1] - xy[k + 1])
+            p = cov[k] - g @ psd_part_kernel(cov[k + 1] - ps[k + 1]) @ g.T
+        ps[k] = psd_part_kernel(p)
 
 
 def smooth_rows(xy_m: FloatArray, cov_m2: FloatArray, correction: NDArray[np.bool_]
