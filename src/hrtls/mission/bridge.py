@@ -68,7 +68,7 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-MIN_SHIFT_M = 0.25
+MIN_SHIFT_M = 0.5
 """A node is estimated again once one of its readings moved at least this far, m."""
 
 
