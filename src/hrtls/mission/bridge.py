@@ -70,6 +70,8 @@ FloatArray = NDArray[np.float64]
 
 MIN_SHIFT_M = 0.5
 """A node is estimated again once one of its readings moved at least this far, m."""
+REFRESH_S = 15.0
+"""... and at most once every this long for moved readings (by its agents' rows' time), s."""
 
 
 @njit(cache=True)
@@ -138,7 +140,8 @@ class BridgeState:
     (n, 2, 2), correction (n,) as 0/1; ``pulled``: time after which its tracker's rows are read
     next; ``notes``: per agent its readings that may still move, ``[node, indices]`` into that
     node's readings; ``seen``: per node its readings already noted; ``due``: agents with a new
-    correction or reading since the last smoothing.
+    correction or reading since the last smoothing; ``stale``: nodes whose readings moved since
+    their last estimate; ``refreshed``: when each was last made due for that.
     """
 
     rows: dict[str, list[FloatArray]] = field(default_factory=dict)
@@ -146,6 +149,8 @@ class BridgeState:
     notes: dict[str, list[list[Any]]] = field(default_factory=dict)
     seen: dict[str, int] = field(default_factory=dict)
     due: set[str] = field(default_factory=set)
+    stale: set[str] = field(default_factory=set)
+    refreshed: dict[str, float] = field(default_factory=dict)
 
 
 def _note(mt: MissionTracker, nodes: set[str]) -> None:
@@ -192,9 +197,10 @@ def _pull(mt: MissionTracker, name: str) -> None:
 def revise(mt: MissionTracker, name: str, touched: set[str]) -> set[str]:
     """Smooth agent ``name``'s kept rows when due and move its readings there.
 
-    ``touched``: the nodes given new readings so far in the window. Returns the nodes whose
-    readings moved by at least :data:`MIN_SHIFT_M`: each is due for estimation again (its
-    estimated reading count is reset).
+    ``touched``: the nodes given new readings so far in the window. Returns the nodes one of
+    whose readings moved by at least :data:`MIN_SHIFT_M` in a smoothing since their last
+    estimate, each at most every :data:`REFRESH_S`: due for estimation again (its estimated
+    reading count is reset).
     """
     st = mt.bridge
     if st is None:
@@ -226,9 +232,14 @@ def revise(mt: MissionTracker, name: str, touched: set[str]) -> set[str]:
         if shift.size and float(shift.max()) >= MIN_SHIFT_M:
             moved.add(node)
     st.notes[name] = kept
-    for node in moved:
+    st.stale |= moved
+    now = float(t[-1])
+    ready = {n for n in st.stale if now >= st.refreshed.get(n, -np.inf) + REFRESH_S}
+    for node in ready:
         mt.estimated_at[node] = 0
-    return moved
+        st.refreshed[node] = now
+    st.stale -= ready
+    return ready
 
 
 def state_of(st: BridgeState | None) -> dict[str, Any] | None:
@@ -237,7 +248,8 @@ def state_of(st: BridgeState | None) -> dict[str, Any] | None:
         return None
     return {"rows": {k: list(v) for k, v in st.rows.items()}, "pulled": dict(st.pulled),
             "notes": {k: [[n, np.asarray(i, np.int64)] for n, i in v] for k, v in st.notes.items()},
-            "seen": dict(st.seen), "due": sorted(st.due)}
+            "seen": dict(st.seen), "due": sorted(st.due), "stale": sorted(st.stale),
+            "refreshed": dict(st.refreshed)}
 
 
 def state_from(d: dict[str, Any] | None) -> BridgeState | None:
@@ -250,4 +262,5 @@ def state_from(d: dict[str, Any] | None) -> BridgeState | None:
         pulled={k: float(v) for k, v in d["pulled"].items()},
         notes={k: [[str(n), np.asarray(i, np.int64).reshape(-1)] for n, i in v]
                for k, v in d["notes"].items()},
-        seen={k: int(v) for k, v in d["seen"].items()}, due=set(d["due"]))
+        seen={k: int(v) for k, v in d["seen"].items()}, due=set(d["due"]),
+        stale=set(d["stale"]), refreshed={k: float(v) for k, v in d["refreshed"].items()})
