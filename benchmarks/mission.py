@@ -153,6 +153,8 @@ class SeedItem:
     """``MissionParams.use_variance_ratio`` (None: its default)."""
     tags: dict[str, float] = field(default_factory=dict)
     """The rescuers' ``[tags]`` table (empty: the defaults)."""
+    smooth_readings_s: float | None = None
+    """``MissionParams.smooth_readings_s`` (None: its default)."""
 
 
 def modes(peers: bool, only_on: bool = False, only_off: bool = False) -> tuple[str, ...]:
@@ -253,7 +255,9 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
             **({} if item.loop_closure_ratio is None else
                {"loop_closure_ratio": item.loop_closure_ratio}),
             **({} if item.use_variance_ratio is None else
-               {"use_variance_ratio": item.use_variance_ratio})),
+               {"use_variance_ratio": item.use_variance_ratio}),
+            **({} if item.smooth_readings_s is None else
+               {"smooth_readings_s": item.smooth_readings_s})),
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude, "tags": item.tags}))
@@ -308,6 +312,9 @@ def main() -> None:
                     help="NodeEstimatorParams.range_correlation_s (default: its default)")
     ap.add_argument("--max-mirror-passes", type=int, default=None,
                     help="NodeEstimatorParams.max_mirror_passes (default: its default)")
+    ap.add_argument("--smooth-readings-s", type=float, default=None,
+                    help="MissionParams.smooth_readings_s: rescuers' readings at their smoothed "
+                         "positions, lag s (default: its default; 0: off)")
     ap.add_argument("--use-variance-ratio", type=float, default=None,
                     help="MissionParams.use_variance_ratio (default: its default; inf: no gate)")
     ap.add_argument("--loop-closure-ratio", type=float, default=None,
@@ -385,7 +392,8 @@ def main() -> None:
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
                       only_off=args.only_off, use_variance_ratio=args.use_variance_ratio,
-                      tags={"sigma_per_accuracy": args.tag_sigma_per_accuracy})
+                      tags={"sigma_per_accuracy": args.tag_sigma_per_accuracy},
+                      smooth_readings_s=args.smooth_readings_s)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in cols:
@@ -418,6 +426,8 @@ def main() -> None:
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     ratio = (MissionParams().use_variance_ratio if args.use_variance_ratio is None
              else args.use_variance_ratio)
+    lag = (MissionParams().smooth_readings_s if args.smooth_readings_s is None
+           else args.smooth_readings_s)
     print(f"\nseeds {args.seeds}, {args.rescuers} rescuers ({args.rescuer_driver} driver), "
           f"{args.robots} robots "
           f"({args.robot_driver} driver), tags {args.tags}"
@@ -426,7 +436,7 @@ def main() -> None:
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "
-          f"ratio {ratio:g}, rescuers' "
+          f"ratio {ratio:g}, smoothed readings lag {lag:g} s, rescuers' "
           f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, tag sigma "
           f"per accuracy {args.tag_sigma_per_accuracy}; values are "
           f"mean / p90 / "

@@ -322,3 +322,30 @@ def test_with_the_information_gate_live_and_restored_give_the_offline_run(seed1)
     for k in sessions:
         mt.end(k)
     assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
+
+
+def test_with_smoothed_readings_live_and_restored_give_the_offline_run(seed1) -> None:  # type: ignore[no-untyped-def]
+    """``smooth_readings_s`` 30 (readings moved to the rescuers' smoothed rows): parts fed live,
+    and a snapshot restored half-way then fed the rest, give the offline run."""
+    sessions, kinds = seed1
+    prm = MissionParams(smooth_readings_s=30.0)
+    offline = MissionTracker(sessions, kinds=kinds, params=prm)
+    want = offline.run()
+    alone = [MissionTracker(sessions, kinds=kinds, params=MissionParams(
+        cooperate=False, smooth_readings_s=s)) for s in (0.0, 30.0)]
+    for a in alone:
+        a.run()
+    assert any(not np.allclose(np.asarray(r.xy), np.asarray(alone[1].readings[n].xy))
+               for n, r in alone[0].readings.items())               # it smooths
+    parts = _parts(sessions)
+    mt, _ = _live(sessions, kinds, cut=len(parts) // 2, params=prm)
+    mt = MissionTracker.restore(mt.snapshot())
+    assert mt.params.smooth_readings_s == 30.0 and mt.bridge is not None
+    for j, (name, part) in enumerate(parts[len(parts) // 2:], start=len(parts) // 2):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+    for k in sessions:
+        mt.end(k)
+    assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
+    for n, r in offline.readings.items():
+        np.testing.assert_allclose(np.asarray(mt.readings[n].xy), np.asarray(r.xy), atol=1e-12)

@@ -29,6 +29,8 @@ walls between agent and node, the antennas' height difference) are correlated in
 first-order autoregressive sequence of correlation time ``range_correlation_s``: each reading's
 variance is multiplied by :func:`pass_inflation`, so that a pass of many readings carries the
 information of its effectively independent ones, not of its count.
+With ``MissionParams.smooth_readings_s`` the readings carry an agent's smoothed position and
+covariance: what that changes for the offsets and the drift term is in :mod:`hrtls.mission.bridge`.
 
 Checks before a node counts as localized:
 
@@ -584,3 +586,8 @@ class NodeEstimator:
 
 def _rms(x: FloatArray) -> float:
     return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+
+
+def largest_variance(cov_m2: FloatArray) -> float:
+    """Largest eigenvalue of a covariance, m^2."""
+    return float(np.linalg.eigvalsh(cov_m2)[-1])

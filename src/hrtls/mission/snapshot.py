@@ -33,7 +33,7 @@ from hrtls.data.observations import (
 from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
-from hrtls.mission import smoothing
+from hrtls.mission import bridge, smoothing
 from hrtls.mission.floors import FloorLog
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
@@ -218,6 +218,7 @@ def mission_snapshot(mt: Any) -> bytes:
         "rows": {k: [list(r) for r in rows] for k, rows in mt.recent_rows.items()},
         "nodes": _nodes_state(mt),
         "smoother": smoothing.state_of(mt.smoother),
+        "bridge": bridge.state_of(mt.bridge),
     }
     return codec.pack(state)
 
@@ -266,6 +267,7 @@ def restore_mission(data: bytes) -> Any:
         mt.recent_rows = {k: [tuple(r) for r in rows] for k, rows in d["rows"].items()}
         _restore_nodes(mt, d["nodes"])
         mt.smoother = smoothing.state_from(d.get("smoother"))
+        mt.bridge = bridge.state_from(d.get("bridge"))
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(f"incomplete mission snapshot ({exc!r})", where="mission snapshot",
                           expected="bytes from MissionTracker.snapshot()") from None

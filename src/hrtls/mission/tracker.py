@@ -57,11 +57,11 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
-from hrtls.mission import smoothing
+from hrtls.mission import bridge, smoothing
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.floors import FloorLog, building_floor_height_m, node_floor
 from hrtls.mission.graph import SmootherParams
-from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams
+from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, largest_variance
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.provenance import NodeUse, Provenance, UsePool, informative, widening
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
@@ -111,6 +111,8 @@ class MissionParams:
     smoother:
         The range-SLAM smoother of agents' paths and nodes (:mod:`hrtls.mission.smoothing`);
         None: the per-node estimator alone.
+    smooth_readings_s:
+        Rescuers' readings at their smoothed positions, lag s (:mod:`hrtls.mission.bridge`); 0: off.
     """
 
     chunk_s: float = 5.0
@@ -124,6 +126,7 @@ class MissionParams:
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
     smoother: SmootherParams | None = None
+    smooth_readings_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("chunk_s", "pass_gap_s", "silent_after_s"):
@@ -238,6 +241,7 @@ class MissionTracker:
         self.peers = PeerUses()
         self.prov = Provenance()
         self.smoother = smoothing.SmootherState() if self.params.smoother else None
+        self.bridge = bridge.BridgeState() if self.params.smooth_readings_s > 0 else None
         self.floor_logs = {k: FloorLog() for k in self.names}
         self.node_floor: dict[str, int] = {}
         self.floor_height_m = building_floor_height_m(
@@ -355,8 +359,7 @@ class MissionTracker:
             return []
         t0 = self.t0 if self.t0 is not None else min(a for a, _ in spans)
         t1 = max(b for _, b in spans)
-        if self.t0 is None:
-            self.t0 = t0
+        self.t0 = t0
         n = math.floor((t1 - t0) / self.params.chunk_s) + 1
         return [(t0 + k * self.params.chunk_s, t0 + (k + 1) * self.params.chunk_s)
                 for k in range(n)]
@@ -381,8 +384,7 @@ class MissionTracker:
 
     def result(self) -> MissionResult:
         """Finish every agent's tracker; the mission's result (after the last window)."""
-        results = {name: tr.finish() for name, tr in self.trackers.items()
-                   if name in self.started}
+        results = {n: tr.finish() for n, tr in self.trackers.items() if n in self.started}
         hist = {n: NodeTrack(np.array([h[0] for h in rows]), np.array([h[1] for h in rows]),
                              np.array([h[2] for h in rows])) for n, rows in self.history.items()}
         contributors = {n: [self.names[i] for i in sorted(c)] for n, c in self.contrib.items()}
@@ -411,6 +413,7 @@ class MissionTracker:
             smoothing.collect(self, i, rest)
             if keep is not None or self.pending[name] is not None:
                 touched |= self._collect(i, name, keep, self.agent_rows(name))
+            touched |= bridge.revise(self, name, touched)
             self._trim_rows(name, t_end)
         changed = self._relocalize(touched, t_end)
         changed += [n for n in smoothing.solve(self, t_end) if n not in changed]
@@ -426,6 +429,7 @@ class MissionTracker:
         for i, name in enumerate(self.names):
             if self.pending[name] is not None and name in self.started:
                 touched |= self._collect(i, name, None, self.agent_rows(name), final=True)
+            touched |= bridge.revise(self, name, touched)
         self._relocalize(touched, self.horizon_s, every=True)
         smoothing.solve(self, self.horizon_s, final=True)
 
@@ -501,8 +505,7 @@ class MissionTracker:
 
     def _informative(self, i: int, node: str) -> bool:
         """The information gate (``use_variance_ratio``) at the agent's latest row."""
-        rows = self.recent_rows[self.names[i]]
-        est = self.estimates.get(node)
+        rows, est = self.recent_rows[self.names[i]], self.estimates.get(node)
         if not rows or est is None:
             return True
         return informative(est.position_m, est.covariance_m2, rows[0][1][-1], rows[0][2][-1],
@@ -520,16 +523,13 @@ class MissionTracker:
                 self.prov.passes.get((i, str(n)), UsePool()), t_first_s=float(times[m][0]),
                 t_last_s=float(times[m][-1]), ranges=int(np.count_nonzero(m)),
                 gap_s=self.params.pass_gap_s, kind=kind, cap=self.params.pass_cap)
-            extra[m] = factor * self._node_var(str(n))
+            extra[m] = factor * largest_variance(self.estimates[str(n)].covariance_m2)
             est = self.estimates[str(n)]
             self.prov.use(NodeUse(
                 float(times[m][0]), i, str(n), kind, int(np.count_nonzero(m)),
                 est.position_m.copy(), est.covariance_m2.copy(),
                 float(np.sqrt(ranges.sigma_m[usable][m][-1] ** 2 + extra[m][-1]))))
         return extra
-
-    def _node_var(self, node: str) -> float:
-        return float(np.linalg.eigvalsh(self.estimates[node].covariance_m2)[-1])
 
     def agent_rows(self, name: str) -> Rows | None:
         """Agent ``name``'s recent estimates (time, xy, covariance) with its newest rows.
@@ -588,7 +588,7 @@ class MissionTracker:
         for node in changed:
             est = self.estimates[node]
             v = self.versions[node]
-            sigma = float(np.sqrt(self._node_var(node)))
+            sigma = float(np.sqrt(largest_variance(est.covariance_m2)))
             f = self.node_floor.get(node, 0)
             lm = Landmark(id=node, kind="node", floor=f, accuracy_m=max(sigma, 1e-6),
                           position=(float(est.position_m[0]), float(est.position_m[1]),
