@@ -99,13 +99,18 @@ def test_on_a_linear_filter_it_is_the_textbook_rts_and_never_above_the_filter(
     np.testing.assert_allclose(ps[last:], cov[last:], atol=1e-12)
 
 
+def _random_covariances(seed: int, n: int) -> tuple[np.random.Generator, np.ndarray]:
+    """A generator and ``n`` random positive semi-definite 2x2 covariances (shrinking too)."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, 2, 2))
+    return rng, a @ np.swapaxes(a, 1, 2)
+
+
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 40))
 def test_without_a_correction_nothing_changes_whatever_the_rows(seed: int, n: int) -> None:
     """Any positive semi-definite covariances (shrinking too): no correction row, no change."""
-    rng = np.random.default_rng(seed)
-    a = rng.normal(size=(n, 2, 2))
-    cov = a @ np.swapaxes(a, 1, 2)
+    rng, cov = _random_covariances(seed, n)
     xy = rng.normal(size=(n, 2)) * 10.0
     xs, ps = smooth_rows(xy, cov, np.zeros(n, dtype=bool))
     np.testing.assert_array_equal(xs, xy)
@@ -115,9 +120,7 @@ def test_without_a_correction_nothing_changes_whatever_the_rows(seed: int, n: in
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(2, 40))
 def test_any_rows_give_finite_positive_semi_definite_covariances(seed: int, n: int) -> None:
-    rng = np.random.default_rng(seed)
-    a = rng.normal(size=(n, 2, 2))
-    cov = a @ np.swapaxes(a, 1, 2)
+    rng, cov = _random_covariances(seed, n)
     corr = rng.uniform(size=n) < 0.3
     xs, ps = smooth_rows(rng.normal(size=(n, 2)), cov, corr)
     assert np.all(np.isfinite(xs)) and np.all(np.isfinite(ps))

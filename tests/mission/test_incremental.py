@@ -53,6 +53,21 @@ def _live(sessions: dict[str, Session], kinds: dict[str, str], *, cut: int | Non
     return mt, len(parts)
 
 
+def _restored_half_way(sessions: dict[str, Session], kinds: dict[str, str],
+                       params: MissionParams) -> MissionTracker:
+    """Half the parts fed live, a snapshot restored, the rest fed, every agent ended."""
+    parts = _parts(sessions)
+    half = len(parts) // 2
+    mt, _ = _live(sessions, kinds, cut=half, params=params)
+    mt = MissionTracker.restore(mt.snapshot())
+    for j, (name, part) in enumerate(parts[half:], start=half):
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+    for k in sessions:
+        mt.end(k)
+    return mt
+
+
 def _max_diff(a: MissionResult, b: MissionResult, *, tail: bool = False) -> float:
     """Largest difference of node estimates, node history and agent rows (``tail``: ``b``
     holds each agent's rows from some time on)."""
@@ -312,15 +327,8 @@ def test_with_the_information_gate_live_and_restored_give_the_offline_run(seed1)
     prm = MissionParams(use_variance_ratio=0.3)
     want = MissionTracker(sessions, kinds=kinds, params=prm).run()
     assert len(want.uses) < len(MissionTracker(sessions, kinds=kinds).run().uses)  # it gates
-    parts = _parts(sessions)
-    mt, _ = _live(sessions, kinds, cut=len(parts) // 2, params=prm)
-    mt = MissionTracker.restore(mt.snapshot())
+    mt = _restored_half_way(sessions, kinds, prm)
     assert mt.params.use_variance_ratio == 0.3
-    for j, (name, part) in enumerate(parts[len(parts) // 2:], start=len(parts) // 2):
-        mt.feed(name, part, now_s=float(j))
-        mt.advance(now_s=float(j))
-    for k in sessions:
-        mt.end(k)
     assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
 
 
@@ -337,15 +345,8 @@ def test_with_smoothed_readings_live_and_restored_give_the_offline_run(seed1) ->
         a.run()
     assert any(not np.allclose(np.asarray(r.xy), np.asarray(alone[1].readings[n].xy))
                for n, r in alone[0].readings.items())               # it smooths
-    parts = _parts(sessions)
-    mt, _ = _live(sessions, kinds, cut=len(parts) // 2, params=prm)
-    mt = MissionTracker.restore(mt.snapshot())
+    mt = _restored_half_way(sessions, kinds, prm)
     assert mt.params.smooth_readings_s == 30.0 and mt.bridge is not None
-    for j, (name, part) in enumerate(parts[len(parts) // 2:], start=len(parts) // 2):
-        mt.feed(name, part, now_s=float(j))
-        mt.advance(now_s=float(j))
-    for k in sessions:
-        mt.end(k)
     assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
     for n, r in offline.readings.items():
         np.testing.assert_allclose(np.asarray(mt.readings[n].xy), np.asarray(r.xy), atol=1e-12)

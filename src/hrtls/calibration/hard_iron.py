@@ -348,12 +348,12 @@ def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
     """
     ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
     arc, extent = _spread_kernel(d) if ok else (math.nan, math.nan)
-    return accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
+    return _accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
                       min_arc_deg)
 
 
 @njit(cache=True)
-def accept_fit(ok: bool, cp: FloatArray, basis: FloatArray, r: float, resid: float, arc: float,
+def _accept_fit(ok: bool, cp: FloatArray, basis: FloatArray, r: float, resid: float, arc: float,
                extent: float, n_used: int, min_field_ut: float, min_arc_deg: float
                ) -> tuple[int, FloatArray, float, float, float, float, int]:
     # pragma: no cover - compiled
@@ -382,7 +382,7 @@ def _checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_sam
                                   min_arc_deg)
     ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
     arc, extent = _spread_kernel(_main_axes(d)) if ok else (math.nan, math.nan)
-    return accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
+    return _accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
                       min_arc_deg)
 
 

@@ -61,6 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.kernels import njit
+from hrtls.mission.nodes import psd_part_kernel
 from hrtls.pipeline.tracker import Tracker
 
 if TYPE_CHECKING:
@@ -72,13 +73,6 @@ MIN_SHIFT_M = 0.5
 """A node is estimated again once one of its readings moved at least this far, m."""
 REFRESH_S = 15.0
 """... and at most once every this long for moved readings (by its agents' rows' time), s."""
-
-
-@njit(cache=True)
-def psd_part_kernel(m: FloatArray) -> FloatArray:
-    """The positive semi-definite part of the symmetric part of a 2x2 matrix."""
-    w, v = np.linalg.eigh(0.5 * (m + m.T))
-    return (v * np.maximum(w, 0.0)) @ v.T
 
 
 @njit(cache=True)

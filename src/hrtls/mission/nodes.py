@@ -61,6 +61,7 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 
 from hrtls.errors import InputError
+from hrtls.kernels import njit
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -263,9 +264,11 @@ class _Offsets:
     s: FloatArray        # (J, 2, 2) prior covariance of each pass's offset
 
 
-def _psd_part(m: FloatArray) -> FloatArray:
+@njit(cache=True)
+def psd_part_kernel(m: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """The positive semi-definite part of the symmetric part of a square matrix."""
     w, v = np.linalg.eigh(0.5 * (m + m.T))
-    return np.asarray((v * np.maximum(w, 0.0)) @ v.T, dtype=np.float64)
+    return (v * np.maximum(w, 0.0)) @ v.T
 
 
 def pass_inflation(*, n: int, span_s: float, tau_s: float) -> float:
@@ -352,7 +355,7 @@ def _offsets(obs: NodeRanges, use: BoolArray, prm: NodeEstimatorParams) -> _Offs
         members = np.flatnonzero(chain == c)            # groups sorted: time order in chain
         total = common.copy()
         for pos, j in enumerate(members.tolist()):
-            inc[j] = _psd_part(pg[j] - total) + 1e-9 * np.eye(2)
+            inc[j] = psd_part_kernel(pg[j] - total) + 1e-9 * np.eye(2)
             total = total + inc[j]
             cum[j] = total
             anc[j, members[:pos + 1]] = 1.0
