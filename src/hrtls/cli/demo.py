@@ -45,9 +45,9 @@ def demo(
     """Live supervisor and dashboard with a simulated team; --no-serve: the batch comparison."""
     from hrtls.jobs.precompile import start
 
-    if start():  # a first run on idle cores: the kernels compiled in another process too
-        console.print("[yellow]note:[/yellow] first run: compiling the numerical kernels once, "
-                      "in a background process too, while the demo starts")
+    if start() is not None:  # a first run on an idle core: compiled in another process too
+        console.print("[yellow]note:[/yellow] compiling in a background process too, while "
+                      "the demo starts")
     if no_serve:
         from hrtls.cli.track import demo as batch_demo
 

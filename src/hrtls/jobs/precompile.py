@@ -30,7 +30,7 @@ from pathlib import Path
 SPARE_CORES = 0.5
 """Idle cores (:func:`spare_cores`) the worker wants."""
 ENV_SWITCH = "HRTLS_PRECOMPILE"
-"""``auto`` (unset): start the workers when cores are spare; ``1``: always; ``0``: never."""
+"""``auto`` (unset): start the worker when a core is spare; ``1``: always; ``0``: never."""
 IDLE_SAMPLE_S = 0.2
 """How long :func:`spare_cores` watches the machine's CPU counters, s."""
 WAYPOINTS = 6
@@ -90,27 +90,25 @@ def _cpu_times() -> tuple[int, int] | None:
     return sum(ticks), ticks[3] + (ticks[4] if len(ticks) > 4 else 0)
 
 
-def start() -> list[subprocess.Popen[bytes]]:
-    """Start the worker when :func:`wanted` (stopped at this process's exit); [] without."""
+def start() -> subprocess.Popen[bytes] | None:
+    """Start the worker when :func:`wanted` (stopped at this process's exit); None without."""
     if not wanted():
-        return []
-    procs = [subprocess.Popen([sys.executable, "-m", "hrtls.jobs.precompile"],
-                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL, env=os.environ.copy())]
-    atexit.register(stop, procs)
-    return procs
+        return None
+    proc = subprocess.Popen([sys.executable, "-m", "hrtls.jobs.precompile"],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env=os.environ.copy())
+    atexit.register(stop, proc)
+    return proc
 
 
-def stop(procs: list[subprocess.Popen[bytes]]) -> None:
-    """End the workers still running (their finished compiles stay cached)."""
-    for proc in procs:
-        if proc.poll() is None:
-            proc.terminate()
-    for proc in procs:
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+def stop(proc: subprocess.Popen[bytes]) -> None:
+    """End the worker if still running (its finished compiles stay cached)."""
+    if proc.poll() is None:
+        proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
 
 
 def run(*, seed: int = 0) -> None:
