@@ -437,9 +437,9 @@ def main() -> None:
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "
           f"ratio {ratio:g}, smoothed readings lag {lag:g} s, rescuers' "
-          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, magnetic offset "
-          f"{args.offset_model}, tag sigma per accuracy {args.tag_sigma_per_accuracy}; values are "
-          f"mean / p90 / "
+          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, "
+          f"magnetic offset {args.offset_model}, tag sigma per accuracy "
+          f"{args.tag_sigma_per_accuracy}; values are mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     head = "peer ranges" if args.peer_ranges else "cooperation"
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
