@@ -38,7 +38,8 @@ the seeds; ``--only-on`` / ``--only-off``: cooperation on / off only.
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
 their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
 gyro-only step headings and the magnetic heading as a measurement (``hrtls.pipeline.mag_heading``;
-``--offset-floor``: its ``offset_floor``; ``--consider-offset``: ``offset_model = "consider"``).
+``--offset-floor``: its ``offset_floor``; ``--offset-model``: its ``offset_model``, by default
+the preset's).
 
 The rescuers' trackers run the preset ``rescue-mission`` (its step-and-heading prediction noise
 ``--q-along`` / ``--heading-increment-rad``, its tag lobe sigma ``--tag-sigma-per-accuracy``) with
@@ -349,8 +350,9 @@ def main() -> None:
                     help="rescuers' [attitude] heading_source (filter: the tracker's default)")
     ap.add_argument("--offset-floor", action="store_true",
                     help="rescuers' [attitude.mag_heading] offset_floor = true")
-    ap.add_argument("--consider-offset", action="store_true",
-                    help="rescuers' [attitude.mag_heading] offset_model = \"consider\"")
+    ap.add_argument("--offset-model", choices=("independent", "consider"),
+                    default=RESCUER.attitude.mag_heading["offset_model"],
+                    help="rescuers' [attitude.mag_heading] offset_model (default: the preset's)")
     add_engine_options(ap)
     args = ap.parse_args()
     batch = Batch.of(args)
@@ -384,10 +386,8 @@ def main() -> None:
         attitude["mag_hard_iron"] = "off"
     if not args.no_magnetometer:
         attitude["heading_source"] = args.heading_source
-    if args.offset_floor:
-        attitude["mag_heading"] = {"offset_floor": True}
-    if args.consider_offset:
-        attitude["mag_heading"] = {**attitude.get("mag_heading", {}), "offset_model": "consider"}
+    attitude["mag_heading"] = {"offset_model": args.offset_model,
+                               **({"offset_floor": True} if args.offset_floor else {})}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
                       args.only_on, SmootherParams() if args.smoother else None,
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
@@ -437,9 +437,9 @@ def main() -> None:
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "
           f"ratio {ratio:g}, smoothed readings lag {lag:g} s, rescuers' "
-          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, tag sigma "
-          f"per accuracy {args.tag_sigma_per_accuracy}; values are "
-          f"mean / p90 / "
+          f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, "
+          f"magnetic offset {args.offset_model}, tag sigma per accuracy "
+          f"{args.tag_sigma_per_accuracy}; values are mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     head = "peer ranges" if args.peer_ranges else "cooperation"
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "

@@ -5,10 +5,12 @@ Runs the hybrid mission (door tags, one robot, 2 % ranges) with cooperation off 
 error at 1 Hz against the truth (read here, for scoring only): the 2-dof NEES per bin of the
 time since the rescuer's latest tag read, and, while walking (true speed > 0.2 m/s), the 1-dof
 NEES along and across the true walking direction with the mean square error and the mean
-claimed variance on each axis.
+claimed variance on each axis, and the 1-dof NEES of the heading (state heading against the
+true heading).
 
     python benchmarks/mission_rescuer_nees.py --seeds 0-9 \
-        [--cfg '{"prediction": {"q_along": 0.04}}']
+        [--cfg '{"attitude": {"mag_heading": {"offset_model": "independent"}},
+                 "prediction": {"sigma_heading_increment_rad": 0.02}}']
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ import numpy as np
 
 from _engine import parse_seeds
 from _mission_nees import time_bin
+from hrtls.data.results import Trajectory
+from hrtls.frames import wrap_angle
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.pipeline.config import TrackerConfig
@@ -28,7 +32,7 @@ from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
 
 BINS_S = (2.0, 5.0, 15.0, 30.0, 60.0)
 COLUMNS = ("nees", "n", "along_nees", "cross_nees", "moving", "along_mse", "cross_mse",
-           "along_var", "cross_var")
+           "along_var", "cross_var", "heading_nees")
 
 
 def bin_label(dt: float) -> str:
@@ -37,12 +41,13 @@ def bin_label(dt: float) -> str:
     return f"{lo:g}-{hi:g} s" if math.isfinite(hi) else f">= {lo:g} s (or none yet)"
 
 
-def rescuer_terms(mission: Mission, name: str, t: np.ndarray, xy: np.ndarray, cov: np.ndarray
+def rescuer_terms(mission: Mission, name: str, tr: Trajectory
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per 1 Hz sample: the ``COLUMNS`` terms, the time since the latest tag read, the error."""
     sess = mission.simulations[name].session
     truth = sess.truth
-    assert truth is not None
+    assert truth is not None and truth.heading_rad is not None
+    t, xy, cov = tr.t, tr.xyz[:, :2], tr.cov_xy
     tq = np.arange(float(t[0]), float(t[-1]), 1.0)
     d = np.column_stack([np.interp(tq, t, xy[:, k]) - np.interp(tq, truth.t, truth.xyz[:, k])
                          for k in (0, 1)])
@@ -56,9 +61,11 @@ def rescuer_terms(mission: Mission, name: str, t: np.ndarray, xy: np.ndarray, co
     ea, ec = np.einsum("ki,ki->k", u, d), np.einsum("ki,ki->k", w, d)
     pa, pc = np.einsum("ki,kij,kj->k", u, p, u), np.einsum("ki,kij,kj->k", w, p, w)
     nees = np.einsum("ki,kij,kj->k", d, np.linalg.inv(p), d)
+    j = np.clip(np.searchsorted(t, tq), 0, len(t) - 1)
+    dh = wrap_angle(tr.heading_rad[j] - np.interp(tq, truth.t, np.unwrap(truth.heading_rad)))
     terms = np.column_stack([nees, np.ones_like(nees), moving * ea ** 2 / pa,
                              moving * ec ** 2 / pc, moving, moving * ea ** 2, moving * ec ** 2,
-                             moving * pa, moving * pc])
+                             moving * pa, moving * pc, moving * dh ** 2 / tr.var_heading[j]])
     tags = sess.tags.t if sess.tags is not None else np.zeros(0)
     k = np.searchsorted(tags, tq, side="right")
     since = np.where(k > 0, tq - tags[np.maximum(k - 1, 0)], np.inf)
@@ -76,7 +83,7 @@ def run_seed(seed: int, config: TrackerConfig, acc: dict[str, np.ndarray]
         if mission.kinds[name] != "rescuer":
             continue
         tr = agent.trajectory
-        terms, since, err = rescuer_terms(mission, name, tr.t, tr.xyz[:, :2], tr.cov_xy)
+        terms, since, err = rescuer_terms(mission, name, tr)
         errs.append(err)
         nees.append(terms[:, 0])
         labels = np.array([bin_label(float(s)) for s in since])
@@ -91,8 +98,9 @@ def run_seed(seed: int, config: TrackerConfig, acc: dict[str, np.ndarray]
 def table(acc: dict[str, np.ndarray]) -> str:
     """Markdown table of the pooled split."""
     lines = ["| since tag read | NEES (2 dof) | share | along NEES (1 dof) | across NEES (1 dof) "
-             "| along: mse / claimed variance, m^2 | across: mse / claimed variance, m^2 |",
-             "|---|---|---|---|---|---|---|"]
+             "| along: mse / claimed variance, m^2 | across: mse / claimed variance, m^2 "
+             "| heading NEES (1 dof) |",
+             "|---|---|---|---|---|---|---|---|"]
     total = acc["all"][1]
     for lab in sorted(acc, key=lambda s: (s != "all", float(s.split("-")[0].strip(">= s")
                                                               .split()[0]) if s != "all" else 0)):
@@ -101,7 +109,8 @@ def table(acc: dict[str, np.ndarray]) -> str:
         lines.append(f"| {lab} | {a['nees'] / a['n']:.2f} | {a['n'] / total:.2f} | "
                      f"{a['along_nees'] / m:.2f} | {a['cross_nees'] / m:.2f} | "
                      f"{a['along_mse'] / m:.2f} / {a['along_var'] / m:.2f} | "
-                     f"{a['cross_mse'] / m:.2f} / {a['cross_var'] / m:.2f} |")
+                     f"{a['cross_mse'] / m:.2f} / {a['cross_var'] / m:.2f} | "
+                     f"{a['heading_nees'] / m:.2f} |")
     return "\n".join(lines)
 
 

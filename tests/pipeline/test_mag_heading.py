@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from hrtls.data import Session
 from hrtls.errors import InputError
 from hrtls.fusion.state import FilterState
+from hrtls.fusion.step_prediction import StepPredictionParams, StepPredictor
 from hrtls.pipeline import Tracker, TrackerConfig, preset
 from hrtls.pipeline import snapshot as snap
 from hrtls.pipeline.chunks import split_session
@@ -325,3 +326,38 @@ def test_a_disturbance_at_the_start_no_longer_turns_the_walker(source: str) -> N
         assert later > 15.0
     else:
         assert later < 5.0
+
+
+@pytest.mark.parametrize("model", ["independent", "consider"])
+def test_shared_offset_error_grows_the_across_track_variance_with_the_square_of_the_walk(
+        model: str) -> None:
+    """Walking east, one magnetic block per step, the offset learned from a heading of
+    variance ``v`` (so ``var_b = v`` and the heading error is the offset's: ``c = P e_h``).
+    Consider: the block holds no information on that error (``S = R``, ``K = 0``), ``P_hh``
+    stays ``v`` and after ``n`` steps of length ``L`` the across-track variance is
+    ``(n L)^2 v + n L^2 q_across`` (the heading error persists). Independent: each block
+    counts the offset's error anew and the first shrinks ``P_hh`` to ``v R' / (v + R')``
+    with ``R' = (6 deg)^2 + v``: far less across-track variance."""
+    v, length, n, q_c = 0.004, 0.7, 40, 0.0025
+    mh = MagHeading(MagHeadingParams(reference_blocks=1, learn_blocks=1, offset_model=model))
+    row = np.array([0.0, 20.0, 0.0, -40.0, math.hypot(20.0, 40.0), 50, 0.0, 0.0, 0.0])
+    s = _state(0.0, np.diag([0.0, 0.0, 0.0, v]))
+    s, d = mh.apply(s, 0.0, row, walking=True, input_heading_rad=0.2, gate_probability=0.997)
+    assert d.reason == "heading offset learned" and mh.state["var_b"] == pytest.approx(v)
+    step = StepPredictor(StepPredictionParams(heading_mode="state", q_across=q_c,
+                                              sigma_heading_increment_rad=0.0))
+    r = math.radians(6.0) ** 2
+    for k in range(n):
+        s = step.predict(s, t=float(k + 1), length_m=length, heading_rad=0.2)
+        s, d = mh.apply(s, float(k + 1), row, walking=True, input_heading_rad=0.2,
+                        gate_probability=0.997)
+        assert d.status == "accepted"
+        if k == 0 and model == "independent":
+            assert float(s.P[3, 3]) == pytest.approx(v * (r + v) / (v + r + v))
+    across = float(s.P[1, 1])
+    quadratic = (n * length) ** 2 * v + n * length ** 2 * q_c
+    if model == "consider":
+        assert float(s.P[3, 3]) == pytest.approx(v, rel=1e-6)
+        assert across == pytest.approx(quadratic, rel=1e-6)
+    else:
+        assert across < 0.2 * quadratic

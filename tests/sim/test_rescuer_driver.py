@@ -263,18 +263,22 @@ def test_polyline_distance_and_team_parameters() -> None:
 def test_the_rescue_mission_preset_widens_the_simulated_rescuers_step_length_noise() -> None:
     """The simulated rescuers follow their way points by the estimate of a tracker with
     ``RESCUER_PREDICTION``; the ``rescue-mission`` preset (the study's and the service's
-    rescuers) keeps its heading noise, takes a larger step-length noise (their along-track
-    error was under-modelled) and adds the gyro+compass heading."""
+    rescuers) takes a larger step-length noise (their along-track error was under-modelled),
+    the gyro+compass heading with the magnetic offset's error shared (``consider``) and the
+    default heading increment (the shared offset, not a larger increment, carries the
+    persistent heading error)."""
     from hrtls.pipeline import preset
 
     cfg = preset("rescue-mission")
+    default = preset("default")
     assert (cfg.prediction.sigma_heading_increment_rad
-            == RESCUER_PREDICTION["sigma_heading_increment_rad"])
+            == default.prediction.sigma_heading_increment_rad
+            < RESCUER_PREDICTION["sigma_heading_increment_rad"])
     assert cfg.prediction.q_along > RESCUER_PREDICTION["q_along"]
     assert cfg.attitude.heading_source == "gyro+compass"
-    default = preset("default").model_dump()
+    assert cfg.attitude.mag_heading["offset_model"] == "consider"
     changed = {(section, k) for section, values in cfg.model_dump().items()
                if isinstance(values, dict)
-               for k, v in values.items() if default[section][k] != v}
-    assert changed == {("attitude", "heading_source"), ("prediction", "q_along"),
-                       ("prediction", "sigma_heading_increment_rad")}
+               for k, v in values.items() if default.model_dump()[section][k] != v}
+    assert changed == {("attitude", "heading_source"), ("attitude", "mag_heading"),
+                       ("prediction", "q_along")}

@@ -94,7 +94,8 @@ TAG_HEIGHT_M = 2.2
 RESCUER_PREDICTION: dict[str, float] = {"q_along": 0.04, "sigma_heading_increment_rad": 0.02}
 """The ``[prediction]`` noise of the tracker whose estimate the planner-driven rescuers follow
 (:func:`hrtls.sim.rescuer_loop.drive_rescuers`; the recordings depend on it). The study's and
-the service's rescuers run the ``rescue-mission`` preset, with a larger ``q_along``."""
+the service's rescuers run the ``rescue-mission`` preset: a larger ``q_along``, the default
+heading increment, the magnetic offset's error shared (``offset_model = "consider"``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
