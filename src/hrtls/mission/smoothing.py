@@ -23,6 +23,7 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
 from hrtls.mission.nodes import NodeEstimate
+from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.schedule import RANGE
 from hrtls.pipeline.tracker import Tracker
 
@@ -95,7 +96,7 @@ def _pull_corrections(mt: MissionTracker, name: str) -> None:
     """The agent's new correction records (a tracker that keeps them: rescuers)."""
     st = mt.smoother
     tr = mt.trackers[name]
-    if st is None or not isinstance(tr, Tracker):
+    if st is None or not isinstance(tr, Tracker | RobotTracker):
         return
     c = tr.corrections_since(st.corr_next.get(name, 0))
     st.corr_next[name] = c.next_index
@@ -114,7 +115,7 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     st = mt.smoother
     assert st is not None
     blocks = st.corr.get(name)
-    if not blocks and not isinstance(mt.trackers[name], Tracker):
+    if not blocks and not isinstance(mt.trackers[name], Tracker | RobotTracker):
         return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name])
     t, kind, src, m0, c0, m1, c1 = (np.concatenate([b[j] for b in blocks]) if blocks else
                                     np.zeros((0, 2, 2)) if j in (4, 6) else
