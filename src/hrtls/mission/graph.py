@@ -6,8 +6,12 @@ drift persist over the whole walk; only the tags at the entrance anchor the fram
 solves one nonlinear least-squares problem over every agent's decimated path and every node
 (range-only SLAM on a pose chain).
 
-Path model. Agent ``a``'s causal estimate rows, taken every ``decimate_s`` (``f_k`` at ``t_k``),
-give increments ``d_k = f_{k+1} - f_k``. The poses ``x_k`` are unknowns tied by
+Path model. Agent ``a``'s causal estimate rows are taken every ``decimate_s`` (``f_k`` at
+``t_k``). Its tracker's corrections (tag groups, bearings, fixes, ranges, RSS, the magnetic
+heading: every update that moved the position) are removed from them: ``g_k`` is the dead
+reckoning (the rows without the corrections' jumps, :mod:`hrtls.mission.correction_factors`;
+``g = f`` for an agent without records), with increments ``d_k = g_{k+1} - g_k``. The poses
+``x_k`` are unknowns tied by
 
     x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, q_k^2 I)
 
@@ -16,7 +20,15 @@ give increments ``d_k = f_{k+1} - f_k``. The poses ``x_k`` are unknowns tied by
 segment's step-length scale correction ``s_j`` and rotation ``phi_j`` are random walks over the
 segments (``s_0 ~ N(0, scale_sigma^2)``, ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise
 ``heading_sigma_rad`` / ``heading_walk_rad``): the persistent part of the dead-reckoning error.
-An agent's position at a range's time is interpolated between its poses.
+An agent's position at a range's or a correction's time is interpolated between its poses.
+
+Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with
+``W^T W = P1^-1 - P0^-1`` (the information the update added to the tracker's position,
+``(m0, P0) -> (m1, P1)``) and ``z`` the position it measured (derivation, and what it
+approximates for other than position measurements: :mod:`hrtls.mission.correction_factors`):
+the tags at known positions pin the map's shift and rotation. Ranges to nodes that are not the
+agent's known landmarks (the problem's own nodes, or peers) leave the chain but give no factor:
+their raw ranges are the problem's.
 
 Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 ``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
