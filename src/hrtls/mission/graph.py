@@ -94,8 +94,8 @@ class SmootherParams:
 
     decimate_s: float = 1.0
     segment_m: float = 10.0
-    odo_sigma_m: float = 0.3
-    odo_fraction: float = 0.2
+    odo_sigma_m: float = 0.05
+    odo_fraction: float = 0.05
     scale_sigma: float = 0.08
     scale_walk_sigma: float = 0.02
     heading_sigma_rad: float = 0.02
