@@ -33,7 +33,7 @@ def test_two_straight_displacements_by_hand() -> None:
     """psi = 0, d = (1, 0) twice, f = 0.03, q = 1e-4 per m (values worked out in the comments)."""
     x = np.zeros(3)
     p = np.diag([0.01, 0.01, 0.0004])
-    xs, ps, _ = robot_kernel(x, p, np.array([[1.0, 0.0], [1.0, 0.0]]), np.array([1.0, 2.0]),
+    xs, ps, _, _ = robot_kernel(x, p, np.array([[1.0, 0.0], [1.0, 0.0]]), np.array([1.0, 2.0]),
                              *_empty_ranges(), 0.03, 1e-4, 4.0)
     np.testing.assert_allclose(xs[-1], [2.0, 0.0, 0.0])
     # F = [[1, 0, 0], [0, 1, 1], [0, 0, 1]]; Q = diag(0.0009, 0.0009, 0.0001)
@@ -49,7 +49,7 @@ def test_range_update_by_hand_and_gate() -> None:
     P_xx = 0.5; a range of 100 fails the 4-sigma gate."""
     x = np.zeros(3)
     p = np.diag([1.0, 1.0, 0.1])
-    _, _, acc = robot_kernel(x, p, np.zeros((0, 2)), np.zeros(0), np.array([0.5, 0.6]),
+    _, _, acc, _ = robot_kernel(x, p, np.zeros((0, 2)), np.zeros(0), np.array([0.5, 0.6]),
                              np.array([[10.0, 0.0], [10.0, 0.0]]), np.array([9.0, 100.0]),
                              np.array([1.0, 1.0]), 0.03, 1e-4, 4.0)
     np.testing.assert_array_equal(acc, [True, False])

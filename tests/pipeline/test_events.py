@@ -83,7 +83,7 @@ def run_kernel(kind: np.ndarray, t: np.ndarray, data: np.ndarray, prm: np.ndarra
            "var_h": np.empty(n), "jump": np.empty((n, 2)),
            "act": np.empty(n, dtype=np.int64), "status": np.empty(n, dtype=np.int64),
            "nis": np.empty(n), "s": np.empty(n), "nu": np.empty(n), "aux": np.empty((n, 5)),
-           "recent": np.empty((ev.N_RECENT, 2))}
+           "recent": np.empty((ev.N_RECENT, 2)), "pre": np.empty((n, 5))}
     ev.event_kernel(kind, t, data, prm, sc, chan_cov, x, p, out["t"], out["x"], out["cov"],
                     out["var_h"], out["act"], out["status"], out["nis"], out["s"], out["nu"],
                     np.zeros((0, 4)) if scan is None else scan, out["aux"],
@@ -91,7 +91,7 @@ def run_kernel(kind: np.ndarray, t: np.ndarray, data: np.ndarray, prm: np.ndarra
                     np.zeros(0) if var_v is None else var_v, out["recent"],
                     fx.fix_params(TrackerConfig(), FixParams(), StepScaleParams(),
                                   running_factor=1.0), _no_fix_state(), np.zeros((0, 5)),
-                    out["jump"])
+                    out["jump"], out["pre"])
     return out
 
 

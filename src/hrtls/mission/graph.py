@@ -6,8 +6,12 @@ drift persist over the whole walk; only the tags at the entrance anchor the fram
 solves one nonlinear least-squares problem over every agent's decimated path and every node
 (range-only SLAM on a pose chain).
 
-Path model. Agent ``a``'s causal estimate rows, taken every ``decimate_s`` (``f_k`` at ``t_k``),
-give increments ``d_k = f_{k+1} - f_k``. The poses ``x_k`` are unknowns tied by
+Path model. Agent ``a``'s causal estimate rows are taken every ``decimate_s`` (``f_k`` at
+``t_k``). Its tracker's corrections (tag groups, bearings, fixes, ranges, RSS, the magnetic
+heading: every update that moved the position) are removed from them: ``g_k`` is the dead
+reckoning (the rows without the corrections' jumps, :mod:`hrtls.mission.correction_factors`;
+``g = f`` for an agent without records), with increments ``d_k = g_{k+1} - g_k``. The poses
+``x_k`` are unknowns tied by
 
     x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, q_k^2 I)
 
@@ -16,7 +20,15 @@ give increments ``d_k = f_{k+1} - f_k``. The poses ``x_k`` are unknowns tied by
 segment's step-length scale correction ``s_j`` and rotation ``phi_j`` are random walks over the
 segments (``s_0 ~ N(0, scale_sigma^2)``, ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise
 ``heading_sigma_rad`` / ``heading_walk_rad``): the persistent part of the dead-reckoning error.
-An agent's position at a range's time is interpolated between its poses.
+An agent's position at a range's or a correction's time is interpolated between its poses.
+
+Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with
+``W^T W = P1^-1 - P0^-1`` (the information the update added to the tracker's position,
+``(m0, P0) -> (m1, P1)``) and ``z`` the position it measured (derivation, and what it
+approximates for other than position measurements: :mod:`hrtls.mission.correction_factors`):
+the tags at known positions pin the map's shift and rotation. Ranges to nodes that are not the
+agent's known landmarks (the problem's own nodes, or peers) leave the chain but give no factor:
+their raw ranges are the problem's.
 
 Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 ``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
@@ -118,12 +130,19 @@ class SmootherParams:
 
 @dataclass(frozen=True, eq=False)
 class AgentPath:
-    """One agent's causal estimate rows: name, time (s), xy (m), first row's covariance (m^2)."""
+    """One agent's causal estimate rows: name, time (s), xy (m), first row's covariance (m^2).
+
+    ``dead_reckoning_m``: the rows without the tracker's correction jumps (None: the rows are
+    the motion); ``factors``: its corrections as position factors, ``(t (K,), z (K, 2),
+    W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None.
+    """
 
     name: str
     t: FloatArray
     xy_m: FloatArray
     start_cov_m2: FloatArray
+    dead_reckoning_m: FloatArray | None = None
+    factors: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,14 +177,16 @@ class SmootherResult:
     evaluations: int
 
 
-def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray]:
+def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pose times, the rows there and the dead reckoning there."""
     t0, t1 = float(path.t[0]), float(path.t[-1])
     tq = np.arange(t0, t1, step_s)
     if tq.size == 0 or tq[-1] < t1:
         tq = np.append(tq, t1)
-    xy = np.column_stack([np.interp(tq, path.t, path.xy_m[:, 0]),
-                          np.interp(tq, path.t, path.xy_m[:, 1])])
-    return tq, xy
+    dr = path.xy_m if path.dead_reckoning_m is None else path.dead_reckoning_m
+    xy, g = (np.column_stack([np.interp(tq, path.t, a[:, 0]), np.interp(tq, path.t, a[:, 1])])
+             for a in (path.xy_m, dr))
+    return tq, xy, g
 
 
 class _Problem:
@@ -183,8 +204,8 @@ class _Problem:
         odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
         col = 0
         for p in paths:
-            t, f = _decimate(p, prm.decimate_s)
-            d = np.diff(f, axis=0)
+            t, f, g = _decimate(p, prm.decimate_s)
+            d = np.diff(g, axis=0)
             walked = np.cumsum(np.hypot(d[:, 0], d[:, 1])) - np.hypot(d[:, 0], d[:, 1])
             seg = np.floor(walked / prm.segment_m).astype(np.int64)
             n_seg = int(seg[-1]) + 1 if seg.size else 1
@@ -208,6 +229,36 @@ class _Problem:
         self.p0 = [np.linalg.cholesky(np.linalg.inv(p.start_cov_m2 + 1e-6 * np.eye(2))).T
                    for p in paths]
         self._ranges(ranges)
+        self._factors(paths)
+
+    def _at(self, a: int, tq: FloatArray) -> tuple[IntArray, IntArray, FloatArray]:
+        """Columns of the poses around each of agent ``a``'s times and the weight of the later."""
+        t = self.t[a]
+        k = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
+        k1 = np.minimum(k + 1, len(t) - 1)
+        dt = t[k1] - t[k]
+        w = np.where(dt > 0, np.clip((tq - t[k]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0), 0.0)
+        return self.pose_col[a] + 2 * k, self.pose_col[a] + 2 * k1, w
+
+    def _factors(self, paths: list[AgentPath]) -> None:
+        """The corrections after each agent's first pose (that pose's prior holds the earlier)."""
+        parts: list[tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray]] = []
+        for a, p in enumerate(paths):
+            if p.factors is None:
+                continue
+            tf, z, wm = p.factors
+            m = (tf > self.t[a][0]) & (tf <= self.t[a][-1])
+            parts.append((*self._at(a, tf[m]), z[m], wm[m]))
+        self.fc0 = np.concatenate([q[0] for q in parts]) if parts else np.zeros(0, np.int64)
+        self.fc1 = np.concatenate([q[1] for q in parts]) if parts else np.zeros(0, np.int64)
+        self.fw = np.concatenate([q[2] for q in parts]) if parts else np.zeros(0)
+        self.fz = np.concatenate([q[3] for q in parts]) if parts else np.zeros((0, 2))
+        self.fW = np.concatenate([q[4] for q in parts]) if parts else np.zeros((0, 2, 2))
+
+    def _factor_parts(self, x: FloatArray) -> FloatArray:
+        w = self.fw[:, None]
+        xa = (1.0 - w) * _pairs(x, self.fc0) + w * _pairs(x, self.fc1)
+        return np.einsum("nij,nj->ni", self.fW, xa - self.fz)
 
     def _ranges(self, ranges: RangeSet) -> None:
         index = {n: i for i, n in enumerate(self.node_ids)}
@@ -221,15 +272,9 @@ class _Problem:
         self.c0 = np.zeros(len(self.rt), dtype=np.int64)
         self.c1 = np.zeros(len(self.rt), dtype=np.int64)
         self.w = np.zeros(len(self.rt))
-        for a, t in enumerate(self.t):
+        for a in range(len(self.t)):
             m = agent == a
-            k = np.clip(np.searchsorted(t, self.rt[m], side="right") - 1, 0, len(t) - 1)
-            k1 = np.minimum(k + 1, len(t) - 1)
-            self.c0[m] = self.pose_col[a] + 2 * k
-            self.c1[m] = self.pose_col[a] + 2 * k1
-            dt = t[k1] - t[k]
-            self.w[m] = np.where(dt > 0, np.clip((self.rt[m] - t[k]) / np.where(dt > 0, dt, 1.0),
-                                                 0.0, 1.0), 0.0)
+            self.c0[m], self.c1[m], self.w[m] = self._at(a, self.rt[m])
 
     # ---------------------------------------------------------------- residuals
     def _range_parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -250,7 +295,8 @@ class _Problem:
 
     def residuals(self, x: FloatArray) -> FloatArray:
         prm = self.prm
-        out = [self._range_parts(x)[0], self._odo_parts(x)[0].reshape(-1)]
+        out = [self._range_parts(x)[0], self._odo_parts(x)[0].reshape(-1),
+               self._factor_parts(x).reshape(-1)]
         for a, col in enumerate(self.pose_col):
             out.append(self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
             sc, n_seg = self.s_col[a], self.n_seg[a]
@@ -292,6 +338,12 @@ class _Problem:
             put(oi + ax, self.odo_s, -rd[:, ax] / self.odo_q)
             put(oi + ax, self.odo_phi, -k * rdp[:, ax] / self.odo_q)
         row = n_r + 2 * len(self.odo_k)
+        fi = row + 2 * np.arange(len(self.fw))
+        for i in (0, 1):
+            for ax in (0, 1):
+                put(fi + i, self.fc0 + ax, (1.0 - self.fw) * self.fW[:, i, ax])
+                put(fi + i, self.fc1 + ax, self.fw * self.fW[:, i, ax])
+        row += 2 * len(self.fw)
         for a, col in enumerate(self.pose_col):
             for i in (0, 1):
                 put([row + i, row + i], [col, col + 1], self.p0[a][i])

@@ -31,7 +31,9 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.results import StepEvents, Trajectory
 from hrtls.errors import InputError
 from hrtls.kernels import njit
+from hrtls.pipeline.corrections import CorrectionLog, Corrections
 from hrtls.pipeline.output import Estimates
+from hrtls.pipeline.schedule import RANGE
 from hrtls.pipeline.tracker import TrackResult
 
 FloatArray = NDArray[np.float64]
@@ -66,21 +68,23 @@ class RobotTrackerParams:
 def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatArray,
                  t_rng: FloatArray, lm: FloatArray, r: FloatArray, s: FloatArray,
                  frac: float, q_psi: float, gate: float
-                 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+                 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray]:
     """Odometry predictions and range updates in time order (module doc).
 
-    Returns the state and covariance after each odometry event ``(n, 3)``, ``(n, 3, 3)`` and
-    which ranges were accepted; ``x``, ``p`` are updated in place. A range at the time of an
-    odometry event is applied after it; ranges with a NaN landmark are skipped.
+    Returns the state and covariance after each odometry event ``(n, 3)``, ``(n, 3, 3)``,
+    which ranges were accepted and, per range, ``[x, y, P00, P01, P11]`` before and after its
+    update ``(m, 10)``; ``x``, ``p`` are updated in place. A range at the time of an odometry
+    event is applied after it; ranges with a NaN landmark are skipped.
     """
     n, m = t_odo.shape[0], t_rng.shape[0]
     xs = np.empty((n, 3))
     ps = np.empty((n, 3, 3))
     acc = np.zeros(m, dtype=np.bool_)
+    around = np.empty((m, 10))
     j = 0
     for i in range(n):
         while j < m and t_rng[j] < t_odo[i]:
-            acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
             j += 1
         c, sn = math.cos(x[2]), math.sin(x[2])
         dx = c * d_odo[i, 0] - sn * d_odo[i, 1]
@@ -97,14 +101,26 @@ def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatAr
         pn[2, 2] += q_psi * dist
         p[:, :] = 0.5 * (pn + pn.T)
         while j < m and t_rng[j] <= t_odo[i]:
-            acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
             j += 1
         xs[i] = x
         ps[i] = p
     while j < m:
-        acc[j] = _range_update(x, p, lm[j], r[j], s[j], gate)
+        acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
         j += 1
-    return xs, ps, acc
+    return xs, ps, acc, around
+
+
+@njit(cache=True)
+def _logged_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: float,
+                   gate: float, around: FloatArray) -> bool:
+    """:func:`_range_update` with the position and its covariance before and after."""
+    for k, v in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
+        around[k] = v
+    ok = _range_update(x, p, lm, r, s, gate)
+    for k, v in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
+        around[5 + k] = v
+    return ok
 
 
 @njit(cache=True)
@@ -140,6 +156,7 @@ class RobotTracker:
         self.params = params or RobotTrackerParams()
         self.landmarks: dict[str, tuple[float, float]] = {}
         self._rows: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+        self._corr = CorrectionLog()
         self._accepted = 0
         self._rejected = 0
         self._started = False
@@ -197,8 +214,13 @@ class RobotTracker:
                 if str(node) in self.landmarks:
                     lm[k] = self.landmarks[str(node)]
         prm = self.params
-        xs, ps, acc = robot_kernel(self.x, self.p, d, t_odo, t_r, lm, r, s,
-                                   prm.odometry_fraction, prm.heading_var_per_m, prm.gate_sigma)
+        xs, ps, acc, around = robot_kernel(self.x, self.p, d, t_odo, t_r, lm, r, s,
+                                           prm.odometry_fraction, prm.heading_var_per_m,
+                                           prm.gate_sigma)
+        if acc.any():
+            assert rg is not None
+            self._corr.add_block(t_r[acc], np.full(int(acc.sum()), RANGE), rg.node[acc],
+                                 around[acc, :5], around[acc, 5:])
         tried = int(np.count_nonzero(np.isfinite(lm[:, 0])))
         self._accepted += int(np.count_nonzero(acc))
         self._rejected += tried - int(np.count_nonzero(acc))
@@ -218,7 +240,7 @@ class RobotTracker:
         """A started tracker's state as plain values and arrays (:mod:`hrtls.mission.snapshot`)."""
         return {"robot": {k: getattr(self, k) for k in _STATE_FIELDS},
                 "params": dataclasses.asdict(self.params), "landmarks": dict(self.landmarks),
-                "rows": list(self._all())}
+                "rows": list(self._all()), "corr_count": self._corr.count()}
 
     @classmethod
     def from_state(cls, d: dict[str, Any]) -> RobotTracker:
@@ -233,6 +255,11 @@ class RobotTracker:
             setattr(self, k, v)
         self.landmarks = {k: (float(v[0]), float(v[1])) for k, v in d["landmarks"].items()}
         self._rows = [tuple(d["rows"])] if len(d["rows"][0]) else []
+        self._corr = CorrectionLog(int(d.get("corr_count", 0)))
+
+    def corrections_since(self, index: int = 0) -> Corrections:
+        """The accepted ranges' position changes from record ``index`` on (as the rescuers')."""
+        return self._corr.since(index)
 
     def estimates_since(self, t_after_s: float = -math.inf) -> Estimates:
         """Rows with time > ``t_after_s`` (every row is final)."""

@@ -20,8 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
+from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
 from hrtls.mission.nodes import NodeEstimate
+from hrtls.mission.robot import RobotTracker
+from hrtls.pipeline.schedule import RANGE
+from hrtls.pipeline.tracker import Tracker
 
 if TYPE_CHECKING:
     from hrtls.mission.tracker import MissionTracker
@@ -37,7 +41,9 @@ class SmootherState:
     ``pulled``: time of its last final row; ``tail``: its latest row (t, x, y, covariance),
     which may still change; ``ranges``: agent index, t, node, range, sigma;
     ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
-    ``warm``: the last solution (warm start).
+    ``warm``: the last solution (warm start); ``corr``: per agent its tracker's corrections
+    (blocks of ``[t, kind, source, mean0, cov0, mean1, cov1]``,
+    :class:`hrtls.pipeline.corrections.Corrections`); ``corr_next``: the next record to read.
     """
 
     rows: dict[str, list[list[float]]] = field(default_factory=dict)
@@ -49,6 +55,8 @@ class SmootherState:
     owned: set[str] = field(default_factory=set)
     warm: SmootherResult | None = None
     seconds: list[float] = field(default_factory=list)
+    corr: dict[str, list[list[Any]]] = field(default_factory=dict)
+    corr_next: dict[str, int] = field(default_factory=dict)
 
 
 def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> None:
@@ -75,12 +83,48 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
             st.pulled[name] = row[0]
         if new:
             st.tail[name] = new[-1]
+        _pull_corrections(mt, name)
     if ranges is None or not len(ranges.t):
         return
     m = ~np.isin(ranges.node, mt.known[i])
     if m.any():
         st.ranges.append([i, ranges.t[m].copy(), ranges.node[m].astype(str),
                           ranges.range_m[m].copy(), ranges.sigma_m[m].copy()])
+
+
+def _pull_corrections(mt: MissionTracker, name: str) -> None:
+    """The agent's new correction records (a tracker that keeps them: rescuers)."""
+    st = mt.smoother
+    tr = mt.trackers[name]
+    if st is None or not isinstance(tr, Tracker | RobotTracker):
+        return
+    c = tr.corrections_since(st.corr_next.get(name, 0))
+    st.corr_next[name] = c.next_index
+    if len(c):
+        st.corr.setdefault(name, []).append([c.t, c.kind, c.source, c.mean0_m, c.cov0_m2,
+                                             c.mean1_m, c.cov1_m2])
+
+
+def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> AgentPath:
+    """The agent's rows with its dead reckoning and correction factors (when it keeps them).
+
+    Every correction's jump leaves the chain; all but the ranges to nodes that are not the
+    agent's known landmarks (mission nodes: their raw ranges are the problem's; peers) become
+    factors.
+    """
+    st = mt.smoother
+    assert st is not None
+    blocks = st.corr.get(name)
+    if not blocks and not isinstance(mt.trackers[name], Tracker | RobotTracker):
+        return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name])
+    t, kind, src, m0, c0, m1, c1 = (np.concatenate([b[j] for b in blocks]) if blocks else
+                                    np.zeros((0, 2, 2)) if j in (4, 6) else
+                                    np.zeros((0, 2)) if j in (3, 5) else np.zeros(0)
+                                    for j in range(7))
+    dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t, m1 - m0)
+    keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i]))
+    z, wm = implied_factors(m0[keep], c0[keep], m1[keep], c1[keep])
+    return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm))
 
 
 def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
@@ -92,9 +136,8 @@ def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
         rows = st.rows.get(name, [])
         if len(rows) < 2:
             continue
-        a = np.asarray(rows, np.float64)
         index[i] = len(paths)
-        paths.append(AgentPath(name, a[:, 0], a[:, 1:3], st.start_cov[name]))
+        paths.append(_agent_path(mt, i, name, np.asarray(rows, np.float64)))
     parts = [p for p in st.ranges if int(p[0]) in index]
     if not paths or not parts:
         return None
@@ -154,7 +197,7 @@ def state_of(st: SmootherState | None) -> dict[str, Any] | None:
         "evaluations": w.evaluations}
     return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
             "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
-            "warm": warm, "seconds": st.seconds}
+            "warm": warm, "seconds": st.seconds, "corr": st.corr, "corr_next": st.corr_next}
 
 
 def state_from(d: dict[str, Any] | None) -> SmootherState | None:
@@ -175,4 +218,8 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
         ranges=[[int(p[0]), p[1], np.asarray(p[2]).astype(str), p[3], p[4]]
                 for p in d["ranges"]],
         last_solve_s=float(d["last"]), owned=set(d["owned"]), warm=warm,
-        seconds=list(d["seconds"]))
+        seconds=list(d["seconds"]),
+        corr={k: [[np.asarray(b[0], np.float64), np.asarray(b[1], np.int64),
+                   np.asarray(b[2]).astype(str), *(np.asarray(v, np.float64) for v in b[3:])]
+                  for b in v] for k, v in d.get("corr", {}).items()},
+        corr_next={k: int(v) for k, v in d.get("corr_next", {}).items()})

@@ -328,6 +328,15 @@ def _interp(xp: FloatArray, fp: FloatArray, x: float) -> float:  # pragma: no co
     return slope * (x - xp[lo]) + fp[lo]
 
 
+@njit(cache=True)
+def _pre(x: FloatArray, p: FloatArray, out: FloatArray) -> None:  # pragma: no cover - compiled
+    out[0] = x[0]
+    out[1] = x[1]
+    out[2] = p[0, 0]
+    out[3] = p[0, 1]
+    out[4] = p[1, 1]
+
+
 @njit(cache=True, error_model="numpy")
 def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.ndarray,
                  state: np.ndarray, chan_cov: FloatArray, x: FloatArray, p: FloatArray,
@@ -336,7 +345,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                  nu_out: FloatArray, scan: FloatArray, aux_out: FloatArray,
                  var_t: FloatArray, var_v: FloatArray, recent: FloatArray,
                  fix_params: np.ndarray, fix_state: np.ndarray, lead: FloatArray,
-                 jump_out: FloatArray) -> None:  # pragma: no cover - compiled
+                 jump_out: FloatArray, pre_out: FloatArray) -> None:  # pragma: no cover - compiled
     """Process a run of events in order; ``x``, ``p``, ``state``, ``chan_cov`` change in place.
 
     ``params``: a :data:`LOOP_PARAMS_DTYPE` record (one-element array); ``state``: a
@@ -351,11 +360,12 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
     (:mod:`hrtls.fusion.shadowing`; NaN: 1). Output rows: time, state, horizontal covariance
     ``cov_out`` (n, 2, 2) and heading variance. ``aux_out`` (n, 5): innovation (2) and ``S``
     (``S00, S01, S11``) of the 2-D scan and fix updates (NaN otherwise); ``jump_out`` (n, 2):
-    the position change of an accepted fix (NaN otherwise). ``recent`` (``N_RECENT``, 2): ring
-    of the last steps' ``(t, heading)`` with a finite heading (before the yaw offset); row ``i``
-    of the ring is the ``i + N_RECENT j``-th such step of the run (``n_headings`` counts them).
-    The loop stops before a fix that Python must apply (``fix_state.stop``: its row, else -1);
-    the rows before it are done.
+    the position change of an accepted fix (NaN otherwise); ``pre_out`` (n, 5): the state before
+    an observation's update, ``[x, y, P00, P01, P11]`` (NaN for steps). ``recent``
+    (``N_RECENT``, 2): ring of the last steps' ``(t, heading)`` with a finite heading (before the
+    yaw offset); row ``i`` of the ring is the ``i + N_RECENT j``-th such step of the run
+    (``n_headings`` counts them). The loop stops before a fix that Python must apply
+    (``fix_state.stop``: its row, else -1); the rows before it are done.
     """
     prm = params[0]
     s = state[0]
@@ -370,6 +380,8 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
         nu_out[k] = math.nan
         jump_out[k, 0] = math.nan
         jump_out[k, 1] = math.nan
+        for i in range(5):
+            pre_out[k, i] = math.nan
         for i in range(aux_out.shape[1]):
             aux_out[k, i] = math.nan
         if ev == EV_FIX:
@@ -383,6 +395,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                 fs.stop = k
                 return
             _advance(prm, s, p, t[k])
+            _pre(x, p, pre_out[k])
             if code == FIX_IN_LOOP:
                 st, nis = fix_event(fp, fs, s, x, p, t[k], data[k], lead[int(data[k, 4])],
                                     prm.gate_2d, aux_out[k], jump_out[k])
@@ -410,6 +423,7 @@ def event_kernel(kind: IntArray, t: FloatArray, data: FloatArray, params: np.nda
                   var_h)
         else:
             _advance(prm, s, p, t[k])
+            _pre(x, p, pre_out[k])
             if ev == EV_SKIP:
                 status[k] = ST_SKIPPED
             elif ev == EV_SCAN:

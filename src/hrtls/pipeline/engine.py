@@ -30,13 +30,14 @@ from hrtls.pipeline import _fix_events as fx
 from hrtls.pipeline import build
 from hrtls.pipeline.build import Corrections, Notes
 from hrtls.pipeline.config import TrackerConfig
+from hrtls.pipeline.corrections import CorrectionLog, source_of
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.grid_stage import GridStage
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
 from hrtls.pipeline.landmark_updates import LandmarkVersions
 from hrtls.pipeline.observations import apply_fix, apply_observation, step_at
 from hrtls.pipeline.output import TrackRows
-from hrtls.pipeline.schedule import MAGNETIC, EventSchedule, PoseGate
+from hrtls.pipeline.schedule import FIX, MAGNETIC, EventSchedule, PoseGate
 from hrtls.pipeline.step_scale import StepScaleLearner
 
 MOVING_SIGMA_M_S2 = 0.2
@@ -168,6 +169,8 @@ class FusionEngine:
         self.fix_jumps: list[tuple[float, float, float]] = []
         """Accepted fixes: time of the output row holding the corrected state, position change
         (east, north) made by the fix, m."""
+        self.corrections = CorrectionLog()
+        """Every update that moved the position (:mod:`hrtls.pipeline.corrections`)."""
         self.yaw_pseudo: list[YawPseudoMeasurement] = []
         self.mag_heading = build.mag_heading(config)
         """The magnetic heading measurement (``heading_source = "gyro+compass"``), or None."""
@@ -189,7 +192,10 @@ class FusionEngine:
             if slow is not None:
                 t, kind, _, payload = slow
                 self.advance_without_steps(t)
+                pre = self.state
                 apply_observation(self, t, kind, payload)
+                self.corrections.add(self.state.t, kind, source_of(kind, payload), pre.x, pre.P,
+                                     self.state.x, self.state.P)
                 self.track.add(self.state, self.last_activity)
                 continue
             if not sched.has_fast(horizon):
@@ -219,7 +225,10 @@ class FusionEngine:
             t = float(sched.bulk_t[stop])
             row = sched.bulk_data[stop]
             self.advance_without_steps(t)
+            pre = self.state
             apply_fix(self, t, (row[:3].copy(), float(row[3]), False))
+            self.corrections.add(self.state.t, FIX, str(sched.bulk_src[stop]), pre.x, pre.P,
+                                 self.state.x, self.state.P)
             self.track.add(self.state, self.last_activity)
             b0 = stop + 1
 
@@ -255,7 +264,8 @@ class FusionEngine:
         var_v = att.var_v if att is not None else np.zeros(0)
         ev.event_kernel(kind, tt, data, self.params, rec, chan_cov, x, p, out.t, out.x, out.cov,
                         out.var_h, out.act, out.status, out.nis, out.s, out.nu, sched.scan_rows,
-                        out.aux, var_t, var_v, recent, self.fix_params, fst, lead, out.jump)
+                        out.aux, var_t, var_v, recent, self.fix_params, fst, lead, out.jump,
+                        out.pre)
         sc = rec[0]
         f = fst[0]
         stop = int(f["stop"])
@@ -277,6 +287,14 @@ class FusionEngine:
         if cstate is not None:
             self.channel_state = ChannelState.from_record(sc["channel"], chan_cov)
         self.track.add_block(out.t[:m], out.x[:m], out.cov[:m], out.var_h[:m], out.act[:m])
+        pre = out.pre[:m]
+        moved = np.flatnonzero((pre[:, 0] != out.x[:m, 0]) | (pre[:, 1] != out.x[:m, 1]))
+        moved = moved[np.isfinite(pre[moved, 0])]
+        if len(moved):
+            after = np.column_stack([out.x[moved, :2], out.cov[moved, 0, 0],
+                                     out.cov[moved, 0, 1], out.cov[moved, 1, 1]])
+            self.corrections.add_block(out.t[moved], sched.bulk_k[b0:b1][moved],
+                                       sched.bulk_src[b0:b1][moved], pre[moved], after)
         n_steps = int(sc["n_steps"])
         n_head = int(sc["n_headings"])
         if n_head:
@@ -449,6 +467,7 @@ class FusionEngine:
         out["landmark_versions"] = self.versions.state()
         out["grid"] = self.grid.state_dict()
         out["mag_heading"] = None if self.mag_heading is None else self.mag_heading.state
+        out["corrections_count"] = self.corrections.count()
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -465,6 +484,7 @@ class FusionEngine:
         if self.mag_heading is not None:
             self.mag_heading.state = state["mag_heading"]
         self.track = TrackRows()
+        self.corrections = CorrectionLog(int(state.get("corrections_count", 0)))
         if state["last_row"] is not None:
             t_r, x_r, cov_r, var_r, act_r = state["last_row"]
             self.track.add_block(np.array([t_r]), x_r[None, :], cov_r[None], np.array([var_r]),
@@ -501,6 +521,7 @@ class _KernelOut:
         self.cov = np.empty((n, 2, 2))
         self.var_h = np.empty(n)
         self.jump = np.empty((n, 2))
+        self.pre = np.empty((n, 5))
         self.act = np.empty(n, dtype=np.int64)
         self.status = np.empty(n, dtype=np.int64)
         self.nis = np.empty(n)

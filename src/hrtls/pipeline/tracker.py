@@ -53,14 +53,7 @@ import numpy as np
 from hrtls.attitude.base import AttitudeResult
 from hrtls.attitude.device import DeviceOrientation
 from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
-from hrtls.data import (
-    Landmark,
-    OrientationSeries,
-    Session,
-    SessionMeta,
-    StepEvents,
-    Trajectory,
-)
+from hrtls.data import Landmark, OrientationSeries, Session, SessionMeta, StepEvents, Trajectory
 from hrtls.errors import FormatError, InputError
 from hrtls.frames import wrap_angle
 from hrtls.fusion.fixes import YawPseudoMeasurement
@@ -76,6 +69,7 @@ from hrtls.pipeline.build import Notes, Sensors
 from hrtls.pipeline.build import leading_rate_hz as leading_rate_hz
 from hrtls.pipeline.compass import CompassParams, CompassYaw
 from hrtls.pipeline.config import TrackerConfig, params_of
+from hrtls.pipeline.corrections import Corrections
 from hrtls.pipeline.engine import FusionEngine, GaitHistory
 from hrtls.pipeline.imu_stage import (
     AttitudeStage,
@@ -278,6 +272,10 @@ class Tracker:
     def fix_jumps(self) -> list[tuple[float, float, float]]:
         """Accepted fixes: (time of the row with the corrected state, east, north change, m)."""
         return self.engine.fix_jumps
+
+    def corrections_since(self, index: int = 0) -> Corrections:
+        """The updates that moved the position from record ``index`` on (``next_index``: on)."""
+        return self.engine.corrections.since(index)
 
     @property
     def step_scale(self) -> float:
