@@ -456,7 +456,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
     cov = _node_covariances(csc_matrix(jac.T @ jac), prob,
-                            _inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)))
+                            node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)))
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
@@ -545,8 +545,8 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
     return np.ones_like(z)
 
 
-def _inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int
-               ) -> FloatArray:
+def node_inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int
+                   ) -> FloatArray:
     """Covariance inflation per node (at least one).
 
     The mean square of the inlier whitened residuals ``e``: of all ranges, or of the node's own
