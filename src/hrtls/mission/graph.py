@@ -38,9 +38,10 @@ received); walls lengthen ranges (NLOS), so the range residuals go through a rob
 
 Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (every pose and
 correction marginalized; ``W`` the robust loss's weights there), times the mean square whitened
-residual of the inlier ranges when above one. A node is solved with at least ``min_ranges``
-ranges whose positions spread ``min_spread_m`` off a line, and counts as localized with a sigma
-below ``max_sigma_m``.
+residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
+of the node's own when larger (a node seen mostly through walls). A node is solved with at least
+``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
+with a sigma below ``max_sigma_m``.
 """
 
 from __future__ import annotations
@@ -94,14 +95,14 @@ class SmootherParams:
 
     decimate_s: float = 1.0
     segment_m: float = 10.0
-    odo_sigma_m: float = 0.05
-    odo_fraction: float = 0.05
+    odo_sigma_m: float = 0.15
+    odo_fraction: float = 0.10
     scale_sigma: float = 0.08
     scale_walk_sigma: float = 0.02
     heading_sigma_rad: float = 0.02
     heading_walk_rad: float = 0.1
     height_sigma_m: float = 2.0
-    loss: str = "soft_l1"
+    loss: str = "cauchy"
     loss_scale: float = 2.0
     min_ranges: int = 6
     min_spread_m: float = 2.0
@@ -454,8 +455,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
-    cov = _node_covariances(csc_matrix(jac.T @ jac), prob, max(rms ** 2, 1.0)
-                            if math.isfinite(rms) else 1.0)
+    cov = _node_covariances(csc_matrix(jac.T @ jac), prob,
+                            node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)))
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
@@ -544,8 +545,23 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
     return np.ones_like(z)
 
 
-def _node_covariances(info: csc_matrix, prob: _Problem, inflation: float) -> list[FloatArray]:
-    """The node blocks of ``info^-1`` times ``inflation`` (NaN when singular)."""
+def node_inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int
+                   ) -> FloatArray:
+    """Covariance inflation per node (at least one).
+
+    The mean square of the inlier whitened residuals ``e``: of all ranges, or of the node's own
+    when larger.
+    """
+    sq = np.where(inlier, e * e, 0.0)
+    total = float(np.sum(sq) / np.count_nonzero(inlier)) if inlier.any() else 1.0
+    own_n = np.bincount(node[inlier], minlength=n_nodes).astype(np.float64)
+    own = np.bincount(node, weights=sq, minlength=n_nodes) / np.maximum(own_n, 1.0)
+    return np.maximum(np.maximum(own, total), 1.0)
+
+
+def _node_covariances(info: csc_matrix, prob: _Problem, inflation: FloatArray
+                      ) -> list[FloatArray]:
+    """The node blocks of ``info^-1``, each times its ``inflation`` (NaN when singular)."""
     k = len(prob.node_ids)
     if k == 0:
         return []
@@ -558,7 +574,7 @@ def _node_covariances(info: csc_matrix, prob: _Problem, inflation: float) -> lis
         return [np.full((2, 2), np.nan)] * k
     out = []
     for i in range(k):
-        c = inflation * sol[prob.node_col + 2 * i:prob.node_col + 2 * i + 2, 2 * i:2 * i + 2]
+        c = inflation[i] * sol[prob.node_col + 2 * i:prob.node_col + 2 * i + 2, 2 * i:2 * i + 2]
         out.append(0.5 * (c + c.T))
     return out
 
