@@ -46,7 +46,7 @@ below ``max_sigma_m``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -90,6 +90,10 @@ class SmootherParams:
         Cost evaluations per solve at most.
     every_s:
         In the mission loop: solve again after this much mission time, s.
+    feedback, feedback_cov_scale:
+        In the mission loop: give each rescuer the smoother's estimate of its latest pose
+        (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
+        covariance times ``feedback_cov_scale``.
     """
 
     decimate_s: float = 1.0
@@ -108,11 +112,14 @@ class SmootherParams:
     max_sigma_m: float = 3.0
     max_evaluations: int = 60
     every_s: float = 30.0
+    feedback: str = "off"
+    feedback_cov_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
                      "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
-                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s"):
+                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s",
+                     "feedback_cov_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
@@ -123,6 +130,9 @@ class SmootherParams:
             raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
                              f"{self.max_evaluations}", where="SmootherParams",
                              expected="min_ranges >= 3, max_evaluations >= 1")
+        if self.feedback not in ("off", "implied", "replace"):
+            raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
+                             expected="off, implied or replace")
         if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
             raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
                              expected="linear, soft_l1, huber or cauchy")
@@ -164,7 +174,8 @@ class SmootherResult:
     its pose times and corrected poses, ``corrections`` its poses minus its rows there (warm
     start of the next solve), ``scale`` / ``heading_rad`` its segment corrections;
     ``height_m``: the estimated height difference; ``rms``: RMS whitened inlier range residual;
-    ``evaluations``: cost evaluations of the solve.
+    ``evaluations``: cost evaluations of the solve; ``last_pose``: per agent the time, position
+    and marginal covariance (inflated as the nodes') of its last pose.
     """
 
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]]
@@ -175,6 +186,7 @@ class SmootherResult:
     height_m: float
     rms: float
     evaluations: int
+    last_pose: dict[str, tuple[float, FloatArray, FloatArray]] = field(default_factory=dict)
 
 
 def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -454,8 +466,10 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
-    cov = _node_covariances(csc_matrix(jac.T @ jac), prob, max(rms ** 2, 1.0)
-                            if math.isfinite(rms) else 1.0)
+    last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
+    cov = _blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
+                                            range(len(prob.node_ids))] + last,
+                  max(rms ** 2, 1.0) if math.isfinite(rms) else 1.0)
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
@@ -471,8 +485,11 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
         sc, n_seg = prob.s_col[a], prob.n_seg[a]
         scale[name] = x[sc:sc + n_seg].copy()
         heading[name] = x[sc + n_seg:sc + 2 * n_seg].copy()
+    k = len(prob.node_ids)
+    last_pose = {paths[a].name: (float(prob.t[a][-1]), x[c:c + 2].copy(), cov[k + a])
+                 for a, c in enumerate(last)}
     return SmootherResult(nodes, out_paths, corr, scale, heading, float(abs(x[prob.height_col])),
-                          rms, evaluations)
+                          rms, evaluations, last_pose)
 
 
 def _cost(prob: _Problem, x: FloatArray) -> float:
@@ -544,22 +561,23 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
     return np.ones_like(z)
 
 
-def _node_covariances(info: csc_matrix, prob: _Problem, inflation: float) -> list[FloatArray]:
-    """The node blocks of ``info^-1`` times ``inflation`` (NaN when singular)."""
-    k = len(prob.node_ids)
+def _blocks(info: csc_matrix, cols: list[int], inflation: float) -> list[FloatArray]:
+    """The 2x2 blocks of ``info^-1`` at columns ``cols`` times ``inflation`` (NaN if singular)."""
+    k = len(cols)
     if k == 0:
         return []
     try:
         lu = _factor(csc_matrix(info + 1e-9 * identity(info.shape[0], format="csc")))
         rhs = np.zeros((info.shape[0], 2 * k))
-        rhs[prob.node_col + np.arange(2 * k), np.arange(2 * k)] = 1.0
+        at = np.repeat(np.asarray(cols, np.int64), 2) + np.tile([0, 1], k)
+        rhs[at, np.arange(2 * k)] = 1.0
         sol = lu.solve(rhs)
     except (RuntimeError, ValueError):
         return [np.full((2, 2), np.nan)] * k
     out = []
-    for i in range(k):
-        c = inflation * sol[prob.node_col + 2 * i:prob.node_col + 2 * i + 2, 2 * i:2 * i + 2]
-        out.append(0.5 * (c + c.T))
+    for i, c in enumerate(cols):
+        b = inflation * sol[c:c + 2, 2 * i:2 * i + 2]
+        out.append(0.5 * (b + b.T))
     return out
 
 
