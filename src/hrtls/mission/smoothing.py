@@ -189,8 +189,21 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
         changed.append(node)
     if prm.feedback != "off":
         for name in feed_back(mt, st.warm):
-            _pull_corrections(mt, name)
+            _fed_back(mt, name)
     return changed
+
+
+def _fed_back(mt: MissionTracker, name: str) -> None:
+    """Read the agent's corrected latest row (a restored tracker does not repeat it) and the
+    feedback's record now, before any snapshot."""
+    st = mt.smoother
+    assert st is not None
+    t = st.tail[name][0]
+    est = mt.trackers[name].estimates_since(float(np.nextafter(t, -math.inf)))
+    st.tail[name] = [t, float(est.xyz[0, 0]), float(est.xyz[0, 1]),
+                     *np.asarray(est.cov_xy[0], np.float64).reshape(-1).tolist()]
+    mt.agent_rows(name)
+    _pull_corrections(mt, name)
 
 
 def state_of(st: SmootherState | None) -> dict[str, Any] | None:

@@ -1,0 +1,106 @@
+"""The smoother's feedback to the rescuers (hrtls.mission.feedback): hand-made cases, an
+invariant, the mission loop."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hrtls.mission.feedback import implied_update, position_update, replacement
+from hrtls.mission.graph import SmootherParams
+from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
+from hrtls.pipeline.corrections import SMOOTHED
+from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
+
+# tracker: position (0, 0), covariance diag(4, 1), heading correlated with x (0.5)
+X = np.array([0.0, 0.0, 1.5, 0.2])
+P = np.array([[4.0, 0.0, 0.0, 0.5],
+              [0.0, 1.0, 0.0, 0.0],
+              [0.0, 0.0, 0.3, 0.0],
+              [0.5, 0.0, 0.0, 0.2]])
+M_S = np.array([1.0, -0.5])
+P_S = np.diag([1.0, 0.5])
+
+
+def test_the_implied_update_reproduces_the_smoothers_marginal_by_hand() -> None:
+    """R^-1 = diag(1 - 1/4, 2 - 1) = diag(0.75, 1); R^-1 z = P_s^-1 m_s = (1, -1), so
+    z = (4/3, -1). The heading moves by P_hp P_pp^-1 (m_s - m_f) = 0.5 / 4 = 0.125 and its
+    variance falls by P_hp P_f^-1 (P_f - P_s) P_f^-1 P_ph = 0.25 * 3 / 16."""
+    z, w = implied_update(X[:2], P[:2, :2], M_S, P_S)
+    np.testing.assert_allclose(w.T @ w, np.diag([0.75, 1.0]), atol=1e-12)
+    np.testing.assert_allclose(z, [4.0 / 3.0, -1.0], atol=1e-12)
+    x, p = position_update(X, P, z, w)
+    np.testing.assert_allclose(x[:2], M_S, atol=1e-12)
+    np.testing.assert_allclose(p[:2, :2], P_S, atol=1e-12)
+    np.testing.assert_allclose(x[3], 0.2 + 0.125, atol=1e-12)
+    np.testing.assert_allclose(p[3, 3], 0.2 - 0.25 * 3.0 / 16.0, atol=1e-12)
+    assert x[2] == X[2] and p[2, 2] == P[2, 2]
+
+
+def test_the_replacement_by_hand() -> None:
+    """A = L_s L_f^-1 = diag(1/2, 1/sqrt(2)): the cross-covariance x-heading halves, the
+    heading and its variance stay."""
+    x, p = replacement(X, P, M_S, P_S)
+    np.testing.assert_allclose(x, [1.0, -0.5, 1.5, 0.2])
+    np.testing.assert_allclose(p[:2, :2], P_S, atol=1e-12)
+    np.testing.assert_allclose(p[0, 3], 0.25, atol=1e-12)
+    np.testing.assert_allclose(p[2:, 2:], P[2:, 2:], atol=1e-12)
+
+
+def _spd(n: int, seed: int, scale: float) -> np.ndarray:
+    a = np.random.default_rng(seed).normal(size=(n, n)) * scale
+    return a @ a.T + 1e-3 * np.eye(n)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), scale=st.floats(0.1, 3.0))
+def test_the_implied_update_never_increases_the_covariance(seed: int, scale: float) -> None:
+    rng = np.random.default_rng(seed + 1)
+    p = _spd(4, seed, 1.0)
+    p_s = _spd(2, seed + 7, scale)
+    z, w = implied_update(rng.normal(size=2), p[:2, :2], rng.normal(size=2), p_s)
+    x, pn = position_update(rng.normal(size=4), p, z, w)
+    assert np.all(np.isfinite(x))
+    assert np.linalg.eigvalsh(p - pn)[0] > -1e-9 * max(1.0, float(np.max(np.abs(p))))
+    assert np.linalg.eigvalsh(pn)[0] > -1e-9
+
+
+def _short(seed: int) -> tuple[dict, dict]:  # type: ignore[type-arg]
+    m = inderst_hybrid_mission(seed, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15))
+    return ({k: s.with_parts(truth=None, checkpoints=None) for k, s in m.agents.items()},
+            dict(m.kinds))
+
+
+def test_the_loop_with_feedback_restores_and_runs_live_like_offline() -> None:
+    from hrtls.pipeline.chunks import split_session
+
+    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback="replace"))
+    sessions, kinds = _short(2)
+    offline = MissionTracker(sessions, kinds=kinds, params=params)
+    want = offline.run()
+    fed = [n for n, tr in offline.trackers.items()
+           if np.any(tr.corrections_since(0).kind == SMOOTHED)]
+    assert fed
+    parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 1.0)),
+                   key=lambda kp: kp[1].time_span()[1])
+    cut = len(parts) // 2
+    mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
+                        kinds=kinds, params=params)
+    for j, (name, part) in enumerate(parts):
+        if j == cut:
+            mt = MissionTracker.restore(mt.snapshot())
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+    for k in sessions:
+        mt.end(k)
+    got = mt.run()
+    for n, e in want.nodes.items():
+        assert got.nodes[n].localized == e.localized
+        if e.localized:
+            np.testing.assert_array_equal(got.nodes[n].position_m, e.position_m)
+    for name, r in want.agents.items():     # the restored trackers' rows: those after it
+        g = got.agents[name].trajectory
+        assert 0 < len(g.t) < len(r.trajectory.t)
+        np.testing.assert_array_equal(g.xyz, r.trajectory.xyz[-len(g.t):])
+        np.testing.assert_array_equal(g.cov_xy, r.trajectory.cov_xy[-len(g.t):])
