@@ -1,6 +1,7 @@
 """The range-SLAM smoother's estimate of each rescuer's latest pose, given back to its tracker.
 
-After a solve (:mod:`hrtls.mission.smoothing`, ``SmootherParams.feedback``) the smoother holds,
+After a solve (:mod:`hrtls.mission.smoothing`, ``SmootherParams.feedback``, with cooperation:
+it carries the nodes' and the other agents' information) the smoother holds,
 for every agent, a marginal ``N(m_s, P_s)`` of its position at its latest row ``t_a`` (the
 last pose of its chain; ``P_s`` the 2x2 block of the inverse information times
 ``feedback_cov_scale``). The tracker's row there is ``N(m_f, P_f)``; its state ``x`` (position

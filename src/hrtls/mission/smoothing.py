@@ -187,7 +187,7 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
         mt.versions[node] = mt.versions.get(node, 0) + 1
         mt.history.setdefault(node, []).append((t_end, p.copy(), cov.copy()))
         changed.append(node)
-    if prm.feedback != "off":
+    if prm.feedback != "off" and mt.params.cooperate:
         for name in feed_back(mt, st.warm):
             _fed_back(mt, name)
     return changed
