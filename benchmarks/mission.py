@@ -19,7 +19,7 @@ only) and prints, over the seeds, mean / p90 / worst of (of the fraction localiz
 ``--smoother``: both columns with the range-SLAM smoother (``MissionParams.smoother``, its
 default parameters; the cost table then gives its time per solve); ``--feedback``: its latest
 poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
-``--feedback-cov-scale``).
+``--feedback-cov-scale``, ``--feedback-gate``).
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
@@ -280,11 +280,12 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
 
 
 def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
-    """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``."""
+    """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
+    ``--feedback-gate``."""
     if not args.smoother:
         return None
     kw: dict[str, Any] = {}
-    for key in ("feedback", "every_s", "feedback_cov_scale"):
+    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate"):
         if getattr(args, key) is not None:
             kw[key] = getattr(args, key)
     return SmootherParams(**kw)
@@ -361,6 +362,8 @@ def main() -> None:
                     help="with --smoother: SmootherParams.every_s (default: its default)")
     ap.add_argument("--feedback-cov-scale", type=float, default=None,
                     help="with --feedback: SmootherParams.feedback_cov_scale")
+    ap.add_argument("--feedback-gate", type=float, default=None,
+                    help="with --feedback implied: SmootherParams.feedback_gate (NIS)")
     ap.add_argument("--no-magnetometer", action="store_true",
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     ap.add_argument("--no-hard-iron-fit", action="store_true",

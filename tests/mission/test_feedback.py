@@ -104,3 +104,32 @@ def test_the_loop_with_feedback_restores_and_runs_live_like_offline() -> None:
         assert 0 < len(g.t) <= len(r.trajectory.t)
         np.testing.assert_array_equal(g.xyz, r.trajectory.xyz[-len(g.t):])
         np.testing.assert_array_equal(g.cov_xy, r.trajectory.cov_xy[-len(g.t):])
+
+
+def _rescuer_p90(seed: int, smoother: SmootherParams) -> float:
+    """The benchmark's rescuers (benchmarks/mission.py defaults), cooperation on, 2 % range
+    noise: the rescuers' 90th-percentile horizontal error at 1 Hz, m."""
+    from hrtls.pipeline import preset
+    from hrtls.pipeline.config import TrackerConfig
+
+    r = preset("rescue-mission")
+    cfg = TrackerConfig.model_validate({
+        "prediction": {"q_along": r.prediction.q_along,
+                       "sigma_heading_increment_rad": r.prediction.sigma_heading_increment_rad},
+        "attitude": {"heading_source": "gyro+compass",
+                     "mag_heading": {"offset_model": r.attitude.mag_heading["offset_model"]}},
+        "tags": {"sigma_per_accuracy": r.tags.sigma_per_accuracy}})
+    m = inderst_hybrid_mission(seed, MissionOptions(range_sigma_fraction=0.02))
+    res = MissionTracker(m.agents, kinds=m.kinds, config=cfg,
+                         params=MissionParams(smoother=smoother)).run()
+    errs = []
+    for name, a in res.agents.items():
+        if m.kinds.get(name, "rescuer") != "rescuer":
+            continue
+        truth = m.simulations[name].session.truth
+        assert truth is not None
+        tr = a.trajectory
+        tq = np.arange(float(tr.t[0]), float(tr.t[-1]), 1.0)
+        errs.append(np.hypot(*(np.interp(tq, tr.t, tr.xyz[:, k])
+                               - np.interp(tq, truth.t, truth.xyz[:, k]) for k in (0, 1))))
+    return float(np.percentile(np.concatenate(errs), 90))

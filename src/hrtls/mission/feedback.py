@@ -14,7 +14,8 @@ nodes and the other agents' paths through them, so two ways are consistent:
   (:func:`hrtls.mission.correction_factors.implied_factors`; negative eigenvalues of ``R^-1``,
   directions where the smoother is less sure than the tracker, set to zero), applied to the
   whole state as a position measurement (:func:`position_update`): the heading moves through
-  the tracker's cross-covariance and the covariance never grows. For a tracker that holds the
+  the tracker's cross-covariance and the covariance never grows; not applied when its NIS
+  (:func:`nis`) exceeds ``feedback_gate``. For a tracker that holds the
   same linear-Gaussian information the position marginal becomes exactly ``N(m_s, P_s)``. It
   gives nothing where the smoother's chain (looser than the tracker's motion model) claims less
   than the tracker.
@@ -92,12 +93,22 @@ def replacement(x: FloatArray, p: FloatArray, mean_m: FloatArray, cov_m2: FloatA
     return xn, 0.5 * (pn + pn.T)
 
 
+def nis(mean_f_m: FloatArray, cov_f_m2: FloatArray, z_m: FloatArray, w_per_m: FloatArray
+        ) -> float:
+    """NIS of the implied measurement: ``nu^T S^-1 nu``, ``nu = W (z - m_f)``, ``S = W P_f W^T
+    + I``."""
+    nu = w_per_m @ (np.asarray(z_m) - np.asarray(mean_f_m))
+    return float(nu @ np.linalg.solve(w_per_m @ cov_f_m2 @ w_per_m.T + np.eye(2), nu))
+
+
 def _target(m_f: FloatArray, p_f: FloatArray, m_s: FloatArray, p_s: FloatArray, x: FloatArray,
-            p: FloatArray, mode: str) -> tuple[FloatArray, FloatArray] | None:
+            p: FloatArray, mode: str, gate: float) -> tuple[FloatArray, FloatArray] | None:
     """The tracker's new state and covariance, or None when the smoother adds nothing."""
     if mode == "implied":
         z, w = implied_update(m_f, p_f, m_s, p_s)
-        return position_update(x, p, z + x[:2] - m_f, w) if np.any(w) else None
+        if not np.any(w) or nis(m_f, p_f, z, w) > gate:
+            return None
+        return position_update(x, p, z + x[:2] - m_f, w)
     moved = p_s + p[:2, :2] - p_f
     target = moved if np.all(np.linalg.eigvalsh(moved) > 0) else p_s
     return replacement(x, p, m_s + x[:2] - m_f, target)
@@ -117,7 +128,8 @@ def feed_back(mt: MissionTracker, res: SmootherResult) -> list[str]:
         m_f = np.asarray(tail[1:3], np.float64)
         state = tr.engine.state
         new = _target(m_f, np.asarray(tail[3:7], np.float64).reshape(2, 2), m_s,
-                      prm.feedback_cov_scale * p_s, state.x, state.P, prm.feedback)
+                      prm.feedback_cov_scale * p_s, state.x, state.P, prm.feedback,
+                      prm.feedback_gate)
         if new is not None and tr.engine.set_smoothed(*new):
             done.append(name)
     return done

@@ -93,7 +93,8 @@ class SmootherParams:
     feedback, feedback_cov_scale:
         In the mission loop: give each rescuer the smoother's estimate of its latest pose
         (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
-        covariance times ``feedback_cov_scale``.
+        covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
+        ``feedback_gate`` is not applied.
     """
 
     decimate_s: float = 1.0
@@ -114,12 +115,13 @@ class SmootherParams:
     every_s: float = 30.0
     feedback: str = "off"
     feedback_cov_scale: float = 1.0
+    feedback_gate: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
                      "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
                      "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s",
-                     "feedback_cov_scale"):
+                     "feedback_cov_scale", "feedback_gate"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
