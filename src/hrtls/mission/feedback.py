@@ -95,8 +95,10 @@ def replacement(x: FloatArray, p: FloatArray, mean_m: FloatArray, cov_m2: FloatA
 
 def nis(mean_f_m: FloatArray, cov_f_m2: FloatArray, z_m: FloatArray, w_per_m: FloatArray
         ) -> float:
-    """NIS of the implied measurement: ``nu^T S^-1 nu``, ``nu = W (z - m_f)``, ``S = W P_f W^T
-    + I``."""
+    """NIS of the implied measurement, ``nu^T S^-1 nu``.
+
+    ``nu = W (z - m_f)``, ``S = W P_f W^T + I``.
+    """
     nu = w_per_m @ (np.asarray(z_m) - np.asarray(mean_f_m))
     return float(nu @ np.linalg.solve(w_per_m @ cov_f_m2 @ w_per_m.T + np.eye(2), nu))
 

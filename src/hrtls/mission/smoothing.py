@@ -194,8 +194,10 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
 
 
 def _fed_back(mt: MissionTracker, name: str) -> None:
-    """Read the agent's corrected latest row (a restored tracker does not repeat it) and the
-    feedback's record now, before any snapshot."""
+    """Read the agent's corrected latest row and the feedback's record now.
+
+    Before any snapshot: a restored tracker does not repeat the row.
+    """
     st = mt.smoother
     assert st is not None
     t = st.tail[name][0]
