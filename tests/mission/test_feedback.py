@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hrtls.mission.feedback import implied_update, position_update, replacement
+from hrtls.mission.feedback import implied_update, nis, position_update, replacement
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
 from hrtls.pipeline.corrections import SMOOTHED
@@ -36,6 +36,11 @@ def test_the_implied_update_reproduces_the_smoothers_marginal_by_hand() -> None:
     np.testing.assert_allclose(x[3], 0.2 + 0.125, atol=1e-12)
     np.testing.assert_allclose(p[3, 3], 0.2 - 0.25 * 3.0 / 16.0, atol=1e-12)
     assert x[2] == X[2] and p[2, 2] == P[2, 2]
+
+
+def test_the_nis_of_the_implied_measurement_by_hand() -> None:
+    """W = I, P_f = I, z - m_f = (2, 0): S = 2 I, NIS = 4 / 2."""
+    assert nis(np.zeros(2), np.eye(2), np.array([2.0, 0.0]), np.eye(2)) == 2.0
 
 
 def test_the_replacement_by_hand() -> None:

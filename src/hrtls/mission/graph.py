@@ -114,8 +114,8 @@ class SmootherParams:
     max_evaluations: int = 60
     every_s: float = 30.0
     feedback: str = "off"
-    feedback_cov_scale: float = 1.0
-    feedback_gate: float = math.inf
+    feedback_cov_scale: float = 2.0
+    feedback_gate: float = 13.8
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
