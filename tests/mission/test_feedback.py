@@ -4,6 +4,7 @@ invariant, the mission loop."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -77,10 +78,11 @@ def _short(seed: int) -> tuple[dict, dict]:  # type: ignore[type-arg]
             dict(m.kinds))
 
 
-def test_the_loop_with_feedback_restores_and_runs_live_like_offline() -> None:
+@pytest.mark.parametrize("mode", ["implied", "replace"])
+def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str) -> None:
     from hrtls.pipeline.chunks import split_session
 
-    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback="replace"))
+    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode))
     sessions, kinds = _short(2)
     offline = MissionTracker(sessions, kinds=kinds, params=params)
     want = offline.run()
