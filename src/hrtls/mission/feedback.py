@@ -26,9 +26,12 @@ nodes and the other agents' paths through them, so two ways are consistent:
   (:func:`replacement`). The covariance may grow.
 
 Applied to the tracker's state now; if it moved since ``t_a`` (its motion since is its own),
-``m_s`` and ``P_s`` move with it (``m_s + x_now - m_f``, ``P_s + P_now - P_f`` when positive
-definite). Robots keep their own estimate: on dev seeds the smoother's latest robot pose was
-worse than the robot's odometry EKF (README).
+the target moves with it (``z + x_now - m_f``; replace: ``m_s + x_now - m_f`` and ``P_s + P_now
+- P_f`` when positive definite). The superset argument is approximate (the chain is not the
+tracker's motion model, a heading update's factor repeats some earlier information,
+:mod:`hrtls.mission.correction_factors`); the covariance scale and the gate are chosen on dev
+seeds (README). Robots keep their own estimate: on dev seeds the smoother's latest robot pose
+was worse than the robot's odometry EKF (README).
 
 No information counted twice: the jump is recorded as a correction of kind
 :data:`~hrtls.pipeline.corrections.SMOOTHED`, which the smoother removes from the dead
