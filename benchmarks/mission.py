@@ -17,7 +17,9 @@ only) and prints, over the seeds, mean / p90 / worst of (of the fraction localiz
   and the node re-estimation (grows with the readings of the nodes in range).
 
 ``--smoother``: both columns with the range-SLAM smoother (``MissionParams.smoother``, its
-default parameters; the cost table then gives its time per solve).
+default parameters; the cost table then gives its time per solve); ``--feedback``: its latest
+poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
+``--feedback-cov-scale``, ``--feedback-gate``).
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
@@ -277,6 +279,18 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     return out
 
 
+def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
+    """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
+    ``--feedback-gate``."""
+    if not args.smoother:
+        return None
+    kw: dict[str, Any] = {}
+    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate"):
+        if getattr(args, key) is not None:
+            kw[key] = getattr(args, key)
+    return SmootherParams(**kw)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 (dev) or 100-129 (held-out)")
@@ -341,6 +355,15 @@ def main() -> None:
                     help="cooperation off only (the on column skipped)")
     ap.add_argument("--smoother", action="store_true",
                     help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
+    ap.add_argument("--feedback", choices=("off", "implied", "replace"), default=None,
+                    help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
+                         "given back to the rescuers' trackers)")
+    ap.add_argument("--every-s", type=float, default=None,
+                    help="with --smoother: SmootherParams.every_s (default: its default)")
+    ap.add_argument("--feedback-cov-scale", type=float, default=None,
+                    help="with --feedback: SmootherParams.feedback_cov_scale")
+    ap.add_argument("--feedback-gate", type=float, default=None,
+                    help="with --feedback implied: SmootherParams.feedback_gate (NIS)")
     ap.add_argument("--no-magnetometer", action="store_true",
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     ap.add_argument("--no-hard-iron-fit", action="store_true",
@@ -389,7 +412,7 @@ def main() -> None:
     attitude["mag_heading"] = {"offset_model": args.offset_model,
                                **({"offset_floor": True} if args.offset_floor else {})}
     items = [SeedItem(seed, opts, nodes, args.peer_ranges, prediction, args.peer_extrapolate,
-                      args.only_on, SmootherParams() if args.smoother else None,
+                      args.only_on, smoother_of(args),
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
                       only_off=args.only_off, use_variance_ratio=args.use_variance_ratio,
                       tags={"sigma_per_accuracy": args.tag_sigma_per_accuracy},

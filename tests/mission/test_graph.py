@@ -8,7 +8,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hrtls.errors import InputError
-from hrtls.mission.graph import AgentPath, RangeSet, SmootherParams, node_inflation, smooth
+from hrtls.mission.graph import AgentPath, RangeSet, SmootherParams, smooth
+from hrtls.mission.graph_covariance import node_inflation
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 

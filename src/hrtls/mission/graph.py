@@ -47,14 +47,14 @@ with a sigma below ``max_sigma_m``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csc_matrix, csr_matrix, diags, identity
-from scipy.sparse.linalg import SuperLU, splu
+from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.errors import InputError
+from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -91,6 +91,11 @@ class SmootherParams:
         Cost evaluations per solve at most.
     every_s:
         In the mission loop: solve again after this much mission time, s.
+    feedback, feedback_cov_scale:
+        In the mission loop: give each rescuer the smoother's estimate of its latest pose
+        (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
+        covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
+        ``feedback_gate`` is not applied.
     """
 
     decimate_s: float = 1.0
@@ -109,11 +114,15 @@ class SmootherParams:
     max_sigma_m: float = 3.0
     max_evaluations: int = 60
     every_s: float = 30.0
+    feedback: str = "off"
+    feedback_cov_scale: float = 2.0
+    feedback_gate: float = 13.8
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
                      "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
-                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s"):
+                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s",
+                     "feedback_cov_scale", "feedback_gate"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
@@ -124,6 +133,9 @@ class SmootherParams:
             raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
                              f"{self.max_evaluations}", where="SmootherParams",
                              expected="min_ranges >= 3, max_evaluations >= 1")
+        if self.feedback not in ("off", "implied", "replace"):
+            raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
+                             expected="off, implied or replace")
         if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
             raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
                              expected="linear, soft_l1, huber or cauchy")
@@ -165,7 +177,8 @@ class SmootherResult:
     its pose times and corrected poses, ``corrections`` its poses minus its rows there (warm
     start of the next solve), ``scale`` / ``heading_rad`` its segment corrections;
     ``height_m``: the estimated height difference; ``rms``: RMS whitened inlier range residual;
-    ``evaluations``: cost evaluations of the solve.
+    ``evaluations``: cost evaluations of the solve; ``last_pose``: per agent the time, position
+    and marginal covariance (inflated as the nodes') of its last pose.
     """
 
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]]
@@ -176,6 +189,7 @@ class SmootherResult:
     height_m: float
     rms: float
     evaluations: int
+    last_pose: dict[str, tuple[float, FloatArray, FloatArray]] = field(default_factory=dict)
 
 
 def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -455,8 +469,12 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
-    cov = _node_covariances(csc_matrix(jac.T @ jac), prob,
-                            node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)))
+    last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
+    pose_inflation = max(rms ** 2, 1.0) if math.isfinite(rms) else 1.0
+    inflation = np.concatenate([node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)),
+                                np.full(len(last), pose_inflation)])
+    cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
+                                            range(len(prob.node_ids))] + last, inflation)
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
@@ -472,8 +490,11 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
         sc, n_seg = prob.s_col[a], prob.n_seg[a]
         scale[name] = x[sc:sc + n_seg].copy()
         heading[name] = x[sc + n_seg:sc + 2 * n_seg].copy()
+    k = len(prob.node_ids)
+    last_pose = {paths[a].name: (float(prob.t[a][-1]), x[c:c + 2].copy(), cov[k + a])
+                 for a, c in enumerate(last)}
     return SmootherResult(nodes, out_paths, corr, scale, heading, float(abs(x[prob.height_col])),
-                          rms, evaluations)
+                          rms, evaluations, last_pose)
 
 
 def _cost(prob: _Problem, x: FloatArray) -> float:
@@ -511,7 +532,7 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
         step = None
         while evaluations < prob.prm.max_evaluations and lam < 1e8:
             damped = csc_matrix(hess + diags(lam * (hess.diagonal() + 1e-9)))
-            cand = x - _factor(damped).solve(grad)
+            cand = x - spd_lu(damped).solve(grad)
             c = _cost(prob, cand)
             evaluations += 1
             if c < cost:
@@ -521,16 +542,6 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
         if step is None or float(np.max(np.abs(step))) < 1e-4:
             break
     return x, evaluations
-
-
-def _factor(m: csc_matrix) -> SuperLU:
-    """LU of a symmetric positive definite matrix.
-
-    Minimum degree ordering on ``A + A^T`` and no pivoting off the diagonal: far less fill-in
-    than the default column ordering.
-    """
-    return splu(m, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True})
 
 
 def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
@@ -543,40 +554,6 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
         return np.asarray(np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300))),
                           np.float64)
     return np.ones_like(z)
-
-
-def node_inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int
-                   ) -> FloatArray:
-    """Covariance inflation per node (at least one).
-
-    The mean square of the inlier whitened residuals ``e``: of all ranges, or of the node's own
-    when larger.
-    """
-    sq = np.where(inlier, e * e, 0.0)
-    total = float(np.sum(sq) / np.count_nonzero(inlier)) if inlier.any() else 1.0
-    own_n = np.bincount(node[inlier], minlength=n_nodes).astype(np.float64)
-    own = np.bincount(node, weights=sq, minlength=n_nodes) / np.maximum(own_n, 1.0)
-    return np.maximum(np.maximum(own, total), 1.0)
-
-
-def _node_covariances(info: csc_matrix, prob: _Problem, inflation: FloatArray
-                      ) -> list[FloatArray]:
-    """The node blocks of ``info^-1``, each times its ``inflation`` (NaN when singular)."""
-    k = len(prob.node_ids)
-    if k == 0:
-        return []
-    try:
-        lu = _factor(csc_matrix(info + 1e-9 * identity(info.shape[0], format="csc")))
-        rhs = np.zeros((info.shape[0], 2 * k))
-        rhs[prob.node_col + np.arange(2 * k), np.arange(2 * k)] = 1.0
-        sol = lu.solve(rhs)
-    except (RuntimeError, ValueError):
-        return [np.full((2, 2), np.nan)] * k
-    out = []
-    for i in range(k):
-        c = inflation[i] * sol[prob.node_col + 2 * i:prob.node_col + 2 * i + 2, 2 * i:2 * i + 2]
-        out.append(0.5 * (c + c.T))
-    return out
 
 
 def _extend(poses: FloatArray, f: FloatArray, k: int, scale: float, heading_rad: float) -> None:

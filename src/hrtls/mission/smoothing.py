@@ -21,9 +21,11 @@ from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
+from hrtls.mission.feedback import feed_back
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.robot import RobotTracker
+from hrtls.pipeline.corrections import SMOOTHED
 from hrtls.pipeline.schedule import RANGE
 from hrtls.pipeline.tracker import Tracker
 
@@ -109,8 +111,8 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     """The agent's rows with its dead reckoning and correction factors (when it keeps them).
 
     Every correction's jump leaves the chain; all but the ranges to nodes that are not the
-    agent's known landmarks (mission nodes: their raw ranges are the problem's; peers) become
-    factors.
+    agent's known landmarks (mission nodes: their raw ranges are the problem's; peers) and the
+    smoother's own feedback (:mod:`hrtls.mission.feedback`) become factors.
     """
     st = mt.smoother
     assert st is not None
@@ -122,7 +124,7 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
                                     np.zeros((0, 2)) if j in (3, 5) else np.zeros(0)
                                     for j in range(7))
     dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t, m1 - m0)
-    keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i]))
+    keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i])) & (kind != SMOOTHED)
     z, wm = implied_factors(m0[keep], c0[keep], m1[keep], c1[keep])
     return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm))
 
@@ -132,8 +134,12 @@ def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
     assert st is not None
     paths: list[AgentPath] = []
     index: dict[int, int] = {}
+    feedback = mt.params.smoother is not None and mt.params.smoother.feedback != "off"
     for i, name in enumerate(mt.names):
         rows = st.rows.get(name, [])
+        tail = st.tail.get(name)
+        if feedback and rows and tail is not None and tail[0] > rows[-1][0]:
+            rows = [*rows, tail[:3]]          # the latest row: the pose fed back
         if len(rows) < 2:
             continue
         index[i] = len(paths)
@@ -181,7 +187,25 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
         mt.versions[node] = mt.versions.get(node, 0) + 1
         mt.history.setdefault(node, []).append((t_end, p.copy(), cov.copy()))
         changed.append(node)
+    if prm.feedback != "off" and mt.params.cooperate:
+        for name in feed_back(mt, st.warm):
+            _fed_back(mt, name)
     return changed
+
+
+def _fed_back(mt: MissionTracker, name: str) -> None:
+    """Read the agent's corrected latest row and the feedback's record now.
+
+    Before any snapshot: a restored tracker does not repeat the row.
+    """
+    st = mt.smoother
+    assert st is not None
+    t = st.tail[name][0]
+    est = mt.trackers[name].estimates_since(float(np.nextafter(t, -math.inf)))
+    st.tail[name] = [t, float(est.xyz[0, 0]), float(est.xyz[0, 1]),
+                     *np.asarray(est.cov_xy[0], np.float64).reshape(-1).tolist()]
+    mt.agent_rows(name)
+    _pull_corrections(mt, name)
 
 
 def state_of(st: SmootherState | None) -> dict[str, Any] | None:

@@ -26,6 +26,10 @@ from hrtls.pipeline.schedule import BEARING, RANGE, RSS, TAGS
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+SMOOTHED = 7
+"""Kind of a record of the mission smoother's feedback (:mod:`hrtls.mission.feedback`), after
+the :mod:`hrtls.pipeline.schedule` event kinds."""
+
 
 @dataclass(frozen=True, eq=False)
 class Corrections:
@@ -122,3 +126,4 @@ def source_of(kind: int, payload: Any) -> str:
     if kind == RSS:   # ("reading", anchor, ...) or ("scan", readings)
         return str(payload[1]) if payload[0] == "reading" else ",".join(payload[1].anchor)
     return ""
+

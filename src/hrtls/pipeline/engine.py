@@ -30,7 +30,7 @@ from hrtls.pipeline import _fix_events as fx
 from hrtls.pipeline import build
 from hrtls.pipeline.build import Corrections, Notes
 from hrtls.pipeline.config import TrackerConfig
-from hrtls.pipeline.corrections import CorrectionLog, source_of
+from hrtls.pipeline.corrections import SMOOTHED, CorrectionLog, source_of
 from hrtls.pipeline.diagnostics import DiagnosticsBlock, DiagnosticsLog
 from hrtls.pipeline.grid_stage import GridStage
 from hrtls.pipeline.imu_stage import DEFAULT_VAR_YAW_RAD2, AttitudeStage
@@ -205,6 +205,20 @@ class FusionEngine:
             self.velocity_to(horizon)
         if horizon == math.inf:
             self.grid.finish()
+
+    def set_smoothed(self, x: np.ndarray, p: np.ndarray) -> bool:
+        """The state and covariance now set from outside (the mission smoother's feedback).
+
+        Recorded as a ``SMOOTHED`` correction; its row replaces the latest (same time). Not with
+        the velocity-driven prediction or the grid filter (False).
+        """
+        if self.velocity_mode or self.grid.filter is not None:
+            return False
+        pre = self.state
+        self.state = replace(pre, x=np.asarray(x, np.float64), P=np.asarray(p, np.float64))
+        self.corrections.add(pre.t, SMOOTHED, "smoother", pre.x, pre.P, x, p)
+        self.track.add(self.state, self.last_activity)
+        return True
 
     def output_rows(self) -> TrackRows:
         """The rows of the track: the grid filter's when it runs, else the Kalman filter's."""
