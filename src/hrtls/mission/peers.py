@@ -11,8 +11,8 @@ B's own ranges to A correct B the same way, so each exchange corrects both agent
 
 Extrapolation (``PeerRangeParams.extrapolate``; off by default: it made the held-out missions
 of ``benchmarks/mission.py --peer-ranges`` worse, docs/mission.md). B's velocity ``v`` is the
-chord of its rows over the last ``velocity_window_s`` before ``t_B``; the landmark is ``x_B(t_B) + v g``,
-and its variance per axis is B's plus the extrapolation's::
+chord of its rows over the last ``velocity_window_s`` before ``t_B``; the landmark is
+``x_B(t_B) + v g``, and its variance per axis is B's plus the extrapolation's::
 
     s_move^2 = g^2 lambda_max(S_v) + q g^3 / 3
 
