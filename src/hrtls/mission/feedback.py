@@ -30,8 +30,8 @@ the target moves with it (``z + x_now - m_f``; replace: ``m_s + x_now - m_f`` an
 - P_f`` when positive definite). The superset argument is approximate (the chain is not the
 tracker's motion model, a heading update's factor repeats some earlier information,
 :mod:`hrtls.mission.correction_factors`); the covariance scale and the gate are chosen on dev
-seeds (docs/mission.md). Robots keep their own estimate: on dev seeds the smoother's latest robot pose
-was worse than the robot's odometry EKF (docs/mission.md).
+seeds (docs/mission.md). Robots keep their own estimate: on dev seeds the smoother's latest
+robot pose was worse than the robot's odometry EKF (docs/mission.md).
 
 No information counted twice: the jump is recorded as a correction of kind
 :data:`~hrtls.pipeline.corrections.SMOOTHED`, which the smoother removes from the dead
