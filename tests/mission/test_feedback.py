@@ -10,9 +10,11 @@ from hypothesis import strategies as st
 
 from hrtls.mission.feedback import implied_update, nis, position_update, replacement
 from hrtls.mission.graph import SmootherParams
-from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
+from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline.corrections import SMOOTHED
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
+
+from ._live import restored_half_way, short_mission
 
 # tracker: position (0, 0), covariance diag(4, 1), heading correlated with x (0.5)
 X = np.array([0.0, 0.0, 1.5, 0.2])
@@ -72,35 +74,16 @@ def test_the_implied_update_never_increases_the_covariance(seed: int, scale: flo
     assert np.linalg.eigvalsh(pn)[0] > -1e-9
 
 
-def _short(seed: int) -> tuple[dict, dict]:  # type: ignore[type-arg]
-    m = inderst_hybrid_mission(seed, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15))
-    return ({k: s.with_parts(truth=None, checkpoints=None) for k, s in m.agents.items()},
-            dict(m.kinds))
-
-
 @pytest.mark.parametrize("mode", ["implied", "replace"])
 def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str) -> None:
-    from hrtls.pipeline.chunks import split_session
-
     params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode))
-    sessions, kinds = _short(2)
+    sessions, kinds = short_mission(2)
     offline = MissionTracker(sessions, kinds=kinds, params=params)
     want = offline.run()
     fed = [n for n, tr in offline.trackers.items()
            if np.any(tr.corrections_since(0).kind == SMOOTHED)]
     assert fed
-    parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 1.0)),
-                   key=lambda kp: kp[1].time_span()[1])
-    cut = len(parts) // 2
-    mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
-                        kinds=kinds, params=params)
-    for j, (name, part) in enumerate(parts):
-        if j == cut:
-            mt = MissionTracker.restore(mt.snapshot())
-        mt.feed(name, part, now_s=float(j))
-        mt.advance(now_s=float(j))
-    for k in sessions:
-        mt.end(k)
+    mt = restored_half_way(sessions, kinds, params)
     got = mt.run()
     for n, e in want.nodes.items():
         assert got.nodes[n].localized == e.localized

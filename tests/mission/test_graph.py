@@ -13,6 +13,8 @@ from hrtls.mission.graph_covariance import node_inflation
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 
+from ._live import restored_half_way, short_mission
+
 H_M = 0.5
 NODES = {"A": np.array([5.0, 4.0]), "B": np.array([15.0, -3.0]), "C": np.array([22.0, 9.0])}
 
@@ -118,36 +120,18 @@ def test_params_are_checked() -> None:
         SmootherParams(min_ranges=2)
 
 
-def _short(seed: int) -> tuple[dict, dict]:  # type: ignore[type-arg]
-    m = inderst_hybrid_mission(seed, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15))
-    return ({k: s.with_parts(truth=None, checkpoints=None) for k, s in m.agents.items()},
-            dict(m.kinds))
-
-
 PARAMS = MissionParams(smoother=SmootherParams(every_s=20.0))
 
 
 def test_the_loop_with_the_smoother_restores_and_runs_live_like_offline() -> None:
-    from hrtls.pipeline.chunks import split_session
-
-    sessions, kinds = _short(2)
+    sessions, kinds = short_mission(2)
     want = MissionTracker(sessions, kinds=kinds, params=PARAMS).run()
     assert any(e.localized for e in want.nodes.values())
-    parts = sorted(((k, p) for k, s in sessions.items() for p in split_session(s, 1.0)),
-                   key=lambda kp: kp[1].time_span()[1])
-    cut = len(parts) // 2
-    from hrtls.mission.tracker import AgentHeader
 
-    mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
-                        kinds=kinds, params=PARAMS)
-    for j, (name, part) in enumerate(parts):
-        if j == cut:
-            assert mt.smoother is not None and mt.smoother.warm is not None
-            mt = MissionTracker.restore(mt.snapshot())
-        mt.feed(name, part, now_s=float(j))
-        mt.advance(now_s=float(j))
-    for k in sessions:
-        mt.end(k)
+    def solved_before_the_cut(mt: MissionTracker) -> None:
+        assert mt.smoother is not None and mt.smoother.warm is not None
+
+    mt = restored_half_way(sessions, kinds, PARAMS, at_cut=solved_before_the_cut)
     got = mt.run()
     for n, e in want.nodes.items():
         assert got.nodes[n].localized == e.localized
