@@ -8,17 +8,22 @@
   agent is on the map (its first estimate: a rescuer's check-in pose counts) and until every
   agent is *tracked* (an estimate later than its check-in, i.e. from the data it streamed;
   target: under 25 s cold). The snapshot is polled with the printed token. ``--demo-runs``
-  repeats the pair.
+  repeats the pair. Every kernel compile is logged (``HRTLS_COMPILE_LOG``): the table adds the
+  CPU seconds numba spent compiling in the demo's process and in its background worker, and
+  ``--compile-list`` prints each kernel compiled (process, start, CPU seconds with and without
+  the kernels it calls). ``--precompile 1`` forces the background worker (``HRTLS_PRECOMPILE``;
+  by default it starts only with a core idle).
 
 Each command runs ``--runs`` times in a new process; the table gives the best, median and worst
 wall time. The machine may be shared: the best run is the steadiest figure.
-Run: ``python benchmarks/cold_start.py [--runs 10] [--demo [--demo-runs 2]]``.
+Run: ``python benchmarks/cold_start.py [--runs 10] [--demo [--demo-runs 2] [--compile-list]]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import shutil
@@ -59,14 +64,17 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def demo_run(cache_dir: Path, work: Path) -> tuple[float, DemoTimes, float | None]:
-    """Seconds to the printed token, to each agent on the map and tracked (``hrtls demo``), and
-    to the end of its background compiles (None when it started none, or they did not end)."""
+def demo_run(cache_dir: Path, work: Path, log: Path
+             ) -> tuple[float, DemoTimes, float | None, float]:
+    """Seconds to the printed token, to each agent on the map and tracked (``hrtls demo``), to
+    the end of its background compiles (None when it started none, or they did not end), and
+    the Unix time of the start; every compile is logged to ``log``."""
     port = _free_port()
     # JIT kernels only: a module `hrtls warmup` compiled ahead of time would make "cold" warm;
     # the user cache (first-run markers) in the temporary folder too
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir), "HRTLS_AOT": "0",
-           "XDG_CACHE_HOME": str(cache_dir.parent / "user-cache")}
+           "XDG_CACHE_HOME": str(cache_dir.parent / "user-cache"), "HRTLS_COMPILE_LOG": str(log)}
+    t0 = time.time()
     start = time.perf_counter()
     proc = subprocess.Popen([*_hrtls(), "demo", "--speed", "4", "--port", str(port),
                              "--duration-s", str(DEMO_LIMIT_S), "-o", str(work)],
@@ -85,7 +93,7 @@ def demo_run(cache_dir: Path, work: Path) -> tuple[float, DemoTimes, float | Non
         t_token = time.perf_counter() - start
         times = _poll_agents(port, token, start)
         done = _background_done(cache_dir, start) if background else None
-        return t_token, times, done
+        return t_token, times, done, t0
     finally:
         proc.terminate()
         proc.wait(timeout=30)
@@ -130,23 +138,75 @@ def _background_done(cache_dir: Path, start: float) -> float | None:
     return None
 
 
-def demo_table(runs: int = 1) -> Table:
-    """Cold then warm ``hrtls demo``, ``runs`` times (a new empty cache each time)."""
+class Compile(NamedTuple):
+    """One logged compile (``hrtls.kernels.COMPILE_LOG``): process role, kernel, timing."""
+
+    role: str
+    kernel: str
+    start_s: float
+    cpu_s: float
+    self_cpu_s: float
+
+
+def compiles(log: Path, t0: float) -> list[Compile]:
+    """The kernels numba compiled (not loaded from its cache), start relative to ``t0``."""
+    if not log.exists():
+        return []
+    out = []
+    for line in log.read_text(encoding="utf-8").splitlines():
+        rec = json.loads(line)
+        if rec["compiled"]:
+            role = "worker" if "precompile" in rec["argv"] else "demo"
+            out.append(Compile(role, rec["kernel"], rec["start"] - t0, rec["cpu_s"],
+                               rec["self_cpu_s"]))
+    return out
+
+
+def compile_cpu(records: list[Compile], role: str, until_s: float = math.inf) -> float:
+    """CPU seconds of the compiles of one process role that started before ``until_s``."""
+    return sum(r.self_cpu_s for r in records if r.role == role and r.start_s < until_s)
+
+
+def demo_table(runs: int = 1, listing: list[Table] | None = None) -> Table:
+    """Cold then warm ``hrtls demo``, ``runs`` times (a new empty cache each time).
+
+    ``listing``: gets a table of the kernels compiled by each cold run.
+    """
     table = Table("run", "token printed s", "all on the map s", "first tracked s",
                   "all tracked s", "target s", "met", "background compiles s",
+                  "compile CPU s demo / worker", "same, until all tracked",
                   title="hrtls demo: empty kernel cache, then warm")
     for _ in range(runs):
         with tempfile.TemporaryDirectory() as tmp:
             cache = Path(tmp) / "numba"
             for label in ("cold (empty cache)", "warm"):
-                t_token, times, done = demo_run(cache, Path(tmp) / label.split()[0])
+                log = Path(tmp) / f"compiles-{label.split()[0]}.jsonl"
+                t_token, times, done, t0 = demo_run(cache, Path(tmp) / label.split()[0], log)
                 on_map = max(times.on_map.values(), default=float("nan"))
                 tracked = sorted(times.tracked.values()) or [float("nan")]
                 cold = label.startswith("cold")
                 met = "yes" if tracked[-1] < DEMO_TARGET_S else "no"  # every agent tracked
+                recs = compiles(log, t0)
+                cpu = [compile_cpu(recs, role, until) for until in (math.inf, tracked[-1])
+                       for role in ("demo", "worker")]
                 table.add_row(label, f"{t_token:.1f}", f"{on_map:.1f}", f"{tracked[0]:.1f}",
                               f"{tracked[-1]:.1f}", f"{DEMO_TARGET_S:.0f}" if cold else "-",
-                              met if cold else "-", "-" if done is None else f"{done:.1f}")
+                              met if cold else "-", "-" if done is None else f"{done:.1f}",
+                              f"{cpu[0]:.1f} / {cpu[1]:.1f}", f"{cpu[2]:.1f} / {cpu[3]:.1f}")
+                if cold and listing is not None:
+                    listing.append(compile_listing(recs))
+    return table
+
+
+def compile_listing(records: list[Compile]) -> Table:
+    """The kernels compiled, by start: process, CPU s with the kernels it calls and without."""
+    table = Table("start s", "process", "kernel", "CPU s with callees", "CPU s itself",
+                  title="kernels compiled in the cold demo")
+    for r in sorted(records, key=lambda r: r.start_s):
+        table.add_row(f"{r.start_s:.1f}", r.role, r.kernel, f"{r.cpu_s:.2f}",
+                      f"{r.self_cpu_s:.2f}")
+    for role in ("demo", "worker"):
+        table.add_row("", role, "total", "", f"{compile_cpu(records, role):.1f}")
     return table
 
 
@@ -157,7 +217,13 @@ def main() -> None:
                         help="also time hrtls demo cold and warm (about a minute)")
     parser.add_argument("--demo-runs", type=int, default=1,
                         help="cold and warm demo pairs (each with a new empty cache)")
+    parser.add_argument("--compile-list", action="store_true",
+                        help="print every kernel compiled by each cold demo")
+    parser.add_argument("--precompile", choices=("auto", "0", "1"), default=None,
+                        help="HRTLS_PRECOMPILE for the demo (default: as set, else auto)")
     args = parser.parse_args()
+    if args.precompile is not None:
+        os.environ["HRTLS_PRECOMPILE"] = args.precompile
     table = Table("command", "best s", "median s", "worst s", "target s", "met",
                   title=f"cold start, {args.runs} fresh processes each")
     for label, argv, target in COMMANDS:
@@ -172,7 +238,10 @@ def main() -> None:
                       "-" if target is None else f"{target:.1f}", met)
     Console().print(table)
     if args.demo:
-        Console().print(demo_table(args.demo_runs))
+        listing: list[Table] = []
+        Console().print(demo_table(args.demo_runs, listing if args.compile_list else None))
+        for t in listing:
+            Console().print(t)
 
 
 if __name__ == "__main__":

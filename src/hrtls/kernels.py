@@ -17,6 +17,7 @@ import os
 import pickle
 import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,9 @@ MODULE_NAME = "hrtls_aot_kernels"
 """Name of the ahead-of-time compiled extension module."""
 MANIFEST = "manifest.pkl"
 """File beside the extension: the exports by kernel, their argument types, the sources."""
+COMPILE_LOG = "HRTLS_COMPILE_LOG"
+"""A file to append one JSON line to per compile of a kernel signature (profiling; unset: off).
+"""
 
 _LOCK = threading.RLock()
 REGISTRY: dict[str, Kernel] = {}
@@ -153,6 +157,9 @@ def cooperative(dispatcher: Any) -> Any:
 
     compile_one = dispatcher.compile
     lock_path = f"{index}.lock"
+    log = os.environ.get(COMPILE_LOG)
+    if log:
+        compile_one = _logged(dispatcher, compile_one, log)
 
     def compile(sig: Any) -> Any:
         with global_compiler_lock:
@@ -163,7 +170,9 @@ def cooperative(dispatcher: Any) -> Any:
             except OSError:
                 return compile_one(sig)
             with handle:
+                waited = time.perf_counter()
                 fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes
+                _NESTED.wait_s = time.perf_counter() - waited
                 _HELD.add(lock_path)
                 try:
                     return compile_one(sig)
@@ -172,6 +181,52 @@ def cooperative(dispatcher: Any) -> Any:
 
     dispatcher.compile = compile
     return dispatcher
+
+
+_NESTED = threading.local()
+"""Per thread: CPU seconds of the compiles nested in the one in progress; the last lock wait."""
+
+
+def _logged(dispatcher: Any, compile_one: Callable[[Any], Any], log: str
+            ) -> Callable[[Any], Any]:
+    """``compile_one`` appending a JSON line per call to ``log`` (:data:`COMPILE_LOG`).
+
+    The line: process id and command, kernel, signature, whether numba compiled it (not
+    loaded from its cache), start (Unix time), wall and CPU seconds of the call, CPU seconds
+    less the nested compiles of other kernels (``self_cpu_s``), nesting depth, lock wait.
+    """
+    import json
+
+    name = f"{dispatcher.py_func.__module__}:{dispatcher.py_func.__qualname__}"
+
+    def compile(sig: Any) -> Any:
+        outer = getattr(_NESTED, "stack", None)
+        if outer is None:
+            outer = _NESTED.stack = []
+        wait_s = getattr(_NESTED, "wait_s", 0.0)
+        _NESTED.wait_s = 0.0
+        misses = sum(dispatcher._cache_misses.values())
+        start, wall0, cpu0 = time.time(), time.perf_counter(), time.thread_time()
+        outer.append(0.0)
+        try:
+            return compile_one(sig)
+        finally:
+            cpu = time.thread_time() - cpu0
+            nested = outer.pop()
+            if outer:
+                outer[-1] += cpu
+            line = {"pid": os.getpid(), "argv": " ".join(sys.argv[:2]), "kernel": name,
+                    "sig": str(sig), "depth": len(outer),
+                    "compiled": sum(dispatcher._cache_misses.values()) > misses,
+                    "start": start, "wall_s": time.perf_counter() - wall0, "cpu_s": cpu,
+                    "self_cpu_s": cpu - nested, "wait_s": wait_s}
+            try:
+                with open(log, "a", encoding="utf-8") as fh:
+                    fh.write(json.dumps(line) + "\n")
+            except OSError:
+                pass
+
+    return compile
 
 
 def folder() -> Path:

@@ -130,20 +130,20 @@ def _covered_deg_sorted(d: np.ndarray) -> float:
 @given(st.lists(st.floats(-np.pi, np.pi), min_size=1, max_size=80),
        st.floats(0.1, 50.0))
 def test_covered_angle_equals_the_sorted_reference(angles: list[float], radius: float) -> None:
-    from hrtls.calibration.hard_iron import _spread_kernel
+    from hrtls.calibration.hard_iron import _spread
 
     a = np.asarray(angles)
     d = radius * np.column_stack([np.cos(a), np.sin(a)])
-    arc, extent = _spread_kernel(d)
+    arc, extent = _spread(d)
     assert arc == pytest.approx(_covered_deg_sorted(d), abs=1e-9)
     assert extent == pytest.approx(max(np.ptp(d[:, 0]), np.ptp(d[:, 1])))
 
 
 def test_covered_angle_hand_computed() -> None:
-    from hrtls.calibration.hard_iron import _spread_kernel
+    from hrtls.calibration.hard_iron import _spread
 
     # directions 0, 90 and 180 deg: the widest gap is the 180 deg from 180 back to 0
     d = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
-    assert _spread_kernel(d)[0] == pytest.approx(180.0)
+    assert _spread(d)[0] == pytest.approx(180.0)
     # a single direction covers nothing
-    assert _spread_kernel(np.array([[0.0, 2.0]]))[0] == pytest.approx(0.0)
+    assert _spread(np.array([[0.0, 2.0]]))[0] == pytest.approx(0.0)

@@ -31,6 +31,7 @@ one radius: with less turning the centre is not determined.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,14 +40,13 @@ from numpy.typing import ArrayLike
 from hrtls.data import ImuStream
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
-from hrtls.kernels import njit
 
-__all__ = ["HardIronFit", "fit_hard_iron"]
+__all__ = ["HardIronFit", "checked_fit", "fit_hard_iron", "plane_basis"]
 
 _GATE_PASSES = 3
 """Refits after dropping the samples off the circle (sphere)."""
 FIT_OK, FIT_FAILED, FIT_NARROW, FIT_SHORT_ARC = 0, 1, 2, 3
-"""Outcomes of :func:`checked_fit_kernel`: accepted; a fit gave ``r^2 <= 0``; radius below
+"""Outcomes of :func:`checked_fit`: accepted; a fit gave ``r^2 <= 0``; radius below
 ``min_field_ut`` or samples spanning less than one radius; too little turning."""
 
 
@@ -68,124 +68,74 @@ class HardIronFit:
     n_used: int
 
 
-@njit(cache=True)
-def _solve_kernel(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
+def _sequential_sum(x: FloatArray) -> FloatArray:
+    """Sums over the first axis added in row order, from the first row.
+
+    ``np.sum`` adds in pairs (other rounding); the fit's sums keep this order at any length.
+    """
+    return np.cumsum(x, axis=0)[-1]
+
+
+def _solve(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
     """Least-squares circle (sphere) through the rows ``keep`` of ``p``: ``(centre, r^2)``.
 
     ``|u|^2 = 2 c.u + k`` for ``u = p - mean``, by the normal equations of its (k+1) unknowns
     (Gaussian elimination with partial pivoting); ``r^2 = k + |c|^2``.
     """
-    dim = p.shape[1]
-    if dim == 2:
-        return _solve_plane(p, keep)
-    n = 0
-    mean = np.zeros(dim)
-    for i in range(p.shape[0]):
-        if keep[i]:
-            n += 1
-            for a in range(dim):
-                mean[a] += p[i, a]
-    for a in range(dim):
-        mean[a] /= n
-    m = np.zeros((dim + 1, dim + 2))      # [A^T A | A^T b], A = [2u, 1], b = |u|^2
-    row = np.empty(dim + 1)
-    row[dim] = 1.0
-    for i in range(p.shape[0]):
-        if not keep[i]:
-            continue
-        bb = 0.0
-        for a in range(dim):
-            u = p[i, a] - mean[a]
-            row[a] = 2.0 * u
-            bb += u * u
-        for a in range(dim + 1):
-            for b in range(a, dim + 1):
-                m[a, b] += row[a] * row[b]
-            m[a, dim + 1] += row[a] * bb
-    for a in range(dim + 1):    # A^T A is symmetric: the lower triangle from the upper
-        for b in range(a):
-            m[a, b] = m[b, a]
-    return _eliminate(m, mean)
+    q = p[keep]
+    mean = _sequential_sum(q) / len(q)
+    u = q - mean
+    rows = np.empty((len(q), q.shape[1] + 1))      # A = [2u, 1], b = |u|^2
+    rows[:, :-1] = 2.0 * u
+    rows[:, -1] = 1.0
+    bb = u[:, 0] * u[:, 0]
+    for a in range(1, q.shape[1]):
+        bb = bb + u[:, a] * u[:, a]
+    m = _sequential_sum(np.concatenate([rows[:, :, None] * rows[:, None, :],
+                                        (rows * bb[:, None])[:, :, None]], axis=2))
+    return _eliminate(m.tolist(), mean.tolist())
 
 
-@njit(cache=True)
-def _eliminate(m: FloatArray, mean: FloatArray) -> tuple[FloatArray, float]:
-    # pragma: no cover - compiled
+def _eliminate(m: list[list[float]], mean: list[float]) -> tuple[FloatArray, float]:
     """Centre and ``r^2`` from the normal equations ``m = [A^T A | A^T b]`` of the rows ``u``.
 
-    Gaussian elimination with partial pivoting (``m`` is overwritten).
+    Gaussian elimination with partial pivoting in Python floats (``m`` is overwritten; a
+    singular system raises :class:`ZeroDivisionError`).
     """
-    dim = mean.shape[0]
+    dim = len(mean)
     k = dim + 1
     for col in range(k):
         piv = col
         for r in range(col + 1, k):
-            if abs(m[r, col]) > abs(m[piv, col]):
+            if abs(m[r][col]) > abs(m[piv][col]):
                 piv = r
-        if piv != col:
-            for c in range(k + 1):
-                tmp = m[col, c]
-                m[col, c] = m[piv, c]
-                m[piv, c] = tmp
+        m[col], m[piv] = m[piv], m[col]
         for r in range(col + 1, k):
-            f = m[r, col] / m[col, col]
+            f = m[r][col] / m[col][col]
             for c in range(col, k + 1):
-                m[r, c] -= f * m[col, c]
-    x = np.zeros(k)
+                m[r][c] -= f * m[col][c]
+    x = [0.0] * k
     for r in range(k - 1, -1, -1):
-        acc = m[r, k]
+        acc = m[r][k]
         for c in range(r + 1, k):
-            acc -= m[r, c] * x[c]
-        x[r] = acc / m[r, r]
-    centre = np.empty(dim)
-    r2 = float(x[dim])
+            acc -= m[r][c] * x[c]
+        x[r] = acc / m[r][r]
+    r2 = x[dim]
     for a in range(dim):
         r2 += x[a] * x[a]
-        centre[a] = mean[a] + x[a]
-    return centre, r2
+    return np.array([mean[a] + x[a] for a in range(dim)]), r2
 
 
-@njit(cache=True)
-def _solve_plane(p: FloatArray, keep: np.ndarray) -> tuple[FloatArray, float]:
-    # pragma: no cover - compiled
-    """:func:`_solve_kernel` for 2-D rows, its sums in scalars (the same order of operations)."""
-    n = 0
-    m0 = 0.0
-    m1 = 0.0
-    for i in range(p.shape[0]):
-        if keep[i]:
-            n += 1
-            m0 += p[i, 0]
-            m1 += p[i, 1]
-    m0 /= n
-    m1 /= n
-    a00 = a01 = a02 = a11 = a12 = a22 = b0 = b1 = b2 = 0.0
-    for i in range(p.shape[0]):
-        if not keep[i]:
-            continue
-        u0 = p[i, 0] - m0
-        u1 = p[i, 1] - m1
-        r0 = 2.0 * u0
-        r1 = 2.0 * u1
-        bb = 0.0 + u0 * u0
-        bb += u1 * u1
-        a00 += r0 * r0
-        a01 += r0 * r1
-        a02 += r0
-        b0 += r0 * bb
-        a11 += r1 * r1
-        a12 += r1
-        b1 += r1 * bb
-        a22 += 1.0
-        b2 += bb
-    m = np.array([[a00, a01, a02, b0], [a01, a11, a12, b1], [a02, a12, a22, b2]])
-    mean = np.array([m0, m1])
-    return _eliminate(m, mean)
+def _distance(p: FloatArray, c: FloatArray) -> FloatArray:
+    """Distance of each row of ``p`` from ``c`` (squares added in axis order)."""
+    d2 = (p[:, 0] - c[0]) * (p[:, 0] - c[0])
+    for a in range(1, p.shape[1]):
+        d2 = d2 + (p[:, a] - c[a]) * (p[:, a] - c[a])
+    return np.sqrt(d2)
 
 
-@njit(cache=True)
-def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, passes: int
-                      ) -> tuple[FloatArray, float, np.ndarray, bool]:
+def _gated_fit(p: FloatArray, gate_fraction: float, min_samples: int, passes: int
+               ) -> tuple[FloatArray, float, np.ndarray, bool]:
     """The fit, then up to ``passes`` refits on the samples within the gate of the latest.
 
     Each pass judges all samples (inliers a biased first fit dropped come back); it stops when
@@ -194,109 +144,59 @@ def _gated_fit_kernel(p: FloatArray, gate_fraction: float, min_samples: int, pas
     """
     n = p.shape[0]
     keep = np.ones(n, dtype=np.bool_)
-    c, r2 = _solve_kernel(p, keep)
+    c, r2 = _solve(p, keep)
     if not r2 > 0.0:
         return c, 0.0, keep, False
     r = math.sqrt(r2)
     n_used = n
-    first = True
-    for _ in range(passes):
-        new = np.empty(n, dtype=np.bool_)
-        n_new = 0
-        for i in range(n):
-            d2 = 0.0
-            for a in range(p.shape[1]):
-                d = p[i, a] - c[a]
-                d2 += d * d
-            new[i] = abs(math.sqrt(d2) - r) <= gate_fraction * r
-            n_new += new[i]
-        if n_new < min_samples or (n_used == n_new and not first):
+    for k in range(passes):
+        new = np.abs(_distance(p, c) - r) <= gate_fraction * r
+        n_new = int(new.sum())
+        if n_new < min_samples or (n_used == n_new and k > 0):
             break
-        keep = new
-        n_used = n_new
-        first = False
-        c, r2 = _solve_kernel(p, keep)
+        keep, n_used = new, n_new
+        c, r2 = _solve(p, keep)
         if not r2 > 0.0:
             return c, 0.0, keep, False
         r = math.sqrt(r2)
     return c, r, keep, True
 
 
-@njit(cache=True)
-def _spread_kernel(d: FloatArray) -> tuple[float, float]:
+def _spread(d: FloatArray) -> tuple[float, float]:
     """Angle covered by the 2-D vectors ``d`` (N, 2) around the origin, deg; their extent.
 
-    The angle is 360 deg less the widest gap between neighbouring directions (the wrap-around
-    gap included), found without sorting: N directions over a range R leave a gap of at least
-    R / (N - 1), wider than each of N + 1 buckets of width R / N, so the widest gap lies between
-    the largest direction of a bucket and the smallest of the next non-empty one (the bucket
-    index never decreases with the direction). The extent is the largest range of one
-    coordinate.
+    The angle is 360 deg less the widest gap between neighbouring directions, the wrap-around
+    gap included. The extent is the largest range of one coordinate.
     """
-    n = d.shape[0]
-    ang = np.empty(n)
-    lo, hi = math.inf, -math.inf
-    for i in range(n):
-        ang[i] = math.atan2(d[i, 1], d[i, 0])
-        lo = min(lo, ang[i])
-        hi = max(hi, ang[i])
+    ang = np.sort(np.arctan2(d[:, 1], d[:, 0]))
+    lo, hi = float(ang[0]), float(ang[-1])
     gap = lo + 2.0 * math.pi - hi
-    if hi > lo:
-        b_min = np.full(n + 1, math.inf)
-        b_max = np.full(n + 1, -math.inf)
-        scale = n / (hi - lo)
-        for i in range(n):
-            k = min(int((ang[i] - lo) * scale), n)
-            b_min[k] = min(b_min[k], ang[i])
-            b_max[k] = max(b_max[k], ang[i])
-        prev = b_max[0]
-        for k in range(1, n + 1):
-            if b_min[k] <= b_max[k]:
-                gap = max(gap, b_min[k] - prev)
-                prev = b_max[k]
-    extent = 0.0
-    for a in range(d.shape[1]):
-        extent = max(extent, d[:, a].max() - d[:, a].min())
+    if len(ang) > 1:
+        gap = max(gap, float(np.diff(ang).max()))
+    extent = float((d.max(axis=0) - d.min(axis=0)).max())
     return 360.0 - math.degrees(gap), extent
 
 
-@njit(cache=True)
-def _fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
-                passes: int) -> tuple[bool, FloatArray, float, float, FloatArray]:
+def _fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
+         passes: int) -> tuple[bool, FloatArray, float, float, FloatArray]:
     """Samples ``m`` (N, 3) projected on the rows of ``basis``, gated fit, residual.
 
     Returns ``(ok, c, r, residual, d)`` with the centre ``c`` in the projected coordinates and
     ``d`` the kept samples about it (``n_used`` rows); ``ok`` false: a fit gave ``r^2 <= 0``
     (the rest is then unset).
     """
-    n, dim = m.shape[0], basis.shape[0]
-    p = np.empty((n, dim))
-    for i in range(n):
-        for a in range(dim):
-            p[i, a] = m[i, 0] * basis[a, 0] + m[i, 1] * basis[a, 1] + m[i, 2] * basis[a, 2]
-    c, r, keep, ok = _gated_fit_kernel(p, gate_fraction, min_samples, passes)
+    p = np.stack([m[:, 0] * b[0] + m[:, 1] * b[1] + m[:, 2] * b[2] for b in basis], axis=1)
+    c, r, keep, ok = _gated_fit(p, gate_fraction, min_samples, passes)
     if not ok:
-        return False, c, 0.0, math.nan, np.empty((0, dim))
-    n_used = int(keep.sum())
-    d = np.empty((n_used, dim))
-    k = 0
-    for i in range(n):
-        if keep[i]:
-            for a in range(dim):
-                d[k, a] = p[i, a] - c[a]
-            k += 1
-    resid = 0.0
-    for i in range(n_used):
-        d2 = 0.0
-        for a in range(dim):
-            d2 += d[i, a] * d[i, a]
-        resid += (math.sqrt(d2) - r) ** 2
-    resid = math.sqrt(resid / n_used)
+        return False, c, 0.0, math.nan, np.empty((0, basis.shape[0]))
+    d = p[keep] - c
+    e = _distance(d, np.zeros(d.shape[1])) - r
+    resid = math.sqrt(float(_sequential_sum(e * e)) / len(d))
     return True, c, r, resid, d
 
 
 def _main_axes(d: FloatArray) -> FloatArray:
-    """The 3-D vectors ``d`` in the plane of their two main axes (N, 2); numpy, offline only."""
+    """The 3-D vectors ``d`` in the plane of their two main axes (N, 2)."""
     _, _, vt = np.linalg.svd(d - d.sum(axis=0) / len(d), full_matrices=False)
     return np.ascontiguousarray(d @ np.ascontiguousarray(vt[:2].T))
 
@@ -310,80 +210,49 @@ def _plane_basis(up_d: ArrayLike | None) -> FloatArray:
     if not (math.isfinite(norm) and norm > 0.0):
         raise InputError(f"up_d = {up_d!r}", where="hard-iron fit",
                          expected="a finite non-zero 3-vector")
-    return plane_basis_kernel(up)
+    return plane_basis(up)
 
 
-@njit(cache=True)
-def plane_basis_kernel(up_d: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+def plane_basis(up_d: FloatArray) -> FloatArray:
     """Rows (2, 3) spanning the plane perpendicular to ``up_d`` (finite, non-zero)."""
-    up = up_d / math.sqrt(up_d[0] * up_d[0] + up_d[1] * up_d[1] + up_d[2] * up_d[2])
-    axis = np.zeros(3)
-    axis[np.argmin(np.abs(up))] = 1.0
+    u0, u1, u2 = (float(v) for v in up_d)
+    norm = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    up = (u0 / norm, u1 / norm, u2 / norm)
+    axis = [0.0, 0.0, 0.0]
+    axis[int(np.argmin(np.abs(up)))] = 1.0
     e1 = _cross3(up, axis)            # up x its least aligned axis
-    e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-    e2 = _cross3(up, e1)
-    out = np.empty((2, 3))
-    for a in range(3):   # element by element: no numba shape-mismatch message to compile
-        out[0, a] = e1[a]
-        out[1, a] = e2[a]
-    return out
+    n1 = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    e1 = [v / n1 for v in e1]
+    return np.array([e1, _cross3(up, e1)])
 
 
-@njit(cache=True)
-def _cross3(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+def _cross3(a: Sequence[float], b: Sequence[float]) -> list[float]:
     """``a x b`` of two 3-vectors."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
-@njit(cache=True)
-def checked_fit_kernel(m: FloatArray, basis: FloatArray, gate_fraction: float,
-                       min_samples: int, min_field_ut: float, min_arc_deg: float
-                       ) -> tuple[int, FloatArray, float, float, float, float, int]:
-    # pragma: no cover - compiled
-    """:func:`_fit_kernel` on a plane ``basis`` (2, 3), coverage and the acceptance tests.
+def checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
+                min_field_ut: float, min_arc_deg: float
+                ) -> tuple[int, FloatArray, float, float, float, float, int]:
+    """:func:`_fit` on a plane ``basis`` (2, 3) or the identity (a sphere), and its tests.
 
-    Returns ``(code, c, r, residual, arc_deg, extent, n_used)``: ``code`` one of ``FIT_*``,
-    ``c`` the offset in the device frame (``centre @ basis``, valid with ``FIT_OK``).
+    Returns ``(code, c, r, residual, arc_deg, extent, n_used)``: ``code`` one of ``FIT_*``
+    (the acceptance tests), ``c`` the offset in the device frame (``centre @ basis``, valid
+    with ``FIT_OK``). For a sphere the coverage is measured in the plane of the two main axes
+    of the kept samples.
     """
-    ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
-    arc, extent = _spread_kernel(d) if ok else (math.nan, math.nan)
-    return _accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
-                      min_arc_deg)
-
-
-@njit(cache=True)
-def _accept_fit(ok: bool, cp: FloatArray, basis: FloatArray, r: float, resid: float, arc: float,
-               extent: float, n_used: int, min_field_ut: float, min_arc_deg: float
-               ) -> tuple[int, FloatArray, float, float, float, float, int]:
-    # pragma: no cover - compiled
-    """The acceptance tests of a fit: :func:`checked_fit_kernel`'s result from its parts."""
+    ok, cp, r, resid, d = _fit(m, basis, gate_fraction, min_samples, _GATE_PASSES)
+    n_used = d.shape[0]
     c = np.zeros(3)
     if not ok:
-        return FIT_FAILED, c, r, resid, arc, extent, n_used
-    for j in range(3):
-        for a in range(basis.shape[0]):
-            c[j] += cp[a] * basis[a, j]
+        return FIT_FAILED, c, r, resid, math.nan, math.nan, n_used
+    arc, extent = _spread(d if basis.shape[0] == 2 else _main_axes(d))
+    for a in range(basis.shape[0]):
+        c = c + cp[a] * basis[a]
     # samples that hardly move (no turning) fit a small circle around their own noise
     code = (FIT_NARROW if r < min_field_ut or extent < r
             else FIT_SHORT_ARC if arc < min_arc_deg else FIT_OK)
     return code, c, r, resid, arc, extent, n_used
-
-
-def _checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samples: int,
-                 min_field_ut: float, min_arc_deg: float
-                 ) -> tuple[int, FloatArray, float, float, float, float, int]:
-    """:func:`checked_fit_kernel` for a plane ``basis``, or for the identity (a sphere).
-
-    For a sphere the coverage is measured in the plane of the two main axes of the kept samples.
-    """
-    if basis.shape[0] == 2:
-        return checked_fit_kernel(m, basis, gate_fraction, min_samples, min_field_ut,
-                                  min_arc_deg)
-    ok, cp, r, resid, d = _fit_kernel(m, basis, gate_fraction, min_samples, _GATE_PASSES)
-    arc, extent = _spread_kernel(_main_axes(d)) if ok else (math.nan, math.nan)
-    return _accept_fit(ok, cp, basis, r, resid, arc, extent, d.shape[0], min_field_ut,
-                      min_arc_deg)
 
 
 def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
@@ -417,7 +286,7 @@ def fit_hard_iron(mag_ut: ArrayLike, *, up_d: ArrayLike | None = None,
         raise InputError(f"{len(m)} finite samples", where="hard-iron fit",
                          expected=f"at least {min_samples}")
     basis = _plane_basis(up_d)
-    code, c, r, resid, arc, extent, n_used = _checked_fit(
+    code, c, r, resid, arc, extent, n_used = checked_fit(
         np.ascontiguousarray(m), basis, float(gate_fraction), int(min_samples),
         float(min_field_ut), float(min_arc_deg))
     if code == FIT_FAILED:

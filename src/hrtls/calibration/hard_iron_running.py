@@ -3,7 +3,8 @@
 The raw field is averaged over consecutive blocks of ``block_samples`` samples (about one second,
 see the fit's module notes), together with the accelerometer (the device's up direction). Every
 ``refit_blocks`` completed blocks, the fit and the acceptance tests of
-:func:`~hrtls.calibration.hard_iron.fit_hard_iron` (one compiled pass per chunk) are run on
+:func:`~hrtls.calibration.hard_iron.fit_hard_iron` (numpy, the blocks between two refits
+handled together) are run on
 the block means kept so far, with the mean accelerometer reading of those blocks as up
 direction. A successful fit is *accepted* and applied to the samples after the block that
 completed it; before the first accepted fit the offset is unknown (NaN, the field is used raw);
@@ -23,10 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrtls.calibration.hard_iron import FIT_OK, checked_fit_kernel, plane_basis_kernel
+from hrtls.calibration.hard_iron import FIT_OK, checked_fit, plane_basis
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
-from hrtls.kernels import njit
 
 __all__ = ["RunningHardIron", "RunningHardIronParams", "RunningHardIronState"]
 
@@ -124,11 +124,9 @@ class RunningHardIron:
         k = (n - pos) // bs
         if k:
             end = pos + k * bs
-            m_mean, a_mean = np.empty((k, 3)), np.empty((k, 3))
-            good = np.empty(k, dtype=np.bool_)
-            block_means_kernel(np.ascontiguousarray(mag_ut[pos:end], dtype=np.float64),
-                               np.ascontiguousarray(acc_m_s2[pos:end], dtype=np.float64), bs,
-                               m_mean, a_mean, good)
+            m_mean, a_mean, good = block_means(np.asarray(mag_ut[pos:end], dtype=np.float64),
+                                               np.asarray(acc_m_s2[pos:end], dtype=np.float64),
+                                               bs)
             self._close_blocks(m_mean, a_mean, good,
                                np.ascontiguousarray(t[pos + bs - 1:end:bs]), out[pos:end])
             pos = end
@@ -155,99 +153,83 @@ class RunningHardIron:
 
     def _close_blocks(self, mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
                       t_end: FloatArray, out: FloatArray) -> None:
-        """Completed blocks (``good``: no gap) in one compiled pass; ``out``: their samples."""
+        """Close blocks in order (``good``: no gap), refitting when due.
+
+        ``out``: their samples (``len(mag_mean) * block_samples`` rows, or none), each block's
+        the offset in force before it closed. Between two refits the blocks are handled
+        together.
+        """
         st, prm = self.state, self.params
-        ints = np.array([st.n_kept, st.n_good, st.n_closed, st.stride, st.n_used, st.n_fits])
-        fl = np.array([st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted])
-        st.acc_sum = st.acc_sum.copy()
-        st.c_ut = st.c_ut.copy()
-        close_blocks_kernel(mag_mean, acc_mean, good, t_end, st.blocks_mag, st.acc_sum, st.c_ut,
-                            ints, fl, out, prm.refit_blocks, prm.max_blocks, prm.min_samples,
-                            prm.gate_fraction, prm.min_field_ut, prm.min_arc_deg)
-        st.n_kept, st.n_good, st.n_closed, st.stride, st.n_used, st.n_fits = \
-            (int(v) for v in ints)
-        st.field_ut, st.residual_ut, st.arc_deg, st.t_accepted = (float(v) for v in fl)
+        k = len(mag_mean)
+        bs = out.shape[0] // k
+        b = 0
+        while b < k:
+            e = min(k, b + prm.refit_blocks - st.n_closed % prm.refit_blocks)
+            out[b * bs:e * bs] = st.c_ut
+            ok = good[b:e]
+            self._keep(mag_mean[b:e][ok])
+            st.acc_sum = _sequential_sum(np.vstack([st.acc_sum[None], acc_mean[b:e][ok]]))
+            st.n_closed += e - b
+            if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
+                self._refit(float(t_end[e - 1]))
+            b = e
 
+    def _keep(self, means: FloatArray) -> None:
+        """Keep every ``stride``-th good block mean (counted over all good blocks).
 
-@njit(cache=True)
-def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: FloatArray,
-                       acc_mean: FloatArray, good: np.ndarray) -> None:
-    # pragma: no cover - compiled
-    """Means of consecutive blocks of ``bs`` rows, summed in row order as numpy's ``mean``.
+        More than ``max_blocks`` kept: every second one is dropped and the stride doubles.
+        """
+        st, cap = self.state, self.params.max_blocks
+        pos = 0
+        while pos < len(means):
+            due = pos + np.flatnonzero((st.n_good + np.arange(len(means) - pos)) % st.stride == 0)
+            take = due[:cap + 1 - st.n_kept]
+            st.blocks_mag[st.n_kept:st.n_kept + len(take)] = means[take]
+            st.n_kept += len(take)
+            if st.n_kept <= cap:
+                st.n_good += len(means) - pos
+                return
+            st.n_good += int(take[-1]) + 1 - pos
+            pos = int(take[-1]) + 1
+            half = (st.n_kept + 1) // 2
+            st.blocks_mag[:half] = st.blocks_mag[:st.n_kept:2].copy()
+            st.n_kept = half
+            st.stride *= 2
 
-    ``good``: every value of the block is finite (else its means are left unset).
-    """
-    for b in range(mag_mean.shape[0]):
-        i0 = b * bs
-        ok = True
-        for i in range(i0, i0 + bs):
-            for a in range(3):
-                ok = ok and math.isfinite(mag[i, a]) and math.isfinite(acc[i, a])
-        good[b] = ok
-        if not ok:
-            continue
-        for a in range(3):
-            sm = mag[i0, a]
-            sa = acc[i0, a]
-            for i in range(i0 + 1, i0 + bs):
-                sm += mag[i, a]
-                sa += acc[i, a]
-            mag_mean[b, a] = sm / bs
-            acc_mean[b, a] = sa / bs
-
-
-@njit(cache=True)
-def close_blocks_kernel(mag_mean: FloatArray, acc_mean: FloatArray, good: np.ndarray,
-                        t_end: FloatArray, blocks_mag: FloatArray, acc_sum: FloatArray,
-                        c_ut: FloatArray, ints: np.ndarray, fl: FloatArray, out: FloatArray,
-                        refit_blocks: int, max_blocks: int, min_samples: int,
-                        gate_fraction: float, min_field_ut: float,
-                        min_arc_deg: float) -> None:  # pragma: no cover - compiled
-    """Close blocks in order, keeping their means and refitting when due (state in place).
-
-    ``ints``: ``[n_kept, n_good, n_closed, stride, n_used, n_fits]``; ``fl``: ``[field_ut,
-    residual_ut, arc_deg, t_accepted]`` of :class:`RunningHardIronState`. ``out`` (``k bs``,
-    3) gets, for the samples of each block, the offset in force before the block closed
-    (``out`` may be empty: not written). Rows are copied element by element (no numba
-    shape-mismatch message to compile, :func:`hrtls.data._interp_kernel.interp_columns_kernel`).
-    """
-    n_kept, n_good, n_closed, stride = ints[0], ints[1], ints[2], ints[3]
-    bs = out.shape[0] // mag_mean.shape[0]
-    for b in range(mag_mean.shape[0]):
-        for i in range(b * bs, (b + 1) * bs):
-            for a in range(3):
-                out[i, a] = c_ut[a]
-        n_closed += 1
-        if good[b]:
-            if n_good % stride == 0:
-                for a in range(3):
-                    blocks_mag[n_kept, a] = mag_mean[b, a]
-                n_kept += 1
-                if n_kept > max_blocks:   # thin evenly: every second kept mean
-                    half = (n_kept + 1) // 2
-                    for k in range(half):   # row k <- row 2k (k <= 2k: in place)
-                        for a in range(3):
-                            blocks_mag[k, a] = blocks_mag[2 * k, a]
-                    n_kept = half
-                    stride *= 2
-            acc_sum += acc_mean[b]
-            n_good += 1
-        if n_closed % refit_blocks != 0 or n_kept < min_samples:
-            continue
-        up = acc_sum / max(n_good, 1)
-        norm2 = up[0] * up[0] + up[1] * up[1] + up[2] * up[2]
+    def _refit(self, t_end: float) -> None:
+        """The fit on the kept block means; accepted, it is the offset from now on."""
+        st, prm = self.state, self.params
+        up = st.acc_sum / max(st.n_good, 1)
+        norm2 = float(up[0] * up[0] + up[1] * up[1] + up[2] * up[2])
         if not (math.isfinite(norm2) and norm2 > 0.0):
-            continue
-        code, c, r, resid, arc, _, n_used = checked_fit_kernel(
-            blocks_mag[:n_kept], plane_basis_kernel(up), gate_fraction, min_samples,
-            min_field_ut, min_arc_deg)
+            return
+        code, c, r, resid, arc, _, n_used = checked_fit(
+            st.blocks_mag[:st.n_kept], plane_basis(up), prm.gate_fraction, prm.min_samples,
+            prm.min_field_ut, prm.min_arc_deg)
         if code != FIT_OK:
-            continue   # a refused refit keeps the last accepted offset
-        if not np.all(np.isfinite(c_ut)):
-            fl[3] = t_end[b]
-        for a in range(3):
-            c_ut[a] = c[a]
-        fl[0], fl[1], fl[2] = r, resid, arc
-        ints[4] = n_used
-        ints[5] += 1
-    ints[0], ints[1], ints[2], ints[3] = n_kept, n_good, n_closed, stride
+            return   # a refused refit keeps the last accepted offset
+        if not np.all(np.isfinite(st.c_ut)):
+            st.t_accepted = t_end
+        st.c_ut = c
+        st.field_ut, st.residual_ut, st.arc_deg = r, resid, arc
+        st.n_used = n_used
+        st.n_fits += 1
+
+
+def block_means(mag: FloatArray, acc: FloatArray, bs: int
+                ) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """Means of consecutive blocks of ``bs`` rows, and whether each block is all finite.
+
+    Summed in row order, as ``mean(axis=0)`` of one block; a block with a value that is not
+    finite gets meaningless means (``good`` false).
+    """
+    k = len(mag) // bs
+    m = mag[:k * bs].reshape(k, bs, 3)
+    a = acc[:k * bs].reshape(k, bs, 3)
+    good = np.isfinite(m).all(axis=(1, 2)) & np.isfinite(a).all(axis=(1, 2))
+    return np.cumsum(m, axis=1)[:, -1] / bs, np.cumsum(a, axis=1)[:, -1] / bs, good
+
+
+def _sequential_sum(x: FloatArray) -> FloatArray:
+    """Sum over the first axis added in row order (as a running sum would)."""
+    return np.cumsum(x, axis=0)[-1]
