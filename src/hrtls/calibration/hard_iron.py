@@ -37,17 +37,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hrtls.calibration._running_fit_kernel import (
+    FIT_FAILED,
+    FIT_NARROW,
+    FIT_OK,
+    FIT_SHORT_ARC,
+    GATE_PASSES,
+)
 from hrtls.data import ImuStream
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
 __all__ = ["HardIronFit", "checked_fit", "fit_hard_iron", "plane_basis"]
-
-_GATE_PASSES = 3
-"""Refits after dropping the samples off the circle (sphere)."""
-FIT_OK, FIT_FAILED, FIT_NARROW, FIT_SHORT_ARC = 0, 1, 2, 3
-"""Outcomes of :func:`checked_fit`: accepted; a fit gave ``r^2 <= 0``; radius below
-``min_field_ut`` or samples spanning less than one radius; too little turning."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -241,7 +242,7 @@ def checked_fit(m: FloatArray, basis: FloatArray, gate_fraction: float, min_samp
     with ``FIT_OK``). For a sphere the coverage is measured in the plane of the two main axes
     of the kept samples.
     """
-    ok, cp, r, resid, d = _fit(m, basis, gate_fraction, min_samples, _GATE_PASSES)
+    ok, cp, r, resid, d = _fit(m, basis, gate_fraction, min_samples, GATE_PASSES)
     n_used = d.shape[0]
     c = np.zeros(3)
     if not ok:

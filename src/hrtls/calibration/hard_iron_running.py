@@ -3,12 +3,12 @@
 The raw field is averaged over consecutive blocks of ``block_samples`` samples (about one second,
 see the fit's module notes), together with the accelerometer (the device's up direction). Every
 ``refit_blocks`` completed blocks, the fit and the acceptance tests of
-:func:`~hrtls.calibration.hard_iron.fit_hard_iron` (numpy, the blocks between two refits
-handled together) are run on
-the block means kept so far, with the mean accelerometer reading of those blocks as up
-direction. A successful fit is *accepted* and applied to the samples after the block that
-completed it; before the first accepted fit the offset is unknown (NaN, the field is used raw);
-a refused refit keeps the last accepted offset.
+:func:`~hrtls.calibration.hard_iron.fit_hard_iron` (one compiled pass,
+:mod:`hrtls.calibration._running_fit_kernel`) are run on the block means kept so far, with the
+mean accelerometer reading of those blocks as up direction; the blocks between two refits are
+handled together (numpy). A successful fit is *accepted* and applied to the samples after the
+block that completed it; before the first accepted fit the offset is unknown (NaN, the field is
+used raw); a refused refit keeps the last accepted offset.
 
 Blocks are counted in samples from the first one, so the estimate at a sample is the same
 however the recording is cut into chunks, and it never depends on later samples. Memory is
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrtls.calibration.hard_iron import FIT_OK, checked_fit, plane_basis
+from hrtls.calibration._running_fit_kernel import FIT_OK, running_fit_kernel
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
 
@@ -162,13 +162,17 @@ class RunningHardIron:
         st, prm = self.state, self.params
         k = len(mag_mean)
         bs = out.shape[0] // k
+        goods = np.flatnonzero(good)
+        means = mag_mean[goods]
+        # running sums of the accelerometer means, added in block order
+        acc_run = np.cumsum(np.vstack([st.acc_sum[None], acc_mean[goods]]), axis=0)
+        n_before = np.r_[0, np.cumsum(good)]     # good blocks before each block
         b = 0
         while b < k:
             e = min(k, b + prm.refit_blocks - st.n_closed % prm.refit_blocks)
             out[b * bs:e * bs] = st.c_ut
-            ok = good[b:e]
-            self._keep(mag_mean[b:e][ok])
-            st.acc_sum = _sequential_sum(np.vstack([st.acc_sum[None], acc_mean[b:e][ok]]))
+            self._keep(means[n_before[b]:n_before[e]])
+            st.acc_sum = acc_run[n_before[e]]
             st.n_closed += e - b
             if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
                 self._refit(float(t_end[e - 1]))
@@ -180,6 +184,11 @@ class RunningHardIron:
         More than ``max_blocks`` kept: every second one is dropped and the stride doubles.
         """
         st, cap = self.state, self.params.max_blocks
+        if st.stride == 1 and st.n_kept + len(means) <= cap:    # all kept, no thinning
+            st.blocks_mag[st.n_kept:st.n_kept + len(means)] = means
+            st.n_kept += len(means)
+            st.n_good += len(means)
+            return
         pos = 0
         while pos < len(means):
             due = pos + np.flatnonzero((st.n_good + np.arange(len(means) - pos)) % st.stride == 0)
@@ -203,16 +212,17 @@ class RunningHardIron:
         norm2 = float(up[0] * up[0] + up[1] * up[1] + up[2] * up[2])
         if not (math.isfinite(norm2) and norm2 > 0.0):
             return
-        code, c, r, resid, arc, _, n_used = checked_fit(
-            st.blocks_mag[:st.n_kept], plane_basis(up), prm.gate_fraction, prm.min_samples,
-            prm.min_field_ut, prm.min_arc_deg)
+        fit = np.empty(6)
+        code, n_used = running_fit_kernel(st.blocks_mag[:st.n_kept], up, prm.gate_fraction,
+                                          prm.min_samples, prm.min_field_ut, prm.min_arc_deg,
+                                          fit)
         if code != FIT_OK:
             return   # a refused refit keeps the last accepted offset
         if not np.all(np.isfinite(st.c_ut)):
             st.t_accepted = t_end
-        st.c_ut = c
-        st.field_ut, st.residual_ut, st.arc_deg = r, resid, arc
-        st.n_used = n_used
+        st.c_ut = fit[:3].copy()
+        st.field_ut, st.residual_ut, st.arc_deg = (float(v) for v in fit[3:])
+        st.n_used = int(n_used)
         st.n_fits += 1
 
 
@@ -227,9 +237,5 @@ def block_means(mag: FloatArray, acc: FloatArray, bs: int
     m = mag[:k * bs].reshape(k, bs, 3)
     a = acc[:k * bs].reshape(k, bs, 3)
     good = np.isfinite(m).all(axis=(1, 2)) & np.isfinite(a).all(axis=(1, 2))
-    return np.cumsum(m, axis=1)[:, -1] / bs, np.cumsum(a, axis=1)[:, -1] / bs, good
-
-
-def _sequential_sum(x: FloatArray) -> FloatArray:
-    """Sum over the first axis added in row order (as a running sum would)."""
-    return np.cumsum(x, axis=0)[-1]
+    # a reduction over the middle axis adds the rows one after the other (no pairwise sums)
+    return m.sum(axis=1) / bs, a.sum(axis=1) / bs, good
