@@ -16,7 +16,11 @@ from tests.calibration.test_hard_iron import walking_field
 
 from hrtls.calibration._running_fit_kernel import running_fit_kernel
 from hrtls.calibration.hard_iron import FIT_FAILED, FIT_OK, checked_fit, plane_basis
-from hrtls.calibration.hard_iron_running import RunningHardIron, RunningHardIronParams
+from hrtls.calibration.hard_iron_running import (
+    RunningHardIron,
+    RunningHardIronParams,
+    block_means,
+)
 
 LOG = "ipin2023/IPIN2023_T3_TrainingTrial04_repetition01.txt"
 
@@ -75,6 +79,33 @@ def test_sphere_fit_equals_the_compiled_fit(seed: int, n: int) -> None:
     assert ok and new[0] == FIT_OK
     np.testing.assert_array_equal(new[1], cp)
     assert (new[2], new[3], new[6]) == (r, resid, len(kept))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), k=st.integers(1, 30), bs=st.integers(1, 150))
+def test_block_means_add_the_rows_in_order(seed: int, k: int, bs: int) -> None:
+    rng = np.random.default_rng(seed)
+    mag = rng.normal(0.0, 30.0, (k * bs + 3, 3)) * 10.0 ** rng.integers(-3, 4, (k * bs + 3, 1))
+    acc = rng.normal(0.0, 9.8, mag.shape)
+    acc[rng.integers(0, len(acc))] = np.nan
+    m_mean, a_mean, good = block_means(mag, acc, bs)
+    for b in range(k):
+        rows = slice(b * bs, (b + 1) * bs)
+        for a in range(3):
+            total = 0.0
+            for v in mag[rows, a]:
+                total += float(v)
+            assert m_mean[b, a] == total / bs
+        assert good[b] == bool(np.isfinite(acc[rows]).all())
+        if good[b]:
+            np.testing.assert_array_equal(a_mean[b], ref_block_mean(acc[rows]))
+
+
+def ref_block_mean(rows: np.ndarray) -> np.ndarray:
+    """Mean of the rows added one after the other (as the compiled kernel did)."""
+    m, a, good = (np.empty((1, 3)), np.empty((1, 3)), np.empty(1, dtype=np.bool_))
+    ref.block_means_kernel(rows, rows, len(rows), m, a, good)
+    return m[0]
 
 
 def _chunks(n: int, cuts: list[int]) -> list[tuple[int, int]]:

@@ -236,6 +236,6 @@ def block_means(mag: FloatArray, acc: FloatArray, bs: int
     k = len(mag) // bs
     m = mag[:k * bs].reshape(k, bs, 3)
     a = acc[:k * bs].reshape(k, bs, 3)
-    good = np.isfinite(m).all(axis=(1, 2)) & np.isfinite(a).all(axis=(1, 2))
-    # a reduction over the middle axis adds the rows one after the other (no pairwise sums)
+    good = np.asarray(np.isfinite(m).all(axis=(1, 2)) & np.isfinite(a).all(axis=(1, 2)))
+    # a sum over the middle axis adds the rows one after the other (no pairwise sums; tested)
     return m.sum(axis=1) / bs, a.sum(axis=1) / bs, good
