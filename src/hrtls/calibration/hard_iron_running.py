@@ -6,7 +6,7 @@ see the fit's module notes), together with the accelerometer (the device's up di
 :func:`~hrtls.calibration.hard_iron.fit_hard_iron` (one compiled pass,
 :mod:`hrtls.calibration._running_fit_kernel`) are run on the block means kept so far, with the
 mean accelerometer reading of those blocks as up direction; the blocks between two refits are
-handled together (numpy). A successful fit is *accepted* and applied to the samples after the
+kept together (numpy). A successful fit is *accepted* and applied to the samples after the
 block that completed it; before the first accepted fit the offset is unknown (NaN, the field is
 used raw); a refused refit keeps the last accepted offset.
 
@@ -27,6 +27,7 @@ import numpy as np
 from hrtls.calibration._running_fit_kernel import FIT_OK, running_fit_kernel
 from hrtls.errors import InputError
 from hrtls.frames import FloatArray
+from hrtls.kernels import njit
 
 __all__ = ["RunningHardIron", "RunningHardIronParams", "RunningHardIronState"]
 
@@ -124,9 +125,7 @@ class RunningHardIron:
         k = (n - pos) // bs
         if k:
             end = pos + k * bs
-            m_mean, a_mean, good = block_means(np.asarray(mag_ut[pos:end], dtype=np.float64),
-                                               np.asarray(acc_m_s2[pos:end], dtype=np.float64),
-                                               bs)
+            m_mean, a_mean, good = block_means(mag_ut[pos:end], acc_m_s2[pos:end], bs)
             self._close_blocks(m_mean, a_mean, good,
                                np.ascontiguousarray(t[pos + bs - 1:end:bs]), out[pos:end])
             pos = end
@@ -209,7 +208,8 @@ class RunningHardIron:
         """The fit on the kept block means; accepted, it is the offset from now on."""
         st, prm = self.state, self.params
         up = st.acc_sum / max(st.n_good, 1)
-        norm2 = float(up[0] * up[0] + up[1] * up[1] + up[2] * up[2])
+        u0, u1, u2 = up.tolist()
+        norm2 = u0 * u0 + u1 * u1 + u2 * u2
         if not (math.isfinite(norm2) and norm2 > 0.0):
             return
         fit = np.empty(6)
@@ -218,10 +218,10 @@ class RunningHardIron:
                                           fit)
         if code != FIT_OK:
             return   # a refused refit keeps the last accepted offset
-        if not np.all(np.isfinite(st.c_ut)):
+        if not self.accepted:
             st.t_accepted = t_end
-        st.c_ut = fit[:3].copy()
-        st.field_ut, st.residual_ut, st.arc_deg = (float(v) for v in fit[3:])
+        c0, c1, c2, st.field_ut, st.residual_ut, st.arc_deg = fit.tolist()
+        st.c_ut = np.array([c0, c1, c2])
         st.n_used = int(n_used)
         st.n_fits += 1
 
@@ -230,12 +230,39 @@ def block_means(mag: FloatArray, acc: FloatArray, bs: int
                 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
     """Means of consecutive blocks of ``bs`` rows, and whether each block is all finite.
 
-    Summed in row order, as ``mean(axis=0)`` of one block; a block with a value that is not
-    finite gets meaningless means (``good`` false).
+    :func:`block_means_kernel`; the means of a block that is not all finite are unset.
     """
     k = len(mag) // bs
-    m = mag[:k * bs].reshape(k, bs, 3)
-    a = acc[:k * bs].reshape(k, bs, 3)
-    good = np.asarray(np.isfinite(m).all(axis=(1, 2)) & np.isfinite(a).all(axis=(1, 2)))
-    # a sum over the middle axis adds the rows one after the other (no pairwise sums; tested)
-    return m.sum(axis=1) / bs, a.sum(axis=1) / bs, good
+    m_mean, a_mean = np.empty((k, 3)), np.empty((k, 3))
+    good = np.empty(k, dtype=np.bool_)
+    block_means_kernel(np.ascontiguousarray(mag[:k * bs], dtype=np.float64),
+                       np.ascontiguousarray(acc[:k * bs], dtype=np.float64), bs, m_mean, a_mean,
+                       good)
+    return m_mean, a_mean, good
+
+
+@njit(cache=True)
+def block_means_kernel(mag: FloatArray, acc: FloatArray, bs: int, mag_mean: FloatArray,
+                       acc_mean: FloatArray, good: np.ndarray) -> None:
+    # pragma: no cover - compiled
+    """Means of consecutive blocks of ``bs`` rows, summed in row order as numpy's ``mean``.
+
+    ``good``: every value of the block is finite (else its means are left unset).
+    """
+    for b in range(mag_mean.shape[0]):
+        i0 = b * bs
+        ok = True
+        for i in range(i0, i0 + bs):
+            for a in range(3):
+                ok = ok and math.isfinite(mag[i, a]) and math.isfinite(acc[i, a])
+        good[b] = ok
+        if not ok:
+            continue
+        for a in range(3):
+            sm = mag[i0, a]
+            sa = acc[i0, a]
+            for i in range(i0 + 1, i0 + bs):
+                sm += mag[i, a]
+                sa += acc[i, a]
+            mag_mean[b, a] = sm / bs
+            acc_mean[b, a] = sa / bs
