@@ -87,6 +87,34 @@ def test_compile_lock_is_beside_the_index(tmp_path: Path) -> None:
     assert len(locks) == 1 and locks[0].with_suffix("").exists()  # the index beside it
 
 
+def test_compile_log_has_a_line_per_compile(tmp_path: Path) -> None:
+    if K.fcntl is None:
+        pytest.skip("no fcntl")
+    log = tmp_path / "compiles.jsonl"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "HRTLS_AOT": "0",
+           K.COMPILE_LOG: str(log)}
+    code = ("from hrtls.fusion.floors import floor_level_update; "
+            "from hrtls.fusion.state import FilterState; import numpy as np; "
+            "floor_level_update(FilterState(t=0.0, x=np.zeros(4), P=np.eye(4)), 3.0)")
+    for _ in range(2):   # compiled, then loaded from the cache
+        subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
+    lines = [json.loads(line) for line in log.read_text().splitlines()]
+    first = [r for r in lines if r["pid"] == lines[0]["pid"]]
+    second = [r for r in lines if r["pid"] != lines[0]["pid"]]
+    # every kernel compiled once (a kernel typed again inside another finds its build)
+    assert {r["kernel"] for r in first} == {r["kernel"] for r in first if r["compiled"]}
+    assert len({r["kernel"] for r in first if r["compiled"]}) == sum(r["compiled"]
+                                                                    for r in first)
+    assert second and not any(r["compiled"] for r in second)
+    nested = [r for r in first if r["depth"] > 0 and r["compiled"]]
+    assert nested   # the kernels a kernel calls are compiled inside its compile
+    for r in first:
+        assert 0.0 <= r["self_cpu_s"] <= r["cpu_s"] + 1e-9 and r["wall_s"] >= 0.0
+        assert ":" in r["kernel"] and r["sig"].startswith("(")
+    top = [r for r in first if r["depth"] == 0]
+    assert sum(r["cpu_s"] for r in top) == pytest.approx(sum(r["self_cpu_s"] for r in first))
+
+
 def test_worker_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setattr(precompile, "spare_cores", lambda: 1.0)
