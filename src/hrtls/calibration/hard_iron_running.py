@@ -154,9 +154,9 @@ class RunningHardIron:
                       t_end: FloatArray, out: FloatArray) -> None:
         """Close blocks in order (``good``: no gap), refitting when due.
 
-        ``out``: their samples (``len(mag_mean) * block_samples`` rows, or none), each block's
-        the offset in force before it closed. Between two refits the blocks are handled
-        together.
+        ``out``: the rows of their samples (``len(mag_mean) * block_samples``, or none), set to
+        the offset in force before each block closed. The blocks between two refits are
+        handled together.
         """
         st, prm = self.state, self.params
         k = len(mag_mean)
@@ -171,7 +171,7 @@ class RunningHardIron:
             e = min(k, b + prm.refit_blocks - st.n_closed % prm.refit_blocks)
             out[b * bs:e * bs] = st.c_ut
             self._keep(means[n_before[b]:n_before[e]])
-            st.acc_sum = acc_run[n_before[e]]
+            st.acc_sum = acc_run[n_before[e]].copy()
             st.n_closed += e - b
             if st.n_closed % prm.refit_blocks == 0 and st.n_kept >= prm.min_samples:
                 self._refit(float(t_end[e - 1]))
