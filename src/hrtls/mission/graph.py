@@ -55,8 +55,8 @@ from numpy.typing import NDArray
 from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.errors import InputError
-from hrtls.mission.graph_init import extend, linear_init, select_nodes
 from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
+from hrtls.mission.graph_init import extend, linear_init, select_nodes
 from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
 
 FloatArray = NDArray[np.float64]
@@ -576,8 +576,10 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
 def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
               params: SmootherParams, prior: MarginalPrior | None,
               point: Callable[[Layout], FloatArray]) -> tuple[Layout, csc_matrix, FloatArray]:
-    """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at ``point``
-    (of its columns; ``W`` the robust loss's weights there)."""
+    """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at a point.
+
+    ``point``: the unknowns from the solve's columns; ``W``: the robust loss's weights there.
+    """
     prob = _Problem(paths, ranges, node_ids, params, prior)
     lay = prob.layout()
     x = point(lay)

@@ -70,9 +70,12 @@ class MarginalPrior:
 
 @dataclass(frozen=True, eq=False)
 class Layout:
-    """Columns of one solve: per agent (``names``) its pose times, first pose column, first
-    segment column, number of segments, segment of each increment and distance walked before
-    each increment (m, from its walk's start); the nodes' first column; the height column."""
+    """Columns of one solve.
+
+    Per agent (``names``) its pose times, first pose column, first segment column, number of
+    segments, segment of each increment and distance walked before each increment (m, from
+    its walk's start); the nodes' first column; the height column.
+    """
 
     names: list[str]
     t: list[FloatArray]
@@ -108,7 +111,8 @@ def restrict(prior: MarginalPrior, keep: NDArray[np.bool_]) -> MarginalPrior:
     h = prior.r.T @ prior.r
     g = prior.r.T @ prior.e
     p, b = schur(csc_matrix(h), g, np.flatnonzero(keep), np.flatnonzero(~keep))
-    ag = np.asarray(keep[:4 * len(prior.agents)]).reshape(-1, 4).all(axis=1)
+    ag: list[bool] = np.asarray(keep[:4 * len(prior.agents)], dtype=bool).reshape(-1, 4).all(
+        axis=1).tolist()
     return factor(p, b, prior.xbar[keep], tuple(a for a, k in zip(prior.agents, ag, strict=True)
                                                 if k), prior.nodes)
 

@@ -252,8 +252,11 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
 
 
 def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float) -> None:
-    """Drop the agent's rows before ``t_c`` (the first row at ``t_c``), its corrections up to
-    ``t_c`` and its ranges before ``t_c`` (module doc)."""
+    """Drop the agent's rows before ``t_c`` (module doc).
+
+    A first row at ``t_c`` replaces them; its corrections up to ``t_c`` and its ranges before
+    ``t_c`` go too.
+    """
     st = mt.smoother
     assert st is not None
     name = path.name
