@@ -111,10 +111,8 @@ def restrict(prior: MarginalPrior, keep: NDArray[np.bool_]) -> MarginalPrior:
     h = prior.r.T @ prior.r
     g = prior.r.T @ prior.e
     p, b = schur(csc_matrix(h), g, np.flatnonzero(keep), np.flatnonzero(~keep))
-    ag: list[bool] = np.asarray(keep[:4 * len(prior.agents)], dtype=bool).reshape(-1, 4).all(
-        axis=1).tolist()
-    return factor(p, b, prior.xbar[keep], tuple(a for a, k in zip(prior.agents, ag, strict=True)
-                                                if k), prior.nodes)
+    agents = tuple(a for i, a in enumerate(prior.agents) if bool(np.all(keep[4 * i:4 * i + 4])))
+    return factor(p, b, prior.xbar[keep], agents, prior.nodes)
 
 
 def schur(h: csc_matrix, g: FloatArray, keep: IntArray, drop: IntArray
