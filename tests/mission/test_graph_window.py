@@ -11,7 +11,6 @@ from scipy.sparse import csc_matrix
 
 from hrtls.errors import InputError
 from hrtls.mission.graph import SmootherParams
-from hrtls.mission.graph_covariance import node_inflation
 from hrtls.mission.graph_window import (
     Layout,
     MarginalPrior,
@@ -122,15 +121,6 @@ def test_a_prior_restricted_to_fewer_variables_is_their_marginal() -> None:
     assert back is not None
     np.testing.assert_array_equal(back.r, got.r)
     np.testing.assert_array_equal(back.xbar, got.xbar)
-
-
-def test_the_node_inflation_counts_the_removed_ranges_by_hand() -> None:
-    """Node 0 keeps residuals 1 and 3; node 1's two removed ranges sum 8: the mean square of
-    all four is 4.5, node 0's own 5, node 1's own 4."""
-    e = np.array([1.0, 3.0])
-    got = node_inflation(e, np.array([True, True]), np.array([0, 0]), 2,
-                         np.array([[0.0, 0.0], [8.0, 2.0]]))
-    np.testing.assert_allclose(got, [5.0, 4.5])
 
 
 def test_window_s_is_checked() -> None:
