@@ -41,9 +41,7 @@ correction marginalized; ``W`` the robust loss's weights there), times the mean 
 residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
 of the node's own when larger (a node seen mostly through walls). A node is solved with at least
 ``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
-with a sigma below ``max_sigma_m``. Older poses may have left the problem as a dense prior factor
-(:mod:`hrtls.mission.graph_window`), which then replaces the priors of its agents' first poses
-and segments and of the height.
+with a sigma below ``max_sigma_m``.
 """
 
 from __future__ import annotations
@@ -59,13 +57,7 @@ from scipy.sparse import csc_matrix, csr_matrix, diags
 from hrtls.errors import InputError
 from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
 from hrtls.mission.graph_init import extend, linear_init, select_nodes
-from hrtls.mission.graph_window import (
-    Layout,
-    MarginalPrior,
-    node_sq_of,
-    prior_columns,
-    restrict,
-)
+from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -496,8 +488,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
     last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
     pose_inflation = max(rms ** 2, 1.0) if math.isfinite(rms) else 1.0
-    inflation = np.concatenate([node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids),
-                                               node_sq_of(prior, prob.node_ids)),
+    inflation = np.concatenate([node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)),
                                 np.full(len(last), pose_inflation)])
     cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
                                             range(len(prob.node_ids))] + last, inflation)
@@ -584,12 +575,10 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
 
 def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
               params: SmootherParams, prior: MarginalPrior | None,
-              point: Callable[[Layout], FloatArray]
-              ) -> tuple[Layout, csc_matrix, FloatArray, FloatArray]:
+              point: Callable[[Layout], FloatArray]) -> tuple[Layout, csc_matrix, FloatArray]:
     """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at a point.
 
     ``point``: the unknowns from the solve's columns; ``W``: the robust loss's weights there.
-    Last: per node the sum and count of its inlier ranges' squared whitened residuals (N, 2).
     """
     prob = _Problem(paths, ranges, node_ids, params, prior)
     lay = prob.layout()
@@ -599,9 +588,4 @@ def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
     w = np.ones(res.size)
     w[:n_r] = _robust_weights(res[:n_r] ** 2 / params.loss_scale ** 2, params.loss)
     jw = diags(np.sqrt(w)) @ prob.jacobian(x)
-    e = res[:n_r]
-    inl = np.abs(e) < 3.0 * params.loss_scale
-    k = len(node_ids)
-    sq = np.column_stack([np.bincount(prob.rnode[inl], weights=e[inl] ** 2, minlength=k),
-                          np.bincount(prob.rnode[inl], minlength=k)]).astype(np.float64)
-    return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (np.sqrt(w) * res), np.float64), sq
+    return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (np.sqrt(w) * res), np.float64)

@@ -27,21 +27,17 @@ def spd_lu(m: csc_matrix) -> SuperLU:
                 options={"SymmetricMode": True})
 
 
-def node_inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int,
-                   removed: FloatArray | None = None) -> FloatArray:
+def node_inflation(e: FloatArray, inlier: NDArray[np.bool_], node: IntArray, n_nodes: int
+                   ) -> FloatArray:
     """Covariance inflation per node (at least one).
 
     The mean square of the inlier whitened residuals ``e``: of all ranges, or of the node's own
-    when larger; ``removed`` (n_nodes, 2): per node the sum and count of squared inlier
-    residuals of ranges no longer in the problem, counted too.
+    when larger.
     """
     sq = np.where(inlier, e * e, 0.0)
-    extra = np.zeros((n_nodes, 2)) if removed is None else removed
-    n_all = np.count_nonzero(inlier) + float(np.sum(extra[:, 1]))
-    total = float((np.sum(sq) + np.sum(extra[:, 0])) / n_all) if n_all > 0 else 1.0
-    own_n = np.bincount(node[inlier], minlength=n_nodes).astype(np.float64) + extra[:, 1]
-    own = (np.bincount(node, weights=sq, minlength=n_nodes) + extra[:, 0]) \
-        / np.maximum(own_n, 1.0)
+    total = float(np.sum(sq) / np.count_nonzero(inlier)) if inlier.any() else 1.0
+    own_n = np.bincount(node[inlier], minlength=n_nodes).astype(np.float64)
+    own = np.bincount(node, weights=sq, minlength=n_nodes) / np.maximum(own_n, 1.0)
     return np.maximum(np.maximum(own, total), 1.0)
 
 

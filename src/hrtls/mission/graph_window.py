@@ -29,9 +29,6 @@ stays the one at ``xbar`` (first estimates: removed rows are never relinearized;
 move the kept variables only through the rows that stay). A node first seen after a
 marginalization has no prior rows; it joins the prior when one of its rows is removed. A node
 in the prior stays in every later problem (its information is kept), even without ranges.
-The prior also keeps, per node, the sum and count of its removed inlier ranges' squared whitened
-residuals (at their last solution): a node's covariance inflation
-(:func:`hrtls.mission.graph_covariance.node_inflation`) counts them as the full solve would.
 """
 
 from __future__ import annotations
@@ -61,8 +58,7 @@ class MarginalPrior:
 
     Variables ``x_k`` in order: per agent of ``agents`` its first pose (x, y, m) and that
     pose's segment's scale and rotation (rad); per node of ``nodes`` its position (m); the
-    height (m). ``r`` (M, D), ``e`` (M,), ``xbar`` (D,); ``node_sq`` (N, 2): per node the sum
-    and count of its removed inlier ranges' squared whitened residuals (None: none).
+    height (m). ``r`` (M, D), ``e`` (M,), ``xbar`` (D,).
     """
 
     agents: tuple[str, ...]
@@ -70,18 +66,6 @@ class MarginalPrior:
     r: FloatArray
     e: FloatArray
     xbar: FloatArray
-    node_sq: FloatArray | None = None
-
-
-def node_sq_of(prior: MarginalPrior | None, node_ids: list[str]) -> FloatArray:
-    """The prior's removed-range sums (``node_sq``) for ``node_ids`` (zero for others), (N, 2)."""
-    out = np.zeros((len(node_ids), 2))
-    if prior is not None and prior.node_sq is not None:
-        at = {n: i for i, n in enumerate(node_ids)}
-        for n, v in zip(prior.nodes, prior.node_sq, strict=True):
-            if n in at:
-                out[at[n]] = v
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +112,7 @@ def restrict(prior: MarginalPrior, keep: NDArray[np.bool_]) -> MarginalPrior:
     g = prior.r.T @ prior.e
     p, b = schur(csc_matrix(h), g, np.flatnonzero(keep), np.flatnonzero(~keep))
     agents = tuple(a for i, a in enumerate(prior.agents) if bool(np.all(keep[4 * i:4 * i + 4])))
-    return factor(p, b, prior.xbar[keep], agents, prior.nodes, prior.node_sq)
+    return factor(p, b, prior.xbar[keep], agents, prior.nodes)
 
 
 def schur(h: csc_matrix, g: FloatArray, keep: IntArray, drop: IntArray
@@ -147,7 +131,7 @@ def schur(h: csc_matrix, g: FloatArray, keep: IntArray, drop: IntArray
 
 
 def factor(p: FloatArray, b: FloatArray, xbar: FloatArray, agents: tuple[str, ...],
-           nodes: tuple[str, ...], node_sq: FloatArray | None = None) -> MarginalPrior:
+           nodes: tuple[str, ...]) -> MarginalPrior:
     """The prior factor of information ``p`` and half-gradient ``b`` at ``xbar`` (module doc)."""
     lam, v = np.linalg.eigh(0.5 * (p + p.T))
     ok = lam > MIN_INFO * max(float(lam[-1]) if lam.size else 0.0, 0.0)
@@ -156,7 +140,7 @@ def factor(p: FloatArray, b: FloatArray, xbar: FloatArray, agents: tuple[str, ..
     r = np.sqrt(lam)[:, None] * v.T
     e = (v.T @ b) / np.sqrt(lam)
     return MarginalPrior(agents, nodes, np.asarray(r, np.float64), np.asarray(e, np.float64),
-                         np.asarray(xbar, np.float64).copy(), node_sq)
+                         np.asarray(xbar, np.float64).copy())
 
 
 def cut_index(lay: Layout, a: int, t_cut_s: float, last_row_s: float) -> int:
@@ -257,7 +241,7 @@ def prior_state(p: MarginalPrior | None) -> dict[str, Any] | None:
     if p is None:
         return None
     return {"agents": list(p.agents), "nodes": list(p.nodes), "r": p.r, "e": p.e,
-            "xbar": p.xbar, "node_sq": p.node_sq}
+            "xbar": p.xbar}
 
 
 def prior_from(d: dict[str, Any] | None) -> MarginalPrior | None:
@@ -266,6 +250,4 @@ def prior_from(d: dict[str, Any] | None) -> MarginalPrior | None:
         return None
     return MarginalPrior(tuple(str(a) for a in d["agents"]), tuple(str(n) for n in d["nodes"]),
                          np.asarray(d["r"], np.float64).reshape(-1, len(d["xbar"])),
-                         np.asarray(d["e"], np.float64), np.asarray(d["xbar"], np.float64),
-                         None if d.get("node_sq") is None else
-                         np.asarray(d["node_sq"], np.float64).reshape(-1, 2))
+                         np.asarray(d["e"], np.float64), np.asarray(d["xbar"], np.float64))

@@ -36,7 +36,6 @@ from hrtls.mission.graph_window import (
     carried,
     cut_index,
     marginalized,
-    node_sq_of,
     prior_from,
     prior_state,
     solution_vector,
@@ -227,8 +226,8 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
     prm, st = mt.params.smoother, mt.smoother
     assert prm is not None and st is not None and st.warm is not None
     res, ids = st.warm, list(st.warm.nodes)
-    lay0, h0, g0, sq0 = linearize(paths, ranges, ids, params=prm, prior=st.prior,
-                                  point=lambda lay: solution_vector(lay, res))
+    lay0, h0, g0 = linearize(paths, ranges, ids, params=prm, prior=st.prior,
+                             point=lambda lay: solution_vector(lay, res))
     x0 = solution_vector(lay0, res)
     cut = {}
     for a, name in enumerate(lay0.names):
@@ -247,9 +246,8 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
     def at(lay: Layout) -> NDArray[np.float64]:
         return np.asarray(x0[np.maximum(carried(lay0, lay, cut), 0)], np.float64)
 
-    lay1, h1, g1, sq1 = linearize(*got, ids, params=prm, prior=hold, point=at)
-    prior = marginalized(lay0, h0, g0, x0, lay1, h1, g1, cut, agents)
-    st.prior = replace(prior, node_sq=node_sq_of(st.prior, ids) + sq0 - sq1)
+    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at)
+    st.prior = marginalized(lay0, h0, g0, x0, lay1, h1, g1, cut, agents)
     st.warm = trimmed(res, lay0, cut)
 
 
