@@ -41,7 +41,9 @@ correction marginalized; ``W`` the robust loss's weights there), times the mean 
 residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
 of the node's own when larger (a node seen mostly through walls). A node is solved with at least
 ``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
-with a sigma below ``max_sigma_m``.
+with a sigma below ``max_sigma_m``. Older poses may have left the problem as a dense prior factor
+(:mod:`hrtls.mission.graph_window`), which then replaces the priors of its agents' first poses
+and segments and of the height.
 """
 
 from __future__ import annotations
