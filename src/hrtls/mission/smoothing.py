@@ -279,7 +279,8 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
         keep = p[1] >= t_c if int(p[0]) == i else np.ones(len(p[1]), dtype=bool)
         if keep.any():
             parts.append([p[0], *(v[keep] for v in p[1:])])
-    st.ranges = parts or [[p[0], *(v[:0] for v in p[1:])] for p in st.ranges[-1:]]
+    # an empty block of this agent keeps the next problem buildable without ranges
+    st.ranges = parts or [[i, *(v[:0] for v in p[1:])] for p in st.ranges[-1:]]
 
 
 def _fed_back(mt: MissionTracker, name: str) -> None:
