@@ -41,12 +41,15 @@ correction marginalized; ``W`` the robust loss's weights there), times the mean 
 residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
 of the node's own when larger (a node seen mostly through walls). A node is solved with at least
 ``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
-with a sigma below ``max_sigma_m``.
+with a sigma below ``max_sigma_m``. Older poses may have left the problem as a dense prior factor
+(:mod:`hrtls.mission.graph_window`), which then replaces the priors of its agents' first poses
+and segments and of the height.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,6 +58,8 @@ from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.errors import InputError
 from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
+from hrtls.mission.graph_init import extend, linear_init, select_nodes
+from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -96,6 +101,9 @@ class SmootherParams:
         (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
         covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
         ``feedback_gate`` is not applied.
+    window_s:
+        In the mission loop: poses older than this leave the problem as a prior factor
+        (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
     """
 
     decimate_s: float = 1.0
@@ -117,6 +125,7 @@ class SmootherParams:
     feedback: str = "off"
     feedback_cov_scale: float = 2.0
     feedback_gate: float = 13.8
+    window_s: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
@@ -133,6 +142,10 @@ class SmootherParams:
             raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
                              f"{self.max_evaluations}", where="SmootherParams",
                              expected="min_ranges >= 3, max_evaluations >= 1")
+        if self.window_s is not None and not (math.isfinite(self.window_s)
+                                              and self.window_s > 0):
+            raise InputError(f"window_s = {self.window_s}", where="SmootherParams",
+                             expected="> 0 or None")
         if self.feedback not in ("off", "implied", "replace"):
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
@@ -147,7 +160,8 @@ class AgentPath:
 
     ``dead_reckoning_m``: the rows without the tracker's correction jumps (None: the rows are
     the motion); ``factors``: its corrections as position factors, ``(t (K,), z (K, 2),
-    W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None.
+    W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None; ``walked0_m``: the
+    distance walked before the first row (a path cut by :mod:`hrtls.mission.graph_window`).
     """
 
     name: str
@@ -156,6 +170,7 @@ class AgentPath:
     start_cov_m2: FloatArray
     dead_reckoning_m: FloatArray | None = None
     factors: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    walked0_m: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,21 +223,28 @@ class _Problem:
     """Unknowns, residuals and Jacobian of one solve.
 
     Columns: per agent its poses, then its segments' scales and rotations; the nodes; the
-    height last.
+    height last. With a ``prior`` (:mod:`hrtls.mission.graph_window`) its agents' first-pose
+    and first-segment priors and the height prior are its own; its rows come last.
     """
 
     def __init__(self, paths: list[AgentPath], ranges: RangeSet, node_ids: list[str],
-                 prm: SmootherParams) -> None:
+                 prm: SmootherParams, prior: MarginalPrior | None = None) -> None:
         self.prm = prm
         self.node_ids = node_ids
         self.t, self.f, self.pose_col, self.s_col, self.n_seg = [], [], [], [], []
+        self.seg: list[IntArray] = []
+        self.walked: list[FloatArray] = []
         odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
         col = 0
         for p in paths:
             t, f, g = _decimate(p, prm.decimate_s)
             d = np.diff(g, axis=0)
-            walked = np.cumsum(np.hypot(d[:, 0], d[:, 1])) - np.hypot(d[:, 0], d[:, 1])
-            seg = np.floor(walked / prm.segment_m).astype(np.int64)
+            walked = p.walked0_m + (np.cumsum(np.hypot(d[:, 0], d[:, 1]))
+                                    - np.hypot(d[:, 0], d[:, 1]))
+            seg = (np.floor(walked / prm.segment_m)
+                   - math.floor(p.walked0_m / prm.segment_m)).astype(np.int64)
+            self.seg.append(seg)
+            self.walked.append(walked)
             n_seg = int(seg[-1]) + 1 if seg.size else 1
             self.t.append(t)
             self.f.append(f)
@@ -245,6 +267,25 @@ class _Problem:
                    for p in paths]
         self._ranges(ranges)
         self._factors(paths)
+        self.names = [p.name for p in paths]
+        self.first_w = np.array([0.0 if prior is not None and p.name in prior.agents else 1.0
+                                 for p in paths])
+        self.height_w = 1.0 if prior is None else 0.0
+        self.prior, self.prior_cols = prior, np.zeros(0, np.int64)
+        if prior is not None:
+            cols = prior_columns(prior, self.layout())
+            self.prior = prior if np.all(cols >= 0) else restrict(prior, cols >= 0)
+            self.prior_cols = cols[cols >= 0]
+
+    def layout(self) -> Layout:
+        return Layout(self.names, self.t, self.pose_col, self.s_col, self.n_seg, self.seg,
+                      self.walked, self.node_ids, self.node_col, self.height_col, self.n)
+
+    def _prior_rows(self, x: FloatArray) -> FloatArray:
+        p = self.prior
+        if p is None:
+            return np.zeros(0)
+        return np.asarray(p.r @ (x[self.prior_cols] - p.xbar) + p.e, np.float64)
 
     def _at(self, a: int, tq: FloatArray) -> tuple[IntArray, IntArray, FloatArray]:
         """Columns of the poses around each of agent ``a``'s times and the weight of the later."""
@@ -313,13 +354,15 @@ class _Problem:
         out = [self._range_parts(x)[0], self._odo_parts(x)[0].reshape(-1),
                self._factor_parts(x).reshape(-1)]
         for a, col in enumerate(self.pose_col):
-            out.append(self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
+            out.append(self.first_w[a] * self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
             sc, n_seg = self.s_col[a], self.n_seg[a]
             sv, ph = x[sc:sc + n_seg], x[sc + n_seg:sc + 2 * n_seg]
-            out.append(np.array([sv[0] / prm.scale_sigma, ph[0] / prm.heading_sigma_rad]))
+            out.append(self.first_w[a] * np.array([sv[0] / prm.scale_sigma,
+                                                   ph[0] / prm.heading_sigma_rad]))
             out.append(np.diff(sv) / prm.scale_walk_sigma)
             out.append(np.diff(ph) / prm.heading_walk_rad)
-        out.append(np.array([x[self.height_col] / prm.height_sigma_m]))
+        out.append(np.array([self.height_w * x[self.height_col] / prm.height_sigma_m]))
+        out.append(self._prior_rows(x))
         return np.concatenate(out)
 
     def jacobian(self, x: FloatArray) -> csr_matrix:
@@ -361,59 +404,26 @@ class _Problem:
         row += 2 * len(self.fw)
         for a, col in enumerate(self.pose_col):
             for i in (0, 1):
-                put([row + i, row + i], [col, col + 1], self.p0[a][i])
+                put([row + i, row + i], [col, col + 1], self.first_w[a] * self.p0[a][i])
             sc, n_seg = self.s_col[a], self.n_seg[a]
             put([row + 2, row + 3], [sc, sc + n_seg],
-                [1.0 / prm.scale_sigma, 1.0 / prm.heading_sigma_rad])
+                self.first_w[a] * np.array([1.0 / prm.scale_sigma, 1.0 / prm.heading_sigma_rad]))
             row += 4
             for base, sig in ((sc, prm.scale_walk_sigma), (sc + n_seg, prm.heading_walk_rad)):
                 j = np.arange(n_seg - 1)
                 put(row + j, base + j + 1, 1.0 / sig)
                 put(row + j, base + j, -1.0 / sig)
                 row += n_seg - 1
-        put(row, self.height_col, 1.0 / prm.height_sigma_m)
+        put(row, self.height_col, self.height_w / prm.height_sigma_m)
+        m, d = (0, 0) if self.prior is None else self.prior.r.shape
+        put(row + 1 + np.repeat(np.arange(m), d), np.tile(self.prior_cols, m),
+            np.zeros(0) if self.prior is None else self.prior.r.reshape(-1))
         return csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                          shape=(row + 1, self.n))
+                          shape=(row + 1 + m, self.n))
 
 
 def _pairs(x: FloatArray, col: IntArray) -> FloatArray:
     return np.column_stack([x[col], x[col + 1]])
-
-
-def _spread(a: FloatArray) -> float:
-    c = a - a.mean(axis=0)
-    w = np.linalg.eigvalsh(np.cov(c.T, bias=True).reshape(2, 2))
-    return float(np.sqrt(max(w[0], 0.0)))
-
-
-def _linear_init(a: FloatArray, r: FloatArray) -> FloatArray | None:
-    """Linear least squares of ``||p - a_k||^2 = r_k^2`` about the centroid."""
-    c = a.mean(axis=0)
-    d = a - c
-    rhs = np.sum(d ** 2, axis=1) - r ** 2
-    lhs = 2.0 * (d - d.mean(axis=0))
-    sol, _, rank, _ = np.linalg.lstsq(lhs, rhs - rhs.mean(), rcond=None)
-    return None if rank < 2 else np.asarray(c + sol, np.float64)
-
-
-def _raw_positions(paths: list[AgentPath], ranges: RangeSet) -> FloatArray:
-    xy = np.zeros((len(ranges.t), 2))
-    for a, p in enumerate(paths):
-        m = ranges.agent == a
-        xy[m, 0] = np.interp(ranges.t[m], p.t, p.xy_m[:, 0])
-        xy[m, 1] = np.interp(ranges.t[m], p.t, p.xy_m[:, 1])
-    return xy
-
-
-def _select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams) -> list[str]:
-    """Nodes with enough ranges from positions spread off a line."""
-    raw = _raw_positions(paths, ranges)
-    out = []
-    for n in sorted(set(ranges.node.tolist())):
-        m = ranges.node == n
-        if np.count_nonzero(m) >= prm.min_ranges and _spread(raw[m]) >= prm.min_spread_m:
-            out.append(str(n))
-    return out
 
 
 def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, FloatArray],
@@ -432,7 +442,7 @@ def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, Fl
                 if m:
                     x0[base:base + n_seg] = v[m - 1]
                     x0[base:base + m] = v[:m]
-            _extend(poses, prob.f[a], int(np.searchsorted(prob.t[a], tc[-1], side="right")),
+            extend(poses, prob.f[a], int(np.searchsorted(prob.t[a], tc[-1], side="right")),
                     float(warm.scale[name][-1]), float(warm.heading_rad[name][-1]))
         x0[col:col + 2 * len(prob.t[a])] = poses.reshape(-1)
     x0[prob.height_col] = max(warm.height_m, 0.1) if warm is not None else 1.0
@@ -441,7 +451,7 @@ def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, Fl
         init = warm.nodes[n][0] if warm is not None and n in warm.nodes else initial_nodes.get(n)
         if init is None:
             m = prob.rnode == i
-            init = _linear_init(raw[m], np.sqrt(np.maximum(prob.r[m] ** 2 - x0[prob.height_col]
+            init = linear_init(raw[m], np.sqrt(np.maximum(prob.r[m] ** 2 - x0[prob.height_col]
                                                            ** 2, 0.0)))
             if init is None or not np.all(np.isfinite(init)):
                 init = raw[m].mean(axis=0)
@@ -451,15 +461,24 @@ def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, Fl
 
 def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams | None = None,
            initial_nodes: dict[str, FloatArray] | None = None,
-           warm: SmootherResult | None = None) -> SmootherResult:
+           warm: SmootherResult | None = None, prior: MarginalPrior | None = None
+           ) -> SmootherResult:
     """Solve the agents' paths and the nodes jointly (module doc).
 
     ``initial_nodes``: starting positions of nodes (others: linear trilateration from the
-    agents' rows); ``warm``: a previous solution to start from (its nodes and corrections).
+    agents' rows); ``warm``: a previous solution to start from (its nodes and corrections);
+    ``prior``: the marginalized older poses (:mod:`hrtls.mission.graph_window`; its nodes
+    stay in the problem).
     """
     prm = params or SmootherParams()
-    prob = _Problem(paths, ranges, _select_nodes(paths, ranges, prm), prm)
-    x0 = _initial(prob, paths, dict(initial_nodes or {}), warm)
+    ids = select_nodes(paths, ranges, prm)
+    initial = dict(initial_nodes or {})
+    if prior is not None:
+        ids = sorted(set(ids) | set(prior.nodes))
+        for i, n in enumerate(prior.nodes):
+            initial.setdefault(n, prior.xbar[4 * len(prior.agents) + 2 * i:][:2])
+    prob = _Problem(paths, ranges, ids, prm, prior)
+    x0 = _initial(prob, paths, initial, warm)
     x, evaluations = _solve(prob, x0)
     res = prob.residuals(x)
     n_r = len(prob.r)
@@ -556,14 +575,19 @@ def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
     return np.ones_like(z)
 
 
-def _extend(poses: FloatArray, f: FloatArray, k: int, scale: float, heading_rad: float) -> None:
-    """Poses from ``k`` on, in place: the last solved pose carried on by the rows' increments.
+def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
+              params: SmootherParams, prior: MarginalPrior | None,
+              point: Callable[[Layout], FloatArray]) -> tuple[Layout, csc_matrix, FloatArray]:
+    """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at a point.
 
-    The increments are scaled and rotated by the last segment's corrections.
+    ``point``: the unknowns from the solve's columns; ``W``: the robust loss's weights there.
     """
-    if k < 1 or k >= len(poses):
-        return
-    c, s = math.cos(heading_rad), math.sin(heading_rad)
-    d = np.diff(f[k - 1:], axis=0) * (1.0 + scale)
-    rd = np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]])
-    poses[k:] = poses[k - 1] + np.cumsum(rd, axis=0)
+    prob = _Problem(paths, ranges, node_ids, params, prior)
+    lay = prob.layout()
+    x = point(lay)
+    res = prob.residuals(x)
+    n_r = len(prob.r)
+    w = np.ones(res.size)
+    w[:n_r] = _robust_weights(res[:n_r] ** 2 / params.loss_scale ** 2, params.loss)
+    jw = diags(np.sqrt(w)) @ prob.jacobian(x)
+    return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (np.sqrt(w) * res), np.float64)

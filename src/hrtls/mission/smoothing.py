@@ -8,12 +8,19 @@ warm-started from the previous solution. The data are those of the processed win
 (causal); a range later than its agent's latest row waits for the next solve. Each node the
 smoother localizes becomes the mission's estimate of that node (the per-node estimator no longer
 re-estimates it) and is shared with the agents like any re-localized node.
+
+With ``SmootherParams.window_s`` the poses older than the window leave the problem after each
+solve (:mod:`hrtls.mission.graph_window`): a dense prior factor takes their information, and
+the state keeps only what the next problem uses: an agent's rows from its cut pose on (the first
+row there, on the dead reckoning of the solve before: ``g(t_c)`` plus the jumps of its
+corrections up to ``t_c``, so the increments after it do not change), its corrections after
+``t_c``, its ranges from ``t_c`` on, and the distance it walked before ``t_c`` (its segments).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,7 +29,18 @@ from numpy.typing import NDArray
 from hrtls.data.observations import RangeMeasurements
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
-from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
+from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
+from hrtls.mission.graph_window import (
+    Layout,
+    MarginalPrior,
+    carried,
+    cut_index,
+    marginalized,
+    prior_from,
+    prior_state,
+    solution_vector,
+    trimmed,
+)
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.corrections import SMOOTHED
@@ -45,7 +63,9 @@ class SmootherState:
     ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
     ``warm``: the last solution (warm start); ``corr``: per agent its tracker's corrections
     (blocks of ``[t, kind, source, mean0, cov0, mean1, cov1]``,
-    :class:`hrtls.pipeline.corrections.Corrections`); ``corr_next``: the next record to read.
+    :class:`hrtls.pipeline.corrections.Corrections`); ``corr_next``: the next record to read;
+    ``prior``: the marginalized older poses (``window_s``); ``walked``: per agent the distance
+    walked before its first kept row, m.
     """
 
     rows: dict[str, list[list[float]]] = field(default_factory=dict)
@@ -59,6 +79,8 @@ class SmootherState:
     seconds: list[float] = field(default_factory=list)
     corr: dict[str, list[list[Any]]] = field(default_factory=dict)
     corr_next: dict[str, int] = field(default_factory=dict)
+    prior: MarginalPrior | None = None
+    walked: dict[str, float] = field(default_factory=dict)
 
 
 def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> None:
@@ -143,7 +165,8 @@ def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
         if len(rows) < 2:
             continue
         index[i] = len(paths)
-        paths.append(_agent_path(mt, i, name, np.asarray(rows, np.float64)))
+        paths.append(replace(_agent_path(mt, i, name, np.asarray(rows, np.float64)),
+                             walked0_m=st.walked.get(name, 0.0)))
     parts = [p for p in st.ranges if int(p[0]) in index]
     if not paths or not parts:
         return None
@@ -174,23 +197,90 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     paths, ranges = got
     initial = {n: e.position_m for n, e in mt.estimates.items() if e.localized}
     clock = time.perf_counter()
-    st.warm = smooth(paths, ranges, params=prm, initial_nodes=initial, warm=st.warm)
+    st.warm = smooth(paths, ranges, params=prm, initial_nodes=initial, warm=st.warm,
+                     prior=st.prior)
     st.seconds.append(time.perf_counter() - clock)
+    solved = st.warm
     changed: list[str] = []
-    for node, (p, cov, ok) in sorted(st.warm.nodes.items()):
+    for node, (p, cov, ok) in sorted(solved.nodes.items()):
         if not ok:
             continue
         k = int(np.count_nonzero(ranges.node == node))
         mt.estimates[node] = NodeEstimate(p.copy(), cov.copy(), True, "", np.ones(k, dtype=bool),
-                                          st.warm.rms, st.warm.evaluations)
+                                          solved.rms, solved.evaluations)
         st.owned.add(node)
         mt.versions[node] = mt.versions.get(node, 0) + 1
         mt.history.setdefault(node, []).append((t_end, p.copy(), cov.copy()))
         changed.append(node)
+    if prm.window_s is not None:
+        _slide(mt, paths, ranges, t_end - prm.window_s)
     if prm.feedback != "off" and mt.params.cooperate:
-        for name in feed_back(mt, st.warm):
+        for name in feed_back(mt, solved):
             _fed_back(mt, name)
     return changed
+
+
+def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s: float
+           ) -> None:
+    """Marginalize the poses before ``t_cut_s`` of the solve just made (module doc)."""
+    prm, st = mt.params.smoother, mt.smoother
+    assert prm is not None and st is not None and st.warm is not None
+    res, ids = st.warm, list(st.warm.nodes)
+    lay0, h0, g0 = linearize(paths, ranges, ids, params=prm, prior=st.prior,
+                             point=lambda lay: solution_vector(lay, res))
+    x0 = solution_vector(lay0, res)
+    cut = {}
+    for a, name in enumerate(lay0.names):
+        c = cut_index(lay0, a, t_cut_s, float(st.rows[name][-1][0]))
+        if c > 0:
+            cut[name] = c
+            _cut_agent(mt, paths[a], float(lay0.t[a][c]), float(lay0.walked_m[a][c]))
+    if not cut:
+        return
+    agents = tuple(sorted(set(st.prior.agents if st.prior is not None else ()) | set(cut)))
+    d = 4 * len(agents) + 2 * len(ids) + 1
+    hold = MarginalPrior(agents, tuple(ids), np.zeros((0, d)), np.zeros(0), np.zeros(d))
+    got = _problem(mt)
+    assert got is not None
+
+    def at(lay: Layout) -> NDArray[np.float64]:
+        return np.asarray(x0[np.maximum(carried(lay0, lay, cut), 0)], np.float64)
+
+    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at)
+    st.prior = marginalized(lay0, h0, g0, x0, lay1, h1, g1, cut, agents)
+    st.warm = trimmed(res, lay0, cut)
+
+
+def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float) -> None:
+    """Drop the agent's rows before ``t_c`` (module doc).
+
+    A first row at ``t_c`` replaces them; its corrections up to ``t_c`` and its ranges before
+    ``t_c`` go too.
+    """
+    st = mt.smoother
+    assert st is not None
+    name = path.name
+    i = mt.names.index(name)
+    dr = path.xy_m if path.dead_reckoning_m is None else path.dead_reckoning_m
+    first = [t_c, *(float(np.interp(t_c, path.t, dr[:, k])) for k in (0, 1))]
+    blocks = []
+    for b in st.corr.get(name, []):
+        old = b[0] <= t_c
+        jump = np.sum(b[5][old] - b[3][old], axis=0)
+        first[1:] = [first[1] + float(jump[0]), first[2] + float(jump[1])]
+        if not old.all():
+            blocks.append([v[~old] for v in b])
+    if name in st.corr:
+        st.corr[name] = blocks
+    st.rows[name] = [first] + [r for r in st.rows[name] if r[0] > t_c]
+    st.walked[name] = walked_m
+    parts = []
+    for p in st.ranges:
+        keep = p[1] >= t_c if int(p[0]) == i else np.ones(len(p[1]), dtype=bool)
+        if keep.any():
+            parts.append([p[0], *(v[keep] for v in p[1:])])
+    # an empty block of this agent keeps the next problem buildable without ranges
+    st.ranges = parts or [[i, *(v[:0] for v in p[1:])] for p in st.ranges[-1:]]
 
 
 def _fed_back(mt: MissionTracker, name: str) -> None:
@@ -221,7 +311,8 @@ def state_of(st: SmootherState | None) -> dict[str, Any] | None:
         "evaluations": w.evaluations}
     return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
             "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
-            "warm": warm, "seconds": st.seconds, "corr": st.corr, "corr_next": st.corr_next}
+            "warm": warm, "seconds": st.seconds, "corr": st.corr, "corr_next": st.corr_next,
+            "prior": prior_state(st.prior), "walked": st.walked}
 
 
 def state_from(d: dict[str, Any] | None) -> SmootherState | None:
@@ -246,4 +337,6 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
         corr={k: [[np.asarray(b[0], np.float64), np.asarray(b[1], np.int64),
                    np.asarray(b[2]).astype(str), *(np.asarray(v, np.float64) for v in b[3:])]
                   for b in v] for k, v in d.get("corr", {}).items()},
-        corr_next={k: int(v) for k, v in d.get("corr_next", {}).items()})
+        corr_next={k: int(v) for k, v in d.get("corr_next", {}).items()},
+        prior=prior_from(d.get("prior")),
+        walked={k: float(v) for k, v in d.get("walked", {}).items()})
