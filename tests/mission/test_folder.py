@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -16,6 +17,7 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import DegradedInputWarning
 from hrtls.io.mission import read_mission, write_mission
 from hrtls.io.tables import decode_table, read_trajectory
+from hrtls.mission.smoother_modes import smoother_mode, smoother_params
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.pipeline.finish import finish_track
@@ -76,15 +78,21 @@ def test_saved_folder_reads_back_the_mission(mission, saved: Path) -> None:  # t
     assert "position" not in (saved / "network.json").read_text()
 
 
-@pytest.mark.parametrize(("cooperate", "chunk_s"), [(True, 5.0), (False, 4.0)])
+@pytest.mark.parametrize(("cooperate", "chunk_s", "smoother"),
+                         [(True, 5.0, None), (False, 4.0, None), (True, 5.0, "feedback")])
 def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_path: Path,
-                                                    cooperate: bool, chunk_s: float
+                                                    cooperate: bool, chunk_s: float,
+                                                    smoother: str | None
                                                     ) -> None:  # type: ignore[no-untyped-def]
     flags = ["--chunk-s", str(chunk_s)] + ([] if cooperate else ["--no-cooperate"])
+    prm = MissionParams(cooperate=cooperate, chunk_s=chunk_s)
+    if smoother is not None:
+        flags += ["--smoother", smoother]
+        prm = dataclasses.replace(prm, smoother=smoother_params(smoother))
     text = _track(saved, tmp_path / "out", *flags)
+    assert f"smoother {smoother_mode(prm.smoother)}" in text
     cfg = preset("default")
-    res = MissionTracker(mission.agents, config=cfg, kinds=mission.kinds,
-                         params=MissionParams(cooperate=cooperate, chunk_s=chunk_s)).run()
+    res = MissionTracker(mission.agents, config=cfg, kinds=mission.kinds, params=prm).run()
     for name, raw in res.agents.items():
         want = finish_track(raw, mission.agents[name], cfg).trajectory
         got = read_trajectory(tmp_path / "out" / "agents" / name / "trajectory.csv")
@@ -99,7 +107,7 @@ def test_offline_track_equals_the_in_memory_tracker(mission, saved: Path, tmp_pa
     assert summary["params"] == {
         "cooperate": cooperate, "chunk_s": chunk_s, "loop_closure_ratio": 4.0,
         "pass_cap": True, "use_variance_ratio": None, "agent_cov_scale": 2.0,
-        "agent_correlation": 0.5, "config": "default"}
+        "agent_correlation": 0.5, "smoother": smoother_mode(prm.smoother), "config": "default"}
     assert summary["loop_closures"] == [
         {"t": c.t, "agent": c.agent, "node": c.node, "trace_now_m2": c.trace_now_m2,
          "trace_readings_m2": c.trace_readings_m2} for c in res.closures]
@@ -299,6 +307,14 @@ def test_ranges_to_unlisted_nodes_warn_with_the_agent_folder(tmp_path: Path) -> 
     for name, text in zip("AB", texts, strict=True):
         assert f"agents/{name} ranges: 1 id(s)" in text and "(N9)" in text
     assert folder.nodes == ("N1",)
+
+
+def test_bad_smoother_is_refused(saved: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["mission", "track", str(saved), "-o", str(tmp_path / "o"),
+                              "--smoother", "fast"])
+    assert res.exit_code == 2
+    assert "--smoother" in res.output and "off or nodes or feedback" in res.output
+    assert not (tmp_path / "o").exists()
 
 
 def test_unknown_simulate_option_is_refused(tmp_path: Path) -> None:

@@ -171,11 +171,22 @@ def test_network_declaration_is_checked(live: Live, commander: httpx.Client) -> 
     r = commander.put(f"{API}/missions/{mid}/network",
                       json={"nodes": [{"id": "N1"}], "params": {"chunk_s": -1}})
     assert r.status_code == 422 and "chunk_s" in r.json()["detail"]
+    for bad, field in (({"smoother": "fast"}, "smoother"), ({"smoother": 1}, "params.smoother"),
+                       ({"chunk_s": "5"}, "params.chunk_s")):
+        r = commander.put(f"{API}/missions/{mid}/network",
+                          json={"nodes": [{"id": "N1"}], "params": bad})
+        assert r.status_code == 422 and field in r.json()["detail"], (bad, r.text)
     assert commander.get(f"{API}/missions/{mid}/network").status_code == 404
     assert commander.put(f"{API}/missions/{mid}/network",
                          json={"nodes": [{"id": "N1"}]}).status_code == 200
     got = commander.get(f"{API}/missions/{mid}/network").json()
     assert [n["id"] for n in got["nodes"]] == ["N1"] and not got["nodes"][0]["localized"]
+    assert got["params"]["smoother"] in ("off", "nodes", "feedback")
+    r = commander.put(f"{API}/missions/{mid}/network",
+                      json={"nodes": [{"id": "N1"}], "params": {"smoother": "feedback"}})
+    assert r.status_code == 200 and r.json()["params"]["smoother"] == "feedback"
+    assert commander.get(f"{API}/missions/{mid}/network").json()["params"]["smoother"] == \
+        "feedback"
     assert commander.put(f"{API}/missions/999/network",
                          json={"nodes": []}).status_code == 404
 

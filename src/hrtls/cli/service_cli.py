@@ -224,8 +224,14 @@ def mission_track(
     repair: Annotated[bool, typer.Option("--repair", help="Repair bad rows of the agents' "
                                          "sessions (warns).")] = False,
     overwrite: Annotated[bool, typer.Option(help="Replace existing results.")] = False,
+    smoother: Annotated[str | None, typer.Option(
+        "--smoother", help="Range-SLAM smoother of the agents' paths and the nodes: off, nodes "
+        "(it localizes the nodes) or feedback (it also corrects the rescuers); the run's "
+        "line and report.json say which ran (default: the library's).")] = None,
 ) -> None:
     """Track a mission folder offline: every agent's track, the dropped nodes, report.json."""
+    import dataclasses
+
     from rich.console import Console
 
     from hrtls.cli.config import chosen_config
@@ -238,21 +244,27 @@ def mission_track(
         write_mission_outputs,
     )
     from hrtls.jobs.warmup import mark_compiled
+    from hrtls.mission.smoother_modes import MODES, smoother_params
     from hrtls.mission.tracker import MissionParams
 
     cfg = chosen_config(config, preset_name, command="hrtls mission track")
+    if smoother is not None and smoother not in MODES:
+        raise InputError(f"{smoother}", where="--smoother", expected=" or ".join(MODES))
     if not math.isfinite(chunk_s) or chunk_s <= 0:
         raise InputError(f"{chunk_s}", where="--chunk-s", expected="a window > 0 s")
     folder = read_mission(mission_dir, repair=repair)
     check_mission_output(list(folder.agents), output, overwrite=overwrite)
     console = Console(highlight=False)
     with console.status("tracking the mission"):
-        run = track_mission(folder, config=cfg,
-                            params=MissionParams(cooperate=cooperate, chunk_s=chunk_s))
+        prm = MissionParams(cooperate=cooperate, chunk_s=chunk_s)
+        if smoother is not None:
+            prm = dataclasses.replace(prm, smoother=smoother_params(smoother))
+        run = track_mission(folder, config=cfg, params=prm)
     write_mission_outputs(run, output, overwrite=overwrite, plot=plot)
     summary = mission_summary(run)
     console.print(f"[bold]{run.folder.name or mission_dir}[/bold]: {len(run.agents)} agents, "
-                  f"cooperation {'on' if cooperate else 'off'}, {run.tracker_s:.2f} s")
+                  f"cooperation {'on' if cooperate else 'off'}, smoother "
+                  f"{summary['params']['smoother']}, {run.tracker_s:.2f} s")
     Console(highlight=False, width=max(console.width, 120)).print(_agents_table(summary))
     console.print(_nodes_line(summary))
     console.print(f"wrote {output}")

@@ -30,6 +30,7 @@ from hrtls.errors import InputError
 from hrtls.io.mission import MISSION_FILE, MissionFolder, read_mission
 from hrtls.io.tables import encode_table
 from hrtls.jobs.track import check_output_dir, evaluate_track, write_track_outputs
+from hrtls.mission.smoother_modes import smoother_mode
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.finish import finish_track
@@ -186,6 +187,7 @@ def mission_summary(run: MissionRun) -> dict[str, Any]:
                    "use_variance_ratio": gate if math.isfinite(gate) else None,
                    "agent_cov_scale": run.params.nodes.agent_cov_scale,
                    "agent_correlation": run.params.nodes.agent_correlation,
+                   "smoother": smoother_mode(run.params.smoother),
                    "config": run.config.name},
         "tracker_s": run.tracker_s,
         "agents": agents,

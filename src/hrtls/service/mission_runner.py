@@ -46,6 +46,7 @@ from hrtls.data import Landmark
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
 from hrtls.mission.nodes import NodeEstimate
+from hrtls.mission.smoother_modes import smoother_params
 from hrtls.mission.tracker import AgentHeader, MissionParams, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.service.clock import Clock
@@ -112,6 +113,14 @@ def node_json(node: str, est: NodeEstimate | None, *, readings: int, passes: int
             "sigma_m": float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
             if ok and cov is not None else None,
             "floor": floor if ok else None, "seed": False}
+
+
+def mission_params(values: dict[str, Any]) -> MissionParams:
+    """A mission network's stored parameters as the estimator's (``smoother`` by mode name)."""
+    v = dict(values)
+    if "smoother" in v:
+        v["smoother"] = smoother_params(str(v["smoother"]))
+    return MissionParams(**v)
 
 
 def network_nodes(db: DbSession, mission_id: int) -> list[dict[str, Any]] | None:
@@ -248,7 +257,7 @@ class MissionRunner:
             config = preset(rescuers[0].preset) if rescuers else None
             tracker = MissionTracker(
                 {str(a.id): _header(a, mission, landmarks) for a in agents}, config=config,
-                params=MissionParams(**net.params), kinds=kinds,
+                params=mission_params(net.params), kinds=kinds,
                 landmark_updates=[Landmark.model_validate(d) for d in timed],
                 now_s=self.clock())
             declared = frozenset(net.nodes)

@@ -10,16 +10,16 @@ from pydantic import Field
 from sqlalchemy import select
 
 from hrtls.errors import InputError
-from hrtls.mission.tracker import MissionParams
+from hrtls.mission.smoother_modes import MODES, smoother_mode
 from hrtls.service.deps import Commander, DbDep, Reader, ServicesDep, mission_or_404
-from hrtls.service.mission_runner import network_nodes
+from hrtls.service.mission_runner import mission_params, network_nodes
 from hrtls.service.models import MissionNetwork, MissionSnapshot
 from hrtls.service.schemas import Strict
 
 router = APIRouter(tags=["missions"])
 
 LIVE_PARAMS = ("chunk_s", "pass_gap_s", "refresh_fraction", "cooperate", "loop_closure_ratio",
-               "silent_after_s")
+               "silent_after_s", "smoother")
 """Fields of :class:`~hrtls.mission.tracker.MissionParams` a mission may set."""
 
 
@@ -33,19 +33,25 @@ class NetworkIn(Strict):
     """The dropped nodes of a mission and the mission estimator's parameters."""
 
     nodes: list[NodeIn] = Field(max_length=10000)
-    params: dict[str, float | bool] = Field(default_factory=dict)
+    params: dict[str, float | bool | str] = Field(default_factory=dict, max_length=20)
 
 
-def _params(values: dict[str, float | bool]) -> dict[str, Any]:
+def _params(values: dict[str, float | bool | str]) -> dict[str, Any]:
     unknown = sorted(set(values) - set(LIVE_PARAMS))
     if unknown:
         raise HTTPException(422, f"params.{unknown[0]}: unknown (one of "
                                  f"{', '.join(LIVE_PARAMS)})")
+    for k, v in values.items():
+        if isinstance(v, str) != (k == "smoother"):
+            expected = "one of " + ", ".join(MODES) if k == "smoother" else "a number or bool"
+            raise HTTPException(422, f"params.{k}: {v!r} (expected {expected})")
     try:
-        prm = MissionParams(**values)  # type: ignore[arg-type]
+        prm = mission_params(values)
     except InputError as exc:
         raise HTTPException(422, f"params: {exc}") from None
-    return {k: v for k, v in dataclasses.asdict(prm).items() if k in LIVE_PARAMS}
+    out = {k: v for k, v in dataclasses.asdict(prm).items() if k in LIVE_PARAMS}
+    out["smoother"] = smoother_mode(prm.smoother)
+    return out
 
 
 @router.put("/missions/{mission_id}/network")

@@ -1,0 +1,40 @@
+"""The mission smoother's named modes, as the CLI and the service offer them.
+
+``off``: the per-node estimator alone (:mod:`hrtls.mission.nodes`); ``nodes``: the range-SLAM
+smoother (:mod:`hrtls.mission.graph`) localizes the nodes it can, on a sliding window of
+:data:`WINDOW_S`; ``feedback``: the same, solved every :data:`FEEDBACK_EVERY_S` of mission time,
+and each rescuer's tracker takes the smoother's estimate of its latest pose
+(:mod:`hrtls.mission.feedback`). The window keeps a solve's cost bounded over the mission.
+"""
+
+from __future__ import annotations
+
+from hrtls.errors import InputError
+from hrtls.mission.graph import SmootherParams
+
+WINDOW_S = 120.0
+"""Poses older than this leave the problem (marginalized), s."""
+
+FEEDBACK_EVERY_S = 10.0
+"""Solve cadence of the ``feedback`` mode, s of mission time."""
+
+MODES = ("off", "nodes", "feedback")
+
+
+def smoother_params(mode: str) -> SmootherParams | None:
+    """The smoother of ``mode`` (one of :data:`MODES`); None for ``off``."""
+    if mode == "off":
+        return None
+    if mode == "nodes":
+        return SmootherParams(window_s=WINDOW_S)
+    if mode == "feedback":
+        return SmootherParams(window_s=WINDOW_S, every_s=FEEDBACK_EVERY_S, feedback="implied")
+    raise InputError(f"smoother mode {mode!r}", where="smoother", expected=", ".join(MODES))
+
+
+def smoother_mode(params: SmootherParams | None) -> str:
+    """The mode whose parameters ``params`` are, or ``custom``."""
+    for mode in MODES:
+        if smoother_params(mode) == params:
+            return mode
+    return "custom"

@@ -1,0 +1,26 @@
+"""The smoother's named modes: what each sets, and refusals."""
+
+from __future__ import annotations
+
+import pytest
+
+from hrtls.errors import InputError
+from hrtls.mission.graph import SmootherParams
+from hrtls.mission.smoother_modes import MODES, smoother_mode, smoother_params
+
+
+def test_modes_round_trip() -> None:
+    assert smoother_params("off") is None
+    for mode in MODES:
+        assert smoother_mode(smoother_params(mode)) == mode
+    nodes, feedback = smoother_params("nodes"), smoother_params("feedback")
+    assert nodes is not None and feedback is not None
+    assert nodes.feedback == "off" and feedback.feedback == "implied"
+    assert nodes.window_s == feedback.window_s == 120.0      # bounded cost in both
+    assert feedback.every_s < nodes.every_s
+
+
+def test_other_parameters_are_custom_and_unknown_modes_refused() -> None:
+    assert smoother_mode(SmootherParams()) == "custom"
+    with pytest.raises(InputError, match="off, nodes, feedback"):
+        smoother_params("fast")
