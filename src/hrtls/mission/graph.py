@@ -55,6 +55,7 @@ from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.errors import InputError
 from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
+from hrtls.mission.increment_noise import whitening
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -72,6 +73,14 @@ class SmootherParams:
         Distance walked (along the agent's rows) of a scale / heading correction segment, m.
     odo_sigma_m, odo_fraction:
         Noise of one increment between poses: a floor (m) and a part of its length.
+    increment_noise:
+        ``"length"``: the increment noise from ``odo_sigma_m`` and ``odo_fraction``;
+        ``"tracker"``: the tracker's covariance growth between the poses, floor ``odo_sigma_m``
+        (:mod:`hrtls.mission.increment_noise`).
+    heading_updates:
+        In the mission loop, the magnetic heading and tag bearing corrections: ``"factor"``
+        (jump removed from the dead reckoning, a position factor), ``"drop"`` (jump removed, no
+        factor) or ``"chain"`` (jump kept in the dead reckoning, no factor).
     scale_sigma, scale_walk_sigma:
         Prior 1-sigma of the first segment's scale correction and of its change per segment.
     heading_sigma_rad, heading_walk_rad:
@@ -102,6 +111,8 @@ class SmootherParams:
     segment_m: float = 10.0
     odo_sigma_m: float = 0.15
     odo_fraction: float = 0.10
+    increment_noise: str = "length"
+    heading_updates: str = "factor"
     scale_sigma: float = 0.08
     scale_walk_sigma: float = 0.02
     heading_sigma_rad: float = 0.02
@@ -136,6 +147,11 @@ class SmootherParams:
         if self.feedback not in ("off", "implied", "replace"):
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
+        if self.increment_noise not in ("length", "tracker") or \
+                self.heading_updates not in ("factor", "drop", "chain"):
+            raise InputError(f"increment_noise = {self.increment_noise!r}, heading_updates = "
+                             f"{self.heading_updates!r}", where="SmootherParams",
+                             expected="length or tracker; factor, drop or chain")
         if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
             raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
                              expected="linear, soft_l1, huber or cauchy")
@@ -147,7 +163,8 @@ class AgentPath:
 
     ``dead_reckoning_m``: the rows without the tracker's correction jumps (None: the rows are
     the motion); ``factors``: its corrections as position factors, ``(t (K,), z (K, 2),
-    W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None.
+    W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None; ``growth_m2``: the
+    tracker's covariance growth curve at the rows (:mod:`hrtls.mission.increment_noise`), or None.
     """
 
     name: str
@@ -156,6 +173,7 @@ class AgentPath:
     start_cov_m2: FloatArray
     dead_reckoning_m: FloatArray | None = None
     factors: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    growth_m2: FloatArray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,8 +210,9 @@ class SmootherResult:
     last_pose: dict[str, tuple[float, FloatArray, FloatArray]] = field(default_factory=dict)
 
 
-def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pose times, the rows there and the dead reckoning there."""
+def _decimate(path: AgentPath, step_s: float
+              ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """Pose times, the rows there, the dead reckoning there and the growth curve there."""
     t0, t1 = float(path.t[0]), float(path.t[-1])
     tq = np.arange(t0, t1, step_s)
     if tq.size == 0 or tq[-1] < t1:
@@ -201,7 +220,10 @@ def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, F
     dr = path.xy_m if path.dead_reckoning_m is None else path.dead_reckoning_m
     xy, g = (np.column_stack([np.interp(tq, path.t, a[:, 0]), np.interp(tq, path.t, a[:, 1])])
              for a in (path.xy_m, dr))
-    return tq, xy, g
+    gr = None if path.growth_m2 is None else np.stack(
+        [np.interp(tq, path.t, path.growth_m2[:, i, j]) for i in (0, 1) for j in (0, 1)],
+        axis=1).reshape(-1, 2, 2)
+    return tq, xy, g, gr
 
 
 class _Problem:
@@ -219,7 +241,7 @@ class _Problem:
         odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
         col = 0
         for p in paths:
-            t, f, g = _decimate(p, prm.decimate_s)
+            t, f, g, gr = _decimate(p, prm.decimate_s)
             d = np.diff(g, axis=0)
             walked = np.cumsum(np.hypot(d[:, 0], d[:, 1])) - np.hypot(d[:, 0], d[:, 1])
             seg = np.floor(walked / prm.segment_m).astype(np.int64)
@@ -229,7 +251,8 @@ class _Problem:
             self.pose_col.append(col)
             self.s_col.append(col + 2 * len(t))
             self.n_seg.append(n_seg)
-            q = np.sqrt(prm.odo_sigma_m ** 2 + (prm.odo_fraction * np.hypot(d[:, 0], d[:, 1])) ** 2)
+            q = whitening(d, odo_sigma_m=prm.odo_sigma_m, odo_fraction=prm.odo_fraction,
+                          growth_m2=gr if prm.increment_noise == "tracker" else None)
             odo.append((col + 2 * np.arange(len(t) - 1), col + 2 * len(t) + seg, d, q))
             col += 2 * len(t) + 2 * n_seg
         self.odo_k = np.concatenate([o[0] for o in odo]).astype(np.int64)
@@ -237,7 +260,7 @@ class _Problem:
         self.odo_phi = self.odo_s + np.repeat(np.asarray(self.n_seg, np.int64),
                                               [len(o[0]) for o in odo])
         self.odo_d = np.concatenate([o[2] for o in odo]).reshape(-1, 2)
-        self.odo_q = np.concatenate([o[3] for o in odo])
+        self.odo_w = np.concatenate([o[3] for o in odo]).reshape(-1, 2, 2)
         self.node_col = col
         self.height_col = col + 2 * len(node_ids)
         self.n = self.height_col + 1
@@ -304,8 +327,8 @@ class _Problem:
         c, sn = np.cos(phi), np.sin(phi)
         d = self.odo_d
         rd = np.column_stack([c * d[:, 0] - sn * d[:, 1], sn * d[:, 0] + c * d[:, 1]])
-        e = (_pairs(x, self.odo_k + 2) - _pairs(x, self.odo_k) - k[:, None] * rd) \
-            / self.odo_q[:, None]
+        e = np.einsum("nij,nj->ni", self.odo_w,
+                      _pairs(x, self.odo_k + 2) - _pairs(x, self.odo_k) - k[:, None] * rd)
         return e, rd, np.column_stack([-rd[:, 1], rd[:, 0]])
 
     def residuals(self, x: FloatArray) -> FloatArray:
@@ -347,11 +370,14 @@ class _Problem:
         _, rd, rdp = self._odo_parts(x)
         k = 1.0 + x[self.odo_s]
         oi = n_r + 2 * np.arange(len(self.odo_k))
-        for ax in (0, 1):
-            put(oi + ax, self.odo_k + 2 + ax, 1.0 / self.odo_q)
-            put(oi + ax, self.odo_k + ax, -1.0 / self.odo_q)
-            put(oi + ax, self.odo_s, -rd[:, ax] / self.odo_q)
-            put(oi + ax, self.odo_phi, -k * rdp[:, ax] / self.odo_q)
+        wrd = np.einsum("nij,nj->ni", self.odo_w, rd)
+        wrdp = np.einsum("nij,nj->ni", self.odo_w, rdp)
+        for i in (0, 1):
+            for ax in (0, 1):
+                put(oi + i, self.odo_k + 2 + ax, self.odo_w[:, i, ax])
+                put(oi + i, self.odo_k + ax, -self.odo_w[:, i, ax])
+            put(oi + i, self.odo_s, -wrd[:, i])
+            put(oi + i, self.odo_phi, -k * wrdp[:, i])
         row = n_r + 2 * len(self.odo_k)
         fi = row + 2 * np.arange(len(self.fw))
         for i in (0, 1):

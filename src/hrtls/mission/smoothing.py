@@ -23,10 +23,11 @@ from hrtls.data.observations import RangeMeasurements
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, smooth
+from hrtls.mission.increment_noise import growth_curve
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.corrections import SMOOTHED
-from hrtls.pipeline.schedule import RANGE
+from hrtls.pipeline.schedule import BEARING, MAGNETIC, RANGE
 from hrtls.pipeline.tracker import Tracker
 
 if TYPE_CHECKING:
@@ -39,9 +40,10 @@ FloatArray = NDArray[np.float64]
 class SmootherState:
     """What the loop keeps for the smoother (all plain arrays / lists: snapshot-ready).
 
-    ``rows``: per agent its kept rows (t, x, y); ``start_cov``: its first row's covariance;
-    ``pulled``: time of its last final row; ``tail``: its latest row (t, x, y, covariance),
-    which may still change; ``ranges``: agent index, t, node, range, sigma;
+    ``rows``: per agent its kept rows (t, x, y, covariance P00, P01, P10, P11); ``start_cov``:
+    its first row's covariance; ``pulled``: time of its last final row; ``tail``: its latest
+    row (t, x, y, covariance), which may still change; ``ranges``: agent index, t, node,
+    range, sigma;
     ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
     ``warm``: the last solution (warm start); ``corr``: per agent its tracker's corrections
     (blocks of ``[t, kind, source, mean0, cov0, mean1, cov1]``,
@@ -81,7 +83,7 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
             if not rows:
                 st.start_cov[name] = np.asarray(row[3:7], np.float64).reshape(2, 2)
             if not rows or row[0] >= rows[-1][0] + prm.decimate_s:
-                rows.append(row[:3])
+                rows.append(row[:7])
             st.pulled[name] = row[0]
         if new:
             st.tail[name] = new[-1]
@@ -110,23 +112,32 @@ def _pull_corrections(mt: MissionTracker, name: str) -> None:
 def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> AgentPath:
     """The agent's rows with its dead reckoning and correction factors (when it keeps them).
 
-    Every correction's jump leaves the chain; all but the ranges to nodes that are not the
-    agent's known landmarks (mission nodes: their raw ranges are the problem's; peers) and the
-    smoother's own feedback (:mod:`hrtls.mission.feedback`) become factors.
+    Every correction's jump leaves the chain (the magnetic heading's and the tag bearings' with
+    ``heading_updates`` ``"chain"`` aside); all but the ranges to nodes that are not the agent's
+    known landmarks (mission nodes: their raw ranges are the problem's; peers), the smoother's
+    own feedback (:mod:`hrtls.mission.feedback`) and, unless ``heading_updates`` is
+    ``"factor"``, the heading corrections become factors.
     """
-    st = mt.smoother
-    assert st is not None
+    st, prm = mt.smoother, mt.params.smoother
+    assert st is not None and prm is not None
     blocks = st.corr.get(name)
+    cov = rows[:, 3:7].reshape(-1, 2, 2)
     if not blocks and not isinstance(mt.trackers[name], Tracker | RobotTracker):
-        return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name])
+        return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], growth_m2=cov)
     t, kind, src, m0, c0, m1, c1 = (np.concatenate([b[j] for b in blocks]) if blocks else
                                     np.zeros((0, 2, 2)) if j in (4, 6) else
                                     np.zeros((0, 2)) if j in (3, 5) else np.zeros(0)
                                     for j in range(7))
-    dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t, m1 - m0)
+    heading = np.isin(kind, (MAGNETIC, BEARING))
+    jump = ~heading if prm.heading_updates == "chain" else np.ones(len(t), dtype=bool)
+    dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t[jump], (m1 - m0)[jump])
     keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i])) & (kind != SMOOTHED)
+    if prm.heading_updates != "factor":
+        keep &= ~heading
     z, wm = implied_factors(m0[keep], c0[keep], m1[keep], c1[keep])
-    return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm))
+    growth = growth_curve(cov, rows[:, 0], t[jump], c0[jump], c1[jump])
+    return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm),
+                     growth)
 
 
 def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
@@ -139,7 +150,7 @@ def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
         rows = st.rows.get(name, [])
         tail = st.tail.get(name)
         if feedback and rows and tail is not None and tail[0] > rows[-1][0]:
-            rows = [*rows, tail[:3]]          # the latest row: the pose fed back
+            rows = [*rows, tail[:7]]          # the latest row: the pose fed back
         if len(rows) < 2:
             continue
         index[i] = len(paths)
