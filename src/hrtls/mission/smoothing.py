@@ -140,7 +140,8 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
                      growth)
 
 
-def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
+def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
+    """The agents' paths and the ranges the next solve takes (None: nothing to solve)."""
     st = mt.smoother
     assert st is not None
     paths: list[AgentPath] = []
@@ -179,7 +180,7 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     if prm is None or st is None or (not final and t_end < st.last_solve_s + prm.every_s):
         return []
     st.last_solve_s = t_end
-    got = _problem(mt)
+    got = problem(mt)
     if got is None:
         return []
     paths, ranges = got
