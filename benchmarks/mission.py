@@ -19,7 +19,8 @@ only) and prints, over the seeds, mean / p90 / worst of (of the fraction localiz
 ``--smoother``: both columns with the range-SLAM smoother (``MissionParams.smoother``, its
 default parameters; the cost table then gives its time per solve); ``--feedback``: its latest
 poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
-``--feedback-cov-scale``, ``--feedback-gate``).
+``--feedback-cov-scale``, ``--feedback-gate``); its model: ``--increment-noise``,
+``--heading-updates``, ``--odo-fraction``, ``--min-spread-m``.
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
@@ -281,11 +282,13 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
 
 def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
-    ``--feedback-gate``."""
+    ``--feedback-gate``, ``--increment-noise``, ``--heading-updates``, ``--odo-fraction``,
+    ``--min-spread-m``."""
     if not args.smoother:
         return None
     kw: dict[str, Any] = {}
-    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate"):
+    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate", "increment_noise",
+                "heading_updates", "odo_fraction", "min_spread_m"):
         if getattr(args, key) is not None:
             kw[key] = getattr(args, key)
     return SmootherParams(**kw)
@@ -364,6 +367,14 @@ def main() -> None:
                     help="with --feedback: SmootherParams.feedback_cov_scale")
     ap.add_argument("--feedback-gate", type=float, default=None,
                     help="with --feedback implied: SmootherParams.feedback_gate (NIS)")
+    ap.add_argument("--increment-noise", choices=("length", "tracker"), default=None,
+                    help="with --smoother: SmootherParams.increment_noise")
+    ap.add_argument("--heading-updates", choices=("factor", "drop", "chain"), default=None,
+                    help="with --smoother: SmootherParams.heading_updates")
+    ap.add_argument("--odo-fraction", type=float, default=None,
+                    help="with --smoother: SmootherParams.odo_fraction")
+    ap.add_argument("--min-spread-m", type=float, default=None,
+                    help="with --smoother: SmootherParams.min_spread_m")
     ap.add_argument("--no-magnetometer", action="store_true",
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     ap.add_argument("--no-hard-iron-fit", action="store_true",

@@ -51,6 +51,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "frac20": {"odo_fraction": 0.20},
     "chain-frac20": {"heading_updates": "chain", "odo_fraction": 0.20},
     "drop-frac20": {"heading_updates": "drop", "odo_fraction": 0.20},
+    "spread1": {"min_spread_m": 1.0},
+    "spread05": {"min_spread_m": 0.5},
+    "drop-spread1": {"heading_updates": "drop", "min_spread_m": 1.0},
 }
 """Variant name -> ``SmootherParams`` fields changed."""
 
