@@ -51,9 +51,13 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "frac20": {"odo_fraction": 0.20},
     "chain-frac20": {"heading_updates": "chain", "odo_fraction": 0.20},
     "drop-frac20": {"heading_updates": "drop", "odo_fraction": 0.20},
-    "spread1": {"min_spread_m": 1.0},
-    "spread05": {"min_spread_m": 0.5},
-    "drop-spread1": {"heading_updates": "drop", "min_spread_m": 1.0},
+    "spread1": {"min_spread_m": 1.0, "localize_spread_m": 1.0},
+    "spread05": {"min_spread_m": 0.5, "localize_spread_m": 0.5},
+    "drop-spread1": {"heading_updates": "drop", "min_spread_m": 1.0, "localize_spread_m": 1.0},
+    "spread1-own2": {"min_spread_m": 1.0, "localize_spread_m": 2.0},
+    "spread05-own2": {"min_spread_m": 0.5, "localize_spread_m": 2.0},
+    "drop-spread1-own2": {"heading_updates": "drop", "min_spread_m": 1.0,
+                          "localize_spread_m": 2.0},
 }
 """Variant name -> ``SmootherParams`` fields changed."""
 

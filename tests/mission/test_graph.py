@@ -118,6 +118,12 @@ def test_params_are_checked() -> None:
         SmootherParams(loss="l3")
     with pytest.raises(InputError):
         SmootherParams(min_ranges=2)
+    with pytest.raises(InputError):
+        SmootherParams(increment_noise="gyro")
+    with pytest.raises(InputError):
+        SmootherParams(heading_updates="twice")
+    with pytest.raises(InputError):
+        SmootherParams(localize_spread_m=0.0)
 
 
 PARAMS = MissionParams(smoother=SmootherParams(every_s=20.0))

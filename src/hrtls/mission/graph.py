@@ -7,41 +7,43 @@ solves one nonlinear least-squares problem over every agent's decimated path and
 (range-only SLAM on a pose chain).
 
 Path model. Agent ``a``'s causal estimate rows are taken every ``decimate_s`` (``f_k`` at
-``t_k``). Its tracker's corrections (tag groups, bearings, fixes, ranges, RSS, the magnetic
-heading: every update that moved the position) are removed from them: ``g_k`` is the dead
-reckoning (the rows without the corrections' jumps, :mod:`hrtls.mission.correction_factors`;
-``g = f`` for an agent without records), with increments ``d_k = g_{k+1} - g_k``. The poses
-``x_k`` are unknowns tied by
+``t_k``). Its tracker's corrections (every update that moved the position) are removed from
+them: ``g_k`` is the dead reckoning (the rows without the corrections' jumps,
+:mod:`hrtls.mission.correction_factors`; ``g = f`` for an agent without records; with
+``heading_updates`` ``"chain"`` the magnetic heading's and tag bearings' jumps stay in it), with
+increments ``d_k = g_{k+1} - g_k``. The poses ``x_k`` are unknowns tied by
 
-    x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, q_k^2 I)
+    x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, Q_k)
 
 ``P_0`` the agent's covariance at its first row (the start at the entrance), ``j`` the segment
-(``segment_m`` walked) of increment ``k``, ``q_k^2 = odo_sigma_m^2 + (odo_fraction |d_k|)^2``; a
-segment's step-length scale correction ``s_j`` and rotation ``phi_j`` are random walks over the
-segments (``s_0 ~ N(0, scale_sigma^2)``, ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise
-``heading_sigma_rad`` / ``heading_walk_rad``): the persistent part of the dead-reckoning error.
-An agent's position at a range's or a correction's time is interpolated between its poses.
+(``segment_m`` walked) of increment ``k``, ``Q_k`` by ``increment_noise``
+(:mod:`hrtls.mission.increment_noise`); a segment's step-length scale correction ``s_j`` and
+rotation ``phi_j`` are random walks over the segments (``s_0 ~ N(0, scale_sigma^2)``,
+``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise ``heading_sigma_rad`` /
+``heading_walk_rad``): the persistent part of the dead-reckoning error. An agent's position at
+a range's or a correction's time is interpolated between its poses.
 
 Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with
 ``W^T W = P1^-1 - P0^-1`` (the information the update added to the tracker's position,
 ``(m0, P0) -> (m1, P1)``) and ``z`` the position it measured (derivation, and what it
 approximates for other than position measurements: :mod:`hrtls.mission.correction_factors`):
-the tags at known positions pin the map's shift and rotation. Ranges to nodes that are not the
-agent's known landmarks (the problem's own nodes, or peers) leave the chain but give no factor:
-their raw ranges are the problem's.
+the tags pin the map's shift and rotation. No factor: the ranges to nodes that are not the
+agent's known landmarks (the problem's own nodes, or peers: their raw ranges are the
+problem's) and, unless ``heading_updates`` is ``"factor"``, the magnetic heading and tag
+bearings (their heading is already in the increments' directions).
 
 Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 ``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
 and the nodes (estimated, prior ``N(0, height_sigma_m^2)``), ``e`` the range noise (its sigma as
-received); walls lengthen ranges (NLOS), so the range residuals go through a robust loss
-(``loss``, scale ``loss_scale`` in sigmas).
+received); walls lengthen ranges (NLOS): a robust loss (``loss``, scale ``loss_scale`` sigmas).
 
-Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (every pose and
-correction marginalized; ``W`` the robust loss's weights there), times the mean square whitened
-residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
-of the node's own when larger (a node seen mostly through walls). A node is solved with at least
-``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
-with a sigma below ``max_sigma_m``.
+Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
+loss's weights there), times the mean square whitened inlier residual (``|e| < 3 loss_scale``)
+when above one: of all ranges, or of the node's own when larger (a node seen mostly through
+walls). A node is solved with ``min_ranges`` ranges at least from positions spread
+``min_spread_m`` off a line, and counts as localized with a spread of ``localize_spread_m`` at
+least (seen from nearly a line, e.g. one corridor, a node helps the poses but its position
+across the line is poorly known) and a sigma below ``max_sigma_m``.
 """
 
 from __future__ import annotations
@@ -92,8 +94,9 @@ class SmootherParams:
         its scale in whitened units.
     min_ranges:
         Fewest ranges of a node in the problem.
-    min_spread_m:
-        RMS distance of a node's reading positions from their best-fit line, at least, m.
+    min_spread_m, localize_spread_m:
+        RMS distance of a node's reading positions from their best-fit line, at least, m: of
+        a node in the problem, of a localized node.
     max_sigma_m:
         Largest 1-sigma (worst axis) of a localized node, m.
     max_evaluations:
@@ -122,6 +125,7 @@ class SmootherParams:
     loss_scale: float = 2.0
     min_ranges: int = 6
     min_spread_m: float = 2.0
+    localize_spread_m: float = 2.0
     max_sigma_m: float = 3.0
     max_evaluations: int = 60
     every_s: float = 30.0
@@ -132,8 +136,8 @@ class SmootherParams:
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
                      "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
-                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s",
-                     "feedback_cov_scale", "feedback_gate"):
+                     "height_sigma_m", "loss_scale", "min_spread_m", "localize_spread_m",
+                     "max_sigma_m", "every_s", "feedback_cov_scale", "feedback_gate"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
@@ -147,14 +151,11 @@ class SmootherParams:
         if self.feedback not in ("off", "implied", "replace"):
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
-        if self.increment_noise not in ("length", "tracker") or \
-                self.heading_updates not in ("factor", "drop", "chain"):
-            raise InputError(f"increment_noise = {self.increment_noise!r}, heading_updates = "
-                             f"{self.heading_updates!r}", where="SmootherParams",
-                             expected="length or tracker; factor, drop or chain")
-        if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
-            raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
-                             expected="linear, soft_l1, huber or cauchy")
+        for name, allowed in (("increment_noise", ("length", "tracker")), ("heading_updates", (
+                "factor", "drop", "chain")), ("loss", ("linear", "soft_l1", "huber", "cauchy"))):
+            if getattr(self, name) not in allowed:
+                raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",
+                                 expected=" or ".join(allowed))
 
 
 @dataclass(frozen=True, eq=False)
@@ -431,14 +432,16 @@ def _raw_positions(paths: list[AgentPath], ranges: RangeSet) -> FloatArray:
     return xy
 
 
-def _select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams) -> list[str]:
-    """Nodes with enough ranges from positions spread off a line."""
+def _select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams
+                  ) -> dict[str, float]:
+    """Nodes with enough ranges from positions spread off a line: id -> spread, m."""
     raw = _raw_positions(paths, ranges)
-    out = []
+    out = {}
     for n in sorted(set(ranges.node.tolist())):
         m = ranges.node == n
-        if np.count_nonzero(m) >= prm.min_ranges and _spread(raw[m]) >= prm.min_spread_m:
-            out.append(str(n))
+        spread = _spread(raw[m]) if np.count_nonzero(m) >= prm.min_ranges else 0.0
+        if spread >= prm.min_spread_m:
+            out[str(n)] = spread
     return out
 
 
@@ -484,7 +487,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     agents' rows); ``warm``: a previous solution to start from (its nodes and corrections).
     """
     prm = params or SmootherParams()
-    prob = _Problem(paths, ranges, _select_nodes(paths, ranges, prm), prm)
+    spread = _select_nodes(paths, ranges, prm)
+    prob = _Problem(paths, ranges, list(spread), prm)
     x0 = _initial(prob, paths, dict(initial_nodes or {}), warm)
     x, evaluations = _solve(prob, x0)
     res = prob.residuals(x)
@@ -504,7 +508,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
-        ok = bool(np.all(np.isfinite(c))) and \
+        ok = spread[n] >= prm.localize_spread_m and bool(np.all(np.isfinite(c))) and \
             float(np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0))) <= prm.max_sigma_m
         nodes[n] = (x[prob.node_col + 2 * i:prob.node_col + 2 * i + 2].copy(), c, ok)
     out_paths, corr, scale, heading = {}, {}, {}, {}
