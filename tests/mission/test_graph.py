@@ -237,3 +237,18 @@ def test_on_a_dev_mission_the_smoother_nodes_are_consistent() -> None:
     nees = [float(di @ np.linalg.solve(nodes[n][1], di)) for di, n in zip(d, ok, strict=True)]
     assert float(np.mean(nees)) < 5.0
     assert float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) < 0.7
+
+
+def test_a_node_seen_from_a_line_helps_but_is_not_localized() -> None:
+    t = np.arange(0.0, 40.0, 1.0)
+    truth = _walk(t)
+    line = t <= 22.0                    # D is ranged on the east leg and 2 m into the north leg
+    rows = _ranges(0, t, truth, NODES) + _ranges(0, t[line], truth[line],
+                                                 {"D": np.array([8.0, 1.5])})
+    path = AgentPath("R1", t, _dead_reckoned(truth, scale=1.05), 0.01 * np.eye(2))
+    for localize, ok in ((2.0, False), (0.1, True)):
+        prm = SmootherParams(max_evaluations=200, min_spread_m=0.1, localize_spread_m=localize)
+        sol = smooth([path], _range_set(rows), params=prm)
+        assert "D" in sol.nodes                     # in the problem either way
+        assert sol.nodes["D"][2] is ok
+        assert all(sol.nodes[n][2] for n in NODES)
