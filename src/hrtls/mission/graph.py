@@ -35,7 +35,9 @@ bearings (their heading is already in the increments' directions).
 Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 ``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
 and the nodes (estimated, prior ``N(0, height_sigma_m^2)``), ``e`` the range noise (its sigma as
-received); walls lengthen ranges (NLOS): a robust loss (``loss``, scale ``loss_scale`` sigmas).
+received, times ``sqrt(n)`` for ``n`` ranges of the pair within ``range_correlation_s``,
+:mod:`hrtls.mission.range_weights`); walls lengthen ranges (NLOS): a robust loss (``loss``,
+scale ``loss_scale`` sigmas).
 
 Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
 loss's weights there), times the mean square whitened inlier residual (``|e| < 3 loss_scale``)
@@ -56,8 +58,9 @@ from numpy.typing import NDArray
 from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.errors import InputError
-from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
+from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, robust_weights, spd_lu
 from hrtls.mission.increment_noise import whitening
+from hrtls.mission.range_weights import correlated_sigma
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -89,6 +92,8 @@ class SmootherParams:
         Prior 1-sigma of the first segment's rotation and of its change per segment, rad.
     height_sigma_m:
         Prior 1-sigma of the antenna-node height difference, m.
+    range_correlation_s:
+        Ranges of one agent to one node within this window weigh as one, s (0: independent).
     loss, loss_scale:
         Robust loss of the range residuals (``rho`` as in ``scipy.optimize.least_squares``) and
         its scale in whitened units.
@@ -121,6 +126,7 @@ class SmootherParams:
     heading_sigma_rad: float = 0.02
     heading_walk_rad: float = 0.1
     height_sigma_m: float = 2.0
+    range_correlation_s: float = 0.0
     loss: str = "cauchy"
     loss_scale: float = 2.0
     min_ranges: int = 6
@@ -141,9 +147,10 @@ class SmootherParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
-        if not (math.isfinite(self.odo_fraction) and self.odo_fraction >= 0):
-            raise InputError(f"odo_fraction = {self.odo_fraction}", where="SmootherParams",
-                             expected=">= 0")
+        for name in ("odo_fraction", "range_correlation_s"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise InputError(f"{name} = {getattr(self, name)}", where="SmootherParams",
+                                 expected=">= 0")
         if self.min_ranges < 3 or self.max_evaluations < 1:
             raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
                              f"{self.max_evaluations}", where="SmootherParams",
@@ -307,7 +314,8 @@ class _Problem:
         self.rnode = np.array([index[str(n)] for n in ranges.node[keep]], dtype=np.int64)
         self.ragent = agent
         self.r = ranges.range_m[keep]
-        self.s = ranges.sigma_m[keep]
+        self.s = correlated_sigma(agent, self.rnode, self.rt, ranges.sigma_m[keep],
+                                  window_s=self.prm.range_correlation_s)
         self.c0 = np.zeros(len(self.rt), dtype=np.int64)
         self.c1 = np.zeros(len(self.rt), dtype=np.int64)
         self.w = np.zeros(len(self.rt))
@@ -427,8 +435,7 @@ def _raw_positions(paths: list[AgentPath], ranges: RangeSet) -> FloatArray:
     xy = np.zeros((len(ranges.t), 2))
     for a, p in enumerate(paths):
         m = ranges.agent == a
-        xy[m, 0] = np.interp(ranges.t[m], p.t, p.xy_m[:, 0])
-        xy[m, 1] = np.interp(ranges.t[m], p.t, p.xy_m[:, 1])
+        xy[m] = np.column_stack([np.interp(ranges.t[m], p.t, p.xy_m[:, j]) for j in (0, 1)])
     return xy
 
 
@@ -495,7 +502,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     n_r = len(prob.r)
     z = (res[:n_r] / prm.loss_scale) ** 2
     w = np.ones(res.size)
-    w[:n_r] = _robust_weights(z, prm.loss)
+    w[:n_r] = robust_weights(z, prm.loss)
     jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
@@ -555,7 +562,7 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
     while evaluations < prob.prm.max_evaluations:
         res = prob.residuals(x)
         w = np.ones(res.size)
-        w[:n_r] = _robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
+        w[:n_r] = robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
         jw = diags(np.sqrt(w)) @ prob.jacobian(x)
         hess = csc_matrix(jw.T @ jw)
         grad = jw.T @ (np.sqrt(w) * res)
@@ -572,18 +579,6 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
         if step is None or float(np.max(np.abs(step))) < 1e-4:
             break
     return x, evaluations
-
-
-def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
-    """IRLS weights ``rho'(z)`` of the range rows at the solution."""
-    if loss == "soft_l1":
-        return np.asarray(1.0 / np.sqrt(1.0 + z), np.float64)
-    if loss == "cauchy":
-        return np.asarray(1.0 / (1.0 + z), np.float64)
-    if loss == "huber":
-        return np.asarray(np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300))),
-                          np.float64)
-    return np.ones_like(z)
 
 
 def _extend(poses: FloatArray, f: FloatArray, k: int, scale: float, heading_rad: float) -> None:
