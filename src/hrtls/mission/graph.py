@@ -40,12 +40,12 @@ received, times ``sqrt(n)`` for ``n`` ranges of the pair within ``range_correlat
 scale ``loss_scale`` sigmas).
 
 Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
-loss's weights there), times the mean square whitened inlier residual (``|e| < 3 loss_scale``)
-when above one: of all ranges, or of the node's own when larger (a node seen mostly through
-walls). A node is solved with ``min_ranges`` ranges at least from positions spread
-``min_spread_m`` off a line, and counts as localized with a spread of ``localize_spread_m`` at
-least (seen from nearly a line, e.g. one corridor, a node helps the poses but its position
-across the line is poorly known) and a sigma below ``max_sigma_m``.
+loss's weights there), times the mean square inlier residual (``|e| < 3 loss_scale``) whitened
+by the sigmas as received when above one: of all ranges, or of the node's own when larger
+(a node seen mostly through walls). A node is solved with ``min_ranges`` ranges at least from
+positions spread ``min_spread_m`` off a line, and counts as localized with a spread of
+``localize_spread_m`` at least (seen from nearly a line, e.g. one corridor, a node helps the
+poses but its position across the line is poorly known) and a sigma below ``max_sigma_m``.
 """
 
 from __future__ import annotations
@@ -314,7 +314,8 @@ class _Problem:
         self.rnode = np.array([index[str(n)] for n in ranges.node[keep]], dtype=np.int64)
         self.ragent = agent
         self.r = ranges.range_m[keep]
-        self.s = correlated_sigma(agent, self.rnode, self.rt, ranges.sigma_m[keep],
+        self.s_raw = ranges.sigma_m[keep]
+        self.s = correlated_sigma(agent, self.rnode, self.rt, self.s_raw,
                                   window_s=self.prm.range_correlation_s)
         self.c0 = np.zeros(len(self.rt), dtype=np.int64)
         self.c1 = np.zeros(len(self.rt), dtype=np.int64)
@@ -508,7 +509,9 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
     last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
     pose_inflation = max(rms ** 2, 1.0) if math.isfinite(rms) else 1.0
-    inflation = np.concatenate([node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)),
+    raw = res[:n_r] * prob.s / prob.s_raw          # whitened by the sigmas as received
+    inflation = np.concatenate([node_inflation(raw, np.abs(raw) < 3.0 * prm.loss_scale,
+                                               prob.rnode, len(prob.node_ids)),
                                 np.full(len(last), pose_inflation)])
     cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
                                             range(len(prob.node_ids))] + last, inflation)
