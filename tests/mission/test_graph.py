@@ -252,3 +252,18 @@ def test_a_node_seen_from_a_line_helps_but_is_not_localized() -> None:
         assert "D" in sol.nodes                     # in the problem either way
         assert sol.nodes["D"][2] is ok
         assert all(sol.nodes[n][2] for n in NODES)
+
+
+def test_correlated_ranges_weigh_less_and_exact_data_stay_exact() -> None:
+    t = np.arange(0.0, 40.0, 1.0)
+    truth = _walk(t)
+    path = [AgentPath("R1", t, _dead_reckoned(truth, scale=1.05), 0.01 * np.eye(2))]
+    ranges = _range_set(_ranges(0, t, truth, NODES))
+    one = smooth(path, ranges, params=SmootherParams(max_evaluations=200))
+    five = smooth(path, ranges, params=SmootherParams(max_evaluations=200,
+                                                     range_correlation_s=5.0))
+    for n, p in NODES.items():
+        assert np.linalg.norm(five.nodes[n][0] - p) < 0.1, n
+        # 5 ranges in a window weigh as one: the covariance grows (the poses share the rest)
+        assert np.all(np.linalg.eigvalsh(five.nodes[n][1] - one.nodes[n][1]) > -1e-9), n
+        assert np.trace(five.nodes[n][1]) > 1.05 * np.trace(one.nodes[n][1]), n
