@@ -14,7 +14,7 @@ for each smoother variant, it re-solves the kept data cut at every ``--step-s`` 
 The estimator never sees the truth: only the scoring here reads it.
 
 ```bash
-python benchmarks/smoother_diag.py --seeds 0-9 --variants base,drop,chain,tracker
+python benchmarks/smoother_diag.py --seeds 0-9 --variants base,drop,frac20,tracker,corr10
 ```
 """
 
@@ -40,30 +40,25 @@ from hrtls.sim.mission import MissionOptions
 
 PRESET = SmootherParams(feedback="implied", every_s=10.0, feedback_cov_scale=2.0,
                         feedback_gate=13.8)
+MERGED: dict[str, Any] = {"range_correlation_s": 0.0, "min_spread_m": 2.0,
+                          "localize_spread_m": 2.0}
+"""The model before the options of ``range_correlation_s`` and ``localize_spread_m``."""
 VARIANTS: dict[str, dict[str, Any]] = {
-    "base": {},
-    "drop": {"heading_updates": "drop"},
-    "chain": {"heading_updates": "chain"},
-    "tracker": {"increment_noise": "tracker"},
-    "tracker-chain": {"increment_noise": "tracker", "heading_updates": "chain"},
-    "tracker-drop": {"increment_noise": "tracker", "heading_updates": "drop"},
-    "frac05": {"odo_fraction": 0.05},
-    "frac20": {"odo_fraction": 0.20},
-    "chain-frac20": {"heading_updates": "chain", "odo_fraction": 0.20},
-    "drop-frac20": {"heading_updates": "drop", "odo_fraction": 0.20},
-    "spread1": {"min_spread_m": 1.0, "localize_spread_m": 1.0},
-    "spread05": {"min_spread_m": 0.5, "localize_spread_m": 0.5},
-    "drop-spread1": {"heading_updates": "drop", "min_spread_m": 1.0, "localize_spread_m": 1.0},
-    "corr10": {"range_correlation_s": 10.0},
-    "corr5": {"range_correlation_s": 5.0},
-    "corr10-spread1": {"range_correlation_s": 10.0, "min_spread_m": 1.0,
+    "default": {},
+    "base": MERGED,
+    "drop": {**MERGED, "heading_updates": "drop"},
+    "chain": {**MERGED, "heading_updates": "chain"},
+    "tracker": {**MERGED, "increment_noise": "tracker"},
+    "frac05": {**MERGED, "odo_fraction": 0.05},
+    "frac20": {**MERGED, "odo_fraction": 0.20},
+    "chain-frac20": {**MERGED, "heading_updates": "chain", "odo_fraction": 0.20},
+    "drop-frac20": {**MERGED, "heading_updates": "drop", "odo_fraction": 0.20},
+    "spread1": {**MERGED, "min_spread_m": 1.0, "localize_spread_m": 1.0},
+    "spread05": {**MERGED, "min_spread_m": 0.5, "localize_spread_m": 0.5},
+    "spread1-own2": {**MERGED, "min_spread_m": 1.0},
+    "corr10": {**MERGED, "range_correlation_s": 10.0},
+    "corr10-spread1": {**MERGED, "range_correlation_s": 10.0, "min_spread_m": 1.0,
                        "localize_spread_m": 1.0},
-    "corr10-drop-frac20": {"range_correlation_s": 10.0, "heading_updates": "drop",
-                           "odo_fraction": 0.2},
-    "spread1-own2": {"min_spread_m": 1.0, "localize_spread_m": 2.0},
-    "spread05-own2": {"min_spread_m": 0.5, "localize_spread_m": 2.0},
-    "drop-spread1-own2": {"heading_updates": "drop", "min_spread_m": 1.0,
-                          "localize_spread_m": 2.0},
 }
 """Variant name -> ``SmootherParams`` fields changed."""
 
@@ -170,7 +165,7 @@ def _row(name: str, per_seed: list[dict[str, list[float]]]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-9", help="dev seeds only (0-9)")
-    ap.add_argument("--variants", default="base,drop,chain,tracker")
+    ap.add_argument("--variants", default="default,base", help=", ".join(VARIANTS))
     ap.add_argument("--step-s", type=float, default=30.0)
     ap.add_argument("--cache", type=Path, default=Path("/tmp/hrtls_smoother_diag"))
     args = ap.parse_args()

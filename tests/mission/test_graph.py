@@ -259,7 +259,8 @@ def test_correlated_ranges_weigh_less_and_exact_data_stay_exact() -> None:
     truth = _walk(t)
     path = [AgentPath("R1", t, _dead_reckoned(truth, scale=1.05), 0.01 * np.eye(2))]
     ranges = _range_set(_ranges(0, t, truth, NODES))
-    one = smooth(path, ranges, params=SmootherParams(max_evaluations=200))
+    one = smooth(path, ranges, params=SmootherParams(max_evaluations=200,
+                                                    range_correlation_s=0.0))
     five = smooth(path, ranges, params=SmootherParams(max_evaluations=200,
                                                      range_correlation_s=5.0))
     for n, p in NODES.items():

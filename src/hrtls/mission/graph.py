@@ -126,12 +126,12 @@ class SmootherParams:
     heading_sigma_rad: float = 0.02
     heading_walk_rad: float = 0.1
     height_sigma_m: float = 2.0
-    range_correlation_s: float = 0.0
+    range_correlation_s: float = 10.0
     loss: str = "cauchy"
     loss_scale: float = 2.0
     min_ranges: int = 6
-    min_spread_m: float = 2.0
-    localize_spread_m: float = 2.0
+    min_spread_m: float = 1.0
+    localize_spread_m: float = 1.5
     max_sigma_m: float = 3.0
     max_evaluations: int = 60
     every_s: float = 30.0
