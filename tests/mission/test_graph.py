@@ -52,9 +52,10 @@ def _dead_reckoned(truth: np.ndarray, *, scale: float = 1.0, drift_rad: float = 
 
 
 def _solve_one(f: np.ndarray, t: np.ndarray, truth: np.ndarray, **kw: float):  # type: ignore[no-untyped-def]
-    # tight increments: the scale and rotation, not the increments, must take the error
+    # tight increments: the scale and rotation, not the increments, must take the error;
+    # exact independent ranges
     prm = SmootherParams(max_evaluations=200, odo_sigma_m=0.05, odo_fraction=0.05,
-                         **kw)  # type: ignore[arg-type]
+                         range_correlation_s=0.0, **kw)  # type: ignore[arg-type]
     return smooth([AgentPath("R1", t, f, 0.01 * np.eye(2))],
                   _range_set(_ranges(0, t, truth, NODES)), params=prm)
 
@@ -97,7 +98,7 @@ def test_permuting_nodes_and_agents_gives_the_same_solution_and_exact_data_exact
     walks = [_walk(t), _walk(t)[:, ::-1] + rng.uniform(-1, 1, 2)]
     paths = [AgentPath(f"R{a}", t + a, w, 0.01 * np.eye(2)) for a, w in enumerate(walks)]
     rows = [r for a, w in enumerate(walks) for r in _ranges(a, t + a, w, nodes)]
-    prm = SmootherParams(max_evaluations=200)
+    prm = SmootherParams(max_evaluations=200, range_correlation_s=0.0)
     one = smooth(paths, _range_set(rows), params=prm)
     order = rng.permutation(len(rows))
     renamed = [(1 - a, tk, n, d) for a, tk, n, d in (rows[i] for i in order)]
