@@ -20,7 +20,9 @@ only) and prints, over the seeds, mean / p90 / worst of (of the fraction localiz
 default parameters; the cost table then gives its time per solve); ``--feedback``: its latest
 poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
 ``--feedback-cov-scale``, ``--feedback-gate``); ``--window-s``: poses older than this leave its
-problem as a prior (``SmootherParams.window_s``).
+problem as a prior (``SmootherParams.window_s``); its model: ``--increment-noise``,
+``--heading-updates``, ``--odo-fraction``, ``--min-spread-m``, ``--localize-spread-m``,
+``--smoother-correlation-s`` (``SmootherParams.range_correlation_s``).
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
@@ -282,13 +284,15 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
 
 def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
-    ``--feedback-gate``, ``--window-s``."""
+    ``--feedback-gate``, ``--window-s`` and the smoother's model options."""
     if not args.smoother:
         return None
     kw: dict[str, Any] = {}
-    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate", "window_s"):
+    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate", "window_s",
+                "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
+                "localize_spread_m", "smoother_correlation_s"):
         if getattr(args, key) is not None:
-            kw[key] = getattr(args, key)
+            kw[key.replace("smoother_correlation_s", "range_correlation_s")] = getattr(args, key)
     return SmootherParams(**kw)
 
 
@@ -368,6 +372,18 @@ def main() -> None:
     ap.add_argument("--window-s", type=float, default=None,
                     help="with --smoother: SmootherParams.window_s (poses older than this are "
                     "marginalized; default: none)")
+    ap.add_argument("--increment-noise", choices=("length", "tracker"), default=None,
+                    help="with --smoother: SmootherParams.increment_noise")
+    ap.add_argument("--heading-updates", choices=("factor", "drop", "chain"), default=None,
+                    help="with --smoother: SmootherParams.heading_updates")
+    ap.add_argument("--odo-fraction", type=float, default=None,
+                    help="with --smoother: SmootherParams.odo_fraction")
+    ap.add_argument("--min-spread-m", type=float, default=None,
+                    help="with --smoother: SmootherParams.min_spread_m")
+    ap.add_argument("--localize-spread-m", type=float, default=None,
+                    help="with --smoother: SmootherParams.localize_spread_m")
+    ap.add_argument("--smoother-correlation-s", type=float, default=None,
+                    help="with --smoother: SmootherParams.range_correlation_s")
     ap.add_argument("--no-magnetometer", action="store_true",
                     help="rescuers' [attitude] use_magnetometer = false (gyro-only heading)")
     ap.add_argument("--no-hard-iron-fit", action="store_true",

@@ -52,9 +52,10 @@ def _dead_reckoned(truth: np.ndarray, *, scale: float = 1.0, drift_rad: float = 
 
 
 def _solve_one(f: np.ndarray, t: np.ndarray, truth: np.ndarray, **kw: float):  # type: ignore[no-untyped-def]
-    # tight increments: the scale and rotation, not the increments, must take the error
+    # tight increments: the scale and rotation, not the increments, must take the error;
+    # exact independent ranges
     prm = SmootherParams(max_evaluations=200, odo_sigma_m=0.05, odo_fraction=0.05,
-                         **kw)  # type: ignore[arg-type]
+                         range_correlation_s=0.0, **kw)  # type: ignore[arg-type]
     return smooth([AgentPath("R1", t, f, 0.01 * np.eye(2))],
                   _range_set(_ranges(0, t, truth, NODES)), params=prm)
 
@@ -97,7 +98,7 @@ def test_permuting_nodes_and_agents_gives_the_same_solution_and_exact_data_exact
     walks = [_walk(t), _walk(t)[:, ::-1] + rng.uniform(-1, 1, 2)]
     paths = [AgentPath(f"R{a}", t + a, w, 0.01 * np.eye(2)) for a, w in enumerate(walks)]
     rows = [r for a, w in enumerate(walks) for r in _ranges(a, t + a, w, nodes)]
-    prm = SmootherParams(max_evaluations=200)
+    prm = SmootherParams(max_evaluations=200, range_correlation_s=0.0)
     one = smooth(paths, _range_set(rows), params=prm)
     order = rng.permutation(len(rows))
     renamed = [(1 - a, tk, n, d) for a, tk, n, d in (rows[i] for i in order)]
@@ -118,6 +119,12 @@ def test_params_are_checked() -> None:
         SmootherParams(loss="l3")
     with pytest.raises(InputError):
         SmootherParams(min_ranges=2)
+    with pytest.raises(InputError):
+        SmootherParams(increment_noise="gyro")
+    with pytest.raises(InputError):
+        SmootherParams(heading_updates="twice")
+    with pytest.raises(InputError):
+        SmootherParams(localize_spread_m=0.0)
 
 
 PARAMS = MissionParams(smoother=SmootherParams(every_s=20.0))
@@ -231,3 +238,34 @@ def test_on_a_dev_mission_the_smoother_nodes_are_consistent() -> None:
     nees = [float(di @ np.linalg.solve(nodes[n][1], di)) for di, n in zip(d, ok, strict=True)]
     assert float(np.mean(nees)) < 5.0
     assert float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) < 0.7
+
+
+def test_a_node_seen_from_a_line_helps_but_is_not_localized() -> None:
+    t = np.arange(0.0, 40.0, 1.0)
+    truth = _walk(t)
+    line = t <= 22.0                    # D is ranged on the east leg and 2 m into the north leg
+    rows = _ranges(0, t, truth, NODES) + _ranges(0, t[line], truth[line],
+                                                 {"D": np.array([8.0, 1.5])})
+    path = AgentPath("R1", t, _dead_reckoned(truth, scale=1.05), 0.01 * np.eye(2))
+    for localize, ok in ((2.0, False), (0.1, True)):
+        prm = SmootherParams(max_evaluations=200, min_spread_m=0.1, localize_spread_m=localize)
+        sol = smooth([path], _range_set(rows), params=prm)
+        assert "D" in sol.nodes                     # in the problem either way
+        assert sol.nodes["D"][2] is ok
+        assert all(sol.nodes[n][2] for n in NODES)
+
+
+def test_correlated_ranges_weigh_less_and_exact_data_stay_exact() -> None:
+    t = np.arange(0.0, 40.0, 1.0)
+    truth = _walk(t)
+    path = [AgentPath("R1", t, _dead_reckoned(truth, scale=1.05), 0.01 * np.eye(2))]
+    ranges = _range_set(_ranges(0, t, truth, NODES))
+    one = smooth(path, ranges, params=SmootherParams(max_evaluations=200,
+                                                    range_correlation_s=0.0))
+    five = smooth(path, ranges, params=SmootherParams(max_evaluations=200,
+                                                     range_correlation_s=5.0))
+    for n, p in NODES.items():
+        assert np.linalg.norm(five.nodes[n][0] - p) < 0.1, n
+        # 5 ranges in a window weigh as one: the covariance grows (the poses share the rest)
+        assert np.all(np.linalg.eigvalsh(five.nodes[n][1] - one.nodes[n][1]) > -1e-9), n
+        assert np.trace(five.nodes[n][1]) > 1.02 * np.trace(one.nodes[n][1]), n

@@ -24,3 +24,16 @@ def test_other_parameters_are_custom_and_unknown_modes_refused() -> None:
     assert smoother_mode(SmootherParams()) == "custom"
     with pytest.raises(InputError, match="off, nodes, feedback"):
         smoother_params("fast")
+
+
+def test_a_snapshot_without_row_covariances_is_refused() -> None:
+    from hrtls.errors import FormatError
+    from hrtls.mission.smoothing import SmootherState, state_from, state_of
+
+    d = state_of(SmootherState(rows={"R1": [[0.0, 1.0, 2.0, 1.0, 0.0, 0.0, 1.0]]}))
+    assert d is not None
+    back = state_from(d)
+    assert back is not None and back.rows == d["rows"]
+    d["rows"] = {"R1": [[0.0, 1.0, 2.0]]}
+    with pytest.raises(FormatError, match="older snapshot"):
+        state_from(d)

@@ -7,43 +7,48 @@ solves one nonlinear least-squares problem over every agent's decimated path and
 (range-only SLAM on a pose chain).
 
 Path model. Agent ``a``'s causal estimate rows are taken every ``decimate_s`` (``f_k`` at
-``t_k``). Its tracker's corrections (tag groups, bearings, fixes, ranges, RSS, the magnetic
-heading: every update that moved the position) are removed from them: ``g_k`` is the dead
-reckoning (the rows without the corrections' jumps, :mod:`hrtls.mission.correction_factors`;
-``g = f`` for an agent without records), with increments ``d_k = g_{k+1} - g_k``. The poses
-``x_k`` are unknowns tied by
+``t_k``). Its tracker's corrections (every update that moved the position) are removed from
+them: ``g_k`` is the dead reckoning (the rows without the corrections' jumps,
+:mod:`hrtls.mission.correction_factors`; ``g = f`` for an agent without records; with
+``heading_updates`` ``"chain"`` the magnetic heading's and tag bearings' jumps stay in it), with
+increments ``d_k = g_{k+1} - g_k``. The poses ``x_k`` are unknowns tied by
 
-    x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, q_k^2 I)
+    x_0 = f_0 + N(0, P_0),    x_{k+1} = x_k + (1 + s_j) R(phi_j) d_k + N(0, Q_k)
 
 ``P_0`` the agent's covariance at its first row (the start at the entrance), ``j`` the segment
-(``segment_m`` walked) of increment ``k``, ``q_k^2 = odo_sigma_m^2 + (odo_fraction |d_k|)^2``; a
-segment's step-length scale correction ``s_j`` and rotation ``phi_j`` are random walks over the
-segments (``s_0 ~ N(0, scale_sigma^2)``, ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise
-``heading_sigma_rad`` / ``heading_walk_rad``): the persistent part of the dead-reckoning error.
-An agent's position at a range's or a correction's time is interpolated between its poses.
+(``segment_m`` walked) of increment ``k``, ``Q_k`` by ``increment_noise``
+(:mod:`hrtls.mission.increment_noise`); a segment's step-length scale correction ``s_j`` and
+rotation ``phi_j`` are random walks over the segments (``s_0 ~ N(0, scale_sigma^2)``,
+``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise ``heading_sigma_rad`` /
+``heading_walk_rad``): the persistent part of the dead-reckoning error. An agent's position at
+a range's or a correction's time is interpolated between its poses.
 
 Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with
 ``W^T W = P1^-1 - P0^-1`` (the information the update added to the tracker's position,
 ``(m0, P0) -> (m1, P1)``) and ``z`` the position it measured (derivation, and what it
 approximates for other than position measurements: :mod:`hrtls.mission.correction_factors`):
-the tags at known positions pin the map's shift and rotation. Ranges to nodes that are not the
-agent's known landmarks (the problem's own nodes, or peers) leave the chain but give no factor:
-their raw ranges are the problem's.
+the tags pin the map's shift and rotation. No factor: the ranges to nodes that are not the
+agent's known landmarks (the problem's own nodes, or peers: their raw ranges are the
+problem's) and, unless ``heading_updates`` is ``"factor"``, the magnetic heading and tag
+bearings (their heading is already in the increments' directions).
 
 Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 ``sqrt(||p - x_a(t)||^2 + h^2) + e``, ``h`` one height difference between the agents' antennas
 and the nodes (estimated, prior ``N(0, height_sigma_m^2)``), ``e`` the range noise (its sigma as
-received); walls lengthen ranges (NLOS), so the range residuals go through a robust loss
-(``loss``, scale ``loss_scale`` in sigmas).
+received, times ``sqrt(n)`` for ``n`` ranges of the pair within ``range_correlation_s``,
+:mod:`hrtls.mission.range_weights`); walls lengthen ranges (NLOS): a robust loss (``loss``,
+scale ``loss_scale`` sigmas).
 
-Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (every pose and
-correction marginalized; ``W`` the robust loss's weights there), times the mean square whitened
-residual of the inlier ranges (``|e| < 3 loss_scale``) when above one: of all nodes' ranges, or
-of the node's own when larger (a node seen mostly through walls). A node is solved with at least
-``min_ranges`` ranges whose positions spread ``min_spread_m`` off a line, and counts as localized
-with a sigma below ``max_sigma_m``. Older poses may have left the problem as a dense prior factor
+Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
+loss's weights there), times the mean square inlier residual (``|e| < 3 loss_scale``) whitened
+by the sigmas as received when above one: of all ranges, or of the node's own when larger
+(a node seen mostly through walls). A node is solved with ``min_ranges`` ranges at least from
+positions spread ``min_spread_m`` off a line, and counts as localized with a spread of
+``localize_spread_m`` at least (seen from nearly a line, e.g. one corridor, a node helps the
+poses but its position across the line is poorly known) and a sigma below ``max_sigma_m``.
+Older poses may have left the problem as a dense prior factor
 (:mod:`hrtls.mission.graph_window`), which then replaces the priors of its agents' first poses
-and segments and of the height.
+and segments and of the height. Parameters: :class:`hrtls.mission.graph_params.SmootherParams`.
 """
 
 from __future__ import annotations
@@ -56,102 +61,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csc_matrix, csr_matrix, diags
 
-from hrtls.errors import InputError
-from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, spd_lu
+from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, robust_weights, spd_lu
 from hrtls.mission.graph_init import extend, linear_init, select_nodes
+from hrtls.mission.graph_params import SmootherParams
 from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
+from hrtls.mission.increment_noise import whitening
+from hrtls.mission.range_weights import correlated_sigma
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-
-@dataclass(frozen=True, kw_only=True)
-class SmootherParams:
-    """Parameters of :func:`smooth` (see module doc).
-
-    Attributes
-    ----------
-    decimate_s:
-        Spacing of the agents' rows kept as poses, s.
-    segment_m:
-        Distance walked (along the agent's rows) of a scale / heading correction segment, m.
-    odo_sigma_m, odo_fraction:
-        Noise of one increment between poses: a floor (m) and a part of its length.
-    scale_sigma, scale_walk_sigma:
-        Prior 1-sigma of the first segment's scale correction and of its change per segment.
-    heading_sigma_rad, heading_walk_rad:
-        Prior 1-sigma of the first segment's rotation and of its change per segment, rad.
-    height_sigma_m:
-        Prior 1-sigma of the antenna-node height difference, m.
-    loss, loss_scale:
-        Robust loss of the range residuals (``rho`` as in ``scipy.optimize.least_squares``) and
-        its scale in whitened units.
-    min_ranges:
-        Fewest ranges of a node in the problem.
-    min_spread_m:
-        RMS distance of a node's reading positions from their best-fit line, at least, m.
-    max_sigma_m:
-        Largest 1-sigma (worst axis) of a localized node, m.
-    max_evaluations:
-        Cost evaluations per solve at most.
-    every_s:
-        In the mission loop: solve again after this much mission time, s.
-    feedback, feedback_cov_scale:
-        In the mission loop: give each rescuer the smoother's estimate of its latest pose
-        (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
-        covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
-        ``feedback_gate`` is not applied.
-    window_s:
-        In the mission loop: poses older than this leave the problem as a prior factor
-        (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
-    """
-
-    decimate_s: float = 1.0
-    segment_m: float = 10.0
-    odo_sigma_m: float = 0.15
-    odo_fraction: float = 0.10
-    scale_sigma: float = 0.08
-    scale_walk_sigma: float = 0.02
-    heading_sigma_rad: float = 0.02
-    heading_walk_rad: float = 0.1
-    height_sigma_m: float = 2.0
-    loss: str = "cauchy"
-    loss_scale: float = 2.0
-    min_ranges: int = 6
-    min_spread_m: float = 2.0
-    max_sigma_m: float = 3.0
-    max_evaluations: int = 60
-    every_s: float = 30.0
-    feedback: str = "off"
-    feedback_cov_scale: float = 2.0
-    feedback_gate: float = 13.8
-    window_s: float | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
-                     "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
-                     "height_sigma_m", "loss_scale", "min_spread_m", "max_sigma_m", "every_s",
-                     "feedback_cov_scale", "feedback_gate"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
-        if not (math.isfinite(self.odo_fraction) and self.odo_fraction >= 0):
-            raise InputError(f"odo_fraction = {self.odo_fraction}", where="SmootherParams",
-                             expected=">= 0")
-        if self.min_ranges < 3 or self.max_evaluations < 1:
-            raise InputError(f"min_ranges = {self.min_ranges}, max_evaluations = "
-                             f"{self.max_evaluations}", where="SmootherParams",
-                             expected="min_ranges >= 3, max_evaluations >= 1")
-        if self.window_s is not None and not (math.isfinite(self.window_s)
-                                              and self.window_s > 0):
-            raise InputError(f"window_s = {self.window_s}", where="SmootherParams",
-                             expected="> 0 or None")
-        if self.feedback not in ("off", "implied", "replace"):
-            raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
-                             expected="off, implied or replace")
-        if self.loss not in ("linear", "soft_l1", "huber", "cauchy"):
-            raise InputError(f"loss = {self.loss!r}", where="SmootherParams",
-                             expected="linear, soft_l1, huber or cauchy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,7 +79,9 @@ class AgentPath:
     ``dead_reckoning_m``: the rows without the tracker's correction jumps (None: the rows are
     the motion); ``factors``: its corrections as position factors, ``(t (K,), z (K, 2),
     W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None; ``walked0_m``: the
-    distance walked before the first row (a path cut by :mod:`hrtls.mission.graph_window`).
+    distance walked before the first row (a path cut by :mod:`hrtls.mission.graph_window`);
+    ``growth_m2``: the tracker's covariance growth curve at the rows
+    (:mod:`hrtls.mission.increment_noise`), or None.
     """
 
     name: str
@@ -171,6 +91,7 @@ class AgentPath:
     dead_reckoning_m: FloatArray | None = None
     factors: tuple[FloatArray, FloatArray, FloatArray] | None = None
     walked0_m: float = 0.0
+    growth_m2: FloatArray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,8 +128,9 @@ class SmootherResult:
     last_pose: dict[str, tuple[float, FloatArray, FloatArray]] = field(default_factory=dict)
 
 
-def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pose times, the rows there and the dead reckoning there."""
+def _decimate(path: AgentPath, step_s: float
+              ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """Pose times, the rows there, the dead reckoning there and the growth curve there."""
     t0, t1 = float(path.t[0]), float(path.t[-1])
     tq = np.arange(t0, t1, step_s)
     if tq.size == 0 or tq[-1] < t1:
@@ -216,7 +138,10 @@ def _decimate(path: AgentPath, step_s: float) -> tuple[FloatArray, FloatArray, F
     dr = path.xy_m if path.dead_reckoning_m is None else path.dead_reckoning_m
     xy, g = (np.column_stack([np.interp(tq, path.t, a[:, 0]), np.interp(tq, path.t, a[:, 1])])
              for a in (path.xy_m, dr))
-    return tq, xy, g
+    gr = None if path.growth_m2 is None else np.stack(
+        [np.interp(tq, path.t, path.growth_m2[:, i, j]) for i in (0, 1) for j in (0, 1)],
+        axis=1).reshape(-1, 2, 2)
+    return tq, xy, g, gr
 
 
 class _Problem:
@@ -237,7 +162,7 @@ class _Problem:
         odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
         col = 0
         for p in paths:
-            t, f, g = _decimate(p, prm.decimate_s)
+            t, f, g, gr = _decimate(p, prm.decimate_s)
             d = np.diff(g, axis=0)
             walked = p.walked0_m + (np.cumsum(np.hypot(d[:, 0], d[:, 1]))
                                     - np.hypot(d[:, 0], d[:, 1]))
@@ -251,7 +176,8 @@ class _Problem:
             self.pose_col.append(col)
             self.s_col.append(col + 2 * len(t))
             self.n_seg.append(n_seg)
-            q = np.sqrt(prm.odo_sigma_m ** 2 + (prm.odo_fraction * np.hypot(d[:, 0], d[:, 1])) ** 2)
+            q = whitening(d, odo_sigma_m=prm.odo_sigma_m, odo_fraction=prm.odo_fraction,
+                          growth_m2=gr if prm.increment_noise == "tracker" else None)
             odo.append((col + 2 * np.arange(len(t) - 1), col + 2 * len(t) + seg, d, q))
             col += 2 * len(t) + 2 * n_seg
         self.odo_k = np.concatenate([o[0] for o in odo]).astype(np.int64)
@@ -259,7 +185,7 @@ class _Problem:
         self.odo_phi = self.odo_s + np.repeat(np.asarray(self.n_seg, np.int64),
                                               [len(o[0]) for o in odo])
         self.odo_d = np.concatenate([o[2] for o in odo]).reshape(-1, 2)
-        self.odo_q = np.concatenate([o[3] for o in odo])
+        self.odo_w = np.concatenate([o[3] for o in odo]).reshape(-1, 2, 2)
         self.node_col = col
         self.height_col = col + 2 * len(node_ids)
         self.n = self.height_col + 1
@@ -324,7 +250,9 @@ class _Problem:
         self.rnode = np.array([index[str(n)] for n in ranges.node[keep]], dtype=np.int64)
         self.ragent = agent
         self.r = ranges.range_m[keep]
-        self.s = ranges.sigma_m[keep]
+        self.s_raw = ranges.sigma_m[keep]
+        self.s = correlated_sigma(agent, self.rnode, self.rt, self.s_raw,
+                                  window_s=self.prm.range_correlation_s)
         self.c0 = np.zeros(len(self.rt), dtype=np.int64)
         self.c1 = np.zeros(len(self.rt), dtype=np.int64)
         self.w = np.zeros(len(self.rt))
@@ -345,8 +273,8 @@ class _Problem:
         c, sn = np.cos(phi), np.sin(phi)
         d = self.odo_d
         rd = np.column_stack([c * d[:, 0] - sn * d[:, 1], sn * d[:, 0] + c * d[:, 1]])
-        e = (_pairs(x, self.odo_k + 2) - _pairs(x, self.odo_k) - k[:, None] * rd) \
-            / self.odo_q[:, None]
+        e = np.einsum("nij,nj->ni", self.odo_w,
+                      _pairs(x, self.odo_k + 2) - _pairs(x, self.odo_k) - k[:, None] * rd)
         return e, rd, np.column_stack([-rd[:, 1], rd[:, 0]])
 
     def residuals(self, x: FloatArray) -> FloatArray:
@@ -390,11 +318,14 @@ class _Problem:
         _, rd, rdp = self._odo_parts(x)
         k = 1.0 + x[self.odo_s]
         oi = n_r + 2 * np.arange(len(self.odo_k))
-        for ax in (0, 1):
-            put(oi + ax, self.odo_k + 2 + ax, 1.0 / self.odo_q)
-            put(oi + ax, self.odo_k + ax, -1.0 / self.odo_q)
-            put(oi + ax, self.odo_s, -rd[:, ax] / self.odo_q)
-            put(oi + ax, self.odo_phi, -k * rdp[:, ax] / self.odo_q)
+        wrd = np.einsum("nij,nj->ni", self.odo_w, rd)
+        wrdp = np.einsum("nij,nj->ni", self.odo_w, rdp)
+        for i in (0, 1):
+            for ax in (0, 1):
+                put(oi + i, self.odo_k + 2 + ax, self.odo_w[:, i, ax])
+                put(oi + i, self.odo_k + ax, -self.odo_w[:, i, ax])
+            put(oi + i, self.odo_s, -wrd[:, i])
+            put(oi + i, self.odo_phi, -k * wrdp[:, i])
         row = n_r + 2 * len(self.odo_k)
         fi = row + 2 * np.arange(len(self.fw))
         for i in (0, 1):
@@ -471,7 +402,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     stay in the problem).
     """
     prm = params or SmootherParams()
-    ids = select_nodes(paths, ranges, prm)
+    spread = select_nodes(paths, ranges, prm)
+    ids = list(spread)
     initial = dict(initial_nodes or {})
     if prior is not None:
         ids = sorted(set(ids) | set(prior.nodes))
@@ -484,20 +416,22 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     n_r = len(prob.r)
     z = (res[:n_r] / prm.loss_scale) ** 2
     w = np.ones(res.size)
-    w[:n_r] = _robust_weights(z, prm.loss)
+    w[:n_r] = robust_weights(z, prm.loss)
     jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
     last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
     pose_inflation = max(rms ** 2, 1.0) if math.isfinite(rms) else 1.0
-    inflation = np.concatenate([node_inflation(res[:n_r], inl, prob.rnode, len(prob.node_ids)),
+    raw = res[:n_r] * prob.s / prob.s_raw          # whitened by the sigmas as received
+    inflation = np.concatenate([node_inflation(raw, np.abs(raw) < 3.0 * prm.loss_scale,
+                                               prob.rnode, len(prob.node_ids)),
                                 np.full(len(last), pose_inflation)])
     cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
                                             range(len(prob.node_ids))] + last, inflation)
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
-        ok = bool(np.all(np.isfinite(c))) and \
+        ok = spread.get(n, 0.0) >= prm.localize_spread_m and bool(np.all(np.isfinite(c))) and \
             float(np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0))) <= prm.max_sigma_m
         nodes[n] = (x[prob.node_col + 2 * i:prob.node_col + 2 * i + 2].copy(), c, ok)
     out_paths, corr, scale, heading = {}, {}, {}, {}
@@ -544,7 +478,7 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
     while evaluations < prob.prm.max_evaluations:
         res = prob.residuals(x)
         w = np.ones(res.size)
-        w[:n_r] = _robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
+        w[:n_r] = robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
         jw = diags(np.sqrt(w)) @ prob.jacobian(x)
         hess = csc_matrix(jw.T @ jw)
         grad = jw.T @ (np.sqrt(w) * res)
@@ -563,18 +497,6 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
     return x, evaluations
 
 
-def _robust_weights(z: FloatArray, loss: str) -> FloatArray:
-    """IRLS weights ``rho'(z)`` of the range rows at the solution."""
-    if loss == "soft_l1":
-        return np.asarray(1.0 / np.sqrt(1.0 + z), np.float64)
-    if loss == "cauchy":
-        return np.asarray(1.0 / (1.0 + z), np.float64)
-    if loss == "huber":
-        return np.asarray(np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300))),
-                          np.float64)
-    return np.ones_like(z)
-
-
 def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
               params: SmootherParams, prior: MarginalPrior | None,
               point: Callable[[Layout], FloatArray]) -> tuple[Layout, csc_matrix, FloatArray]:
@@ -588,6 +510,6 @@ def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
     res = prob.residuals(x)
     n_r = len(prob.r)
     w = np.ones(res.size)
-    w[:n_r] = _robust_weights(res[:n_r] ** 2 / params.loss_scale ** 2, params.loss)
+    w[:n_r] = robust_weights(res[:n_r] ** 2 / params.loss_scale ** 2, params.loss)
     jw = diags(np.sqrt(w)) @ prob.jacobian(x)
     return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (np.sqrt(w) * res), np.float64)

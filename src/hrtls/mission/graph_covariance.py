@@ -62,3 +62,15 @@ def inverse_blocks(info: csc_matrix, cols: list[int], inflation: FloatArray) -> 
         b = inflation[i] * sol[c:c + 2, 2 * i:2 * i + 2]
         out.append(0.5 * (b + b.T))
     return out
+
+
+def robust_weights(z: FloatArray, loss: str) -> FloatArray:
+    """IRLS weights ``rho'(z)`` of the range rows at the solution."""
+    if loss == "soft_l1":
+        return np.asarray(1.0 / np.sqrt(1.0 + z), np.float64)
+    if loss == "cauchy":
+        return np.asarray(1.0 / (1.0 + z), np.float64)
+    if loss == "huber":
+        return np.asarray(np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300))),
+                          np.float64)
+    return np.ones_like(z)

@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from hrtls.mission.graph import AgentPath, RangeSet, SmootherParams
+    from hrtls.mission.graph import AgentPath, RangeSet
+    from hrtls.mission.graph_params import SmootherParams
 
 FloatArray = NDArray[np.float64]
 
@@ -49,14 +50,16 @@ def raw_positions(paths: list[AgentPath], ranges: RangeSet) -> FloatArray:
     return xy
 
 
-def select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams) -> list[str]:
-    """Nodes with enough ranges from positions spread off a line."""
+def select_nodes(paths: list[AgentPath], ranges: RangeSet, prm: SmootherParams
+                 ) -> dict[str, float]:
+    """Nodes with enough ranges from positions spread off a line: id -> spread, m."""
     raw = raw_positions(paths, ranges)
-    out = []
+    out = {}
     for n in sorted(set(ranges.node.tolist())):
         m = ranges.node == n
-        if np.count_nonzero(m) >= prm.min_ranges and spread(raw[m]) >= prm.min_spread_m:
-            out.append(str(n))
+        s = spread(raw[m]) if np.count_nonzero(m) >= prm.min_ranges else 0.0
+        if s >= prm.min_spread_m:
+            out[str(n)] = s
     return out
 
 

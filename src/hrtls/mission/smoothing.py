@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
+from hrtls.errors import FormatError
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
@@ -41,10 +42,11 @@ from hrtls.mission.graph_window import (
     solution_vector,
     trimmed,
 )
+from hrtls.mission.increment_noise import growth_curve
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.corrections import SMOOTHED
-from hrtls.pipeline.schedule import RANGE
+from hrtls.pipeline.schedule import BEARING, MAGNETIC, RANGE
 from hrtls.pipeline.tracker import Tracker
 
 if TYPE_CHECKING:
@@ -57,9 +59,10 @@ FloatArray = NDArray[np.float64]
 class SmootherState:
     """What the loop keeps for the smoother (all plain arrays / lists: snapshot-ready).
 
-    ``rows``: per agent its kept rows (t, x, y); ``start_cov``: its first row's covariance;
-    ``pulled``: time of its last final row; ``tail``: its latest row (t, x, y, covariance),
-    which may still change; ``ranges``: agent index, t, node, range, sigma;
+    ``rows``: per agent its kept rows (t, x, y, covariance P00, P01, P10, P11); ``start_cov``:
+    its first row's covariance; ``pulled``: time of its last final row; ``tail``: its latest
+    row (t, x, y, covariance), which may still change; ``ranges``: agent index, t, node,
+    range, sigma;
     ``last_solve_s``: mission time of the last solve; ``owned``: nodes the smoother localized;
     ``warm``: the last solution (warm start); ``corr``: per agent its tracker's corrections
     (blocks of ``[t, kind, source, mean0, cov0, mean1, cov1]``,
@@ -103,7 +106,7 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
             if not rows:
                 st.start_cov[name] = np.asarray(row[3:7], np.float64).reshape(2, 2)
             if not rows or row[0] >= rows[-1][0] + prm.decimate_s:
-                rows.append(row[:3])
+                rows.append(row[:7])
             st.pulled[name] = row[0]
         if new:
             st.tail[name] = new[-1]
@@ -132,26 +135,36 @@ def _pull_corrections(mt: MissionTracker, name: str) -> None:
 def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> AgentPath:
     """The agent's rows with its dead reckoning and correction factors (when it keeps them).
 
-    Every correction's jump leaves the chain; all but the ranges to nodes that are not the
-    agent's known landmarks (mission nodes: their raw ranges are the problem's; peers) and the
-    smoother's own feedback (:mod:`hrtls.mission.feedback`) become factors.
+    Every correction's jump leaves the chain (the magnetic heading's and the tag bearings' with
+    ``heading_updates`` ``"chain"`` aside); all but the ranges to nodes that are not the agent's
+    known landmarks (mission nodes: their raw ranges are the problem's; peers), the smoother's
+    own feedback (:mod:`hrtls.mission.feedback`) and, unless ``heading_updates`` is
+    ``"factor"``, the heading corrections become factors.
     """
-    st = mt.smoother
-    assert st is not None
+    st, prm = mt.smoother, mt.params.smoother
+    assert st is not None and prm is not None
     blocks = st.corr.get(name)
+    cov = rows[:, 3:7].reshape(-1, 2, 2)
     if not blocks and not isinstance(mt.trackers[name], Tracker | RobotTracker):
-        return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name])
+        return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], growth_m2=cov)
     t, kind, src, m0, c0, m1, c1 = (np.concatenate([b[j] for b in blocks]) if blocks else
                                     np.zeros((0, 2, 2)) if j in (4, 6) else
                                     np.zeros((0, 2)) if j in (3, 5) else np.zeros(0)
                                     for j in range(7))
-    dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t, m1 - m0)
+    heading = np.isin(kind, (MAGNETIC, BEARING))
+    jump = ~heading if prm.heading_updates == "chain" else np.ones(len(t), dtype=bool)
+    dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t[jump], (m1 - m0)[jump])
     keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i])) & (kind != SMOOTHED)
+    if prm.heading_updates != "factor":
+        keep &= ~heading
     z, wm = implied_factors(m0[keep], c0[keep], m1[keep], c1[keep])
-    return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm))
+    growth = growth_curve(cov, rows[:, 0], t[jump], c0[jump], c1[jump])
+    return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm),
+                     growth_m2=growth)
 
 
-def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
+def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
+    """The agents' paths and the ranges the next solve takes (None: nothing to solve)."""
     st = mt.smoother
     assert st is not None
     paths: list[AgentPath] = []
@@ -161,7 +174,7 @@ def _problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
         rows = st.rows.get(name, [])
         tail = st.tail.get(name)
         if feedback and rows and tail is not None and tail[0] > rows[-1][0]:
-            rows = [*rows, tail[:3]]          # the latest row: the pose fed back
+            rows = [*rows, tail[:7]]          # the latest row: the pose fed back
         if len(rows) < 2:
             continue
         index[i] = len(paths)
@@ -191,7 +204,7 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     if prm is None or st is None or (not final and t_end < st.last_solve_s + prm.every_s):
         return []
     st.last_solve_s = t_end
-    got = _problem(mt)
+    got = problem(mt)
     if got is None:
         return []
     paths, ranges = got
@@ -240,7 +253,7 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
     agents = tuple(sorted(set(st.prior.agents if st.prior is not None else ()) | set(cut)))
     d = 4 * len(agents) + 2 * len(ids) + 1
     hold = MarginalPrior(agents, tuple(ids), np.zeros((0, d)), np.zeros(0), np.zeros(d))
-    got = _problem(mt)
+    got = problem(mt)
     assert got is not None
 
     def at(lay: Layout) -> NDArray[np.float64]:
@@ -254,22 +267,29 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
 def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float) -> None:
     """Drop the agent's rows before ``t_c`` (module doc).
 
-    A first row at ``t_c`` replaces them; its corrections up to ``t_c`` and its ranges before
-    ``t_c`` go too.
+    A first row at ``t_c`` replaces them (the dead reckoning and the growth curve there plus
+    the jumps and the shrinkage of the corrections they removed up to ``t_c``); its corrections
+    up to ``t_c`` and its ranges before ``t_c`` go too.
     """
-    st = mt.smoother
-    assert st is not None
+    st, prm = mt.smoother, mt.params.smoother
+    assert st is not None and prm is not None
     name = path.name
     i = mt.names.index(name)
     dr = path.xy_m if path.dead_reckoning_m is None else path.dead_reckoning_m
-    first = [t_c, *(float(np.interp(t_c, path.t, dr[:, k])) for k in (0, 1))]
+    xy = np.array([np.interp(t_c, path.t, dr[:, k]) for k in (0, 1)])
+    gr = path.growth_m2
+    cov = np.zeros(4) if gr is None else np.array(
+        [np.interp(t_c, path.t, gr[:, j, k]) for j in (0, 1) for k in (0, 1)])
     blocks = []
     for b in st.corr.get(name, []):
         old = b[0] <= t_c
-        jump = np.sum(b[5][old] - b[3][old], axis=0)
-        first[1:] = [first[1] + float(jump[0]), first[2] + float(jump[1])]
+        removed = old & (~np.isin(b[1], (MAGNETIC, BEARING)) if prm.heading_updates == "chain"
+                         else True)
+        xy += np.sum(b[5][removed] - b[3][removed], axis=0)
+        cov -= np.sum(b[4][removed] - b[6][removed], axis=0).reshape(-1)
         if not old.all():
             blocks.append([v[~old] for v in b])
+    first = [t_c, float(xy[0]), float(xy[1]), *cov.tolist()]
     if name in st.corr:
         st.corr[name] = blocks
     st.rows[name] = [first] + [r for r in st.rows[name] if r[0] > t_c]
@@ -319,6 +339,10 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
     """The smoother's state from :func:`state_of` values."""
     if d is None:
         return None
+    if any(len(r) != 7 for v in d["rows"].values() for r in v):
+        raise FormatError("smoother rows without their covariance (an older snapshot)",
+                          where="mission snapshot", expected="rows of t, x, y and 4 covariance "
+                          "terms: start the mission's estimator again")
     w = d["warm"]
     warm = None if w is None else SmootherResult(
         {n: (np.asarray(p), np.asarray(c), bool(ok)) for n, (p, c, ok) in w["nodes"].items()},
