@@ -16,8 +16,10 @@ only) and prints, over the seeds, mean / p90 / worst of (of the fraction localiz
   collection, ``_collect``: flat when the per-agent cost does not grow with the mission's length)
   and the node re-estimation (grows with the readings of the nodes in range).
 
-``--smoother``: both columns with the range-SLAM smoother (``MissionParams.smoother``, its
-default parameters; the cost table then gives its time per solve); ``--feedback``: its latest
+``--mode off|nodes|feedback``: the smoother's named mode (:mod:`hrtls.mission.smoother_modes`,
+as ``hrtls mission track --smoother``); ``--smoother``: both columns with the range-SLAM
+smoother (``MissionParams.smoother``, its default parameters; the cost table then gives its time
+per solve); ``--feedback``: its latest
 poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
 ``--feedback-cov-scale``, ``--feedback-gate``); ``--window-s``: poses older than this leave its
 problem as a prior (``SmootherParams.window_s``); its model: ``--increment-noise``,
@@ -79,6 +81,7 @@ from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
 from hrtls.mission.peers import PeerRangeParams
+from hrtls.mission.smoother_modes import MODES, smoother_mode, smoother_params
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline import preset
 from hrtls.pipeline.config import TrackerConfig
@@ -284,9 +287,10 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
 
 def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
-    ``--feedback-gate``, ``--window-s`` and the smoother's model options."""
+    ``--feedback-gate``, ``--window-s`` and the smoother's model options; without it the
+    smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``)."""
     if not args.smoother:
-        return None
+        return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
     kw: dict[str, Any] = {}
     for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate", "window_s",
                 "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
@@ -358,8 +362,12 @@ def main() -> None:
                     help="cooperation on only (the off column skipped: half the time)")
     ap.add_argument("--only-off", action="store_true",
                     help="cooperation off only (the on column skipped)")
+    ap.add_argument("--mode", choices=MODES, default=None,
+                    help="the smoother's named mode (hrtls.mission.smoother_modes; default: "
+                    "MissionParams' default)")
     ap.add_argument("--smoother", action="store_true",
-                    help="MissionParams.smoother = SmootherParams() (range-SLAM smoother)")
+                    help="MissionParams.smoother = SmootherParams() with the options below "
+                    "(range-SLAM smoother; overrides --mode)")
     ap.add_argument("--feedback", choices=("off", "implied", "replace"), default=None,
                     help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
                          "given back to the rescuers' trackers)")
@@ -482,7 +490,8 @@ def main() -> None:
           f"ratio {ratio:g}, smoothed readings lag {lag:g} s, rescuers' "
           f"q_along {args.q_along}, heading increment {args.heading_increment_rad} rad, "
           f"magnetic offset {args.offset_model}, tag sigma per accuracy "
-          f"{args.tag_sigma_per_accuracy}; values are mean / p90 / "
+          f"{args.tag_sigma_per_accuracy}, smoother {smoother_mode(items[0].smoother)}; values "
+          "are mean / p90 / "
           f"worst over seeds ({time.perf_counter() - t0:.0f} s)\n")
     head = "peer ranges" if args.peer_ranges else "cooperation"
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
