@@ -207,6 +207,18 @@ class _Problem:
         return Layout(self.names, self.t, self.pose_col, self.s_col, self.n_seg, self.seg,
                       self.walked, self.node_ids, self.node_col, self.height_col, self.n)
 
+    def weighted(self, x: FloatArray) -> tuple[FloatArray, FloatArray, csr_matrix]:
+        """Residuals, square roots of their IRLS weights and ``diag(sqrt w) J`` at ``x``.
+
+        ``w``: the robust loss's ``rho'`` on the range rows, 1 on the others.
+        """
+        res = self.residuals(x)
+        n_r = len(self.r)
+        w = np.ones(res.size)
+        w[:n_r] = robust_weights(res[:n_r] ** 2 / self.prm.loss_scale ** 2, self.prm.loss)
+        sw = np.sqrt(w)
+        return res, sw, csr_matrix(diags(sw) @ self.jacobian(x))
+
     def _prior_rows(self, x: FloatArray) -> FloatArray:
         p = self.prior
         if p is None:
@@ -412,12 +424,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     prob = _Problem(paths, ranges, ids, prm, prior)
     x0 = _initial(prob, paths, initial, warm)
     x, evaluations = _solve(prob, x0)
-    res = prob.residuals(x)
+    res, _, jac = prob.weighted(x)
     n_r = len(prob.r)
-    z = (res[:n_r] / prm.loss_scale) ** 2
-    w = np.ones(res.size)
-    w[:n_r] = robust_weights(z, prm.loss)
-    jac = csr_matrix(prob.jacobian(x)).multiply(np.sqrt(w)[:, None]).tocsr()
     inl = np.abs(res[:n_r]) < 3.0 * prm.loss_scale
     rms = float(np.sqrt(np.mean(res[:n_r][inl] ** 2))) if inl.any() else float("nan")
     last = [c + 2 * len(t) - 2 for c, t in zip(prob.pose_col, prob.t, strict=True)]
@@ -473,15 +481,11 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
 
     Returns the solution and the cost evaluations spent.
     """
-    n_r = len(prob.r)
     x, cost, lam, evaluations = x0.copy(), _cost(prob, x0), 1e-3, 1
     while evaluations < prob.prm.max_evaluations:
-        res = prob.residuals(x)
-        w = np.ones(res.size)
-        w[:n_r] = robust_weights(res[:n_r] ** 2 / prob.prm.loss_scale ** 2, prob.prm.loss)
-        jw = diags(np.sqrt(w)) @ prob.jacobian(x)
+        res, sw, jw = prob.weighted(x)
         hess = csc_matrix(jw.T @ jw)
-        grad = jw.T @ (np.sqrt(w) * res)
+        grad = jw.T @ (sw * res)
         step = None
         while evaluations < prob.prm.max_evaluations and lam < 1e8:
             damped = csc_matrix(hess + diags(lam * (hess.diagonal() + 1e-9)))
@@ -506,10 +510,5 @@ def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
     """
     prob = _Problem(paths, ranges, node_ids, params, prior)
     lay = prob.layout()
-    x = point(lay)
-    res = prob.residuals(x)
-    n_r = len(prob.r)
-    w = np.ones(res.size)
-    w[:n_r] = robust_weights(res[:n_r] ** 2 / params.loss_scale ** 2, params.loss)
-    jw = diags(np.sqrt(w)) @ prob.jacobian(x)
-    return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (np.sqrt(w) * res), np.float64)
+    res, sw, jw = prob.weighted(point(lay))
+    return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (sw * res), np.float64)

@@ -152,7 +152,7 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
                                     np.zeros((0, 2)) if j in (3, 5) else np.zeros(0)
                                     for j in range(7))
     heading = np.isin(kind, (MAGNETIC, BEARING))
-    jump = ~heading if prm.heading_updates == "chain" else np.ones(len(t), dtype=bool)
+    jump = _jump_leaves_chain(kind, prm.heading_updates)
     dr = dead_reckoning(rows[:, 0], rows[:, 1:3], t[jump], (m1 - m0)[jump])
     keep = ~((kind == RANGE) & ~np.isin(src.astype(str), mt.known[i])) & (kind != SMOOTHED)
     if prm.heading_updates != "factor":
@@ -161,6 +161,13 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     growth = growth_curve(cov, rows[:, 0], t[jump], c0[jump], c1[jump])
     return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm),
                      growth_m2=growth)
+
+
+def _jump_leaves_chain(kind: NDArray[Any], heading_updates: str) -> NDArray[np.bool_]:
+    """Corrections whose jump the dead reckoning drops (``"chain"``: not the heading updates')."""
+    if heading_updates == "chain":
+        return np.asarray(~np.isin(kind, (MAGNETIC, BEARING)))
+    return np.ones(len(kind), dtype=bool)
 
 
 def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
@@ -283,8 +290,7 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
     blocks = []
     for b in st.corr.get(name, []):
         old = b[0] <= t_c
-        removed = old & (~np.isin(b[1], (MAGNETIC, BEARING)) if prm.heading_updates == "chain"
-                         else True)
+        removed = old & _jump_leaves_chain(b[1], prm.heading_updates)
         xy += np.sum(b[5][removed] - b[3][removed], axis=0)
         cov -= np.sum(b[4][removed] - b[6][removed], axis=0).reshape(-1)
         if not old.all():
