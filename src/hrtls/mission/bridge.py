@@ -166,10 +166,14 @@ def _note(mt: MissionTracker, nodes: set[str]) -> None:
                 st.due.add(name)
 
 
-def _pull(mt: MissionTracker, name: str) -> None:
-    """Append the agent's new rows; keep those of the last ``smooth_readings_s``."""
+def pull(mt: MissionTracker, name: str) -> None:
+    """Append the agent's new rows; keep those of the last ``smooth_readings_s``.
+
+    A row the tracker replaced (same time) replaces the kept one. Nothing without the bridge.
+    """
     st = mt.bridge
-    assert st is not None
+    if st is None:
+        return
     est = mt.trackers[name].estimates_since(st.pulled.get(name, -np.inf))
     if not len(est):
         return
@@ -202,7 +206,7 @@ def revise(mt: MissionTracker, name: str, touched: set[str]) -> set[str]:
     _note(mt, touched)
     if name not in mt.started or not isinstance(mt.trackers[name], Tracker):
         return set()
-    _pull(mt, name)
+    pull(mt, name)
     rows = st.rows.get(name)
     if name not in st.due or rows is None or len(rows[0]) < 2:
         return set()

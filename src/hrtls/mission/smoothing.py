@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import FormatError
+from hrtls.mission import bridge
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
@@ -312,7 +313,9 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
 def _fed_back(mt: MissionTracker, name: str) -> None:
     """Read the agent's corrected latest row and the feedback's record now.
 
-    Before any snapshot: a restored tracker does not repeat the row.
+    Every reader of the agent's rows (the smoother's tail, the mission's recent rows, the
+    smoothed-readings bridge) takes it before any snapshot: a restored tracker does not repeat
+    the row.
     """
     st = mt.smoother
     assert st is not None
@@ -321,6 +324,7 @@ def _fed_back(mt: MissionTracker, name: str) -> None:
     st.tail[name] = [t, float(est.xyz[0, 0]), float(est.xyz[0, 1]),
                      *np.asarray(est.cov_xy[0], np.float64).reshape(-1).tolist()]
     mt.agent_rows(name)
+    bridge.pull(mt, name)
     _pull_corrections(mt, name)
 
 
