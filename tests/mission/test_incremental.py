@@ -17,8 +17,10 @@ from hypothesis import strategies as st
 from hrtls.data import Landmark, Session
 from hrtls.errors import FormatError, InputError
 from hrtls.mission.buffer import AgentBuffer, LateData, merge, split_at
+from hrtls.mission.smoother_modes import smoother_params
 from hrtls.mission.tracker import AgentHeader, MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline.chunks import session_window, split_session
+from hrtls.pipeline.corrections import SMOOTHED
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
 
 PART_S = 0.5
@@ -332,21 +334,89 @@ def test_with_the_information_gate_live_and_restored_give_the_offline_run(seed1)
     assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
 
 
-def test_with_smoothed_readings_live_and_restored_give_the_offline_run(seed1) -> None:  # type: ignore[no-untyped-def]
-    """``smooth_readings_s`` 30 (readings moved to the rescuers' smoothed rows): parts fed live,
-    and a snapshot restored half-way then fed the rest, give the offline run."""
+def test_smoothed_readings_move_the_readings(seed1) -> None:  # type: ignore[no-untyped-def]
+    """``smooth_readings_s`` 30 places some readings elsewhere than the filtered rows."""
     sessions, kinds = seed1
-    prm = MissionParams(smooth_readings_s=30.0)
-    offline = MissionTracker(sessions, kinds=kinds, params=prm)
-    want = offline.run()
     alone = [MissionTracker(sessions, kinds=kinds, params=MissionParams(
         cooperate=False, smooth_readings_s=s)) for s in (0.0, 30.0)]
     for a in alone:
         a.run()
     assert any(not np.allclose(np.asarray(r.xy), np.asarray(alone[1].readings[n].xy))
-               for n, r in alone[0].readings.items())               # it smooths
-    mt = _restored_half_way(sessions, kinds, prm)
-    assert mt.params.smooth_readings_s == 30.0 and mt.bridge is not None
-    assert _max_diff(want, mt.run(), tail=True) <= 1e-12      # rows made after the restore
-    for n, r in offline.readings.items():
+               for n, r in alone[0].readings.items())
+
+
+Offline = dict[tuple[float, str], tuple[MissionTracker, MissionResult]]
+
+
+@pytest.fixture(scope="module")
+def offline_runs() -> Offline:
+    """Offline runs of seed 1 by (bridge lag, smoother mode), made once."""
+    return {}
+
+
+def _offline(runs: Offline, mission: tuple[dict[str, Session], dict[str, str]], smooth_s: float,
+             mode: str) -> tuple[MissionTracker, MissionResult]:
+    """The offline run of ``mission`` with the bridge's lag and the smoother's mode."""
+    if (smooth_s, mode) not in runs:
+        sessions, kinds = mission
+        mt = MissionTracker(sessions, kinds=kinds, params=MissionParams(
+            smooth_readings_s=smooth_s, smoother=smoother_params(mode)))
+        runs[(smooth_s, mode)] = (mt, mt.run())
+    return runs[(smooth_s, mode)]
+
+
+def _same_as_offline(offline: tuple[MissionTracker, MissionResult], mt: MissionTracker) -> None:
+    assert _max_diff(offline[1], mt.run(), tail=True) <= 1e-12      # rows after the restore
+    assert set(mt.readings) == set(offline[0].readings)
+    for n, r in offline[0].readings.items():
         np.testing.assert_allclose(np.asarray(mt.readings[n].xy), np.asarray(r.xy), atol=1e-12)
+        np.testing.assert_allclose(np.asarray(mt.readings[n].cov), np.asarray(r.cov), atol=1e-12)
+
+
+@pytest.mark.parametrize("mode", ["off", "nodes", "feedback"])
+def test_with_smoothed_readings_live_and_restored_give_the_offline_run(  # type: ignore[no-untyped-def]
+        seed1, offline_runs, mode: str) -> None:
+    """``smooth_readings_s`` 30 (readings moved to the rescuers' smoothed rows) with each
+    smoother mode: a snapshot restored half-way then fed the rest gives the offline run."""
+    sessions, kinds = seed1
+    offline = _offline(offline_runs, seed1, 30.0, mode)
+    mt = _restored_half_way(sessions, kinds, offline[0].params)
+    assert mt.params == offline[0].params and mt.bridge is not None
+    _same_as_offline(offline, mt)
+
+
+def _fed_back_now(mt: MissionTracker) -> bool:
+    """The last window ended in a smoother solve that set a rescuer's latest row."""
+    st = mt.smoother
+    if st is None or not st.last_solve_s == mt.horizon_s > -math.inf:
+        return False
+    if mt.params.smoother is None or mt.params.smoother.feedback == "off":
+        return True
+    for name in sorted(mt.started & set(st.tail)):
+        c = mt.trackers[name].corrections_since(0)
+        if len(c) and c.kind[-1] == SMOOTHED and c.t[-1] == st.tail[name][0]:
+            return True
+    return False
+
+
+@pytest.mark.parametrize(("smooth_s", "mode"), [(0.0, "nodes"), (0.0, "feedback"),
+                                                (30.0, "nodes"), (30.0, "feedback")])
+def test_restored_right_after_a_smoother_solve_the_mission_continues_identically(  # type: ignore[no-untyped-def]
+        seed1, offline_runs, smooth_s: float, mode: str) -> None:
+    """A snapshot taken just after a solve (with ``feedback``: one that set a rescuer's latest
+    row, which the bridge and the smoother read again later), the first after the half-way
+    point (the half-way test's restore point is another)."""
+    sessions, kinds = seed1
+    offline = _offline(offline_runs, seed1, smooth_s, mode)
+    parts = _parts(sessions)
+    mt = MissionTracker(_headers(sessions), kinds=kinds, params=offline[0].params)
+    restored = False
+    for j, (name, part) in enumerate(parts):
+        if not restored and 2 * j > len(parts) and _fed_back_now(mt):
+            mt, restored = MissionTracker.restore(mt.snapshot()), True
+        mt.feed(name, part, now_s=float(j))
+        mt.advance(now_s=float(j))
+    assert restored
+    for k in sessions:
+        mt.end(k)
+    _same_as_offline(offline, mt)
