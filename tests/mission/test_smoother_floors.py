@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from hrtls.errors import FormatError
 from hrtls.mission.floors import FloorLog, node_floor, on_node_floor
 from hrtls.mission.graph import RangeSet, SmootherParams, smooth
-from hrtls.mission.smoothing import SmootherState, problem, state_from, state_of
+from hrtls.mission.smoothing import SmootherState, problem, solve, state_from, state_of
 
 
 def test_on_node_floor_by_hand() -> None:
@@ -103,6 +103,18 @@ def test_the_ranges_the_window_cut_still_count_for_the_floor() -> None:
     assert got is not None
     assert got[1].agent.tolist() == [1] * 8 and got[1].floor is not None
     assert set(got[1].floor.tolist()) == {1}
+
+
+def test_a_node_the_smoother_localizes_takes_its_floor() -> None:
+    r0, r1 = _ranges(0, (5.0, 5.0)), _ranges(1, (20.0, 5.0))
+    r1 = [1, *(v[:8] for v in r1[1:])]
+    for cut, floor, xy in (({}, 0, [5.0, 5.0]), ({"N": {1: 5}}, 1, [20.0, 5.0])):
+        mt = _mission([r0, r1], cut)
+        mt.params.cooperate = False
+        mt.estimates, mt.versions, mt.history, mt.node_floor = {}, {}, {}, {"N": 1 - floor}
+        assert solve(mt, 12.0, final=True) == ["N"]
+        assert mt.node_floor == {"N": floor}
+        np.testing.assert_allclose(mt.estimates["N"].position_m, xy, atol=0.2)
 
 
 def test_the_cut_counts_go_through_a_snapshot_and_an_older_one_is_refused() -> None:
