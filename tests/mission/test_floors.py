@@ -13,7 +13,8 @@ from hrtls.errors import InputError
 from hrtls.mission.floors import FloorLog, node_floor
 from hrtls.mission.nodes import NodeEstimator
 from hrtls.mission.readings import NodeReadings
-from hrtls.mission.tracker import AgentHeader, MissionResult, MissionTracker
+from hrtls.mission.smoother_modes import smoother_mode, smoother_params
+from hrtls.mission.tracker import AgentHeader, MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline import snapshot as codec
 from hrtls.pipeline.chunks import split_session
 from hrtls.sim.mission import Mission, MissionOptions, inderst_hybrid_mission
@@ -141,9 +142,12 @@ def _no_truth(m: Mission) -> dict[str, Session]:
     return {k: s.with_parts(truth=None, checkpoints=None) for k, s in m.agents.items()}
 
 
-@pytest.fixture(scope="module")
-def offline(two_floors: Mission) -> tuple[MissionTracker, MissionResult]:
-    mt = MissionTracker(_no_truth(two_floors), kinds=two_floors.kinds)
+@pytest.fixture(scope="module", params=["off", "nodes", "feedback"])
+def offline(request: pytest.FixtureRequest, two_floors: Mission
+            ) -> tuple[MissionTracker, MissionResult]:
+    """The mission tracked offline with the per-node estimator alone, or with the smoother."""
+    mt = MissionTracker(_no_truth(two_floors), kinds=two_floors.kinds,
+                        params=MissionParams(smoother=smoother_params(request.param)))
     return mt, mt.run()
 
 
@@ -151,26 +155,42 @@ def test_floor_1_nodes_localized_on_floor_1_from_its_readings_only(
         two_floors: Mission, offline: tuple[MissionTracker, MissionResult]) -> None:
     mt, res = offline
     m = two_floors
+    owned = mt.smoother.owned if mt.smoother is not None else set()
+    assert mt.smoother is None or owned, "the smoother localized no node"
     on1 = [n for n, e in res.nodes.items() if e.localized and m.node_floor[n] == 1]
     assert on1, "no floor-1 node localized"
-    err = [np.hypot(*(e.position_m - m.node_truth_m[n])) for n, e in res.nodes.items()
-           if e.localized]
-    # coarse: two rescuers on 60 s walks give each node one or two passes
-    assert np.median(err) < 4.0 and max(err) < 8.0
     for n, e in res.nodes.items():
         if not e.localized:
             continue
         assert res.node_floor[n] == m.node_floor[n]
+        if n in owned:          # the smoother's ranges: test_smoother_keeps_the_node_floor_s...
+            continue
         floors = np.asarray(mt.readings[n].floor)[:mt.estimated_at[n]]   # those it had then
         assert len(e.used) == np.count_nonzero(floors == res.node_floor[n])
     assert {mt.floor_logs[k].now() for k in m.agents if m.kinds[k] == "rescuer"} <= {0, 1}
     assert any(1 in log.floor for log in mt.floor_logs.values())
 
 
-def _live(m: Mission, *, snapshot_at: int | None = None) -> MissionResult:
+def test_two_floor_node_errors_are_coarse(
+        request: pytest.FixtureRequest, two_floors: Mission,
+        offline: tuple[MissionTracker, MissionResult]) -> None:
+    mt, res = offline
+    if smoother_mode(mt.params.smoother) == "feedback":
+        # a floor-0 node ranged mostly by the robot follows the smoother's robot path, which
+        # drifts from the robot's own estimate (docs/mission.md, floors): not the floors
+        request.applymarker(pytest.mark.xfail(strict=True, reason="the smoother's robot path"))
+    m = two_floors
+    err = [np.hypot(*(e.position_m - m.node_truth_m[n])) for n, e in res.nodes.items()
+           if e.localized]
+    # coarse: two rescuers on 60 s walks give each node one or two passes
+    assert np.median(err) < 4.0 and max(err) < 8.0
+
+
+def _live(m: Mission, params: MissionParams, *, snapshot_at: int | None = None
+          ) -> MissionResult:
     sessions = _no_truth(m)
     mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
-                        kinds=m.kinds)
+                        kinds=m.kinds, params=params)
     parts = sorted([(k, p) for k, s in sessions.items() for p in split_session(s, 2.0)],
                    key=lambda kp: kp[1].time_span()[1])
     for j, (name, part) in enumerate(parts):
@@ -194,8 +214,8 @@ def _same(a: MissionResult, b: MissionResult) -> None:
 
 def test_a_two_floor_mission_fed_live_gives_the_offline_run(
         two_floors: Mission, offline: tuple[MissionTracker, MissionResult]) -> None:
-    _, want = offline
-    got = _live(two_floors)
+    mt, want = offline
+    got = _live(two_floors, mt.params)
     _same(want, got)
     for k, r in want.agents.items():
         np.testing.assert_array_equal(r.trajectory.xyz, got.agents[k].trajectory.xyz)
@@ -203,8 +223,8 @@ def test_a_two_floor_mission_fed_live_gives_the_offline_run(
 
 def test_a_restored_two_floor_mission_continues_identically(
         two_floors: Mission, offline: tuple[MissionTracker, MissionResult]) -> None:
-    _, want = offline
-    _same(want, _live(two_floors, snapshot_at=150))
+    mt, want = offline
+    _same(want, _live(two_floors, mt.params, snapshot_at=150))
 
 
 def test_a_version_3_snapshot_restores_on_floor_0() -> None:

@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from hrtls.mission.floors import FloorLog
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.smoothing import SmootherState, problem
 from hrtls.pipeline.schedule import MAGNETIC, RANGE, TAGS
@@ -34,7 +35,8 @@ def _mission(heading_updates: str) -> SimpleNamespace:
     st.ranges = [[0, np.array([5.0]), np.array(["N1"]), np.array([3.0]), np.array([0.1])]]
     return SimpleNamespace(smoother=st, params=SimpleNamespace(
         smoother=SmootherParams(heading_updates=heading_updates)), names=["R1"],
-        known=[np.array(["T1"])], trackers={"R1": object.__new__(Tracker)})
+        known=[np.array(["T1"])], trackers={"R1": object.__new__(Tracker)},
+        floor_logs={"R1": FloorLog()})
 
 
 @pytest.mark.parametrize(("variant", "removed", "factors"),

@@ -10,7 +10,7 @@ estimate). An agent uses a localized node only while it is on the node's floor.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,12 +53,33 @@ class FloorLog:
         return floors[np.searchsorted(np.asarray(self.t, dtype=np.float64), t_s, side="right")]
 
 
-def node_floor(floors: Sequence[int]) -> int:
+def node_floor(floors: Sequence[int] | IntArray) -> int:
     """The floor most readings were taken on (ties: the lowest; 0 without readings)."""
     if not len(floors):
         return 0
     values, counts = np.unique(np.asarray(floors, dtype=np.int64), return_counts=True)
     return int(values[int(np.argmax(counts))])
+
+
+def on_node_floor(node: NDArray[np.str_], floor: IntArray,
+                  earlier: Mapping[str, Mapping[int, int]] | None = None
+                  ) -> tuple[NDArray[np.bool_], dict[str, int]]:
+    """Which readings are on their node's floor, and each node's floor (:func:`node_floor`).
+
+    ``node``, ``floor``: each reading's node and floor; ``earlier``: per node, readings no
+    longer listed (floor -> count) that still count for its floor.
+    """
+    earlier = earlier or {}
+    keep = np.zeros(len(node), dtype=bool)
+    floors: dict[str, int] = {}
+    for n in np.unique(node).tolist():
+        m = node == n
+        old = earlier.get(str(n), {})
+        counted = np.repeat(np.fromiter(old.keys(), np.int64, len(old)),
+                            np.fromiter(old.values(), np.int64, len(old)))
+        floors[str(n)] = node_floor(np.concatenate([floor[m], counted]))
+        keep[m] = floor[m] == floors[str(n)]
+    return keep, floors
 
 
 def building_floor_height_m(heights_m: Sequence[float]) -> float:

@@ -96,13 +96,18 @@ class AgentPath:
 
 @dataclass(frozen=True, eq=False)
 class RangeSet:
-    """Ranges to the nodes: agent index, time (s), node id, range (m), 1-sigma (m)."""
+    """Ranges to the nodes: agent index, time (s), node id, range (m), 1-sigma (m).
+
+    ``floor``: the agent's floor at each range (:mod:`hrtls.mission.floors`; the solve does
+    not read it), or None.
+    """
 
     agent: IntArray
     t: FloatArray
     node: NDArray[np.str_]
     range_m: FloatArray
     sigma_m: FloatArray
+    floor: IntArray | None = None
 
 
 @dataclass(frozen=True, eq=False)

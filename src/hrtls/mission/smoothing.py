@@ -15,6 +15,18 @@ the state keeps only what the next problem uses: an agent's rows from its cut po
 row there, on the dead reckoning of the solve before: ``g(t_c)`` plus the jumps of its
 corrections up to ``t_c``, so the increments after it do not change), its corrections after
 ``t_c``, its ranges from ``t_c`` on, and the distance it walked before ``t_c`` (its segments).
+
+Floors (:mod:`hrtls.mission.floors`). Each range carries its agent's floor at its time, from the
+agent's causal rows (its floor log, which the rows the smoother pulls also update); a node's
+floor is that of most of its ranges, those in the problem and those that left it with the
+window (counted per floor); only the ranges on the node's floor enter the problem. The solve
+gives each node it localizes with that floor (:attr:`MissionTracker.node_floor`), and an agent
+uses it only on that floor. An agent's poses on other floors stay in its chain: the path is
+2-D and its increments are the same dead reckoning whatever the floor; the height column is
+the height between an agent's antenna and a node on the same floor, the only pairs left, so
+nothing depends on the floor there. A marginalized prior keeps the node information it took;
+a node whose floor changes later keeps that (the slab blocks the radio: a range from another
+floor comes from a wrong floor estimate, rare and short).
 """
 
 from __future__ import annotations
@@ -31,6 +43,7 @@ from hrtls.errors import FormatError
 from hrtls.mission import bridge
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
+from hrtls.mission.floors import on_node_floor
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
 from hrtls.mission.graph_window import (
     Layout,
@@ -69,7 +82,8 @@ class SmootherState:
     (blocks of ``[t, kind, source, mean0, cov0, mean1, cov1]``,
     :class:`hrtls.pipeline.corrections.Corrections`); ``corr_next``: the next record to read;
     ``prior``: the marginalized older poses (``window_s``); ``walked``: per agent the distance
-    walked before its first kept row, m.
+    walked before its first kept row, m; ``floors_cut``: per node, the ranges that left the
+    problem with the window, counted per floor (they still count for the node's floor).
     """
 
     rows: dict[str, list[list[float]]] = field(default_factory=dict)
@@ -85,6 +99,7 @@ class SmootherState:
     corr_next: dict[str, int] = field(default_factory=dict)
     prior: MarginalPrior | None = None
     walked: dict[str, float] = field(default_factory=dict)
+    floors_cut: dict[str, dict[int, int]] = field(default_factory=dict)
 
 
 def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> None:
@@ -96,6 +111,7 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
     name = mt.names[i]
     if name in mt.started:
         est = mt.trackers[name].estimates_since(st.pulled.get(name, -math.inf))
+        mt.floor_logs[name].add(est.t, est.floor)
         new = [[float(est.t[k]), float(est.xyz[k, 0]), float(est.xyz[k, 1]),
                 *np.asarray(est.cov_xy[k], np.float64).reshape(-1).tolist()]
                for k in range(len(est))]
@@ -172,7 +188,10 @@ def _jump_leaves_chain(kind: NDArray[Any], heading_updates: str) -> NDArray[np.b
 
 
 def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
-    """The agents' paths and the ranges the next solve takes (None: nothing to solve)."""
+    """The agents' paths and the ranges the next solve takes (None: nothing to solve).
+
+    The ranges are those the agents' rows cover, on their nodes' floors (module doc).
+    """
     st = mt.smoother
     assert st is not None
     paths: list[AgentPath] = []
@@ -193,18 +212,20 @@ def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
         return None
     agent = np.concatenate([np.full(len(p[1]), index[int(p[0])], np.int64) for p in parts])
     t = np.concatenate([p[1] for p in parts])
+    node = np.concatenate([p[2] for p in parts])
+    floor = np.concatenate([mt.floor_logs[mt.names[int(p[0])]].at(p[1]) for p in parts])
     last = np.array([paths[a].t[-1] for a in range(len(paths))])
-    m = t <= last[agent]
-    return paths, RangeSet(agent[m], t[m], np.concatenate([p[2] for p in parts])[m],
-                           np.concatenate([p[3] for p in parts])[m],
-                           np.concatenate([p[4] for p in parts])[m])
+    m = np.flatnonzero(t <= last[agent])
+    m = m[on_node_floor(node[m], floor[m], st.floors_cut)[0]]
+    return paths, RangeSet(agent[m], t[m], node[m], np.concatenate([p[3] for p in parts])[m],
+                           np.concatenate([p[4] for p in parts])[m], floor[m])
 
 
 def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]:
     """Solve when due (``every_s`` since the last solve, or ``final``); the nodes it changed.
 
-    Each localized node replaces the mission's estimate of it (version, history) and is owned by
-    the smoother from then on.
+    Each localized node replaces the mission's estimate of it (version, history) and its
+    floor, and is owned by the smoother from then on.
     """
     import time
 
@@ -226,7 +247,10 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     for node, (p, cov, ok) in sorted(solved.nodes.items()):
         if not ok:
             continue
-        k = int(np.count_nonzero(ranges.node == node))
+        mine = ranges.node == node
+        k = int(np.count_nonzero(mine))
+        if k and ranges.floor is not None:        # else: only in the prior, floor unchanged
+            mt.node_floor[node] = int(ranges.floor[mine][0])
         mt.estimates[node] = NodeEstimate(p.copy(), cov.copy(), True, "", np.ones(k, dtype=bool),
                                           solved.rms, solved.evaluations)
         st.owned.add(node)
@@ -277,7 +301,7 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
 
     A first row at ``t_c`` replaces them (the dead reckoning and the growth curve there plus
     the jumps and the shrinkage of the corrections they removed up to ``t_c``); its corrections
-    up to ``t_c`` and its ranges before ``t_c`` go too.
+    up to ``t_c`` and its ranges before ``t_c`` go too (counted per node and floor).
     """
     st, prm = mt.smoother, mt.params.smoother
     assert st is not None and prm is not None
@@ -304,10 +328,23 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
     parts = []
     for p in st.ranges:
         keep = p[1] >= t_c if int(p[0]) == i else np.ones(len(p[1]), dtype=bool)
+        _count_floors(st.floors_cut, p[2][~keep], mt.floor_logs[name].at(p[1][~keep]))
         if keep.any():
             parts.append([p[0], *(v[keep] for v in p[1:])])
     # an empty block of this agent keeps the next problem buildable without ranges
     st.ranges = parts or [[i, *(v[:0] for v in p[1:])] for p in st.ranges[-1:]]
+
+
+def _count_floors(counts: dict[str, dict[int, int]], node: NDArray[np.str_],
+                  floor: NDArray[np.int64]) -> None:
+    """Add the readings ``(node, floor)`` to the per-node, per-floor ``counts``."""
+    if not len(node):
+        return
+    pairs, n = np.unique(np.column_stack([node.astype(str), floor.astype(str)]), axis=0,
+                         return_counts=True)
+    for (nd, fl), c in zip(pairs.tolist(), n.tolist(), strict=True):
+        per = counts.setdefault(str(nd), {})
+        per[int(fl)] = per.get(int(fl), 0) + int(c)
 
 
 def _fed_back(mt: MissionTracker, name: str) -> None:
@@ -342,7 +379,9 @@ def state_of(st: SmootherState | None) -> dict[str, Any] | None:
     return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
             "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
             "warm": warm, "seconds": st.seconds, "corr": st.corr, "corr_next": st.corr_next,
-            "prior": prior_state(st.prior), "walked": st.walked}
+            "prior": prior_state(st.prior), "walked": st.walked,
+            "floors_cut": {n: [[f, c] for f, c in sorted(v.items())]
+                           for n, v in st.floors_cut.items()}}
 
 
 def state_from(d: dict[str, Any] | None) -> SmootherState | None:
@@ -353,6 +392,10 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
         raise FormatError("smoother rows without their covariance (an older snapshot)",
                           where="mission snapshot", expected="rows of t, x, y and 4 covariance "
                           "terms: start the mission's estimator again")
+    if "floors_cut" not in d:
+        raise FormatError("smoother state without its ranges' floors (an older snapshot)",
+                          where="mission snapshot", expected="the per-node floor counts of the "
+                          "ranges the window cut: start the mission's estimator again")
     w = d["warm"]
     warm = None if w is None else SmootherResult(
         {n: (np.asarray(p), np.asarray(c), bool(ok)) for n, (p, c, ok) in w["nodes"].items()},
@@ -373,4 +416,5 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
                   for b in v] for k, v in d.get("corr", {}).items()},
         corr_next={k: int(v) for k, v in d.get("corr_next", {}).items()},
         prior=prior_from(d.get("prior")),
-        walked={k: float(v) for k, v in d.get("walked", {}).items()})
+        walked={k: float(v) for k, v in d.get("walked", {}).items()},
+        floors_cut={n: {int(f): int(c) for f, c in v} for n, v in d["floors_cut"].items()})
