@@ -197,6 +197,8 @@ class ModeScores:
     """Agents' NEES per bin of ``_mission_nees.nees_split``."""
     floors: dict[str, float] = field(default_factory=dict)
     """``_mission_floors.floor_scores`` (two floors only)."""
+    robot_nees: float = float("nan")
+    """The robots' NEES (2 dof) at 1 Hz, mean."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -273,7 +275,7 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
-        robot = agent_errors(mission, res, "robot")[0]
+        robot, robot_nees = agent_errors(mission, res, "robot")
         out[mode] = ModeScores(float(np.mean(e)), float(np.percentile(e, 90)),
                                float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees,
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
@@ -281,7 +283,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                _quarters(agents_s), _quarters(nodes_s),
                                why_not_localized(mission, tracker, res), _solves(tracker),
                                nees_split(mission, res),
-                               floor_scores(mission, res) if item.options.n_floors > 1 else {})
+                               floor_scores(mission, res) if item.options.n_floors > 1 else {},
+                               float(np.mean(robot_nees)) if len(robot) else float("nan"))
     return out
 
 
@@ -417,8 +420,8 @@ def main() -> None:
     cols = modes(args.peer_ranges, args.only_on, args.only_off)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
-            "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
-            "n1": [], "s0": [], "s1": []}
+            "rmse_true": [], "robot_p90": [], "robot_nees": [], "w0": [], "w1": [], "a0": [],
+            "a1": [], "n0": [], "n1": [], "s0": [], "s1": []}
         for m in cols}
     nees_all: dict[str, list[float]] = {m: [] for m in cols}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in cols}
@@ -458,6 +461,7 @@ def main() -> None:
             r["rmse"].append(m.rmse)
             r["rmse_true"].append(m.rmse_true_agents)
             r["robot_p90"].append(m.robot_p90)
+            r["robot_nees"].append(m.robot_nees)
             r["w0"].append(m.window_ms[0])
             r["w1"].append(m.window_ms[1])
             r["a0"].append(m.agent_ms[0])
@@ -473,7 +477,8 @@ def main() -> None:
                 floor_rows[mode][k].append(v)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
-                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
+                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m, NEES "
+                  f"{m.robot_nees:.2f}; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     ratio = (MissionParams().use_variance_ratio if args.use_variance_ratio is None
              else args.use_variance_ratio)
@@ -497,8 +502,8 @@ def main() -> None:
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
           "| agent NEES | nodes localized (mean / p10 / lowest) | node RMSE, m "
           "| node NEES (mean; 95 % bounds) | node RMSE from true agent positions, m "
-          "| robot error p90, m |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "| robot error p90, m | robot NEES |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for mode in cols:
         r = rows[mode]
         n = len(nees_all[mode])
@@ -507,7 +512,8 @@ def main() -> None:
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
               f"| {_stats(r['anees'])} | {_stats(r['frac'], higher_is_better=True)} "
               f"| {_stats(r['rmse'])} | {nees} "
-              f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} |")
+              f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} "
+              f"| {_stats(r['robot_nees'])} |")
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
     print("| cooperation | window | agents (trackers + collection) | node re-estimation "
           "| smoother solve, s (mean / largest) |")
