@@ -3,6 +3,9 @@ invariant, the mission loop."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -74,15 +77,61 @@ def test_the_implied_update_never_increases_the_covariance(seed: int, scale: flo
     assert np.linalg.eigvalsh(pn)[0] > -1e-9
 
 
-@pytest.mark.parametrize("mode", ["implied", "replace"])
-def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str) -> None:
-    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode))
+def test_a_robot_takes_the_implied_update_on_its_odometry_frame_heading_by_hand() -> None:
+    """Robot state [x, y, psi], P = [[1, 0, 0.1], [0, 1, 0], [0.1, 0, 0.04]], row at the
+    state; smoother N((0.5, 0), 0.5 I): the position marginal becomes it, psi moves by
+    0.1 * 0.5 = 0.05, its variance falls by 0.1 * 0.5 * 0.1 = 0.005. The robot records the
+    jump as a SMOOTHED correction and its latest row takes the new state."""
+    from hrtls.mission.feedback import feed_back
+    from hrtls.mission.graph import SmootherResult
+    from hrtls.mission.robot import RobotTracker
+    from hrtls.mission.smoothing import SmootherState
+
+    tr = RobotTracker()
+    tr.x, tr.p = np.zeros(3), np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.0], [0.1, 0.0, 0.04]])
+    tr._started = True
+    tr._rows = [(np.array([5.0]), tr.x.copy()[None], tr.p.copy()[None])]
+    prm = SmootherParams(feedback="implied", feedback_cov_scale=1.0, feedback_robots=True)
+    res = SmootherResult({}, {}, {}, {}, {}, 0.0, 1.0, 1,
+                         last_pose={"B1": (5.0, np.array([0.5, 0.0]), 0.5 * np.eye(2))})
+    mt = SimpleNamespace(params=MissionParams(smoother=prm), trackers={"B1": tr},
+                         smoother=SmootherState(tail={"B1": [5.0, 0.0, 0.0, 1.0, 0.0, 0.0,
+                                                             1.0]}))
+    assert feed_back(mt, res) == ["B1"]         # type: ignore[arg-type]
+    np.testing.assert_allclose(tr.x, [0.5, 0.0, 0.05], atol=1e-12)
+    np.testing.assert_allclose(tr.p[:2, :2], 0.5 * np.eye(2), atol=1e-12)
+    np.testing.assert_allclose(tr.p[2, 2], 0.04 - 0.005, atol=1e-12)
+    est = tr.estimates_since(4.0)
+    np.testing.assert_allclose(est.xyz[0, :2], [0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(est.heading_rad[0], 0.05, atol=1e-12)
+    c = tr.corrections_since(0)
+    assert list(c.kind) == [SMOOTHED] and c.t[0] == 5.0
+    np.testing.assert_allclose(c.mean1_m[0] - c.mean0_m[0], [0.5, 0.0], atol=1e-12)
+    tr.x = np.zeros(3)                          # without feedback_robots a robot keeps its own
+    mt.params = MissionParams(smoother=replace(prm, feedback_robots=False))
+    assert feed_back(mt, res) == []             # type: ignore[arg-type]
+
+
+def test_robot_feedback_needs_the_feedback() -> None:
+    from hrtls.errors import InputError
+
+    with pytest.raises(InputError, match="feedback_robots"):
+        SmootherParams(feedback_robots=True)
+
+
+@pytest.mark.parametrize(("mode", "robots"), [("implied", False), ("replace", False),
+                                              ("implied", True)])
+def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str,
+                                                                    robots: bool) -> None:
+    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode,
+                                                   feedback_robots=robots))
     sessions, kinds = short_mission(2)
     offline = MissionTracker(sessions, kinds=kinds, params=params)
     want = offline.run()
     fed = [n for n, tr in offline.trackers.items()
            if np.any(tr.corrections_since(0).kind == SMOOTHED)]
     assert fed
+    assert any(kinds[n] == "robot" for n in fed) == robots
     mt = restored_half_way(sessions, kinds, params)
     got = mt.run()
     for n, e in want.nodes.items():
