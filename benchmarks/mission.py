@@ -295,7 +295,7 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     if not args.smoother:
         return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
     kw: dict[str, Any] = {}
-    for key in ("feedback", "feedback_robots", "every_s", "feedback_cov_scale", "feedback_gate",
+    for key in ("feedback", "robots", "every_s", "feedback_cov_scale", "feedback_gate",
                 "window_s", "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
                 "localize_spread_m", "smoother_correlation_s"):
         if getattr(args, key) is not None:
@@ -374,9 +374,9 @@ def main() -> None:
     ap.add_argument("--feedback", choices=("off", "implied", "replace"), default=None,
                     help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
                          "given back to the rescuers' trackers)")
-    ap.add_argument("--feedback-robots", action="store_true", default=None,
-                    help="with --feedback: SmootherParams.feedback_robots (robots take the "
-                         "feedback and no node as a range anchor)")
+    ap.add_argument("--robots-take", dest="robots", choices=("nodes", "feedback", "alone"),
+                    default=None, help="with --smoother: SmootherParams.robots (what a robot "
+                    "takes from the mission)")
     ap.add_argument("--every-s", type=float, default=None,
                     help="with --smoother: SmootherParams.every_s (default: its default)")
     ap.add_argument("--feedback-cov-scale", type=float, default=None,

@@ -30,8 +30,8 @@ the target moves with it (``z + x_now - m_f``; replace: ``m_s + x_now - m_f`` an
 - P_f`` when positive definite). The superset argument is approximate (the chain is not the
 tracker's motion model, a heading update's factor repeats some earlier information,
 :mod:`hrtls.mission.correction_factors`); the covariance scale and the gate are chosen on dev
-seeds (docs/mission.md). A robot (``feedback_robots``) takes it the same way, on its state
-``[x, y, psi]`` (:meth:`hrtls.mission.robot.RobotTracker.set_smoothed`).
+seeds (docs/mission.md). A robot (``SmootherParams.robots`` "feedback") takes it the same
+way, on its state ``[x, y, psi]`` (:meth:`hrtls.mission.robot.RobotTracker.set_smoothed`).
 
 No information counted twice: the jump is recorded as a correction of kind
 :data:`~hrtls.pipeline.corrections.SMOOTHED`, which the smoother removes from the dead
@@ -121,14 +121,14 @@ def _target(m_f: FloatArray, p_f: FloatArray, m_s: FloatArray, p_s: FloatArray, 
 
 
 def feed_back(mt: MissionTracker, res: SmootherResult) -> list[str]:
-    """Give each rescuer (robot: ``feedback_robots``) the smoother's latest row; those updated."""
+    """Give each rescuer (robot: ``robots`` "feedback") the smoother's latest row; those updated."""
     prm, st = mt.params.smoother, mt.smoother
     assert prm is not None and st is not None
     done: list[str] = []
     for name, (t_a, m_s, p_s) in sorted(res.last_pose.items()):
         tail = st.tail.get(name)
         tr = mt.trackers[name]
-        robot = isinstance(tr, RobotTracker) and prm.feedback_robots
+        robot = isinstance(tr, RobotTracker) and prm.robots == "feedback"
         if tail is None or tail[0] != t_a or not (isinstance(tr, Tracker) or robot) or \
                 not np.all(np.isfinite(p_s)) or np.linalg.eigvalsh(p_s)[0] <= 0:
             continue

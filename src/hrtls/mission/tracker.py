@@ -35,7 +35,7 @@ loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in wh
 
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
-the agent's filter is decided here; a robot gets none with ``SmootherParams.feedback_robots``).
+the agent's filter is decided here; a robot gets none unless ``SmootherParams.robots`` "nodes").
 Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
 causal rows), a node is estimated from the readings of its floor (the floor most of them were
 taken on) and given with it, and an agent uses a node only while on its floor.
@@ -585,7 +585,7 @@ class MissionTracker:
 
     def _share(self, changed: list[str], t: float) -> None:
         """Give each node re-localized in this window to every agent (see :meth:`_usable`)."""
-        no_robot = self.params.smoother is not None and self.params.smoother.feedback_robots
+        no_robot = self.params.smoother is not None and self.params.smoother.robots != "nodes"
         for node in changed:
             est, v = self.estimates[node], self.versions[node]
             sigma = float(np.sqrt(largest_variance(est.covariance_m2)))
