@@ -88,9 +88,10 @@ def test_a_robot_takes_the_implied_update_on_its_odometry_frame_heading_by_hand(
     from hrtls.mission.smoothing import SmootherState
 
     tr = RobotTracker()
-    tr.x, tr.p = np.zeros(3), np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.0], [0.1, 0.0, 0.04]])
-    tr._started = True
-    tr._rows = [(np.array([5.0]), tr.x.copy()[None], tr.p.copy()[None])]
+    x0, p0 = np.zeros(3), np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.0], [0.1, 0.0, 0.04]])
+    tr.load_state({"robot": {"x": x0, "p": p0, "_last_odo": np.zeros(2), "_last_t": 5.0,
+                             "_accepted": 0, "_rejected": 0, "_started": True},
+                   "landmarks": {}, "rows": [np.array([5.0]), x0[None], p0[None]]})
     prm = SmootherParams(feedback="implied", feedback_cov_scale=1.0, robots="feedback")
     res = SmootherResult({}, {}, {}, {}, {}, 0.0, 1.0, 1,
                          last_pose={"B1": (5.0, np.array([0.5, 0.0]), 0.5 * np.eye(2))})
