@@ -197,6 +197,8 @@ class ModeScores:
     """Agents' NEES per bin of ``_mission_nees.nees_split``."""
     floors: dict[str, float] = field(default_factory=dict)
     """``_mission_floors.floor_scores`` (two floors only)."""
+    robot_nees: float = float("nan")
+    """The robots' NEES (2 dof) at 1 Hz, mean."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -273,7 +275,7 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
-        robot = agent_errors(mission, res, "robot")[0]
+        robot, robot_nees = agent_errors(mission, res, "robot")
         out[mode] = ModeScores(float(np.mean(e)), float(np.percentile(e, 90)),
                                float(np.max(e)), frac, float(np.mean(e_nees)), rmse, nees,
                                float(np.percentile(robot, 90)) if len(robot) else float("nan"),
@@ -281,7 +283,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                _quarters(agents_s), _quarters(nodes_s),
                                why_not_localized(mission, tracker, res), _solves(tracker),
                                nees_split(mission, res),
-                               floor_scores(mission, res) if item.options.n_floors > 1 else {})
+                               floor_scores(mission, res) if item.options.n_floors > 1 else {},
+                               float(np.mean(robot_nees)) if len(robot) else float("nan"))
     return out
 
 
@@ -292,8 +295,8 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     if not args.smoother:
         return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
     kw: dict[str, Any] = {}
-    for key in ("feedback", "every_s", "feedback_cov_scale", "feedback_gate", "window_s",
-                "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
+    for key in ("feedback", "robots", "every_s", "feedback_cov_scale", "feedback_gate",
+                "window_s", "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
                 "localize_spread_m", "smoother_correlation_s"):
         if getattr(args, key) is not None:
             kw[key.replace("smoother_correlation_s", "range_correlation_s")] = getattr(args, key)
@@ -371,6 +374,9 @@ def main() -> None:
     ap.add_argument("--feedback", choices=("off", "implied", "replace"), default=None,
                     help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
                          "given back to the rescuers' trackers)")
+    ap.add_argument("--robots-take", dest="robots", choices=("nodes", "feedback", "alone"),
+                    default=None, help="with --smoother: SmootherParams.robots (what a robot "
+                    "takes from the mission)")
     ap.add_argument("--every-s", type=float, default=None,
                     help="with --smoother: SmootherParams.every_s (default: its default)")
     ap.add_argument("--feedback-cov-scale", type=float, default=None,
@@ -417,8 +423,8 @@ def main() -> None:
     cols = modes(args.peer_ranges, args.only_on, args.only_off)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
-            "rmse_true": [], "robot_p90": [], "w0": [], "w1": [], "a0": [], "a1": [], "n0": [],
-            "n1": [], "s0": [], "s1": []}
+            "rmse_true": [], "robot_p90": [], "robot_nees": [], "w0": [], "w1": [], "a0": [],
+            "a1": [], "n0": [], "n1": [], "s0": [], "s1": []}
         for m in cols}
     nees_all: dict[str, list[float]] = {m: [] for m in cols}
     why: dict[str, list[dict[str, int]]] = {m: [] for m in cols}
@@ -458,6 +464,7 @@ def main() -> None:
             r["rmse"].append(m.rmse)
             r["rmse_true"].append(m.rmse_true_agents)
             r["robot_p90"].append(m.robot_p90)
+            r["robot_nees"].append(m.robot_nees)
             r["w0"].append(m.window_ms[0])
             r["w1"].append(m.window_ms[1])
             r["a0"].append(m.agent_ms[0])
@@ -473,7 +480,8 @@ def main() -> None:
                 floor_rows[mode][k].append(v)
             print(f"seed {item.seed} {mode:>8}: err mean {m.mean:.2f} p90 {m.p90:.2f} max "
                   f"{m.max:.2f} m; nodes {m.frac:.2f} rmse {m.rmse:.2f} m; agent NEES "
-                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m; node NEES "
+                  f"{m.anees:.1f}; robot p90 {m.robot_p90:.2f} m, NEES "
+                  f"{m.robot_nees:.2f}; node NEES "
                   f"{np.mean(m.node_nees) if m.node_nees else float('nan'):.2f}", flush=True)
     ratio = (MissionParams().use_variance_ratio if args.use_variance_ratio is None
              else args.use_variance_ratio)
@@ -497,8 +505,8 @@ def main() -> None:
     print(f"| {head} | rescuer error mean, m | rescuer error p90, m | rescuer error max, m "
           "| agent NEES | nodes localized (mean / p10 / lowest) | node RMSE, m "
           "| node NEES (mean; 95 % bounds) | node RMSE from true agent positions, m "
-          "| robot error p90, m |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "| robot error p90, m | robot NEES |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for mode in cols:
         r = rows[mode]
         n = len(nees_all[mode])
@@ -507,7 +515,8 @@ def main() -> None:
         print(f"| {mode} | {_stats(r['mean'])} | {_stats(r['p90'])} | {_stats(r['max'])} "
               f"| {_stats(r['anees'])} | {_stats(r['frac'], higher_is_better=True)} "
               f"| {_stats(r['rmse'])} | {nees} "
-              f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} |")
+              f"| {_stats(r['rmse_true'])} | {_stats(r['robot_p90'])} "
+              f"| {_stats(r['robot_nees'])} |")
     print("\nms per window (all agents), mean over seeds, first / last quarter of the mission:\n")
     print("| cooperation | window | agents (trackers + collection) | node re-estimation "
           "| smoother solve, s (mean / largest) |")

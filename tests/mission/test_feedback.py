@@ -3,6 +3,9 @@ invariant, the mission loop."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -74,15 +77,64 @@ def test_the_implied_update_never_increases_the_covariance(seed: int, scale: flo
     assert np.linalg.eigvalsh(pn)[0] > -1e-9
 
 
-@pytest.mark.parametrize("mode", ["implied", "replace"])
-def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str) -> None:
-    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode))
+def test_a_robot_takes_the_implied_update_on_its_odometry_frame_heading_by_hand() -> None:
+    """Robot state [x, y, psi], P = [[1, 0, 0.1], [0, 1, 0], [0.1, 0, 0.04]], row at the
+    state; smoother N((0.5, 0), 0.5 I): the position marginal becomes it, psi moves by
+    0.1 * 0.5 = 0.05, its variance falls by 0.1 * 0.5 * 0.1 = 0.005. The robot records the
+    jump as a SMOOTHED correction and its latest row takes the new state."""
+    from hrtls.mission.feedback import feed_back
+    from hrtls.mission.graph import SmootherResult
+    from hrtls.mission.robot import RobotTracker
+    from hrtls.mission.smoothing import SmootherState
+
+    tr = RobotTracker()
+    x0, p0 = np.zeros(3), np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.0], [0.1, 0.0, 0.04]])
+    tr.load_state({"robot": {"x": x0, "p": p0, "_last_odo": np.zeros(2), "_last_t": 5.0,
+                             "_accepted": 0, "_rejected": 0, "_started": True},
+                   "landmarks": {}, "rows": [np.array([5.0]), x0[None], p0[None]]})
+    prm = SmootherParams(feedback="implied", feedback_cov_scale=1.0, robots="feedback")
+    res = SmootherResult({}, {}, {}, {}, {}, 0.0, 1.0, 1,
+                         last_pose={"B1": (5.0, np.array([0.5, 0.0]), 0.5 * np.eye(2))})
+    mt = SimpleNamespace(params=MissionParams(smoother=prm), trackers={"B1": tr},
+                         smoother=SmootherState(tail={"B1": [5.0, 0.0, 0.0, 1.0, 0.0, 0.0,
+                                                             1.0]}))
+    assert feed_back(mt, res) == ["B1"]         # type: ignore[arg-type]
+    np.testing.assert_allclose(tr.x, [0.5, 0.0, 0.05], atol=1e-12)
+    np.testing.assert_allclose(tr.p[:2, :2], 0.5 * np.eye(2), atol=1e-12)
+    np.testing.assert_allclose(tr.p[2, 2], 0.04 - 0.005, atol=1e-12)
+    est = tr.estimates_since(4.0)
+    np.testing.assert_allclose(est.xyz[0, :2], [0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(est.heading_rad[0], 0.05, atol=1e-12)
+    c = tr.corrections_since(0)
+    assert list(c.kind) == [SMOOTHED] and c.t[0] == 5.0
+    np.testing.assert_allclose(c.mean1_m[0] - c.mean0_m[0], [0.5, 0.0], atol=1e-12)
+    for robots in ("nodes", "alone"):           # a robot keeps its own estimate
+        mt.params = MissionParams(smoother=replace(prm, robots=robots))
+        assert feed_back(mt, res) == []         # type: ignore[arg-type]
+
+
+def test_robot_feedback_needs_the_feedback() -> None:
+    from hrtls.errors import InputError
+
+    with pytest.raises(InputError, match="robots = 'feedback' without feedback"):
+        SmootherParams(robots="feedback")
+    with pytest.raises(InputError, match="robots"):
+        SmootherParams(robots="some")
+
+
+@pytest.mark.parametrize(("mode", "robots"), [("implied", False), ("replace", False),
+                                              ("implied", True)])
+def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str,
+                                                                    robots: bool) -> None:
+    params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode,
+                                                   robots="feedback" if robots else "nodes"))
     sessions, kinds = short_mission(2)
     offline = MissionTracker(sessions, kinds=kinds, params=params)
     want = offline.run()
     fed = [n for n, tr in offline.trackers.items()
            if np.any(tr.corrections_since(0).kind == SMOOTHED)]
     assert fed
+    assert any(kinds[n] == "robot" for n in fed) == robots
     mt = restored_half_way(sessions, kinds, params)
     got = mt.run()
     for n, e in want.nodes.items():
@@ -96,9 +148,10 @@ def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str) -
         np.testing.assert_array_equal(g.cov_xy, r.trajectory.cov_xy[-len(g.t):])
 
 
-def _rescuer_p90(seed: int, smoother: SmootherParams) -> float:
-    """The benchmark's rescuers (benchmarks/mission.py defaults), cooperation on, 2 % range
-    noise: the rescuers' 90th-percentile horizontal error at 1 Hz, m."""
+def _rescuer_p90(seed: int, smoother: SmootherParams | None, kind: str = "rescuer", *,
+                 cooperate: bool = True) -> float:
+    """The benchmark's rescuers (benchmarks/mission.py defaults), 2 % range noise: the
+    90th-percentile horizontal error at 1 Hz of the agents of ``kind``, m."""
     from hrtls.pipeline import preset
     from hrtls.pipeline.config import TrackerConfig
 
@@ -111,10 +164,10 @@ def _rescuer_p90(seed: int, smoother: SmootherParams) -> float:
         "tags": {"sigma_per_accuracy": r.tags.sigma_per_accuracy}})
     m = inderst_hybrid_mission(seed, MissionOptions(range_sigma_fraction=0.02))
     res = MissionTracker(m.agents, kinds=m.kinds, config=cfg,
-                         params=MissionParams(smoother=smoother)).run()
+                         params=MissionParams(smoother=smoother, cooperate=cooperate)).run()
     errs = []
     for name, a in res.agents.items():
-        if m.kinds.get(name, "rescuer") != "rescuer":
+        if m.kinds.get(name, "rescuer") != kind:
             continue
         truth = m.simulations[name].session.truth
         assert truth is not None
@@ -131,3 +184,28 @@ def test_on_a_dev_mission_the_feedback_lowers_the_rescuers_p90() -> None:
     (cooperation off 3.55 m; benchmarks/mission.py at 38b661f)."""
     p90 = _rescuer_p90(4, SmootherParams(every_s=10.0, feedback="implied"))
     assert p90 < 2.8
+
+
+
+def test_on_a_short_dev_mission_the_robot_with_feedback_is_no_worse_than_alone() -> None:
+    """Seeded regression (dev seed 0, 60 s walks, 15 nodes, 2 % range noise): with the mode
+    ``feedback`` the robot's track equals its own alone (cooperation off; tolerance 0: it
+    takes nothing from the mission, ``robots = "alone"``), while its ranges still reach the
+    smoother; with the nodes as range anchors (``robots = "nodes"``, the mode before) it
+    differs."""
+    from hrtls.mission.smoother_modes import smoother_params
+
+    m = inderst_hybrid_mission(0, MissionOptions(walk_s=60.0, stagger_s=15.0, n_nodes=15,
+                                                 range_sigma_fraction=0.02))
+    robot = next(n for n, k in m.kinds.items() if k == "robot")
+    fb = smoother_params("feedback")
+    assert fb is not None
+    tracks = {}
+    for key, prm in (("off", MissionParams(cooperate=False)),
+                     ("alone", MissionParams(smoother=fb)),
+                     ("nodes", MissionParams(smoother=replace(fb, robots="nodes")))):
+        tracks[key] = MissionTracker(m.agents, kinds=m.kinds, params=prm).run(
+            ).agents[robot].trajectory
+    np.testing.assert_array_equal(tracks["alone"].xyz, tracks["off"].xyz)
+    np.testing.assert_array_equal(tracks["alone"].cov_xy, tracks["off"].cov_xy)
+    assert not np.array_equal(tracks["nodes"].xyz, tracks["off"].xyz)

@@ -30,8 +30,8 @@ the target moves with it (``z + x_now - m_f``; replace: ``m_s + x_now - m_f`` an
 - P_f`` when positive definite). The superset argument is approximate (the chain is not the
 tracker's motion model, a heading update's factor repeats some earlier information,
 :mod:`hrtls.mission.correction_factors`); the covariance scale and the gate are chosen on dev
-seeds (docs/mission.md). Robots keep their own estimate: on dev seeds the smoother's latest
-robot pose was worse than the robot's odometry EKF (docs/mission.md).
+seeds (docs/mission.md). A robot (``SmootherParams.robots`` "feedback") takes it the same
+way, on its state ``[x, y, psi]`` (:meth:`hrtls.mission.robot.RobotTracker.set_smoothed`).
 
 No information counted twice: the jump is recorded as a correction of kind
 :data:`~hrtls.pipeline.corrections.SMOOTHED`, which the smoother removes from the dead
@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from hrtls.mission.correction_factors import implied_factors
 from hrtls.mission.graph import SmootherResult
+from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.tracker import Tracker
 
 if TYPE_CHECKING:
@@ -120,21 +121,23 @@ def _target(m_f: FloatArray, p_f: FloatArray, m_s: FloatArray, p_s: FloatArray, 
 
 
 def feed_back(mt: MissionTracker, res: SmootherResult) -> list[str]:
-    """Give each rescuer the smoother's estimate of its latest row; the rescuers updated."""
+    """Give each rescuer (robot: ``robots`` "feedback") the smoother's latest row; those updated."""
     prm, st = mt.params.smoother, mt.smoother
     assert prm is not None and st is not None
     done: list[str] = []
     for name, (t_a, m_s, p_s) in sorted(res.last_pose.items()):
         tail = st.tail.get(name)
         tr = mt.trackers[name]
-        if tail is None or tail[0] != t_a or not isinstance(tr, Tracker) or \
+        robot = isinstance(tr, RobotTracker) and prm.robots == "feedback"
+        if tail is None or tail[0] != t_a or not (isinstance(tr, Tracker) or robot) or \
                 not np.all(np.isfinite(p_s)) or np.linalg.eigvalsh(p_s)[0] <= 0:
             continue
         m_f = np.asarray(tail[1:3], np.float64)
-        state = tr.engine.state
+        x, p = (tr.x, tr.p) if isinstance(tr, RobotTracker) else \
+            (tr.engine.state.x, tr.engine.state.P)
         new = _target(m_f, np.asarray(tail[3:7], np.float64).reshape(2, 2), m_s,
-                      prm.feedback_cov_scale * p_s, state.x, state.P, prm.feedback,
-                      prm.feedback_gate)
-        if new is not None and tr.engine.set_smoothed(*new):
+                      prm.feedback_cov_scale * p_s, x, p, prm.feedback, prm.feedback_gate)
+        if new is not None and (tr.set_smoothed(*new) if isinstance(tr, RobotTracker)
+                                else tr.engine.set_smoothed(*new)):
             done.append(name)
     return done

@@ -55,6 +55,11 @@ class SmootherParams:
         (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
         covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
         ``feedback_gate`` is not applied.
+    robots:
+        In the mission loop, what a robot takes from the mission: ``"nodes"`` (localized nodes
+        as range anchors, as a rescuer), ``"feedback"`` (with ``feedback``: the smoother's
+        latest pose, as a rescuer, and no node as a range anchor) or ``"alone"`` (neither: its
+        odometry EKF alone; its ranges still feed the nodes and the smoother).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -83,6 +88,7 @@ class SmootherParams:
     feedback: str = "off"
     feedback_cov_scale: float = 2.0
     feedback_gate: float = 13.8
+    robots: str = "nodes"
     window_s: float | None = None
 
     def __post_init__(self) -> None:
@@ -105,10 +111,14 @@ class SmootherParams:
                                               and self.window_s > 0):
             raise InputError(f"window_s = {self.window_s}", where="SmootherParams",
                              expected="> 0 or None")
+        if self.robots == "feedback" and self.feedback == "off":
+            raise InputError("robots = 'feedback' without feedback", where="SmootherParams",
+                             expected="feedback implied or replace")
         if self.feedback not in ("off", "implied", "replace"):
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
-        for name, allowed in (("increment_noise", ("length", "tracker")), ("heading_updates", (
+        for name, allowed in (("robots", ("nodes", "feedback", "alone")), ("increment_noise", (
+                "length", "tracker")), ("heading_updates", (
                 "factor", "drop", "chain")), ("loss", ("linear", "soft_l1", "huber", "cauchy"))):
             if getattr(self, name) not in allowed:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",

@@ -11,8 +11,10 @@ world (the odometry's heading error; a random walk per metre driven). Each odome
 
 and each range to a landmark with a position (the session's, or a node the mission gave with
 :meth:`RobotTracker.set_landmarks`) corrects it as eq. 6.4 (scalar EKF update, Joseph form,
-innovation gate). The per-event loop is a compiled kernel; :class:`RobotTracker` has the part of
-:class:`hrtls.pipeline.Tracker`'s interface :class:`~hrtls.mission.tracker.MissionTracker` uses.
+innovation gate); the mission smoother may set the state (:meth:`RobotTracker.set_smoothed`,
+:mod:`hrtls.mission.feedback`). The per-event loop is a compiled kernel; :class:`RobotTracker`
+has the part of :class:`hrtls.pipeline.Tracker`'s interface
+:class:`~hrtls.mission.tracker.MissionTracker` uses.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.results import StepEvents, Trajectory
 from hrtls.errors import InputError
 from hrtls.kernels import njit
-from hrtls.pipeline.corrections import CorrectionLog, Corrections
+from hrtls.pipeline.corrections import SMOOTHED, CorrectionLog, Corrections
 from hrtls.pipeline.output import Estimates
 from hrtls.pipeline.schedule import RANGE
 from hrtls.pipeline.tracker import TrackResult
@@ -226,6 +228,23 @@ class RobotTracker:
         self._rejected += tried - int(np.count_nonzero(acc))
         if len(t_odo):
             self._rows.append((t_odo, xs, ps))
+
+    def set_smoothed(self, x: FloatArray, p: FloatArray) -> bool:
+        """The state and covariance now set from outside (the mission smoother's feedback).
+
+        Recorded as a ``SMOOTHED`` correction at the latest row, which takes the new state
+        (False before the first row).
+        """
+        if not self._rows:
+            return False
+        t, xs, ps = self._rows[-1]
+        self._corr.add(float(t[-1]), SMOOTHED, "smoother", self.x, self.p, x, p)
+        self.x = np.asarray(x, np.float64).copy()
+        self.p = np.asarray(p, np.float64).copy()
+        xs, ps = xs.copy(), ps.copy()
+        xs[-1], ps[-1] = self.x, self.p
+        self._rows[-1] = (t, xs, ps)
+        return True
 
     def _all(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         if len(self._rows) > 1:

@@ -35,7 +35,7 @@ loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in wh
 
 After every window the nodes with new readings are re-estimated from all their readings, and
 each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
-the agent's filter is decided here).
+the agent's filter is decided here; a robot gets none unless ``SmootherParams.robots`` "nodes").
 Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
 causal rows), a node is estimated from the readings of its floor (the floor most of them were
 taken on) and given with it, and an agent uses a node only while on its floor.
@@ -585,16 +585,16 @@ class MissionTracker:
 
     def _share(self, changed: list[str], t: float) -> None:
         """Give each node re-localized in this window to every agent (see :meth:`_usable`)."""
+        no_robot = self.params.smoother is not None and self.params.smoother.robots != "nodes"
         for node in changed:
-            est = self.estimates[node]
-            v = self.versions[node]
+            est, v = self.estimates[node], self.versions[node]
             sigma = float(np.sqrt(largest_variance(est.covariance_m2)))
             f = self.node_floor.get(node, 0)
             lm = Landmark(id=node, kind="node", floor=f, accuracy_m=max(sigma, 1e-6),
                           position=(float(est.position_m[0]), float(est.position_m[1]),
                                     f * self.floor_height_m), updated=t)
             for i, name in enumerate(self.names):
-                if self.given[i].get(node) == v:
+                if self.given[i].get(node) == v or (no_robot and self.kinds[name] == "robot"):
                     continue
                 self._apply(name, "set_landmarks", {node: lm})
                 self.given[i][node] = v
