@@ -55,6 +55,11 @@ class SmootherParams:
         (``"implied"`` update or ``"replace"``, :mod:`hrtls.mission.feedback`; ``"off"``), its
         covariance times ``feedback_cov_scale``; an implied update whose NIS (2 dof) exceeds
         ``feedback_gate`` is not applied.
+    feedback_ranges:
+        With feedback, who takes a fed-back rescuer's ranges to the nodes the smoother owns:
+        ``"both"`` (its tracker too, widened as any node's) or ``"smoother"`` (only the
+        smoother: they reach the tracker through the feedback, counted once;
+        :func:`hrtls.mission.smoothing.via_feedback`).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -83,6 +88,7 @@ class SmootherParams:
     feedback: str = "off"
     feedback_cov_scale: float = 2.0
     feedback_gate: float = 13.8
+    feedback_ranges: str = "both"
     window_s: float | None = None
 
     def __post_init__(self) -> None:
@@ -109,7 +115,8 @@ class SmootherParams:
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
         for name, allowed in (("increment_noise", ("length", "tracker")), ("heading_updates", (
-                "factor", "drop", "chain")), ("loss", ("linear", "soft_l1", "huber", "cauchy"))):
+                "factor", "drop", "chain")), ("loss", ("linear", "soft_l1", "huber", "cauchy")),
+                              ("feedback_ranges", ("both", "smoother"))):
             if getattr(self, name) not in allowed:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",
                                  expected=" or ".join(allowed))
