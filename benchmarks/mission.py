@@ -21,10 +21,10 @@ as ``hrtls mission track --smoother``); ``--smoother``: both columns with the ra
 smoother (``MissionParams.smoother``, its default parameters; the cost table then gives its time
 per solve); ``--feedback``: its latest
 poses given back to the trackers (``SmootherParams.feedback``, ``--every-s``,
-``--feedback-cov-scale``, ``--feedback-gate``); ``--window-s``: poses older than this leave its
-problem as a prior (``SmootherParams.window_s``); its model: ``--increment-noise``,
-``--heading-updates``, ``--odo-fraction``, ``--min-spread-m``, ``--localize-spread-m``,
-``--smoother-correlation-s`` (``SmootherParams.range_correlation_s``).
+``--feedback-cov-scale``, ``--feedback-gate``, ``--feedback-ranges``); ``--window-s``: poses
+older than this leave its problem as a prior (``SmootherParams.window_s``); its model:
+``--increment-noise``, ``--heading-updates``, ``--odo-fraction``, ``--min-spread-m``,
+``--localize-spread-m``, ``--smoother-correlation-s`` (``SmootherParams.range_correlation_s``).
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
@@ -296,6 +296,7 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
         return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
     kw: dict[str, Any] = {}
     for key in ("feedback", "robots", "every_s", "feedback_cov_scale", "feedback_gate",
+                "feedback_ranges",
                 "window_s", "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
                 "localize_spread_m", "smoother_correlation_s"):
         if getattr(args, key) is not None:
@@ -383,6 +384,9 @@ def main() -> None:
                     help="with --feedback: SmootherParams.feedback_cov_scale")
     ap.add_argument("--feedback-gate", type=float, default=None,
                     help="with --feedback implied: SmootherParams.feedback_gate (NIS)")
+    ap.add_argument("--feedback-ranges", choices=("both", "smoother"), default=None,
+                    help="with --feedback: SmootherParams.feedback_ranges (who takes a fed-back "
+                    "rescuer's ranges to the smoother's nodes)")
     ap.add_argument("--window-s", type=float, default=None,
                     help="with --smoother: SmootherParams.window_s (poses older than this are "
                     "marginalized; default: none)")

@@ -11,8 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from hrtls.errors import InputError
 from hrtls.mission.feedback import implied_update, nis, position_update, replacement
 from hrtls.mission.graph import SmootherParams
+from hrtls.mission.smoothing import via_feedback
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline.corrections import SMOOTHED
 from hrtls.sim.mission import MissionOptions, inderst_hybrid_mission
@@ -122,12 +124,14 @@ def test_robot_feedback_needs_the_feedback() -> None:
         SmootherParams(robots="some")
 
 
-@pytest.mark.parametrize(("mode", "robots"), [("implied", False), ("replace", False),
-                                              ("implied", True)])
-def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str,
-                                                                    robots: bool) -> None:
+@pytest.mark.parametrize(("mode", "robots", "ranges"), [
+    ("implied", False, "both"), ("replace", False, "both"), ("implied", True, "both"),
+    ("implied", False, "smoother")])
+def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str, robots: bool,
+                                                                    ranges: str) -> None:
     params = MissionParams(smoother=SmootherParams(every_s=10.0, feedback=mode,
-                                                   robots="feedback" if robots else "nodes"))
+                                                   robots="feedback" if robots else "nodes",
+                                                   feedback_ranges=ranges))
     sessions, kinds = short_mission(2)
     offline = MissionTracker(sessions, kinds=kinds, params=params)
     want = offline.run()
@@ -146,6 +150,30 @@ def test_the_loop_with_feedback_restores_and_runs_live_like_offline(mode: str,
         assert 0 < len(g.t) <= len(r.trajectory.t)
         np.testing.assert_array_equal(g.xyz, r.trajectory.xyz[-len(g.t):])
         np.testing.assert_array_equal(g.cov_xy, r.trajectory.cov_xy[-len(g.t):])
+
+
+def test_who_takes_a_fed_back_rescuers_ranges_to_the_smoothers_nodes() -> None:
+    """``feedback_ranges="smoother"``: a rescuer takes no range to a node the smoother owns; a
+    robot (not fed back) does, as every agent with ``"both"`` or without feedback."""
+    sessions, kinds = short_mission(2)
+    rescuer = next(k for k, v in kinds.items() if v == "rescuer")
+    robot = next(k for k, v in kinds.items() if v == "robot")
+
+    def kept_out(name: str, node: str, **kw: object) -> bool:
+        mt = MissionTracker(sessions, kinds=kinds, params=MissionParams(
+            smoother=SmootherParams(**kw)))     # type: ignore[arg-type]
+        assert mt.smoother is not None
+        mt.smoother.owned.add("n1")
+        return via_feedback(mt, mt.names.index(name), node)
+
+    fed = {"feedback": "implied", "feedback_ranges": "smoother"}
+    assert kept_out(rescuer, "n1", **fed)
+    assert not kept_out(rescuer, "n2", **fed)            # not the smoother's node
+    assert not kept_out(robot, "n1", **fed)
+    assert not kept_out(rescuer, "n1", feedback="implied", feedback_ranges="both")
+    assert not kept_out(rescuer, "n1", feedback="off", feedback_ranges="smoother")
+    with pytest.raises(InputError, match="feedback_ranges"):
+        SmootherParams(feedback_ranges="tracker")
 
 
 def _rescuer_p90(seed: int, smoother: SmootherParams | None, kind: str = "rescuer", *,

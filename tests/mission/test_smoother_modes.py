@@ -16,6 +16,7 @@ def test_modes_round_trip() -> None:
     nodes, feedback = smoother_params("nodes"), smoother_params("feedback")
     assert nodes is not None and feedback is not None
     assert nodes.feedback == "off" and feedback.feedback == "implied"
+    assert feedback.feedback_ranges == "smoother"   # the nodes' ranges counted once
     assert nodes.window_s == feedback.window_s == 120.0      # bounded cost in both
     assert feedback.every_s < nodes.every_s
 

@@ -170,22 +170,29 @@ def _agents_nees(mission, res) -> float:  # type: ignore[no-untyped-def]
     return float(np.mean(np.concatenate(out)))
 
 
-def test_cooperation_keeps_the_agents_nees_within_their_own() -> None:
+@pytest.mark.parametrize("mode", ["off", "feedback"])
+def test_cooperation_keeps_the_agents_nees_within_their_own(mode: str) -> None:
     """Seeded regression with ground truth (150 s walks, 20 nodes): the nodes' ranges do not make
     the agents more over-confident than alone (5 % margin), and their NEES stays below the 2 dof
-    95 % point.
+    95 % point; without the smoother and with its ``feedback`` mode.
 
-    Measured: NEES 2.20 alone; with cooperation 2.42 before the pass cap
-    (``hrtls.mission.provenance``), 2.16 after. Without the information gate
+    Measured at 6ffbb8a: NEES 2.78 alone (2.20 when written, 70fcdab; the same with the
+    smoother: it feeds back nothing without cooperation); with cooperation 2.68, with
+    ``feedback`` 3.20 while the rescuers' trackers also took their ranges to the smoother's
+    nodes (``feedback_ranges="both"``), 2.51 with ``"smoother"``. Without the information gate
     (``use_variance_ratio`` inf, stated): the pass cap alone is tested (0.3 leaves 6 uses).
     """
     from scipy.stats import chi2
 
+    from hrtls.mission.smoother_modes import smoother_params
+
     mission = inderst_hybrid_mission(2, MissionOptions(walk_s=150.0, stagger_s=20.0, n_nodes=20))
     cfg = TrackerConfig.model_validate({"prediction": RESCUER_PREDICTION})
-    alone = MissionTracker(mission.agents, config=cfg, params=MissionParams(cooperate=False)).run()
+    sm = smoother_params(mode)
+    alone = MissionTracker(mission.agents, config=cfg, params=MissionParams(
+        cooperate=False, smoother=sm)).run()
     res = MissionTracker(mission.agents, config=cfg, params=MissionParams(
-        cooperate=True, use_variance_ratio=math.inf)).run()
+        cooperate=True, use_variance_ratio=math.inf, smoother=sm)).run()
     assert len(res.uses) >= 20
     on, off = _agents_nees(mission, res), _agents_nees(mission, alone)
     assert on <= 1.05 * off

@@ -60,6 +60,11 @@ class SmootherParams:
         as range anchors, as a rescuer), ``"feedback"`` (with ``feedback``: the smoother's
         latest pose, as a rescuer, and no node as a range anchor) or ``"alone"`` (neither: its
         odometry EKF alone; its ranges still feed the nodes and the smoother).
+    feedback_ranges:
+        With feedback, who takes a fed-back rescuer's ranges to the nodes the smoother owns:
+        ``"both"`` (its tracker too, widened as any node's) or ``"smoother"`` (only the
+        smoother: they reach the tracker through the feedback, counted once;
+        :func:`hrtls.mission.smoothing.via_feedback`).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -89,6 +94,7 @@ class SmootherParams:
     feedback_cov_scale: float = 2.0
     feedback_gate: float = 13.8
     robots: str = "nodes"
+    feedback_ranges: str = "both"
     window_s: float | None = None
 
     def __post_init__(self) -> None:
@@ -118,8 +124,9 @@ class SmootherParams:
             raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
                              expected="off, implied or replace")
         for name, allowed in (("robots", ("nodes", "feedback", "alone")), ("increment_noise", (
-                "length", "tracker")), ("heading_updates", (
-                "factor", "drop", "chain")), ("loss", ("linear", "soft_l1", "huber", "cauchy"))):
+                "length", "tracker")), ("heading_updates", ("factor", "drop", "chain")),
+                              ("loss", ("linear", "soft_l1", "huber", "cauchy")),
+                              ("feedback_ranges", ("both", "smoother"))):
             if getattr(self, name) not in allowed:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",
                                  expected=" or ".join(allowed))

@@ -4,9 +4,10 @@
 smoother (:mod:`hrtls.mission.graph`) localizes the nodes it can, on a sliding window of
 :data:`WINDOW_S`; ``feedback``: the same, solved every :data:`FEEDBACK_EVERY_S` of mission time,
 and each rescuer's tracker takes the smoother's estimate of its latest pose
-(:mod:`hrtls.mission.feedback`); a robot keeps its odometry EKF's own estimate (``robots``
-``"alone"``: on dev seeds it was better than with the nodes or with the feedback,
-docs/mission.md). The window keeps a solve's cost bounded over the mission.
+(:mod:`hrtls.mission.feedback`) and no range to the smoother's nodes (those reach it through
+the feedback: ``feedback_ranges="smoother"``); a robot keeps its odometry EKF's own estimate
+(``robots="alone"``: on dev seeds better than with the nodes or the feedback, docs/mission.md).
+The window keeps a solve's cost bounded over the mission.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def smoother_params(mode: str) -> SmootherParams | None:
         return SmootherParams(window_s=WINDOW_S)
     if mode == "feedback":
         return SmootherParams(window_s=WINDOW_S, every_s=FEEDBACK_EVERY_S, feedback="implied",
-                              robots="alone")
+                              robots="alone", feedback_ranges="smoother")
     raise InputError(f"smoother mode {mode!r}", where="smoother", expected=", ".join(MODES))
 
 

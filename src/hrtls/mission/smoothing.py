@@ -136,6 +136,23 @@ def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> Non
                           ranges.range_m[m].copy(), ranges.sigma_m[m].copy()])
 
 
+def via_feedback(mt: MissionTracker, i: int, node: str) -> bool:
+    """Agent ``i``'s ranges to ``node`` reach its tracker only through the feedback.
+
+    With ``feedback_ranges`` ``"smoother"``: a rescuer the smoother feeds back (its tracker a
+    :class:`~hrtls.pipeline.tracker.Tracker`) takes no range to a node the smoother owns. The
+    smoother solves that node jointly with the rescuer's path from the same ranges, so its
+    latest pose already holds them; taken by the tracker too, they would count twice after a
+    feedback (the node's error and the fed-back pose's are one and the same solve's), and the
+    implied update's premise, the tracker's information inside the smoother's, would hold only
+    approximately. The ranges still go to the smoother (:func:`collect`).
+    """
+    prm, st = mt.params.smoother, mt.smoother
+    return prm is not None and st is not None and prm.feedback != "off" and \
+        prm.feedback_ranges == "smoother" and node in st.owned and \
+        isinstance(mt.trackers[mt.names[i]], Tracker)
+
+
 def _pull_corrections(mt: MissionTracker, name: str) -> None:
     """The agent's new correction records (a tracker that keeps them: rescuers)."""
     st = mt.smoother

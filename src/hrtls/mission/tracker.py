@@ -2,8 +2,7 @@
 
 Each agent runs its own causal tracker, chunk by chunk: :class:`hrtls.pipeline.Tracker` for a
 rescuer, :class:`hrtls.mission.robot.RobotTracker` (odometry + range EKF) for a robot. Time
-advances in common windows of ``chunk_s``; within a window each agent's ranges go one of three
-ways:
+advances in common windows of ``chunk_s``; in a window each agent's ranges go one of three ways:
 
 * to a node whose position the agent's session knows (a landmark with a position): the range
   corrects the agent's tracker as in ``hrtls track``, and is never a reading of a node;
@@ -33,9 +32,9 @@ different agents are taken as partly correlated in the node estimate (``agent_co
 second-order loop (A localizes n, B corrected by n localizes m, A uses m) gets ``c = 2`` as a
 loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in which estimate).
 
-After every window the nodes with new readings are re-estimated from all their readings, and
-each re-localized node is given to every agent (``Tracker.set_landmarks``; which ranges reach
-the agent's filter is decided here; a robot gets none unless ``SmootherParams.robots`` "nodes").
+After every window the re-estimated nodes go to every agent (``Tracker.set_landmarks``; a
+robot gets none unless ``SmootherParams.robots`` is "nodes"); which ranges reach its filter is
+decided here (and by :func:`hrtls.mission.smoothing.via_feedback`).
 Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
 causal rows), a node is estimated from the readings of its floor (the floor most of them were
 taken on) and given with it, and an agent uses a node only while on its floor.
@@ -488,12 +487,13 @@ class MissionTracker:
 
     def _usable(self, i: int, node: str) -> bool:
         """A node localized by the mission that agent ``i`` may use (see module doc)."""
-        if not (self.params.cooperate and node in self.given[i]) or \
-                self.node_floor.get(node, 0) != self.floor_logs[self.names[i]].now():
+        name = self.names[i]
+        if not (self.params.cooperate and node in self.given[i]) or smoothing.via_feedback(
+                self, i, node) or self.node_floor.get(node, 0) != self.floor_logs[name].now():
             return False
         if i not in self.contrib.get(node, set()) or i in self.users.get(node, set()):
             return True
-        rows = self.recent_rows[self.names[i]]
+        rows = self.recent_rows[name]
         if not rows or not math.isfinite(self.params.loop_closure_ratio):
             return False
         now, then = float(np.trace(rows[0][2][-1])), self.contrib_trace[(i, node)]
