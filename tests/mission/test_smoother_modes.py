@@ -38,3 +38,20 @@ def test_a_snapshot_without_row_covariances_is_refused() -> None:
     d["rows"] = {"R1": [[0.0, 1.0, 2.0]]}
     with pytest.raises(FormatError, match="older snapshot"):
         state_from(d)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_a_mission_ended_again_without_new_data_changes_nothing(mode: str) -> None:
+    """The service advances a closed mission on every poll: with no new data nothing changes
+    (no node reported, the whole state byte for byte: the smoother does not solve again)."""
+    from hrtls.mission.tracker import MissionParams, MissionTracker
+
+    from ._live import short_mission
+
+    sessions, kinds = short_mission(2)
+    mt = MissionTracker(sessions, kinds=kinds, params=MissionParams(smoother=smoother_params(mode)))
+    assert mt.advance(final=True).changed != ()
+    state = mt.snapshot()
+    for _ in range(2):
+        assert mt.advance(final=True).changed == ()
+        assert mt.snapshot() == state

@@ -239,7 +239,8 @@ def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
 
 
 def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]:
-    """Solve when due (``every_s`` since the last solve, or ``final``); the nodes it changed.
+    """Solve when due (``every_s`` since the last solve, or ``final`` past the last solve's
+    time: a mission closed again without new data does not solve again); the nodes it changed.
 
     Each localized node replaces the mission's estimate of it (version, history) and its
     floor, and is owned by the smoother from then on.
@@ -247,7 +248,8 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     import time
 
     prm, st = mt.params.smoother, mt.smoother
-    if prm is None or st is None or (not final and t_end < st.last_solve_s + prm.every_s):
+    if prm is None or st is None or not (t_end > st.last_solve_s if final
+                                         else t_end >= st.last_solve_s + prm.every_s):
         return []
     st.last_solve_s = t_end
     got = problem(mt)
