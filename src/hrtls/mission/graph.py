@@ -20,7 +20,10 @@ increments ``d_k = g_{k+1} - g_k``. The poses ``x_k`` are unknowns tied by
 (:mod:`hrtls.mission.increment_noise`); a segment's step-length scale correction ``s_j`` and
 rotation ``phi_j`` are random walks over the segments (``s_0 ~ N(0, scale_sigma^2)``,
 ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise ``heading_sigma_rad`` /
-``heading_walk_rad``): the persistent part of the dead-reckoning error. An agent's position at
+``heading_walk_rad``): the persistent part of the dead-reckoning error. These model a walker;
+an agent with its own model (``AgentPath.chain``: a robot's from its odometry EKF,
+:func:`hrtls.mission.increment_noise.robot_chain`) has its ``"length"`` increments, priors and
+walks from it. An agent's position at
 a range's or a correction's time is interpolated between its poses.
 
 Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with

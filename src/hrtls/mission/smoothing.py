@@ -156,7 +156,8 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     ``heading_updates`` ``"chain"`` aside); all but the ranges to nodes that are not the agent's
     known landmarks (mission nodes: their raw ranges are the problem's; peers), the smoother's
     own feedback (:mod:`hrtls.mission.feedback`) and, unless ``heading_updates`` is
-    ``"factor"``, the heading corrections become factors.
+    ``"factor"``, the heading corrections become factors. A robot's chain noise is its EKF's
+    (:func:`hrtls.mission.increment_noise.robot_chain`), not the smoother's walker model.
     """
     st, prm = mt.smoother, mt.params.smoother
     assert st is not None and prm is not None
