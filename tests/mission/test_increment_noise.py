@@ -98,10 +98,15 @@ def test_the_jacobian_is_exact_with_either_increment_noise() -> None:
 
 def test_robot_chain_by_hand() -> None:
     c = robot_chain(odometry_fraction=0.03, heading_var_per_m=1e-4, start_heading_sigma_rad=0.05,
-                    segment_m=10.0, floor_sigma_m=0.02, scale_sigma=0.01)
+                    segment_m=10.0, floor_sigma_m=0.02, scale_sigma=0.01, variance_scale=1.0)
     assert (c.odo_sigma_m, c.odo_fraction, c.scale_sigma) == (0.02, 0.03, 0.01)
     assert c.scale_walk_sigma == 0.001 and c.heading_sigma_rad == 0.05
     assert c.heading_walk_rad == np.sqrt(1e-3)
+    c4 = robot_chain(odometry_fraction=0.03, heading_var_per_m=1e-4,
+                     start_heading_sigma_rad=0.05, segment_m=10.0, floor_sigma_m=0.02,
+                     scale_sigma=0.01, variance_scale=4.0)
+    assert c4.odo_fraction == 0.06 and c4.heading_walk_rad == 2.0 * np.sqrt(1e-3)
+    assert c4.odo_sigma_m == 0.04 and c4.scale_walk_sigma == 0.002
 
 
 def test_an_agent_chain_equal_to_the_params_changes_nothing_and_a_robot_chain_is_exact() -> None:
