@@ -295,12 +295,13 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     if not args.smoother:
         return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
     kw: dict[str, Any] = {}
-    for key in ("feedback", "robots", "every_s", "feedback_cov_scale", "feedback_gate",
+    for key in ("feedback", "robots_take", "every_s", "feedback_cov_scale", "feedback_gate",
                 "feedback_ranges",
                 "window_s", "increment_noise", "heading_updates", "odo_fraction", "min_spread_m",
                 "localize_spread_m", "smoother_correlation_s"):
         if getattr(args, key) is not None:
-            kw[key.replace("smoother_correlation_s", "range_correlation_s")] = getattr(args, key)
+            kw[{"smoother_correlation_s": "range_correlation_s", "robots_take": "robots"}.get(
+                key, key)] = getattr(args, key)
     return SmootherParams(**kw)
 
 
@@ -375,7 +376,7 @@ def main() -> None:
     ap.add_argument("--feedback", choices=("off", "implied", "replace"), default=None,
                     help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
                          "given back to the rescuers' trackers)")
-    ap.add_argument("--robots-take", dest="robots", choices=("nodes", "feedback", "alone"),
+    ap.add_argument("--robots-take", dest="robots_take", choices=("nodes", "feedback", "alone"),
                     default=None, help="with --smoother: SmootherParams.robots (what a robot "
                     "takes from the mission)")
     ap.add_argument("--every-s", type=float, default=None,

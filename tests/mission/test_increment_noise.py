@@ -8,7 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherParams, _Problem
-from hrtls.mission.increment_noise import growth_curve, psd_part, whitening
+from hrtls.mission.increment_noise import (
+    ChainNoise,
+    growth_curve,
+    psd_part,
+    robot_chain,
+    whitening,
+)
 
 
 def test_growth_curve_adds_back_the_corrections_shrinkage_by_hand() -> None:
@@ -54,7 +60,7 @@ def test_the_whitening_inverts_the_increment_covariance(a: list[float], floor_m:
     assert np.all(np.linalg.eigvalsh(psd_part(step[None])[0]) >= -1e-12)
 
 
-def _problem(noise: str) -> tuple[_Problem, np.ndarray]:
+def _problem(noise: str, chain: ChainNoise | None = None) -> tuple[_Problem, np.ndarray]:
     rng = np.random.default_rng(3)
     t = np.arange(0.0, 30.0, 0.5)
     xy = np.column_stack([np.minimum(t, 15.0), np.maximum(t - 15.0, 0.0)])
@@ -63,7 +69,7 @@ def _problem(noise: str) -> tuple[_Problem, np.ndarray]:
     z = xy[5:40:5] + 0.1
     wm = np.repeat(np.array([[[2.0, 0.5], [0.0, 1.0]]]), len(z), axis=0)
     path = AgentPath("R1", t, xy, 0.1 * np.eye(2), xy + 0.2, (t[5:40:5] + 0.25, z, wm),
-                     growth_m2=growth)
+                     growth_m2=growth, chain=chain)
     nodes = np.array([[4.0, 3.0], [12.0, -2.0]])
     ra = np.repeat(t[::3], 2)
     rn = np.tile(["A", "B"], len(t[::3]))
@@ -88,3 +94,40 @@ def test_the_jacobian_is_exact_with_either_increment_noise() -> None:
         fd = np.column_stack([(prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
                               for e in np.eye(prob.n)])
         np.testing.assert_allclose(jac, fd, atol=1e-5, rtol=1e-5)
+
+
+def test_robot_chain_by_hand() -> None:
+    c = robot_chain(odometry_fraction=0.03, heading_var_per_m=1e-4, start_heading_sigma_rad=0.05,
+                    segment_m=10.0, floor_sigma_m=0.02, scale_sigma=0.01, variance_scale=1.0)
+    assert (c.odo_sigma_m, c.odo_fraction, c.scale_sigma) == (0.02, 0.03, 0.01)
+    assert c.scale_walk_sigma == 0.001 and c.heading_sigma_rad == 0.05
+    assert c.heading_walk_rad == np.sqrt(1e-3)
+    c4 = robot_chain(odometry_fraction=0.03, heading_var_per_m=1e-4,
+                     start_heading_sigma_rad=0.05, segment_m=10.0, floor_sigma_m=0.02,
+                     scale_sigma=0.01, variance_scale=4.0)
+    assert c4.odo_fraction == 0.06 and c4.heading_walk_rad == 2.0 * np.sqrt(1e-3)
+    assert c4.odo_sigma_m == 0.04 and c4.scale_walk_sigma == 0.002
+
+
+def test_an_agent_chain_equal_to_the_params_changes_nothing_and_a_robot_chain_is_exact() -> None:
+    prm = SmootherParams()
+    same = ChainNoise(odo_sigma_m=prm.odo_sigma_m, odo_fraction=prm.odo_fraction,
+                      scale_sigma=prm.scale_sigma, scale_walk_sigma=prm.scale_walk_sigma,
+                      heading_sigma_rad=prm.heading_sigma_rad,
+                      heading_walk_rad=prm.heading_walk_rad)
+    p0, x = _problem("length")
+    p1, _ = _problem("length", same)
+    np.testing.assert_array_equal(p0.residuals(x), p1.residuals(x))
+    robot = robot_chain(odometry_fraction=0.03, heading_var_per_m=1e-4,
+                        start_heading_sigma_rad=0.02, segment_m=5.0)
+    for noise in ("length", "tracker"):         # an agent's own chain: always "length"
+        prob, _ = _problem(noise, robot)
+        r = prob.residuals(x)
+        assert not np.allclose(r, p0.residuals(x))
+        jac = prob.jacobian(x).toarray()
+        h = 1e-6
+        fd = np.column_stack([(prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
+                              for e in np.eye(prob.n)])
+        np.testing.assert_allclose(jac, fd, atol=1e-5, rtol=1e-5)
+    np.testing.assert_array_equal(_problem("tracker", robot)[0].odo_w,
+                                  _problem("length", robot)[0].odo_w)

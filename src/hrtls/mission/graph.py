@@ -20,7 +20,10 @@ increments ``d_k = g_{k+1} - g_k``. The poses ``x_k`` are unknowns tied by
 (:mod:`hrtls.mission.increment_noise`); a segment's step-length scale correction ``s_j`` and
 rotation ``phi_j`` are random walks over the segments (``s_0 ~ N(0, scale_sigma^2)``,
 ``s_j - s_{j-1} ~ N(0, scale_walk_sigma^2)``, likewise ``heading_sigma_rad`` /
-``heading_walk_rad``): the persistent part of the dead-reckoning error. An agent's position at
+``heading_walk_rad``): the persistent part of the dead-reckoning error. These model a walker;
+an agent with its own model (``AgentPath.chain``: a robot's from its odometry EKF,
+:func:`hrtls.mission.increment_noise.robot_chain`) has its ``"length"`` increments, priors and
+walks from it. An agent's position at
 a range's or a correction's time is interpolated between its poses.
 
 Corrections. Each correction after the first pose is a factor ``W (x(t) - z)`` with
@@ -65,7 +68,7 @@ from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, robus
 from hrtls.mission.graph_init import extend, linear_init, select_nodes
 from hrtls.mission.graph_params import SmootherParams
 from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
-from hrtls.mission.increment_noise import whitening
+from hrtls.mission.increment_noise import ChainNoise, whitening
 from hrtls.mission.range_weights import correlated_sigma
 
 FloatArray = NDArray[np.float64]
@@ -81,7 +84,9 @@ class AgentPath:
     W (K, 2, 2))`` (:mod:`hrtls.mission.correction_factors`), or None; ``walked0_m``: the
     distance walked before the first row (a path cut by :mod:`hrtls.mission.graph_window`);
     ``growth_m2``: the tracker's covariance growth curve at the rows
-    (:mod:`hrtls.mission.increment_noise`), or None.
+    (:mod:`hrtls.mission.increment_noise`), or None; ``chain``: the agent's own chain noise
+    (its increments' ``"length"`` model and its segments' priors and walks), or None: the
+    smoother's parameters.
     """
 
     name: str
@@ -92,6 +97,7 @@ class AgentPath:
     factors: tuple[FloatArray, FloatArray, FloatArray] | None = None
     walked0_m: float = 0.0
     growth_m2: FloatArray | None = None
+    chain: ChainNoise | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,8 +171,13 @@ class _Problem:
         self.seg: list[IntArray] = []
         self.walked: list[FloatArray] = []
         odo: list[tuple[IntArray, IntArray, FloatArray, FloatArray]] = []
+        self.chain = [p.chain or ChainNoise(
+            odo_sigma_m=prm.odo_sigma_m, odo_fraction=prm.odo_fraction,
+            scale_sigma=prm.scale_sigma, scale_walk_sigma=prm.scale_walk_sigma,
+            heading_sigma_rad=prm.heading_sigma_rad, heading_walk_rad=prm.heading_walk_rad)
+            for p in paths]
         col = 0
-        for p in paths:
+        for a, p in enumerate(paths):
             t, f, g, gr = _decimate(p, prm.decimate_s)
             d = np.diff(g, axis=0)
             walked = p.walked0_m + (np.cumsum(np.hypot(d[:, 0], d[:, 1]))
@@ -181,8 +192,10 @@ class _Problem:
             self.pose_col.append(col)
             self.s_col.append(col + 2 * len(t))
             self.n_seg.append(n_seg)
-            q = whitening(d, odo_sigma_m=prm.odo_sigma_m, odo_fraction=prm.odo_fraction,
-                          growth_m2=gr if prm.increment_noise == "tracker" else None)
+            ch = self.chain[a]
+            q = whitening(d, odo_sigma_m=ch.odo_sigma_m, odo_fraction=ch.odo_fraction,
+                          growth_m2=gr if prm.increment_noise == "tracker" and p.chain is None
+                          else None)
             odo.append((col + 2 * np.arange(len(t) - 1), col + 2 * len(t) + seg, d, q))
             col += 2 * len(t) + 2 * n_seg
         self.odo_k = np.concatenate([o[0] for o in odo]).astype(np.int64)
@@ -302,10 +315,11 @@ class _Problem:
             out.append(self.first_w[a] * self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
             sc, n_seg = self.s_col[a], self.n_seg[a]
             sv, ph = x[sc:sc + n_seg], x[sc + n_seg:sc + 2 * n_seg]
-            out.append(self.first_w[a] * np.array([sv[0] / prm.scale_sigma,
-                                                   ph[0] / prm.heading_sigma_rad]))
-            out.append(np.diff(sv) / prm.scale_walk_sigma)
-            out.append(np.diff(ph) / prm.heading_walk_rad)
+            ch = self.chain[a]
+            out.append(self.first_w[a] * np.array([sv[0] / ch.scale_sigma,
+                                                   ph[0] / ch.heading_sigma_rad]))
+            out.append(np.diff(sv) / ch.scale_walk_sigma)
+            out.append(np.diff(ph) / ch.heading_walk_rad)
         out.append(np.array([self.height_w * x[self.height_col] / prm.height_sigma_m]))
         out.append(self._prior_rows(x))
         return np.concatenate(out)
@@ -353,11 +367,11 @@ class _Problem:
         for a, col in enumerate(self.pose_col):
             for i in (0, 1):
                 put([row + i, row + i], [col, col + 1], self.first_w[a] * self.p0[a][i])
-            sc, n_seg = self.s_col[a], self.n_seg[a]
+            sc, n_seg, ch = self.s_col[a], self.n_seg[a], self.chain[a]
             put([row + 2, row + 3], [sc, sc + n_seg],
-                self.first_w[a] * np.array([1.0 / prm.scale_sigma, 1.0 / prm.heading_sigma_rad]))
+                self.first_w[a] * np.array([1.0 / ch.scale_sigma, 1.0 / ch.heading_sigma_rad]))
             row += 4
-            for base, sig in ((sc, prm.scale_walk_sigma), (sc + n_seg, prm.heading_walk_rad)):
+            for base, sig in ((sc, ch.scale_walk_sigma), (sc + n_seg, ch.heading_walk_rad)):
                 j = np.arange(n_seg - 1)
                 put(row + j, base + j + 1, 1.0 / sig)
                 put(row + j, base + j, -1.0 / sig)

@@ -13,14 +13,66 @@ poses (on top of the segments' scale and rotation):
   ``C(t_{k+1}) - C(t_k)`` plus ``odo_sigma_m^2 I`` (a floor).
 
 Both are returned as whitening matrices ``W_k`` (``W_k^T W_k = Q_k^-1``).
+
+An agent may bring its own chain model (:class:`ChainNoise`, e.g. a robot's from its odometry
+EKF's parameters, :func:`robot_chain`) in place of the smoother's, which models a walker.
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+
+ROBOT_FLOOR_SIGMA_M = 0.02
+"""Floor of a robot's increment noise in the smoother, m."""
+
+ROBOT_SCALE_SIGMA = 0.01
+"""Prior 1-sigma of a robot's odometry scale correction in the smoother."""
+
+ROBOT_VARIANCE_SCALE = 2.0
+"""A robot's chain variances in the smoother, times its EKF's (chosen on dev seeds 0-9)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class ChainNoise:
+    """One agent's pose-chain noise (the ``"length"`` increments and the segment walks).
+
+    Same meaning as :class:`hrtls.mission.graph_params.SmootherParams`' fields of these names.
+    """
+
+    odo_sigma_m: float
+    odo_fraction: float
+    scale_sigma: float
+    scale_walk_sigma: float
+    heading_sigma_rad: float
+    heading_walk_rad: float
+
+
+def robot_chain(*, odometry_fraction: float, heading_var_per_m: float,
+                start_heading_sigma_rad: float, segment_m: float,
+                floor_sigma_m: float = ROBOT_FLOOR_SIGMA_M,
+                scale_sigma: float = ROBOT_SCALE_SIGMA,
+                variance_scale: float = ROBOT_VARIANCE_SCALE) -> ChainNoise:
+    """A wheeled robot's chain from its EKF's model (:mod:`hrtls.mission.robot`).
+
+    The EKF's displacement noise ``odometry_fraction |d|`` per axis is the increments' part of
+    their length; its odometry-frame rotation, a random walk of ``heading_var_per_m`` per metre
+    from ``start_heading_sigma_rad``, is the segments' rotation walk
+    (``sqrt(heading_var_per_m segment_m)`` per segment). The EKF has no scale error: the scale
+    correction gets a small prior (``scale_sigma``) and no walk beyond a tenth of it, and the
+    increments a small floor (``floor_sigma_m``: the rows' decimation and rounding). Every
+    variance is then times ``variance_scale`` (as the mission scales the agents' covariances).
+    """
+    k = math.sqrt(variance_scale)
+    return ChainNoise(odo_sigma_m=k * floor_sigma_m, odo_fraction=k * odometry_fraction,
+                      scale_sigma=k * scale_sigma, scale_walk_sigma=k * 0.1 * scale_sigma,
+                      heading_sigma_rad=k * max(start_heading_sigma_rad, 1e-3),
+                      heading_walk_rad=k * math.sqrt(heading_var_per_m * segment_m))
 
 
 def growth_curve(cov_m2: FloatArray, t_s: FloatArray, t_corr_s: FloatArray,

@@ -56,7 +56,7 @@ from hrtls.mission.graph_window import (
     solution_vector,
     trimmed,
 )
-from hrtls.mission.increment_noise import growth_curve
+from hrtls.mission.increment_noise import ChainNoise, growth_curve, robot_chain
 from hrtls.mission.nodes import NodeEstimate
 from hrtls.mission.robot import RobotTracker
 from hrtls.pipeline.corrections import SMOOTHED
@@ -173,7 +173,8 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     ``heading_updates`` ``"chain"`` aside); all but the ranges to nodes that are not the agent's
     known landmarks (mission nodes: their raw ranges are the problem's; peers), the smoother's
     own feedback (:mod:`hrtls.mission.feedback`) and, unless ``heading_updates`` is
-    ``"factor"``, the heading corrections become factors.
+    ``"factor"``, the heading corrections become factors. A robot's chain noise is its EKF's
+    (:func:`hrtls.mission.increment_noise.robot_chain`), not the smoother's walker model.
     """
     st, prm = mt.smoother, mt.params.smoother
     assert st is not None and prm is not None
@@ -194,7 +195,19 @@ def _agent_path(mt: MissionTracker, i: int, name: str, rows: FloatArray) -> Agen
     z, wm = implied_factors(m0[keep], c0[keep], m1[keep], c1[keep])
     growth = growth_curve(cov, rows[:, 0], t[jump], c0[jump], c1[jump])
     return AgentPath(name, rows[:, 0], rows[:, 1:3], st.start_cov[name], dr, (t[keep], z, wm),
-                     growth_m2=growth)
+                     growth_m2=growth, chain=_robot_chain(mt, name))
+
+
+def _robot_chain(mt: MissionTracker, name: str) -> ChainNoise | None:
+    """A robot's own chain noise (its EKF's odometry model); None for a rescuer."""
+    tr, prm = mt.trackers[name], mt.params.smoother
+    if not isinstance(tr, RobotTracker) or prm is None:
+        return None
+    sp = mt.headers[name].meta.start_pose
+    return robot_chain(odometry_fraction=tr.params.odometry_fraction,
+                       heading_var_per_m=tr.params.heading_var_per_m,
+                       start_heading_sigma_rad=prm.heading_sigma_rad if sp is None
+                       else sp.sigma_heading_rad, segment_m=prm.segment_m)
 
 
 def _jump_leaves_chain(kind: NDArray[Any], heading_updates: str) -> NDArray[np.bool_]:
