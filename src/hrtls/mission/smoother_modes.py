@@ -23,6 +23,9 @@ FEEDBACK_EVERY_S = 10.0
 
 MODES = ("off", "nodes", "feedback")
 
+DEFAULT_MODE = "feedback"
+"""The mode of :class:`hrtls.mission.tracker.MissionParams` by default."""
+
 
 def smoother_params(mode: str) -> SmootherParams | None:
     """The smoother of ``mode`` (one of :data:`MODES`); None for ``off``."""
@@ -34,6 +37,11 @@ def smoother_params(mode: str) -> SmootherParams | None:
         return SmootherParams(window_s=WINDOW_S, every_s=FEEDBACK_EVERY_S, feedback="implied",
                               robots="alone", feedback_ranges="smoother")
     raise InputError(f"smoother mode {mode!r}", where="smoother", expected=", ".join(MODES))
+
+
+def default_smoother() -> SmootherParams | None:
+    """The smoother of :data:`DEFAULT_MODE`."""
+    return smoother_params(DEFAULT_MODE)
 
 
 def smoother_mode(params: SmootherParams | None) -> str:

@@ -32,12 +32,12 @@ different agents are taken as partly correlated in the node estimate (``agent_co
 second-order loop (A localizes n, B corrected by n localizes m, A uses m) gets ``c = 2`` as a
 loop closure does (:mod:`hrtls.mission.provenance` tracks whose errors are in which estimate).
 
-After every window the re-estimated nodes go to every agent (``Tracker.set_landmarks``; a
-robot gets none unless ``SmootherParams.robots`` is "nodes"); which ranges reach its filter is
-decided here (and by :func:`hrtls.mission.smoothing.via_feedback`).
-Floors (:mod:`hrtls.mission.floors`): each reading keeps its agent's floor (from the agent's
-causal rows), a node is estimated from the readings of its floor (the floor most of them were
-taken on) and given with it, and an agent uses a node only while on its floor.
+After every window the re-estimated nodes go to every agent (``Tracker.set_landmarks``; the
+smoother's, on by default, replace those it localizes; a robot gets none unless
+``SmootherParams.robots`` is "nodes"); which ranges reach a filter is decided here and by
+:func:`hrtls.mission.smoothing.via_feedback`. Floors (:mod:`hrtls.mission.floors`): a reading
+keeps its agent's causal floor, a node is estimated from the readings of its floor (most of
+them) and given with it, and an agent uses a node only while on its floor.
 With ``cooperate=False`` no node is ever given to an agent (each agent alone). Ranges to
 other agents (node id = an agent's name) go to :mod:`hrtls.mission.peers` (with cooperation).
 """
@@ -66,6 +66,7 @@ from hrtls.mission.provenance import NodeUse, Provenance, UsePool, informative, 
 from hrtls.mission.readings import NodeReadings, Rows, join_ranges, merge_rows, split_at, trim_rows
 from hrtls.mission.records import LoopClosure, NodeTrack, Progress
 from hrtls.mission.robot import RobotTracker
+from hrtls.mission.smoother_modes import default_smoother
 from hrtls.pipeline.config import TrackerConfig
 from hrtls.pipeline.tracker import Tracker, TrackResult
 
@@ -103,13 +104,12 @@ class MissionParams:
         Live (:meth:`MissionTracker.advance`): an agent whose latest part arrived longer ago
         than this (on the clock given to :meth:`MissionTracker.feed`) no longer holds the
         windows back; its data older than the processed horizon are then late, s.
-    nodes:
-        Node estimator parameters.
-    peer_ranges:
-        How a peer's estimate is carried to the time of an inter-agent range.
+    nodes, peer_ranges:
+        Node estimator parameters;
+        how a peer's estimate is carried to the time of an inter-agent range.
     smoother:
-        The range-SLAM smoother of agents' paths and nodes (:mod:`hrtls.mission.smoothing`);
-        None: the per-node estimator alone.
+        The range-SLAM smoother (:mod:`hrtls.mission.smoothing`), by default that of
+        :data:`~hrtls.mission.smoother_modes.DEFAULT_MODE`; None: the per-node estimator alone.
     smooth_readings_s:
         Rescuers' readings at their smoothed positions, lag s (:mod:`hrtls.mission.bridge`); 0: off.
     """
@@ -124,7 +124,7 @@ class MissionParams:
     silent_after_s: float = 30.0
     nodes: NodeEstimatorParams = field(default_factory=NodeEstimatorParams)
     peer_ranges: PeerRangeParams = field(default_factory=PeerRangeParams)
-    smoother: SmootherParams | None = None
+    smoother: SmootherParams | None = field(default_factory=default_smoother)
     smooth_readings_s: float = 0.0
 
     def __post_init__(self) -> None:
