@@ -252,10 +252,10 @@ def problem(mt: MissionTracker) -> tuple[list[AgentPath], RangeSet] | None:
 
 
 def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]:
-    """Solve when due (``every_s`` since the last solve, or ``final`` past the last solve's
-    time: a mission closed again without new data does not solve again); the nodes it changed.
+    """Solve when due; the nodes it changed.
 
-    Each localized node replaces the mission's estimate of it (version, history) and its
+    Due: ``every_s`` since the last solve, or ``final`` past the last solve's time (a closed
+    mission advanced again without new data does not solve again). Each localized node replaces the mission's estimate of it (version, history) and its
     floor, and is owned by the smoother from then on.
     """
     import time
