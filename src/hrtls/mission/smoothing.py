@@ -255,8 +255,9 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     """Solve when due; the nodes it changed.
 
     Due: ``every_s`` since the last solve, or ``final`` past the last solve's time (a closed
-    mission advanced again without new data does not solve again). Each localized node replaces the mission's estimate of it (version, history) and its
-    floor, and is owned by the smoother from then on.
+    mission advanced again without new data does not solve again). Each localized node
+    replaces the mission's estimate of it (version, history) and its floor, and is owned by the
+    smoother from then on.
     """
     import time
 
