@@ -117,16 +117,15 @@ class SmootherParams:
                                               and self.window_s > 0):
             raise InputError(f"window_s = {self.window_s}", where="SmootherParams",
                              expected="> 0 or None")
-        if self.robots == "feedback" and self.feedback == "off":
-            raise InputError("robots = 'feedback' without feedback", where="SmootherParams",
-                             expected="feedback implied or replace")
-        if self.feedback not in ("off", "implied", "replace"):
-            raise InputError(f"feedback = {self.feedback!r}", where="SmootherParams",
-                             expected="off, implied or replace")
-        for name, allowed in (("robots", ("nodes", "feedback", "alone")), ("increment_noise", (
-                "length", "tracker")), ("heading_updates", ("factor", "drop", "chain")),
-                              ("loss", ("linear", "soft_l1", "huber", "cauchy")),
-                              ("feedback_ranges", ("both", "smoother"))):
+        for name, allowed in (("feedback", ("off", "implied", "replace")),
+                              ("robots", ("nodes", "feedback", "alone")),
+                              ("feedback_ranges", ("both", "smoother")),
+                              ("increment_noise", ("length", "tracker")),
+                              ("heading_updates", ("factor", "drop", "chain")),
+                              ("loss", ("linear", "soft_l1", "huber", "cauchy"))):
             if getattr(self, name) not in allowed:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",
                                  expected=" or ".join(allowed))
+        if self.robots == "feedback" and self.feedback == "off":
+            raise InputError("robots = 'feedback' without feedback", where="SmootherParams",
+                             expected="feedback implied or replace")
