@@ -12,7 +12,7 @@ import typer
 from rich.console import Console
 from typer.core import TyperCommand, TyperGroup
 
-from hrtls.cli.errors import Verbosity, err_console, reports_errors
+from hrtls.cli.errors import Verbosity, cli_text, err_console, reports_errors
 from hrtls.errors import InputError, UnitError
 
 if TYPE_CHECKING:
@@ -213,11 +213,11 @@ def info(
         console.print(f"[yellow]unknown ids in {label}:[/yellow] {', '.join(ids[:10])}"
                       f"{' ...' if len(ids) > 10 else ''}")
     for problem in summary.unit_problems:
-        console.print(f"[red]unit problem:[/red] {problem}")
+        console.print(f"[red]unit problem:[/red] {cli_text(problem)}")
     for message in {str(w.message) for w in repairs}:
-        console.print(f"[yellow]needs repair:[/yellow] {message}")
+        console.print(f"[yellow]needs repair:[/yellow] {cli_text(message)}")
     for note in summary.notes:
-        console.print(f"note: {note}")
+        console.print(f"note: {cli_text(note)}")
 
 
 @app.command()
@@ -238,6 +238,7 @@ def convert(
     """Convert a recording into a session folder (SI units, ENU, checked)."""
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    from hrtls.cli.paths import check_writable
     from hrtls.io.session import SESSION_FILES, write_session
     from hrtls.recordings import detect_format
 
@@ -253,6 +254,7 @@ def convert(
     elif output.is_dir() and not overwrite and any((output / n).exists() for n in SESSION_FILES):
         raise InputError("already holds a session", where=str(output),
                          expected="a new or empty folder (or --overwrite)")
+    check_writable(output, flag="--output", folder=output.suffix.lower() != ".zip")
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:
@@ -264,7 +266,7 @@ def convert(
                             trial=trial)
         except UnitError as exc:
             raise UnitError(exc.problem, where=exc.where, expected=exc.expected,
-                            hint="see `hrtls info` and the reader's unit options") from None
+                            hint="see `hrtls info`") from None
         progress.update(task, advance=1, description=f"writing {output}")
         write_session(session, output, overwrite=overwrite,
                       table_format="parquet" if to == "parquet" else "csv")

@@ -36,6 +36,18 @@ _PYTHON_TO_CLI = (
     (re.compile(r"\btrial=(?:\.\.\.)?"), "--trial"),
     (re.compile(r"\bbeacons=(?:\.\.\.)?"), "--beacons"),
     (re.compile(r"\boverwrite=True\b"), "--overwrite"),
+    (re.compile(r" \(readers: \w+_unit='[^']*'\)"), ""),
+    (re.compile(r"; pass include_wifi=True to keep them as RSS readings"), ""),
+    (re.compile(r"rename it or pass sensors=\{[^}]*\}"),
+     "rename it after its sensor (e.g. accelerometer.txt)"),
+    (re.compile(r"pass sensors=\{[^}]*\} if the name does not say it"),
+     "name the file after its sensor (e.g. accelerometer.txt)"),
+    (re.compile(r", or sensors=\{file: kind\}"), ""),
+    (re.compile(r"; pass sensors= to choose"), "; move the others out of the folder"),
+    (re.compile(r"pass time_unit='[^)]*'"), "give the times in s, ms or ns"),
+    (re.compile(r", or a stated time_unit"), ""),
+    (re.compile(r"pass platform='ios' for an iPhone export"),
+     "keep the export's Metadata.csv (it names the platform)"),
 )
 """Library hints name Python arguments; the CLI names its flags instead."""
 

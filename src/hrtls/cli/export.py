@@ -27,7 +27,10 @@ def export(
     georeference GeoJSON is written as local metres (trajectory.local.json, a type that map
     tools refuse rather than misplace).
     """
+    from hrtls.cli.paths import check_writable
     from hrtls.jobs.export import export_result
 
+    if output is not None:
+        check_writable(output, flag="--output", folder=False)
     written = export_result(result_dir, to=to, output=output, overwrite=overwrite)
     console.print(f"wrote {written}")

@@ -191,8 +191,11 @@ def evaluate(
 
         console.print(orientation_table(evaluate_orientation(result_dir, truth, output)))
         return
+    from hrtls.cli.paths import check_writable
     from hrtls.jobs.evaluate import EVALUATION_FILE, evaluate_result
 
+    if output is not None:
+        check_writable(output, flag="--output", folder=True)
     report = evaluate_result(result_dir, truth, output=output, plots=plots, fmt=fmt,
                              trial=trial)
     console.print(report_table(report))

@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from hrtls.cli.errors import reports_errors
+from hrtls.cli.errors import cli_text, reports_errors
 from hrtls.cli.process import imports_done
 from hrtls.jobs.warmup import mark_compiled
 
@@ -71,6 +71,7 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
                beacons: Path | None, fmt: str | None, trial: str | None, plot: bool,
                overwrite: bool, format_out: str, show_progress: bool | None) -> None:
     """Track one recording, write its results to ``output`` and print a summary."""
+    from hrtls.cli.paths import check_writable
     from hrtls.errors import InputError
     from hrtls.jobs.track import (
         check_output_dir,
@@ -87,6 +88,7 @@ def _track_one(session: Path, output: Path, *, cfg: TrackerConfig, repair: bool,
         raise InputError("no such file or folder", where=str(session),
                          expected="a recording (session folder, zip, logfile, ...)")
     check_output_dir(output, overwrite=overwrite)
+    check_writable(output, flag="--output", folder=True)
     with progress_bars(show_progress) as progress:
         run = track_recording(session, cfg, repair=repair, beacons=beacons, fmt=fmt,
                               trial=trial, progress=progress)
@@ -122,15 +124,17 @@ def _print_summary(result: TrackResult, *, name: str, samples: int, tracker_s: f
         error = reference["error_fraction"]
         bouts = "" if inside is None else f", {inside} inside the reference walking bouts"
         off = "" if error is None else f", {100 * error:+.1f} %"
+        counted = ("none" if reference["reference"] is None
+                   else f"{reference['reference']}")
         console.print(f"steps: {reference['ours']} ours{bouts}; reference "
-                      f"{reference['reference']} ({reference['source']}){off}")
+                      f"{counted} ({reference['source']}){off}")
     counts = result.report["corrections"]
     if counts:
         console.print("corrections: " + "; ".join(
             f"{kind} " + ", ".join(f"{v} {k}" for k, v in c.items())
             for kind, c in counts.items()))
     for note in result.report["notes"]:
-        console.print(f"note: {note}")
+        console.print(f"note: {cli_text(note)}")
     if evaluation is not None:
         console.print(report_table(evaluation))
 
