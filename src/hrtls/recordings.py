@@ -121,6 +121,8 @@ def detect_format(path: Path | str, *, max_bytes: int = DEFAULT_MAX_BYTES) -> st
     if not path.exists():
         raise InputError("no such file or folder", where=str(path),
                          expected="a recording file, folder or zip")
+    if path.is_file() and path.stat().st_size <= _HEAD_BYTES and not path.read_bytes().strip():
+        raise FormatError("file is empty", where=str(path), expected="a recording")
     if (path.is_dir() or path.suffix.lower() == ".zip") and _is_session(path):
         return "hrtls-session"
     for name, looks_like in (("mobgap", dataset_formats.looks_like_mobgap),

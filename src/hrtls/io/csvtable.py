@@ -14,6 +14,7 @@ import csv
 import io
 import math
 import re
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, TypeAlias
@@ -24,7 +25,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 from numpy.typing import NDArray
 
-from hrtls.errors import FormatError
+from hrtls.errors import FormatError, RepairWarning
 
 ColumnKind = Literal["float", "str", "float_or_empty"]
 """``float``: a required number; ``float_or_empty``: a number or empty (read as NaN); ``str``."""
@@ -325,6 +326,36 @@ def read_table(data: bytes | pa.Buffer, *, name: str, kinds: Mapping[str, Column
         return table
     raw = buf.to_pybytes()
     return _careful(_decode(raw, name=name), header, kinds, name=name)
+
+
+_TAIL_BYTES = 1 << 12
+
+
+def without_cut_last_line(data: pa.Buffer, *, name: str, repair: bool) -> pa.Buffer:
+    """``data`` checked for a last line cut short (a copy or a recording stopped mid-line).
+
+    Such a line has no newline after it and fewer fields than the header: it raises
+    :class:`~hrtls.errors.FormatError` naming the line, or with ``repair`` it is dropped with a
+    :class:`~hrtls.errors.RepairWarning`.
+    """
+    if not len(data) or data[len(data) - 1:].to_pybytes() == b"\n":
+        return data
+    tail = data[max(0, len(data) - _TAIL_BYTES):].to_pybytes()
+    cut_at = tail.rfind(b"\n")
+    if cut_at < 0:
+        return data  # a single line (the header) or a line longer than the tail
+    start = len(data) - len(tail) + cut_at + 1
+    header = data[:min(len(data), _TAIL_BYTES)].to_pybytes().split(b"\n", 1)[0]
+    have, fields = tail[cut_at + 1:].count(b",") + 1, header.count(b",") + 1
+    if have >= fields or not tail[cut_at + 1:].strip():
+        return data
+    line = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == ord("\n"))) + 1
+    problem = f"last line cut short ({have} of {fields} fields, no newline at the end)"
+    if not repair:
+        raise FormatError(problem, where=f"{name} line {line}", expected="complete rows",
+                          hint="pass repair=True to drop the cut line")
+    warnings.warn(f"{name} line {line}: {problem}; dropped it", RepairWarning, stacklevel=4)
+    return data[:start]
 
 
 # --------------------------------------------------------------------------------------------

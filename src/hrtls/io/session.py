@@ -28,6 +28,7 @@ A zip is read member by member in memory: nothing is extracted, members with abs
 from __future__ import annotations
 
 import json
+import re
 import warnings
 import zipfile
 from collections.abc import Mapping
@@ -54,7 +55,7 @@ from hrtls.data import (
 )
 from hrtls.data.validation import FloatArray, drop_non_finite, repair_time_order
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
-from hrtls.io.csvtable import Table
+from hrtls.io.csvtable import Table, without_cut_last_line
 from hrtls.io.schema import SESSION_TABLES, TABLE_SUFFIXES
 from hrtls.io.source import DEFAULT_MAX_BYTES, Source, open_source
 from hrtls.io.tables import decode_table, encode_table, from_arrow, to_arrow
@@ -85,7 +86,8 @@ class _Tables(Protocol):
 class _SessionFiles:
     """The session files of a folder or zip, read as bytes by their base name."""
 
-    def __init__(self, source: Source):
+    def __init__(self, source: Source, *, repair: bool = False):
+        self.repair = repair
         by_dir: dict[str, list[str]] = {}
         for name in source.names:
             pure = PurePosixPath(name)
@@ -121,8 +123,22 @@ class _SessionFiles:
             raise FormatError(f"both {' and '.join(found)}", where=self.label,
                               expected=f"one {stem} table")
         name = found[0]
-        return decode_table(self._source.buffer(self._members[name]), table=stem,
-                            name=name), name
+        data = self._source.buffer(self._members[name])
+        if name.endswith(".csv"):
+            data = without_cut_last_line(data, name=name, repair=self.repair)
+        try:
+            return decode_table(data, table=stem, name=name,
+                                missing_as_nan=self.repair and stem in _SENSOR_TABLES), name
+        except FormatError as exc:
+            missing = re.search(r" is (''|nan|missing)$", exc.problem, flags=re.IGNORECASE)
+            if stem not in _SENSOR_TABLES or self.repair or exc.hint or missing is None:
+                raise
+            raise FormatError(exc.problem, where=exc.where, expected=exc.expected,
+                              hint="pass repair=True to drop such rows with a warning") from None
+
+
+_SENSOR_TABLES = frozenset({"imu", "gyro", "mag", "pressure", "orientation"})
+"""Tables whose rows with a missing value ``repair`` drops (:func:`drop_non_finite`)."""
 
 
 class _ArrowTables:
@@ -161,12 +177,21 @@ def _repaired(t: FloatArray, groups: list[FloatArray], *, name: str, repair: boo
     return repair_time_order(t, groups, where=name, strict=strict)
 
 
+def _not_empty(found: tuple[Table, str], what: str) -> tuple[Table, str]:
+    """A sensor table with rows; one with a header only is refused (it is not "no sensor")."""
+    table, name = found
+    if table.n_rows == 0:
+        raise FormatError("no rows after the header", where=f"{name} line 2",
+                          expected=f"{what} samples (or no such file at all)")
+    return table, name
+
+
 def _read_vector_file(src: _Tables, stem: str, prefix: str, *, repair: bool
                       ) -> SensorSeries | None:
     found = src.table(stem)
     if found is None:
         return None
-    table, name = found
+    table, name = _not_empty(found, {"gyro": "gyroscope", "mag": "magnetometer"}[stem])
     group = _group(table, tuple(prefix + a for a in _AXES), name=name)
     assert group is not None
     t, (values,) = _repaired(table.float("t"), [group], name=name, repair=repair)
@@ -182,7 +207,7 @@ def _read_imu(src: _Tables, *, repair: bool, check_units: bool) -> ImuStream | N
             raise FormatError("gyro or mag table without an imu table", where=src.label,
                               expected="imu.csv (or imu.parquet) with the accelerometer")
         return None
-    table, name = found
+    table, name = _not_empty(found, "accelerometer")
     acc = _group(table, tuple("a" + a for a in _AXES), name=name)
     gyr = _group(table, tuple("g" + a for a in _AXES), name=name)
     mag = _group(table, tuple("m" + a for a in _AXES), name=name)
@@ -305,7 +330,7 @@ def read_session(path: Path | str, *, repair: bool = False, check_units: bool = 
         Naming the file, line and field that are wrong.
     """
     path = Path(path)
-    src = _SessionFiles(open_source(path, max_bytes=max_bytes))
+    src = _SessionFiles(open_source(path, max_bytes=max_bytes), repair=repair)
     try:
         return _assemble(src, _read_meta(src), _read_landmarks(src), repair=repair,
                          check_units=check_units)
@@ -358,7 +383,7 @@ def other_parts(src: _Tables, *, repair: bool, skip: frozenset[str] = frozenset(
         pressure = SensorSeries(t, p, name)
     orientation = None
     if (found := src.table("orientation")) is not None:
-        table, name = found
+        table, name = _not_empty(found, "orientation")
         q = _group(table, ("qw", "qx", "qy", "qz"), name=name)
         assert q is not None
         t, (q,) = _repaired(table.float("t"), [q], name=name, repair=repair)

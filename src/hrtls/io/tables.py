@@ -167,12 +167,20 @@ def write_table_file(columns: Mapping[str, ArrowColumn], *, table: str, path: Pa
     return path
 
 
-def decode_table(data: bytes | pa.Buffer, *, table: str, name: str) -> Table:
-    """Parse a ``.csv`` or ``.parquet`` file (by the suffix of ``name``) of ``table``."""
+def decode_table(data: bytes | pa.Buffer, *, table: str, name: str,
+                 missing_as_nan: bool = False) -> Table:
+    """Parse a ``.csv`` or ``.parquet`` file (by the suffix of ``name``) of ``table``.
+
+    ``missing_as_nan`` reads empty and NaN numbers of a CSV as NaN instead of refusing them
+    (for a caller that drops such rows with a warning).
+    """
     if name.lower().endswith(".parquet"):
         return read_parquet(data, table=table, name=name)
     spec = _spec(table)
-    return read_table(data, name=name, kinds=spec.kinds, required=spec.required)
+    kinds = dict(spec.kinds)
+    if missing_as_nan:
+        kinds = {c: "float_or_empty" if k == "float" else k for c, k in kinds.items()}
+    return read_table(data, name=name, kinds=kinds, required=spec.required)
 
 
 # --------------------------------------------------------------------------------------------
