@@ -50,8 +50,16 @@ def test_info_and_convert_real_files(shared_data, tmp_path, relative, fmt):
 def test_convert_without_repair_names_the_defect(shared_data, tmp_path):
     path = shared_data / "oxford_step/user1_armband_1506423438471.csv"
     result = runner.invoke(app, ["convert", str(path), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output  # an exact copy of a row: dropped, warned
+    assert "repaired:" in result.output and "line(s) 13345" in " ".join(result.output.split())
+    lines = path.read_text().splitlines(keepends=True)
+    row = lines[13343].split(",")
+    row[1] = str(float(row[1]) + 0.5)  # the same time with other values: needs --repair
+    bad = tmp_path / path.name
+    bad.write_text("".join([*lines[:13344], ",".join(row), *lines[13344:]]))
+    result = runner.invoke(app, ["convert", str(bad), "-o", str(tmp_path / "o2")])
     assert result.exit_code == 2
-    assert "line 13345" in " ".join(result.output.split())
+    assert "line 13345" in " ".join(result.output.split()) and "--repair" in result.output
     assert "Traceback" not in result.output
 
 

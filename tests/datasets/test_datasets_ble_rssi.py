@@ -49,8 +49,8 @@ def test_synthetic_trajectory_sorting_and_truth(tmp_path: Path) -> None:
     ]
     root = _folder(tmp_path, lines)
     assert list_trajectories(root) == ["walk"]
-    with pytest.raises(InputError, match="line 4"):
-        load_trajectory(root, "walk", repair=False)
+    with pytest.warns(RepairWarning, match=r"line\(s\) 4"):  # 0.4 ms: the merge order
+        assert len(load_trajectory(root, "walk", repair=False).session.rss.t) == 5
     with pytest.warns(RepairWarning, match="line"):
         traj = load_trajectory(root, "walk")
     s = traj.session
@@ -69,6 +69,20 @@ def test_synthetic_trajectory_sorting_and_truth(tmp_path: Path) -> None:
     assert traj.beacon_rotation.shape == (5, 3, 3)
 
 
+def test_backward_step_beyond_the_merge_jitter_needs_repair(tmp_path: Path) -> None:
+    lines = [_line("100.0", "aa0000000001", -60, 1.0),
+             _line("100.0004", "aa0000000002", -70, 1.0),
+             _line("100.0", "aa0000000001", -61, 1.0),      # line 3: back by 0.4 ms
+             _line("101.5", "aa0000000002", -71, 2.0),
+             _line("101.0", "aa0000000001", -62, 3.0)]      # line 5: back by 0.5 s
+    root = _folder(tmp_path, lines)
+    with pytest.raises(InputError, match=r"line 5.*0\.5 s"):
+        load_trajectory(root, "walk", repair=False)
+    with pytest.warns(RepairWarning, match="sorted 2 backward"):
+        traj = load_trajectory(root, "walk", repair=True)
+    np.testing.assert_allclose(traj.session.rss.t, [0.0, 0.0, 0.0004, 1.0, 1.5], atol=1e-6)
+
+
 def test_synthetic_errors(tmp_path: Path) -> None:
     root = _folder(tmp_path, [_line("100.0", "cc0000000009", -60, 1.0)])
     with pytest.raises(FormatError, match="line 1"):
@@ -85,7 +99,7 @@ def test_real_trajectories(shared_data: Path) -> None:
     names = list_trajectories(shared_data)
     assert names == ["rectangular_with_rotation", "rectangular_without_rotation", "straight_01",
                      "straight_02", "straight_03"]
-    with pytest.raises(InputError, match="line 679"):
+    with pytest.warns(RepairWarning, match=r"line\(s\) 679"):  # 0.66 ms, sorted
         load_trajectory(shared_data, "rectangular_with_rotation", repair=False)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -48,27 +48,36 @@ def test_counter_jump_of_two_gives_two_step_times(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.step_times_s, [0.03, 0.03])
 
 
-def test_zero_row_rejected_then_repaired(tmp_path: Path) -> None:
+def test_leading_zero_row_dropped_inner_one_rejected_then_repaired(tmp_path: Path) -> None:
     rows = _clean_rows()
     rows[0] = _row(1_000_000_000, (0.0, 0.0, 0.0), 0, 0)
     path = _write(tmp_path, rows)
-    with pytest.raises(InputError, match=r"line 1\b"):
-        load_recording(path)
-    with pytest.warns(RepairWarning, match="all-zero"):
-        rec = load_recording(path, repair=True)
+    with pytest.warns(RepairWarning, match="all-zero"):  # before the sensor's first sample
+        rec = load_recording(path)
     assert len(rec.session.imu.accel) == 29
     assert any("all-zero" in n for n in rec.session.meta.notes)
+    rows[5] = _row(1_050_000_000, (0.0, 0.0, 0.0), 0, 1)
+    path = _write(tmp_path, rows, "user9_hand_2.csv")
+    with pytest.raises(InputError, match=r"line 6\b"):
+        load_recording(path)
+    with pytest.warns(RepairWarning, match="dropped 2 all-zero"):
+        rec = load_recording(path, repair=True)
+    assert len(rec.session.imu.accel) == 28
 
 
 def test_backward_and_duplicate_rows(tmp_path: Path) -> None:
     rows = _clean_rows(10)
-    rows.insert(5, rows[4])  # exact copy -> line 6
+    rows.insert(5, rows[4])  # exact copy -> line 6: no information, dropped by default
     path = _write(tmp_path, rows)
-    with pytest.raises(InputError, match="line 6"):
-        load_recording(path)
     with pytest.warns(RepairWarning, match="dropped 1 exact duplicate"):
-        rec = load_recording(path, repair=True)
+        rec = load_recording(path)
     assert len(rec.session.imu.accel) == 10
+    rows.insert(8, _row(1_060_000_000, (1.0, 1.0, 9.0), 0, 1))  # equal time, other values
+    path = _write(tmp_path, rows, "user9_bag_2.csv")
+    with pytest.raises(InputError, match="line 9"):
+        load_recording(path)
+    with pytest.warns(RepairWarning, match="merged 1"):
+        assert len(load_recording(path, repair=True).session.imu.accel) == 10
     # a backward step and a differing row with equal time
     rows = _clean_rows(10)
     rows[3], rows[4] = rows[4], rows[3]
@@ -90,6 +99,23 @@ def test_malformed_line_is_named(tmp_path: Path) -> None:
     rows[7] = "1070000000,0.1,abc,9.8,0,1,0"
     with pytest.raises(FormatError, match="line 8"):
         load_recording(_write(tmp_path, rows, "user9_hand_2.csv"))
+
+
+def test_cut_last_line_and_non_finite_field_need_repair(tmp_path: Path) -> None:
+    rows = _clean_rows()
+    rows[10] = "1100000000,0.1,nan,9.8,1,2,0"
+    path = tmp_path / "user9_bag_3.csv"
+    path.write_text("\n".join(rows) + "\n" + "1300000000,0.1")  # cut: no newline at the end
+    with pytest.raises(FormatError, match=r"line 11.*field 3 is nan.*repair"):
+        load_recording(path)
+    path.write_text("\n".join(rows[:10] + rows[11:]) + "\n" + "1300000000,0.1")
+    with pytest.raises(FormatError, match=r"line 30.*last line cut short \(2 of 7"):
+        load_recording(path)
+    path.write_text("\n".join(rows) + "\n" + "1300000000,0.1")
+    with pytest.warns(RepairWarning, match=r"dropped 2 malformed line\(s\): line 11.*line 31"):
+        rec = load_recording(path, repair=True)
+    assert len(rec.session.imu.accel) == 29
+    assert any("malformed" in n for n in rec.session.meta.notes)
 
 
 def test_decreasing_counter_is_rejected(tmp_path: Path) -> None:
@@ -120,11 +146,12 @@ def test_real_step_counts(shared_data: Path) -> None:
 def test_real_known_defects(shared_data: Path) -> None:
     folder = shared_data / "oxford_step"
     by_place = {p.name.split("_")[1]: p for p in list_recordings(folder)}
-    with pytest.raises(InputError, match="line 13345"):
+    # exact copies and a leading all-zero row: dropped by default, with a warning
+    with pytest.warns(RepairWarning, match="13345: dropped 1 exact duplicate"):
         load_recording(by_place["armband"])
-    with pytest.raises(InputError, match="line 715"):
+    with pytest.warns(RepairWarning, match="715, 6715: dropped 2 exact duplicate"):
         load_recording(by_place["neckpouch"])
-    with pytest.raises(InputError, match="line 1:"):
+    with pytest.warns(RepairWarning, match=r"dropped 1 all-zero row\(s\) \(line\(s\) 1\)"):
         load_recording(by_place["hand"])
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,11 +36,75 @@ def require_file(path: Path, what: str) -> Path:
     return path
 
 
-def numeric_csv(path: Path, *, columns: int) -> FloatArray:
-    """Read a header-less, comma-separated numeric table with ``columns`` columns.
+@dataclass(frozen=True, slots=True)
+class NumericRows:
+    """Rows of a header-less numeric CSV: ``values`` (n, columns), their 1-based ``lines``."""
 
-    The fast path is numpy's parser; when it fails, the file is scanned line by line so the
-    error names the first bad line (1-based) and field.
+    values: FloatArray
+    lines: NDArray[np.int64]
+    dropped: str | None = None
+    """What ``repair`` dropped (for the notes), or None."""
+
+
+def _line_problem(text: str, *, columns: int, cut: bool) -> str | None:
+    """Why one line is not ``columns`` finite numbers, or None when it is."""
+    fields = text.split(",")
+    if len(fields) != columns:
+        if cut and len(fields) < columns:
+            return f"last line cut short ({len(fields)} of {columns} fields, no newline at the end)"
+        return f"{len(fields)} fields"
+    for col, field in enumerate(fields, start=1):
+        try:
+            value = float(field)
+        except ValueError:
+            return f"field {col} is {field!r}"
+        if not np.isfinite(value):
+            return f"field {col} is {field.strip()}"
+    return None
+
+
+def _careful_rows(path: Path, *, columns: int, repair: bool) -> NumericRows:
+    """Line by line: the first bad line raises, or (repair) bad lines are dropped with a warning."""
+    raw = path.read_bytes().decode("utf-8", errors="replace")
+    all_lines = raw.split("\n")
+    rows: list[list[float]] = []
+    numbers: list[int] = []
+    bad: list[tuple[int, str]] = []
+    for number, line in enumerate(all_lines, start=1):
+        text = line.strip()
+        if not text:
+            continue
+        cut = number == len(all_lines) and not raw.endswith("\n")
+        problem = _line_problem(text, columns=columns, cut=cut)
+        if problem is None:
+            rows.append([float(v) for v in text.split(",")])
+            numbers.append(number)
+        else:
+            bad.append((number, problem))
+    if not rows and not bad:
+        raise FormatError("no data rows", where=path.name, expected=f"rows of {columns} numbers")
+    if bad and not repair:
+        number, problem = bad[0]
+        raise FormatError(problem, where=f"{path.name} line {number}",
+                          expected=f"{columns} comma-separated finite numbers",
+                          hint="pass repair=True to drop such lines with a warning")
+    dropped = None
+    if bad:
+        dropped = (f"dropped {len(bad)} malformed line(s): "
+                   + "; ".join(f"line {n}: {p}" for n, p in bad[:5])
+                   + (" ..." if len(bad) > 5 else ""))
+        warn_repair(f"{path.name}: {dropped}")
+    return NumericRows(np.asarray(rows, dtype=np.float64).reshape(-1, columns),
+                       np.asarray(numbers, dtype=np.int64), dropped)
+
+
+def numeric_csv(path: Path, *, columns: int, repair: bool = False) -> NumericRows:
+    """Read a header-less, comma-separated table of ``columns`` finite numbers.
+
+    The fast path is numpy's parser; when it fails or finds a non-finite value, the file is
+    scanned line by line so the error names the first bad line (1-based) and field, or, with
+    ``repair``, every malformed line (a cut last line, a partial or non-numeric line, NaN) is
+    dropped with a :class:`~hrtls.errors.RepairWarning`.
     """
     try:
         with warnings.catch_warnings():
@@ -47,30 +112,11 @@ def numeric_csv(path: Path, *, columns: int) -> FloatArray:
             data = np.loadtxt(path, delimiter=",", dtype=np.float64, ndmin=2)
     except ValueError:
         data = None
-    if data is not None and data.shape[1] == columns and len(data) > 0:
-        return np.asarray(data, dtype=np.float64)
-    n_rows = 0
-    with path.open("r", encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text:
-                continue
-            n_rows += 1
-            fields = text.split(",")
-            if len(fields) != columns:
-                raise FormatError(f"{len(fields)} fields", where=f"{path.name} line {number}",
-                                  expected=f"{columns} comma-separated numbers")
-            for col, field in enumerate(fields, start=1):
-                try:
-                    float(field)
-                except ValueError:
-                    raise FormatError(f"field {col} is {field!r}",
-                                      where=f"{path.name} line {number}",
-                                      expected="a number") from None
-    if n_rows:
-        raise FormatError("numpy could not parse the table", where=path.name,
-                          expected=f"rows of {columns} comma-separated numbers")
-    raise FormatError("no data rows", where=path.name, expected=f"rows of {columns} numbers")
+    if (data is not None and data.shape[1] == columns and len(data) > 0
+            and np.isfinite(data).all()):
+        return NumericRows(np.asarray(data, dtype=np.float64),
+                           np.arange(1, len(data) + 1, dtype=np.int64))
+    return _careful_rows(path, columns=columns, repair=repair)
 
 
 def warn_repair(message: str) -> None:

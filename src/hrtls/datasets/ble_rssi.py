@@ -22,8 +22,9 @@ Time order. The merged files are not strictly sorted: each has at most one backw
 share a time. RSS readings may share a time but must not go back. Because this defect is in
 every published file and is harmless, **this loader repairs by default** (``repair=True``):
 it sorts the readings by time (stable) and says so with a
-:class:`~hrtls.errors.RepairWarning` naming the lines. ``repair=False`` raises
-:class:`~hrtls.errors.InputError` naming the first offending line instead.
+:class:`~hrtls.errors.RepairWarning` naming the lines. With ``repair=False`` (the CLI without
+``--repair``) backward steps of at most :data:`MERGE_JITTER_S` are still sorted with the
+warning, and a larger one raises :class:`~hrtls.errors.InputError` naming its line.
 
 Ground truth: the beacon positions at the distinct reading times (readings at the same time
 carry the same position; differing ones would be averaged with a warning), as
@@ -46,6 +47,9 @@ from hrtls.errors import FormatError, InputError
 
 _SUFFIX = "_all_sensors.mbd"
 _COLUMNS = 16
+MERGE_JITTER_S = 0.01
+"""Backward steps up to this size (the merge order of the receivers' readings) are sorted,
+with a warning, even without ``repair``; larger ones are clock problems and need it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,13 +190,14 @@ def _time_order(unix_s: FloatArray, *, file_name: str, repair: bool, notes: list
     back = np.flatnonzero(np.diff(unix_s) < 0)
     if not len(back):
         return None
-    first = int(back[0]) + 2
-    if not repair:
-        raise InputError(f"time goes back by {unix_s[back[0]] - unix_s[back[0] + 1]:.6g} s",
-                         where=f"{file_name} line {first}",
-                         expected="non-decreasing times",
+    steps_back = unix_s[back] - unix_s[back + 1]
+    largest = float(np.max(steps_back))
+    if not repair and largest > MERGE_JITTER_S:
+        worst = int(back[np.argmax(steps_back)])
+        raise InputError(f"time goes back by {largest:.6g} s", where=f"{file_name} line "
+                         f"{worst + 2}", expected="non-decreasing times (backward steps of at "
+                         f"most {MERGE_JITTER_S:g} s are sorted with a warning)",
                          hint="pass repair=True to sort the readings with a warning")
-    largest = float(np.max(unix_s[back] - unix_s[back + 1]))
     order = np.argsort(unix_s, kind="stable")
     message = (f"{file_name}: sorted {len(back)} backward time step(s) of at most "
                f"{largest:.3g} s at line(s) {', '.join(str(int(i) + 2) for i in back[:5])}")
@@ -231,7 +236,8 @@ def load_trajectory(root: str | Path, name: str, *, repair: bool = True) -> BleR
     repair:
         Sort readings that go back in time, with a :class:`~hrtls.errors.RepairWarning`
         (default True: every published file has one sub-millisecond backward step). With
-        False such a file raises :class:`~hrtls.errors.InputError` naming the line.
+        False only steps of at most :data:`MERGE_JITTER_S` are sorted (warned); a larger one
+        raises :class:`~hrtls.errors.InputError` naming the line.
     """
     folder = dataset_dir(root, "ble_rssi")
     file = folder / "trk" / f"{name}{_SUFFIX}"

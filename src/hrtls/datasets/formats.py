@@ -82,7 +82,12 @@ def read_mobgap(path: Path | str, *, repair: bool = False, check_units: bool = T
     test, trial_name = chosen.split("/", 1)
     loaded = load_trial(root, participant, test, trial_name)
     session = loaded.session
-    ref = loaded.reference.indip or loaded.reference.stereophoto
+    refs = [r for r in (loaded.reference.indip, loaded.reference.stereophoto) if r is not None]
+    ref = next((r for r in refs if len(r.bout_start_s)), None)
+    if ref is None and refs:
+        session.meta.source["reference_steps"] = {
+            "count": None, "source": f"no walking bout in the "
+            f"{' or '.join(r.system for r in refs)} reference of this trial"}
     if ref is not None:
         session.meta.source["reference_steps"] = {
             "count": len(ref.initial_contacts_s),

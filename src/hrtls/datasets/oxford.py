@@ -12,14 +12,19 @@ there is no gyroscope or magnetometer. Column 6 is the step count of a ground-tr
 it rises by one per step, so the rows where it rises give approximate step times (the
 device's latency is unknown).
 
-Known defects of the published files and what ``repair=True`` does about each (by default the
-loader raises :class:`~hrtls.errors.InputError` naming the file and line instead):
+Known defects of the published files and what is done about each. The two below carry no
+information, so they are repaired by default, with a :class:`~hrtls.errors.RepairWarning`:
 
-* ``hand``: the first row is all zeros (accelerometer 0, 0, 0): *the row is dropped*.
+* ``hand``: the first row is all zeros (accelerometer 0, 0, 0): *the row is dropped* (all-zero
+  rows at the start of a file; later ones need ``repair=True``).
 * ``armband`` (1) and ``neckpouch`` (2): a timestamp equal to (not greater than) the previous
   one. In these files the row is an exact copy of the previous row: *the copy is dropped*.
-  In general, rows are sorted by timestamp (stable) and rows sharing a timestamp are merged:
-  accelerometer averaged, step counters taken from the last row.
+
+Other defects raise :class:`~hrtls.errors.InputError` naming the file and line unless
+``repair=True``: with it, rows are sorted by timestamp (stable) and rows sharing a timestamp
+are merged (accelerometer averaged, step counters taken from the last row), all-zero rows are
+dropped, and malformed lines (a cut last line, a partial line, an empty or non-finite field)
+are dropped.
 
 The 220 ms gaps in ``armband`` and ``neckpouch`` are real gaps in the recording, not defects;
 they are kept and listed in ``meta.notes``.
@@ -100,13 +105,18 @@ def _merge_equal_times(ns: np.ndarray, rows: FloatArray) -> tuple[np.ndarray, Fl
 def _drop_zero_rows(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, file_name: str,
                     repair: bool, notes: list[str]
                     ) -> tuple[np.ndarray, FloatArray, np.ndarray]:
-    """Rows whose accelerometer is all zero: an error, or dropped with a warning (repair)."""
+    """Rows whose accelerometer is all zero: dropped (warned) if leading or with ``repair``.
+
+    Leading rows come before the sensor's first sample; others are an error without ``repair``.
+    """
     zero = np.all(rows[:, 0:3] == 0.0, axis=1)
+    leading = np.logical_and.accumulate(zero)
     if np.any(zero):
         first = int(lines[np.flatnonzero(zero)[0]])
-        if not repair:
+        if not repair and np.any(zero & ~leading):
+            inner = int(lines[np.flatnonzero(zero & ~leading)[0]])
             raise InputError(f"{int(zero.sum())} all-zero accelerometer row(s), first at line "
-                             f"{first}", where=f"{file_name} line {first}",
+                             f"{first}", where=f"{file_name} line {inner}",
                              expected="a real accelerometer sample (|a| near 9.8 m/s^2)",
                              hint="pass repair=True to drop such rows with a warning")
         warn_repair(f"{file_name}: dropped {int(zero.sum())} all-zero row(s) "
@@ -118,12 +128,18 @@ def _drop_zero_rows(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, file
 
 def _increasing_times(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, file_name: str,
                       repair: bool, notes: list[str]) -> tuple[np.ndarray, FloatArray]:
-    """Non-increasing timestamps: an error, or sorted and merged with a warning (repair)."""
+    """Non-increasing timestamps: sorted and merged with a warning, or an error.
+
+    They are repaired with ``repair``, or without it when every one is an exact copy of the row
+    before it (no information is lost).
+    """
     step = np.diff(ns)
     bad = np.flatnonzero(step <= 0)
     if len(bad):
-        first_line = int(lines[bad[0] + 1])
-        if not repair:
+        copy = (step[bad] == 0) & np.all(rows[bad + 1] == rows[bad], axis=1)
+        if not repair and not np.all(copy):
+            bad = bad[~copy]
+            first_line = int(lines[bad[0] + 1])
             kind = "equals" if step[bad[0]] == 0 else "is before"
             raise InputError(f"timestamp {kind} the previous one ({len(bad)} such row(s) in the "
                              "file)", where=f"{file_name} line {first_line}",
@@ -174,14 +190,15 @@ def load_recording(path: str | Path, *, repair: bool = False) -> OxfordRecording
         raise :class:`~hrtls.errors.InputError` naming the file and line.
     """
     file = require_file(Path(path), "an Oxford step counter CSV file")
-    table = numeric_csv(file, columns=7)
+    parsed = numeric_csv(file, columns=7, repair=repair)
+    table = parsed.values
     ns = table[:, 0].astype(np.int64)
     if not np.array_equal(ns.astype(np.float64), table[:, 0]):
         raise FormatError("timestamps are not integers", where=file.name,
                           expected="integer nanoseconds since boot in column 1")
     rows = table[:, 1:]
-    lines = np.arange(1, len(table) + 1)
-    notes: list[str] = []
+    lines = parsed.lines
+    notes: list[str] = [] if parsed.dropped is None else ["repair: " + parsed.dropped]
 
     ns, rows, lines = _drop_zero_rows(ns, rows, lines, file_name=file.name, repair=repair,
                                       notes=notes)

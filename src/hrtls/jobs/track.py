@@ -346,6 +346,9 @@ def reference_steps(result: TrackResult, session: Session) -> dict[str, Any] | N
     if not isinstance(ref, dict) or "count" not in ref:
         return None
     ours = len(result.steps)
+    if ref["count"] is None:  # the recording has a reference system but no step in it
+        return {"reference": None, "source": str(ref.get("source", "")), "ours": ours,
+                "error_fraction": None}
     out: dict[str, Any] = {"reference": int(ref["count"]), "source": str(ref.get("source", "")),
                            "ours": ours}
     intervals = ref.get("intervals_s")
