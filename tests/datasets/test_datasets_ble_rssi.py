@@ -90,8 +90,27 @@ def test_synthetic_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="walk"):
         load_trajectory(root, "nope")
     (tmp_path / "ble_rssi" / "trk" / "bad_all_sensors.mbd").write_text("1,2,3\n")
-    with pytest.raises(FormatError, match="3 fields"):
+    with pytest.raises(FormatError, match=r"line 1: 3 fields.*repair"):
+        load_trajectory(root, "bad", repair=False)
+    with pytest.raises(FormatError, match=r"no readings \(all 1 malformed, line 1: 3 fields"):
         load_trajectory(root, "bad")
+
+
+def test_malformed_lines_need_repair_and_keep_their_numbers(tmp_path: Path) -> None:
+    lines = [_line("100.0", "aa0000000001", -60, 1.0), "",
+             _line("100.5", "aa0000000002", -70, 1.0).replace("-70", "nan"),
+             _line("101.0", "aa0000000001", -61, 2.0),
+             _line("100.9", "aa0000000002", -71, 2.0),   # line 5: back by 0.1 s
+             _line("101.5", "aa0000000001", -62, 3.0)[:20]]  # cut short
+    root = _folder(tmp_path, lines)
+    with pytest.raises(FormatError, match="line 3: a non-finite number"):
+        load_trajectory(root, "walk", repair=False)
+    with pytest.warns(RepairWarning) as record:
+        traj = load_trajectory(root, "walk", repair=True)
+    text = " | ".join(str(w.message) for w in record)
+    assert "dropped 2 malformed line(s): line 3" in text and "line 6" in text
+    assert "line(s) 5" in text  # the backward step is named by its line in the file
+    np.testing.assert_array_equal(traj.session.rss.rss_dbm, [-60, -71, -61])
 
 
 @pytest.mark.realdata

@@ -153,39 +153,72 @@ def list_trajectories(root: str | Path) -> list[str]:
     return sorted(p.name[: -len(_SUFFIX)] for p in folder.glob(f"*{_SUFFIX}"))
 
 
-def _read_track(file: Path) -> tuple[FloatArray, list[str], list[str], FloatArray, FloatArray]:
-    times: list[float] = []
-    receivers: list[str] = []
-    beacons: list[str] = []
-    rss: list[float] = []
-    numbers: list[list[float]] = []
+@dataclass(frozen=True, slots=True, eq=False)
+class _TrackRows:
+    """The readings of a track file with their 1-based line numbers."""
+
+    unix_s: FloatArray
+    receivers: list[str]
+    beacons: list[str]
+    rss_dbm: FloatArray
+    numbers: FloatArray
+    lines: NDArray[np.int64]
+    dropped: str | None
+    """What ``repair`` dropped (for the notes), or None."""
+
+
+def _line_problem(fields: list[str]) -> str | None:
+    """Why one line's fields are not a reading, or None."""
+    if len(fields) != _COLUMNS:
+        return f"{len(fields)} fields"
+    try:
+        values = [float(fields[0]), float(fields[3])] + [float(v) for v in fields[4:]]
+    except ValueError as exc:
+        return f"not a number ({exc})"
+    if not np.all(np.isfinite(values)):
+        return "a non-finite number"
+    return None
+
+
+def _read_track(file: Path, *, repair: bool) -> _TrackRows:
+    """Readings of a track file; a malformed line raises, or (``repair``) is dropped, warned."""
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    bad: list[tuple[int, str]] = []
     for number, line in enumerate(file.read_text(encoding="utf-8").splitlines(), start=1):
         text = line.strip()
         if not text:
             continue
         fields = text.split(",")
-        where = f"{file.name} line {number}"
-        if len(fields) != _COLUMNS:
-            raise FormatError(f"{len(fields)} fields", where=where,
+        problem = _line_problem(fields)
+        if problem is None:
+            rows.append(fields)
+            lines.append(number)
+        elif not repair:
+            raise FormatError(problem, where=f"{file.name} line {number}",
                               expected=f"{_COLUMNS} fields (time, receiver, beacon, rssi, x, y, "
-                                       "z, 9 matrix entries)")
-        try:
-            times.append(float(fields[0]))
-            rss.append(float(fields[3]))
-            numbers.append([float(v) for v in fields[4:]])
-        except ValueError as exc:
-            raise FormatError(f"not a number ({exc})", where=where,
-                              expected="numeric time, rssi, position and matrix") from None
-        receivers.append(fields[1].strip().lower())
-        beacons.append(fields[2].strip().lower())
-    if not times:
-        raise FormatError("no readings", where=file.name, expected="CSV lines")
-    return (np.asarray(times), receivers, beacons, np.asarray(rss),
-            np.asarray(numbers, dtype=np.float64).reshape(-1, _COLUMNS - 4))
+                                       "z, 9 matrix entries)",
+                              hint="pass repair=True to drop such lines with a warning")
+        else:
+            bad.append((number, problem))
+    if not rows:
+        first = f" (all {len(bad)} malformed, line {bad[0][0]}: {bad[0][1]})" if bad else ""
+        raise FormatError(f"no readings{first}", where=file.name, expected="CSV lines")
+    dropped = None
+    if bad:
+        dropped = (f"dropped {len(bad)} malformed line(s): "
+                   + "; ".join(f"line {n}: {p}" for n, p in bad[:5])
+                   + (" ..." if len(bad) > 5 else ""))
+        warn_repair(f"{file.name}: {dropped}")
+    numbers = np.array([[float(v) for v in r[4:]] for r in rows], dtype=np.float64)
+    return _TrackRows(np.array([float(r[0]) for r in rows]), [r[1].strip().lower() for r in rows],
+                      [r[2].strip().lower() for r in rows], np.array([float(r[3]) for r in rows]),
+                      numbers.reshape(-1, _COLUMNS - 4), np.asarray(lines, dtype=np.int64),
+                      dropped)
 
 
-def _time_order(unix_s: FloatArray, *, file_name: str, repair: bool, notes: list[str]
-                ) -> NDArray[np.intp] | None:
+def _time_order(unix_s: FloatArray, lines: NDArray[np.int64], *, file_name: str, repair: bool,
+                notes: list[str]) -> NDArray[np.intp] | None:
     """The sorting order of readings that go back in time (repair), else None; or raise."""
     back = np.flatnonzero(np.diff(unix_s) < 0)
     if not len(back):
@@ -194,13 +227,14 @@ def _time_order(unix_s: FloatArray, *, file_name: str, repair: bool, notes: list
     largest = float(np.max(steps_back))
     if not repair and largest > MERGE_JITTER_S:
         worst = int(back[np.argmax(steps_back)])
-        raise InputError(f"time goes back by {largest:.6g} s", where=f"{file_name} line "
-                         f"{worst + 2}", expected="non-decreasing times (backward steps of at "
-                         f"most {MERGE_JITTER_S:g} s are sorted with a warning)",
+        raise InputError(f"time goes back by {largest:.6g} s",
+                         where=f"{file_name} line {lines[worst + 1]}",
+                         expected="non-decreasing times (backward steps of at most "
+                         f"{MERGE_JITTER_S:g} s are sorted with a warning)",
                          hint="pass repair=True to sort the readings with a warning")
     order = np.argsort(unix_s, kind="stable")
     message = (f"{file_name}: sorted {len(back)} backward time step(s) of at most "
-               f"{largest:.3g} s at line(s) {', '.join(str(int(i) + 2) for i in back[:5])}")
+               f"{largest:.3g} s at line(s) {', '.join(str(lines[i + 1]) for i in back[:5])}")
     warn_repair(message)
     notes.append("repair: " + message.split(": ", 1)[1])
     return order
@@ -246,12 +280,15 @@ def load_trajectory(root: str | Path, name: str, *, repair: bool = True) -> BleR
                          expected=f"one of {', '.join(list_trajectories(folder)) or '(none)'}")
     receivers, beacons = load_devices(folder / "cnf" / "tetam.dev")
     by_mac = {r.mac: r.alias for r in receivers.values()}
-    unix, rx_macs, bx_macs, rss, numbers = _read_track(file)
-    lines = np.arange(1, len(unix) + 1)
+    track = _read_track(file, repair=repair)
+    unix, rx_macs, bx_macs, rss, numbers = (track.unix_s, track.receivers, track.beacons,
+                                            track.rss_dbm, track.numbers)
+    lines = track.lines
     unknown = sorted(set(rx_macs) - set(by_mac))
     if unknown:
         idx = rx_macs.index(unknown[0])
-        raise FormatError(f"unknown receiver {unknown[0]!r}", where=f"{file.name} line {idx + 1}",
+        raise FormatError(f"unknown receiver {unknown[0]!r}",
+                          where=f"{file.name} line {lines[idx]}",
                           expected="a receiver listed in cnf/tetam.dev")
     if len(set(bx_macs)) != 1:
         raise FormatError(f"{len(set(bx_macs))} beacons", where=file.name,
@@ -260,8 +297,8 @@ def load_trajectory(root: str | Path, name: str, *, repair: bool = True) -> BleR
     xyz = numbers[:, 0:3]
     rotation = numbers[:, 3:].reshape(-1, 3, 3)
 
-    notes: list[str] = []
-    order = _time_order(unix, file_name=file.name, repair=repair, notes=notes)
+    notes: list[str] = [] if track.dropped is None else ["repair: " + track.dropped]
+    order = _time_order(unix, lines, file_name=file.name, repair=repair, notes=notes)
     if order is not None:
         unix, anchor, rss = unix[order], anchor[order], rss[order]
         xyz, rotation, lines = xyz[order], rotation[order], lines[order]
