@@ -43,6 +43,8 @@ class IpinLog:
     parsed: dict[str, FloatArray] = field(default_factory=dict)
     header: dict[str, str] = field(default_factory=dict)
     skipped: dict[str, int] = field(default_factory=dict)
+    repair: bool = False
+    """Malformed sensor rows are read as missing values (dropped by the stream repair)."""
 
     def get(self, kind: str) -> tuple[list[str], IntArray]:
         return self.rows.get(kind, []), self.lines.get(kind, np.zeros(0, dtype=np.int64))
@@ -77,10 +79,10 @@ def without_cut_last_line(text: str, label: str, *, repair: bool) -> str:
     return head + "\n"
 
 
-def split_log(text: str, label: str) -> IpinLog:
+def split_log(text: str, label: str, *, repair: bool = False) -> IpinLog:
     """Group the lines by record type (vectorized over the whole file)."""
     lines = text.splitlines()
-    log = IpinLog(label)
+    log = IpinLog(label, repair=repair)
     if not lines:
         raise FormatError("file is empty", where=label, expected="an IPIN logfile")
     prefixes = np.array([ln[:5] for ln in lines])
@@ -126,9 +128,15 @@ def numeric(log: IpinLog, kind: str) -> tuple[FloatArray, IntArray]:
         usecols = vector_cols(log, kind) if len(names) == 5 else tuple(
             range(1, len(names) + 1))
         expected = f"{kind};" + ";".join(names)
-        log.parsed[kind] = parse_float_rows(rows, sep=";", usecols=usecols,
-                                            line_numbers=lines, where=log.label,
-                                            field_names=names, expected=expected)
+        try:
+            log.parsed[kind] = parse_float_rows(rows, sep=";", usecols=usecols,
+                                                line_numbers=lines, where=log.label,
+                                                field_names=names, expected=expected,
+                                                malformed_as_nan=log.repair)
+        except FormatError as exc:
+            raise FormatError(exc.problem, where=exc.where, expected=exc.expected,
+                              hint="pass --repair (repair=True in Python) to drop such rows "
+                              "with a warning") from None
     return log.parsed[kind], lines
 
 

@@ -112,7 +112,7 @@ def split_fields(line: str, sep: str | None) -> list[str]:
 def parse_float_rows(rows: Sequence[str], *, sep: str | None, usecols: Sequence[int],
                      line_numbers: IntArray, where: str, field_names: Sequence[str],
                      expected: str, exact_fields: int | None = None,
-                     empty_as_nan: bool = False) -> FloatArray:
+                     empty_as_nan: bool = False, malformed_as_nan: bool = False) -> FloatArray:
     """Parse numeric fields of many delimited rows into an (N, len(usecols)) array.
 
     The fast path is numpy's C parser over all rows at once. When it fails, the rows are
@@ -140,6 +140,9 @@ def parse_float_rows(rows: Sequence[str], *, sep: str | None, usecols: Sequence[
         When given, every row must have exactly this many fields.
     empty_as_nan:
         Read empty fields as NaN instead of rejecting them.
+    malformed_as_nan:
+        Read a row with too few fields or a field that is not a number as NaN (announced by a
+        :class:`~hrtls.errors.RepairWarning` naming its lines) for the stream repair to drop.
     """
     cols = list(usecols)
     if len(rows) == 0:
@@ -166,36 +169,60 @@ def parse_float_rows(rows: Sequence[str], *, sep: str | None, usecols: Sequence[
             pass
     return _parse_rows_slowly(rows, sep=sep, usecols=cols, line_numbers=line_numbers,
                               where=where, field_names=field_names, expected=expected,
-                              exact_fields=exact_fields, empty_as_nan=empty_as_nan)
+                              exact_fields=exact_fields, empty_as_nan=empty_as_nan,
+                              malformed_as_nan=malformed_as_nan)
 
 
 def _parse_rows_slowly(rows: Sequence[str], *, sep: str | None, usecols: list[int],
                        line_numbers: IntArray, where: str, field_names: Sequence[str],
-                       expected: str, exact_fields: int | None, empty_as_nan: bool
-                       ) -> FloatArray:
-    """Row-by-row parser: the exact location of the first problem, or the values."""
+                       expected: str, exact_fields: int | None, empty_as_nan: bool,
+                       malformed_as_nan: bool = False) -> FloatArray:
+    """Row-by-row parser: the exact location of the first problem, or the values.
+
+    With ``malformed_as_nan`` such rows become NaN instead, named in one warning.
+    """
     out = np.empty((len(rows), len(usecols)))
     need = max(usecols) + 1
+    malformed: list[str] = []
     for k, row in enumerate(rows):
-        fields = split_fields(row, sep)
-        at = f"{where} line {int(line_numbers[k])}"
-        if exact_fields is not None and len(fields) != exact_fields:
-            raise FormatError(f"{len(fields)} field(s)", where=at,
-                              expected=f"{exact_fields} fields ({expected})")
-        if len(fields) < need:
-            raise FormatError(f"{len(fields)} field(s)", where=at,
-                              expected=f"at least {need} fields ({expected})")
-        for j, c in enumerate(usecols):
-            text = fields[c].strip()
-            if not text and empty_as_nan:
-                out[k, j] = np.nan
-                continue
-            try:
-                out[k, j] = float(text)
-            except ValueError:
-                shown = text if len(text) <= 40 else text[:37] + "..."
-                raise FormatError(f"{field_names[j]} is {shown!r}", where=at,
-                                  expected=f"a number ({expected})") from None
+        try:
+            out[k] = _parse_row(split_fields(row, sep), usecols=usecols, need=need,
+                                field_names=field_names, expected=expected,
+                                exact_fields=exact_fields, empty_as_nan=empty_as_nan)
+        except FormatError as exc:
+            if not malformed_as_nan:
+                raise FormatError(exc.problem, where=f"{where} line {int(line_numbers[k])}",
+                                  expected=exc.expected) from None
+            out[k] = np.nan
+            malformed.append(f"line {int(line_numbers[k])}: {exc.problem}")
+    if malformed:
+        warnings.warn(f"{where}: {len(malformed)} malformed row(s) read as missing values ("
+                      + "; ".join(malformed[:5]) + (" ..." if len(malformed) > 5 else "") + ")",
+                      RepairWarning, stacklevel=4)
+    return out
+
+
+def _parse_row(fields: list[str], *, usecols: list[int], need: int, field_names: Sequence[str],
+               expected: str, exact_fields: int | None, empty_as_nan: bool) -> FloatArray:
+    """The used fields of one row as numbers; FormatError (without a place) when it is not."""
+    if exact_fields is not None and len(fields) != exact_fields:
+        raise FormatError(f"{len(fields)} field(s)",
+                          expected=f"{exact_fields} fields ({expected})")
+    if len(fields) < need:
+        raise FormatError(f"{len(fields)} field(s)",
+                          expected=f"at least {need} fields ({expected})")
+    out = np.empty(len(usecols))
+    for j, c in enumerate(usecols):
+        text = fields[c].strip()
+        if not text and empty_as_nan:
+            out[j] = np.nan
+            continue
+        try:
+            out[j] = float(text)
+        except ValueError:
+            shown = text if len(text) <= 40 else text[:37] + "..."
+            raise FormatError(f"{field_names[j]} is {shown!r}",
+                              expected=f"a number ({expected})") from None
     return out
 
 

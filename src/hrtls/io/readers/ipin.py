@@ -319,7 +319,7 @@ def _split_logfile(data: bytes, *, label: str, repair: bool) -> IpinLog:
         raise FormatError("no IPIN records (ACCE;, GYRO;, POSI; ...) in the first 64 KiB",
                           where=label, expected="an IPIN/EvAAL logfile")
     return split_log(without_cut_last_line(decode_text(data, where=label, lenient=True), label,
-                                           repair=repair), label)
+                                           repair=repair), label, repair=repair)
 
 
 def _beacon_csv(src: Source, logname: str, *, beacons: Path | str | None,
