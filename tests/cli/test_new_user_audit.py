@@ -122,6 +122,14 @@ def test_missing_value_in_a_session_table_names_repair_and_repair_drops_it(
     assert "dropped 1 row(s) with non-finite values" in _flat(fixed.output)
 
 
+def test_session_without_session_json_says_what_is_missing(tmp_path: Path) -> None:
+    session = _session(tmp_path)
+    (session / "session.json").unlink()
+    result = runner.invoke(app, ["track", str(session), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    assert "no session.json: no start pose, georeference" in _flat(result.output)
+
+
 def test_empty_file_says_so(tmp_path: Path) -> None:
     empty = tmp_path / "walk.csv"
     empty.write_text("")

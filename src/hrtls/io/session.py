@@ -282,6 +282,9 @@ def _json(src: _SessionFiles, name: str) -> Any:
 
 def _read_meta(src: _SessionFiles) -> SessionMeta:
     if "session.json" not in src.names:
+        warnings.warn(f"{src.label}: no session.json: no start pose, georeference, placement, "
+                      "floor height or channel model; the defaults are used",
+                      DegradedInputWarning, stacklevel=3)
         return SessionMeta()
     data = _json(src, "session.json")
     if not isinstance(data, dict):
