@@ -118,6 +118,17 @@ def test_cut_last_line_and_non_finite_field_need_repair(tmp_path: Path) -> None:
     assert any("malformed" in n for n in rec.session.meta.notes)
 
 
+def test_clock_jumping_back_is_named_even_after_repair(tmp_path: Path) -> None:
+    rows = [_row(1_000_000_000 + 10_000_000 * i - (60_000_000_000 if i >= 15 else 0),
+                 (0.1, 0.2, 9.8), 0, i // 5) for i in range(30)]
+    path = _write(tmp_path, rows)
+    with pytest.raises(InputError, match="line 16: timestamp is before"):
+        load_recording(path)
+    with pytest.warns(RepairWarning), pytest.raises(
+            FormatError, match=r"once the times were sorted .*largest 60 s.*jump back"):
+        load_recording(path, repair=True)
+
+
 def test_decreasing_counter_is_rejected(tmp_path: Path) -> None:
     rows = _clean_rows()
     rows[-1] = _row(1_000_000_000 + 10_000_000 * 29, (0.1, 0.2, 9.8), 2, 0)

@@ -147,10 +147,11 @@ def _increasing_times(ns: np.ndarray, rows: FloatArray, lines: np.ndarray, *, fi
                              hint="pass repair=True to sort and merge them with a warning")
         order = np.argsort(ns, kind="stable")
         n_back = int(np.count_nonzero(step < 0))
+        largest_s = float(-step.min()) * 1e-9 if n_back else 0.0
         ns, rows = ns[order], rows[order]
         ns, rows, n_copies, n_avg = _merge_equal_times(ns, rows)
         actions = [text for count, text in (
-            (n_back, f"sorted {n_back} backward step(s)"),
+            (n_back, f"sorted {n_back} backward step(s) (largest {largest_s:.3g} s)"),
             (n_copies, f"dropped {n_copies} exact duplicate row(s)"),
             (n_avg, f"merged {n_avg} row(s) with equal time (accelerometer averaged)"))
             if count]
@@ -212,7 +213,15 @@ def load_recording(path: str | Path, *, repair: bool = False) -> OxfordRecording
     for i in gaps:
         notes.append(f"gap of {1e3 * (t[i + 1] - t[i]):.0f} ms after t = {t[i]:.3f} s")
 
-    step_times, total_steps, app_steps = _step_counts(t, rows, file_name=file.name)
+    try:
+        step_times, total_steps, app_steps = _step_counts(t, rows, file_name=file.name)
+    except FormatError as exc:
+        sorted_back = [n for n in notes if "backward step" in n]
+        if not sorted_back:
+            raise
+        raise FormatError(f"{exc.problem} once the times were sorted ({sorted_back[0][8:]})",
+                          where=exc.where, expected="a clock that does not jump back (cut the "
+                          "file where it does)") from None
 
     match = _NAME.match(file.name)
     placement = match.group("placement").lower() if match else "unknown"
