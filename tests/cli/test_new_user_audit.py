@@ -261,3 +261,19 @@ def test_mobgap_trial_without_reference_bouts_is_not_reference_zero(shared_data:
     output = _flat(result.output)
     assert "reference none (no walking bout in the INDIP or Stereophoto reference" in output
     assert "reference 0" not in output
+
+
+@pytest.mark.realdata
+def test_evaluate_refuses_another_rss_track_as_truth(shared_data: Path, tmp_path: Path) -> None:
+    """Both tracks start at t = 0 and overlap in time: only the readings tell them apart."""
+    tracks = shared_data / "ble_rssi/trk"
+    out = tmp_path / "o"
+    done = runner.invoke(app, ["track", str(tracks / "straight_01_all_sensors.mbd"), "-o",
+                               str(out)])
+    assert done.exit_code == 0, done.output
+    _refused(runner.invoke(app, ["evaluate", str(out), "--no-plots", "--truth",
+                                 str(tracks / "rectangular_with_rotation_all_sensors.mbd")]),
+             "not the recording that was tracked", "1365 RSS readings", "1935 over")
+    same = runner.invoke(app, ["evaluate", str(out), "--no-plots", "--truth",
+                               str(tracks / "straight_01_all_sensors.mbd")])
+    assert same.exit_code == 0, same.output

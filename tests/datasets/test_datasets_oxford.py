@@ -129,6 +129,14 @@ def test_clock_jumping_back_is_named_even_after_repair(tmp_path: Path) -> None:
         load_recording(path, repair=True)
 
 
+def test_file_of_another_format_is_not_offered_repair(tmp_path: Path) -> None:
+    path = tmp_path / "user9_bag_4.csv"
+    path.write_text("ACCE;0.1;5.0;0.1;9.8;0.2;3\nGYRO;0.1;5.0;0.0;0.0;0.0;3\n")
+    with pytest.raises(FormatError, match=r"no line of 7 numbers \(line 1: 1 fields\)") as info:
+        load_recording(path)
+    assert "repair" not in str(info.value) and "--format" in str(info.value)
+
+
 def test_decreasing_counter_is_rejected(tmp_path: Path) -> None:
     rows = _clean_rows()
     rows[-1] = _row(1_000_000_000 + 10_000_000 * 29, (0.1, 0.2, 9.8), 2, 0)

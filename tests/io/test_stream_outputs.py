@@ -24,7 +24,7 @@ from hrtls.jobs.track import (
     LOCAL_GEOJSON,
     TrackRun,
     evaluate_track,
-    imu_fingerprint,
+    stream_fingerprint,
     track_recording,
     write_track_outputs,
 )
@@ -85,7 +85,7 @@ def _same_outputs(whole: Path, streamed: Path) -> None:
 
 def _check_input(whole: TrackRun, streamed: TrackRun) -> None:
     assert streamed.streamed and streamed.samples == whole.samples
-    assert streamed.result.report["input"]["imu"] == imu_fingerprint(whole.session.imu.accel.t)
+    assert streamed.result.report["input"]["imu"] == stream_fingerprint(whole.session.imu.accel.t)
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ T23 = "ipin2023/IPIN2023_T3_TrainingTrial23_repetition03.txt"
 
 def _truth(t: np.ndarray) -> TruthData:
     xyz = np.zeros((len(t), 3))
-    return TruthData(GroundTruth(t, xyz), None, None, None, {}, 3.0, "truth", None)
+    return TruthData(GroundTruth(t, xyz), None, None, None, {}, 3.0, "truth", None, None)
 
 
 def test_overlap_hand_computed() -> None:

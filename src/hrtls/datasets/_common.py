@@ -83,6 +83,11 @@ def _careful_rows(path: Path, *, columns: int, repair: bool) -> NumericRows:
             bad.append((number, problem))
     if not rows and not bad:
         raise FormatError("no data rows", where=path.name, expected=f"rows of {columns} numbers")
+    if bad and not rows:
+        number, problem = bad[0]
+        raise FormatError(f"no line of {columns} numbers (line {number}: {problem})",
+                          where=path.name, expected=f"{columns} comma-separated numbers per line",
+                          hint="another format? `hrtls formats` lists them (--format)")
     if bad and not repair:
         number, problem = bad[0]
         raise FormatError(problem, where=f"{path.name} line {number}",

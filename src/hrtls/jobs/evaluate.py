@@ -39,6 +39,7 @@ class TruthData:
     floor_height_m: float
     label: str
     imu_t: np.ndarray | None
+    rss_t: np.ndarray | None
 
 
 def read_estimate(result_dir: Path) -> tuple[Trajectory, StepEvents | None]:
@@ -87,7 +88,8 @@ def read_truth(path: Path, *, fmt: str | None = None, trial: str | None = None) 
             reference = json.loads((path / "scenario.json").read_text()).get("reference", {})
     return TruthData(session.truth, checkpoints, true_steps, activity, reference,
                      session.meta.floor_height_m, str(path),
-                     None if session.imu is None else session.imu.accel.t)
+                     None if session.imu is None else session.imu.accel.t,
+                     None if session.rss is None else session.rss.t)
 
 
 def _span(t: np.ndarray) -> tuple[float, float]:
@@ -112,34 +114,39 @@ def check_overlap(estimate: Trajectory, truth: TruthData, *, result_label: str) 
 
 
 def check_same_recording(result_dir: Path, truth: TruthData) -> None:
-    """Refuse truth from another recording than the one tracked (by its IMU fingerprint).
+    """Refuse truth from another recording than the one tracked (by its stream fingerprint).
 
-    ``report.json`` of ``hrtls track`` records the IMU's sample count and first/last time;
-    a truth recording with an IMU must match them (a converted copy does).
+    ``report.json`` of ``hrtls track`` records the IMU's sample count and first/last time (the
+    RSS readings' for a recording without IMU); a truth recording with that stream must match
+    them (a converted copy does).
     """
-    from hrtls.jobs.track import imu_fingerprint
+    from hrtls.jobs.track import stream_fingerprint
 
     path = result_dir / "report.json"
-    if truth.imu_t is None or len(truth.imu_t) == 0 or not path.exists():
+    if not path.exists():
         return
     try:
-        tracked = json.loads(path.read_text(encoding="utf-8")).get("input", {}).get("imu")
+        tracked_input = json.loads(path.read_text(encoding="utf-8")).get("input", {})
     except (json.JSONDecodeError, AttributeError):
         return
-    if not isinstance(tracked, dict):
+    for key, t in (("imu", truth.imu_t), ("rss", truth.rss_t)):
+        tracked = tracked_input.get(key) if isinstance(tracked_input, dict) else None
+        if t is None or len(t) == 0 or not isinstance(tracked, dict):
+            continue
+        mine = stream_fingerprint(t)
+        same = (tracked.get("samples") == mine["samples"]
+                and abs(float(tracked.get("t_first_s", np.nan)) - mine["t_first_s"]) < 1e-3
+                and abs(float(tracked.get("t_last_s", np.nan)) - mine["t_last_s"]) < 1e-3)
+        if not same:
+            what = "IMU samples" if key == "imu" else "RSS readings"
+            raise InputError(
+                f"not the recording that was tracked: the result tracked {tracked.get('samples')}"
+                f" {what} over {tracked.get('t_first_s', 0.0):.3f} .. "
+                f"{tracked.get('t_last_s', 0.0):.3f} s, the truth recording has "
+                f"{mine['samples']} over {mine['t_first_s']:.3f} .. {mine['t_last_s']:.3f} s",
+                where=f"--truth {truth.label}",
+                expected="the recording given to `hrtls track` (or a converted copy of it)")
         return
-    mine = imu_fingerprint(truth.imu_t)
-    same = (tracked.get("samples") == mine["samples"]
-            and abs(float(tracked.get("t_first_s", np.nan)) - mine["t_first_s"]) < 1e-3
-            and abs(float(tracked.get("t_last_s", np.nan)) - mine["t_last_s"]) < 1e-3)
-    if not same:
-        raise InputError(
-            f"not the recording that was tracked: the result tracked {tracked.get('samples')} "
-            f"IMU samples over {tracked.get('t_first_s', 0.0):.3f} .. "
-            f"{tracked.get('t_last_s', 0.0):.3f} s, the truth recording has {mine['samples']} "
-            f"over {mine['t_first_s']:.3f} .. {mine['t_last_s']:.3f} s",
-            where=f"--truth {truth.label}",
-            expected="the recording given to `hrtls track` (or a converted copy of it)")
 
 
 def evaluate_result(result_dir: Path, truth_path: Path, *, output: Path | None = None,

@@ -135,12 +135,14 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
     t_imu = stream.imu_t if stream is not None and run.streamed else (
         None if run.session.imu is None else run.session.imu.accel.t)
     if t_imu is not None and len(t_imu):
-        input_report["imu"] = imu_fingerprint(t_imu)
+        input_report["imu"] = stream_fingerprint(t_imu)
+    elif run.session.rss is not None and len(run.session.rss.t):  # infrastructure only
+        input_report["rss"] = stream_fingerprint(run.session.rss.t)
     return _with_input(run, input_report, config)
 
 
-def imu_fingerprint(t: np.ndarray) -> dict[str, float | int]:
-    """What identifies a recording's IMU stream: samples and first/last time (s)."""
+def stream_fingerprint(t: np.ndarray) -> dict[str, float | int]:
+    """What identifies a recording's IMU (or RSS) stream: samples and first/last time (s)."""
     return {"samples": len(t), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
 
 
