@@ -67,6 +67,14 @@ def test_output_under_a_file_is_refused_before_any_work(tmp_path: Path) -> None:
     assert not (tmp_path / "r" / "t.csv").exists()
 
 
+def test_batch_output_under_a_file_is_refused_before_any_work(tmp_path: Path) -> None:
+    _session(tmp_path)
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    _refused(runner.invoke(app, ["track", str(tmp_path / "*"), "-o", str(blocker / "sub")]),
+             "--output", "is a file, not a folder")
+
+
 def test_output_on_a_file_system_that_cannot_be_written(tmp_path: Path) -> None:
     if not Path("/proc/self").is_dir():
         pytest.skip("needs /proc (a file system where no folder can be made)")

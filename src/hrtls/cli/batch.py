@@ -18,6 +18,7 @@ def track_batch(spec: str, output: Path, *, config: Path | None, preset_name: st
                 ray_address: str | None) -> None:
     """Track every recording of ``spec`` into ``output``; print the summary table."""
     from hrtls.cli.config import chosen_config
+    from hrtls.cli.paths import check_writable
     from hrtls.jobs.batch import find_recordings, plan_batch, run_batch
     from hrtls.runner import make_engine
 
@@ -25,6 +26,7 @@ def track_batch(spec: str, output: Path, *, config: Path | None, preset_name: st
     if output.exists() and not output.is_dir():
         raise InputError("exists and is not a folder", where=f"--output {output}",
                          expected="a folder for the batch results")
+    check_writable(output, flag="--output", folder=True)
     recordings = find_recordings(spec)
     tasks = plan_batch(recordings, output, preset=preset_name, config_path=config,
                        repair=repair, overwrite=overwrite, plot=plot)
