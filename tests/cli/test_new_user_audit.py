@@ -285,3 +285,11 @@ def test_evaluate_refuses_another_rss_track_as_truth(shared_data: Path, tmp_path
     same = runner.invoke(app, ["evaluate", str(out), "--no-plots", "--truth",
                                str(tracks / "straight_01_all_sensors.mbd")])
     assert same.exit_code == 0, same.output
+
+
+@pytest.mark.realdata
+def test_broad_trial_says_it_is_not_a_walk(shared_data: Path, tmp_path: Path) -> None:
+    path = shared_data / "broad/14_undisturbed_slow_translation_with_breaks_B.hdf5"
+    result = runner.invoke(app, ["track", str(path), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    assert "not a walk: steps and positions tracked from it mean nothing" in _flat(result.output)

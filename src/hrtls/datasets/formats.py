@@ -14,10 +14,11 @@ is accepted for a uniform signature and has nothing left to check.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 from hrtls.data import Session
-from hrtls.errors import FormatError, InputError
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
 
 _HEAD = 4096
 
@@ -116,6 +117,9 @@ def read_broad(path: Path | str, *, repair: bool = False, check_units: bool = Tr
     """BROAD orientation-benchmark trial (IMU on an optically tracked board)."""
     from hrtls.datasets.broad import load_trial
 
+    warnings.warn(f"{Path(path).name}: BROAD is a board turned and moved by hand, not a walk: "
+                  "steps and positions tracked from it mean nothing (`hrtls attitude` estimates "
+                  "and scores its orientation)", DegradedInputWarning, stacklevel=2)
     return load_trial(path).session
 
 
