@@ -3,7 +3,8 @@
 Five tracks (``../shared/data/ble_rssi``). For each track in turn, the other four are the
 development tracks: the grid filter's settings (``[prediction.grid]``: diffusion speed,
 per-anchor bias state, persistent-velocity time constant, with ``--window`` / ``--estimate``
-what a row holds of an anchor's window / the row's point estimate, and with ``--motion``
+what a row holds of an anchor's window / the row's point estimate, with ``--lag`` the share of
+the window's reading age compensated along the persistent velocity, and with ``--motion``
 the choices of :data:`MOTION_CHOICES`: velocity modes, a per-anchor burst state; the
 averaging window of 2 s and no offset gain, the only values any fold chose among 1 / 2 s and
 0 / 0.01) and optionally
@@ -23,7 +24,8 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
 ``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse);
-``--window`` and ``--estimate`` add :data:`EXTRA_CHOICES` (3 and 2 times the runs).
+``--window``, ``--estimate`` and ``--lag`` add :data:`EXTRA_CHOICES` (3, 2 and 3 times the
+runs).
 ``--map`` instead scores the radio map (``[prediction.radio_map]``, :mod:`hrtls.fusion.radio_map`)
 with the shipped grid settings: for each held-out track the survey is the other four tracks'
 readings at their true positions; its length scale and prior spread (:data:`MAP_CHOICES`) are
@@ -66,11 +68,13 @@ GRID_CHOICES = {"sigma_speed_m_per_sqrt_s": (0.8, 1.5, 2.0), "average_s": (2.0,)
                 "velocity_time_s": (0.0, 8.0, 16.0)}
 """Candidate ``[prediction.grid]`` settings of the leave-one-out choice, each with every
 :data:`MOTION_CHOICES` entry that fits it."""
-EXTRA_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
+EXTRA_CHOICES: dict[str, tuple[str, tuple[Any, ...]]] = {
     "window": ("window_statistic", ("mean-db", "mean-power", "median")),
-    "estimate": ("point_estimate", ("mean", "median"))}
-"""``--window`` / ``--estimate``: a ``[prediction.grid]`` key whose values join the candidates
-(the first: the setting before the option); without the flag the key keeps its default."""
+    "estimate": ("point_estimate", ("mean", "median")),
+    "lag": ("lag_compensation", (0.0, 0.5, 1.0))}
+"""``--window`` / ``--estimate`` / ``--lag``: a ``[prediction.grid]`` key whose values join the
+candidates (the first: the setting before the option); without the flag the key keeps its
+default."""
 FIXED_HEADINGS = {"mode_turn_deg": 45.0, "stopped_mode": True, "mode_switch_per_s": 0.1,
                   "velocity_time_s": 0.0}
 MOTION_CHOICES: tuple[dict[str, Any], ...] = (
@@ -207,6 +211,8 @@ def main() -> None:
                     help="window_statistic (mean-db, mean-power, median) among the candidates")
     ap.add_argument("--estimate", action="store_true",
                     help="point_estimate (mean, median) among the candidates")
+    ap.add_argument("--lag", action="store_true",
+                    help="lag_compensation (0, 0.5, 1) among the candidates")
     ap.add_argument("--map", action="store_true",
                     help="the radio map from the other tracks' truth, held out")
     args = ap.parse_args()

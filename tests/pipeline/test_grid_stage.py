@@ -189,3 +189,19 @@ def test_velocity_modes_and_burst_state_chunked_and_restored_equal_offline(
         scan_s=0.5, average_s=2.0, t_origin=0.0))
     assert state.burst_probability is not None and state.density.shape[0] == 5
     assert state.burst_probability[1] == pytest.approx(params.burst_start)
+
+
+def test_lag_compensation_chunked_and_restored_equal_offline(office: SimulationResult) -> None:
+    """``[prediction.grid] lag_compensation``: the scans' reading ages come from the buffered
+    readings (no new state), so chunks and snapshots give the offline rows; it changes the
+    track."""
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+    cfg = TrackerConfig()
+    cfg = cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+        "grid": {**cfg.prediction.grid, "lag_compensation": 1.0}})})
+    plain = Tracker().run(s).trajectory
+    offline = Tracker(cfg).run(s).trajectory
+    assert len(plain) == len(offline) and not np.allclose(plain.xyz, offline.xyz)
+    live = track_in_parts(cfg, s, chunk_s=7.0, restore_after=4).trajectory
+    n = len(live)
+    np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)

@@ -33,6 +33,13 @@ a regular horizontal grid (cells of ``cell_m``, covering the anchors' bounding b
   counts as the share of an independent one that :mod:`hrtls.fusion.shadowing` eq. 1 gives
   it, consecutive readings of an anchor sharing their shadowing).
 
+With ``lag_compensation`` ``g`` > 0 (and a persistent velocity), a scan's window is placed
+where the walker was when its readings were taken: ``age`` s before the scan (the rows' mean
+reading age, weighted as the rows are), at ``x - g v age`` for the walker now at ``x``. The
+bias and burst states are updated over the predicted density shifted back by ``g v age``, and
+the likelihood computed on the cells is shifted forward by it
+(:func:`~hrtls.fusion.rss_grid_kernels.shift_field`): ``l_now(x) = l(x - g v age)``.
+
 With a radio map (:mod:`hrtls.fusion.radio_map`) ``mu`` of each cell also holds the map's
 mean there and ``sigma^2`` its variance.
 
@@ -88,6 +95,7 @@ from hrtls.fusion.rss_grid_kernels import (
     moments,
     move_modes,
     shift,
+    shift_field,
     window_medians,
 )
 from hrtls.kernels import njit
@@ -116,6 +124,7 @@ __all__ = [
     "moments",
     "move_modes",
     "shift",
+    "shift_field",
     "window_medians",
 ]
 
@@ -166,6 +175,9 @@ class GridParams:
     point_estimate: what a row's position is: the density's ``mean`` or its per-axis
         ``median`` (then its covariance is the spread about that point); the persistent
         velocity and the offsets follow the mean either way.
+    lag_compensation: share ``g`` (0 ... 1) of the window's mean reading age by which its
+        readings are placed behind the walker along the persistent velocity (0: at the
+        walker's position at the scan; needs ``velocity_time_s`` > 0 to act).
     """
 
     cell_m: float = 0.25
@@ -193,6 +205,7 @@ class GridParams:
     burst_exit_per_s: float = 0.3
     window_statistic: Literal["mean-db", "mean-power", "median"] = "mean-db"
     point_estimate: Literal["mean", "median"] = "mean"
+    lag_compensation: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -202,7 +215,7 @@ class GridParams:
                      "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s",
                      "velocity_time_s", "velocity_max_m_per_s", "mode_turn_deg",
                      "mode_speed_m_per_s", "mode_switch_per_s", "burst_sigma_db",
-                     "burst_enter_per_s", "burst_exit_per_s"):
+                     "burst_enter_per_s", "burst_exit_per_s", "lag_compensation"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)
         if self.window_statistic not in WINDOW_STATISTICS:
             raise InputError(f"window_statistic = {self.window_statistic!r}",
@@ -220,6 +233,9 @@ class GridParams:
                              f"{self.mode_speed_m_per_s}", where="GridParams",
                              expected="mode_turn_deg at most 180 deg, and above 0 with a "
                                       "mode speed")
+        if self.lag_compensation > 1.0:
+            raise InputError(f"lag_compensation = {self.lag_compensation}",
+                             where="GridParams.lag_compensation", expected="0 ... 1")
         if not (self.outlier_probability < 1.0 and self.offset_gain <= 1.0
                 and self.attenuation_probability < 1.0):
             raise InputError(f"outlier_probability = {self.outlier_probability}, offset_gain = "
@@ -253,7 +269,7 @@ GRID_DTYPE = np.dtype([(n, np.float64) for n in (
     "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s", "velocity_time_s",
     "velocity_max_m_per_s", "mode_turn_deg", "mode_speed_m_per_s", "stopped_mode",
     "mode_switch_per_s", "burst_sigma_db", "burst_enter_per_s", "burst_exit_per_s",
-    "median_point")])
+    "median_point", "lag_compensation")])
 """Record of :class:`GridParams` for compiled code (same field names; ``median_point`` is 1
 for ``point_estimate = "median"``, else 0)."""
 
@@ -362,7 +378,8 @@ class GridScans:
     """Scans as rows: scan ``k`` holds rows ``first[k] : first[k] + count[k]``.
 
     ``anchor`` indexes the anchors of the geometry's distance table; ``rss_dbm`` is the causal
-    mean over ``average_s``; ``weight`` the likelihood exponent of each row.
+    mean over ``average_s``; ``weight`` the likelihood exponent of each row; ``age_s`` (S,)
+    each scan's mean reading age (None: zero), s.
     """
 
     t: FloatArray
@@ -371,6 +388,7 @@ class GridScans:
     anchor: IntArray
     rss_dbm: FloatArray
     weight: FloatArray
+    age_s: FloatArray | None = None
 
 
 @njit(cache=True, error_model="numpy")
@@ -379,11 +397,13 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
                 offsets_db: FloatArray, offsets_var: FloatArray,
                 velocity: FloatArray, burst: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
-                rss_dbm: FloatArray, weight: FloatArray, out: FloatArray) -> float:
+                rss_dbm: FloatArray, weight: FloatArray, age: FloatArray,
+                out: FloatArray) -> float:
     # pragma: no cover - compiled
     """Run the scans through the filter; density (K, ny, nx) and the other states in place.
 
-    ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan. Returns the last scan time.
+    ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan; ``age`` (S,): each scan's
+    mean reading age, s. Returns the last scan time.
     ``rmap``, ``rvar``: the radio map's mean and variance (A, ny, nx; (0, 0, 0): no map).
     """
     ny, nx = density.shape[1], density.shape[2]
@@ -391,6 +411,7 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
     tmp = np.empty((ny, nx))
     ll = np.empty((ny, nx))
     pos = np.empty((ny, nx))        # the position density (sum over the modes)
+    seen = np.empty((ny, nx))       # where the window's readings were taken
     prev = np.zeros(5)              # moments of the previous scan's posterior
     moving = prm.velocity_time_s > 0.0
     base = np.zeros(2)              # what the modes turn when not the persistent velocity
@@ -412,16 +433,21 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
                        prm.stopped_mode > 0.0, dt, cell, spread, tmp)
         a, b = first[k], first[k] + count[k]
         pos[:] = density.sum(axis=0)
+        seen[:] = pos
+        # readings taken lag s ago, at x - v lag (module docstring)
+        lag = prm.lag_compensation * age[k] / cell if moving and started else 0.0
+        shift(seen, -velocity[0] * lag, -velocity[1] * lag, tmp)
         if prm.bias_sigma_db > 0.0:
             offsets_var += prm.bias_walk_db_per_sqrt_s ** 2 * dt
-            bias_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
-                        offsets_var, model)
+            bias_update(dist, rmap, rvar, seen, anchor[a:b], rss_dbm[a:b], weight[a:b],
+                        offsets_db, offsets_var, model)
         log_likelihood(dist, rmap, rvar,
                        anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db, offsets_var,
                        burst, model, prm, ll)
+        shift_field(ll, velocity[0] * lag, velocity[1] * lag, tmp)
         if prm.burst_sigma_db > 0.0:
-            burst_update(dist, rmap, rvar, pos, anchor[a:b], rss_dbm[a:b], weight[a:b], offsets_db,
-                         offsets_var, burst, model, prm)
+            burst_update(dist, rmap, rvar, seen, anchor[a:b], rss_dbm[a:b], weight[a:b],
+                         offsets_db, offsets_var, burst, model, prm)
         apply_likelihood(density, ll, pos)
         moments(pos, x0, y0, cell, out[k])
         if moving and started:
@@ -455,14 +481,15 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
     ``10^(r / 10)``). ``t`` sorted; bins start
     at ``t_origin``. Weight of a row: the readings that are new in this scan (not in the
     previous scan's window of that anchor), each counted as ``info`` (its information
-    fraction, default 1), over the readings averaged.
+    fraction, default 1), over the readings averaged. Age of a scan: the mean over its rows
+    of ``t_scan`` minus the mean time of the row's readings, weighted as the rows.
     """
     tt = np.asarray(t, dtype=np.float64)
     w_in = np.ones(tt.size) if info is None else np.asarray(info, dtype=np.float64)
     if tt.size == 0:
         z = np.zeros(0)
         zi = np.zeros(0, dtype=np.int64)
-        return GridScans(z, zi, zi, zi, z, z)
+        return GridScans(z, zi, zi, zi, z, z, z)
     bins = np.floor((tt - t_origin) / scan_s).astype(np.int64)
     last = np.flatnonzero(np.append(np.diff(bins) != 0, True))
     ts = tt[last]
@@ -470,12 +497,14 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
     s = len(ts)
     means = np.full((s, n_anchors), np.nan)
     weights = np.zeros((s, n_anchors))
+    ages = np.zeros((s, n_anchors))
     for a in range(n_anchors):
         sel = anchor == a
         ta, ra = tt[sel], np.asarray(rss_dbm, dtype=np.float64)[sel]
         cs = np.concatenate([[0.0], np.cumsum(10.0 ** (ra / 10.0) if statistic == "mean-power"
                                               else ra)])
         cw = np.concatenate([[0.0], np.cumsum(w_in[sel])])
+        ct = np.concatenate([[0.0], np.cumsum(ta - t_origin)])
         hi = np.searchsorted(ta, ts, side="right")
         lo = np.searchsorted(ta, ts - average_s, side="right")
         n = hi - lo
@@ -487,12 +516,15 @@ def causal_scans(t: FloatArray, anchor: IntArray, rss_dbm: FloatArray, *, n_anch
             means[ok, a] = window_medians(ra, lo[ok], hi[ok])
         prev_hi = np.concatenate([[np.searchsorted(ta, t_from, side="right")], hi[:-1]])
         weights[ok, a] = (cw[hi[ok]] - cw[np.maximum(prev_hi[ok], lo[ok])]) / n[ok]
+        ages[ok, a] = ts[ok] - t_origin - (ct[hi[ok]] - ct[lo[ok]]) / n[ok]
     heard = np.isfinite(means)
     count = heard.sum(axis=1).astype(np.int64)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     rows, cols = np.nonzero(heard)
     del rows
-    return GridScans(ts, first, count, cols.astype(np.int64), means[heard], weights[heard])
+    wsum = weights.sum(axis=1)
+    age = np.where(wsum > 0.0, (weights * ages).sum(axis=1) / np.maximum(wsum, 1e-300), 0.0)
+    return GridScans(ts, first, count, cols.astype(np.int64), means[heard], weights[heard], age)
 
 
 class RssGridFilter:
@@ -552,7 +584,8 @@ class RssGridFilter:
                                  self.rmap, self.rvar, density, offsets, var, vel, burst,
                                  state.t, state.started, scans.t,
                                  scans.first, scans.count, scans.anchor, scans.rss_dbm,
-                                 scans.weight, out)
+                                 scans.weight,
+                                 np.zeros(s) if scans.age_s is None else scans.age_s, out)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
         rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
         return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var,

@@ -87,6 +87,32 @@ def shift(density: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray
 
 
 @njit(cache=True, error_model="numpy")
+def shift_field(field: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """``field(x) <- field(x - s)`` in place, ``s`` = (``sx_cells``, ``sy_cells``) cells.
+
+    Bilinear between cells; beyond the grid's edge the edge value is held (a log-likelihood
+    field, not a density: nothing is renormalised). ``tmp``: (ny, nx).
+    """
+    if sx_cells == 0.0 and sy_cells == 0.0:
+        return
+    ny, nx = field.shape
+    for i in range(ny):
+        yc = min(max(i - sy_cells, 0.0), ny - 1.0)
+        i0 = min(int(yc), max(ny - 2, 0))
+        fy = yc - i0
+        i1 = min(i0 + 1, ny - 1)
+        for j in range(nx):
+            xc = min(max(j - sx_cells, 0.0), nx - 1.0)
+            j0 = min(int(xc), max(nx - 2, 0))
+            fx = xc - j0
+            j1 = min(j0 + 1, nx - 1)
+            tmp[i, j] = (1.0 - fy) * ((1.0 - fx) * field[i0, j0] + fx * field[i0, j1]) \
+                + fy * ((1.0 - fx) * field[i1, j0] + fx * field[i1, j1])
+    field[:] = tmp
+
+
+@njit(cache=True, error_model="numpy")
 def follow_velocity(velocity: FloatArray, prev_xy: FloatArray, mean_xy: FloatArray, dt: float,
                     time_s: float, max_m_per_s: float) -> None:   # pragma: no cover - compiled
     """Exponential average of the mean's displacement per second into ``velocity`` (in place).
