@@ -138,3 +138,15 @@ def test_calibration_load_errors(tmp_path):
         Calibration.load(p)
     with pytest.raises(FormatError):
         Calibration.load(tmp_path / "missing.json")
+
+
+def test_package_exports_are_the_imu_module_api():
+    # hrtls.calibration lists its lazy exports by hand (importing imu would defeat the lazy
+    # import): the list must stay imu.__all__, each name the imu object
+    import hrtls.calibration as pkg
+    from hrtls.calibration import imu
+
+    assert pkg.__all__ == imu.__all__
+    assert all(getattr(pkg, name) is getattr(imu, name) for name in pkg.__all__)
+    with pytest.raises(AttributeError, match="no attribute"):
+        _ = pkg.not_a_calibration_name

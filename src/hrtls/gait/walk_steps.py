@@ -162,20 +162,18 @@ def add_steps(state: WalkStepState, params: WalkStepParams, t_end: FloatArray,
         held.append(len(status))
         times.append(te)
         status.append(UNDECIDED)
-        if not s.confirmed:
-            if peak >= p.strong_peak_m_s2 or s.n_steps >= p.min_walk_steps:
-                s.confirmed = True
-                level = [*level, peak][-p.level_steps:]
-                for i in held:
-                    status[i] = KEEP
-                held = []
-            else:
-                level.append(peak)
-        elif peak >= p.closing_ratio * float(np.median(level)):
+        if s.confirmed:   # a step at the walk's level releases the held weak steps
+            confirms = peak >= p.closing_ratio * float(np.median(level))
+        else:
+            confirms = peak >= p.strong_peak_m_s2 or s.n_steps >= p.min_walk_steps
+        if confirms:
+            s.confirmed = True
             level = [*level, peak][-p.level_steps:]
             for i in held:
                 status[i] = KEEP
             held = []
+        elif not s.confirmed:
+            level.append(peak)
     wait_s = p.closing_pause_s if s.confirmed else p.max_gap_s
     if complete_s > s.t_last + wait_s:   # no later step can join the walk or keep its steps
         for i in held:

@@ -38,8 +38,10 @@ from hrtls.io.jsonstream import (
     Rows,
     float_text,
     joined_text,
+    json_positions,
     materialized,
     numbers_text,
+    read_json_file,
     row_text,
     write_json,
 )
@@ -422,21 +424,6 @@ class GeoJsonTrack:
                                 heading_rad=self.heading_rad, activity=self.activity)
 
 
-def _positions(value: Any, *, where: str) -> FloatArray:
-    if not isinstance(value, list):
-        raise FormatError(f"{type(value).__name__}", where=where, expected="a list of positions")
-    out = np.zeros((len(value), 3))
-    for i, pos in enumerate(value):
-        if (not isinstance(pos, list) or not 2 <= len(pos) <= 3
-                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in pos)):
-            raise FormatError(f"position {pos!r}", where=f"{where}[{i}]",
-                              expected="[x, y] or [x, y, z] numbers")
-        out[i, : len(pos)] = pos
-    if not np.all(np.isfinite(out)):
-        raise FormatError("non-finite coordinate", where=where, expected="finite numbers")
-    return out
-
-
 def _geometry_coords(geometry: Any, *, where: str) -> FloatArray:
     if geometry is None:
         return np.zeros((0, 3))
@@ -444,9 +431,11 @@ def _geometry_coords(geometry: Any, *, where: str) -> FloatArray:
         raise FormatError("geometry is not an object", where=where, expected="a GeoJSON geometry")
     kind = geometry.get("type")
     if kind == "LineString":
-        return _positions(geometry.get("coordinates"), where=f"{where}.coordinates")
+        return json_positions(geometry.get("coordinates"), where=f"{where}.coordinates",
+                              finite=True)
     if kind == "Point":
-        return _positions([geometry.get("coordinates")], where=f"{where}.coordinates")
+        return json_positions([geometry.get("coordinates")], where=f"{where}.coordinates",
+                              finite=True)
     raise FormatError(f"geometry type {kind!r}", where=where, expected="LineString or Point")
 
 
@@ -457,13 +446,7 @@ def read_geojson(path: str | Path) -> GeoJsonTrack:
     ``LineString`` feature. Coordinates are returned as stored; use :meth:`GeoJsonTrack.xyz`
     for local metres.
     """
-    file = Path(path)
-    if not file.is_file():
-        raise InputError("file not found", where=str(file), expected="a GeoJSON file")
-    try:
-        doc = json.loads(file.read_text(encoding="utf-8"))
-    except ValueError as exc:
-        raise FormatError(f"invalid JSON ({exc})", where=str(file), expected="GeoJSON") from None
+    file, doc = read_json_file(path, format_name="GeoJSON")
     features = _features(doc, where=str(file))
     is_wgs84, georeference = parse_crs_member(doc.get(CRS_MEMBER),
                                               where=f"{file.name} {CRS_MEMBER}")

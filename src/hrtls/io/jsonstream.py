@@ -6,6 +6,9 @@ it (:func:`write_json`) gives exactly the text of ``json.dumps(doc, allow_nan=Fa
 document with every :class:`Rows` made (:func:`materialized`), but neither the text nor the
 long lists are ever held whole. A :class:`Rows` may give its text directly (``text``): numbers
 are then formatted by Arrow (:func:`float_text`), not one by one by Python.
+
+Reading is whole-document: :func:`read_json_file` parses a file, :func:`json_positions` turns
+a list of ``[x, y]`` / ``[x, y, z]`` positions into an array (the GeoJSON and MF-JSON readers).
 """
 
 from __future__ import annotations
@@ -17,6 +20,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
+from numpy.typing import NDArray
+
+from hrtls.errors import FormatError, InputError
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -58,6 +64,43 @@ def write_json(target: Path, doc: Any) -> None:
         _encode(doc, fh)
         fh.write("\n")
     tmp.replace(target)
+
+
+def read_json_file(path: str | Path, *, format_name: str, article: str = "a"
+                   ) -> tuple[Path, Any]:
+    """The file and its parsed JSON; errors name ``format_name`` (``"GeoJSON"``, ...).
+
+    A missing file raises :class:`~hrtls.errors.InputError`, text that is not JSON
+    :class:`~hrtls.errors.FormatError` (expected: ``{article} {format_name} file``).
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise InputError("file not found", where=str(file),
+                         expected=f"{article} {format_name} file")
+    try:
+        return file, json.loads(file.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise FormatError(f"invalid JSON ({exc})", where=str(file),
+                          expected=format_name) from None
+
+
+def json_positions(value: Any, *, where: str, finite: bool) -> NDArray[np.float64]:
+    """(N, 3) array of a JSON list of ``[x, y]`` or ``[x, y, z]`` numbers (missing z: 0).
+
+    ``finite`` also rejects NaN and infinities (``json.loads`` reads ``NaN``, ``Infinity``).
+    """
+    if not isinstance(value, list):
+        raise FormatError(f"{type(value).__name__}", where=where, expected="a list of positions")
+    out = np.zeros((len(value), 3))
+    for i, pos in enumerate(value):
+        if (not isinstance(pos, list) or not 2 <= len(pos) <= 3
+                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in pos)):
+            raise FormatError(f"position {pos!r}", where=f"{where}[{i}]",
+                              expected="[x, y] or [x, y, z] numbers")
+        out[i, : len(pos)] = pos
+    if finite and not np.all(np.isfinite(out)):
+        raise FormatError("non-finite coordinate", where=where, expected="finite numbers")
+    return out
 
 
 def _lazy(value: Any) -> bool:

@@ -50,6 +50,7 @@ from hrtls.io.geojson import (
     to_output_coordinates,
     write_text_atomic,
 )
+from hrtls.io.jsonstream import json_positions, read_json_file
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -237,19 +238,6 @@ class MovingPointTrack:
                                 heading_rad=self.heading_rad)
 
 
-def _coords(value: Any, *, where: str) -> FloatArray:
-    if not isinstance(value, list):
-        raise FormatError(f"{type(value).__name__}", where=where, expected="a list of positions")
-    out = np.zeros((len(value), 3))
-    for i, pos in enumerate(value):
-        if (not isinstance(pos, list) or not 2 <= len(pos) <= 3
-                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in pos)):
-            raise FormatError(f"position {pos!r}", where=f"{where}[{i}]",
-                              expected="[x, y] or [x, y, z] numbers")
-        out[i, : len(pos)] = pos
-    return out
-
-
 def _find_moving_point(doc: Any, where: str) -> tuple[dict[str, Any], dict[str, Any]]:
     features: Sequence[Any]
     if isinstance(doc, dict) and doc.get("type") == "FeatureCollection":
@@ -267,13 +255,7 @@ def _find_moving_point(doc: Any, where: str) -> tuple[dict[str, Any], dict[str, 
 
 def read_movingfeatures(path: str | Path) -> MovingPointTrack:
     """Read the first MovingPoint of an MF-JSON Feature or FeatureCollection."""
-    file = Path(path)
-    if not file.is_file():
-        raise InputError("file not found", where=str(file), expected="an MF-JSON file")
-    try:
-        doc = json.loads(file.read_text(encoding="utf-8"))
-    except ValueError as exc:
-        raise FormatError(f"invalid JSON ({exc})", where=str(file), expected="MF-JSON") from None
+    file, doc = read_json_file(path, format_name="MF-JSON", article="an")
     feature, geom = _find_moving_point(doc, str(file))
     where = f"{file.name} temporalGeometry"
     raw_times = geom.get("datetimes")
@@ -281,7 +263,7 @@ def read_movingfeatures(path: str | Path) -> MovingPointTrack:
         raise FormatError("no datetimes list", where=where, expected="ISO 8601 datetimes")
     us = np.array([unix_us_from_iso8601(v, where=f"{where}.datetimes[{i}]")
                    for i, v in enumerate(raw_times)], dtype=np.int64)
-    coords = _coords(geom.get("coordinates"), where=f"{where}.coordinates")
+    coords = json_positions(geom.get("coordinates"), where=f"{where}.coordinates", finite=False)
     if len(coords) != len(us):
         raise FormatError(f"{len(coords)} coordinates for {len(us)} datetimes", where=where,
                           expected="one position per datetime")

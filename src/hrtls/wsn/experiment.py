@@ -19,7 +19,7 @@ Each study returns a frozen dataclass of rows; :func:`format_table` renders rows
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,6 +54,21 @@ def _seeds(seed: int, count: int) -> list[np.random.SeedSequence]:
 
 def _run(engine: Engine | None, fn: Any, tasks: list[Any], where: str) -> list[Any]:
     return values_or_raise((engine or LocalEngine()).map(fn, tasks), where=where)
+
+
+def _groups(records: Sequence[tuple[Any, ...]], *, names: Sequence[str],
+            key: Callable[[tuple[Any, ...]], str]) -> list[tuple[str, int, np.ndarray]]:
+    """``(name, networks, numbers)`` of each non-empty group of the per-network records.
+
+    Group ``"all"`` holds every record, group ``name`` those with ``key(record) == name``;
+    ``numbers`` stacks the fields after the first (the class), one row per network.
+    """
+    out = []
+    for name in ("all", *names):
+        g = [r for r in records if name == "all" or key(r) == name]
+        if g:
+            out.append((name, len(g), np.array([r[1:] for r in g], dtype=float)))
+    return out
 
 
 def _max_error(net: Network, est: np.ndarray, mask: np.ndarray) -> float:
@@ -158,14 +173,11 @@ def loose_study(
         for name, count in k.items():
             kinds[name] = kinds.get(name, 0) + count
     rows = []
-    for name, sel in (("all", lambda r: True), ("connected", lambda r: r[0]),
-                      ("disconnected", lambda r: not r[0])):
-        g = [r for r in rec if sel(r)]
-        if not g:
-            continue
-        a = np.array([r[1:] for r in g], dtype=float)
+    for name, networks, a in _groups(
+            rec, names=("connected", "disconnected"),
+            key=lambda r: "connected" if r[0] else "disconnected"):
         rows.append(LooseRow(
-            group=name, networks=len(g), tla=float(a[:, 0].mean()), sela=float(a[:, 1].mean()),
+            group=name, networks=networks, tla=float(a[:, 0].mean()), sela=float(a[:, 1].mean()),
             sela_planner=float(a[:, 2].mean()), complete=float(a[:, 3].mean()),
             waypoints_mean=float(a[:, 4].mean()), waypoints_median=float(np.median(a[:, 4])),
             waypoints_max=int(a[:, 4].max()), distance_mean_m=float(a[:, 5].mean()),
@@ -282,14 +294,11 @@ def tight_study(
              for k, sq in enumerate(_seeds(seed, n_networks))]
     rec = _run(engine, _tight_one, tasks, "tight_study")
     rows = []
-    for name in ("all", "connected", "disconnected, d_r-connected", "disconnected beyond d_r"):
-        g = [r for r in rec if name == "all" or r[0] == name]
-        if not g:
-            continue
-        a = np.array([r[1:] for r in g], dtype=float)
+    classes = ("connected", "disconnected, d_r-connected", "disconnected beyond d_r")
+    for name, networks, a in _groups(rec, names=classes, key=lambda r: r[0]):
         nloc = float(np.sum(a[:, 0]) * n_nodes)
         rows.append(TightRow(
-            group=name, networks=len(g), localized=float(a[:, 0].mean()),
+            group=name, networks=networks, localized=float(a[:, 0].mean()),
             complete=float(a[:, 1].mean()), assigned_mean=float(a[:, 2].mean()),
             legs_mean=float(a[:, 3].mean()), distance_mean_m=float(a[:, 4].mean()),
             rmse_over_rho=float(np.sqrt(np.sum(a[:, 5]) / max(nloc, 1.0))) / radius_m,

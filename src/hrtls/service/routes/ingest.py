@@ -48,6 +48,14 @@ async def store(services: Services, who: Principal, value: dict[str, Any], *, bo
         raise HTTPException(404, f"agent {who.agent_id} no longer exists") from None
 
 
+def _refused(exc: BatchError | Busy, who: Principal) -> JSONResponse:
+    """The HTTP answer to a refused batch: its status, or 429 and Retry-After when busy."""
+    if isinstance(exc, Busy):
+        return JSONResponse({"detail": f"agent {who.agent_id}: {exc}"}, status_code=429,
+                            headers=retry_after_header(exc.retry_after_s))
+    return JSONResponse({"detail": exc.detail}, status_code=exc.status)
+
+
 @router.post("/ingest")
 async def ingest(request: Request, who: AgentCaller, services: ServicesDep) -> JSONResponse:
     """Accept one batch of the calling agent (idempotent per ``seq``)."""
@@ -58,11 +66,8 @@ async def ingest(request: Request, who: AgentCaller, services: ServicesDep) -> J
         value = decode_body(body, content_type)
         ack = await store(services, who, value, body=body,
                           content_type=content_type.split(";")[0].strip())
-    except BatchError as exc:
-        return JSONResponse({"detail": exc.detail}, status_code=exc.status)
-    except Busy as exc:
-        return JSONResponse({"detail": f"agent {who.agent_id}: {exc}"}, status_code=429,
-                            headers=retry_after_header(exc.retry_after_s))
+    except (BatchError, Busy) as exc:
+        return _refused(exc, who)
     return JSONResponse(ack)
 
 
@@ -218,9 +223,6 @@ async def sensorlogger(request: Request, services: ServicesDep,
         ack = await run_in_threadpool(
             services.host.accept, who.agent_id, batch, body=body,
             content_type=f"application/json; t0_unix={t0!r}", source="sensorlogger")
-    except BatchError as exc:
-        return JSONResponse({"detail": exc.detail}, status_code=exc.status)
-    except Busy as exc:
-        return JSONResponse({"detail": f"agent {who.agent_id}: {exc}"}, status_code=429,
-                            headers=retry_after_header(exc.retry_after_s))
+    except (BatchError, Busy) as exc:
+        return _refused(exc, who)
     return JSONResponse(ack)
