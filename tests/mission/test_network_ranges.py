@@ -80,7 +80,8 @@ def test_a_pair_is_one_factor_at_its_median_range() -> None:
     np.testing.assert_array_equal(links.a, ["N1", "N1"])
     np.testing.assert_array_equal(links.b, ["N2", "N3"])
     np.testing.assert_allclose(links.range_m, [2.0, 5.0])           # median of 1, 2, 4
-    np.testing.assert_allclose(links.sigma_m, [np.hypot(0.3, 0.2), np.hypot(0.3, 0.5)])
+    # N1-N2: deviations 1, 0, 2 from the median, MAD 1 above the model's sigma
+    np.testing.assert_allclose(links.sigma_m, [1.4826, np.hypot(0.3, 0.5)])
     np.testing.assert_array_equal(links.count, [3, 1])
 
 

@@ -4,9 +4,12 @@ Links. Two static nodes measure one and the same distance every time, through th
 their ranges' errors are not independent over the mission (an NLOS bias stays), so the ranges
 of a pair are taken as one factor (the mission-long version of ``range_correlation_s``): the
 median ``r`` of the pair's ranges, residual ``(r - ||p_a - p_b||) / s`` with
-``s = sqrt(sigma_m^2 + (sigma_fraction r)^2)`` (the estimator's own noise model of the radio,
-:class:`~hrtls.mission.graph_params.SmootherParams` ``link_sigma_m``, ``link_sigma_fraction``),
-under the robust loss of the agents' ranges. Both nodes lie on the floor: no height term.
+``s = max(sqrt(sigma_m^2 + (sigma_fraction r)^2), 1.4826 MAD)``: the estimator's own noise model
+of the radio (:class:`~hrtls.mission.graph_params.SmootherParams` ``link_sigma_m``,
+``link_sigma_fraction``), or the spread of the pair's ranges (median absolute deviation) when
+larger: ranges through walls scatter with their bias, so a pair whose ranges scatter more than
+the noise model is taken as biased by about that spread. Under the robust loss of the agents'
+ranges. Both nodes lie on the floor: no height term.
 
 Geometry. A node enters the problem and may count as localized when the positions it is ranged
 from spread off a line (:func:`hrtls.mission.graph_init.select_nodes`). With links, its
@@ -36,6 +39,8 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+MAD_SIGMA = 1.4826
+"""A Gaussian's sigma per median absolute deviation."""
 MAX_ROUNDS = 8
 """Rounds of nodes joining through their neighbours, at most."""
 
@@ -74,13 +79,19 @@ def pair_links(node_a: NDArray[np.str_], node_b: NDArray[np.str_], range_m: Floa
     lo, hi = np.where(a < b, a, b), np.where(a < b, b, a)
     pairs, inv = np.unique(np.column_stack([lo, hi]), axis=0, return_inverse=True)
     inv = inv.reshape(-1)
-    order = np.lexsort((range_m, inv))
     counts = np.bincount(inv, minlength=len(pairs))
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    srt = range_m[order]
-    med = 0.5 * (srt[start + (counts - 1) // 2] + srt[start + counts // 2])
-    sig = np.hypot(sigma_m, sigma_fraction * med)
+    med = _group_median(range_m, inv, counts)
+    mad = _group_median(np.abs(range_m - med[inv]), inv, counts)
+    sig = np.maximum(np.hypot(sigma_m, sigma_fraction * med), MAD_SIGMA * mad)
     return NodeLinks(pairs[:, 0], pairs[:, 1], med, sig, counts.astype(np.int64))
+
+
+def _group_median(v: FloatArray, group: IntArray, counts: IntArray) -> FloatArray:
+    """Median of ``v`` per group (groups ``0..len(counts)-1``, each non-empty)."""
+    srt = v[np.lexsort((v, group))]
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.asarray(0.5 * (srt[start + (counts - 1) // 2] + srt[start + counts // 2]),
+                      np.float64)
 
 
 def _effective(pts: FloatArray, nb: FloatArray, agent_spread: float, extent_m: float) -> float:

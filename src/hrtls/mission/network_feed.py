@@ -29,7 +29,9 @@ from hrtls.data.session import SessionMeta
 from hrtls.errors import DegradedInputWarning
 from hrtls.mission.buffer import LateData
 from hrtls.mission.graph_links import NodeLinks, pair_links
+from hrtls.mission.graph_params import SmootherParams
 from hrtls.mission.network_ranges import NetworkRanges
+from hrtls.mission.nodes import NodeRanges
 
 if TYPE_CHECKING:
     from hrtls.mission.tracker import MissionTracker
@@ -109,6 +111,43 @@ def links(mt: MissionTracker) -> NodeLinks:
     fa = np.array([mt.node_floor.get(n, -1) for n in out.a.tolist()])
     fb = np.array([mt.node_floor.get(n, -1) for n in out.b.tolist()])
     return out.select((fa == fb) | (fa < 0) | (fb < 0))
+
+
+def node_ranges(mt: MissionTracker, node: str, floor: int) -> NodeRanges:
+    """The node's readings on ``floor`` for the per-node estimator, with its neighbours.
+
+    Each localized neighbour on the same floor linked to the node is one more anchor (TLA):
+    at its estimate, with its covariance as an agent's (added to the range's variance by the
+    estimator), its pair's one range (:func:`~hrtls.mission.graph_links.pair_links`, the
+    smoother's noise model, by default :class:`~hrtls.mission.graph_params.SmootherParams`'s),
+    its own pass and chain: its error is taken as independent of the agents' errors in the
+    node's readings (module doc of :mod:`hrtls.mission.nodes`: only the common part
+    ``agent_correlation`` is shared).
+    """
+    obs = mt.readings[node].ranges(mt.params.pass_gap_s, floor=floor)
+    used = mt.network.used
+    m = (used.node_a == node) | (used.node_b == node)
+    if not m.any() or not len(obs):
+        return obs
+    prm = mt.params.smoother or SmootherParams()
+    links = pair_links(used.node_a[m], used.node_b[m], used.range_m[m],
+                       sigma_m=prm.link_sigma_m, sigma_fraction=prm.link_sigma_fraction)
+    other = np.where(links.a == node, links.b, links.a).tolist()
+    k = [j for j, o in enumerate(other) if o in mt.estimates and mt.estimates[o].localized
+         and mt.node_floor.get(o, 0) == floor]
+    if not k:
+        return obs
+    est = [mt.estimates[other[j]] for j in k]
+    new = np.arange(len(k), dtype=np.int64)
+    t = obs.t_s if obs.t_s is not None else np.zeros(len(obs))
+    return NodeRanges.build(
+        agent_xy_m=np.vstack([obs.agent_xy_m, [e.position_m for e in est]]),
+        agent_cov_m2=np.concatenate([obs.agent_cov_m2, [e.covariance_m2 for e in est]]),
+        range_m=np.concatenate([obs.range_m, links.range_m[k]]),
+        range_sigma_m=np.concatenate([obs.range_sigma_m, links.sigma_m[k]]),
+        group=np.concatenate([obs.group, obs.group.max() + 1 + new]),
+        chain=np.concatenate([obs.chain, obs.chain.max() + 1 + new]),
+        t_s=np.concatenate([t, np.full(len(k), t.max())]))
 
 
 def state_of(st: NetworkState) -> dict[str, Any]:

@@ -444,7 +444,7 @@ class MissionTracker:
                 continue
             self.estimated_at[node] = n_now
             floor = node_floor(self.readings[node].floor)
-            obs = self.readings[node].ranges(self.params.pass_gap_s, floor=floor)
+            obs = network_feed.node_ranges(self, node, floor)
             prev = self.estimates.get(node)
             init = (prev.position_m if prev is not None and prev.localized
                     and self.node_floor.get(node, 0) == floor else None)
