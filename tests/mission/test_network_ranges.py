@@ -149,3 +149,38 @@ def test_feed_network_keeps_late_ranges_out_and_warns_of_agents() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         mt.feed_network(_nr([1e6], ["N7"], ["N2"], [2.0]))
+
+
+def test_the_per_node_estimator_takes_a_localized_neighbour_as_an_anchor() -> None:
+    """Readings from one straight pass leave the mirror ambiguity; a linked localized
+    neighbour off the line (its covariance as an agent's) resolves it."""
+    from types import SimpleNamespace
+
+    from hrtls.mission import network_feed
+    from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeRanges
+
+    t = np.arange(0.0, 21.0)
+    xy = np.column_stack([0.5 * t, np.zeros_like(t)])
+    node, nb = np.array([5.0, 2.0]), np.array([5.0, 6.0])
+    rng = np.random.default_rng(3)
+    obs = NodeRanges.build(agent_xy_m=xy, agent_cov_m2=np.tile(np.eye(2) * 0.01, (len(t), 1, 1)),
+                           range_m=np.linalg.norm(xy - node, axis=1) + rng.normal(0, 0.05, len(t)),
+                           range_sigma_m=np.full(len(t), 0.05), group=np.zeros(len(t)),
+                           chain=np.zeros(len(t)), t_s=t)
+    est = NodeEstimator()
+    assert not est.estimate(obs).localized                         # the mirror
+    nb_est = NodeEstimate(nb, np.eye(2) * 0.04, True, "", np.ones(3, bool), 1.0, 3)
+    mt = SimpleNamespace(
+        readings={"N1": SimpleNamespace(ranges=lambda gap, floor: obs)},
+        params=SimpleNamespace(pass_gap_s=15.0, smoother=None),
+        network=network_feed.NetworkState(used=_nr([1.0, 2.0, 3.0], ["N1", "N2", "N1"],
+                                                   ["N2", "N1", "N3"], [4.0, 4.1, 9.0])),
+        estimates={"N2": nb_est}, node_floor={"N2": 0})
+    got = network_feed.node_ranges(mt, "N1", 0)                   # type: ignore[arg-type]
+    assert len(got) == len(obs) + 1                                # N3 is not localized
+    np.testing.assert_array_equal(got.agent_xy_m[-1], nb)
+    assert got.range_m[-1] == pytest.approx(4.05) and got.group[-1] == got.chain[-1] == 1
+    e = est.estimate(got)
+    assert e.localized and np.linalg.norm(e.position_m - node) < 0.3
+    mt.node_floor["N2"] = 1                                        # another floor: no anchor
+    assert len(network_feed.node_ranges(mt, "N1", 0)) == len(obs)  # type: ignore[arg-type]
