@@ -445,8 +445,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
         for i, n in enumerate(prior.nodes):
             initial.setdefault(n, prior.xbar[4 * len(prior.agents) + 2 * i:][:2])
     start = {**initial, **({n: v[0] for n, v in warm.nodes.items()} if warm else {})}
-    base = select_nodes(paths, ranges, prm)
-    spread, joined = select_linked(paths, ranges, links or NodeLinks.empty(), base, start, prm,
+    spread, joined = select_linked(paths, ranges, links or NodeLinks.empty(),
+                                   select_nodes(paths, ranges, prm), start, prm,
                                    max(warm.height_m, 0.1) if warm is not None else 1.0)
     for n, p in joined.items():
         initial.setdefault(n, p)
@@ -464,11 +464,8 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     inflation = np.concatenate([node_inflation(raw, np.abs(raw) < 3.0 * prm.loss_scale,
                                                prob.rnode, len(prob.node_ids)),
                                 np.full(len(last), pose_inflation)])
-    keep = np.ones(jac.shape[0], dtype=bool)          # graph_links: covariance
-    keep[n_r:prob.n_robust] = ~prob.links.between(np.isin(prob.node_ids, list(base)))
-    jc = jac[keep]
-    cov = inverse_blocks(csc_matrix(jc.T @ jc), [prob.node_col + 2 * i for i in
-                                          range(len(prob.node_ids))] + last, inflation)
+    cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
+                                            range(len(prob.node_ids))] + last, inflation)
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
     for i, n in enumerate(prob.node_ids):
         c = cov[i]

@@ -20,14 +20,6 @@ that a neighbour off the line resolves) and, with three anchors or more, the spr
 them (TLA/SELA: a node between localized neighbours). Nodes join in rounds, each round's
 nodes being anchors of the next (SELA's iterative localization); a joining node starts at the
 linear trilateration from all its anchors.
-
-Covariance. The links fix the nodes' relative geometry, not the frame the agents' passes put
-them in, and the path model under-states that frame's error: taken in the covariance, the links
-between two nodes the agents alone place shrink both nodes' covariances towards the relative
-precision while their error stays the frame's (over-confident on the development seeds). Those
-links shape the solution but are left out of the covariances (of the nodes and of the agents'
-latest poses); a node that joined through its links keeps them (without them its position is
-not determined).
 """
 
 from __future__ import annotations
@@ -183,18 +175,13 @@ class LinkRows:
         keep = np.array([a in index and b in index for a, b in
                          zip(links.a.tolist(), links.b.tolist(), strict=True)], dtype=bool)
         kept = links.select(keep) if len(links) else links
-        self.ia = np.array([index[a] for a in kept.a.tolist()], np.int64)
-        self.ib = np.array([index[b] for b in kept.b.tolist()], np.int64)
-        self.ca, self.cb = node_col + 2 * self.ia, node_col + 2 * self.ib
+        self.ca = node_col + 2 * np.array([index[a] for a in kept.a.tolist()], np.int64)
+        self.cb = node_col + 2 * np.array([index[b] for b in kept.b.tolist()], np.int64)
         self.r = kept.range_m
         self.s = kept.sigma_m
 
     def __len__(self) -> int:
         return len(self.r)
-
-    def between(self, nodes: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """The links whose two nodes are both ``nodes`` (a mask over the problem's nodes)."""
-        return np.asarray(nodes[self.ia] & nodes[self.ib], dtype=bool)
 
     def parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Whitened residuals, ``p_a - p_b`` and the distance."""
