@@ -444,7 +444,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     if prior is not None:
         for i, n in enumerate(prior.nodes):
             initial.setdefault(n, prior.xbar[4 * len(prior.agents) + 2 * i:][:2])
-    start = {**initial, **({n: v[0] for n, v in warm.nodes.items()} if warm else {})}
+    start = {**initial, **({n: v[0] for n, v in warm.nodes.items() if v[2]} if warm else {})}
     spread, joined = select_linked(paths, ranges, links or NodeLinks.empty(),
                                    select_nodes(paths, ranges, prm), start, prm,
                                    max(warm.height_m, 0.1) if warm is not None else 1.0)

@@ -13,13 +13,15 @@ ranges. Both nodes lie on the floor: no height term.
 
 Geometry. A node enters the problem and may count as localized when the positions it is ranged
 from spread off a line (:func:`hrtls.mission.graph_init.select_nodes`). With links, its
-anchors are also its neighbours already in the problem (at their starting positions): its
-effective spread is the largest of its agents' spread, the largest distance of a neighbour
-from the best-fit line of its reading positions (a line of passes leaves a mirror ambiguity
-that a neighbour off the line resolves) and, with three anchors or more, the spread of all of
-them (TLA/SELA: a node between localized neighbours). Nodes join in rounds, each round's
-nodes being anchors of the next (SELA's iterative localization); a joining node starts at the
-linear trilateration from all its anchors.
+anchors are also its placed neighbours (localized by the previous solve or the mission, or held
+by the marginalized prior, at those positions): its effective spread is the largest of its
+agents' spread, the largest distance of a neighbour from the best-fit line of its reading
+positions (a line of passes leaves a mirror ambiguity that a neighbour off the line resolves)
+and, with three anchors or more, the spread of all of them (TLA: a node between localized
+neighbours). A node that joins starts at the linear trilateration from all its anchors and is
+an anchor from the next solve on, once localized (SELA's rounds, one per solve: rounds
+within one solve, through neighbours not localized yet, did worse on the development seeds,
+docs/mission.md).
 """
 
 from __future__ import annotations
@@ -41,8 +43,6 @@ IntArray = NDArray[np.int64]
 
 MAD_SIGMA = 1.4826
 """A Gaussian's sigma per median absolute deviation."""
-MAX_ROUNDS = 8
-"""Rounds of nodes joining through their neighbours, at most."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,52 +119,41 @@ def _start(pts: FloatArray, r_pts: FloatArray, nb: FloatArray, r_nb: FloatArray
 
 
 def select_linked(paths: list[AgentPath], ranges: RangeSet, links: NodeLinks,
-                  base: dict[str, float], start_m: dict[str, FloatArray],
+                  base: dict[str, float], anchors_m: dict[str, FloatArray],
                   prm: SmootherParams, height_m: float
                   ) -> tuple[dict[str, float], dict[str, FloatArray]]:
     """Nodes of the problem with links (module doc): id -> effective spread; starting points.
 
-    ``base``: the nodes selected from the agents' ranges alone (id -> spread); ``start_m``:
-    known starting positions (the others of ``base`` start at their agents' trilateration);
-    ``height_m``: the antenna height difference the agents' ranges are reduced by.
+    ``base``: the nodes selected from the agents' ranges alone (id -> spread); ``anchors_m``:
+    the placed nodes' positions (the mission's localized estimates, the marginalized prior's,
+    the previous solve's localized ones): of ``base``, those are the anchors; ``height_m``: the
+    antenna height difference the agents' ranges are reduced by. The starting points are those
+    of the nodes that joined.
     """
     out = dict(base)
     if not len(links):
         return out, {}
     raw = raw_positions(paths, ranges)
     horiz = np.sqrt(np.maximum(ranges.range_m ** 2 - height_m ** 2, 0.0))
-    ids = sorted(set(links.a.tolist()) | set(links.b.tolist()))
-    own = {n: np.flatnonzero(ranges.node == n) for n in ids}
-    pos: dict[str, FloatArray] = {}
-    for n in out:
-        p = start_m.get(n)
-        if p is None and n in own and len(own[n]) >= 3:
-            p = linear_init(raw[own[n]], horiz[own[n]])
-        if p is not None and np.all(np.isfinite(p)):
-            pos[n] = np.asarray(p, np.float64)
-    new: dict[str, FloatArray] = {}
-    for _ in range(MAX_ROUNDS):
-        joined = {}
-        for n in ids:
-            m = np.flatnonzero((links.a == n) | (links.b == n))
-            other = np.where(links.a[m] == n, links.b[m], links.a[m])
-            ok = np.array([o in pos for o in other.tolist()], dtype=bool)
-            if not ok.any():
-                continue
-            nb = np.array([pos[o] for o in other[ok].tolist()]).reshape(-1, 2)
-            k = own.get(n, np.zeros(0, np.int64))
-            s = _effective(raw[k], nb, out.get(n, 0.0), prm.min_spread_m)
-            if n in out:
-                out[n] = max(out[n], s)
-            elif s >= prm.min_spread_m:
-                p = _start(raw[k], horiz[k], nb, links.range_m[m][ok])
-                if p is not None and np.all(np.isfinite(p)):
-                    joined[n] = (s, p)
-        if not joined:
-            break
-        for n, (s, p) in joined.items():
-            out[n], pos[n], new[n] = s, p, p
-    return out, new
+    pos = {n: np.asarray(anchors_m[n], np.float64) for n in out
+           if n in anchors_m and np.all(np.isfinite(anchors_m[n]))}
+    joined: dict[str, FloatArray] = {}
+    for n in sorted(set(links.a.tolist()) | set(links.b.tolist())):
+        m = np.flatnonzero((links.a == n) | (links.b == n))
+        other = np.where(links.a[m] == n, links.b[m], links.a[m])
+        ok = np.array([o in pos for o in other.tolist()], dtype=bool)
+        if not ok.any():
+            continue
+        nb = np.array([pos[o] for o in other[ok].tolist()]).reshape(-1, 2)
+        k = np.flatnonzero(ranges.node == n)
+        s = _effective(raw[k], nb, out.get(n, 0.0), prm.min_spread_m)
+        if n in out:
+            out[n] = max(out[n], s)
+        elif s >= prm.min_spread_m:
+            p = _start(raw[k], horiz[k], nb, links.range_m[m][ok])
+            if p is not None and np.all(np.isfinite(p)):
+                out[n], joined[n] = s, p
+    return out, joined
 
 
 class LinkRows:
