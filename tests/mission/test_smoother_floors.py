@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from hrtls.errors import FormatError
 from hrtls.mission.floors import FloorLog, node_floor, on_node_floor
 from hrtls.mission.graph import RangeSet, SmootherParams, smooth
+from hrtls.mission.network_feed import NetworkState
 from hrtls.mission.smoothing import SmootherState, problem, solve, state_from, state_of
 
 
@@ -58,7 +59,7 @@ def _mission(ranges: list[list[Any]], floors_cut: dict[str, dict[int, int]] | No
     return SimpleNamespace(
         smoother=sm, params=SimpleNamespace(smoother=SmootherParams(decimate_s=1.0)),
         names=["R0", "R1"], trackers={"R0": object(), "R1": object()}, known=[[], []],
-        floor_logs=logs)
+        floor_logs=logs, network=NetworkState())
 
 
 def _ranges(agent: int, centre: tuple[float, float]) -> list[Any]:
