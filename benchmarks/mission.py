@@ -30,6 +30,9 @@ older than this leave its problem as a prior (``SmootherParams.window_s``); its 
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
 
+``--node-ranges``: the dropped nodes range each other (``MissionOptions.node_ranges``, the
+ranges fed by ``MissionTracker.feed_network``).
+
 ``--nees-split``: the agents' NEES split by time since their latest node use, the worst class
 of their uses (independent, second-order loop, direct), the NEES of the latest node used, their
 loop closures and their kind, pooled over the seeds (``benchmarks/_mission_nees.py``).
@@ -272,6 +275,7 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
             kinds=mission.kinds,
             config=TrackerConfig.model_validate({"prediction": item.prediction,
                                                  "attitude": item.attitude, "tags": item.tags}))
+        tracker.feed_network(mission.network_ranges)
         res, windows, agents_s, nodes_s = _run_timed(tracker)
         e, e_nees = agent_errors(mission, res)
         frac, rmse, nees = node_scores(mission, res)
@@ -329,6 +333,8 @@ def main() -> None:
     ap.add_argument("--walk-s", type=float, default=300.0, help="each rescuer's walk, s")
     ap.add_argument("--peer-ranges", action="store_true",
                     help="cooperation on, without vs with inter-agent ranges")
+    ap.add_argument("--node-ranges", action="store_true",
+                    help="the dropped nodes range each other (MissionOptions.node_ranges)")
     ap.add_argument("--peer-extrapolate", action="store_true",
                     help="PeerRangeParams.extrapolate: a peer extrapolated with its velocity")
     ap.add_argument("--max-sigma-m", type=float, default=None,
@@ -424,7 +430,7 @@ def main() -> None:
                           node_failure_fraction=args.node_failure, walk_s=args.walk_s,
                           robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver,
                           tag_layout=args.tags, door_spacing_m=args.door_spacing_m,
-                          n_floors=args.floors)
+                          n_floors=args.floors, node_ranges=args.node_ranges)
     cols = modes(args.peer_ranges, args.only_on, args.only_off)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
@@ -496,7 +502,8 @@ def main() -> None:
           f"{args.robots} robots "
           f"({args.robot_driver} driver), tags {args.tags}"
           f"{f' (doors {args.door_spacing_m:g} m apart)' if args.tags == 'doors' else ''}, "
-          f"{args.nodes} nodes, {args.floors} floor(s), range sigma "
+          f"{args.nodes} nodes{' ranging each other' if args.node_ranges else ''}, "
+          f"{args.floors} floor(s), range sigma "
           f"{args.range_sigma_m} m + {100 * args.range_sigma_fraction:g} % of the distance, "
           f"node failure {args.node_failure}, agent covariance scale "
           f"{nodes.agent_cov_scale}, agent correlation {nodes.agent_correlation}, use variance "

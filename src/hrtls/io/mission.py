@@ -13,6 +13,9 @@
   every agent uses each version from that time on (:mod:`hrtls.pipeline.landmark_updates`);
 * one session per agent (:func:`hrtls.io.session.read_session`; other recordings are converted
   first, ``hrtls convert``);
+* ``network_ranges.csv`` (optional): ``t_s,node_a,node_b,range_m``, ranges measured between
+  two dropped nodes at mission time ``t_s`` (the agents' session clock), m
+  (:class:`hrtls.mission.network_ranges.NetworkRanges`);
 * ``network_truth.json`` (optional, scoring only): ``{"nodes": [{"id", "position": [x, y(, z)]}]}``.
 
 Ground truth (agents' ``truth.csv`` / ``checkpoints.csv``, ``network_truth.json``) is read into
@@ -25,7 +28,7 @@ import json
 import re
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
@@ -37,6 +40,7 @@ from hrtls.data import Session
 from hrtls.data.clocks import check_session_clocks
 from hrtls.data.landmarks import Landmark
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.io.csvtable import ColumnKind, arrow_from_columns, csv_bytes, read_table
 from hrtls.io.session import (
     is_session,
     landmark_list,
@@ -44,6 +48,7 @@ from hrtls.io.session import (
     pydantic_problem,
     read_session,
 )
+from hrtls.mission.network_ranges import NetworkRanges
 
 FloatArray = NDArray[np.float64]
 
@@ -55,6 +60,9 @@ NETWORK_FILE = "network.json"
 LANDMARKS_FILE = "landmarks.json"
 LANDMARK_UPDATES_FILE = "landmark_updates.json"
 NETWORK_TRUTH_FILE = "network_truth.json"
+NETWORK_RANGES_FILE = "network_ranges.csv"
+_NETWORK_RANGES_COLUMNS: dict[str, ColumnKind] = {
+    "t_s": "float", "node_a": "str", "node_b": "str", "range_m": "float"}
 AgentKind = Literal["rescuer", "robot"]
 
 
@@ -165,6 +173,8 @@ class MissionFolder:
         ``id -> (2,) or (3,)`` true node positions, m (``network_truth.json``; None without).
     landmark_updates:
         Versions of location messages during the mission, by time (``landmark_updates.json``).
+    network_ranges:
+        Ranges between dropped nodes (``network_ranges.csv``; none without it).
     """
 
     path: Path
@@ -174,6 +184,7 @@ class MissionFolder:
     landmarks: dict[str, Landmark]
     node_truth_m: dict[str, FloatArray] | None
     landmark_updates: tuple[Landmark, ...] = ()
+    network_ranges: NetworkRanges = field(default_factory=NetworkRanges.empty)
 
     def sessions(self) -> dict[str, Session]:
         """What the estimator gets: each agent's session without its ground truth."""
@@ -264,7 +275,45 @@ def read_mission(path: Path | str, *, repair: bool = False) -> MissionFolder:
                                        expected='{"nodes": [{"id", "position": [x, y(, z)]}]}')
         truth = {n.id: np.asarray(n.position, dtype=np.float64) for n in nt.nodes}
     return MissionFolder(root, spec.name, agents, nodes, landmarks, truth,
-                         _read_landmark_updates(root / LANDMARK_UPDATES_FILE, nodes))
+                         _read_landmark_updates(root / LANDMARK_UPDATES_FILE, nodes),
+                         read_network_ranges(root / NETWORK_RANGES_FILE, nodes))
+
+
+def read_network_ranges(path: Path, nodes: Sequence[str]) -> NetworkRanges:
+    """``network_ranges.csv`` (none without the file); a bad row names its line and field.
+
+    Ids not in ``network.json`` (``nodes``) are warned of, as an agent's unknown ids are.
+    """
+    if not path.is_file():
+        return NetworkRanges.empty()
+    cols = list(_NETWORK_RANGES_COLUMNS)
+    tab = read_table(path.read_bytes(), name=str(path), kinds=_NETWORK_RANGES_COLUMNS,
+                     required=cols)
+    t, a, b, r = tab.float("t_s"), tab.str("node_a"), tab.str("node_b"), tab.float("range_m")
+    for bad, fld, problem, expected in ((r <= 0, "range_m", "range", "a distance > 0 m"),
+                                        (a == b, "node_b", "the same node as node_a",
+                                         "two different nodes")):
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            value = r[i] if fld == "range_m" else repr(str(b[i]))
+            raise FormatError(f"{problem} {value}", where=f"{path} line {i + 2} column {fld}",
+                              expected=expected)
+    out = NetworkRanges.concat([NetworkRanges(t, a, b, r)])
+    left = sorted(set(out.nodes()) - set(nodes))
+    if left:
+        shown = ", ".join(left[:5]) + (" ..." if len(left) > 5 else "")
+        warnings.warn(f"{path}: {len(left)} id(s) not in the mission's {NETWORK_FILE} ({shown})",
+                      DegradedInputWarning, stacklevel=3)
+    return out
+
+
+def write_network_ranges(path: Path | str, ranges: NetworkRanges) -> Path:
+    """Write ``network_ranges.csv`` (module doc) into the folder ``path``."""
+    out = Path(path) / NETWORK_RANGES_FILE
+    out.write_bytes(csv_bytes(arrow_from_columns({
+        "t_s": ranges.t_s, "node_a": ranges.node_a, "node_b": ranges.node_b,
+        "range_m": ranges.range_m})))
+    return out
 
 
 def _read_landmark_updates(path: Path, nodes: Sequence[str]) -> tuple[Landmark, ...]:

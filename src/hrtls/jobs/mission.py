@@ -1,8 +1,9 @@
 """Track a mission folder offline with :class:`~hrtls.mission.tracker.MissionTracker`.
 
 :func:`track_mission` reads the folder (:mod:`hrtls.io.mission`), gives the tracker the agents'
-sessions without their ground truth, finishes each agent's track as ``hrtls track`` does and
-scores it against its truth; :func:`write_mission_outputs` writes
+sessions without their ground truth and the ranges between nodes (``network_ranges.csv``),
+finishes each agent's track as ``hrtls track`` does and scores it against its truth;
+:func:`write_mission_outputs` writes
 
 * ``agents/<name>/``: the outputs of ``hrtls track`` (``trajectory.csv``, ``steps.csv``, GeoJSON,
   ``report.json`` with the evaluation when the agent has ground truth);
@@ -78,8 +79,10 @@ def track_mission(folder: MissionFolder | Path | str, *, config: TrackerConfig,
     sessions = estimator_sessions(folder)
     start = time.perf_counter()
     kinds = {name: a.kind for name, a in folder.agents.items()}
-    result = MissionTracker(sessions, config=config, params=params, kinds=kinds,
-                            landmark_updates=folder.landmark_updates).run()
+    tracker = MissionTracker(sessions, config=config, params=params, kinds=kinds,
+                             landmark_updates=folder.landmark_updates)
+    tracker.feed_network(folder.network_ranges)
+    result = tracker.run()
     seconds = time.perf_counter() - start
     agents: dict[str, TrackResult] = {}
     evaluations: dict[str, dict[str, Any] | None] = {}

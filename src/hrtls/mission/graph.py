@@ -66,6 +66,7 @@ from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, robust_weights, spd_lu
 from hrtls.mission.graph_init import extend, linear_init, select_nodes
+from hrtls.mission.graph_links import LinkRows, NodeLinks, select_linked
 from hrtls.mission.graph_params import SmootherParams
 from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
 from hrtls.mission.increment_noise import ChainNoise, whitening
@@ -164,7 +165,8 @@ class _Problem:
     """
 
     def __init__(self, paths: list[AgentPath], ranges: RangeSet, node_ids: list[str],
-                 prm: SmootherParams, prior: MarginalPrior | None = None) -> None:
+                 prm: SmootherParams, prior: MarginalPrior | None = None,
+                 links: NodeLinks | None = None) -> None:
         self.prm = prm
         self.node_ids = node_ids
         self.t, self.f, self.pose_col, self.s_col, self.n_seg = [], [], [], [], []
@@ -210,6 +212,8 @@ class _Problem:
         self.p0 = [np.linalg.cholesky(np.linalg.inv(p.start_cov_m2 + 1e-6 * np.eye(2))).T
                    for p in paths]
         self._ranges(ranges)
+        self.links = LinkRows(links or NodeLinks.empty(), node_ids, self.node_col)
+        self.n_robust = len(self.r) + len(self.links)
         self._factors(paths)
         self.names = [p.name for p in paths]
         self.first_w = np.array([0.0 if prior is not None and p.name in prior.agents else 1.0
@@ -231,7 +235,7 @@ class _Problem:
         ``w``: the robust loss's ``rho'`` on the range rows, 1 on the others.
         """
         res = self.residuals(x)
-        n_r = len(self.r)
+        n_r = self.n_robust
         w = np.ones(res.size)
         w[:n_r] = robust_weights(res[:n_r] ** 2 / self.prm.loss_scale ** 2, self.prm.loss)
         sw = np.sqrt(w)
@@ -309,7 +313,7 @@ class _Problem:
 
     def residuals(self, x: FloatArray) -> FloatArray:
         prm = self.prm
-        out = [self._range_parts(x)[0], self._odo_parts(x)[0].reshape(-1),
+        out = [self._range_parts(x)[0], self.links.parts(x)[0], self._odo_parts(x)[0].reshape(-1),
                self._factor_parts(x).reshape(-1)]
         for a, col in enumerate(self.pose_col):
             out.append(self.first_w[a] * self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
@@ -346,6 +350,9 @@ class _Problem:
             put(ri, self.c0 + ax, (1.0 - self.w) * u[:, ax])
             put(ri, self.c1 + ax, self.w * u[:, ax])
         put(ri, np.full(n_r, self.height_col), -x[self.height_col] / (h * self.s))
+        for r_, c_, v_ in zip(*self.links.jacobian(x, n_r), strict=True):
+            put(r_, c_, v_)
+        n_r = self.n_robust
         _, rd, rdp = self._odo_parts(x)
         k = 1.0 + x[self.odo_s]
         oi = n_r + 2 * np.arange(len(self.odo_k))
@@ -423,24 +430,28 @@ def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, Fl
 
 def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams | None = None,
            initial_nodes: dict[str, FloatArray] | None = None,
-           warm: SmootherResult | None = None, prior: MarginalPrior | None = None
-           ) -> SmootherResult:
+           warm: SmootherResult | None = None, prior: MarginalPrior | None = None,
+           links: NodeLinks | None = None) -> SmootherResult:
     """Solve the agents' paths and the nodes jointly (module doc).
 
     ``initial_nodes``: starting positions of nodes (others: linear trilateration from the
     agents' rows); ``warm``: a previous solution to start from (its nodes and corrections);
     ``prior``: the marginalized older poses (:mod:`hrtls.mission.graph_window`; its nodes
-    stay in the problem).
+    stay in the problem); ``links``: ranges between nodes (:mod:`hrtls.mission.graph_links`).
     """
     prm = params or SmootherParams()
-    spread = select_nodes(paths, ranges, prm)
-    ids = list(spread)
     initial = dict(initial_nodes or {})
     if prior is not None:
-        ids = sorted(set(ids) | set(prior.nodes))
         for i, n in enumerate(prior.nodes):
             initial.setdefault(n, prior.xbar[4 * len(prior.agents) + 2 * i:][:2])
-    prob = _Problem(paths, ranges, ids, prm, prior)
+    start = {**initial, **({n: v[0] for n, v in warm.nodes.items()} if warm else {})}
+    spread, joined = select_linked(paths, ranges, links or NodeLinks.empty(),
+                                   select_nodes(paths, ranges, prm), start, prm,
+                                   max(warm.height_m, 0.1) if warm is not None else 1.0)
+    for n, p in joined.items():
+        initial.setdefault(n, p)
+    ids = sorted(set(spread) | set(prior.nodes)) if prior is not None else list(spread)
+    prob = _Problem(paths, ranges, ids, prm, prior, links)
     x0 = _initial(prob, paths, initial, warm)
     x, evaluations = _solve(prob, x0)
     res, _, jac = prob.weighted(x)
@@ -480,7 +491,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
 def _cost(prob: _Problem, x: FloatArray) -> float:
     """Robust cost: ``sum rho`` of the range rows plus the squared prior and odometry rows."""
     res = prob.residuals(x)
-    n_r = len(prob.r)
+    n_r = prob.n_robust
     c2 = prob.prm.loss_scale ** 2
     z = res[:n_r] ** 2 / c2
     loss = prob.prm.loss
@@ -522,12 +533,13 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
 
 def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
               params: SmootherParams, prior: MarginalPrior | None,
-              point: Callable[[Layout], FloatArray]) -> tuple[Layout, csc_matrix, FloatArray]:
+              point: Callable[[Layout], FloatArray], links: NodeLinks | None = None
+              ) -> tuple[Layout, csc_matrix, FloatArray]:
     """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at a point.
 
     ``point``: the unknowns from the solve's columns; ``W``: the robust loss's weights there.
     """
-    prob = _Problem(paths, ranges, node_ids, params, prior)
+    prob = _Problem(paths, ranges, node_ids, params, prior, links)
     lay = prob.layout()
     res, sw, jw = prob.weighted(point(lay))
     return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (sw * res), np.float64)

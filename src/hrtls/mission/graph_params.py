@@ -65,6 +65,10 @@ class SmootherParams:
         ``"both"`` (its tracker too, widened as any node's) or ``"smoother"`` (only the
         smoother: they reach the tracker through the feedback, counted once;
         :func:`hrtls.mission.smoothing.via_feedback`).
+    link_sigma_m, link_sigma_fraction:
+        The estimator's noise model of a range between two dropped nodes (no sigma comes
+        with them): ``sqrt(link_sigma_m^2 + (link_sigma_fraction r)^2)``, m
+        (:mod:`hrtls.mission.graph_links`).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -96,16 +100,19 @@ class SmootherParams:
     robots: str = "nodes"
     feedback_ranges: str = "both"
     window_s: float | None = None
+    link_sigma_m: float = 0.15
+    link_sigma_fraction: float = 0.03
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
                      "scale_walk_sigma", "heading_sigma_rad", "heading_walk_rad",
                      "height_sigma_m", "loss_scale", "min_spread_m", "localize_spread_m",
-                     "max_sigma_m", "every_s", "feedback_cov_scale", "feedback_gate"):
+                     "max_sigma_m", "every_s", "feedback_cov_scale", "feedback_gate",
+                     "link_sigma_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
-        for name in ("odo_fraction", "range_correlation_s"):
+        for name in ("odo_fraction", "range_correlation_s", "link_sigma_fraction"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"{name} = {getattr(self, name)}", where="SmootherParams",
                                  expected=">= 0")

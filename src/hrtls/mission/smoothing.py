@@ -40,11 +40,12 @@ from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import FormatError
-from hrtls.mission import bridge
+from hrtls.mission import bridge, network_feed
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
 from hrtls.mission.floors import on_node_floor
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
+from hrtls.mission.graph_links import NodeLinks
 from hrtls.mission.graph_window import (
     Layout,
     MarginalPrior,
@@ -272,8 +273,9 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     paths, ranges = got
     initial = {n: e.position_m for n, e in mt.estimates.items() if e.localized}
     clock = time.perf_counter()
+    links = network_feed.links(mt)
     st.warm = smooth(paths, ranges, params=prm, initial_nodes=initial, warm=st.warm,
-                     prior=st.prior)
+                     prior=st.prior, links=links)
     st.seconds.append(time.perf_counter() - clock)
     solved = st.warm
     changed: list[str] = []
@@ -284,6 +286,8 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
         k = int(np.count_nonzero(mine))
         if k and ranges.floor is not None:        # else: only in the prior, floor unchanged
             mt.node_floor[node] = int(ranges.floor[mine][0])
+        elif node not in mt.node_floor:           # joined through its links: theirs
+            mt.node_floor[node] = _linked_floor(mt, links, node)
         mt.estimates[node] = NodeEstimate(p.copy(), cov.copy(), True, "", np.ones(k, dtype=bool),
                                           solved.rms, solved.evaluations)
         st.owned.add(node)
@@ -291,21 +295,30 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
         mt.history.setdefault(node, []).append((t_end, p.copy(), cov.copy()))
         changed.append(node)
     if prm.window_s is not None:
-        _slide(mt, paths, ranges, t_end - prm.window_s)
+        _slide(mt, paths, ranges, t_end - prm.window_s, links)
     if prm.feedback != "off" and mt.params.cooperate:
         for name in feed_back(mt, solved):
             _fed_back(mt, name)
     return changed
 
 
-def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s: float
-           ) -> None:
-    """Marginalize the poses before ``t_cut_s`` of the solve just made (module doc)."""
+def _linked_floor(mt: MissionTracker, links: NodeLinks, node: str) -> int:
+    """The floor of the first of ``node``'s linked nodes with one (0 without)."""
+    other = np.concatenate([links.b[links.a == node], links.a[links.b == node]])
+    return next((mt.node_floor[o] for o in other.tolist() if o in mt.node_floor), 0)
+
+
+def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s: float,
+           links: NodeLinks) -> None:
+    """Marginalize the poses before ``t_cut_s`` of the solve just made (module doc).
+
+    The links stay in the problem (their nodes do): in both linearizations, they cancel.
+    """
     prm, st = mt.params.smoother, mt.smoother
     assert prm is not None and st is not None and st.warm is not None
     res, ids = st.warm, list(st.warm.nodes)
     lay0, h0, g0 = linearize(paths, ranges, ids, params=prm, prior=st.prior,
-                             point=lambda lay: solution_vector(lay, res))
+                             point=lambda lay: solution_vector(lay, res), links=links)
     x0 = solution_vector(lay0, res)
     cut = {}
     for a, name in enumerate(lay0.names):
@@ -324,7 +337,7 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
     def at(lay: Layout) -> NDArray[np.float64]:
         return np.asarray(x0[np.maximum(carried(lay0, lay, cut), 0)], np.float64)
 
-    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at)
+    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at, links=links)
     st.prior = marginalized(lay0, h0, g0, x0, lay1, h1, g1, cut, agents)
     st.warm = trimmed(res, lay0, cut)
 

@@ -7,8 +7,10 @@ parameters, each agent's header (metadata, landmarks as JSON), each rescuer's
 :meth:`hrtls.pipeline.Tracker.snapshot` bytes, each robot's EKF state, the agents' buffered data
 not yet processed, and the node side (readings, estimates, history, who contributed and who
 uses which node, loop closures, each agent's ranges pending until its rows cover them, the
-agents' floor logs, the readings' and nodes' floors). Version 3 (before floors) still restores:
-its readings and nodes are on floor 0 and its agents' floor logs start empty (floor 0).
+agents' floor logs, the readings' and nodes' floors), and the ranges between nodes (buffered
+and processed, :mod:`hrtls.mission.network_feed`; none in a snapshot made before them).
+Version 3 (before floors) still restores: its readings and nodes are on floor 0 and its
+agents' floor logs start empty (floor 0).
 
 A restored mission continues exactly as the original would: the same windows, node estimates
 and agent rows. The agents' rows produced before the snapshot are not in it (the service stores
@@ -33,7 +35,7 @@ from hrtls.data.observations import (
 from hrtls.data.series import ImuStream, OrientationSeries, SensorSeries
 from hrtls.data.session import SessionMeta
 from hrtls.errors import FormatError
-from hrtls.mission import bridge, smoothing
+from hrtls.mission import bridge, network_feed, smoothing
 from hrtls.mission.floors import FloorLog
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimate, NodeEstimatorParams
@@ -219,6 +221,7 @@ def mission_snapshot(mt: Any) -> bytes:
         "nodes": _nodes_state(mt),
         "smoother": smoothing.state_of(mt.smoother),
         "bridge": bridge.state_of(mt.bridge),
+        "network": network_feed.state_of(mt.network),
     }
     return codec.pack(state)
 
@@ -268,6 +271,7 @@ def restore_mission(data: bytes) -> Any:
         _restore_nodes(mt, d["nodes"])
         mt.smoother = smoothing.state_from(d.get("smoother"))
         mt.bridge = bridge.state_from(d.get("bridge"))
+        mt.network = network_feed.state_from(d.get("network"))
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(f"incomplete mission snapshot ({exc!r})", where="mission snapshot",
                           expected="bytes from MissionTracker.snapshot()") from None

@@ -56,10 +56,11 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.data.session import SessionMeta
 from hrtls.errors import InputError
-from hrtls.mission import bridge, smoothing
+from hrtls.mission import bridge, network_feed, smoothing
 from hrtls.mission.buffer import AgentBuffer, LateData, startable, window_complete
 from hrtls.mission.floors import FloorLog, building_floor_height_m, node_floor
 from hrtls.mission.graph import SmootherParams
+from hrtls.mission.network_ranges import NetworkRanges
 from hrtls.mission.nodes import NodeEstimate, NodeEstimator, NodeEstimatorParams, largest_variance
 from hrtls.mission.peers import PeerRangeParams, PeerUses, merge_ranges, split_peer_ranges
 from hrtls.mission.provenance import NodeUse, Provenance, UsePool, informative, widening
@@ -105,8 +106,7 @@ class MissionParams:
         than this (on the clock given to :meth:`MissionTracker.feed`) no longer holds the
         windows back; its data older than the processed horizon are then late, s.
     nodes, peer_ranges:
-        Node estimator parameters;
-        how a peer's estimate is carried to the time of an inter-agent range.
+        Node estimator parameters; how a peer's estimate is carried to an inter-agent range.
     smoother:
         The range-SLAM smoother (:mod:`hrtls.mission.smoothing`), by default that of
         :data:`~hrtls.mission.smoother_modes.DEFAULT_MODE`; None: the per-node estimator alone.
@@ -168,13 +168,6 @@ class AgentHeader:
     landmarks: dict[str, Landmark] = field(default_factory=dict)
 
 
-def _known_ids(header: AgentHeader) -> list[str]:
-    """Ids of the agent's landmarks with a position (local, or WGS-84 with a georeference)."""
-    geo = header.meta.georeference is not None
-    return sorted(k for k, lm in header.landmarks.items()
-                  if lm.position is not None or (geo and lm.wgs84 is not None))
-
-
 class MissionTracker:
     """All agents of a mission and the dropped nodes as one causal loop (see module doc).
 
@@ -207,7 +200,8 @@ class MissionTracker:
                              expected="rescuer or robot")
         self.headers = {k: (AgentHeader(a.meta, dict(a.landmarks)) if isinstance(a, Session)
                             else a) for k, a in agents.items()}
-        self.known = [_known_ids(self.headers[k]) for k in self.names]
+        self.known = [network_feed.known_ids(self.headers[k].meta, self.headers[k].landmarks)
+                      for k in self.names]
         self.trackers: dict[str, Tracker | RobotTracker] = {
             k: RobotTracker() if self.kinds[k] == "robot" else Tracker(config)
             for k in self.names}
@@ -242,6 +236,7 @@ class MissionTracker:
         self.smoother = smoothing.SmootherState() if self.params.smoother else None
         self.bridge = bridge.BridgeState() if self.params.smooth_readings_s > 0 else None
         self.floor_logs = {k: FloorLog() for k in self.names}
+        self.network = network_feed.NetworkState()
         self.node_floor: dict[str, int] = {}
         self.floor_height_m = building_floor_height_m(
             [self.headers[k].meta.floor_height_m for k in self.names if self.kinds[k] == "rescuer"])
@@ -263,6 +258,10 @@ class MissionTracker:
                              expected="one of " + ", ".join(self.names))
         clock = part.time_span()[1] if now_s is None else now_s
         return buf.add(part, horizon_s=self.horizon_s, now_s=clock)
+
+    def feed_network(self, part: NetworkRanges, *, now_s: float | None = None) -> LateData | None:
+        """Buffer ranges between dropped nodes like :meth:`feed` (:mod:`.network_feed`)."""
+        return network_feed.feed(self, part, now_s=now_s)
 
     def add_landmark_updates(self, versions: Sequence[Landmark]) -> list[Landmark]:
         """Landmark versions written during a live mission, each holding from ``updated`` on.
@@ -414,6 +413,7 @@ class MissionTracker:
                 touched |= self._collect(i, name, keep, self.agent_rows(name))
             touched |= bridge.revise(self, name, touched)
             self._trim_rows(name, t_end)
+        network_feed.step(self, t_start, t_end)
         changed = self._relocalize(touched, t_end)
         changed += [n for n in smoothing.solve(self, t_end) if n not in changed]
         if self.params.cooperate:

@@ -13,7 +13,8 @@ the other (``stagger_s`` apart) from the entrance and walk random routes through
 exponential NLOS bias behind walls, dropouts, failed nodes never answer); one magnetic
 environment (15 random disturbances) for the floor, the same field for every rescuer. With
 ``peer_ranges`` the agents also range to each other (:mod:`hrtls.sim.peers`: node id = the other
-agent's name, ``peer_rate_hz``, ``peer_max_range_m``).
+agent's name, ``peer_rate_hz``, ``peer_max_range_m``). With ``node_ranges`` the alive nodes range
+each other (:mod:`hrtls.sim.node_links`, ``node_range_rate_hz``): :attr:`Mission.network_ranges`.
 
 The agents' sessions hold only what an agent knows (start pose at the entrance, the tags'
 location messages, ranges to node ids); the nodes' true positions are in :class:`Mission` apart,
@@ -38,7 +39,8 @@ rescuers or peer ranges.
 
 :func:`write_mission_result` saves a mission as a mission folder (:mod:`hrtls.io.mission`): the
 agents' sessions with their truth tables and the simulator's extras, ``network.json`` (node ids),
-the tags in ``landmarks.json`` and the node positions in ``network_truth.json`` (scoring only).
+the tags in ``landmarks.json``, the ranges between nodes in ``network_ranges.csv`` (with
+``node_ranges``) and the node positions in ``network_truth.json`` (scoring only).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from hrtls.data.results import Activity, StepEvents
 from hrtls.data.session import SessionMeta, StartPose
 from hrtls.errors import InputError
 from hrtls.frames import wrap_angle
+from hrtls.mission.network_ranges import NetworkRanges
 from hrtls.sim.devices import get_device
 from hrtls.sim.infrastructure import RangeModel, RfidTag, TrackSample, range_measurements
 from hrtls.sim.magnetic import MagneticEnvironment, random_anomalies
@@ -73,6 +76,7 @@ from hrtls.sim.mission_floors import (
     two_floor_walk,
 )
 from hrtls.sim.motion_truth import MotionTruth, random_floorplan_walk, simulate_motion
+from hrtls.sim.node_links import node_network_ranges
 from hrtls.sim.peers import peer_ranges
 from hrtls.sim.person import Infrastructure, simulate_person
 from hrtls.sim.scenario_options import scenario_rngs
@@ -129,6 +133,12 @@ class MissionOptions:
     office door of the room blocks' walls (:func:`mission_tags`)."""
     door_spacing_m: float = 12.0
     """Distance between doors along a wall (every other door of a 6 m office module)."""
+    node_ranges: bool = False
+    """The dropped nodes range each other (:mod:`hrtls.sim.node_links`: same floor, within
+    ``max_range_m``, the agents' radio model): :attr:`Mission.network_ranges`."""
+    node_range_rate_hz: float = 0.2
+    """Ranging attempts per pair of nodes per second (a UWB node sharing its air time with
+    its neighbours and the agents)."""
     n_floors: int = 1
     """1: one floor; 2: the two-floor building of :mod:`hrtls.sim.mission_floors` (nodes
     alternate between the floors, tags on both, rescuers climb the stairs, robots stay on
@@ -171,6 +181,9 @@ class MissionOptions:
         if not (self.peer_rate_hz > 0 and self.peer_max_range_m > 0):
             raise InputError(f"peer_rate_hz = {self.peer_rate_hz}, peer_max_range_m = "
                              f"{self.peer_max_range_m}", where="MissionOptions", expected="> 0")
+        if not (np.isfinite(self.node_range_rate_hz) and self.node_range_rate_hz > 0):
+            raise InputError(f"node_range_rate_hz = {self.node_range_rate_hz}",
+                             where="MissionOptions", expected="> 0 Hz")
         if not 0.0 <= self.node_failure_fraction < 1.0:
             raise InputError(f"node_failure_fraction = {self.node_failure_fraction}",
                              where="MissionOptions", expected="in [0, 1)")
@@ -190,6 +203,8 @@ class Mission:
     """Agent kind by name (``rescuer`` when missing)."""
     node_floor: dict[str, int] = dataclasses.field(default_factory=dict)
     """True floor of each node (scoring only; 0 when missing)."""
+    network_ranges: NetworkRanges = dataclasses.field(default_factory=NetworkRanges.empty)
+    """Ranges between the dropped nodes (``node_ranges``; an input of the estimator)."""
 
 
 def _drop_nodes(rng: np.random.Generator, n: int) -> dict[str, tuple[float, float, float]]:
@@ -286,6 +301,7 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         sims[f"R{i + 1}"] = sim
     kinds: dict[str, Literal["rescuer", "robot"]] = dict.fromkeys(agents, "rescuer")
     rescuers = dict(agents)
+    alive_all = alive
     alive = {k: v for k, v in alive.items() if v[2] < FLOOR_HEIGHT_M / 2}   # robots: floor 0
     for i in range(o.n_robots):
         name = f"B{i + 1}"
@@ -294,13 +310,14 @@ def inderst_hybrid_mission(seed: int, options: MissionOptions | None = None) -> 
         else:
             agents[name], sims[name] = _robot(seed, i, o, alive, model)
         kinds[name] = "robot"
-    return _finish(seed, o, nodes, model, agents, sims, kinds)
+    return _finish(seed, o, nodes, model, agents, sims, kinds, alive_all)
 
 
 def _finish(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
             model: RangeModel, agents: dict[str, Session], sims: dict[str, SimulationResult],
-            kinds: dict[str, Literal["rescuer", "robot"]]) -> Mission:
-    """The mission, with the inter-agent ranges when asked (module doc)."""
+            kinds: dict[str, Literal["rescuer", "robot"]],
+            alive: dict[str, tuple[float, float, float]]) -> Mission:
+    """The mission, with the inter-agent and node-node ranges when asked (module doc)."""
     if o.peer_ranges:
         peer_model = dataclasses.replace(model, rate_hz=o.peer_rate_hz,
                                          max_range_m=o.peer_max_range_m)
@@ -308,8 +325,15 @@ def _finish(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, float, f
         sims = {k: dataclasses.replace(v, session=agents[k]) for k, v in sims.items()}
     truth = {k: np.asarray(v[:2], dtype=np.float64) for k, v in nodes.items()}
     floors = node_floors(nodes)
+    network = NetworkRanges.empty()
+    if o.node_ranges:
+        spans = [s.truth.t[[0, -1]] for s in agents.values() if s.truth is not None]
+        network = node_network_ranges(
+            alive, model, rate_hz=o.node_range_rate_hz, t0_s=float(min(a for a, _ in spans)),
+            t1_s=float(max(b for _, b in spans)), floor_height_m=FLOOR_HEIGHT_M,
+            rng=scenario_rngs(seed * 1000 + 998)[6])
     return Mission(agents=agents, simulations=sims, node_truth_m=truth, options=o, seed=seed,
-                   kinds=kinds, node_floor=floors)
+                   kinds=kinds, node_floor=floors, network_ranges=network)
 
 
 def _climbing_rescuer(seed: int, i: int, o: MissionOptions, rr: list[np.random.Generator],
@@ -375,7 +399,7 @@ def _driven_team(seed: int, o: MissionOptions, nodes: dict[str, tuple[float, flo
     agents = {k: v.session for k, v in sims.items()}
     kinds: dict[str, Literal["rescuer", "robot"]] = {
         **dict.fromkeys(persons, "rescuer"), **dict.fromkeys(robots, "robot")}
-    return _finish(seed, o, nodes, model, agents, sims, kinds)
+    return _finish(seed, o, nodes, model, agents, sims, kinds, alive)
 
 
 def _robot(seed: int, i: int, o: MissionOptions, nodes: dict[str, tuple[float, float, float]],
@@ -490,7 +514,7 @@ def run_mission(name: str, seed: int, **options: Any) -> Mission:
 
 def write_mission_result(mission: Mission, path: Path | str, *, overwrite: bool = False) -> Path:
     """Save ``mission`` as a mission folder (see the module doc); returns the folder."""
-    from hrtls.io.mission import write_mission, write_network_truth
+    from hrtls.io.mission import write_mission, write_network_ranges, write_network_truth
     from hrtls.sim.scenarios import write_extras
 
     landmarks = {k: lm for s in mission.agents.values() for k, lm in s.landmarks.items()}
@@ -504,4 +528,6 @@ def write_mission_result(mission: Mission, path: Path | str, *, overwrite: bool 
     for k, sim in mission.simulations.items():
         write_extras(sim, root / "agents" / k)
     write_network_truth(root, mission.node_truth_m)
+    if len(mission.network_ranges):
+        write_network_ranges(root, mission.network_ranges)
     return root

@@ -1,0 +1,150 @@
+"""Ranges between the dropped nodes: the data, the mission folder's CSV, the loop's buffer."""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hrtls.errors import DegradedInputWarning, FormatError, InputError
+from hrtls.io.mission import NETWORK_RANGES_FILE, read_network_ranges, write_network_ranges
+from hrtls.mission.graph_links import pair_links, select_linked
+from hrtls.mission.graph_params import SmootherParams
+from hrtls.mission.network_ranges import NetworkRanges
+from hrtls.mission.tracker import AgentHeader, MissionTracker
+
+from ._live import short_mission
+
+
+def _nr(t: list[float], a: list[str], b: list[str], r: list[float]) -> NetworkRanges:
+    return NetworkRanges(np.asarray(t, float), np.asarray(a), np.asarray(b), np.asarray(r, float))
+
+
+@pytest.mark.parametrize(("kw", "field"), [
+    ({"t": [0.0, 1.0]}, "node_a"),
+    ({"r": [1.0, 0.0, 2.0]}, "range_m index 1"),
+    ({"r": [1.0, -2.0, 2.0]}, "range_m index 1"),
+    ({"r": [1.0, np.inf, 2.0]}, "range_m"),
+    ({"t": [0.0, np.nan, 2.0]}, "t_s"),
+    ({"b": ["N2", "N3", "N1"]}, "node_b index 2"),
+    ({"a": ["N1", "", "N1"]}, "node_a index 1"),
+])
+def test_bad_network_ranges_name_the_field(kw: dict[str, list], field: str) -> None:
+    base = {"t": [0.0, 1.0, 2.0], "a": ["N1", "N2", "N1"], "b": ["N2", "N3", "N3"],
+            "r": [1.0, 2.0, 3.0]}
+    base.update(kw)
+    with pytest.raises(InputError, match=field):
+        _nr(base["t"], base["a"], base["b"], base["r"])
+
+
+def test_between_takes_the_windows_convention_and_concat_sorts_stably() -> None:
+    x = NetworkRanges.concat([_nr([2.0, 0.0], ["N1", "N1"], ["N2", "N3"], [1.0, 2.0]),
+                              _nr([2.0, 1.0], ["N4", "N4"], ["N5", "N6"], [3.0, 4.0])])
+    np.testing.assert_array_equal(x.t_s, [0.0, 1.0, 2.0, 2.0])
+    np.testing.assert_array_equal(x.node_b, ["N3", "N6", "N2", "N5"])   # ties: parts' order
+    np.testing.assert_array_equal(x.between(1.0, 2.0).range_m, [4.0])   # 1 <= t < 2
+    assert len(x.between(2.0, 2.0)) == 0 and len(NetworkRanges.concat([])) == 0
+    assert x.nodes() == ["N1", "N2", "N3", "N4", "N5", "N6"]
+
+
+_times = st.lists(st.floats(-50.0, 50.0, allow_nan=False), max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(parts=st.lists(_times, max_size=4), cuts=st.lists(st.floats(-60.0, 60.0), max_size=5))
+def test_windows_partition_the_ranges_and_concat_keeps_them(parts: list[list[float]],
+                                                            cuts: list[float]) -> None:
+    ps = [_nr(t, [f"A{i}"] * len(t), [f"B{j}" for j in range(len(t))],
+              list(1.0 + np.arange(len(t), dtype=float))) for i, t in enumerate(parts)]
+    x = NetworkRanges.concat(ps)
+    assert len(x) == sum(len(p) for p in ps)
+    assert np.all(np.diff(x.t_s) >= 0)
+    keys = sorted(zip(x.t_s.tolist(), x.node_a.tolist(), x.node_b.tolist(), strict=True))
+    assert keys == sorted((t, a, b) for p in ps for t, a, b in
+                          zip(p.t_s.tolist(), p.node_a.tolist(), p.node_b.tolist(), strict=True))
+    edges = [-np.inf, *sorted(cuts), np.inf]
+    windows = [x.between(a, b) for a, b in itertools.pairwise(edges)]
+    assert sum(len(w) for w in windows) == len(x)
+    for (a, b), w in zip(itertools.pairwise(edges), windows, strict=True):
+        assert np.all((w.t_s >= a) & (w.t_s < b))
+
+
+def test_a_pair_is_one_factor_at_its_median_range() -> None:
+    links = pair_links(np.array(["N2", "N1", "N1", "N3"]), np.array(["N1", "N2", "N2", "N1"]),
+                       np.array([1.0, 2.0, 4.0, 5.0]), sigma_m=0.3, sigma_fraction=0.1)
+    np.testing.assert_array_equal(links.a, ["N1", "N1"])
+    np.testing.assert_array_equal(links.b, ["N2", "N3"])
+    np.testing.assert_allclose(links.range_m, [2.0, 5.0])           # median of 1, 2, 4
+    np.testing.assert_allclose(links.sigma_m, [np.hypot(0.3, 0.2), np.hypot(0.3, 0.5)])
+    np.testing.assert_array_equal(links.count, [3, 1])
+
+
+def test_a_node_seen_from_one_line_joins_through_a_neighbour_off_it() -> None:
+    """Readings along y = 0 only (the mirror ambiguity) plus a link to a node at y = 4."""
+    from hrtls.mission.graph import AgentPath, RangeSet
+
+    t = np.arange(0.0, 11.0)
+    xy = np.column_stack([t, np.zeros_like(t)])
+    path = AgentPath("R1", t, xy, np.eye(2) * 0.01)
+    node = np.array([5.0, 2.0])
+    r = np.hypot(np.linalg.norm(xy - node, axis=1), 1.0)
+    ranges = RangeSet(np.zeros(len(t), np.int64), t, np.full(len(t), "N1"), r,
+                      np.full(len(t), 0.1))
+    prm = SmootherParams()
+    links = pair_links(np.array(["N1"]), np.array(["N2"]), np.array([2.0]), sigma_m=0.1,
+                       sigma_fraction=0.0)
+    alone, _ = select_linked([path], ranges, links.select(np.array([False])), {}, {}, prm, 1.0)
+    assert alone == {}
+    got, start = select_linked([path], ranges, links, {"N2": 3.0},
+                               {"N2": np.array([5.0, 4.0])}, prm, 1.0)
+    assert got["N1"] >= 4.0 - 1e-9 and set(got) == {"N1", "N2"}
+    np.testing.assert_allclose(start["N1"], node, atol=1e-6)         # the mirror side resolved
+
+
+def test_csv_round_trip_and_bad_rows_name_line_and_field(tmp_path: Path) -> None:
+    x = _nr([0.5, 1.25, 1.25], ["N1", "N2", "N1"], ["N2", "N3", "N3"], [3.5, 0.125, 7.0])
+    write_network_ranges(tmp_path, x)
+    assert (tmp_path / NETWORK_RANGES_FILE).read_text().splitlines()[0] == \
+        "t_s,node_a,node_b,range_m"
+    back = read_network_ranges(tmp_path / NETWORK_RANGES_FILE, ["N1", "N2", "N3"])
+    for f in ("t_s", "node_a", "node_b", "range_m"):
+        np.testing.assert_array_equal(getattr(back, f), getattr(x, f))
+    assert len(read_network_ranges(tmp_path / "none.csv", [])) == 0
+    bad = {"t_s,node_a,node_b,range_m\n0,N1,N2,1\n1,N1,N2,0\n": r"line 3 column range_m",
+           "t_s,node_a,node_b,range_m\n0,N1,N2,1\n1,N1,N2,1\n2,N2,N2,1\n": r"line 4 column node_b",
+           "t_s,node_a,node_b,range_m\n0,N1,N2,x\n": r"line 2",
+           "t_s,node_a,range_m\n0,N1,1\n": r"node_b"}
+    for text, where in bad.items():
+        (tmp_path / NETWORK_RANGES_FILE).write_text(text)
+        with pytest.raises(FormatError, match=where):
+            read_network_ranges(tmp_path / NETWORK_RANGES_FILE, ["N1", "N2"])
+    (tmp_path / NETWORK_RANGES_FILE).write_text("t_s,node_a,node_b,range_m\n0,N1,N9,1\n")
+    with pytest.warns(DegradedInputWarning, match="N9"):
+        read_network_ranges(tmp_path / NETWORK_RANGES_FILE, ["N1", "N2"])
+
+
+def test_feed_network_keeps_late_ranges_out_and_warns_of_agents() -> None:
+    sessions, kinds = short_mission(1)
+    mt = MissionTracker({k: AgentHeader(s.meta, dict(s.landmarks)) for k, s in sessions.items()},
+                        kinds=kinds)
+    assert mt.feed_network(_nr([5.0, 1.0], ["N1", "N2"], ["N2", "N3"], [2.0, 3.0])) is None
+    for k, s in sessions.items():
+        mt.feed(k, s)
+    mt.advance(20.0)
+    assert mt.horizon_s > 5.0
+    assert len(mt.network.used) == 2 and len(mt.network.pending) == 0
+    late = mt.feed_network(_nr([mt.horizon_s - 1.0, mt.horizon_s + 1.0, 0.0],
+                               ["N1", "N1", "N4"], ["N3", "N4", "N5"], [1.0, 2.0, 3.0]))
+    assert late is not None and late.agent == "network" and late.samples == 2
+    assert (late.t_first_s, late.t_last_s) == (0.0, mt.horizon_s - 1.0)
+    assert len(mt.network.pending) == 1 and mt.network.late == 2
+    with pytest.warns(DegradedInputWarning, match="R1"):
+        mt.feed_network(_nr([1e6], ["R1"], ["N2"], [2.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mt.feed_network(_nr([1e6], ["N7"], ["N2"], [2.0]))
