@@ -90,7 +90,7 @@ def test_network_ranges_are_refused_unless_well_formed_and_authorised(
 
 def _setup(live: Live, seed: int) -> tuple[int, list[Any], float, NetworkRanges]:
     mission, members = network_team("inderst_hybrid_mission", seed=seed, options=OPTIONS)
-    assert mission.network_ranges is not None and len(mission.network_ranges.t_s)
+    assert len(mission.network_ranges)
     with AgentClient(live.url, live.commander) as commander:
         mid, agents = create_network_mission(commander, "inderst_hybrid_mission", mission,
                                              members, params=PARAMS)
@@ -133,7 +133,7 @@ def test_live_mission_with_node_ranges_equals_offline_and_exports_them(
     out = tmp_path / "export"
     export_mission(live.settings.db_url, mid, out)
     folder = read_mission(out)
-    assert folder.network_ranges is not None
+    assert len(folder.network_ranges) == len(ranges)
     np.testing.assert_allclose(folder.network_ranges.t_s, ranges.t_s + offset)
     np.testing.assert_array_equal(folder.network_ranges.node_a, ranges.node_a)
     np.testing.assert_allclose(folder.network_ranges.range_m, ranges.range_m)
@@ -206,3 +206,27 @@ def test_gateway_posts_every_range_once_in_time_order(live: Live, speed: float) 
         engine.dispose()
     assert [b.seq for b in rows] == [0, 1, 2] and sum(b.rows for b in rows) == len(t)
     assert [b.t_first for b in rows] == [100.0, 105.0, 110.0]
+
+
+def test_cli_streams_the_node_ranges_of_a_simulated_mission(live: Live,
+                                                            commander: httpx.Client) -> None:
+    from typer.testing import CliRunner
+
+    from hrtls.cli.app import app
+
+    out = CliRunner().invoke(app, [
+        "mission", "simulate", "inderst_hybrid_mission", "--server", live.url, "--token",
+        live.commander, "--speed", "0", "--seed", "4", "-O", "walk_s=30", "-O", "n_nodes=8",
+        "-O", "node_ranges=true", "-O", "silent_after_s=5"])
+    assert out.exit_code == 0, out.output
+    mid = commander.get(f"{API}/missions").json()[-1]["id"]
+    mission, _ = network_team("inderst_hybrid_mission", seed=4, options={
+        "walk_s": 30.0, "n_nodes": 8, "node_ranges": True})
+    engine = make_engine(live.settings.db_url)
+    try:
+        with session_factory(engine)() as db:
+            rows = sum(db.scalars(select(NetworkRangeBatch.rows)
+                                  .where(NetworkRangeBatch.mission_id == mid)))
+    finally:
+        engine.dispose()
+    assert rows == len(mission.network_ranges) > 0
