@@ -96,7 +96,8 @@ def live_vs_offline(url: str, commander_token: str, runner: MissionRunner, setti
     with AgentClient(url, commander_token) as commander:
         mid, agents = create_network_mission(commander, "inderst_hybrid_mission", mission,
                                              members, params=params)
-        clients = stream_network(url, commander, mid, agents, speed=math.inf)
+        clients = stream_network(url, commander, mid, agents, speed=math.inf,
+                                 network=mission.network_ranges)
         commander.request("PATCH", f"/missions/{mid}", json={"status": "closed"})
     for c in clients:
         c.close()
@@ -109,10 +110,12 @@ def live_vs_offline(url: str, commander_token: str, runner: MissionRunner, setti
     finally:
         engine.dispose()
     late = runner.missions[mid].late_samples
-    sim = MissionTracker({k: m.session for k, m in zip(tr.names, members, strict=True)},
-                         config=preset(RESCUER_PRESET),
-                         kinds={k: m.kind for k, m in zip(tr.names, members, strict=True)}
-                         ).run()
+    sim_tracker = MissionTracker(
+        {k: m.session for k, m in zip(tr.names, members, strict=True)},
+        config=preset(RESCUER_PRESET),
+        kinds={k: m.kind for k, m in zip(tr.names, members, strict=True)})
+    sim_tracker.feed_network(mission.network_ranges)
+    sim = sim_tracker.run()
     shift = tr.t0 - min(m.session.time_span()[0] for m in members) if tr.t0 is not None else 0.0
     vs_sim = result_diff(live, _renamed(sim, tr.names), shift_s=shift)
     return {"seed": seed, "mission": mid, "late_samples": late, "stream_s": seconds,
@@ -133,6 +136,8 @@ def main() -> None:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--walk-s", type=float, default=300.0)
     ap.add_argument("--pg", default=None, help="PostgreSQL URL instead of SQLite files")
+    ap.add_argument("--node-ranges", action="store_true",
+                    help="the nodes range each other (POST .../network/ranges)")
     args = ap.parse_args()
     from tests.service.conftest import _reset_postgres, start_live  # the tests' server
 
@@ -148,7 +153,8 @@ def main() -> None:
                 runner = live.server.config.app.state.services.missions
                 out = live_vs_offline(
                     live.url, live.commander, runner, live.settings, seed=seed,
-                    options={"walk_s": args.walk_s, "n_robots": 1 if seed == 1 else 0},
+                    options={"walk_s": args.walk_s, "n_robots": 1 if seed == 1 else 0,
+                             "node_ranges": args.node_ranges},
                     params={})
             finally:
                 live.stop()

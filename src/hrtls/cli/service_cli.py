@@ -135,7 +135,8 @@ def _simulate_network(name: str, server: str, token: str, pace: float, seed: int
         typer.echo(f"mission {mid} '{name}' seed {seed}: {len(mission.node_truth_m)} nodes; "
                    + ", ".join(f"{m.name} (agent {aid}, {m.kind})" for m, aid, _ in agents))
         typer.echo(f"dashboard: {server.rstrip('/')}/?mission={mid}")
-        clients = stream_network(server, commander, mid, agents, speed=pace)
+        clients = stream_network(server, commander, mid, agents, speed=pace,
+                                 network=mission.network_ranges)
         net = commander.request("GET", f"/missions/{mid}/network")
     localized = sum(1 for n in net["nodes"] if n["localized"])
     typer.echo(f"streamed {sum(c.stats.acked for c in clients)} batches of {len(clients)} "

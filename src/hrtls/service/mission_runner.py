@@ -6,7 +6,9 @@ One :class:`~hrtls.mission.tracker.MissionTracker` per mission that declared a s
 A thread polls the raw log every ``poll_s``: the batches stored since the last poll (in the
 order they were stored, the order the raw log commits them) are decoded into session parts
 (:mod:`hrtls.service.decoders`) and fed to the mission estimator, which then processes every
-complete window (:meth:`MissionTracker.advance`, silence judged on the wall clock). The nodes
+complete window (:meth:`MissionTracker.advance`, silence judged on the wall clock). The
+ranges the dropped nodes measured between themselves (``POST /missions/{id}/network/ranges``,
+the ``network_range_batches`` log) are fed the same way, after the agents' batches. The nodes
 re-localized, and every node whose readings grew (heard but not localized, or no longer
 localized), go to the mission's ``mission_networks`` row (the network and infrastructure
 endpoints, the live picture, ``hrtls mission export``) and to the dashboards' deltas
@@ -54,6 +56,7 @@ from hrtls.service.decoders import raw_part
 from hrtls.service.hub import Hub
 from hrtls.service.landmark_versions import versions_of
 from hrtls.service.models import Agent, Mission, MissionNetwork, MissionSnapshot, RawBatch
+from hrtls.service.network_log import batches_after, newest_id
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +84,8 @@ class LiveMission:
     tracker: MissionTracker
     agents: dict[int, str]
     raw_id: int = 0
+    net_raw_id: int = 0
+    """Newest ``network_range_batches`` id consumed."""
     t_snap: float = -math.inf
     late_samples: int = 0
     late_versions: set[tuple[str, float | None]] = field(default_factory=set)
@@ -209,6 +214,7 @@ class MissionRunner:
         with lm.lock:
             self._versions(lm, timed)
             self._consume(lm)
+            self._consume_network(lm)
             progress = lm.tracker.advance(now_s=self.clock(), final=closed)
             self._publish(lm, progress.changed)
             if lm.tracker.horizon_s - lm.t_snap >= self.params.snapshot_every_s:
@@ -235,8 +241,8 @@ class MissionRunner:
                 buf.heard_s = max(buf.heard_s, self.clock())
             if set(tracker.names) == set(names.values()):
                 return LiveMission(mission_id, tracker, names, raw_id=snap.raw_id,
-                                   t_snap=snap.horizon_s, restored_horizon_s=snap.horizon_s,
-                                   declared=declared)
+                                   net_raw_id=snap.net_raw_id, t_snap=snap.horizon_s,
+                                   restored_horizon_s=snap.horizon_s, declared=declared)
             log.warning("mission %s: snapshot agents differ; starting over", mission_id)
         return self._open_new(mission_id)
 
@@ -312,6 +318,23 @@ class MissionRunner:
             if len(page) < self.params.page:
                 return
 
+    def _consume_network(self, lm: LiveMission) -> None:
+        """Feed the node-to-node ranges stored since the last poll, in log order."""
+        while True:
+            with self.sessions() as db:
+                page = batches_after(db, lm.mission_id, lm.net_raw_id, limit=self.params.page)
+            now = self.clock()
+            for batch_id, ranges in page:
+                late = lm.tracker.feed_network(ranges, now_s=now)
+                if late is not None:
+                    lm.late_samples += late.samples
+                    log.warning("mission %s: %d node-to-node ranges older than the processed "
+                                "horizon %.1f s not used", lm.mission_id, late.samples,
+                                late.horizon_s)
+                lm.net_raw_id = batch_id
+            if len(page) < self.params.page:
+                return
+
     def _publish(self, lm: LiveMission, changed: tuple[str, ...]) -> None:
         """Store and push the nodes re-localized, and every node whose readings changed."""
         tr = lm.tracker
@@ -342,7 +365,8 @@ class MissionRunner:
         state = lm.tracker.snapshot()
         with self.sessions() as db, db.begin():
             db.add(MissionSnapshot(mission_id=lm.mission_id, horizon_s=lm.tracker.horizon_s,
-                                   raw_id=lm.raw_id, created_unix=self.clock(), state=state))
+                                   raw_id=lm.raw_id, net_raw_id=lm.net_raw_id,
+                                   created_unix=self.clock(), state=state))
             db.flush()
             old = list(db.scalars(select(MissionSnapshot.id).where(
                 MissionSnapshot.mission_id == lm.mission_id)
@@ -360,19 +384,21 @@ class MissionRunner:
         with self.sessions() as db:
             newest = db.scalars(select(RawBatch.id).where(RawBatch.agent_id.in_(list(lm.agents)))
                                 .order_by(RawBatch.id.desc()).limit(1)).first()
-        return newest is None or newest <= lm.raw_id
+            net_newest = newest_id(db, mission_id)
+        return (newest is None or newest <= lm.raw_id) and net_newest <= lm.net_raw_id
 
 
 def offline_tracker(sessions: sessionmaker[DbSession], mission_id: int) -> MissionTracker:
     """The mission's estimator fed the whole raw log at once (as offline), not yet run.
 
     Every stored batch of the mission's agents, in raw-log order, with the agents' headers as
-    they are now; :meth:`MissionTracker.run` then gives what ``hrtls mission track`` gives on
-    the same data.
+    they are now, and every stored node-to-node range; :meth:`MissionTracker.run` then gives
+    what ``hrtls mission track`` gives on the same data.
     """
     runner = MissionRunner(sessions=sessions, clock=lambda: 0.0, hub=Hub())
     lm = runner._open_new(mission_id)
     if lm is None:
         raise KeyError(mission_id)
     runner._consume(lm)
+    runner._consume_network(lm)
     return lm.tracker

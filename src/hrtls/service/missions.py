@@ -167,7 +167,8 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
     ``"service"``. Sessions hold the landmarks of the mission's start; the versions written
     later are in ``landmark_updates.json``, each from its time on, as the live trackers had them.
     A mission with a declared sensor network gets ``network.json``: the node ids, each with the
-    mission estimator's newest estimate under ``"service"``.
+    mission estimator's newest estimate under ``"service"``, and ``network_ranges.csv`` when its
+    nodes sent ranges between themselves.
     """
     from sqlalchemy import select
 
@@ -226,9 +227,18 @@ def export_mission(db_url: str, mission_id: int, out_dir: Path) -> list[Path]:
 
 
 def _write_network(db: Any, mission_id: int, out_dir: Path) -> None:
-    """``network.json`` of a mission with a declared network: ids, each with its estimate."""
-    from hrtls.io.mission import NETWORK_FILE, NetworkModel, NodeEntry
+    """``network.json`` and ``network_ranges.csv`` of a mission with a declared network.
+
+    The ids, each with its estimate; the ranges between its nodes the service stored.
+    """
+    from hrtls.io.mission import (
+        NETWORK_FILE,
+        NetworkModel,
+        NodeEntry,
+        write_network_ranges,
+    )
     from hrtls.service.mission_runner import network_nodes
+    from hrtls.service.network_log import all_ranges
 
     nodes = network_nodes(db, mission_id)
     if nodes is None:
@@ -237,6 +247,9 @@ def _write_network(db: Any, mission_id: int, out_dir: Path) -> None:
                                                               if k != "id"}) for n in nodes])
     (out_dir / NETWORK_FILE).write_text(model.model_dump_json(indent=2, exclude_none=True)
                                         + "\n", encoding="utf-8")
+    ranges = all_ranges(db, mission_id)
+    if len(ranges):
+        write_network_ranges(out_dir, ranges)
 
 
 def _entries(agents: list[Any], with_data: set[int]) -> list[tuple[str, Any, str]]:

@@ -263,5 +263,28 @@ class MissionSnapshot(Base):
     mission_id: Mapped[int] = mapped_column(ForeignKey("missions.id", ondelete="CASCADE"))
     horizon_s: Mapped[float] = mapped_column(Float)
     raw_id: Mapped[int] = mapped_column(Integer)
+    net_raw_id: Mapped[int] = mapped_column(Integer, server_default="0")
+    """The newest ``network_range_batches`` id it had consumed."""
     created_unix: Mapped[float] = mapped_column(Float)
     state: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class NetworkRangeBatch(Base):
+    """Append-only log of the ranges the dropped nodes measured between themselves.
+
+    One numbered batch (``seq``, unique per mission) as accepted by ``POST
+    /missions/{id}/network/ranges``; ``body``: its columns (msgpack ``{"t_s", "node_a",
+    "node_b", "range_m"}``), mission time s and m.
+    """
+
+    __tablename__ = "network_range_batches"
+    __table_args__ = (UniqueConstraint("mission_id", "seq", name="uq_network_range_seq"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    mission_id: Mapped[int] = mapped_column(ForeignKey("missions.id", ondelete="CASCADE"))
+    seq: Mapped[int] = mapped_column(Integer)
+    received_unix: Mapped[float] = mapped_column(Float)
+    t_first: Mapped[float] = mapped_column(Float)
+    t_last: Mapped[float] = mapped_column(Float)
+    rows: Mapped[int] = mapped_column(Integer)
+    body: Mapped[bytes] = mapped_column(LargeBinary)
