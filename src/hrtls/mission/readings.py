@@ -68,9 +68,9 @@ class NodeReadings:
         m = (np.ones(len(self.t), dtype=bool) if floor is None
              else np.asarray(self.floor, dtype=np.int64) == floor)
         chain = np.asarray(self.agent, dtype=np.int64)[m]
-        a, t = chain, np.asarray(self.t)[m]
-        order = np.lexsort((t, a))
-        a, t = a[order], t[order]
+        t_s = np.asarray(self.t, dtype=np.float64)[m]
+        order = np.lexsort((t_s, chain))    # passes: runs of one agent in time order
+        a, t = chain[order], t_s[order]
         new_pass = np.ones(len(t), dtype=bool)
         new_pass[1:] = (a[1:] != a[:-1]) | (np.diff(t) > pass_gap_s)
         group = np.empty(len(t), dtype=np.int64)
@@ -79,7 +79,7 @@ class NodeReadings:
             agent_xy_m=np.asarray(self.xy).reshape(-1, 2)[m],
             agent_cov_m2=np.asarray(self.cov).reshape(-1, 2, 2)[m],
             range_m=np.asarray(self.r)[m], range_sigma_m=np.asarray(self.s)[m], group=group,
-            chain=chain, t_s=t)
+            chain=chain, t_s=t_s)
 
 
 def join_ranges(a: RangeMeasurements | None, b: RangeMeasurements | None

@@ -214,7 +214,6 @@ class MissionRunner:
         with lm.lock:
             self._versions(lm, timed)
             self._consume(lm)
-            self._consume_network(lm)
             progress = lm.tracker.advance(now_s=self.clock(), final=closed)
             self._publish(lm, progress.changed)
             if lm.tracker.horizon_s - lm.t_snap >= self.params.snapshot_every_s:
@@ -284,7 +283,7 @@ class MissionRunner:
                         lm.tracker.horizon_s)
 
     def _consume(self, lm: LiveMission) -> None:
-        """Feed the batches stored since the last poll, in raw-log order."""
+        """Feed the batches stored since the last poll, in raw-log order, then the node ranges."""
         ids = list(lm.agents)
         while True:
             with self.sessions() as db:
@@ -316,7 +315,8 @@ class MissionRunner:
                                     late.horizon_s)
                 lm.raw_id = r.id
             if len(page) < self.params.page:
-                return
+                break
+        self._consume_network(lm)
 
     def _consume_network(self, lm: LiveMission) -> None:
         """Feed the node-to-node ranges stored since the last poll, in log order."""
@@ -400,5 +400,4 @@ def offline_tracker(sessions: sessionmaker[DbSession], mission_id: int) -> Missi
     if lm is None:
         raise KeyError(mission_id)
     runner._consume(lm)
-    runner._consume_network(lm)
     return lm.tracker
