@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -139,7 +140,8 @@ def main() -> None:
     ap.add_argument("--node-ranges", action="store_true",
                     help="the nodes range each other (POST .../network/ranges)")
     args = ap.parse_args()
-    from tests.service.conftest import _reset_postgres, start_live  # the tests' server
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the tests' server
+    from tests.service.conftest import _reset_postgres, start_live
 
     print(f"load {Path('/proc/loadavg').read_text().split()[:3]}")
     for seed in (int(s) for s in args.seeds.split(",")):
