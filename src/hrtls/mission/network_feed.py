@@ -45,13 +45,15 @@ class NetworkState:
     """The network's ranges in the loop.
 
     ``pending``: fed, not processed; ``used``: those of the processed windows; ``heard_s``:
-    the clock of the latest part; ``late``: how many ranges came late.
+    the clock of the latest part; ``late``: how many ranges came late; ``pairs``: ``used``
+    grouped by pair (derived, not snapshotted: None until asked after ``used`` changed).
     """
 
     pending: NetworkRanges = field(default_factory=NetworkRanges.empty)
     used: NetworkRanges = field(default_factory=NetworkRanges.empty)
     heard_s: float = -math.inf
     late: int = 0
+    pairs: NodeLinks | None = None
 
 
 def feed(mt: MissionTracker, part: NetworkRanges, *, now_s: float | None) -> LateData | None:
@@ -97,15 +99,27 @@ def step(mt: MissionTracker, t_start: float, t_end: float) -> None:
     if now.any():
         st.used = NetworkRanges.concat([st.used, st.pending.select(now)])
         st.pending = st.pending.select(~now)
+        st.pairs = None
+
+
+def _pairs(mt: MissionTracker) -> NodeLinks:
+    """Every pair of the processed windows as a factor, computed once per change.
+
+    With the smoother's noise model (by default :class:`SmootherParams`'s).
+    """
+    st = mt.network
+    if st.pairs is None:
+        prm = mt.params.smoother or SmootherParams()
+        st.pairs = pair_links(st.used.node_a, st.used.node_b, st.used.range_m,
+                              sigma_m=prm.link_sigma_m, sigma_fraction=prm.link_sigma_fraction)
+    return st.pairs
 
 
 def links(mt: MissionTracker) -> NodeLinks:
     """The pairs of the processed windows as factors, on agreeing floors (module doc)."""
-    used, prm = mt.network.used, mt.params.smoother
-    if not len(used) or prm is None:
+    if not len(mt.network.used) or mt.params.smoother is None:
         return NodeLinks.empty()
-    out = pair_links(used.node_a, used.node_b, used.range_m, sigma_m=prm.link_sigma_m,
-                     sigma_fraction=prm.link_sigma_fraction)
+    out = _pairs(mt)
     if not mt.node_floor:
         return out
     fa = np.array([mt.node_floor.get(n, -1) for n in out.a.tolist()])
@@ -120,18 +134,17 @@ def node_ranges(mt: MissionTracker, node: str, floor: int) -> NodeRanges:
     at its estimate, with its covariance as an agent's (added to the range's variance by the
     estimator), its pair's one range (:func:`~hrtls.mission.graph_links.pair_links`, the
     smoother's noise model, by default :class:`~hrtls.mission.graph_params.SmootherParams`'s),
-    its own pass and chain: its error is taken as independent of the agents' errors in the
-    node's readings (module doc of :mod:`hrtls.mission.nodes`: only the common part
-    ``agent_correlation`` is shared).
+    its own pass and chain (the pair's row of :func:`_pairs`): its error is taken as
+    independent of the agents' errors in the node's readings (module doc of
+    :mod:`hrtls.mission.nodes`: only the common part ``agent_correlation`` is shared).
     """
     obs = mt.readings[node].ranges(mt.params.pass_gap_s, floor=floor)
-    used = mt.network.used
-    m = (used.node_a == node) | (used.node_b == node)
-    if not m.any() or not len(obs):
+    if not len(mt.network.used) or not len(obs):
         return obs
-    prm = mt.params.smoother or SmootherParams()
-    links = pair_links(used.node_a[m], used.node_b[m], used.range_m[m],
-                       sigma_m=prm.link_sigma_m, sigma_fraction=prm.link_sigma_fraction)
+    pairs = _pairs(mt)
+    links = pairs.select((pairs.a == node) | (pairs.b == node))
+    if not len(links):
+        return obs
     other = np.where(links.a == node, links.b, links.a).tolist()
     k = [j for j, o in enumerate(other) if o in mt.estimates and mt.estimates[o].localized
          and mt.node_floor.get(o, 0) == floor]

@@ -86,7 +86,8 @@ def post_network_ranges(commander: AgentClient, mission_id: int, ranges: Network
     """Post ``ranges`` in chunks of ``NETWORK_CHUNK_S`` (module doc); the batches posted.
 
     ``t_start_s``: mission time that is due at the call (the team's first sample);
-    ``speed``: replay factor (``inf``: at once). A 429 is waited out (its ``Retry-After``).
+    ``speed``: replay factor (``inf``: at once). A 429 is retried every 0.2 s, 100 times
+    at most.
     """
     if not len(ranges.t_s):
         return 0
