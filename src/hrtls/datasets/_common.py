@@ -93,14 +93,19 @@ def _careful_rows(path: Path, *, columns: int, repair: bool) -> NumericRows:
         raise FormatError(problem, where=f"{path.name} line {number}",
                           expected=f"{columns} comma-separated finite numbers",
                           hint="pass repair=True to drop such lines with a warning")
-    dropped = None
-    if bad:
-        dropped = (f"dropped {len(bad)} malformed line(s): "
-                   + "; ".join(f"line {n}: {p}" for n, p in bad[:5])
-                   + (" ..." if len(bad) > 5 else ""))
-        warn_repair(f"{path.name}: {dropped}")
+    dropped = drop_lines(path.name, bad)
     return NumericRows(np.asarray(rows, dtype=np.float64).reshape(-1, columns),
                        np.asarray(numbers, dtype=np.int64), dropped)
+
+
+def drop_lines(file_name: str, bad: list[tuple[int, str]]) -> str | None:
+    """Warn of the malformed lines ``(line, problem)`` a repair dropped; the note (None: none)."""
+    if not bad:
+        return None
+    dropped = (f"dropped {len(bad)} malformed line(s): "
+               + "; ".join(f"line {n}: {p}" for n, p in bad[:5]) + (" ..." if len(bad) > 5 else ""))
+    warn_repair(f"{file_name}: {dropped}")
+    return dropped
 
 
 def numeric_csv(path: Path, *, columns: int, repair: bool = False) -> NumericRows:

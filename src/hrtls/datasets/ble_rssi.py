@@ -42,7 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrtls.data import GroundTruth, Landmark, RssReadings, Session, SessionMeta
-from hrtls.datasets._common import FloatArray, dataset_dir, require_file, warn_repair
+from hrtls.datasets._common import (
+    FloatArray,
+    dataset_dir,
+    drop_lines,
+    require_file,
+    warn_repair,
+)
 from hrtls.errors import FormatError, InputError
 
 _SUFFIX = "_all_sensors.mbd"
@@ -204,12 +210,7 @@ def _read_track(file: Path, *, repair: bool) -> _TrackRows:
     if not rows:
         first = f" (all {len(bad)} malformed, line {bad[0][0]}: {bad[0][1]})" if bad else ""
         raise FormatError(f"no readings{first}", where=file.name, expected="CSV lines")
-    dropped = None
-    if bad:
-        dropped = (f"dropped {len(bad)} malformed line(s): "
-                   + "; ".join(f"line {n}: {p}" for n, p in bad[:5])
-                   + (" ..." if len(bad) > 5 else ""))
-        warn_repair(f"{file.name}: {dropped}")
+    dropped = drop_lines(file.name, bad)
     numbers = np.array([[float(v) for v in r[4:]] for r in rows], dtype=np.float64)
     return _TrackRows(np.array([float(r[0]) for r in rows]), [r[1].strip().lower() for r in rows],
                       [r[2].strip().lower() for r in rows], np.array([float(r[3]) for r in rows]),
