@@ -28,7 +28,9 @@ older than this leave its problem as a prior (``SmootherParams.window_s``); its 
 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
-the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``).
+the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``);
+``--peer-factors on|off``: the inter-agent ranges as factors of the smoother
+(``SmootherParams.peer_factors``).
 
 ``--node-ranges``: the dropped nodes range each other (``MissionOptions.node_ranges``, the
 ranges fed by ``MissionTracker.feed_network``).
@@ -295,9 +297,12 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
 def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
     ``--feedback-gate``, ``--window-s`` and the smoother's model options; without it the
-    smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``)."""
+    smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``);
+    ``--peer-factors`` on either."""
     if not args.smoother:
-        return MissionParams().smoother if args.mode is None else smoother_params(args.mode)
+        sm = MissionParams().smoother if args.mode is None else smoother_params(args.mode)
+        return sm if sm is None or args.peer_factors is None else \
+            replace(sm, peer_factors=args.peer_factors == "on")
     kw: dict[str, Any] = {}
     for key in ("feedback", "robots_take", "every_s", "feedback_cov_scale", "feedback_gate",
                 "feedback_ranges",
@@ -306,6 +311,8 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
         if getattr(args, key) is not None:
             kw[{"smoother_correlation_s": "range_correlation_s", "robots_take": "robots"}.get(
                 key, key)] = getattr(args, key)
+    if args.peer_factors is not None:
+        kw["peer_factors"] = args.peer_factors == "on"
     return SmootherParams(**kw)
 
 
@@ -335,6 +342,9 @@ def main() -> None:
                     help="cooperation on, without vs with inter-agent ranges")
     ap.add_argument("--node-ranges", action="store_true",
                     help="the dropped nodes range each other (MissionOptions.node_ranges)")
+    ap.add_argument("--peer-factors", choices=("on", "off"), default=None,
+                    help="SmootherParams.peer_factors: the inter-agent ranges as factors of the "
+                    "smoother (default: the smoother's)")
     ap.add_argument("--peer-extrapolate", action="store_true",
                     help="PeerRangeParams.extrapolate: a peer extrapolated with its velocity")
     ap.add_argument("--max-sigma-m", type=float, default=None,

@@ -40,7 +40,8 @@ Ranges. A range ``r`` from agent ``a`` at ``t`` to node ``p`` is
 and the nodes (estimated, prior ``N(0, height_sigma_m^2)``), ``e`` the range noise (its sigma as
 received, times ``sqrt(n)`` for ``n`` ranges of the pair within ``range_correlation_s``,
 :mod:`hrtls.mission.range_weights`); walls lengthen ranges (NLOS): a robust loss (``loss``,
-scale ``loss_scale`` sigmas).
+scale ``loss_scale`` sigmas). Ranges between agents tie their paths
+(:mod:`hrtls.mission.graph_peers`), under the same loss.
 
 Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
 loss's weights there), times the mean square inlier residual (``|e| < 3 loss_scale``) whitened
@@ -68,6 +69,7 @@ from hrtls.mission.graph_covariance import inverse_blocks, node_inflation, robus
 from hrtls.mission.graph_init import extend, linear_init, select_nodes
 from hrtls.mission.graph_links import LinkRows, NodeLinks, select_linked
 from hrtls.mission.graph_params import SmootherParams
+from hrtls.mission.graph_peers import PeerRows, PeerSet, pose_weights
 from hrtls.mission.graph_window import Layout, MarginalPrior, prior_columns, restrict
 from hrtls.mission.increment_noise import ChainNoise, whitening
 from hrtls.mission.range_weights import correlated_sigma
@@ -166,7 +168,7 @@ class _Problem:
 
     def __init__(self, paths: list[AgentPath], ranges: RangeSet, node_ids: list[str],
                  prm: SmootherParams, prior: MarginalPrior | None = None,
-                 links: NodeLinks | None = None) -> None:
+                 links: NodeLinks | None = None, peers: PeerSet | None = None) -> None:
         self.prm = prm
         self.node_ids = node_ids
         self.t, self.f, self.pose_col, self.s_col, self.n_seg = [], [], [], [], []
@@ -213,7 +215,9 @@ class _Problem:
                    for p in paths]
         self._ranges(ranges)
         self.links = LinkRows(links or NodeLinks.empty(), node_ids, self.node_col)
-        self.n_robust = len(self.r) + len(self.links)
+        self.peers = PeerRows(peers or PeerSet.empty(), self._at,
+                              correlation_s=prm.range_correlation_s)
+        self.n_robust = len(self.r) + len(self.links) + len(self.peers)
         self._factors(paths)
         self.names = [p.name for p in paths]
         self.first_w = np.array([0.0 if prior is not None and p.name in prior.agents else 1.0
@@ -249,12 +253,7 @@ class _Problem:
 
     def _at(self, a: int, tq: FloatArray) -> tuple[IntArray, IntArray, FloatArray]:
         """Columns of the poses around each of agent ``a``'s times and the weight of the later."""
-        t = self.t[a]
-        k = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
-        k1 = np.minimum(k + 1, len(t) - 1)
-        dt = t[k1] - t[k]
-        w = np.where(dt > 0, np.clip((tq - t[k]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0), 0.0)
-        return self.pose_col[a] + 2 * k, self.pose_col[a] + 2 * k1, w
+        return pose_weights(self.t[a], self.pose_col[a], tq)
 
     def _factors(self, paths: list[AgentPath]) -> None:
         """The corrections after each agent's first pose (that pose's prior holds the earlier)."""
@@ -313,8 +312,8 @@ class _Problem:
 
     def residuals(self, x: FloatArray) -> FloatArray:
         prm = self.prm
-        out = [self._range_parts(x)[0], self.links.parts(x)[0], self._odo_parts(x)[0].reshape(-1),
-               self._factor_parts(x).reshape(-1)]
+        out = [self._range_parts(x)[0], self.links.parts(x)[0], self.peers.parts(x)[0],
+               self._odo_parts(x)[0].reshape(-1), self._factor_parts(x).reshape(-1)]
         for a, col in enumerate(self.pose_col):
             out.append(self.first_w[a] * self.p0[a] @ (x[col:col + 2] - self.f[a][0]))
             sc, n_seg = self.s_col[a], self.n_seg[a]
@@ -351,6 +350,8 @@ class _Problem:
             put(ri, self.c1 + ax, self.w * u[:, ax])
         put(ri, np.full(n_r, self.height_col), -x[self.height_col] / (h * self.s))
         for r_, c_, v_ in zip(*self.links.jacobian(x, n_r), strict=True):
+            put(r_, c_, v_)
+        for r_, c_, v_ in zip(*self.peers.jacobian(x, n_r + len(self.links)), strict=True):
             put(r_, c_, v_)
         n_r = self.n_robust
         _, rd, rdp = self._odo_parts(x)
@@ -431,13 +432,14 @@ def _initial(prob: _Problem, paths: list[AgentPath], initial_nodes: dict[str, Fl
 def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams | None = None,
            initial_nodes: dict[str, FloatArray] | None = None,
            warm: SmootherResult | None = None, prior: MarginalPrior | None = None,
-           links: NodeLinks | None = None) -> SmootherResult:
+           links: NodeLinks | None = None, peers: PeerSet | None = None) -> SmootherResult:
     """Solve the agents' paths and the nodes jointly (module doc).
 
     ``initial_nodes``: starting positions of nodes (others: linear trilateration from the
     agents' rows); ``warm``: a previous solution to start from (its nodes and corrections);
     ``prior``: the marginalized older poses (:mod:`hrtls.mission.graph_window`; its nodes
-    stay in the problem); ``links``: ranges between nodes (:mod:`hrtls.mission.graph_links`).
+    stay in the problem); ``links``: ranges between nodes (:mod:`hrtls.mission.graph_links`);
+    ``peers``: ranges between agents (:mod:`hrtls.mission.graph_peers`).
     """
     prm = params or SmootherParams()
     initial = dict(initial_nodes or {})
@@ -451,7 +453,7 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     for n, p in joined.items():
         initial.setdefault(n, p)
     ids = sorted(set(spread) | set(prior.nodes)) if prior is not None else list(spread)
-    prob = _Problem(paths, ranges, ids, prm, prior, links)
+    prob = _Problem(paths, ranges, ids, prm, prior, links, peers)
     x0 = _initial(prob, paths, initial, warm)
     x, evaluations = _solve(prob, x0)
     res, _, jac = prob.weighted(x)
@@ -533,13 +535,13 @@ def _solve(prob: _Problem, x0: FloatArray) -> tuple[FloatArray, int]:
 
 def linearize(paths: list[AgentPath], ranges: RangeSet, node_ids: list[str], *,
               params: SmootherParams, prior: MarginalPrior | None,
-              point: Callable[[Layout], FloatArray], links: NodeLinks | None = None
-              ) -> tuple[Layout, csc_matrix, FloatArray]:
+              point: Callable[[Layout], FloatArray], links: NodeLinks | None = None,
+              peers: PeerSet | None = None) -> tuple[Layout, csc_matrix, FloatArray]:
     """A solve's columns, information ``J^T W J`` and half-gradient ``J^T W r`` at a point.
 
     ``point``: the unknowns from the solve's columns; ``W``: the robust loss's weights there.
     """
-    prob = _Problem(paths, ranges, node_ids, params, prior, links)
+    prob = _Problem(paths, ranges, node_ids, params, prior, links, peers)
     lay = prob.layout()
     res, sw, jw = prob.weighted(point(lay))
     return lay, csc_matrix(jw.T @ jw), np.asarray(jw.T @ (sw * res), np.float64)

@@ -72,6 +72,10 @@ class SmootherParams:
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
+    peer_factors:
+        In the mission loop, with cooperation: the ranges between agents are factors between
+        their poses (:mod:`hrtls.mission.graph_peers`), and an agent the smoother feeds back
+        takes none in its tracker (:func:`hrtls.mission.peer_feed.takes_peers`).
     """
 
     decimate_s: float = 1.0
@@ -102,6 +106,7 @@ class SmootherParams:
     window_s: float | None = None
     link_sigma_m: float = 0.15
     link_sigma_fraction: float = 0.03
+    peer_factors: bool = False
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
@@ -133,6 +138,9 @@ class SmootherParams:
             if getattr(self, name) not in allowed:
                 raise InputError(f"{name} = {getattr(self, name)!r}", where="SmootherParams",
                                  expected=" or ".join(allowed))
+        if not isinstance(self.peer_factors, bool):
+            raise InputError(f"peer_factors = {self.peer_factors!r}", where="SmootherParams",
+                             expected="true or false")
         if self.robots == "feedback" and self.feedback == "off":
             raise InputError("robots = 'feedback' without feedback", where="SmootherParams",
                              expected="feedback implied or replace")

@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import InputError
+from hrtls.mission import peer_feed
 
 if TYPE_CHECKING:
     from hrtls.mission.tracker import MissionTracker
@@ -170,7 +171,9 @@ def split_peer_ranges(mt: MissionTracker, i: int, ranges: RangeMeasurements | No
     """Agent ``i``'s ranges to nodes, and its ranges to peers ready for its tracker (module doc).
 
     Sets each used peer as a landmark of agent ``i``'s tracker; without cooperation
-    (``MissionParams.cooperate``) peer ranges are dropped.
+    (``MissionParams.cooperate``) peer ranges are dropped. With the smoother's peer factors
+    they go to the smoother, and to the tracker only when it takes them
+    (:mod:`hrtls.mission.peer_feed`).
     """
     if ranges is None:
         return None, None
@@ -181,6 +184,9 @@ def split_peer_ranges(mt: MissionTracker, i: int, ranges: RangeMeasurements | No
     rest = (RangeMeasurements(ranges.t[m], ranges.node[m], ranges.range_m[m], ranges.sigma_m[m])
             if m.any() else None)
     if not mt.params.cooperate:
+        return rest, None
+    peer_feed.collect(mt, i, ranges)
+    if not peer_feed.takes_peers(mt, i):
         return rest, None
     rows: list[tuple[float, str, float, float]] = []
     for peer in sorted(set(ranges.node[is_peer].tolist()) - {mt.names[i]}):

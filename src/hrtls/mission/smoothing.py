@@ -40,12 +40,13 @@ from numpy.typing import NDArray
 
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import FormatError
-from hrtls.mission import bridge, network_feed
+from hrtls.mission import bridge, network_feed, peer_feed
 from hrtls.mission.correction_factors import dead_reckoning, implied_factors
 from hrtls.mission.feedback import feed_back
 from hrtls.mission.floors import on_node_floor
 from hrtls.mission.graph import AgentPath, RangeSet, SmootherResult, linearize, smooth
 from hrtls.mission.graph_links import NodeLinks
+from hrtls.mission.graph_peers import information, marginalizable
 from hrtls.mission.graph_window import (
     Layout,
     MarginalPrior,
@@ -84,7 +85,8 @@ class SmootherState:
     :class:`hrtls.pipeline.corrections.Corrections`); ``corr_next``: the next record to read;
     ``prior``: the marginalized older poses (``window_s``); ``walked``: per agent the distance
     walked before its first kept row, m; ``floors_cut``: per node, the ranges that left the
-    problem with the window, counted per floor (they still count for the node's floor).
+    problem with the window, counted per floor (they still count for the node's floor);
+    ``peers``: the ranges between agents, as ``ranges`` (:mod:`hrtls.mission.peer_feed`).
     """
 
     rows: dict[str, list[list[float]]] = field(default_factory=dict)
@@ -101,6 +103,7 @@ class SmootherState:
     prior: MarginalPrior | None = None
     walked: dict[str, float] = field(default_factory=dict)
     floors_cut: dict[str, dict[int, int]] = field(default_factory=dict)
+    peers: list[list[Any]] = field(default_factory=list)
 
 
 def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements | None) -> None:
@@ -275,7 +278,7 @@ def solve(mt: MissionTracker, t_end: float, *, final: bool = False) -> list[str]
     clock = time.perf_counter()
     links = network_feed.links(mt)
     st.warm = smooth(paths, ranges, params=prm, initial_nodes=initial, warm=st.warm,
-                     prior=st.prior, links=links)
+                     prior=st.prior, links=links, peers=peer_feed.problem_peers(mt, paths))
     st.seconds.append(time.perf_counter() - clock)
     solved = st.warm
     changed: list[str] = []
@@ -312,13 +315,17 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
            links: NodeLinks) -> None:
     """Marginalize the poses before ``t_cut_s`` of the solve just made (module doc).
 
-    The links stay in the problem (their nodes do): in both linearizations, they cancel.
+    The links stay in the problem (their nodes do): in both linearizations, they cancel. The
+    ranges between agents the prior cannot take leave without it
+    (:func:`hrtls.mission.graph_peers.marginalizable`).
     """
     prm, st = mt.params.smoother, mt.smoother
     assert prm is not None and st is not None and st.warm is not None
     res, ids = st.warm, list(st.warm.nodes)
+    peers = peer_feed.problem_peers(mt, paths)
     lay0, h0, g0 = linearize(paths, ranges, ids, params=prm, prior=st.prior,
-                             point=lambda lay: solution_vector(lay, res), links=links)
+                             point=lambda lay: solution_vector(lay, res), links=links,
+                             peers=peers)
     x0 = solution_vector(lay0, res)
     cut = {}
     for a, name in enumerate(lay0.names):
@@ -331,13 +338,18 @@ def _slide(mt: MissionTracker, paths: list[AgentPath], ranges: RangeSet, t_cut_s
     agents = tuple(sorted(set(st.prior.agents if st.prior is not None else ()) | set(cut)))
     d = 4 * len(agents) + 2 * len(ids) + 1
     hold = MarginalPrior(agents, tuple(ids), np.zeros((0, d)), np.zeros(0), np.zeros(d))
+    lost = ~marginalizable(peers, lay0, cut, agents)
+    if lost.any():
+        h_lost, g_lost = information(peers, lost, lay0, x0, prm)
+        h0, g0 = h0 - h_lost, g0 - g_lost
     got = problem(mt)
     assert got is not None
 
     def at(lay: Layout) -> NDArray[np.float64]:
         return np.asarray(x0[np.maximum(carried(lay0, lay, cut), 0)], np.float64)
 
-    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at, links=links)
+    lay1, h1, g1 = linearize(*got, ids, params=prm, prior=hold, point=at, links=links,
+                             peers=peer_feed.problem_peers(mt, got[0]))
     st.prior = marginalized(lay0, h0, g0, x0, lay1, h1, g1, cut, agents)
     st.warm = trimmed(res, lay0, cut)
 
@@ -370,6 +382,7 @@ def _cut_agent(mt: MissionTracker, path: AgentPath, t_c: float, walked_m: float)
     if name in st.corr:
         st.corr[name] = blocks
     st.rows[name] = [first] + [r for r in st.rows[name] if r[0] > t_c]
+    peer_feed.cut(mt, i, t_c)
     st.walked[name] = walked_m
     parts = []
     for p in st.ranges:
@@ -425,7 +438,7 @@ def state_of(st: SmootherState | None) -> dict[str, Any] | None:
     return {"rows": st.rows, "start_cov": st.start_cov, "pulled": st.pulled, "tail": st.tail,
             "ranges": st.ranges, "last": st.last_solve_s, "owned": sorted(st.owned),
             "warm": warm, "seconds": st.seconds, "corr": st.corr, "corr_next": st.corr_next,
-            "prior": prior_state(st.prior), "walked": st.walked,
+            "prior": prior_state(st.prior), "walked": st.walked, "peers": st.peers,
             "floors_cut": {n: [[f, c] for f, c in sorted(v.items())]
                            for n, v in st.floors_cut.items()}}
 
@@ -463,4 +476,6 @@ def state_from(d: dict[str, Any] | None) -> SmootherState | None:
         corr_next={k: int(v) for k, v in d.get("corr_next", {}).items()},
         prior=prior_from(d.get("prior")),
         walked={k: float(v) for k, v in d.get("walked", {}).items()},
-        floors_cut={n: {int(f): int(c) for f, c in v} for n, v in d["floors_cut"].items()})
+        floors_cut={n: {int(f): int(c) for f, c in v} for n, v in d["floors_cut"].items()},
+        peers=[[int(p[0]), p[1], np.asarray(p[2]).astype(str), p[3], p[4]]
+               for p in d.get("peers", [])])
