@@ -149,17 +149,19 @@ def test_offline_equals_incremental_with_peer_ranges_and_snapshot(mission, extra
 
 @pytest.mark.parametrize("mode", ["off", "feedback"])
 def test_peer_ranges_lower_the_rescuers_error_without_blowing_nees(mode: str) -> None:
-    """Seeded regression (seeds 3-5 of the short mission), smoother ``off`` and ``feedback``
-    (the default): the rescuers' mean error and NEES with and without inter-agent ranges.
+    """Seeded regression (short mission), smoother ``off`` (seeds 3-5) and ``feedback`` (the
+    default, with the peer factors; all dev seeds 0-9): the rescuers' mean error and NEES with
+    and without inter-agent ranges.
 
     Measured mean error without / with, m: ``off`` 1.49 / 1.45, 2.67 / 2.48, 1.91 / 1.77;
-    ``feedback`` 1.50 / 1.63, 2.48 / 2.30, 1.54 / 1.47 (seed 3 worse with the peers: the
-    smoother does not see the peer ranges, and its feedback pulls the rescuers back).
+    ``feedback`` seeds 0-9: 1.60 / 1.66, 1.84 / 1.55, 1.28 / 1.16, 1.49 / 1.43, 2.43 / 2.36,
+    1.55 / 1.70, 2.73 / 2.66, 1.07 / 0.98, 1.08 / 1.07, 1.64 / 1.64 (mean 1.67 / 1.62; the
+    peers as tracker corrections before the factors: 1.64, seed 3 1.64), docs/mission.md.
     """
     from hrtls.mission.smoother_modes import smoother_params
 
     out: dict[str, list[tuple[float, float]]] = {"off": [], "on": []}
-    for seed in (3, 4, 5):
+    for seed in ((3, 4, 5) if mode == "off" else range(10)):
         for key, peers in (("off", False), ("on", True)):
             m = inderst_hybrid_mission(seed, MissionOptions(**{**OPTIONS.__dict__,
                                                                "peer_ranges": peers}))

@@ -6,7 +6,9 @@ smoother (:mod:`hrtls.mission.graph`) localizes the nodes it can, on a sliding w
 and each rescuer's tracker takes the smoother's estimate of its latest pose
 (:mod:`hrtls.mission.feedback`) and no range to the smoother's nodes (those reach it through
 the feedback: ``feedback_ranges="smoother"``); a robot keeps its odometry EKF's own estimate
-(``robots="alone"``: on dev seeds better than with the nodes or the feedback, docs/mission.md).
+(``robots="alone"``: on dev seeds better than with the nodes or the feedback, docs/mission.md);
+the ranges between agents are factors of the smoother and reach a fed-back rescuer through the
+feedback only (``peer_factors``, :mod:`hrtls.mission.peer_feed`).
 The window keeps a solve's cost bounded over the mission.
 """
 
@@ -35,7 +37,7 @@ def smoother_params(mode: str) -> SmootherParams | None:
         return SmootherParams(window_s=WINDOW_S)
     if mode == "feedback":
         return SmootherParams(window_s=WINDOW_S, every_s=FEEDBACK_EVERY_S, feedback="implied",
-                              robots="alone", feedback_ranges="smoother")
+                              robots="alone", feedback_ranges="smoother", peer_factors=True)
     raise InputError(f"smoother mode {mode!r}", where="smoother", expected=", ".join(MODES))
 
 
