@@ -58,7 +58,7 @@ def test_the_default_modes_smoother_nodes_are_not_over_confident() -> None:
     """Seeded regression (seeds 1 and 2, 150 s walks, 20 nodes, 2 % range noise, the default
     mode ``feedback``): pooled NEES (2 dof) of the nodes the smoother localized at most 2 (its
     expectation) and above the 95 % chi-square lower bound. Without the calibration (main at
-    3c12ba1): 2.47 over 26 nodes; with ``node_cov_scale`` 1.35: 1.83."""
+    3c12ba1): 2.50; with ``node_cov_scale`` 1.35: 1.85."""
     nees: list[float] = []
     for seed in (1, 2):
         m = inderst_hybrid_mission(seed, MissionOptions(walk_s=150.0, n_nodes=20,
