@@ -46,8 +46,9 @@ scale ``loss_scale`` sigmas). Ranges between agents tie their paths
 Node covariances are the node blocks of ``(J^T W J)^-1`` at the solution (``W`` the robust
 loss's weights there), times the mean square inlier residual (``|e| < 3 loss_scale``) whitened
 by the sigmas as received when above one: of all ranges, or of the node's own when larger
-(a node seen mostly through walls). A node is solved with ``min_ranges`` ranges at least from
-positions spread ``min_spread_m`` off a line, and counts as localized with a spread of
+(a node seen mostly through walls), and reported times the calibration ``node_cov_scale``
+(``link_cov_scale`` too for a node with links). A node is solved with ``min_ranges`` ranges
+at least from positions spread ``min_spread_m`` off a line, and counts as localized with a spread of
 ``localize_spread_m`` at least (seen from nearly a line, e.g. one corridor, a node helps the
 poses but its position across the line is poorly known) and a sigma below ``max_sigma_m``.
 Older poses may have left the problem as a dense prior factor
@@ -469,11 +470,12 @@ def smooth(paths: list[AgentPath], ranges: RangeSet, *, params: SmootherParams |
     cov = inverse_blocks(csc_matrix(jac.T @ jac), [prob.node_col + 2 * i for i in
                                             range(len(prob.node_ids))] + last, inflation)
     nodes: dict[str, tuple[FloatArray, FloatArray, bool]] = {}
+    cov_k = prob.links.cov_scale(len(prob.node_ids), prob.node_col, prm)
     for i, n in enumerate(prob.node_ids):
         c = cov[i]
         ok = spread.get(n, 0.0) >= prm.localize_spread_m and bool(np.all(np.isfinite(c))) and \
             float(np.sqrt(max(np.linalg.eigvalsh(c)[-1], 0.0))) <= prm.max_sigma_m
-        nodes[n] = (x[prob.node_col + 2 * i:prob.node_col + 2 * i + 2].copy(), c, ok)
+        nodes[n] = (x[prob.node_col + 2 * i:prob.node_col + 2 * i + 2].copy(), cov_k[i] * c, ok)
     out_paths, corr, scale, heading = {}, {}, {}, {}
     for a, col in enumerate(prob.pose_col):
         name = paths[a].name

@@ -172,6 +172,15 @@ class LinkRows:
     def __len__(self) -> int:
         return len(self.r)
 
+    def cov_scale(self, n_nodes: int, node_col: int, prm: SmootherParams) -> FloatArray:
+        """Each node's covariance calibration (``n_nodes``; columns from ``node_col``).
+
+        ``node_cov_scale``, times ``link_cov_scale`` for a node with links.
+        """
+        linked = np.zeros(n_nodes, dtype=bool)
+        linked[(np.concatenate([self.ca, self.cb]) - node_col) // 2] = True
+        return np.where(linked, prm.node_cov_scale * prm.link_cov_scale, prm.node_cov_scale)
+
     def parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Whitened residuals, ``p_a - p_b`` and the distance."""
         diff = np.column_stack([x[self.ca] - x[self.cb], x[self.ca + 1] - x[self.cb + 1]])

@@ -76,6 +76,13 @@ class SmootherParams:
         In the mission loop, with cooperation: the ranges between agents are factors between
         their poses (:mod:`hrtls.mission.graph_peers`), and an agent the smoother feeds back
         takes none in its tracker (:func:`hrtls.mission.peer_feed.takes_peers`).
+    node_cov_scale, link_cov_scale:
+        Calibration of the node covariances the smoother reports: every node's block of the
+        inverse information (after the residual inflation) times ``node_cov_scale``, a node
+        with links (ranges to other dropped nodes) times ``link_cov_scale`` as well; the
+        localization check (``max_sigma_m``) reads the block before them. Errors the
+        information does not model (docs/mission.md, "Node covariances under the feedback"):
+        chosen on the development seeds, 1: none.
     """
 
     decimate_s: float = 1.0
@@ -107,6 +114,8 @@ class SmootherParams:
     link_sigma_m: float = 0.15
     link_sigma_fraction: float = 0.03
     peer_factors: bool = False
+    node_cov_scale: float = 1.0
+    link_cov_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("decimate_s", "segment_m", "odo_sigma_m", "scale_sigma",
@@ -117,6 +126,10 @@ class SmootherParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
+        for name in ("node_cov_scale", "link_cov_scale"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 1):
+                raise InputError(f"{name} = {v}", where="SmootherParams", expected=">= 1")
         for name in ("odo_fraction", "range_correlation_s", "link_sigma_fraction"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"{name} = {getattr(self, name)}", where="SmootherParams",
