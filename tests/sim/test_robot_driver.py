@@ -187,23 +187,3 @@ def test_robot_goes_beside_a_node_heard_from_one_straight_pass() -> None:
     # without side_m the nearest new view is on the pass's line, 3 m past its end
     q = heard_point(inp, "N", router.points_m, WaypointParams(cross_m=3.0))
     assert q is None or abs(q[1] - 1.5) < 1.0
-
-
-def test_robot_goes_beside_a_node_heard_all_along_its_corridor() -> None:
-    from hrtls.mission.waypoints import heard_point
-    from hrtls.sim.mission import FREE_SPACE
-    from hrtls.sim.planner_loop import LoopParams
-
-    router = CorridorRouter(FREE_SPACE, grid_m=0.75, margin_m=0.4)
-    # two passes along the bottom corridor, estimated 2.2 m apart (spread 1.1 m: not one
-    # straight pass), every grid point of the corridor within 3 m of a reading
-    x = np.linspace(8.0, 22.0, 15)
-    a = np.vstack([np.column_stack([x, np.full(15, 0.4)]), np.column_stack([x, np.full(15, 2.6)])])
-    r = np.hypot(*(a - [15.0, 2.0]).T)
-    inp = PlannerInput(np.array([40.0, 1.5]), {}, {"N": (a, r, np.full(30, 0.3))},
-                       np.zeros((0, 2)))
-    assert heard_point(inp, "N", router.points_m, WaypointParams(cross_m=3.0)) is None
-    p = heard_point(inp, "N", router.points_m, LoopParams().waypoints)
-    assert p is not None
-    # by hand: best-fit line y = 1.5, the shortest range at (15, 2.6) -> foot (15, 1.5), 1 m off
-    np.testing.assert_allclose([p[0], abs(p[1] - 1.5)], [15.0, 1.0], atol=1e-9)

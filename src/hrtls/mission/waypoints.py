@@ -140,9 +140,7 @@ def heard_point(inp: PlannerInput, node: str, candidates_m: FloatArray,
     pass's line at a clear angle (a second bearing against the mirror ambiguity); with none
     and ``side_m`` set, the point ``side_m`` off the line beside the reading of the shortest
     range, on the side of the nearer candidate (a parallel line, e.g. the corridor's other side;
-    not a candidate itself: the driver pulls it into the free space). With ``side_m`` set, that
-    point also when no candidate is feasible (readings all along a corridor, from several
-    passes).
+    not a candidate itself: the driver pulls it into the free space).
     """
     a, r, s = (x[-prm.max_readings:] for x in inp.heard[node])
     d = np.linalg.norm(candidates_m[:, None, :] - a[None], axis=2)
@@ -156,8 +154,7 @@ def heard_point(inp: PlannerInput, node: str, candidates_m: FloatArray,
         if spread < prm.straight_m and crossing.any():
             feasible = crossing
     if not feasible.any():
-        return _side_point(a, r, candidates_m, prm.side_m) if prm.side_m > 0 and len(a) >= 2 \
-            else None
+        return None
     pts = candidates_m[feasible]
     return np.asarray(pts[int(np.argmin(np.hypot(*(pts - inp.agent_m).T)))], dtype=np.float64)
 

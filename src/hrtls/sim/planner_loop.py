@@ -39,8 +39,7 @@ class LoopParams:
     waypoints: WaypointParams = field(
         default_factory=lambda: WaypointParams(cross_m=3.0, side_m=1.0))
     """The robot's planner: a node heard from one straight pass gets a way point 3 m off the
-    pass's line, else 1 m beside it (the corridor's other side); so does a node with no new
-    view in its range discs."""
+    pass's line, else 1 m beside it (the corridor's other side)."""
     mission: MissionParams = field(default_factory=MissionParams)
 
 
