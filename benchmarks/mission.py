@@ -45,7 +45,9 @@ of time on the right floor and their error per floor (``benchmarks/_mission_floo
 
 ``--why``: every node's class at the end (localized, never in range, too few readings, one
 straight pass or mirror, a gate, sigma too large; ``benchmarks/_mission_why.py``), summed over
-the seeds; ``--only-on`` / ``--only-off``: cooperation on / off only.
+the seeds; ``--reach``: each seed's nodes not localized, each with where it was lost (never in
+range, silent, not kept, seen from one corridor, rejected; ``benchmarks/_mission_reach.py``);
+``--only-on`` / ``--only-off``: cooperation on / off only.
 ``--no-magnetometer`` / ``--no-hard-iron-fit``:
 the rescuers' ``[attitude] use_magnetometer = false`` / ``mag_hard_iron = "off"`` (diagnosis of
 their heading errors; ``benchmarks/mission_heading.py``); ``--heading-source gyro+compass``:
@@ -82,6 +84,7 @@ from _engine import Batch, add_engine_options, parse_seeds
 from _mission_floors import KEYS as FLOOR_KEYS
 from _mission_floors import floor_scores, floor_table
 from _mission_nees import nees_split, nees_split_table
+from _mission_reach import NodeReach, node_reach, reach_lines
 from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
@@ -204,6 +207,8 @@ class ModeScores:
     """``_mission_floors.floor_scores`` (two floors only)."""
     robot_nees: float = float("nan")
     """The robots' NEES (2 dof) at 1 Hz, mean."""
+    reach: list[NodeReach] = field(default_factory=list)
+    """The nodes not localized, each with its class (``_mission_reach``)."""
 
 
 def _quarters(x: list[float]) -> tuple[float, float]:
@@ -290,7 +295,8 @@ def run_seed(item: SeedItem) -> dict[str, ModeScores]:
                                why_not_localized(mission, tracker, res), _solves(tracker),
                                nees_split(mission, res),
                                floor_scores(mission, res) if item.options.n_floors > 1 else {},
-                               float(np.mean(robot_nees)) if len(robot) else float("nan"))
+                               float(np.mean(robot_nees)) if len(robot) else float("nan"),
+                               node_reach(mission, tracker, res))
     return out
 
 
@@ -377,6 +383,9 @@ def main() -> None:
                     help="rescuers' [tags] sigma_per_accuracy (default: the rescue-mission preset)")
     ap.add_argument("--why", action="store_true",
                     help="also print why the nodes were not localized (benchmarks/_mission_why)")
+    ap.add_argument("--reach", action="store_true",
+                    help="also print each seed's nodes not localized and where they were lost "
+                         "(benchmarks/_mission_reach)")
     ap.add_argument("--nees-split", action="store_true",
                     help="also print the agents' NEES split by node use (benchmarks/_mission_nees)")
     ap.add_argument("--only-on", action="store_true",
@@ -496,6 +505,8 @@ def main() -> None:
             r["s1"].append(m.solve_s[1])
             nees_all[mode].extend(m.node_nees)
             why[mode].append(m.why)
+            if args.reach:
+                print("\n".join(reach_lines(item.seed, args.nodes, m.reach)), flush=True)
             split[mode].append(m.nees_split)
             for k, v in m.floors.items():
                 floor_rows[mode][k].append(v)

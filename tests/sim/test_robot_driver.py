@@ -162,3 +162,28 @@ def test_loop_estimate_reads_the_odometry_not_the_true_pose() -> None:
     np.testing.assert_array_equal(before, after)
     # before the tracker's first row: start pose plus the odometry's displacement
     np.testing.assert_allclose(before, [1.5, 1.5] + part.fixes.xyz[-1, :2] - [1.5, 1.5])
+
+
+def test_robot_goes_beside_a_node_heard_from_one_straight_pass() -> None:
+    from hrtls.mission.waypoints import heard_point
+    from hrtls.sim.mission import FREE_SPACE
+    from hrtls.sim.planner_loop import LoopParams
+
+    router = CorridorRouter(FREE_SPACE, grid_m=0.75, margin_m=0.4)
+    # one pass along the bottom corridor's centre line y = 1.5, x 8..22, a node at (15, 2.5):
+    # 12 m from the side corridors (beyond the radio's 10 m), so no crossing view exists
+    a = np.column_stack([np.linspace(8.0, 22.0, 15), np.full(15, 1.5)])
+    r = np.hypot(*(a - [15.0, 2.5]).T)
+    inp = PlannerInput(np.array([40.0, 1.5]), {}, {"N": (a, r, np.full(15, 0.3))},
+                       np.zeros((0, 2)))
+    p = heard_point(inp, "N", router.points_m, LoopParams().waypoints)
+    assert p is not None
+    # by hand: the foot of the shortest range is (15, 1.5); 1 m off the line on the side of
+    # the nearer grid point (y 1.15 and 1.9 are equally near: the first of +-normal)
+    assert abs(p[1] - 1.5) == pytest.approx(1.0)
+    assert p[0] == pytest.approx(15.0)
+    # the driver pulls the point into the free space: the robot's leg leaves the pass's line
+    assert abs(router.inside(p)[1] - 1.5) >= 1.0 - 1e-6
+    # without side_m the nearest new view is on the pass's line, 3 m past its end
+    q = heard_point(inp, "N", router.points_m, WaypointParams(cross_m=3.0))
+    assert q is None or abs(q[1] - 1.5) < 1.0

@@ -9,7 +9,8 @@ position: the planner never sees the simulator's truth. :func:`next_waypoint` th
    node lies in every disc ``|q - a_i| <= r_i + 3 s_i`` of its readings (an NLOS range is only
    longer); the agent goes to the feasible point nearest to it that is at least ``new_view_m``
    from every reading position, so the next ranges come from a new direction (or rule the point
-   out); the nearest such node first, none farther than ``heard_reach_m`` from the agent;
+   out); the nearest such node first, none farther than ``heard_reach_m`` from the agent
+   (heard from one straight pass: a point off the pass's line, :func:`heard_point`);
 2. for a localized node whose largest position sigma exceeds ``target_sigma_m``: its estimate
    (ranges from close and from a new side), or with ``refine_reach_m`` the candidate nearest to
    it, none farther (the caller may leave out the candidates near way points already reached);
@@ -53,6 +54,10 @@ class WaypointParams:
     cross_m: float = 0.0
     """The way point of a node heard from one straight pass is this far from the pass's line
     (0: off)."""
+    side_m: float = 0.0
+    """A node heard from one straight pass with no point ``cross_m`` off its line: the way point
+    is at least this far off the line, beside its reading of the shortest range, however near
+    the readings (a second line against the mirror ambiguity; 0: off)."""
     heard_again_m: float = 0.0
     """Extra cost of a heard node to an agent that heard it already (:func:`next_waypoint`)."""
     refine_reach_m: float | None = None
@@ -62,7 +67,7 @@ class WaypointParams:
     def __post_init__(self) -> None:
         if not (self.target_sigma_m > 0 and self.new_view_m >= 0 and self.max_visits_per_node >= 1
                 and self.max_readings >= 1 and self.straight_m >= 0 and self.cross_m >= 0
-                and self.heard_again_m >= 0):
+                and self.heard_again_m >= 0 and self.side_m >= 0):
             raise InputError("invalid way-point parameters", where="WaypointParams",
                              expected="sigma > 0, distance >= 0, visits and readings >= 1")
 
@@ -113,11 +118,17 @@ def planner_input(tracker: MissionTracker, *, agent_m: FloatArray) -> PlannerInp
                         heard_by)
 
 
-def _line_distance(points_m: FloatArray, a: FloatArray) -> tuple[float, FloatArray]:
-    """RMS distance of ``a`` ``(k, 2)`` from its best-fit line, and each point's distance to it."""
+def _fit_line(a: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, float]:
+    """Best-fit line of ``a`` ``(k, 2)``: centre, unit direction, unit normal, RMS distance."""
     c = a.mean(axis=0)
     w, v = np.linalg.eigh(np.cov((a - c).T, bias=True).reshape(2, 2))
-    return float(np.sqrt(max(w[0], 0.0))), np.abs((points_m - c) @ v[:, 0])
+    return c, v[:, 1], v[:, 0], float(np.sqrt(max(w[0], 0.0)))
+
+
+def _line_distance(points_m: FloatArray, a: FloatArray) -> tuple[float, FloatArray]:
+    """RMS distance of ``a`` ``(k, 2)`` from its best-fit line, and each point's distance to it."""
+    c, _, n, spread = _fit_line(a)
+    return spread, np.abs((points_m - c) @ n)
 
 
 def heard_point(inp: PlannerInput, node: str, candidates_m: FloatArray,
@@ -126,7 +137,10 @@ def heard_point(inp: PlannerInput, node: str, candidates_m: FloatArray,
 
     Readings from one straight pass (RMS distance from their line below ``straight_m``): the
     feasible points at least ``cross_m`` from that line first, so that the leg leaves the
-    pass's line at a clear angle (a second bearing against the mirror ambiguity).
+    pass's line at a clear angle (a second bearing against the mirror ambiguity); with none
+    and ``side_m`` set, the point ``side_m`` off the line beside the reading of the shortest
+    range, on the side of the nearer candidate (a parallel line, e.g. the corridor's other side;
+    not a candidate itself: the driver pulls it into the free space).
     """
     a, r, s = (x[-prm.max_readings:] for x in inp.heard[node])
     d = np.linalg.norm(candidates_m[:, None, :] - a[None], axis=2)
@@ -134,12 +148,28 @@ def heard_point(inp: PlannerInput, node: str, candidates_m: FloatArray,
     if len(a) >= 2:
         spread, off = _line_distance(candidates_m, a)
         crossing = feasible & (off >= prm.cross_m)
+        if spread < prm.straight_m and prm.side_m > 0 and not (prm.cross_m > 0
+                                                                and crossing.any()):
+            return _side_point(a, r, candidates_m, prm.side_m)
         if spread < prm.straight_m and crossing.any():
             feasible = crossing
     if not feasible.any():
         return None
     pts = candidates_m[feasible]
     return np.asarray(pts[int(np.argmin(np.hypot(*(pts - inp.agent_m).T)))], dtype=np.float64)
+
+
+def _side_point(a: FloatArray, r: FloatArray, candidates_m: FloatArray,
+                side_m: float) -> FloatArray:
+    """The point ``side_m`` off the best-fit line of ``a`` beside its shortest range.
+
+    On the side whose point is nearer a candidate (:func:`heard_point`).
+    """
+    c, u, n, _ = _fit_line(a)
+    foot = c + float((a[int(np.argmin(r))] - c) @ u) * u
+    pts = foot[None] + side_m * np.array([n, -n])
+    gap = np.min(np.linalg.norm(pts[:, None, :] - candidates_m[None], axis=2), axis=1)
+    return np.asarray(pts[int(np.argmin(gap))], dtype=np.float64)
 
 
 def node_targets(inp: PlannerInput, candidates_m: FloatArray, visits: dict[str, int],

@@ -85,8 +85,10 @@ from hrtls.sim.team import ROBOT_RATE_HZ, odometry_poses
 
 FloatArray = NDArray[np.float64]
 
-FREE_SPACE = unary_union([box(0, 0, 60, 3), box(0, 27, 60, 30), box(0, 0, 3, 30),
-                          box(57, 0, 60, 30), box(28.5, 0, 31.5, 30)])
+CORRIDORS = (box(0, 0, 60, 3), box(0, 27, 60, 30), box(0, 0, 3, 30), box(57, 0, 60, 30),
+             box(28.5, 0, 31.5, 30))
+"""The floor's corridors, one box each (they overlap where they cross)."""
+FREE_SPACE = unary_union(CORRIDORS)
 """Corridors of the floor (the rescuers walk here; nodes are dropped here)."""
 ROOM_BLOCKS: tuple[tuple[float, float, float, float], ...] = ((3.0, 3.0, 28.5, 27.0),
                                                                (31.5, 3.0, 57.0, 27.0))

@@ -36,7 +36,10 @@ class LoopParams:
     plan_period_s: float = 15.0
     control_period_s: float = 1.0
     """The robot's position estimate is checked against its way point this often."""
-    waypoints: WaypointParams = field(default_factory=WaypointParams)
+    waypoints: WaypointParams = field(
+        default_factory=lambda: WaypointParams(cross_m=3.0, side_m=1.0))
+    """The robot's planner: a node heard from one straight pass gets a way point 3 m off the
+    pass's line, else 1 m beside it (the corridor's other side)."""
     mission: MissionParams = field(default_factory=MissionParams)
 
 
