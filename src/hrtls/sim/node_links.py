@@ -2,8 +2,11 @@
 
 Every pair of alive nodes on the same floor within ``max_range_m`` ranges each other at
 ``rate_hz`` (attempts on a regular grid with a random phase per pair) over the mission's span,
-drawn by :func:`hrtls.sim.infrastructure.draw_ranges` (Gaussian noise, NLOS bias through the
-walls, dropouts): the radio is modelled once. Failed nodes do not range.
+drawn by :func:`hrtls.sim.infrastructure.draw_ranges` (Gaussian noise, dropouts): the radio is
+modelled once. The NLOS bias of a pair whose line of sight crosses the walls is drawn once per
+pair (exponential, ``nlos_bias_mean_m``) and kept for all its ranges: two nodes that do not move
+see the same excess path every time, so repeating a range does not average its bias away.
+Failed nodes do not range.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import shapely
 
 from hrtls.mission.network_ranges import NetworkRanges
 from hrtls.sim.infrastructure import RangeModel, draw_ranges
@@ -39,9 +43,22 @@ def node_network_ranges(nodes: Mapping[str, Sequence[float]], model: RangeModel,
     inside = t < t1_s
     t, pair = t[inside], pair[inside]
     got = draw_ranges(distance_m=d[pair], from_xy_m=pos[ia[pair], :2], to_xy_m=pos[ib[pair], :2],
-                      model=dataclasses.replace(model, rate_hz=rate_hz), rng=rng)
-    positive = got.range_m > 0                  # a range clipped at 0 is no reading
-    k = np.flatnonzero(got.keep)[positive]
+                      model=dataclasses.replace(model, rate_hz=rate_hz, walls=None), rng=rng)
+    bias = _pair_nlos_bias_m(pos[ia, :2], pos[ib, :2], model, rng)
+    kept = np.flatnonzero(got.keep)
+    range_m = got.range_m + bias[pair[kept]]
+    positive = range_m > 0                      # a range clipped at 0 is no reading
+    k = kept[positive]
     names = np.asarray(ids)
     return NetworkRanges.concat([NetworkRanges(t[k], names[ia[pair[k]]], names[ib[pair[k]]],
-                                               got.range_m[positive])])
+                                               range_m[positive])])
+
+
+def _pair_nlos_bias_m(a_xy_m: np.ndarray, b_xy_m: np.ndarray, model: RangeModel,
+                      rng: np.random.Generator) -> np.ndarray:
+    """One exponential NLOS bias per pair whose segment crosses the walls, else 0, m."""
+    if model.walls is None or model.nlos_bias_mean_m <= 0:
+        return np.zeros(len(a_xy_m))
+    blocked = shapely.intersects(shapely.linestrings(np.stack([a_xy_m, b_xy_m], axis=1)),
+                                 model.walls)
+    return blocked * rng.exponential(model.nlos_bias_mean_m, len(a_xy_m))
