@@ -304,11 +304,14 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
     ``--feedback-gate``, ``--window-s`` and the smoother's model options; without it the
     smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``);
-    ``--peer-factors`` on either."""
+    ``--peer-factors``, ``--link-bias-sigma-m`` and ``--link-cov-scale`` on either."""
+    links = {k: getattr(args, k) for k in ("link_bias_sigma_m", "link_cov_scale")
+             if getattr(args, k) is not None}
     if not args.smoother:
         sm = MissionParams().smoother if args.mode is None else smoother_params(args.mode)
-        return sm if sm is None or args.peer_factors is None else \
-            replace(sm, peer_factors=args.peer_factors == "on")
+        if sm is not None and args.peer_factors is not None:
+            sm = replace(sm, peer_factors=args.peer_factors == "on")
+        return sm if sm is None else replace(sm, **links)
     kw: dict[str, Any] = {}
     for key in ("feedback", "robots_take", "every_s", "feedback_cov_scale", "feedback_gate",
                 "feedback_ranges",
@@ -319,7 +322,7 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
                 key, key)] = getattr(args, key)
     if args.peer_factors is not None:
         kw["peer_factors"] = args.peer_factors == "on"
-    return SmootherParams(**kw)
+    return SmootherParams(**kw, **links)
 
 
 def main() -> None:
@@ -426,6 +429,12 @@ def main() -> None:
                     help="with --smoother: SmootherParams.min_spread_m")
     ap.add_argument("--localize-spread-m", type=float, default=None,
                     help="with --smoother: SmootherParams.localize_spread_m")
+    ap.add_argument("--link-bias-sigma-m", type=float, default=None,
+                    help="SmootherParams.link_bias_sigma_m (a node pair's persistent excess "
+                    "path, m)")
+    ap.add_argument("--link-cov-scale", type=float, default=None,
+                    help="SmootherParams.link_cov_scale (calibration of a linked node's "
+                    "covariance)")
     ap.add_argument("--smoother-correlation-s", type=float, default=None,
                     help="with --smoother: SmootherParams.range_correlation_s")
     ap.add_argument("--no-magnetometer", action="store_true",

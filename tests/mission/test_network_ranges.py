@@ -83,6 +83,12 @@ def test_a_pair_is_one_factor_at_its_median_range() -> None:
     # N1-N2: deviations 1, 0, 2 from the median, MAD 1 above the model's sigma
     np.testing.assert_allclose(links.sigma_m, [1.4826, np.hypot(0.3, 0.5)])
     np.testing.assert_array_equal(links.count, [3, 1])
+    # a persistent excess path adds in variance to whichever of the two is larger
+    biased = pair_links(np.array(["N2", "N1", "N1", "N3"]), np.array(["N1", "N2", "N2", "N1"]),
+                        np.array([1.0, 2.0, 4.0, 5.0]), sigma_m=0.3, sigma_fraction=0.1,
+                        bias_sigma_m=0.4)
+    np.testing.assert_allclose(biased.sigma_m,
+                               [np.hypot(1.4826, 0.4), np.sqrt(0.3**2 + 0.5**2 + 0.4**2)])
 
 
 def test_a_node_seen_from_one_line_joins_through_a_neighbour_off_it() -> None:

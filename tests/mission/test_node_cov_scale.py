@@ -54,6 +54,12 @@ def test_scales_below_one_or_not_finite_are_refused(field: str, value: float) ->
         SmootherParams(**{field: value})  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf")])
+def test_a_negative_or_not_finite_link_bias_is_refused(value: float) -> None:
+    with pytest.raises(InputError, match="link_bias_sigma_m"):
+        SmootherParams(link_bias_sigma_m=value)
+
+
 def test_the_default_modes_smoother_nodes_are_not_over_confident() -> None:
     """Seeded regression (seeds 1 and 2, 150 s walks, 20 nodes, 2 % range noise, the default
     mode ``feedback``): pooled NEES (2 dof) of the nodes the smoother localized at most 2 (its

@@ -4,11 +4,13 @@ Links. Two static nodes measure one and the same distance every time, through th
 their ranges' errors are not independent over the mission (an NLOS bias stays), so the ranges
 of a pair are taken as one factor (the mission-long version of ``range_correlation_s``): the
 median ``r`` of the pair's ranges, residual ``(r - ||p_a - p_b||) / s`` with
-``s = max(sqrt(sigma_m^2 + (sigma_fraction r)^2), 1.4826 MAD)``: the estimator's own noise model
-of the radio (:class:`~hrtls.mission.graph_params.SmootherParams` ``link_sigma_m``,
-``link_sigma_fraction``), or the spread of the pair's ranges (median absolute deviation) when
-larger: ranges through walls scatter with their bias, so a pair whose ranges scatter more than
-the noise model is taken as biased by about that spread. Under the robust loss of the agents'
+``s = sqrt(max(sqrt(sigma_m^2 + (sigma_fraction r)^2), 1.4826 MAD)^2 + bias_sigma_m^2)``: the
+estimator's own noise model of the radio (:class:`~hrtls.mission.graph_params.SmootherParams`
+``link_sigma_m``, ``link_sigma_fraction``), or the spread of the pair's ranges (median absolute
+deviation) when larger: ranges through walls scatter with their bias, so a pair whose ranges
+scatter more than the noise model is taken as biased by about that spread; and the part of the
+excess path that stays the same for every range of the pair (``link_bias_sigma_m``), which no
+spread shows. Under the robust loss of the agents'
 ranges. Both nodes lie on the floor: no height term.
 
 Geometry. A node enters the problem and may count as localized when the positions it is ranged
@@ -71,7 +73,7 @@ class NodeLinks:
 
 
 def pair_links(node_a: NDArray[np.str_], node_b: NDArray[np.str_], range_m: FloatArray, *,
-               sigma_m: float, sigma_fraction: float) -> NodeLinks:
+               sigma_m: float, sigma_fraction: float, bias_sigma_m: float = 0.0) -> NodeLinks:
     """The ranges grouped by unordered pair: each pair's median range and sigma (module doc)."""
     if not len(range_m):
         return NodeLinks.empty()
@@ -82,7 +84,8 @@ def pair_links(node_a: NDArray[np.str_], node_b: NDArray[np.str_], range_m: Floa
     counts = np.bincount(inv, minlength=len(pairs))
     med = _group_median(range_m, inv, counts)
     mad = _group_median(np.abs(range_m - med[inv]), inv, counts)
-    sig = np.maximum(np.hypot(sigma_m, sigma_fraction * med), MAD_SIGMA * mad)
+    sig = np.hypot(np.maximum(np.hypot(sigma_m, sigma_fraction * med), MAD_SIGMA * mad),
+                   bias_sigma_m)
     return NodeLinks(pairs[:, 0], pairs[:, 1], med, sig, counts.astype(np.int64))
 
 

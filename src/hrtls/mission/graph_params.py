@@ -69,6 +69,10 @@ class SmootherParams:
         The estimator's noise model of a range between two dropped nodes (no sigma comes
         with them): ``sqrt(link_sigma_m^2 + (link_sigma_fraction r)^2)``, m
         (:mod:`hrtls.mission.graph_links`).
+    link_bias_sigma_m:
+        Standard deviation of a pair's persistent excess path (NLOS through walls), which
+        repeating the pair's ranges does not average away; added in variance to a link's
+        sigma, m (0: none).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -113,6 +117,7 @@ class SmootherParams:
     window_s: float | None = None
     link_sigma_m: float = 0.15
     link_sigma_fraction: float = 0.03
+    link_bias_sigma_m: float = 0.0
     peer_factors: bool = False
     node_cov_scale: float = 1.0
     link_cov_scale: float = 1.0
@@ -130,7 +135,8 @@ class SmootherParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 1):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected=">= 1")
-        for name in ("odo_fraction", "range_correlation_s", "link_sigma_fraction"):
+        for name in ("odo_fraction", "range_correlation_s", "link_sigma_fraction",
+                     "link_bias_sigma_m"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"{name} = {getattr(self, name)}", where="SmootherParams",
                                  expected=">= 0")

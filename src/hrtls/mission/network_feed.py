@@ -111,7 +111,8 @@ def _pairs(mt: MissionTracker) -> NodeLinks:
     if st.pairs is None:
         prm = mt.params.smoother or SmootherParams()
         st.pairs = pair_links(st.used.node_a, st.used.node_b, st.used.range_m,
-                              sigma_m=prm.link_sigma_m, sigma_fraction=prm.link_sigma_fraction)
+                              sigma_m=prm.link_sigma_m, sigma_fraction=prm.link_sigma_fraction,
+                              bias_sigma_m=prm.link_bias_sigma_m)
     return st.pairs
 
 
