@@ -151,7 +151,7 @@ def drive_rescuers(persons: Mapping[str, WalkingPerson], others: Mapping[str, Se
     targets: dict[str, Choice] = {}  # each rescuer's way point until it asks again
     reached: dict[str, FloatArray] = {}  # each rescuer's last way point reached
     wp = dataclasses.replace(prm.waypoints, cross_m=tp.cross_m, heard_again_m=tp.heard_again_m,
-                             refine_reach_m=tp.refine_reach_m)
+                             refine_reach_m=tp.refine_reach_m, side_m=0.0)  # the robot's only
     while True:
         busy = [k for k, p in persons.items() if p.t_s < end_s[k] - p.dt_s]
         for k in sorted(set(persons) - set(busy)):
