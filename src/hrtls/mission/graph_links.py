@@ -187,18 +187,40 @@ class LinkRows:
     def parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Whitened residuals, ``p_a - p_b`` and the distance."""
         diff = np.column_stack([x[self.ca] - x[self.cb], x[self.ca + 1] - x[self.cb + 1]])
-        d = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
-        return (self.r - d) / self.s, diff, d
+        return distance_rows(diff, self.r, self.s)
 
     def jacobian(self, x: FloatArray, row0: int
                  ) -> tuple[list[IntArray], list[IntArray], list[FloatArray]]:
         """Rows, columns and values of the link rows' Jacobian, from row ``row0``."""
         _, diff, d = self.parts(x)
-        u = diff / (d * self.s)[:, None]
-        ri = row0 + np.arange(len(self.r))
-        rows, cols, vals = [], [], []
-        for ax in (0, 1):
-            rows += [ri, ri]
-            cols += [self.ca + ax, self.cb + ax]
-            vals += [-u[:, ax], u[:, ax]]
-        return rows, cols, vals
+        return distance_jacobian(diff, d, self.s, row0, [(self.ca, -1.0), (self.cb, 1.0)])
+
+
+Terms = list[tuple[IntArray, "FloatArray | float"]]
+
+
+def distance_rows(diff: FloatArray, r: FloatArray, s: FloatArray
+                  ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Whitened range residuals ``(r - ||diff||) / s``, ``diff`` (N, 2) and ``||diff||``."""
+    d = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
+    return (r - d) / s, diff, d
+
+
+def distance_jacobian(diff: FloatArray, d: FloatArray, s: FloatArray, row0: int, terms: Terms
+                      ) -> tuple[list[IntArray], list[IntArray], list[FloatArray]]:
+    """Rows, columns and values of the Jacobian of :func:`distance_rows`, from row ``row0``.
+
+    ``diff = sum_i c_i x[col_i]`` over ``terms`` ``(col_i, c_i)`` (the x column of each 2-D
+    position; y is the next), so ``de / dx[col_i] = c_i u`` with ``u = diff / (d s)``.
+    """
+    u = diff / (d * s)[:, None]
+    ri = row0 + np.arange(len(d))
+    rows: list[IntArray] = []
+    cols: list[IntArray] = []
+    vals: list[FloatArray] = []
+    for ax in (0, 1):
+        for col, coef in terms:
+            rows.append(ri)
+            cols.append(col + ax)
+            vals.append(coef * u[:, ax])
+    return rows, cols, vals

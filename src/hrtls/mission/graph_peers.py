@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from scipy.sparse import csc_matrix, csr_matrix, diags
 
 from hrtls.mission.graph_covariance import robust_weights
+from hrtls.mission.graph_links import Terms, distance_jacobian, distance_rows
 from hrtls.mission.range_weights import correlated_sigma
 
 if TYPE_CHECKING:
@@ -113,26 +114,17 @@ class PeerRows:
 
     def parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Whitened residuals, ``x_a(t) - x_b(t)`` and the distance."""
-        diff = self._xy(x, 0) - self._xy(x, 1)
-        d = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
-        return (self.r - d) / self.s, diff, d
+        return distance_rows(self._xy(x, 0) - self._xy(x, 1), self.r, self.s)
 
     def jacobian(self, x: FloatArray, row0: int
                  ) -> tuple[list[IntArray], list[IntArray], list[FloatArray]]:
         """Rows, columns and values of the rows' Jacobian, from row ``row0`` (module doc)."""
         _, diff, d = self.parts(x)
-        u = diff / (d * self.s)[:, None]
-        ri = row0 + np.arange(len(self.r))
-        rows: list[IntArray] = []
-        cols: list[IntArray] = []
-        vals: list[FloatArray] = []
-        for ax in (0, 1):
-            for side, sign in ((0, -1.0), (1, 1.0)):
-                w = self.w[side]
-                rows += [ri, ri]
-                cols += [self.cols[2 * side] + ax, self.cols[2 * side + 1] + ax]
-                vals += [sign * (1.0 - w) * u[:, ax], sign * w * u[:, ax]]
-        return rows, cols, vals
+        terms: Terms = []
+        for side, sign in ((0, -1.0), (1, 1.0)):
+            w = self.w[side]
+            terms += [(self.cols[2 * side], sign * (1.0 - w)), (self.cols[2 * side + 1], sign * w)]
+        return distance_jacobian(diff, d, self.s, row0, terms)
 
 
 def layout_at(lay: Layout) -> At:
