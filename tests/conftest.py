@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import importlib
 import os
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -29,3 +32,12 @@ def shared_data() -> Path:
     if root is None:
         pytest.skip("real recordings (../shared/data) are not available on this machine")
     return root
+
+
+@pytest.fixture(scope="module")
+def benchmark_import() -> Iterator[Callable[[str], ModuleType]]:
+    """Imports a module of ``benchmarks/``; the folder stays on ``sys.path`` for the test
+    module (a process pool spawned by a test imports the same modules)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(REPO_ROOT / "benchmarks"))
+        yield importlib.import_module

@@ -3,17 +3,12 @@
 
 from __future__ import annotations
 
-import importlib
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from hrtls.attitude import make_filter, orientation_errors
 from hrtls.attitude.inertial_lowpass import InertialLowpassParams
 from hrtls.frames import GRAVITY_M_S2, quat_angle_between, quat_multiply, quat_rotate
-
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 # inertial-lp's inclination RMS may exceed VQF's by at most this factor on the unit below
 # (they agree to 0.01-0.03 deg on the benchmark's units); a filter that gates on | |a| - g |
@@ -24,13 +19,8 @@ TEST_SEED = 13
 
 
 @pytest.fixture(scope="module")
-def fast_sim():
-    mp = pytest.MonkeyPatch()
-    mp.syspath_prepend(str(BENCHMARKS))
-    try:
-        yield importlib.import_module("_attitude_fast_sim")
-    finally:
-        mp.undo()
+def fast_sim(benchmark_import):
+    return benchmark_import("_attitude_fast_sim")
 
 
 def _noise_free(fast_sim, kind):

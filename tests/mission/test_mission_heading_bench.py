@@ -2,22 +2,16 @@
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable
 from types import ModuleType
 
 import numpy as np
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
 
 @pytest.fixture(scope="module")
-def bench() -> Iterator[ModuleType]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCHMARKS))
-        yield importlib.import_module("mission_heading")
+def bench(benchmark_import: Callable[[str], ModuleType]) -> ModuleType:
+    return benchmark_import("mission_heading")
 
 
 def test_bands_by_distance_walked(bench: ModuleType) -> None:

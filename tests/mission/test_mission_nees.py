@@ -2,21 +2,15 @@
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable
 from types import ModuleType
 
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
 
 @pytest.fixture(scope="module")
-def split() -> Iterator[ModuleType]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCHMARKS))
-        yield importlib.import_module("_mission_nees")
+def split(benchmark_import: Callable[[str], ModuleType]) -> ModuleType:
+    return benchmark_import("_mission_nees")
 
 
 def test_since_bins(split: ModuleType) -> None:

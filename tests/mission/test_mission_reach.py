@@ -2,23 +2,17 @@
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable
 from types import ModuleType
 
 import numpy as np
 import pytest
 from shapely.geometry import box
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
 
 @pytest.fixture(scope="module")
-def reach() -> Iterator[ModuleType]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCHMARKS))
-        yield importlib.import_module("_mission_reach")
+def reach(benchmark_import: Callable[[str], ModuleType]) -> ModuleType:
+    return benchmark_import("_mission_reach")
 
 
 CROSS = (box(0, 0, 20, 3), box(0, 0, 3, 20))  # an L: the square 0..3 x 0..3 is in both

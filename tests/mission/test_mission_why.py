@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable
 from types import ModuleType
 
 import numpy as np
@@ -12,14 +10,10 @@ import pytest
 
 from hrtls.mission.nodes import NodeEstimator, NodeRanges
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
 
 @pytest.fixture(scope="module")
-def why() -> Iterator[ModuleType]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(BENCHMARKS))
-        yield importlib.import_module("_mission_why")
+def why(benchmark_import: Callable[[str], ModuleType]) -> ModuleType:
+    return benchmark_import("_mission_why")
 
 
 def _ranges(xy: np.ndarray, node: np.ndarray) -> NodeRanges:

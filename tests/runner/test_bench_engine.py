@@ -1,21 +1,15 @@
 """The seed-looping benchmarks print the same tables in one process and on a process pool."""
 
-import importlib
 import sys
-from pathlib import Path
 
 import pytest
 
 from hrtls.parallel import LocalEngine
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
 
 @pytest.fixture
-def bench_modules(monkeypatch):
-    # the pool's processes are spawned with this sys.path, so they import the same modules
-    monkeypatch.syspath_prepend(str(BENCHMARKS))
-    return importlib.import_module("causal"), importlib.import_module("_engine")
+def bench_modules(benchmark_import):
+    return benchmark_import("causal"), benchmark_import("_engine")
 
 
 def test_causal_tables_equal_on_one_process_and_two_workers(bench_modules, monkeypatch, capsys):
