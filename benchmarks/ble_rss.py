@@ -22,6 +22,9 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
   at their first value (the settings before those options) when the flag is given;
 
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
+``--smoother`` adds ``grid, held out, smoother``: the held-out choice tracked again with
+``[offline] grid_smoother`` (the filter's settings unchanged: not chosen for the smoother), and
+for both the share of truth samples inside the 95 % ellipse of the latest row (``cover``).
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
 ``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse);
 ``--window``, ``--estimate`` and ``--lag`` add :data:`EXTRA_CHOICES` (3, 2 and 3 times the
@@ -56,7 +59,7 @@ from rich.table import Table
 from hrtls.data import Session
 from hrtls.data.session import ChannelModel
 from hrtls.datasets.ble_rssi import BleRssiTrajectory, load_trajectory
-from hrtls.evaluate.metrics import position_errors
+from hrtls.evaluate.metrics import hold_previous, position_errors
 from hrtls.fusion.rss_grid import GridParams
 from hrtls.pipeline import Tracker, TrackerConfig
 
@@ -100,21 +103,38 @@ def fits(base: dict[str, Any], extra: dict[str, Any]) -> bool:
     return not extra.get("stopped_mode") or base["velocity_time_s"] > 0.0
 
 
+CHI2_2_95 = 5.991
+"""95 % quantile of the chi-square distribution with 2 degrees of freedom."""
+
+
 def config(no_imu: str, grid: dict[str, float] | None = None,
-           radio_map: dict[str, Any] | None = None) -> TrackerConfig:
+           radio_map: dict[str, Any] | None = None, *, smoother: bool = False) -> TrackerConfig:
     """The default configuration with ``no_imu``, some ``[prediction.grid]`` and
-    ``[prediction.radio_map]`` keys."""
+    ``[prediction.radio_map]`` keys, and ``[offline] grid_smoother``."""
     cfg = TrackerConfig()
     table = {**cfg.prediction.grid, **(grid or {})}
     rmap = {**cfg.prediction.radio_map, **(radio_map or {})}
     return TrackerConfig.model_validate({**cfg.model_dump(), "prediction": {
-        **cfg.prediction.model_dump(), "no_imu": no_imu, "grid": table, "radio_map": rmap}})
+        **cfg.prediction.model_dump(), "no_imu": no_imu, "grid": table, "radio_map": rmap},
+        "offline": {**cfg.offline.model_dump(), "grid_smoother": smoother}})
+
+
+def scored(session: Session, cfg: TrackerConfig) -> tuple[np.ndarray, float]:
+    """Horizontal error at every truth sample (m), and the share of truth samples inside the
+    95 % ellipse of the latest row (its mean and covariance)."""
+    res = Tracker(cfg).run(session)
+    truth = session.truth
+    assert truth is not None
+    tr = res.trajectory
+    k = hold_previous(tr.t, np.arange(len(tr.t)), truth.t)
+    d = truth.xyz[:, :2] - tr.xyz[k, :2]
+    m2 = np.einsum("ni,nij,nj->n", d, np.linalg.inv(tr.cov_xy[k]), d)
+    return position_errors(tr, truth)[1], float(np.mean(m2 <= CHI2_2_95))
 
 
 def errors(session: Session, cfg: TrackerConfig) -> np.ndarray:
     """Horizontal error at every truth sample, m."""
-    res = Tracker(cfg).run(session)
-    return position_errors(res.trajectory, session.truth)[1]  # type: ignore[arg-type]
+    return scored(session, cfg)[0]
 
 
 def survey_channel(tracks: list[BleRssiTrajectory]) -> ChannelModel:
@@ -215,6 +235,8 @@ def main() -> None:
                     help="lag_compensation (0, 0.5, 1) among the candidates")
     ap.add_argument("--map", action="store_true",
                     help="the radio map from the other tracks' truth, held out")
+    ap.add_argument("--smoother", action="store_true",
+                    help="the held-out choice also with [offline] grid_smoother")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -250,10 +272,13 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
+    smoother = ("grid, held out, smoother", "cover held / smoother") if args.smoother else ()
     for col in ("track", "random walk", "grid, default", "grid, held out, before",
-                "grid, held out", "s / run", "choice (dev)"):
+                "grid, held out", *smoother[:1], "s / run", *smoother[1:], "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
+    if args.smoother:
+        summary["smooth"] = []
     first = {key: values[0] for flag, (key, values) in EXTRA_CHOICES.items()
              if getattr(args, flag)}
     before = [k for k, c in enumerate(candidates) if set(c) == set(choices)
@@ -269,8 +294,13 @@ def main() -> None:
         e = {"walk": errors(s, config("random-walk")), "default": errors(s, config("grid")),
              "before": errors(surveyed(s, surveys[h], cb), config("grid", candidates[kb]))}
         start = time.perf_counter()
-        e["held"] = errors(surveyed(s, surveys[h], ch), config("grid", candidates[k]))
+        e["held"], cover = scored(surveyed(s, surveys[h], ch), config("grid", candidates[k]))
         seconds = time.perf_counter() - start
+        covers = f"{cover:.2f}"
+        if args.smoother:
+            e["smooth"], cover = scored(surveyed(s, surveys[h], ch),
+                                        config("grid", candidates[k], smoother=True))
+            covers += f" / {cover:.2f}"
         for key, v in e.items():
             summary[key].append(float(np.percentile(v, 75)))
         cells = [" / ".join(f"{x:.2f}" for x in np.percentile(v, [50, 75, 95]))
@@ -278,9 +308,10 @@ def main() -> None:
         choice = ", ".join(f"{a}={b}" for a, b in candidates[k].items()) + \
             (f", channel A={surveys[h].a_dbm:.1f} eta={surveys[h].eta:.2f} "
              f"sigma={surveys[h].sigma_db:.1f}" if ch else ", default channel")
-        table.add_row(h, *cells, f"{seconds:.1f}", f"{choice} (dev p75 {score[(k, ch)]:.2f})")
+        table.add_row(h, *cells, f"{seconds:.1f}", *((covers,) if args.smoother else ()),
+                      f"{choice} (dev p75 {score[(k, ch)]:.2f})")
     table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
-                                         for v in summary.values()), "", "")
+                                         for v in summary.values()), "", *smoother[1:], "")
     Console(width=200).print(table)
 
 

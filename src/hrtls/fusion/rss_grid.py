@@ -129,6 +129,7 @@ __all__ = [
 ]
 
 
+NO_RECORD = (np.zeros((0, 0, 0), dtype=np.float32), np.zeros((0, 3)))   # grid_kernel: none
 WINDOW_STATISTICS = ("mean-db", "mean-power", "median")
 """Values of :attr:`GridParams.window_statistic`."""
 
@@ -398,12 +399,13 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
                 velocity: FloatArray, burst: FloatArray, t_prev: float, started: bool,
                 t: FloatArray, first: IntArray, count: IntArray, anchor: IntArray,
                 rss_dbm: FloatArray, weight: FloatArray, age: FloatArray,
-                out: FloatArray) -> float:
+                out: FloatArray, kept: FloatArray, moved: FloatArray) -> float:
     # pragma: no cover - compiled
     """Run the scans through the filter; density (K, ny, nx) and the other states in place.
 
     ``out`` (S, 5): mean x, y and covariance xx, xy, yy per scan; ``age`` (S,): each scan's
-    mean reading age, s. Returns the last scan time.
+    mean reading age, s. Returns the last scan time. ``kept`` (S, ny, nx; (0, 0, 0): none),
+    ``moved`` (S, 3): each scan's position density after its update, its prediction's v and dt.
     ``rmap``, ``rvar``: the radio map's mean and variance (A, ny, nx; (0, 0, 0): no map).
     """
     ny, nx = density.shape[1], density.shape[2]
@@ -429,8 +431,10 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             if prm.burst_sigma_db > 0.0:
                 burst_predict(burst, dt, prm.burst_enter_per_s, prm.burst_exit_per_s)
             spread = prm.sigma_speed_m_per_sqrt_s * math.sqrt(dt) / cell
-            move_modes(density, velocity if moving and not fixed else base, turn,
-                       prm.stopped_mode > 0.0, dt, cell, spread, tmp)
+            v = velocity if moving and not fixed else base
+            if kept.shape[0] > 0:
+                moved[k, 0], moved[k, 1], moved[k, 2] = v[0], v[1], dt
+            move_modes(density, v, turn, prm.stopped_mode > 0.0, dt, cell, spread, tmp)
         a, b = first[k], first[k] + count[k]
         pos[:] = density.sum(axis=0)
         seen[:] = pos
@@ -449,6 +453,8 @@ def grid_kernel(prm: np.record, model: np.record, x0: float, y0: float, dist: Fl
             burst_update(dist, rmap, rvar, seen, anchor[a:b], rss_dbm[a:b], weight[a:b],
                          offsets_db, offsets_var, burst, model, prm)
         apply_likelihood(density, ll, pos)
+        if kept.shape[0] > 0:
+            kept[k] = pos
         moments(pos, x0, y0, cell, out[k])
         if moving and started:
             follow_velocity(velocity, prev[:2], out[k, :2], dt, prm.velocity_time_s,
@@ -566,26 +572,26 @@ class RssGridFilter:
         state.burst_probability = np.full(len(self.anchors_xy), self.params.burst_start)
         return state
 
-    def update(self, state: GridState, scans: GridScans) -> tuple[GridRows, GridState]:
-        """Rows of ``scans`` (after ``state.t``) and the new state (``state`` is unchanged)."""
+    def update(self, state: GridState, scans: GridScans, *,
+               record: tuple[np.ndarray, FloatArray] = NO_RECORD) -> tuple[GridRows, GridState]:
+        """Rows of ``scans`` after ``state.t``; the new state; ``record`` filled (not ``state``)."""
         s = len(scans.t)
         out = np.zeros((s, 5))
         density = state.modes(self.params.n_modes)
         offsets = state.offsets_db.copy()
         var = np.asarray(state.offsets_var_db2, dtype=np.float64).copy()
         vel = np.asarray(state.velocity_m_per_s, dtype=np.float64).copy()
-        burst = np.full(len(offsets), self.params.burst_start) \
-            if state.burst_probability is None \
-            else np.asarray(state.burst_probability, dtype=np.float64).copy()
+        burst = np.full(len(offsets), self.params.burst_start) if state.burst_probability \
+            is None else np.asarray(state.burst_probability, dtype=np.float64).copy()
         g = self.geometry
         t_last = state.t
         if s:
             t_last = grid_kernel(self._prm, self._model[0], g.x0_m, g.y0_m, self.dist,
                                  self.rmap, self.rvar, density, offsets, var, vel, burst,
-                                 state.t, state.started, scans.t,
-                                 scans.first, scans.count, scans.anchor, scans.rss_dbm,
-                                 scans.weight,
-                                 np.zeros(s) if scans.age_s is None else scans.age_s, out)
+                                 state.t, state.started, scans.t, scans.first, scans.count,
+                                 scans.anchor, scans.rss_dbm, scans.weight,
+                                 np.zeros(s) if scans.age_s is None else scans.age_s, out,
+                                 *record)
         cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(s, 2, 2)
         rows = GridRows(scans.t.copy(), out[:, :2].copy(), cov)
         return rows, GridState(float(t_last), density, offsets, state.started or s > 0, var,

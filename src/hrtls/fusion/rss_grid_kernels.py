@@ -87,6 +87,35 @@ def shift(density: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray
 
 
 @njit(cache=True, error_model="numpy")
+def shift_adjoint(field: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Transpose of :func:`shift` (before its renormalisation), in place on ``field`` (ny, nx).
+
+    Each cell gathers ``field`` over the (up to four) cells its mass lands among, with the same
+    bilinear weights; zero beyond the grid's edge; nothing renormalised. ``tmp``: (ny, nx).
+    """
+    if sx_cells == 0.0 and sy_cells == 0.0:
+        return
+    ix, iy = math.floor(sx_cells), math.floor(sy_cells)
+    fx, fy = sx_cells - ix, sy_cells - iy
+    ny, nx = field.shape
+    for i in range(ny):
+        for j in range(nx):
+            s = 0.0
+            for di in range(2):
+                ii = i + iy + di
+                if ii < 0 or ii >= ny:
+                    continue
+                wy = fy if di else 1.0 - fy
+                for dj in range(2):
+                    jj = j + ix + dj
+                    if 0 <= jj < nx:
+                        s += field[ii, jj] * wy * (fx if dj else 1.0 - fx)
+            tmp[i, j] = s
+    field[:] = tmp
+
+
+@njit(cache=True, error_model="numpy")
 def shift_field(field: FloatArray, sx_cells: float, sy_cells: float, tmp: FloatArray) -> None:
     # pragma: no cover - compiled
     """``field(x) <- field(x - s)`` in place, ``s`` = (``sx_cells``, ``sy_cells``) cells.

@@ -56,9 +56,10 @@ def streams(config: TrackerConfig) -> bool:
 
     :meth:`Tracker.start` looks at no samples (the hand-held mounting and the hard iron are
     estimated as the samples arrive); only ``[offline] two_pass`` fits them on the whole
-    recording first, which :meth:`Tracker.run` does on the session read whole.
+    recording first, which :meth:`Tracker.run` does on the session read whole (as
+    ``[offline] grid_smoother`` smooths the grid's rows).
     """
-    return not config.offline.two_pass
+    return not config.offline.whole_recording
 
 
 def check_output_dir(out_dir: Path, *, overwrite: bool = False) -> None:
@@ -119,7 +120,7 @@ def track_recording(path: Path, config: TrackerConfig, *, repair: bool = False,
         assert session is not None
         start = time.perf_counter()
         tracker = Tracker(config)
-        if progress is None or config.offline.two_pass:
+        if progress is None or config.offline.whole_recording:
             raw = tracker.run(session)
         else:
             raw = _run_in_windows(tracker, session, progress)

@@ -333,6 +333,15 @@ class OfflineConfig(_Section):
     two_pass: bool = Field(
         default=False, description="Tracker.run only: fit the hard iron and the hand-held "
         "mounting on the whole recording first, then track with them fixed")
+    grid_smoother: bool = Field(
+        default=False, description="Tracker.run only: RSS without an IMU (the grid filter): "
+        "rows of the forward-backward smoother of the grid density "
+        "(hrtls.fusion.rss_grid_smoother; each row uses the readings after it too)")
+
+    @property
+    def whole_recording(self) -> bool:
+        """Whether an option needs the whole recording (:meth:`Tracker.run`, not chunks)."""
+        return self.two_pass or self.grid_smoother
 
 
 class TrackerConfig(_Section):

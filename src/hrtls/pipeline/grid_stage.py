@@ -12,6 +12,10 @@ survey`` (a CSV file of readings at known positions) the grid adds that survey's
 the channel model (:mod:`hrtls.fusion.radio_map`).
 The grid uses RSS only: once a fix, tag read or range arrives, the stage turns off (with a
 note) and the Kalman filter's track, which uses them all, is the track.
+With ``[offline] grid_smoother`` (:meth:`GridStage.keep_densities`, called by
+:meth:`~hrtls.pipeline.tracker.Tracker.run` only: offline) the filtered densities are kept and,
+at :meth:`GridStage.finish`, the rows are replaced by those of the forward-backward smoother
+(:mod:`hrtls.fusion.rss_grid_smoother`).
 ``no_imu = "random-walk"`` keeps the Kalman filter with
 :class:`~hrtls.fusion.random_walk.RandomWalkParams`.
 """
@@ -28,12 +32,14 @@ from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
 from hrtls.fusion.radio_map import RadioMapParams, RadioSurvey, residual_map
 from hrtls.fusion.rss_grid import (
+    NO_RECORD,
     GridGeometry,
     GridParams,
     GridState,
     RssGridFilter,
     causal_scans,
 )
+from hrtls.fusion.rss_grid_smoother import GridRecord, check_smoothable
 from hrtls.fusion.shadowing import ShadowingMemory
 from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
@@ -87,6 +93,8 @@ class GridStage:
         self._buf_w = np.zeros(0)               # information fraction of each reading
         self._memory = ShadowingMemory()
         self.rows = TrackRows()
+        self.record: GridRecord | None = None      # [offline] grid_smoother
+        self.smoothed = False
 
     @classmethod
     def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], model: PathLossModel,
@@ -155,7 +163,9 @@ class GridStage:
                              t_origin=self.t0, t_from=self.state.t,
                              info=self._buf_w[:upto],
                              statistic=self.params.window_statistic)
-        rows, self.state = self.filter.update(self.state, scans)
+        record = NO_RECORD if self.record is None else \
+            self.record.new(len(scans.t), self.filter.geometry)
+        rows, self.state = self.filter.update(self.state, scans, record=record)
         n = len(rows.t)
         x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
         self.rows.add_block(rows.t, x, rows.cov_xy, np.full(n, UNIFORM_ANGLE_VAR_RAD2),
@@ -166,9 +176,34 @@ class GridStage:
         self._buf_t, self._buf_a, self._buf_r, self._buf_w = (
             self._buf_t[drop:], self._buf_a[drop:], self._buf_r[drop:], self._buf_w[drop:])
 
+    def keep_densities(self) -> None:
+        """``[offline] grid_smoother``: keep the densities for :meth:`finish` to smooth."""
+        check_smoothable(self.params)
+        self.record = GridRecord()
+
     def finish(self) -> None:
-        """Run every buffered scan (end of the recording)."""
+        """Run every buffered scan (end of the recording); smooth the rows if asked."""
         self._run(math.inf)
+        if self.record is None:
+            return
+        if self.filter is None:
+            self.notes.add("[offline] grid_smoother: no grid filter on this session (an IMU, "
+                           "other observations than RSS or too few anchors): not applied")
+            return
+        old = self.rows
+        if not old.t:
+            return
+        t = np.concatenate(old.t)
+        smooth = self.record.smooth(t, geometry=self.filter.geometry, params=self.params)
+        x = np.concatenate(old.x)
+        x[:, :2] = smooth.mean_xy
+        self.rows = TrackRows()
+        self.rows.add_block(t, x, smooth.cov_xy, np.concatenate(old.var_h),
+                            np.concatenate(old.activity))
+        self.record = None
+        self.smoothed = True
+        self.notes.add("[offline] grid_smoother: rows of the forward-backward smoother of the "
+                       "grid density (offline: each row uses the readings after it too)")
 
     def state_dict(self) -> dict[str, Any] | None:
         """What the stage needs to continue (snapshot; rows already produced are not kept)."""

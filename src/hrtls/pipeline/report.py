@@ -101,7 +101,7 @@ def build_report(config: TrackerConfig, eng: FusionEngine, base: dict[str, Any],
         "running_step_length_scale": eng.scale.run_scale,
         "running_step_factor": eng.running_factor,
         "yaw_pseudo_measurements": base["yaw_pseudo"] + len(eng.yaw_pseudo),
-        "offline": {"two_pass": two_pass},
+        "offline": {"two_pass": two_pass, "grid_smoother": eng.grid.smoothed},
         "summary": {
             "duration_s": float(trajectory.t[-1] - trajectory.t[0]) if len(trajectory) else 0,
             "steps": len(steps),

@@ -292,12 +292,15 @@ class Tracker:
         """Track a whole session (the same code path as the live chunks).
 
         With ``[offline] two_pass = true`` the hard iron and the hand-held mounting are first
-        fitted on the whole recording and kept fixed (offline only, named in the report).
+        fitted on the whole recording and kept fixed; with ``grid_smoother`` the grid filter's
+        rows are smoothed (offline only, both named in the report).
         """
         if self.config.offline.two_pass:
             self._start_two_pass(session)
         else:
             self.start_session(session)
+        if self.config.offline.grid_smoother:
+            self.engine.grid.keep_densities()
         self.update(session)
         return self.finish()
 
