@@ -24,7 +24,9 @@ Printed per track: p50 / p75 / p95 of the horizontal error at every truth sample
 with the mean and worst p75 over tracks. Run: ``python benchmarks/ble_rss.py``.
 ``--smoother`` adds ``grid, held out, smoother``: the held-out choice tracked again with
 ``[offline] grid_smoother`` (the filter's settings unchanged: not chosen for the smoother), and
-for both the share of truth samples inside the 95 % ellipse of the latest row (``cover``).
+``--lag-s L`` (repeatable) ``grid, held out, lag L s``: the same with the fixed-lag smoother
+(``[prediction.grid] smoother_lag_s = L``; a latency the user sets, not chosen); with either,
+``cover``: the share of truth samples inside the 95 % ellipse of the latest row, per column.
 ``--default-channel`` leaves the surveyed channel out of the choices (a fifth of the runs);
 ``--motion`` adds :data:`MOTION_CHOICES` (3.3 times the runs; held out they did worse);
 ``--window``, ``--estimate`` and ``--lag`` add :data:`EXTRA_CHOICES` (3, 2 and 3 times the
@@ -237,6 +239,9 @@ def main() -> None:
                     help="the radio map from the other tracks' truth, held out")
     ap.add_argument("--smoother", action="store_true",
                     help="the held-out choice also with [offline] grid_smoother")
+    ap.add_argument("--lag-s", type=float, action="append", default=[],
+                    help="the held-out choice also with this [prediction.grid] smoother_lag_s "
+                         "(repeatable)")
     args = ap.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -272,13 +277,17 @@ def main() -> None:
                     sv = s.with_parts(meta=s.meta.model_copy(update={"channel": surveys[h]}))
                     p75[(k, h, n)] = float(np.percentile(errors(sv, cfg), 75))
     table = Table(title="BLE RSSI, RSS alone: horizontal error p50 / p75 / p95 (m), held out")
-    smoother = ("grid, held out, smoother", "cover held / smoother") if args.smoother else ()
+    # the held-out choice again, smoothed: (label, [offline] grid_smoother, smoother_lag_s)
+    smoothed = ([("smoother", True, 0.0)] if args.smoother else []) + \
+        [(f"lag {lag:g} s", False, lag) for lag in args.lag_s]
+    cover_col = ["cover held" + "".join(f" / {label}" for label, _, _ in smoothed)] \
+        if smoothed else []
     for col in ("track", "random walk", "grid, default", "grid, held out, before",
-                "grid, held out", *smoother[:1], "s / run", *smoother[1:], "choice (dev)"):
+                "grid, held out", *(f"grid, held out, {label}" for label, _, _ in smoothed),
+                "s / run", *cover_col, "choice (dev)"):
         table.add_column(col)
     summary: dict[str, list[float]] = {"walk": [], "default": [], "before": [], "held": []}
-    if args.smoother:
-        summary["smooth"] = []
+    summary.update({label: [] for label, _, _ in smoothed})
     first = {key: values[0] for flag, (key, values) in EXTRA_CHOICES.items()
              if getattr(args, flag)}
     before = [k for k, c in enumerate(candidates) if set(c) == set(choices)
@@ -297,9 +306,9 @@ def main() -> None:
         e["held"], cover = scored(surveyed(s, surveys[h], ch), config("grid", candidates[k]))
         seconds = time.perf_counter() - start
         covers = f"{cover:.2f}"
-        if args.smoother:
-            e["smooth"], cover = scored(surveyed(s, surveys[h], ch),
-                                        config("grid", candidates[k], smoother=True))
+        for label, offline, lag in smoothed:
+            e[label], cover = scored(surveyed(s, surveys[h], ch), config(
+                "grid", {**candidates[k], "smoother_lag_s": lag}, smoother=offline))
             covers += f" / {cover:.2f}"
         for key, v in e.items():
             summary[key].append(float(np.percentile(v, 75)))
@@ -308,11 +317,11 @@ def main() -> None:
         choice = ", ".join(f"{a}={b}" for a, b in candidates[k].items()) + \
             (f", channel A={surveys[h].a_dbm:.1f} eta={surveys[h].eta:.2f} "
              f"sigma={surveys[h].sigma_db:.1f}" if ch else ", default channel")
-        table.add_row(h, *cells, f"{seconds:.1f}", *((covers,) if args.smoother else ()),
+        table.add_row(h, *cells, f"{seconds:.1f}", *((covers,) if cover_col else ()),
                       f"{choice} (dev p75 {score[(k, ch)]:.2f})")
     table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
-                                         for v in summary.values()), "", *smoother[1:], "")
-    Console(width=200).print(table)
+                                         for v in summary.values()), "", *([""] * len(cover_col)), "")
+    Console(width=200 + 25 * len(smoothed)).print(table)
 
 
 if __name__ == "__main__":

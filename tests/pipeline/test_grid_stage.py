@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hrtls.errors import InputError
 from hrtls.evaluate.metrics import position_errors
 from hrtls.frames import UNIFORM_ANGLE_VAR_RAD2
 from hrtls.fusion.path_loss import PathLossModel
@@ -205,3 +206,40 @@ def test_lag_compensation_chunked_and_restored_equal_offline(office: SimulationR
     live = track_in_parts(cfg, s, chunk_s=7.0, restore_after=4).trajectory
     n = len(live)
     np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
+
+
+def test_fixed_lag_smoother_chunked_and_restored_equal_offline(office: SimulationResult
+                                                               ) -> None:
+    """``[prediction.grid] smoother_lag_s``: the pending scans' densities survive chunks and
+    snapshots; the rows are those of one run, late by the lag (fewer rows out before
+    ``finish``); a lag longer than the recording gives the offline smoother's rows; velocity
+    modes are refused."""
+    s = office.session.with_parts(**dict.fromkeys(NO_IMU))
+
+    def config(lag_s: float, smoother: bool = False, **grid: object) -> TrackerConfig:
+        cfg = TrackerConfig()
+        return cfg.model_copy(update={"prediction": cfg.prediction.model_copy(update={
+            "grid": {**cfg.prediction.grid, "smoother_lag_s": lag_s, **grid}}),
+            "offline": cfg.offline.model_copy(update={"grid_smoother": smoother})})
+
+    plain = Tracker().run(s).trajectory
+    offline = Tracker(config(2.0)).run(s).trajectory
+    np.testing.assert_allclose(offline.t, plain.t)
+    assert not np.allclose(plain.xyz, offline.xyz)
+    live = track_in_parts(config(2.0), s, chunk_s=7.0, restore_after=4).trajectory
+    n = len(live)
+    assert n < len(offline)
+    np.testing.assert_allclose(live.xyz, offline.xyz[-n:], atol=1e-9, rtol=0)
+    np.testing.assert_allclose(live.cov_xy, offline.cov_xy[-n:], atol=1e-9, rtol=0)
+    tr = Tracker(config(2.0))
+    tr.start_session(s)
+    tr.update(s)
+    # rows wait for a scan more than 2 s after them
+    shown = tr.estimates_since()
+    assert len(shown) < len(plain) and shown.t[-1] < plain.t[-1] - 2.0
+    whole = Tracker(config(1e6)).run(s)
+    smoothed = Tracker(config(0.0, smoother=True)).run(s)
+    np.testing.assert_allclose(whole.trajectory.xyz, smoothed.trajectory.xyz, atol=1e-9)
+    assert smoothed.report["offline"]["grid_smoother"] is True
+    with pytest.raises(InputError, match=r"smoother_lag_s.*velocity mode"):
+        Tracker(config(2.0, mode_turn_deg=90.0)).run(s)

@@ -179,6 +179,7 @@ class GridParams:
     lag_compensation: share ``g`` (0 ... 1) of the window's mean reading age by which its
         readings are placed behind the walker along the persistent velocity (0: at the
         walker's position at the scan; needs ``velocity_time_s`` > 0 to act).
+    smoother_lag_s: delay of the fixed-lag smoother's rows, s (0: off; one velocity mode).
     """
 
     cell_m: float = 0.25
@@ -207,6 +208,7 @@ class GridParams:
     window_statistic: Literal["mean-db", "mean-power", "median"] = "mean-db"
     point_estimate: Literal["mean", "median"] = "mean"
     lag_compensation: float = 0.0
+    smoother_lag_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "scan_s", "average_s", "max_cells"):
@@ -214,7 +216,7 @@ class GridParams:
         for name in ("margin_m", "sigma_speed_m_per_sqrt_s", "offset_gain", "offset_max_db",
                      "outlier_probability", "shadowing_time_s", "attenuation_probability",
                      "attenuation_db", "bias_sigma_db", "bias_walk_db_per_sqrt_s",
-                     "velocity_time_s", "velocity_max_m_per_s", "mode_turn_deg",
+                     "velocity_time_s", "velocity_max_m_per_s", "mode_turn_deg", "smoother_lag_s",
                      "mode_speed_m_per_s", "mode_switch_per_s", "burst_sigma_db",
                      "burst_enter_per_s", "burst_exit_per_s", "lag_compensation"):
             finite_scalar(getattr(self, name), where=f"GridParams.{name}", non_negative=True)

@@ -40,12 +40,43 @@ from hrtls.fusion.rss_grid import GridGeometry, GridParams, GridRows
 from hrtls.fusion.rss_grid_kernels import blur, median_row, moments, shift, shift_adjoint
 from hrtls.kernels import njit
 
-__all__ = ["MAX_KEPT_BYTES", "GridRecord", "backward_kernel", "check_smoothable",
-           "smooth_rows"]
+__all__ = ["MAX_KEPT_BYTES", "FixedLag", "GridRecord", "backward_kernel", "backward_step",
+           "check_smoothable", "fixed_lag_kernel", "smooth_rows"]
 
 MAX_KEPT_BYTES = 2 ** 30
 """Most bytes of kept densities (1 GiB: about 53 min at 40 000 cells and 0.5 s scans)."""
 WHERE = "[offline] grid_smoother"
+
+
+@njit(cache=True, error_model="numpy")
+def backward_step(filtered: FloatArray, move: FloatArray, cell: float,
+                  sigma_m_per_sqrt_s: float, smooth: FloatArray, pred: FloatArray,
+                  tmp: FloatArray) -> None:   # pragma: no cover - compiled
+    """``smooth`` (ny, nx): ``s_{k+1}`` in, ``s_k`` out (eq. 1-2), in place.
+
+    ``filtered``: ``f_k``; ``move``: v x, v y (m/s) and dt (s) of scan ``k + 1``'s prediction.
+    ``pred``, ``tmp``: (ny, nx) work arrays.
+    """
+    sx, sy = move[0] * move[2] / cell, move[1] * move[2] / cell
+    spread = sigma_m_per_sqrt_s * math.sqrt(move[2]) / cell
+    ny, nx = smooth.shape
+    pred[:] = filtered
+    shift(pred, sx, sy, tmp)                        # eq. 1
+    blur(pred, spread, tmp)
+    for i in range(ny):
+        for j in range(nx):
+            smooth[i, j] = smooth[i, j] / pred[i, j] if pred[i, j] > 0.0 else 0.0
+    blur(smooth, spread, tmp)                       # eq. 2: B^T = B, then S^T
+    shift_adjoint(smooth, sx, sy, tmp)
+    total = 0.0
+    for i in range(ny):
+        for j in range(nx):
+            smooth[i, j] *= filtered[i, j]
+            total += smooth[i, j]
+    if total > 0.0:
+        smooth /= total
+    else:                                           # a restart of the forward pass
+        smooth[:] = filtered
 
 
 @njit(cache=True, error_model="numpy")
@@ -54,54 +85,71 @@ def backward_kernel(kept: FloatArray, moved: FloatArray, x0: float, y0: float, c
     # pragma: no cover - compiled
     """Rows of the smoothed densities (module docstring, eq. 1-2) into ``out`` (S, 5).
 
-    ``kept`` (S, ny, nx): filtered densities; ``moved`` (S, 3): the persistent velocity (m/s)
-    and dt (s) of each scan's prediction (row 0 unused); ``out``: mean x, y, covariance xx,
-    xy, yy.
+    ``kept`` (S, ny, nx): filtered densities, overwritten by the smoothed ones; ``moved``
+    (S, 3): the persistent velocity (m/s) and dt (s) of each scan's prediction (row 0 unused);
+    ``out``: mean x, y, covariance xx, xy, yy.
     """
     n, ny, nx = kept.shape
     smooth = kept[n - 1].astype(np.float64)
     pred = np.empty((ny, nx))
     tmp = np.empty((ny, nx))
-    moments(smooth, x0, y0, cell, out[n - 1])
-    if median_point:
-        median_row(smooth, x0, y0, cell, out[n - 1])
-    for k in range(n - 2, -1, -1):
-        sx, sy = moved[k + 1, 0] * moved[k + 1, 2] / cell, moved[k + 1, 1] * moved[k + 1, 2] / cell
-        spread = sigma_m_per_sqrt_s * math.sqrt(moved[k + 1, 2]) / cell
-        pred[:] = kept[k]
-        shift(pred, sx, sy, tmp)                    # eq. 1
-        blur(pred, spread, tmp)
-        for i in range(ny):
-            for j in range(nx):
-                smooth[i, j] = smooth[i, j] / pred[i, j] if pred[i, j] > 0.0 else 0.0
-        blur(smooth, spread, tmp)                   # eq. 2: B^T = B, then S^T
-        shift_adjoint(smooth, sx, sy, tmp)
-        total = 0.0
-        for i in range(ny):
-            for j in range(nx):
-                smooth[i, j] *= kept[k, i, j]
-                total += smooth[i, j]
-        if total > 0.0:
-            smooth /= total
-        else:                                       # a restart of the forward pass
-            smooth[:] = kept[k]
+    for k in range(n - 1, -1, -1):
+        if k < n - 1:
+            backward_step(kept[k], moved[k + 1], cell, sigma_m_per_sqrt_s, smooth, pred, tmp)
+            kept[k] = smooth
         moments(smooth, x0, y0, cell, out[k])
         if median_point:
             median_row(smooth, x0, y0, cell, out[k])
 
 
-def check_smoothable(params: GridParams) -> None:
+@njit(cache=True, error_model="numpy")
+def fixed_lag_kernel(kept: FloatArray, moved: FloatArray, t: FloatArray, lag_s: float,
+                     x0: float, y0: float, cell: float, sigma_m_per_sqrt_s: float,
+                     median_point: bool, out: FloatArray) -> None:
+    # pragma: no cover - compiled
+    """Rows ``out`` (R, 5) of scans 0 ... R - 1, each smoothed over the scans up to ``lag_s``.
+
+    Scan ``r``'s row: eq. 1-2 from the last scan at most ``lag_s`` after it down to ``r``;
+    ``kept``, ``moved``, ``t``: (S, ...) as :func:`backward_kernel`'s, ``t`` in s.
+    """
+    n, ny, nx = kept.shape
+    smooth = np.empty((ny, nx))
+    pred = np.empty((ny, nx))
+    tmp = np.empty((ny, nx))
+    for r in range(out.shape[0]):
+        m = r
+        while m + 1 < n and t[m + 1] <= t[r] + lag_s:
+            m += 1
+        smooth[:] = kept[m]
+        for k in range(m - 1, r - 1, -1):
+            backward_step(kept[k], moved[k + 1], cell, sigma_m_per_sqrt_s, smooth, pred, tmp)
+        moments(smooth, x0, y0, cell, out[r])
+        if median_point:
+            median_row(smooth, x0, y0, cell, out[r])
+
+
+def check_smoothable(params: GridParams, *, where: str = WHERE) -> None:
     """Refuse settings the backward pass cannot undo exactly (velocity modes)."""
     if params.n_modes > 1:
         raise InputError(f"{params.n_modes} velocity modes (mode_turn_deg = "
                          f"{params.mode_turn_deg}, stopped_mode = {params.stopped_mode})",
-                         where=WHERE, expected="one velocity mode ([prediction.grid] "
+                         where=where, expected="one velocity mode ([prediction.grid] "
                          "mode_turn_deg = 0 and stopped_mode = false)")
+
+
+def _rows(t: FloatArray, out: FloatArray) -> GridRows:
+    """:class:`GridRows` at ``t`` of kernel rows ``out`` (mean x, y, covariance xx, xy, yy)."""
+    n = len(out)
+    cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(n, 2, 2)
+    return GridRows(np.asarray(t, dtype=np.float64).copy(), out[:, :2].copy(), cov)
 
 
 def smooth_rows(t: FloatArray, kept: np.ndarray, moved: FloatArray, *,
                 geometry: GridGeometry, params: GridParams) -> GridRows:
-    """Rows at ``t`` (S,) of the smoothed densities (``kept``, ``moved``: module docstring)."""
+    """Rows at ``t`` (S,) of the smoothed densities (``kept``, ``moved``: module docstring).
+
+    ``kept``, when float32 and C-contiguous, is overwritten by the smoothed densities.
+    """
     check_smoothable(params)
     n = len(t)
     if kept.shape != (n, geometry.ny, geometry.nx) or moved.shape != (n, 3):
@@ -113,8 +161,7 @@ def smooth_rows(t: FloatArray, kept: np.ndarray, moved: FloatArray, *,
                         np.ascontiguousarray(moved, dtype=np.float64), geometry.x0_m,
                         geometry.y0_m, geometry.cell_m, params.sigma_speed_m_per_sqrt_s,
                         params.point_estimate == "median", out)
-    cov = np.stack([out[:, 2], out[:, 3], out[:, 3], out[:, 4]], axis=1).reshape(n, 2, 2)
-    return GridRows(np.asarray(t, dtype=np.float64).copy(), out[:, :2].copy(), cov)
+    return _rows(t, out)
 
 
 @dataclass(slots=True, eq=False)
@@ -146,3 +193,50 @@ class GridRecord:
         kept = np.concatenate(self.kept) if self.kept else empty
         moved = np.concatenate(self.moved) if self.moved else np.zeros((0, 3))
         return smooth_rows(t, kept, moved, geometry=geometry, params=params)
+
+
+@dataclass(slots=True, eq=False)
+class FixedLag:
+    """Fixed-lag smoother (``[prediction.grid] smoother_lag_s``): causal, ``lag_s`` late.
+
+    The row of a scan is out once a scan more than ``lag_s`` after it has been filtered (or at
+    :meth:`flush`), smoothed over the scans up to ``lag_s`` after it (:func:`fixed_lag_kernel`),
+    so chunks give the rows of one call. State (snapshot): the scans whose rows are not out yet,
+    ``t`` (B,), ``kept`` (B, ny, nx) float32 filtered densities, ``moved`` (B, 3).
+    """
+
+    lag_s: float
+    t: FloatArray
+    kept: np.ndarray
+    moved: FloatArray
+
+    @classmethod
+    def empty(cls, geometry: GridGeometry, *, lag_s: float) -> FixedLag:
+        """No scan yet."""
+        return cls(lag_s, np.zeros(0), np.zeros((0, geometry.ny, geometry.nx), np.float32),
+                   np.zeros((0, 3)))
+
+    def push(self, t: FloatArray, kept: np.ndarray, moved: FloatArray, *,
+             geometry: GridGeometry, params: GridParams, final: bool = False) -> GridRows:
+        """Add a filter call's scans; the rows out now (every pending one if ``final``).
+
+        ``t`` (n,): the scans' times, s; ``kept``, ``moved``: as :func:`grid_kernel` filled them.
+        """
+        self.t = np.concatenate([self.t, np.asarray(t, dtype=np.float64)])
+        self.kept = np.concatenate([self.kept, kept.astype(np.float32)])
+        self.moved = np.concatenate([self.moved, moved])
+        n = len(self.t) if final or not len(self.t) else \
+            int(np.searchsorted(self.t, self.t[-1] - self.lag_s, side="left"))
+        out = np.zeros((n, 5))
+        if n:
+            fixed_lag_kernel(self.kept, self.moved, self.t, self.lag_s, geometry.x0_m,
+                             geometry.y0_m, geometry.cell_m, params.sigma_speed_m_per_sqrt_s,
+                             params.point_estimate == "median", out)
+        rows = _rows(self.t[:n], out)
+        self.t, self.kept, self.moved = self.t[n:], self.kept[n:], self.moved[n:]
+        return rows
+
+    def flush(self, *, geometry: GridGeometry, params: GridParams) -> GridRows:
+        """The rows of every pending scan (end of the recording)."""
+        return self.push(np.zeros(0), self.kept[:0], self.moved[:0], geometry=geometry,
+                         params=params, final=True)

@@ -15,7 +15,9 @@ note) and the Kalman filter's track, which uses them all, is the track.
 With ``[offline] grid_smoother`` (:meth:`GridStage.keep_densities`, called by
 :meth:`~hrtls.pipeline.tracker.Tracker.run` only: offline) the filtered densities are kept and,
 at :meth:`GridStage.finish`, the rows are replaced by those of the forward-backward smoother
-(:mod:`hrtls.fusion.rss_grid_smoother`).
+(:mod:`hrtls.fusion.rss_grid_smoother`). With ``[prediction.grid] smoother_lag_s`` L > 0 (live
+too) each row is that of the fixed-lag smoother over the scans up to L s after it, out once a
+scan more than L s later has been filtered (:class:`~hrtls.fusion.rss_grid_smoother.FixedLag`).
 ``no_imu = "random-walk"`` keeps the Kalman filter with
 :class:`~hrtls.fusion.random_walk.RandomWalkParams`.
 """
@@ -35,11 +37,12 @@ from hrtls.fusion.rss_grid import (
     NO_RECORD,
     GridGeometry,
     GridParams,
+    GridRows,
     GridState,
     RssGridFilter,
     causal_scans,
 )
-from hrtls.fusion.rss_grid_smoother import GridRecord, check_smoothable
+from hrtls.fusion.rss_grid_smoother import FixedLag, GridRecord, check_smoothable
 from hrtls.fusion.shadowing import ShadowingMemory
 from hrtls.pipeline.build import Notes, grid_anchors
 from hrtls.pipeline.config import TrackerConfig, params_of
@@ -95,6 +98,10 @@ class GridStage:
         self.rows = TrackRows()
         self.record: GridRecord | None = None      # [offline] grid_smoother
         self.smoothed = False
+        self.lag: FixedLag | None = None
+        if self.filter is not None and params.smoother_lag_s > 0.0:
+            check_smoothable(params, where="[prediction.grid] smoother_lag_s")
+            self.lag = FixedLag.empty(self.filter.geometry, lag_s=params.smoother_lag_s)
 
     @classmethod
     def build(cls, config: TrackerConfig, landmarks: dict[str, Landmark], model: PathLossModel,
@@ -163,18 +170,23 @@ class GridStage:
                              t_origin=self.t0, t_from=self.state.t,
                              info=self._buf_w[:upto],
                              statistic=self.params.window_statistic)
-        record = NO_RECORD if self.record is None else \
-            self.record.new(len(scans.t), self.filter.geometry)
+        g, n = self.filter.geometry, len(scans.t)
+        record = self.record.new(n, g) if self.record is not None else NO_RECORD \
+            if self.lag is None else (np.zeros((n, g.ny, g.nx), np.float32), np.zeros((n, 3)))
         rows, self.state = self.filter.update(self.state, scans, record=record)
-        n = len(rows.t)
-        x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
-        self.rows.add_block(rows.t, x, rows.cov_xy, np.full(n, UNIFORM_ANGLE_VAR_RAD2),
-                            np.full(n, int(Activity.UNKNOWN)))
+        self._add(rows if self.lag is None else
+                  self.lag.push(rows.t, *record, geometry=g, params=self.params))
         # readings older than the averaging window of the next scan are no longer needed
         drop = int(np.searchsorted(self._buf_t, self.state.t - self.params.average_s,
                                    side="right"))
         self._buf_t, self._buf_a, self._buf_r, self._buf_w = (
             self._buf_t[drop:], self._buf_a[drop:], self._buf_r[drop:], self._buf_w[drop:])
+
+    def _add(self, rows: GridRows) -> None:
+        n = len(rows.t)
+        x = np.column_stack([rows.mean_xy, np.full(n, self.z_m), np.zeros(n)])
+        self.rows.add_block(rows.t, x, rows.cov_xy, np.full(n, UNIFORM_ANGLE_VAR_RAD2),
+                            np.full(n, int(Activity.UNKNOWN)))
 
     def keep_densities(self) -> None:
         """``[offline] grid_smoother``: keep the densities for :meth:`finish` to smooth."""
@@ -184,6 +196,8 @@ class GridStage:
     def finish(self) -> None:
         """Run every buffered scan (end of the recording); smooth the rows if asked."""
         self._run(math.inf)
+        if self.lag is not None and self.filter is not None:
+            self._add(self.lag.flush(geometry=self.filter.geometry, params=self.params))
         if self.record is None:
             return
         if self.filter is None:
@@ -215,7 +229,9 @@ class GridStage:
                 "burst_probability": s.burst_probability, "started": s.started,
                 "buf_t": self._buf_t, "buf_a": self._buf_a, "buf_r": self._buf_r,
                 "buf_w": self._buf_w,
-                "last_t": dict(self._memory.last_t)}
+                "last_t": dict(self._memory.last_t),
+                "lag": None if self.lag is None else {"t": self.lag.t, "kept": self.lag.kept,
+                                                      "moved": self.lag.moved}}
 
     def restore(self, d: dict[str, Any] | None) -> None:
         """Continue from :meth:`state_dict` (None: the stage was off, and stays off)."""
@@ -239,3 +255,8 @@ class GridStage:
         self._buf_w = np.asarray(d.get("buf_w", np.ones(len(self._buf_t))), dtype=np.float64)
         self._memory = ShadowingMemory({str(k): float(v)
                                         for k, v in d.get("last_t", {}).items()})
+        if self.lag is not None and d.get("lag") is not None:
+            lag = d["lag"]
+            self.lag.t = np.asarray(lag["t"], dtype=np.float64)
+            self.lag.kept = np.asarray(lag["kept"], dtype=np.float32)
+            self.lag.moved = np.asarray(lag["moved"], dtype=np.float64)
