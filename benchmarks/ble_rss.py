@@ -320,7 +320,8 @@ def main() -> None:
         table.add_row(h, *cells, f"{seconds:.1f}", *((covers,) if cover_col else ()),
                       f"{choice} (dev p75 {score[(k, ch)]:.2f})")
     table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
-                                         for v in summary.values()), "", *([""] * len(cover_col)), "")
+                                         for v in summary.values()),
+                  "", *([""] * len(cover_col)), "")
     Console(width=200 + 25 * len(smoothed)).print(table)
 
 
