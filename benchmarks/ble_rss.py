@@ -322,7 +322,7 @@ def main() -> None:
     table.add_row("p75 mean / worst", *(f"{np.mean(v):.2f} / {np.max(v):.2f}"
                                          for v in summary.values()),
                   "", *([""] * len(cover_col)), "")
-    Console(width=200 + 25 * len(smoothed)).print(table)
+    Console(width=200 + 45 * len(smoothed)).print(table)
 
 
 if __name__ == "__main__":
