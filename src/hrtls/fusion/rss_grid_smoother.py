@@ -44,7 +44,7 @@ __all__ = ["MAX_KEPT_BYTES", "FixedLag", "GridRecord", "backward_kernel", "backw
            "check_smoothable", "fixed_lag_kernel", "smooth_rows"]
 
 MAX_KEPT_BYTES = 2 ** 30
-"""Most bytes of kept densities (1 GiB: about 53 min at 40 000 cells and 0.5 s scans)."""
+"""Most bytes of kept densities (1 GiB: about 56 min at 40 000 cells and 0.5 s scans)."""
 WHERE = "[offline] grid_smoother"
 
 

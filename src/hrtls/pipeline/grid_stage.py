@@ -171,8 +171,13 @@ class GridStage:
                              info=self._buf_w[:upto],
                              statistic=self.params.window_statistic)
         g, n = self.filter.geometry, len(scans.t)
-        record = self.record.new(n, g) if self.record is not None else NO_RECORD \
-            if self.lag is None else (np.zeros((n, g.ny, g.nx), np.float32), np.zeros((n, 3)))
+        # the filtered densities the smoothers need: all of them offline, else the lag's
+        if self.record is not None:
+            record = self.record.new(n, g)
+        elif self.lag is not None:
+            record = (np.zeros((n, g.ny, g.nx), np.float32), np.zeros((n, 3)))
+        else:
+            record = NO_RECORD
         rows, self.state = self.filter.update(self.state, scans, record=record)
         self._add(rows if self.lag is None else
                   self.lag.push(rows.t, *record, geometry=g, params=self.params))
