@@ -304,8 +304,10 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
     ``--feedback-gate``, ``--window-s`` and the smoother's model options; without it the
     smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``);
-    ``--peer-factors``, ``--link-bias-sigma-m`` and ``--link-cov-scale`` on either."""
-    links = {k: getattr(args, k) for k in ("link_bias_sigma_m", "link_cov_scale")
+    ``--peer-factors``, ``--link-bias-sigma-m``, ``--link-cov-scale`` and
+    ``--link-join-tol-m`` on either."""
+    links = {k: getattr(args, k) for k in ("link_bias_sigma_m", "link_cov_scale",
+                                           "link_join_tol_m")
              if getattr(args, k) is not None}
     if not args.smoother:
         sm = MissionParams().smoother if args.mode is None else smoother_params(args.mode)
@@ -435,6 +437,9 @@ def main() -> None:
     ap.add_argument("--link-cov-scale", type=float, default=None,
                     help="SmootherParams.link_cov_scale (calibration of a linked node's "
                     "covariance)")
+    ap.add_argument("--link-join-tol-m", type=float, default=None,
+                    help="SmootherParams.link_join_tol_m (a node joining through its links: "
+                    "its start's median residual per anchor kind; inf: no check)")
     ap.add_argument("--smoother-correlation-s", type=float, default=None,
                     help="with --smoother: SmootherParams.range_correlation_s")
     ap.add_argument("--no-magnetometer", action="store_true",

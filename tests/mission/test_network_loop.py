@@ -60,16 +60,42 @@ def test_restored_half_way_with_node_ranges_the_mission_continues_identically() 
 
 def test_node_ranges_localize_more_nodes_better_on_a_seeded_mission() -> None:
     """Dev seed 1, a 90 s mission with 20 nodes: the same recordings with and without the
-    ranges between the nodes (scored against the truth here only). The links localize more
-    nodes; with the pairs' NLOS bias persistent (:mod:`hrtls.sim.node_links`) the error of
-    the localized nodes is not lower here (1.62 -> 1.68 m), only bounded."""
+    ranges between the nodes (scored against the truth here only). The links localize no
+    fewer nodes (in 90 s the one more they used to add joined from an unconfirmed start,
+    :func:`hrtls.mission.graph_links.confirmed`: 0.75 -> 0.70, the share without links);
+    with the pairs' NLOS bias persistent (:mod:`hrtls.sim.node_links`) the error of the
+    localized nodes is not lower here, only bounded."""
     m = inderst_hybrid_mission(1, MissionOptions(walk_s=90.0, stagger_s=20.0, n_nodes=20,
                                                  range_sigma_fraction=0.02, node_ranges=True))
     frac0, rmse0, nees0 = _scores(m, _run(m, links=False).result())
     frac1, rmse1, nees1 = _scores(m, _run(m, links=True).result())
-    assert frac1 > frac0
+    assert frac1 >= frac0
     assert rmse1 < 1.1 * rmse0
     assert nees1 <= max(nees0, 3.0)
+
+
+def test_nodes_join_through_links_from_confirmed_starts_on_a_seeded_mission(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Dev seed 1, a 150 s mission with 30 nodes ranging each other (the truth read here only):
+    of the starting points the nodes joining through their links get, few are more than 3 m
+    off (3 of 28; without the confirmation, 22 of 71: mirrors, ill-conditioned
+    trilaterations and misplaced neighbours, which the solve then keeps)."""
+    from hrtls.mission import graph
+
+    m = inderst_hybrid_mission(1, MissionOptions(walk_s=150.0, stagger_s=20.0, n_nodes=30,
+                                                 range_sigma_fraction=0.02, node_ranges=True))
+    errors: list[float] = []
+    select = graph.select_linked
+
+    def recorded(*args: object) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+        out, joined = select(*args)  # type: ignore[arg-type]
+        errors.extend(float(np.linalg.norm(p - m.node_truth_m[n][:2])) for n, p in joined.items())
+        return out, joined
+
+    monkeypatch.setattr(graph, "select_linked", recorded)
+    _run(m, links=True)
+    assert len(errors) >= 10
+    assert sum(e > 3.0 for e in errors) <= 5
 
 
 def test_offline_mission_track_reads_network_ranges(tmp_path: Path) -> None:

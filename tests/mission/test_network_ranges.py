@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from hrtls.errors import DegradedInputWarning, FormatError, InputError
 from hrtls.io.mission import NETWORK_RANGES_FILE, read_network_ranges, write_network_ranges
-from hrtls.mission.graph_links import pair_links, select_linked
+from hrtls.mission.graph_links import confirmed, pair_links, select_linked
 from hrtls.mission.graph_params import SmootherParams
 from hrtls.mission.network_ranges import NetworkRanges
 from hrtls.mission.tracker import AgentHeader, MissionTracker
@@ -111,6 +111,69 @@ def test_a_node_seen_from_one_line_joins_through_a_neighbour_off_it() -> None:
                                {"N2": np.array([5.0, 4.0])}, prm, 1.0)
     assert got["N1"] >= 4.0 - 1e-9 and set(got) == {"N1", "N2"}
     np.testing.assert_allclose(start["N1"], node, atol=1e-6)         # the mirror side resolved
+
+
+def test_a_joining_start_is_confirmed_by_each_anchor_kind_by_hand() -> None:
+    """Start (0, 0); neighbours at (3, 0) and (0, 4): link residuals |3 - 3| = 0 and
+    |6 - 4| = 2, median 1; readings at (0, 5), (0, -5), (5, 0) at ranges 5, 5, 8: residuals
+    0, 0, 3, median 0."""
+    start = np.zeros(2)
+    nb = np.array([[3.0, 0.0], [0.0, 4.0]])
+    pts = np.array([[0.0, 5.0], [0.0, -5.0], [5.0, 0.0]])
+    kw = {"start_m": start, "neighbour_xy_m": nb, "link_range_m": np.array([3.0, 6.0])}
+    none = {"reading_xy_m": np.zeros((0, 2)), "reading_range_m": np.zeros(0)}
+    assert confirmed(**kw, **none, tol_m=1.0)                       # links only: median 1
+    assert not confirmed(**kw, **none, tol_m=0.99)
+    readings = {"reading_xy_m": pts, "reading_range_m": np.array([5.0, 5.0, 8.0])}
+    assert confirmed(**kw, **readings, tol_m=1.0)
+    bad = {"reading_xy_m": pts, "reading_range_m": np.array([7.0, 7.0, 8.0])}   # median 2
+    assert not confirmed(**kw, **bad, tol_m=1.0)
+    assert confirmed(**kw, **bad, tol_m=2.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=1, max_size=6),
+       st.floats(0.05, 3.0), st.floats(1.01, 5.0))
+def test_an_exact_start_is_confirmed_and_a_common_excess_beyond_the_tolerance_is_not(
+        xy: list[tuple[float, float]], tol_m: float, excess: float) -> None:
+    """Ranges from the true distances: confirmed at any tolerance; every range longer by more
+    than the tolerance (a misplaced start, one NLOS excess on all): not confirmed."""
+    a = np.array(xy, np.float64)
+    start = np.array([0.5, -0.25])
+    r = np.linalg.norm(a - start, axis=1)
+    none = {"reading_xy_m": np.zeros((0, 2)), "reading_range_m": np.zeros(0)}
+    assert confirmed(start_m=start, neighbour_xy_m=a, link_range_m=r, tol_m=tol_m, **none)
+    assert not confirmed(start_m=start, neighbour_xy_m=a, link_range_m=r + excess * tol_m,
+                         tol_m=tol_m, **none)
+    assert not confirmed(start_m=start, neighbour_xy_m=a[:1], link_range_m=r[:1],
+                         reading_xy_m=a, reading_range_m=r + excess * tol_m, tol_m=tol_m)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan")])
+def test_the_join_tolerance_is_validated(value: float) -> None:
+    with pytest.raises(InputError, match="link_join_tol_m"):
+        SmootherParams(link_join_tol_m=value)
+
+
+def test_a_node_whose_start_its_links_contradict_does_not_join() -> None:
+    """Readings along y = 0 of a node at (5, 2) plus a neighbour placed at (5, 12) with a link
+    of 2 m (the neighbour misplaced by 8 m): the trilateration compromises, the link's residual
+    stays metres large, and the node waits; with no check (inf) it joins."""
+    from hrtls.mission.graph import AgentPath, RangeSet
+
+    t = np.arange(0.0, 11.0)
+    xy = np.column_stack([t, np.zeros_like(t)])
+    path = AgentPath("R1", t, xy, np.eye(2) * 0.01)
+    r = np.hypot(np.linalg.norm(xy - np.array([5.0, 2.0]), axis=1), 1.0)
+    ranges = RangeSet(np.zeros(len(t), np.int64), t, np.full(len(t), "N1"), r,
+                      np.full(len(t), 0.1))
+    links = pair_links(np.array(["N1"]), np.array(["N2"]), np.array([2.0]), sigma_m=0.1,
+                       sigma_fraction=0.0)
+    args = ([path], ranges, links, {"N2": 3.0}, {"N2": np.array([5.0, 12.0])})
+    got, start = select_linked(*args, SmootherParams(), 1.0)
+    assert set(got) == {"N2"} and start == {}
+    got, start = select_linked(*args, SmootherParams(link_join_tol_m=np.inf), 1.0)
+    assert set(got) == {"N1", "N2"} and set(start) == {"N1"}
 
 
 def test_csv_round_trip_and_bad_rows_name_line_and_field(tmp_path: Path) -> None:

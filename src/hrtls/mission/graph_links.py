@@ -24,6 +24,15 @@ neighbours). A node that joins starts at the linear trilateration from all its a
 an anchor from the next solve on, once localized (SELA's rounds, one per solve: rounds
 within one solve, through neighbours not localized yet, did worse on the development seeds,
 docs/mission.md).
+
+Confirmation. A node joins only when that start agrees with each kind of anchor on its own:
+the median of ``| ||p - a_k|| - r_k |`` over its links, and over its agents' ranges when it has
+any, at most ``link_join_tol_m`` (:func:`confirmed`). The linear trilateration is not the
+least-squares fit: from readings along a line (the mirror), an ill-conditioned set of anchors
+or a misplaced neighbour it lands metres off, and the solve, started there, keeps the node in
+a wrong minimum that drags its agents' poses and, through the feedback, the rescuers
+(docs/mission.md, "Node ranges and the rescuers"). A start both kinds confirm is not such a
+point; a node not confirmed now may join at a later solve.
 """
 
 from __future__ import annotations
@@ -121,6 +130,20 @@ def _start(pts: FloatArray, r_pts: FloatArray, nb: FloatArray, r_nb: FloatArray
     return None if len(a) < 3 else linear_init(a, r)
 
 
+def confirmed(*, start_m: FloatArray, reading_xy_m: FloatArray, reading_range_m: FloatArray,
+              neighbour_xy_m: FloatArray, link_range_m: FloatArray, tol_m: float) -> bool:
+    """Whether a joining node's start agrees with each kind of anchor (module doc).
+
+    Its links (neighbours' positions and the pairs' ranges) and its agents' ranges (reading
+    positions, horizontal ranges; none: links only): each kind's median absolute range
+    residual at ``start_m`` at most ``tol_m``.
+    """
+    for a, r in ((neighbour_xy_m, link_range_m), (reading_xy_m, reading_range_m)):
+        if len(a) and float(np.median(np.abs(np.linalg.norm(a - start_m, axis=1) - r))) > tol_m:
+            return False
+    return True
+
+
 def select_linked(paths: list[AgentPath], ranges: RangeSet, links: NodeLinks,
                   base: dict[str, float], anchors_m: dict[str, FloatArray],
                   prm: SmootherParams, height_m: float
@@ -131,7 +154,7 @@ def select_linked(paths: list[AgentPath], ranges: RangeSet, links: NodeLinks,
     the placed nodes' positions (the mission's localized estimates, the marginalized prior's,
     the previous solve's localized ones): of ``base``, those are the anchors; ``height_m``: the
     antenna height difference the agents' ranges are reduced by. The starting points are those
-    of the nodes that joined.
+    of the nodes that joined (confirmed by both anchor kinds: :func:`confirmed`).
     """
     out = dict(base)
     if not len(links):
@@ -154,7 +177,9 @@ def select_linked(paths: list[AgentPath], ranges: RangeSet, links: NodeLinks,
             out[n] = max(out[n], s)
         elif s >= prm.min_spread_m:
             p = _start(raw[k], horiz[k], nb, links.range_m[m][ok])
-            if p is not None and np.all(np.isfinite(p)):
+            if p is not None and np.all(np.isfinite(p)) and confirmed(
+                    start_m=p, reading_xy_m=raw[k], reading_range_m=horiz[k], neighbour_xy_m=nb,
+                    link_range_m=links.range_m[m][ok], tol_m=prm.link_join_tol_m):
                 out[n], joined[n] = s, p
     return out, joined
 

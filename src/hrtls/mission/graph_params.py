@@ -73,6 +73,11 @@ class SmootherParams:
         Standard deviation of a pair's persistent excess path (NLOS through walls), which
         repeating the pair's ranges does not average away; added in variance to a link's
         sigma, m (0: none).
+    link_join_tol_m:
+        A node joining through its links (no geometry from its agents' ranges alone) joins
+        only when its starting point's median absolute range residual, over its links and
+        over its agents' ranges each, is at most this, m
+        (:func:`hrtls.mission.graph_links.confirmed`; inf: no check).
     window_s:
         In the mission loop: poses older than this leave the problem as a prior factor
         (:mod:`hrtls.mission.graph_window`), s; None: every pose stays.
@@ -118,6 +123,7 @@ class SmootherParams:
     link_sigma_m: float = 0.15
     link_sigma_fraction: float = 0.03
     link_bias_sigma_m: float = 0.0
+    link_join_tol_m: float = 1.0
     peer_factors: bool = False
     node_cov_scale: float = 1.0
     link_cov_scale: float = 1.0
@@ -131,6 +137,9 @@ class SmootherParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="SmootherParams", expected="> 0")
+        if not self.link_join_tol_m > 0:
+            raise InputError(f"link_join_tol_m = {self.link_join_tol_m}", where="SmootherParams",
+                             expected="> 0 (inf: no check)")
         for name in ("node_cov_scale", "link_cov_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 1):
