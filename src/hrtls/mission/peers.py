@@ -32,7 +32,8 @@ s_move^2``, is the part that may be correlated with the robot's whole state in a
 range's noise the independent part; consistent for every correlation, so each range is taken
 as it comes (no count ``n``), and a peer is taken only when it lowers the robot's
 uncertainty. On dev seeds 0-9 (docs/mission.md) the widening below made the robot's NEES
-worse than without peer ranges (and its error on some seeds); the intersection did not.
+worse than without peer ranges (and its error on some seeds); the intersection kept its NEES
+about the no-peer level and lowered its error.
 
 A rescuer's tracker (and a robot with ``"widen"``) widens the range as for the dropped nodes
 (:mod:`hrtls.mission.tracker`), which reuses the tracker's scalar range update unchanged:
