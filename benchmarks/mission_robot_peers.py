@@ -10,11 +10,13 @@ for scoring only) gives per update:
 * the peer landmark's error against the peer's true position at the range's time, and its
   1-dof NEES along the line of sight against the variance the rule claimed;
 * the range's normalized residual from the robot's TRUE position, ``(r - |x_true - b|) /
-  sigma_used`` (a consistent rule gives a unit RMS).
+  sigma_used`` (a consistent rule gives a unit RMS; with ``--peer-rule intersect`` the sigma
+  is the range's own, the peer's variance is taken in the robot's update, so the column does
+  not apply).
 
 Printed per peer over the seeds, and the robot's NEES at 1 Hz over the whole track::
 
-    python benchmarks/mission_robot_peers.py --seeds 0-9 [--mode feedback]
+    python benchmarks/mission_robot_peers.py --seeds 0-9 [--mode feedback] [--peer-rule widen]
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ from typing import Any
 import numpy as np
 
 from _engine import parse_seeds
-from hrtls.data.landmarks import Landmark
 from hrtls.mission import peers as peers_mod
 from hrtls.mission import tracker as tracker_mod
+from hrtls.mission.peers import RULES, PeerRangeParams
+from hrtls.mission.robot import RobotTracker
 from hrtls.mission.smoother_modes import MODES, smoother_params
 from hrtls.mission.tracker import MissionParams, MissionTracker
 from hrtls.pipeline import preset
@@ -57,11 +60,13 @@ def truth_xy(mission: Mission, name: str, t: np.ndarray) -> np.ndarray:
                             np.interp(t, truth.t, truth.xyz[:, 1])])
 
 
-def run(seed: int, mode: str | None) -> dict[str, Any]:
+def run(seed: int, mode: str | None, rule: str | None = None) -> dict[str, Any]:
     """One seed: the robot's peer updates and its track's NEES (module doc)."""
     mission = inderst_hybrid_mission(seed, replace(MissionOptions(range_sigma_fraction=0.02),
                                                    peer_ranges=True))
     prm = MissionParams() if mode is None else MissionParams(smoother=smoother_params(mode))
+    if rule is not None:
+        prm = replace(prm, peer_ranges=PeerRangeParams(rule=rule))
     mt = MissionTracker(mission.agents, params=prm, kinds=mission.kinds, config=rescuer_config())
     mt.feed_network(mission.network_ranges)
     robot = next(n for n, k in mission.kinds.items() if k == "robot")
@@ -71,9 +76,11 @@ def run(seed: int, mode: str | None) -> dict[str, Any]:
     def split(m: MissionTracker, i: int, ranges: Any) -> Any:
         rest, peer_r = orig(m, i, ranges)
         if m.names[i] == robot and peer_r is not None:
+            tr = m.trackers[robot]
+            assert isinstance(tr, RobotTracker)
             for k in range(len(peer_r.t)):
-                lm: Landmark = m.trackers[robot].landmarks  # type: ignore[assignment]
-                pos = lm[str(peer_r.node[k])]  # type: ignore[index]
+                peer = str(peer_r.node[k])
+                pos = tr.peers[peer] if peer in tr.peers else tr.landmarks[peer]
                 given.append((float(peer_r.t[k]), str(peer_r.node[k]), float(pos[0]),
                               float(pos[1]), float(peer_r.sigma_m[k])))
         return rest, peer_r
@@ -121,13 +128,15 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-9", help="development seeds only (0-9)")
     ap.add_argument("--mode", choices=MODES, default=None,
                     help="the smoother's named mode (default: the library's)")
+    ap.add_argument("--peer-rule", choices=RULES, default=None,
+                    help="PeerRangeParams.rule: the robot's peer correction (default: its default)")
     args = ap.parse_args()
     allrows: list[dict[str, Any]] = []
     print("| seed | robot p90, m | robot NEES | peer updates | NEES before / after "
           "| error before / after, m | RMS resid (true robot) |")
     print("|---|---|---|---|---|---|---|")
     for seed in parse_seeds(args.seeds):
-        out = run(seed, args.mode)
+        out = run(seed, args.mode, args.peer_rule)
         rows = out["rows"]
         allrows += rows
         if rows:
