@@ -9,16 +9,16 @@ world (the odometry's heading error; a random walk per metre driven). Each odome
     p += R(psi) d,   P = F P F^T + Q,   F = I + [[0, 0, -(R d)_y], [0, 0, (R d)_x], [0, 0, 0]],
     Q = diag((f |d|)^2, (f |d|)^2, q_psi |d|)
 
+and each range to a landmark with a position (the session's, or a node the mission gave with
+:meth:`RobotTracker.set_landmarks`) corrects it as eq. 6.4 (scalar EKF update, Joseph form,
+innovation gate); the mission smoother may set the state (:meth:`RobotTracker.set_smoothed`,
+:mod:`hrtls.mission.feedback`).
+
 With ``RobotTrackerParams.odometry_scale_sigma`` > 0 the state has a fourth component, the
 wheels' scale error ``k`` (one for the run, prior ``N(0, sigma_k^2)``, no process noise):
 ``p += (1 + k) R(psi) d`` and ``F`` gains the column ``dp/dk = R(psi) d``. A scale error is
 not white: over ``D`` metres driven straight it makes an along-track error ``k D`` (variance
 ``sigma_k^2 D^2``), which the per-displacement ``f |d|`` (variance ``f^2 |d| D``) does not cover.
-
-and each range to a landmark with a position (the session's, or a node the mission gave with
-:meth:`RobotTracker.set_landmarks`) corrects it as eq. 6.4 (scalar EKF update, Joseph form,
-innovation gate); the mission smoother may set the state (:meth:`RobotTracker.set_smoothed`,
-:mod:`hrtls.mission.feedback`).
 
 A range to another agent (a peer, :meth:`RobotTracker.set_peers`, ``PeerRangeParams.rule``
 "intersect") is taken by split covariance intersection (Julier & Uhlmann 1997; the split form:
