@@ -29,6 +29,9 @@ older than this leave its problem as a prior (``SmootherParams.window_s``); its 
 ``--peer-ranges``: cooperation on, the mission simulated without and with inter-agent ranges
 (``MissionOptions.peer_ranges``, the rest of the mission identical); ``--peer-extrapolate``:
 the peers carried to a range's time with their velocity (``PeerRangeParams.extrapolate``);
+``--peer-rule``: a robot's peer correction, widening or covariance intersection
+(``PeerRangeParams.rule``); ``--peer-factors-only``: with the smoother's peer factors no
+tracker takes a peer range itself (``PeerRangeParams.factors_only``);
 ``--peer-factors on|off``: the inter-agent ranges as factors of the smoother
 (``SmootherParams.peer_factors``).
 
@@ -88,7 +91,7 @@ from _mission_reach import NodeReach, node_reach, reach_lines
 from _mission_why import true_readings, why_not_localized, why_table
 from hrtls.mission.graph import SmootherParams
 from hrtls.mission.nodes import NodeEstimator, NodeEstimatorParams
-from hrtls.mission.peers import PeerRangeParams
+from hrtls.mission.peers import RULES, PeerRangeParams
 from hrtls.mission.smoother_modes import MODES, smoother_mode, smoother_params
 from hrtls.mission.tracker import MissionParams, MissionResult, MissionTracker
 from hrtls.pipeline import preset
@@ -172,11 +175,20 @@ class SeedItem:
     """The rescuers' ``[tags]`` table (empty: the defaults)."""
     smooth_readings_s: float | None = None
     """``MissionParams.smooth_readings_s`` (None: its default)."""
+    peer_rule: str | None = None
+    """``PeerRangeParams.rule``: a robot's peer correction (None: its default)."""
+    peer_factors_only: bool = False
+    """``PeerRangeParams.factors_only``: with the smoother's peer factors no tracker takes one."""
+    only_peers: bool = False
+    """With ``peers``: the column with the inter-agent ranges only."""
 
 
-def modes(peers: bool, only_on: bool = False, only_off: bool = False) -> tuple[str, ...]:
+def modes(peers: bool, only_on: bool = False, only_off: bool = False,
+          only_peers: bool = False) -> tuple[str, ...]:
     """The columns compared: cooperation off / on (``only_on``: on, ``only_off``: off), or peer
-    ranges off / on."""
+    ranges off / on (``only_peers``: on)."""
+    if peers and only_peers:
+        return ("peers",)
     if only_off and not peers:
         return ("off",)
     return ("no peers", "peers") if peers else ("on",) if only_on else ("off", "on")
@@ -266,12 +278,14 @@ def true_agent_rmse(mission: Mission, tracker: MissionTracker) -> float:
 def run_seed(item: SeedItem) -> dict[str, ModeScores]:
     """Scores of one seed with cooperation ``off`` and ``on``."""
     out: dict[str, ModeScores] = {}
-    for mode in modes(item.peers, item.only_on, item.only_off):
+    for mode in modes(item.peers, item.only_on, item.only_off, item.only_peers):
         peers = mode == "peers"
         mission = inderst_hybrid_mission(item.seed, replace(item.options, peer_ranges=peers))
         tracker = MissionTracker(mission.agents, params=MissionParams(
             cooperate=mode in ("on", "peers", "no peers"), nodes=item.nodes,
-            peer_ranges=PeerRangeParams(extrapolate=item.peer_extrapolate),
+            peer_ranges=PeerRangeParams(
+                extrapolate=item.peer_extrapolate, factors_only=item.peer_factors_only,
+                **({} if item.peer_rule is None else {"rule": item.peer_rule})),
             smoother=item.smoother, pass_cap=item.pass_cap,
             **({} if item.loop_closure_ratio is None else
                {"loop_closure_ratio": item.loop_closure_ratio}),
@@ -304,7 +318,7 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
     """``--smoother`` with ``--feedback``, ``--every-s``, ``--feedback-cov-scale``,
     ``--feedback-gate``, ``--window-s`` and the smoother's model options; without it the
     smoother of ``--mode`` (default: the library's, ``MissionParams().smoother``);
-    ``--peer-factors``, ``--link-bias-sigma-m``, ``--link-cov-scale`` and
+    ``--peer-factors``, ``--robots-take``, ``--link-bias-sigma-m``, ``--link-cov-scale`` and
     ``--link-join-tol-m`` on either."""
     links = {k: getattr(args, k) for k in ("link_bias_sigma_m", "link_cov_scale",
                                            "link_join_tol_m")
@@ -313,6 +327,8 @@ def smoother_of(args: argparse.Namespace) -> SmootherParams | None:
         sm = MissionParams().smoother if args.mode is None else smoother_params(args.mode)
         if sm is not None and args.peer_factors is not None:
             sm = replace(sm, peer_factors=args.peer_factors == "on")
+        if sm is not None and args.robots_take is not None:
+            sm = replace(sm, robots=args.robots_take)
         return sm if sm is None else replace(sm, **links)
     kw: dict[str, Any] = {}
     for key in ("feedback", "robots_take", "every_s", "feedback_cov_scale", "feedback_gate",
@@ -358,6 +374,13 @@ def main() -> None:
                     "smoother (default: the smoother's)")
     ap.add_argument("--peer-extrapolate", action="store_true",
                     help="PeerRangeParams.extrapolate: a peer extrapolated with its velocity")
+    ap.add_argument("--only-peers", action="store_true",
+                    help="with --peer-ranges: the column with the ranges only (candidates)")
+    ap.add_argument("--peer-rule", choices=RULES, default=None,
+                    help="PeerRangeParams.rule: a robot's peer correction (default: its default)")
+    ap.add_argument("--peer-factors-only", action="store_true",
+                    help="PeerRangeParams.factors_only: with the smoother's peer factors no "
+                    "tracker takes a peer range (the feedback mode's robot ignores them)")
     ap.add_argument("--max-sigma-m", type=float, default=None,
                     help="NodeEstimatorParams.max_sigma_m (default: its default)")
     ap.add_argument("--agent-cov-scale", type=float, default=None,
@@ -407,8 +430,8 @@ def main() -> None:
                     help="with --smoother: SmootherParams.feedback (the smoother's latest poses "
                          "given back to the rescuers' trackers)")
     ap.add_argument("--robots-take", dest="robots_take", choices=("nodes", "feedback", "alone"),
-                    default=None, help="with --smoother: SmootherParams.robots (what a robot "
-                    "takes from the mission)")
+                    default=None, help="SmootherParams.robots (what a robot takes from the "
+                    "mission; with --smoother or --mode)")
     ap.add_argument("--every-s", type=float, default=None,
                     help="with --smoother: SmootherParams.every_s (default: its default)")
     ap.add_argument("--feedback-cov-scale", type=float, default=None,
@@ -464,7 +487,7 @@ def main() -> None:
                           robot_driver=args.robot_driver, rescuer_driver=args.rescuer_driver,
                           tag_layout=args.tags, door_spacing_m=args.door_spacing_m,
                           n_floors=args.floors, node_ranges=args.node_ranges)
-    cols = modes(args.peer_ranges, args.only_on, args.only_off)
+    cols = modes(args.peer_ranges, args.only_on, args.only_off, args.only_peers)
     rows: dict[str, dict[str, list[float]]] = {
         m: {"mean": [], "p90": [], "max": [], "frac": [], "rmse": [], "anees": [],
             "rmse_true": [], "robot_p90": [], "robot_nees": [], "w0": [], "w1": [], "a0": [],
@@ -494,7 +517,8 @@ def main() -> None:
                       attitude, args.loop_closure_ratio, not args.no_pass_cap,
                       only_off=args.only_off, use_variance_ratio=args.use_variance_ratio,
                       tags={"sigma_per_accuracy": args.tag_sigma_per_accuracy},
-                      smooth_readings_s=args.smooth_readings_s)
+                      smooth_readings_s=args.smooth_readings_s, peer_rule=args.peer_rule,
+                      peer_factors_only=args.peer_factors_only, only_peers=args.only_peers)
              for seed in parse_seeds(args.seeds)]
     for item, scores in batch.map(run_seed, items, label=lambda it: f"seed {it.seed}"):
         for mode in cols:

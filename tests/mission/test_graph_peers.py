@@ -22,6 +22,7 @@ from hrtls.mission.graph_peers import (
     pose_weights,
 )
 from hrtls.mission.graph_window import Layout, solution_vector
+from hrtls.mission.peers import PeerRangeParams
 from hrtls.mission.robot import RobotTracker
 from hrtls.mission.smoother_modes import smoother_params
 from hrtls.mission.tracker import MissionParams, MissionTracker
@@ -199,7 +200,8 @@ def _peer_corrections(tr: Tracker | RobotTracker, names: list[str]) -> int:
 def test_fed_back_agents_take_peer_ranges_only_through_the_smoother(mission) -> None:  # type: ignore[no-untyped-def]
     """Counted once: with the factors and feedback, no rescuer's tracker makes a correction from
     a peer range, the robot (alone) still does; without feedback (``nodes``) every tracker
-    does, and the smoother holds the ranges either way."""
+    does, and the smoother holds the ranges either way; with ``factors_only`` no tracker does
+    (the robot ignores them)."""
     names = list(mission.agents)
     for mode, rescuers_take in (("feedback", False), ("nodes", True)):
         mt = MissionTracker(mission.agents, kinds=mission.kinds, params=_params(mode, True))
@@ -215,6 +217,11 @@ def test_fed_back_agents_take_peer_ranges_only_through_the_smoother(mission) -> 
     off.run()
     assert off.smoother is not None and not off.smoother.peers
     assert all(_peer_corrections(off.trackers[n], names) > 0 for n in names)
+    only = MissionTracker(mission.agents, kinds=mission.kinds, params=replace(
+        _params("feedback", True), peer_ranges=PeerRangeParams(factors_only=True)))
+    only.run()
+    assert only.smoother is not None and sum(len(p[1]) for p in only.smoother.peers) > 0
+    assert all(_peer_corrections(only.trackers[n], names) == 0 for n in names)
 
 
 def _range_misfit(mission, solved) -> float:  # type: ignore[no-untyped-def]

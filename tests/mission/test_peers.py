@@ -39,8 +39,9 @@ def test_one_exact_range_pulls_a_toward_b_and_shrinks_its_covariance_along_the_l
     x_A += P_xx / (P_xx + s^2) * (9 - 10), P_xx *= s^2 / (P_xx + s^2),
     s^2 = (1e-3)^2 + lambda_max(P_B) + s_move^2; P_yy unchanged. B stands: its rows do not move,
     so the extrapolated landmark stays at (10, 0) with s_move^2 = q g^3 / 3 (no velocity
-    spread), g = 2.2 s; held: s_move^2 = (PEER_SPEED_M_S g)^2."""
-    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=extrapolate))
+    spread), g = 2.2 s; held: s_move^2 = (PEER_SPEED_M_S g)^2. The widening rule (two
+    robots: by default they would intersect, ``tests/mission/test_robot_peers.py``)."""
+    prm = MissionParams(peer_ranges=PeerRangeParams(extrapolate=extrapolate, rule="widen"))
     rg = RangeMeasurements(np.array([7.0]), np.array(["B"]), np.array([9.0]), np.array([1e-3]))
     alone = MissionTracker({"A": _robot(0.0, None), "B": _robot(10.0, None)},
                            kinds={"A": "robot", "B": "robot"}, params=prm).run()

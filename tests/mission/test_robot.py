@@ -26,7 +26,7 @@ def mission():  # type: ignore[no-untyped-def]
 
 
 def _empty_ranges() -> tuple[np.ndarray, ...]:
-    return np.zeros(0), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+    return np.zeros(0), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0)
 
 
 def test_two_straight_displacements_by_hand() -> None:
@@ -51,7 +51,7 @@ def test_range_update_by_hand_and_gate() -> None:
     p = np.diag([1.0, 1.0, 0.1])
     _, _, acc, _ = robot_kernel(x, p, np.zeros((0, 2)), np.zeros(0), np.array([0.5, 0.6]),
                              np.array([[10.0, 0.0], [10.0, 0.0]]), np.array([9.0, 100.0]),
-                             np.array([1.0, 1.0]), 0.03, 1e-4, 4.0)
+                             np.array([1.0, 1.0]), np.full(2, np.nan), 0.03, 1e-4, 4.0)
     np.testing.assert_array_equal(acc, [True, False])
     np.testing.assert_allclose(x, [0.5, 0.0, 0.0])
     np.testing.assert_allclose(p, np.diag([0.5, 1.0, 0.1]), atol=1e-12)

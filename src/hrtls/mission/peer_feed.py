@@ -13,8 +13,9 @@ the smoother solves both agents' poses with the range, and the feedback carries 
 tracker; taken there too it would count twice (as a fed-back rescuer's ranges to the
 smoother's nodes, :func:`hrtls.mission.smoothing.via_feedback`). Any other agent (every agent
 without feedback; the robot of the ``feedback`` mode, ``robots`` "alone") keeps its tracker's
-own correction (:mod:`hrtls.mission.peers`): the smoother takes the raw range as a factor and
-never that correction (its jump leaves the agent's dead reckoning and it is no factor,
+own correction (:mod:`hrtls.mission.peers`; none with ``PeerRangeParams.factors_only``: it
+then ignores its peer ranges): the smoother takes the raw range as a factor and never that
+correction (its jump leaves the agent's dead reckoning and it is no factor,
 :func:`hrtls.mission.smoothing._agent_path`), so no range enters the smoother twice.
 
 Window. When an agent's poses before ``t_c`` leave the problem, so do the ranges it measured
@@ -52,7 +53,7 @@ def takes_peers(mt: MissionTracker, i: int) -> bool:
         return True
     tr = mt.trackers[mt.names[i]]
     fed = isinstance(tr, Tracker) or (isinstance(tr, RobotTracker) and prm.robots == "feedback")
-    return not fed
+    return not fed and not mt.params.peer_ranges.factors_only
 
 
 def collect(mt: MissionTracker, i: int, ranges: RangeMeasurements) -> None:

@@ -23,9 +23,20 @@ Sec. 6.2.2, eq. 6.2.2-12): B may turn or stop after its last row. With fewer tha
 held with the bound.
 
 Consistency. After a first exchange the two filters' errors are correlated, and a filter that
-takes the peer as an independent anchor over-counts. Rule chosen: the same widening as for the
-dropped nodes (:mod:`hrtls.mission.tracker`), not covariance intersection, because it reuses
-the trackers' scalar range update unchanged and keeps the cross terms bounded by construction:
+takes the peer as an independent anchor over-counts; so does a robot whose peer is a rescuer
+the smoother fed back with the robot's own ranges. Two rules (``PeerRangeParams.rule``).
+
+A robot (default ``"intersect"``) takes the range by split covariance intersection
+(:mod:`hrtls.mission.robot`): B's variance along the line of sight, ``lambda_max(P_B) +
+s_move^2``, is the part that may be correlated with the robot's whole state in any way, the
+range's noise the independent part; consistent for every correlation, so each range is taken
+as it comes (no count ``n``), and a peer is taken only when it lowers the robot's
+uncertainty. On dev seeds 0-9 (docs/mission.md) the widening below made the robot's NEES
+worse than without peer ranges (and its error on some seeds); the intersection kept its NEES
+about the no-peer level and lowered its error.
+
+A rescuer's tracker (and a robot with ``"widen"``) widens the range as for the dropped nodes
+(:mod:`hrtls.mission.tracker`), which reuses the tracker's scalar range update unchanged:
 
     sigma_use^2 = sigma_r^2 + n * (lambda_max(P_B) + s_move^2)
 
@@ -54,9 +65,13 @@ from hrtls.data.landmarks import Landmark
 from hrtls.data.observations import RangeMeasurements
 from hrtls.errors import InputError
 from hrtls.mission import peer_feed
+from hrtls.mission.robot import RobotTracker
 
 if TYPE_CHECKING:
     from hrtls.mission.tracker import MissionTracker
+
+RULES = ("widen", "intersect")
+"""The robot's peer correction rules (``PeerRangeParams.rule``)."""
 
 PEER_SPEED_M_S = 2.0
 """Bound on an agent's speed (walking rescuer, robot), m/s: B's move since its estimate."""
@@ -75,17 +90,28 @@ class PeerRangeParams:
     velocity_window_s: span of the peer's latest rows its velocity is taken from, s.
     accel_sigma_m_s2: square root of the white-noise acceleration density ``q``, m/s^2/sqrt(Hz)
         (``q g^3 / 3``: position variance after ``g`` s).
+    rule: a robot's correction by a peer range: ``"intersect"`` (default: covariance
+        intersection, :mod:`hrtls.mission.robot`) or ``"widen"`` (the widening rule, module
+        doc); a rescuer's tracker always widens.
+    factors_only: with the smoother's peer factors (:mod:`hrtls.mission.peer_feed`) no tracker
+        takes a peer range itself: a fed-back agent gets it through the feedback, any other
+        agent (the ``feedback`` mode's robot) ignores it.
     """
 
     extrapolate: bool = False
     velocity_window_s: float = 2.0
     accel_sigma_m_s2: float = 0.6
+    rule: str = "intersect"
+    factors_only: bool = False
 
     def __post_init__(self) -> None:
         for name in ("velocity_window_s", "accel_sigma_m_s2"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="PeerRangeParams", expected="> 0")
+        if self.rule not in RULES:
+            raise InputError(f"rule = {self.rule!r}", where="PeerRangeParams",
+                             expected=" or ".join(RULES))
 
     def rows_kept_s(self) -> float:
         """How far back (s) an agent's rows must be kept for the extrapolation."""
@@ -189,6 +215,7 @@ def split_peer_ranges(mt: MissionTracker, i: int, ranges: RangeMeasurements | No
     if not peer_feed.takes_peers(mt, i):
         return rest, None
     rows: list[tuple[float, str, float, float]] = []
+    intersect = mt.params.peer_ranges.rule == "intersect"
     for peer in sorted(set(ranges.node[is_peer].tolist()) - {mt.names[i]}):
         sel = np.flatnonzero(ranges.node == peer)
         got = _peer_at(mt, peer, ranges.t[sel])
@@ -199,11 +226,16 @@ def split_peer_ranges(mt: MissionTracker, i: int, ranges: RangeMeasurements | No
         last_t, n = mt.peers.uses.get((i, peer), (-math.inf, 0))
         n = 1 if tk - last_t > mt.params.pass_gap_s else n + 1
         mt.peers.uses[(i, peer)] = (tk, n)
-        sigma = math.sqrt(float(ranges.sigma_m[sel[k]]) ** 2 + n * var)
+        sigma_r = float(ranges.sigma_m[sel[k]])
+        tr = mt.trackers[mt.names[i]]
+        if intersect and isinstance(tr, RobotTracker):
+            tr.set_peers({peer: (float(pos[0]), float(pos[1]), var)})
+            rows.append((tk, peer, float(ranges.range_m[sel[k]]), sigma_r))
+            continue
         lm = Landmark(id=peer, kind="node", floor=0, accuracy_m=math.sqrt(var),
                       position=(float(pos[0]), float(pos[1]), 0.0), updated=tk)
         mt.give_landmarks(mt.names[i], {peer: lm})
-        rows.append((tk, peer, float(ranges.range_m[sel[k]]), sigma))
+        rows.append((tk, peer, float(ranges.range_m[sel[k]]), math.sqrt(sigma_r ** 2 + n * var)))
     if not rows:
         return rest, None
     rows.sort()

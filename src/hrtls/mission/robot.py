@@ -12,7 +12,25 @@ world (the odometry's heading error; a random walk per metre driven). Each odome
 and each range to a landmark with a position (the session's, or a node the mission gave with
 :meth:`RobotTracker.set_landmarks`) corrects it as eq. 6.4 (scalar EKF update, Joseph form,
 innovation gate); the mission smoother may set the state (:meth:`RobotTracker.set_smoothed`,
-:mod:`hrtls.mission.feedback`). The per-event loop is a compiled kernel; :class:`RobotTracker`
+:mod:`hrtls.mission.feedback`).
+
+With ``RobotTrackerParams.odometry_scale_sigma`` > 0 the state has a fourth component, the
+wheels' scale error ``k`` (one for the run, prior ``N(0, sigma_k^2)``, no process noise):
+``p += (1 + k) R(psi) d`` and ``F`` gains the column ``dp/dk = R(psi) d``. A scale error is
+not white: over ``D`` metres driven straight it makes an along-track error ``k D`` (variance
+``sigma_k^2 D^2``), which the per-displacement ``f |d|`` (variance ``f^2 |d| D``) does not cover.
+
+A range to another agent (a peer, :meth:`RobotTracker.set_peers`, ``PeerRangeParams.rule``
+"intersect") is taken by split covariance intersection (Julier & Uhlmann 1997; the split form:
+Julier & Uhlmann 2001): the peer's position error (variance ``v`` along the line of sight) may
+be correlated with the robot's whole state in any way, the range's own noise ``s^2`` is not::
+
+    P_w = P / w,   R_w = s^2 + v / (1 - w),   K = P_w h / (h P_w h + R_w),
+    P+ = (I - K h) P_w (I - K h)^T + K R_w K^T
+
+which is consistent for every cross-covariance when ``P`` and ``v`` are; ``w`` minimizes
+``det(P+)`` (:func:`intersect_weight`). The gate tests the innovation against ``h P h + s^2 +
+v``. The per-event loop is a compiled kernel; :class:`RobotTracker`
 has the part of :class:`hrtls.pipeline.Tracker`'s interface
 :class:`~hrtls.mission.tracker.MissionTracker` uses.
 """
@@ -53,49 +71,64 @@ class RobotTrackerParams:
         Growth of the odometry-frame rotation variance per metre driven, rad^2 / m.
     gate_sigma:
         A range whose innovation exceeds this many sigmas is rejected (NLOS).
+    odometry_scale_sigma:
+        1-sigma of the wheels' scale error, one for the whole run (a state, module doc); 0
+        (default): no such state.
     """
 
     odometry_fraction: float = 0.03
     heading_var_per_m: float = 1e-4
     gate_sigma: float = 4.0
+    odometry_scale_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("odometry_fraction", "heading_var_per_m", "gate_sigma"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} = {v}", where="RobotTrackerParams", expected="> 0")
+        v = self.odometry_scale_sigma
+        if not (math.isfinite(v) and v >= 0):
+            raise InputError(f"odometry_scale_sigma = {v}", where="RobotTrackerParams",
+                             expected=">= 0")
 
 
 @njit(cache=True)
 def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatArray,
                  t_rng: FloatArray, lm: FloatArray, r: FloatArray, s: FloatArray,
-                 frac: float, q_psi: float, gate: float
+                 v: FloatArray, frac: float, q_psi: float, gate: float
                  ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray]:
     """Odometry predictions and range updates in time order (module doc).
 
-    Returns the state and covariance after each odometry event ``(n, 3)``, ``(n, 3, 3)``,
+    The state is ``[x, y, psi]`` or, with the odometry scale, ``[x, y, psi, k]`` (module doc).
+    Returns the state and covariance after each odometry event ``(n, d)``, ``(n, d, d)``,
     which ranges were accepted and, per range, ``[x, y, P00, P01, P11]`` before and after its
     update ``(m, 10)``; ``x``, ``p`` are updated in place. A range at the time of an odometry
-    event is applied after it; ranges with a NaN landmark are skipped.
+    event is applied after it; ranges with a NaN landmark are skipped; a range whose landmark
+    variance ``v`` is finite (a peer) is taken by covariance intersection.
     """
-    n, m = t_odo.shape[0], t_rng.shape[0]
-    xs = np.empty((n, 3))
-    ps = np.empty((n, 3, 3))
+    n, m, nx = t_odo.shape[0], t_rng.shape[0], x.shape[0]
+    xs = np.empty((n, nx))
+    ps = np.empty((n, nx, nx))
     acc = np.zeros(m, dtype=np.bool_)
     around = np.empty((m, 10))
     j = 0
     for i in range(n):
         while j < m and t_rng[j] < t_odo[i]:
-            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
+            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], v[j], gate, around[j])
             j += 1
         c, sn = math.cos(x[2]), math.sin(x[2])
-        dx = c * d_odo[i, 0] - sn * d_odo[i, 1]
-        dy = sn * d_odo[i, 0] + c * d_odo[i, 1]
+        g = 1.0 + x[3] if nx == 4 else 1.0
+        rx = c * d_odo[i, 0] - sn * d_odo[i, 1]                  # R(psi) d
+        ry = sn * d_odo[i, 0] + c * d_odo[i, 1]
+        dx, dy = g * rx, g * ry
         x[0] += dx
         x[1] += dy
-        f = np.eye(3)
+        f = np.eye(nx)
         f[0, 2] = -dy
         f[1, 2] = dx
+        if nx == 4:
+            f[0, 3] = rx
+            f[1, 3] = ry
         pn = f @ p @ f.T
         dist = math.hypot(d_odo[i, 0], d_odo[i, 1])
         pn[0, 0] += (frac * dist) ** 2 + 1e-10
@@ -103,47 +136,78 @@ def robot_kernel(x: FloatArray, p: FloatArray, d_odo: FloatArray, t_odo: FloatAr
         pn[2, 2] += q_psi * dist
         p[:, :] = 0.5 * (pn + pn.T)
         while j < m and t_rng[j] <= t_odo[i]:
-            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
+            acc[j] = _logged_update(x, p, lm[j], r[j], s[j], v[j], gate, around[j])
             j += 1
         xs[i] = x
         ps[i] = p
     while j < m:
-        acc[j] = _logged_update(x, p, lm[j], r[j], s[j], gate, around[j])
+        acc[j] = _logged_update(x, p, lm[j], r[j], s[j], v[j], gate, around[j])
         j += 1
     return xs, ps, acc, around
 
 
 @njit(cache=True)
 def _logged_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: float,
-                   gate: float, around: FloatArray) -> bool:
+                   v: float, gate: float, around: FloatArray) -> bool:
     """:func:`_range_update` with the position and its covariance before and after."""
-    for k, v in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
-        around[k] = v
-    ok = _range_update(x, p, lm, r, s, gate)
-    for k, v in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
-        around[5 + k] = v
+    for k, a in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
+        around[k] = a
+    ok = _range_update(x, p, lm, r, s, v, gate)
+    for k, a in enumerate((x[0], x[1], p[0, 0], p[0, 1], p[1, 1])):
+        around[5 + k] = a
     return ok
 
 
 @njit(cache=True)
+def intersect_weight(p: FloatArray, hrow: FloatArray, s2: float, v: float) -> float:
+    """Covariance intersection's weight ``w`` in (0, 1] of a range to a peer (module doc).
+
+    The state's ``P / w`` and the peer's variance ``v / (1 - w)`` along the line of sight, the
+    range's own ``s2`` kept (split CI): the ``w`` of the grid ``k / 50`` whose posterior has the
+    smallest determinant, ``det(P) w^-n R_w / S_w`` (matrix determinant lemma), ``R_w = s2 +
+    v / (1 - w)``, ``S_w = h P h / w + R_w``, ``n`` the state's size; 1 (no update) when no
+    ``w`` < 1 lowers it.
+    """
+    a = hrow @ p @ hrow
+    n = p.shape[0]
+    best_w, best = 1.0, 1.0
+    for k in range(1, 50):
+        w = k / 50.0
+        r_w = s2 + v / (1.0 - w)
+        f = r_w / (w ** n * (a / w + r_w))
+        if f < best:
+            best_w, best = w, f
+    return best_w
+
+
+@njit(cache=True)
 def _range_update(x: FloatArray, p: FloatArray, lm: FloatArray, r: float, s: float,
-                  gate: float) -> bool:
+                  v: float, gate: float) -> bool:
     if not (math.isfinite(lm[0]) and math.isfinite(lm[1])):
         return False
     ex, ey = x[0] - lm[0], x[1] - lm[1]
     h = math.hypot(ex, ey)
     if h < 1e-9:
         return False
-    hrow = np.array([ex / h, ey / h, 0.0])
-    ph = p @ hrow
-    sv = hrow @ ph + s * s
+    hrow = np.zeros(x.shape[0])
+    hrow[0], hrow[1] = ex / h, ey / h
     innov = r - h
-    if innov * innov > gate * gate * sv:
+    ph = p @ hrow
+    r2 = s * s + (v if math.isfinite(v) else 0.0)
+    if innov * innov > gate * gate * (hrow @ ph + r2):
         return False
-    k = ph / sv
+    pw = p
+    if math.isfinite(v):
+        w = intersect_weight(p, hrow, s * s, v)
+        if w >= 1.0:
+            return True
+        pw = p / w                                               # P / w
+        r2 = s * s + v / (1.0 - w)
+        ph = pw @ hrow
+    k = ph / (hrow @ ph + r2)
     x += k * innov
-    ikh = np.eye(3) - np.outer(k, hrow)
-    pn = ikh @ p @ ikh.T + np.outer(k, k) * (s * s)
+    ikh = np.eye(x.shape[0]) - np.outer(k, hrow)
+    pn = ikh @ pw @ ikh.T + np.outer(k, k) * r2
     p[:, :] = 0.5 * (pn + pn.T)
     return True
 
@@ -157,6 +221,7 @@ class RobotTracker:
     def __init__(self, params: RobotTrackerParams | None = None) -> None:
         self.params = params or RobotTrackerParams()
         self.landmarks: dict[str, tuple[float, float]] = {}
+        self.peers: dict[str, tuple[float, float, float]] = {}
         self._rows: list[tuple[FloatArray, FloatArray, FloatArray]] = []
         self._corr = CorrectionLog()
         self._accepted = 0
@@ -169,8 +234,11 @@ class RobotTracker:
         if sp is None or session.fixes is None or len(session.fixes.t) < 2:
             raise InputError("a robot session needs a start pose and odometry poses",
                              where="robot session", expected="meta.start_pose and fixes.csv")
-        self.x = np.array([sp.x, sp.y, 0.0])
-        self.p = np.diag([sp.sigma_xy_m ** 2, sp.sigma_xy_m ** 2, sp.sigma_heading_rad ** 2])
+        var = [sp.sigma_xy_m ** 2, sp.sigma_xy_m ** 2, sp.sigma_heading_rad ** 2]
+        k = self.params.odometry_scale_sigma
+        self.x = np.zeros(4 if k > 0 else 3)
+        self.x[:2] = sp.x, sp.y
+        self.p = np.diag(var + ([k * k] if k > 0 else []))
         self._last_odo = np.asarray(session.fixes.xyz[0, :2], dtype=np.float64).copy()
         self._last_t = -math.inf
         self.set_landmarks({k: lm for k, lm in session.landmarks.items()
@@ -182,6 +250,14 @@ class RobotTracker:
         for k, lm in landmarks.items():
             if lm.position is not None:
                 self.landmarks[k] = (float(lm.position[0]), float(lm.position[1]))
+
+    def set_peers(self, peers: dict[str, tuple[float, float, float]]) -> None:
+        """Peers as range anchors from now on, ``(x, y, variance)`` in m and m^2.
+
+        A range to one is taken by covariance intersection (its error correlated with the
+        robot's, module doc).
+        """
+        self.peers.update(peers)
 
     def update_landmarks(self, versions: Sequence[Landmark]) -> None:
         """New versions of landmarks from now on; a destroyed one is no range anchor any more."""
@@ -210,13 +286,16 @@ class RobotTracker:
         lm = np.full((len(t_r), 2), np.nan)
         r = np.zeros(len(t_r)) if rg is None else np.asarray(rg.range_m, dtype=np.float64)
         s = np.ones(len(t_r))
+        v = np.full(len(t_r), np.nan)
         if rg is not None:
             s = np.where(np.isfinite(rg.sigma_m), rg.sigma_m, 0.1)
             for k, node in enumerate(rg.node.tolist()):
-                if str(node) in self.landmarks:
+                if str(node) in self.peers:
+                    lm[k, 0], lm[k, 1], v[k] = self.peers[str(node)]
+                elif str(node) in self.landmarks:
                     lm[k] = self.landmarks[str(node)]
         prm = self.params
-        xs, ps, acc, around = robot_kernel(self.x, self.p, d, t_odo, t_r, lm, r, s,
+        xs, ps, acc, around = robot_kernel(self.x, self.p, d, t_odo, t_r, lm, r, s, v,
                                            prm.odometry_fraction, prm.heading_var_per_m,
                                            prm.gate_sigma)
         if acc.any():
@@ -259,6 +338,7 @@ class RobotTracker:
         """A started tracker's state as plain values and arrays (:mod:`hrtls.mission.snapshot`)."""
         return {"robot": {k: getattr(self, k) for k in _STATE_FIELDS},
                 "params": dataclasses.asdict(self.params), "landmarks": dict(self.landmarks),
+                "peers": dict(self.peers),
                 "rows": list(self._all()), "corr_count": self._corr.count()}
 
     @classmethod
@@ -273,6 +353,8 @@ class RobotTracker:
         for k, v in d["robot"].items():
             setattr(self, k, v)
         self.landmarks = {k: (float(v[0]), float(v[1])) for k, v in d["landmarks"].items()}
+        self.peers = {k: (float(v[0]), float(v[1]), float(v[2]))
+                      for k, v in d.get("peers", {}).items()}
         self._rows = [tuple(d["rows"])] if len(d["rows"][0]) else []
         self._corr = CorrectionLog(int(d.get("corr_count", 0)))
 
